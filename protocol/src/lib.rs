@@ -1,0 +1,80 @@
+//! The Kerfmeter wire protocol, shared by the device firmware and the host library.
+//!
+//! `no_std`, no allocation: the same types and the same framing code run on the ESP32 and on a PC.
+//!
+//! # Wire format
+//!
+//! Every message travels as one frame:
+//!
+//! ```text
+//!   0x00 │ COBS( postcard(Envelope<Request|Response>) ‖ CRC-16/IBM-SDLC little-endian ) │ 0x00
+//!   ^^^^                                                                                 ^^^^
+//!   optional leading delimiter (flushes                                    frame delimiter
+//!   any garbage before the frame)
+//!
+//!   Envelope = seq: varint u16 │ body: varint variant index │ variant fields (postcard)
+//! ```
+//!
+//! - **COBS** removes every `0x00` from the payload, so `0x00` only ever means "end of frame". A
+//!   receiver that sees garbage (the ESP32-C3 ROM prints a boot banner on the same USB port) drops
+//!   bytes until the next `0x00` and starts afresh: it *resynchronises*. Senders put an extra `0x00`
+//!   before every frame so that a frame following garbage is not glued to it. Empty frames (two
+//!   `0x00` in a row) are ignored.
+//! - **CRC-16** (`CRC_16_IBM_SDLC`, the HDLC/X.25 checksum) over the postcard bytes catches what COBS
+//!   does not: flipped bits and dropped bytes inside a frame. A frame that fails it is dropped and
+//!   never answered; the host times out and retries.
+//! - **`seq`** is chosen by the host and echoed by the device. The device remembers the last `seq`
+//!   and its response: a request repeated with the same `seq` (a retry after a lost response) is
+//!   answered again from memory, never executed twice. A new request uses a new `seq`.
+//! - The device only answers: exactly one response per accepted request, never an unsolicited
+//!   frame. Logs go elsewhere (UART0), never into this stream.
+//! - Every size is bounded at compile time ([`postcard::experimental::max_size::MaxSize`]):
+//!   [`MAX_REQUEST_FRAME_LEN`] and [`MAX_RESPONSE_FRAME_LEN`] are what a receiver must buffer.
+//!
+//! # Compatibility rules
+//!
+//! - [`Request::GetInfo`] is variant 0 and [`Response::Info`] is variant 0, and both are frozen
+//!   forever, [`DeviceInfo`] included: whatever the versions, a host can always ask a device what it
+//!   is and which protocol it speaks.
+//! - Adding a request, a response, or an enum variant **at the end** is a *minor* change
+//!   ([`PROTOCOL_VERSION`]`.minor += 1`). An older device answers an unknown request with
+//!   [`ErrorCode::UnknownRequest`].
+//! - Changing or reordering anything that exists (a field, its type, a variant's position) is a
+//!   *major* change. Host and device refuse to talk across majors (the host checks
+//!   [`DeviceInfo::protocol`] first).
+//! - The golden-frame tests in `tests/golden.rs` pin the bytes of existing messages: a wire change
+//!   fails them, and the version must move with it.
+
+#![no_std]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+#[cfg(feature = "std")]
+extern crate std;
+
+mod frame;
+mod messages;
+mod params;
+mod report;
+
+pub use frame::{
+    CRC16, DecodeError, Deframer, DeframerStats, EncodeError, Feed, FrameError, MAX_REQUEST_FRAME_LEN,
+    MAX_RESPONSE_FRAME_LEN, encode_frame, max_frame_len,
+};
+pub use messages::{
+    ConfigReport, DeviceInfo, Envelope, ErrorCode, FirmwareVersion, HardwareInfo, ParamField, ProtocolVersion,
+    Request, Response, BOARD_NAME_LEN,
+};
+pub use params::{DeviceConfig, EncoderPlacement, GaugeGeometry, JamDirection, RunParams};
+pub use report::{
+    Fault, KerfResult, QualityFlags, RunState, SAMPLES_PER_CHUNK, Sample, SampleChunk,
+    SelfTestItem, SelfTestReport, Status, TestOutcome,
+};
+
+/// The protocol this crate speaks. See the compatibility rules in the crate docs.
+pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 1, minor: 0 };
+
+/// USB vendor id of the ESP32-C3/C6 USB-Serial-JTAG port (Espressif).
+pub const USB_VID_ESPRESSIF: u16 = 0x303A;
+/// USB product id of the ESP32-C3/C6 USB-Serial-JTAG port.
+pub const USB_PID_SERIAL_JTAG: u16 = 0x1001;

@@ -1,0 +1,262 @@
+//! The messages: [`Envelope`], [`Request`], [`Response`] and the typed [`ErrorCode`].
+//!
+//! Variant order is part of the wire format (postcard encodes the variant index): only append.
+
+use postcard::experimental::max_size::MaxSize;
+use serde::{Deserialize, Serialize};
+
+use crate::params::{DeviceConfig, RunParams};
+use crate::report::{Fault, KerfResult, SampleChunk, SelfTestReport, Status};
+
+/// One message with its sequence number. The device echoes the request's `seq` in its response.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Envelope<B> {
+    /// Chosen by the host; a retry re-sends the same value (see the crate docs).
+    pub seq: u16,
+    /// The request or response.
+    pub body: B,
+}
+
+/// What the host asks. Every request gets exactly one [`Response`].
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Request {
+    /// Variant 0, frozen forever: answered with [`Response::Info`] whatever the device's state.
+    GetInfo,
+    /// Start a measurement. Answered with `Ok` once started; poll [`Request::GetStatus`].
+    Run(RunParams),
+    /// Current state, torque and angle. Any request feeds the run's communication watchdog.
+    GetStatus,
+    /// Recorded (time, torque, angle) samples of the last run, starting at index `from`.
+    GetSamples {
+        /// Index of the first sample wanted.
+        from: u16,
+    },
+    /// The last result, or `None` after a reset or before the first run.
+    GetKerf,
+    /// Clear the last result and drive the hub back to its zero position.
+    Reset,
+    /// Stop the motor now (safe state within one control tick) and end the run.
+    Abort,
+    /// Leave a latched fault (the motor stays in its safe state).
+    ClearFault,
+    /// Check encoder, magnet, drive direction and torque constant; answered with `SelfTest`.
+    SelfTest,
+    /// Read the stored device configuration.
+    GetConfig,
+    /// Validate, store and apply a new device configuration.
+    SetConfig(DeviceConfig),
+}
+
+/// What the device answers.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Response {
+    /// Variant 0, frozen forever: the answer to [`Request::GetInfo`].
+    Info(DeviceInfo),
+    /// The request was carried out (or started, for `Run`, `Reset` and `SelfTest`).
+    Ok,
+    /// The request was refused or failed; nothing was changed.
+    Error(ErrorCode),
+    /// Answer to [`Request::GetStatus`].
+    Status(Status),
+    /// Answer to [`Request::GetSamples`].
+    Samples(SampleChunk),
+    /// Answer to [`Request::GetKerf`].
+    Kerf(Option<KerfResult>),
+    /// Answer to [`Request::SelfTest`] once it is done (while it runs: `Error(Busy)`).
+    SelfTest(SelfTestReport),
+    /// Answer to [`Request::GetConfig`] and [`Request::SetConfig`].
+    Config(ConfigReport),
+}
+
+/// The device's configuration and where it came from.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ConfigReport {
+    /// The configuration in use.
+    pub config: DeviceConfig,
+    /// True when no valid record was found in flash (none, corrupt, or from an incompatible
+    /// version) and the defaults are in use.
+    pub defaults_in_use: bool,
+}
+
+/// A protocol version; see the compatibility rules in the crate docs.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ProtocolVersion {
+    /// Incompatible changes.
+    pub major: u16,
+    /// Backward-compatible additions.
+    pub minor: u16,
+}
+
+impl ProtocolVersion {
+    /// True when a peer speaking `other` can be talked to by one speaking `self`.
+    pub fn compatible_with(&self, other: &ProtocolVersion) -> bool {
+        self.major == other.major
+    }
+}
+
+/// A firmware version (semver).
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FirmwareVersion {
+    /// Major.
+    pub major: u16,
+    /// Minor.
+    pub minor: u16,
+    /// Patch.
+    pub patch: u16,
+}
+
+/// Longest board name in [`HardwareInfo::board`].
+pub const BOARD_NAME_LEN: usize = 24;
+
+/// Fixed facts of the hardware and firmware build.
+#[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct HardwareInfo {
+    /// What is answering: `"esp32c3"`, `"esp32c6"`, `"twin"`.
+    pub board: heapless::String<BOARD_NAME_LEN>,
+    /// Control loop rate, Hz.
+    pub control_rate_hz: u16,
+    /// Encoder resolution, bits per turn.
+    pub encoder_bits: u8,
+    /// PWM duty resolution, bits.
+    pub pwm_bits: u8,
+    /// Capacity of the sample log (samples of one run).
+    pub max_samples: u16,
+    /// Longest frame the device accepts, bytes.
+    pub max_request_frame_len: u16,
+}
+
+impl MaxSize for HardwareInfo {
+    const POSTCARD_MAX_SIZE: usize = varint_len(BOARD_NAME_LEN) + BOARD_NAME_LEN
+        + u16::POSTCARD_MAX_SIZE
+        + u8::POSTCARD_MAX_SIZE
+        + u8::POSTCARD_MAX_SIZE
+        + u16::POSTCARD_MAX_SIZE
+        + u16::POSTCARD_MAX_SIZE;
+}
+
+/// The answer to [`Request::GetInfo`]; frozen forever.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DeviceInfo {
+    /// The protocol the device speaks.
+    pub protocol: ProtocolVersion,
+    /// The firmware build.
+    pub firmware: FirmwareVersion,
+    /// Random per boot: a change between two calls means the device was reset.
+    pub boot_id: u32,
+    /// Fixed facts of the hardware.
+    pub hardware: HardwareInfo,
+}
+
+/// Why a request was refused. The host turns each into a message that says what to do.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ErrorCode {
+    /// The frame was intact but its request is not one this firmware knows (a newer host).
+    UnknownRequest,
+    /// This firmware build does not implement the request.
+    Unsupported,
+    /// A run, reset or self-test is in progress; wait for it, or `Abort`.
+    Busy,
+    /// A fault is latched; the device does nothing else until `ClearFault` (or `Reset`).
+    Faulted(Fault),
+    /// A parameter is out of its range.
+    InvalidParam(ParamField),
+    /// `GetSamples` asked past the end of the log, or there is no run to read.
+    NoSamples,
+    /// The configuration could not be written to flash; the old one is still in use.
+    Storage,
+}
+
+/// A parameter of [`RunParams`] or [`DeviceConfig`], named in [`ErrorCode::InvalidParam`].
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[allow(missing_docs)] // Each variant names the field of the same name.
+pub enum ParamField {
+    PitchUmPerDeg,
+    RadiusMm,
+    ProngRadiusMm,
+    HoleRadiusMm,
+    HoleDistanceMm,
+    DisengageDeg,
+    ThicknessMm,
+    TargetForceN,
+    ContactAreaMm2,
+    MaxTorqueNm,
+    RampRateNmPerS,
+    MaxTimeMs,
+    HostTimeoutMs,
+    TorquePerDutyNm,
+    BreakawayDuty,
+    EncoderZeroRaw,
+    GearRatio,
+    MaxCurrentA,
+}
+
+impl ParamField {
+    /// The field's name as it appears in the Rust types and the JSON output.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::PitchUmPerDeg => "pitch_um_per_deg",
+            Self::RadiusMm => "radius_mm",
+            Self::ProngRadiusMm => "prong_radius_mm",
+            Self::HoleRadiusMm => "hole_radius_mm",
+            Self::HoleDistanceMm => "hole_distance_mm",
+            Self::DisengageDeg => "disengage_deg",
+            Self::ThicknessMm => "thickness_mm",
+            Self::TargetForceN => "target_force_n",
+            Self::ContactAreaMm2 => "contact_area_mm2",
+            Self::MaxTorqueNm => "max_torque_nm",
+            Self::RampRateNmPerS => "ramp_rate_nm_per_s",
+            Self::MaxTimeMs => "max_time_ms",
+            Self::HostTimeoutMs => "host_timeout_ms",
+            Self::TorquePerDutyNm => "torque_per_duty_nm",
+            Self::BreakawayDuty => "breakaway_duty",
+            Self::EncoderZeroRaw => "encoder_zero_raw",
+            Self::GearRatio => "gear_ratio",
+            Self::MaxCurrentA => "max_current_a",
+        }
+    }
+
+    /// The accepted range (inclusive) of the field. Cross-field rules (the hole must fit inside
+    /// the spiral, the hole must be larger than the prong) are reported on the dependent field.
+    pub const fn range(self) -> (f32, f32) {
+        match self {
+            Self::PitchUmPerDeg => (0.5, 20.0),
+            Self::RadiusMm => (3.0, 50.0),
+            Self::ProngRadiusMm => (0.2, 10.0),
+            Self::HoleRadiusMm => (0.2, 10.0),
+            Self::HoleDistanceMm => (0.5, 40.0),
+            Self::DisengageDeg => (30.0, 300.0),
+            Self::ThicknessMm => (0.5, 25.0),
+            Self::TargetForceN => (1.0, 500.0),
+            Self::ContactAreaMm2 => (1.0, 10_000.0),
+            Self::MaxTorqueNm => (0.01, 5.0),
+            Self::RampRateNmPerS => (0.01, 20.0),
+            Self::MaxTimeMs => (100.0, 120_000.0),
+            Self::HostTimeoutMs => (50.0, 60_000.0),
+            Self::TorquePerDutyNm => (0.01, 20.0),
+            Self::BreakawayDuty => (0.0, 0.5),
+            Self::EncoderZeroRaw => (0.0, 16_383.0),
+            Self::GearRatio => (1.0, 1_000.0),
+            Self::MaxCurrentA => (0.1, 30.0),
+        }
+    }
+}
+
+/// Bytes postcard needs for the varint of `n` (for hand-written `MaxSize` bounds).
+pub(crate) const fn varint_len(mut n: usize) -> usize {
+    let mut len = 1;
+    while n >= 0x80 {
+        n >>= 7;
+        len += 1;
+    }
+    len
+}

@@ -1,0 +1,224 @@
+//! What the host asks for: the gauge geometry and run parameters sent with every run, and the
+//! device's stored configuration.
+//!
+//! The gauge geometry travels with every [`RunParams`] so that the device and the gauge generator
+//! can never disagree on the spiral's pitch, the prong holes or the sense in which the gap closes.
+//! Ranges are checked in one place, [`RunParams::validate`], which both the host (before sending)
+//! and the device (on receipt) call.
+
+use postcard::experimental::max_size::MaxSize;
+use serde::{Deserialize, Serialize};
+
+use crate::messages::ParamField;
+
+/// The sense in which the hub turns the inset to close the spiral's gap, seen from above (from the
+/// laser head looking down at the gauge, i.e. looking at the top face of the cut sheet).
+///
+/// The gauge generator draws the spiral so that turning the inset this way moves it towards
+/// decreasing spiral angle φ, which narrows the gap everywhere at once.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum JamDirection {
+    /// Clockwise seen from above.
+    #[default]
+    Clockwise,
+    /// Counter-clockwise seen from above.
+    CounterClockwise,
+}
+
+/// Geometry of the laser-cut spiral gauge (the paper's defaults in [`GaugeGeometry::PAPER`]).
+///
+/// The cut line is r(φ) = a + c·φ for one turn (φ in radians), closed by a radial step of height
+/// 2π·c, with `a = radius_mm − π·c` so that `radius_mm` is the spiral's mean radius. Two prong
+/// holes sit diametrically opposite at `hole_distance_mm` from the centre.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GaugeGeometry {
+    /// Spiral pitch c, in µm of radius per degree of turn (paper: 2.774 = 430 µm / 155°).
+    pub pitch_um_per_deg: f32,
+    /// Mean radius r of the spiral cut, mm (paper: ≈ 10, a 2 cm gauge).
+    pub radius_mm: f32,
+    /// Radius of each prong r_p, mm.
+    pub prong_radius_mm: f32,
+    /// Nominal (as drawn) radius of each prong hole r_h, mm. The laser adds k/2.
+    pub hole_radius_mm: f32,
+    /// Distance R of each hole's centre from the gauge centre, mm.
+    pub hole_distance_mm: f32,
+    /// Sense of rotation that closes the gap.
+    pub jam_direction: JamDirection,
+    /// Inset rotation past which the spiral disengages; reaching it is a fault, not a reading.
+    pub disengage_deg: f32,
+}
+
+impl GaugeGeometry {
+    /// The paper's gauge. c = 2.774 µm/deg; R = 5.3 mm and a radial clearance r_h − r_p = 0.42 mm
+    /// reproduce the paper's 14 µm / 17 µm uncorrected hole-play error at 100 µm / 300 µm kerf.
+    pub const PAPER: Self = Self {
+        pitch_um_per_deg: 2.774,
+        radius_mm: 10.0,
+        prong_radius_mm: 2.0,
+        hole_radius_mm: 2.42,
+        hole_distance_mm: 5.3,
+        jam_direction: JamDirection::Clockwise,
+        disengage_deg: 155.0,
+    };
+
+    /// Largest kerf this gauge can measure, µm: the gap closes at `disengage_deg`.
+    pub fn max_kerf_um(&self) -> f32 {
+        self.pitch_um_per_deg * self.disengage_deg
+    }
+}
+
+impl Default for GaugeGeometry {
+    fn default() -> Self {
+        Self::PAPER
+    }
+}
+
+/// Parameters of one measurement, sent with [`crate::Request::Run`].
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RunParams {
+    /// The gauge that was cut for this run.
+    pub gauge: GaugeGeometry,
+    /// Sheet thickness L, mm.
+    pub thickness_mm: f32,
+    /// Assembly force F of the joint the kerf is measured for, N (paper's default: 55 N).
+    pub target_force_n: f32,
+    /// Total finger contact area A_j of that joint, mm².
+    pub contact_area_mm2: f32,
+    /// Never command more output torque than this, N·m.
+    pub max_torque_nm: f32,
+    /// Torque ramp rate while ramping, N·m per second.
+    pub ramp_rate_nm_per_s: f32,
+    /// The run faults if it has not finished after this long, ms.
+    pub max_time_ms: u32,
+    /// Communication watchdog during the run: the device stops the motor and faults when the host
+    /// has sent nothing for this long, ms.
+    pub host_timeout_ms: u32,
+}
+
+impl RunParams {
+    /// The paper's defaults: its gauge, 4 mm stock, 55 N over three 6.3 mm fingers.
+    pub const DEFAULT: Self = Self {
+        gauge: GaugeGeometry::PAPER,
+        thickness_mm: 4.0,
+        target_force_n: 55.0,
+        contact_area_mm2: 151.2,
+        max_torque_nm: 0.8,
+        ramp_rate_nm_per_s: 1.0,
+        max_time_ms: 10_000,
+        host_timeout_ms: 1_000,
+    };
+
+    /// Check every field against its physically sensible range.
+    ///
+    /// Returns the first offending field. Ranges are deliberately generous (they reject nonsense and
+    /// NaN, not unusual setups); the host turns the field into a message that names the range.
+    pub fn validate(&self) -> Result<(), ParamField> {
+        let g = &self.gauge;
+        check(g.pitch_um_per_deg, ParamField::PitchUmPerDeg)?;
+        check(g.radius_mm, ParamField::RadiusMm)?;
+        check(g.prong_radius_mm, ParamField::ProngRadiusMm)?;
+        check(g.hole_radius_mm, ParamField::HoleRadiusMm)?;
+        if g.hole_radius_mm < g.prong_radius_mm {
+            return Err(ParamField::HoleRadiusMm);
+        }
+        check(g.hole_distance_mm, ParamField::HoleDistanceMm)?;
+        // The prong hole must lie inside the spiral, and the play formula needs
+        // (r_h − r_p + k/2) < 2R.
+        if g.hole_distance_mm + g.hole_radius_mm >= g.radius_mm
+            || g.hole_radius_mm - g.prong_radius_mm >= g.hole_distance_mm
+        {
+            return Err(ParamField::HoleDistanceMm);
+        }
+        check(g.disengage_deg, ParamField::DisengageDeg)?;
+        check(self.thickness_mm, ParamField::ThicknessMm)?;
+        check(self.target_force_n, ParamField::TargetForceN)?;
+        check(self.contact_area_mm2, ParamField::ContactAreaMm2)?;
+        check(self.max_torque_nm, ParamField::MaxTorqueNm)?;
+        check(self.ramp_rate_nm_per_s, ParamField::RampRateNmPerS)?;
+        check(self.max_time_ms as f32, ParamField::MaxTimeMs)?;
+        check(self.host_timeout_ms as f32, ParamField::HostTimeoutMs)?;
+        Ok(())
+    }
+}
+
+impl Default for RunParams {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+fn check(value: f32, field: ParamField) -> Result<(), ParamField> {
+    let (lo, hi) = field.range();
+    // `contains` is false for NaN, which is what we want.
+    if (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(field)
+    }
+}
+
+/// Where the AS5048A's magnet sits.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EncoderPlacement {
+    /// On the gearbox output shaft (the hub): one encoder turn is one hub turn.
+    #[default]
+    OutputShaft,
+    /// On the motor shaft: one hub turn is `gear_ratio` encoder turns.
+    MotorShaft,
+}
+
+/// Calibration and wiring constants of one device, stored in its flash.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DeviceConfig {
+    /// Output torque at 100 % duty and standstill, N·m (reference motor: ≈ 0.88).
+    pub torque_per_duty_nm: f32,
+    /// Duty (0..1) below which the gearbox does not move at all (static friction), as a fraction.
+    pub breakaway_duty: f32,
+    /// Raw encoder reading (0..16383) at the hub's zero position (prongs aligned with the gauge).
+    pub encoder_zero_raw: u16,
+    /// Where the encoder magnet sits.
+    pub encoder_placement: EncoderPlacement,
+    /// Gearbox reduction (motor turns per hub turn).
+    pub gear_ratio: f32,
+    /// Swap the motor's DIR sense (motor wired the other way round).
+    pub motor_inverted: bool,
+    /// Swap the encoder's counting sense (magnet or chip mounted the other way round).
+    pub encoder_inverted: bool,
+    /// Motor current that trips the over-current fault, A.
+    pub max_current_a: f32,
+}
+
+impl DeviceConfig {
+    /// The reference build: 21:1 gearbox, encoder on the output shaft, 0.88 N·m at full duty.
+    pub const DEFAULT: Self = Self {
+        torque_per_duty_nm: 0.88,
+        breakaway_duty: 0.04,
+        encoder_zero_raw: 0,
+        encoder_placement: EncoderPlacement::OutputShaft,
+        gear_ratio: 21.0,
+        motor_inverted: false,
+        encoder_inverted: false,
+        max_current_a: 2.5,
+    };
+
+    /// Check every field against its range; returns the first offending field.
+    pub fn validate(&self) -> Result<(), ParamField> {
+        check(self.torque_per_duty_nm, ParamField::TorquePerDutyNm)?;
+        check(self.breakaway_duty, ParamField::BreakawayDuty)?;
+        check(f32::from(self.encoder_zero_raw), ParamField::EncoderZeroRaw)?;
+        check(self.gear_ratio, ParamField::GearRatio)?;
+        check(self.max_current_a, ParamField::MaxCurrentA)?;
+        Ok(())
+    }
+}
+
+impl Default for DeviceConfig {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}

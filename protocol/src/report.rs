@@ -1,0 +1,232 @@
+//! What the device reports: run state, latched faults, the kerf result with its quality flags,
+//! the (time, torque, angle) sample log and the self-test report.
+
+use postcard::experimental::max_size::MaxSize;
+use serde::{Deserialize, Serialize};
+
+use crate::messages::varint_len;
+
+/// Why the device stopped the motor on its own. Latched until `ClearFault` or `Reset`.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Fault {
+    /// The run took longer than `RunParams::max_time_ms`.
+    MaxRunTime,
+    /// The inset turned past the gauge's disengage angle without jamming.
+    Overtravel,
+    /// Torque above breakaway but no motion: no inset in the gauge, or the motor is disconnected.
+    NoMotion,
+    /// The hub turned against the commanded direction.
+    ReverseMotion,
+    /// Too many consecutive encoder read errors (parity, error flag, impossible jumps).
+    EncoderErrors,
+    /// Encoder diagnostics failed: offset compensation not finished, or a stuck bus.
+    EncoderDiagnostics,
+    /// Magnet field too weak or too strong (magnet lost, or too far from / too close to the chip).
+    Magnet,
+    /// Motor current above `DeviceConfig::max_current_a`.
+    OverCurrent,
+    /// The motor driver pulled its FLT line low (over-temperature, short, under-voltage).
+    DriverFault,
+    /// The host sent nothing for `RunParams::host_timeout_ms` during a run.
+    HostSilent,
+    /// A control step ran late: the loop could not keep its rate.
+    StepOverrun,
+    /// `Reset` could not bring the hub back to zero in time.
+    ResetFailed,
+}
+
+/// What the device is doing.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RunState {
+    /// Motor in its safe state, ready for a run.
+    Idle,
+    /// Turning slowly through the hole play until the prongs drag the inset.
+    Engaging,
+    /// Ramping torque along τ(θs) while the inset turns.
+    Ramping,
+    /// The inset has stopped: holding torque while the jam angle is measured.
+    Jammed,
+    /// Unloading the gauge.
+    Releasing,
+    /// A result is ready (`GetKerf`); motor in its safe state.
+    Done,
+    /// Driving the hub back to its zero position.
+    Resetting,
+    /// Running the self-test.
+    SelfTest,
+    /// A fault is latched; motor in its safe state.
+    Fault(Fault),
+}
+
+/// Answer to `GetStatus`.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Status {
+    /// What the device is doing.
+    pub state: RunState,
+    /// Id of the current or last run (0: none since boot).
+    pub run_id: u32,
+    /// Time since the current run started, ms.
+    pub elapsed_ms: u32,
+    /// Output torque commanded now, N·m.
+    pub torque_nm: f32,
+    /// Hub angle from its zero position, degrees, positive in the jam direction.
+    pub angle_deg: f32,
+    /// Samples recorded in the log so far.
+    pub samples: u16,
+    /// Encoder read errors ridden through since the run started (reported, not hidden).
+    pub encoder_errors: u16,
+}
+
+/// Quality flags of a [`KerfResult`]: a set bit is a reason to distrust the number.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct QualityFlags(pub u16);
+
+impl QualityFlags {
+    /// The jam angle is within 10 % of the gauge's disengage angle.
+    pub const NEAR_DISENGAGE: Self = Self(1 << 0);
+    /// The angle moved more than a few LSB during the hold window.
+    pub const NOISY_HOLD: Self = Self(1 << 1);
+    /// The magnet field was at the edge of its band during the run.
+    pub const WEAK_MAGNET: Self = Self(1 << 2);
+    /// Encoder read errors were ridden through during the run.
+    pub const ENCODER_ERRORS: Self = Self(1 << 3);
+    /// The torque limit was reached before the target force: the jam is at a lower force.
+    pub const TORQUE_LIMITED: Self = Self(1 << 4);
+    /// The hole-play fixed point did not converge (never expected; the value is the last iterate).
+    pub const PLAY_NOT_CONVERGED: Self = Self(1 << 5);
+    /// The sample log was decimated (a long run); the curve has coarser time steps.
+    pub const DECIMATED: Self = Self(1 << 6);
+
+    /// Names of the flags, for messages.
+    pub const NAMES: [(Self, &'static str); 7] = [
+        (Self::NEAR_DISENGAGE, "near-disengage"),
+        (Self::NOISY_HOLD, "noisy-hold"),
+        (Self::WEAK_MAGNET, "weak-magnet"),
+        (Self::ENCODER_ERRORS, "encoder-errors"),
+        (Self::TORQUE_LIMITED, "torque-limited"),
+        (Self::PLAY_NOT_CONVERGED, "play-not-converged"),
+        (Self::DECIMATED, "decimated"),
+    ];
+
+    /// No flag set.
+    pub const fn empty() -> Self {
+        Self(0)
+    }
+    /// True when every flag of `other` is set.
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+    /// Set the flags of `other`.
+    pub fn insert(&mut self, other: Self) {
+        self.0 |= other.0;
+    }
+    /// True when no flag is set.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+    /// The names of the set flags.
+    pub fn names(self) -> impl Iterator<Item = &'static str> {
+        Self::NAMES
+            .into_iter()
+            .filter(move |(f, _)| self.contains(*f))
+            .map(|(_, name)| name)
+    }
+}
+
+/// The result of one measurement.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct KerfResult {
+    /// Which run produced it.
+    pub run_id: u32,
+    /// Kerf (full cut width), µm, corrected for the hole play.
+    pub kerf_um: f32,
+    /// Measured hub angle at the jam θm (median over the hold window), degrees.
+    pub angle_deg: f32,
+    /// Hole play θplay(k) included in `angle_deg`, degrees.
+    pub play_deg: f32,
+    /// Output torque at the jam, N·m.
+    pub torque_at_jam_nm: f32,
+    /// Joint assembly force this torque represents, N.
+    pub force_at_jam_n: f32,
+    /// Reasons to distrust the number.
+    pub flags: QualityFlags,
+}
+
+/// One point of the sample log.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Sample {
+    /// Time since the run started, ms.
+    pub t_ms: u32,
+    /// Commanded output torque, N·m.
+    pub torque_nm: f32,
+    /// Hub angle from zero, degrees, positive in the jam direction.
+    pub angle_deg: f32,
+}
+
+/// Samples per `GetSamples` answer.
+pub const SAMPLES_PER_CHUNK: usize = 32;
+
+/// Answer to `GetSamples`: up to [`SAMPLES_PER_CHUNK`] samples from index `from`.
+#[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SampleChunk {
+    /// The run they belong to.
+    pub run_id: u32,
+    /// Index of the first sample in `samples`.
+    pub from: u16,
+    /// Samples in the whole log.
+    pub total: u16,
+    /// The log keeps one sample per this many control ticks (grows when a long run is decimated).
+    pub ticks_per_sample: u16,
+    /// The samples.
+    pub samples: heapless::Vec<Sample, SAMPLES_PER_CHUNK>,
+}
+
+impl MaxSize for SampleChunk {
+    const POSTCARD_MAX_SIZE: usize = u32::POSTCARD_MAX_SIZE
+        + 3 * u16::POSTCARD_MAX_SIZE
+        + varint_len(SAMPLES_PER_CHUNK)
+        + SAMPLES_PER_CHUNK * Sample::POSTCARD_MAX_SIZE;
+}
+
+/// Outcome of one self-test item.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TestOutcome {
+    /// Within limits.
+    Pass,
+    /// Out of limits.
+    Fail,
+    /// Not run (an earlier item failed).
+    Skipped,
+}
+
+/// One self-test item with its measured value.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SelfTestItem {
+    /// Pass, fail or skipped.
+    pub outcome: TestOutcome,
+    /// The measured value (unit given by the field's name in [`SelfTestReport`]).
+    pub value: f32,
+}
+
+/// Answer to `SelfTest`.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SelfTestReport {
+    /// Encoder reads without error over the test, as a fraction (0..1).
+    pub encoder_ok_fraction: SelfTestItem,
+    /// Magnet field magnitude (CORDIC magnitude, 0..16383).
+    pub magnet_magnitude: SelfTestItem,
+    /// Hub motion in the commanded direction, degrees (negative: wired backwards).
+    pub direction_deg: SelfTestItem,
+    /// Estimated output torque at full duty, N·m.
+    pub torque_per_duty_nm: SelfTestItem,
+}
