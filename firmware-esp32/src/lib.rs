@@ -1,1 +1,19 @@
+//! Kerfmeter device firmware, as a `no_std` library that builds and is tested on the host.
+//!
+//! The behaviour is sans-IO: nothing here touches a peripheral or awaits. The board binary
+//! (`src/bin/board`, features `esp32c3` / `esp32c6`) is glue that moves bytes and samples between
+//! the chip and these modules; the digital twin wires the same modules to simulated peripherals.
+//!
+//! - [`link`]: the protocol server. Bytes in, requests out to a [`link::Handler`], responses back
+//!   out as bytes; retried requests are answered from memory, never executed twice.
+//! - [`build`]: what this build is (firmware version, board name, hardware constants) for
+//!   `GetInfo`.
+//! - [`device`]: the request handler behind the link.
 
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod build;
+pub mod device;
+pub mod link;

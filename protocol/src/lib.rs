@@ -52,6 +52,9 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+/// Re-exported: [`HardwareInfo::board`] and [`SampleChunk::samples`] are `heapless` types.
+pub use heapless;
+
 mod frame;
 mod messages;
 mod params;
