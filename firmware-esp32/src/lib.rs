@@ -9,11 +9,14 @@
 //! - [`build`]: what this build is (firmware version, board name, hardware constants) for
 //!   `GetInfo`.
 //! - [`device`]: the request handler behind the link.
+//! - `twin` (feature `twin`, std): the device served over a host byte stream.
 
-#![cfg_attr(not(test), no_std)]
+#![cfg_attr(not(any(test, feature = "twin")), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod build;
 pub mod device;
 pub mod link;
+#[cfg(feature = "twin")]
+pub mod twin;

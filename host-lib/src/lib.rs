@@ -1,1 +1,25 @@
+//! Drive a Kerfmeter from a PC.
+//!
+//! [`Kerfmeter`] is a blocking client over a serial port (the device's USB-Serial-JTAG port, or a
+//! pseudo-terminal served by the digital twin). It frames requests with the shared
+//! [`kerfmeter_protocol`], retries lost responses with the same sequence number (so the device
+//! answers from memory instead of acting twice), skips garbage on the line, and turns every
+//! device refusal into an [`Error`] whose message says what to do.
+//!
+//! ```no_run
+//! let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
+//! let info = meter.info()?;
+//! println!("firmware {}.{}.{}", info.firmware.major, info.firmware.minor, info.firmware.patch);
+//! # Ok::<(), kerfmeter::Error>(())
+//! ```
 
+#![warn(missing_docs)]
+
+mod client;
+mod error;
+#[cfg(feature = "sim")]
+pub mod sim;
+
+pub use client::{Kerfmeter, Options};
+pub use error::{Error, Result, describe_error_code};
+pub use kerfmeter_protocol as protocol;
