@@ -50,7 +50,10 @@ const fn parse_u16(s: &str) -> u16 {
     let mut value: u16 = 0;
     let mut i = 0;
     while i < bytes.len() {
-        assert!(bytes[i].is_ascii_digit(), "version component is not a number");
+        assert!(
+            bytes[i].is_ascii_digit(),
+            "version component is not a number"
+        );
         value = value * 10 + (bytes[i] - b'0') as u16;
         i += 1;
     }
@@ -73,6 +76,9 @@ mod tests {
     #[test]
     fn long_board_names_are_truncated_not_rejected() {
         let info = device_info("a-board-name-much-longer-than-the-limit", 1);
-        assert_eq!(info.hardware.board.len(), kerfmeter_protocol::BOARD_NAME_LEN);
+        assert_eq!(
+            info.hardware.board.len(),
+            kerfmeter_protocol::BOARD_NAME_LEN
+        );
     }
 }

@@ -50,6 +50,9 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
-        assert_eq!(d.handle(&Request::GetKerf), Response::Error(ErrorCode::Unsupported));
+        assert_eq!(
+            d.handle(&Request::GetKerf),
+            Response::Error(ErrorCode::Unsupported)
+        );
     }
 }

@@ -114,7 +114,11 @@ impl Link {
         answered
     }
 
-    fn answer(&mut self, request: Envelope<Request>, handler: &mut impl Handler) -> Envelope<Response> {
+    fn answer(
+        &mut self,
+        request: Envelope<Request>,
+        handler: &mut impl Handler,
+    ) -> Envelope<Response> {
         if let Some((last_request, last_response)) = &self.last
             && *last_request == request
         {
@@ -161,7 +165,9 @@ mod tests {
 
     fn request_frame(seq: u16, body: Request) -> Vec<u8> {
         let mut buf = [0u8; MAX_REQUEST_FRAME_LEN];
-        encode_frame(&Envelope { seq, body }, &mut buf).unwrap().to_vec()
+        encode_frame(&Envelope { seq, body }, &mut buf)
+            .unwrap()
+            .to_vec()
     }
 
     fn responses(link: &mut Link, handler: &mut Counter, bytes: &[u8]) -> Vec<Envelope<Response>> {
@@ -223,7 +229,13 @@ mod tests {
         let mut buf = [0u8; 32];
         let frame = encode_frame(&(42u16, 200u8), &mut buf).unwrap().to_vec();
         let r = responses(&mut link, &mut h, &frame);
-        assert_eq!(r, [Envelope { seq: 42, body: Response::Error(ErrorCode::UnknownRequest) }]);
+        assert_eq!(
+            r,
+            [Envelope {
+                seq: 42,
+                body: Response::Error(ErrorCode::UnknownRequest)
+            }]
+        );
         assert_eq!(h.handled, 0);
     }
 

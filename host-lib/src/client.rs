@@ -195,12 +195,20 @@ impl Kerfmeter {
                     });
                 }
                 Ok(n) => n,
-                Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) => continue,
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
+                    ) =>
+                {
+                    continue;
+                }
                 Err(e) => return Err(self.io_error(e)),
             };
             let mut input = &buf[..n];
             let mut found = None;
-            while let Feed::Frame { result, rest } = self.deframer.feed::<Envelope<Response>>(input) {
+            while let Feed::Frame { result, rest } = self.deframer.feed::<Envelope<Response>>(input)
+            {
                 input = rest;
                 if let Ok(envelope) = result
                     && envelope.seq == seq
@@ -219,7 +227,10 @@ impl Kerfmeter {
         // EIO (5), ENXIO (6), ENODEV (19): the device node is gone (unplugged, or the
         // pseudo-terminal's other end closed).
         let vanished = matches!(source.raw_os_error(), Some(5 | 6 | 19))
-            || matches!(source.kind(), ErrorKind::BrokenPipe | ErrorKind::NotConnected | ErrorKind::UnexpectedEof);
+            || matches!(
+                source.kind(),
+                ErrorKind::BrokenPipe | ErrorKind::NotConnected | ErrorKind::UnexpectedEof
+            );
         if vanished {
             Error::PortVanished {
                 path: self.path.clone(),
@@ -247,7 +258,11 @@ fn initial_seq() -> u16 {
 fn placeholder_info() -> DeviceInfo {
     DeviceInfo {
         protocol: PROTOCOL_VERSION,
-        firmware: kerfmeter_protocol::FirmwareVersion { major: 0, minor: 0, patch: 0 },
+        firmware: kerfmeter_protocol::FirmwareVersion {
+            major: 0,
+            minor: 0,
+            patch: 0,
+        },
         boot_id: 0,
         hardware: kerfmeter_protocol::HardwareInfo {
             board: Default::default(),

@@ -9,7 +9,9 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// The serial port could not be opened.
-    #[error("cannot open serial port {path}: {source}. Check the path and that no other program (a serial monitor?) holds the port")]
+    #[error(
+        "cannot open serial port {path}: {source}. Check the path and that no other program (a serial monitor?) holds the port"
+    )]
     Open {
         /// The port's path.
         path: String,
@@ -33,7 +35,9 @@ pub enum Error {
         source: std::io::Error,
     },
     /// The device did not answer in time, even after retries.
-    #[error("no answer from the device on {path} to {request} ({attempts} attempts, {timeout_ms} ms each). Check that it is powered and runs Kerfmeter firmware")]
+    #[error(
+        "no answer from the device on {path} to {request} ({attempts} attempts, {timeout_ms} ms each). Check that it is powered and runs Kerfmeter firmware"
+    )]
     Timeout {
         /// The port's path.
         path: String,
@@ -61,7 +65,9 @@ pub enum Error {
         code: ErrorCode,
     },
     /// The device answered with a response that does not fit the request.
-    #[error("the device answered {request} with an unexpected {response}; is this Kerfmeter firmware?")]
+    #[error(
+        "the device answered {request} with an unexpected {response}; is this Kerfmeter firmware?"
+    )]
     UnexpectedResponse {
         /// The request.
         request: &'static str,
@@ -69,7 +75,9 @@ pub enum Error {
         response: &'static str,
     },
     /// The device restarted since it was opened.
-    #[error("the device restarted (boot id {old:08x} is now {new:08x}): any run in progress and its result are lost; check its power supply and start again")]
+    #[error(
+        "the device restarted (boot id {old:08x} is now {new:08x}): any run in progress and its result are lost; check its power supply and start again"
+    )]
     DeviceReset {
         /// Boot id seen when the port was opened.
         old: u32,
@@ -85,7 +93,10 @@ impl Error {
     /// The device fault behind this error, if the device refused because of a latched fault.
     pub fn fault(&self) -> Option<Fault> {
         match self {
-            Error::Device { code: ErrorCode::Faulted(f), .. } => Some(*f),
+            Error::Device {
+                code: ErrorCode::Faulted(f),
+                ..
+            } => Some(*f),
             _ => None,
         }
     }
@@ -123,7 +134,9 @@ pub fn describe_error_code(code: ErrorCode) -> String {
             format!("{} is out of range (allowed {lo} to {hi})", field.name())
         }
         ErrorCode::NoSamples => "there are no (more) samples for that run".into(),
-        ErrorCode::Storage => "the configuration could not be saved to flash; the old one stays in use".into(),
+        ErrorCode::Storage => {
+            "the configuration could not be saved to flash; the old one stays in use".into()
+        }
     }
 }
 
@@ -131,14 +144,26 @@ pub fn describe_error_code(code: ErrorCode) -> String {
 pub fn describe_fault(fault: Fault) -> &'static str {
     match fault {
         Fault::MaxRunTime => "the run took longer than its time limit",
-        Fault::Overtravel => "the inset turned past the gauge's disengage angle without jamming: kerf too large for this gauge, or the inset is loose",
-        Fault::NoMotion => "torque but no motion: is a gauge inset under the prongs, and the motor connected?",
-        Fault::ReverseMotion => "the hub turned backwards: check the motor and encoder direction settings",
+        Fault::Overtravel => {
+            "the inset turned past the gauge's disengage angle without jamming: kerf too large for this gauge, or the inset is loose"
+        }
+        Fault::NoMotion => {
+            "torque but no motion: is a gauge inset under the prongs, and the motor connected?"
+        }
+        Fault::ReverseMotion => {
+            "the hub turned backwards: check the motor and encoder direction settings"
+        }
         Fault::EncoderErrors => "too many encoder read errors: check the encoder wiring",
-        Fault::EncoderDiagnostics => "the encoder failed its diagnostics (stuck bus or no offset compensation): check the encoder wiring",
-        Fault::Magnet => "the encoder magnet is missing or out of range: check the magnet's distance to the chip",
+        Fault::EncoderDiagnostics => {
+            "the encoder failed its diagnostics (stuck bus or no offset compensation): check the encoder wiring"
+        }
+        Fault::Magnet => {
+            "the encoder magnet is missing or out of range: check the magnet's distance to the chip"
+        }
         Fault::OverCurrent => "motor over-current: is the hub blocked?",
-        Fault::DriverFault => "the motor driver reported a fault (over-temperature, short or under-voltage)",
+        Fault::DriverFault => {
+            "the motor driver reported a fault (over-temperature, short or under-voltage)"
+        }
         Fault::HostSilent => "the host stopped talking during a run",
         Fault::StepOverrun => "the control loop could not keep its rate",
         Fault::ResetFailed => "the hub did not return to zero: is it blocked?",

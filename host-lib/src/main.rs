@@ -19,7 +19,11 @@ const EXIT_COMMUNICATION: u8 = 3;
 const EXIT_DEVICE: u8 = 4;
 
 #[derive(Parser)]
-#[command(name = "kerfmeter", version, about = "Measure a laser cutter's kerf with a Kerfmeter")]
+#[command(
+    name = "kerfmeter",
+    version,
+    about = "Measure a laser cutter's kerf with a Kerfmeter"
+)]
 struct Cli {
     /// Serial port of the device (e.g. /dev/ttyACM0). Also from KERFMETER_PORT.
     #[arg(long, global = true, env = "KERFMETER_PORT", conflicts_with = "sim")]
@@ -95,10 +99,15 @@ fn connect(cli: &Cli) -> Result<Session, CliError> {
         {
             let sim_options = kerfmeter::sim::SimOptions { seed: cli.sim_seed };
             let (sim, meter) = kerfmeter::sim::SimDevice::connect(sim_options, options)?;
-            return Ok(Session { meter, _sim: Some(sim) });
+            return Ok(Session {
+                meter,
+                _sim: Some(sim),
+            });
         }
         #[cfg(not(feature = "sim"))]
-        return Err(CliError::Usage("this build has no simulator (feature `sim`)".into()));
+        return Err(CliError::Usage(
+            "this build has no simulator (feature `sim`)".into(),
+        ));
     }
     let Some(path) = &cli.port else {
         return Err(CliError::Usage(
@@ -118,13 +127,22 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Info => {
             let info = session.meter.info()?;
             if cli.json {
-                println!("{}", serde_json::to_string_pretty(&info).expect("info serializes"));
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&info).expect("info serializes")
+                );
             } else {
                 let h = &info.hardware;
                 println!("port:       {}", session.meter.path());
                 println!("board:      {}", h.board);
-                println!("firmware:   {}.{}.{}", info.firmware.major, info.firmware.minor, info.firmware.patch);
-                println!("protocol:   {}.{}", info.protocol.major, info.protocol.minor);
+                println!(
+                    "firmware:   {}.{}.{}",
+                    info.firmware.major, info.firmware.minor, info.firmware.patch
+                );
+                println!(
+                    "protocol:   {}.{}",
+                    info.protocol.major, info.protocol.minor
+                );
                 println!("boot id:    {:08x}", info.boot_id);
                 println!("control:    {} Hz", h.control_rate_hz);
                 println!("encoder:    {} bit", h.encoder_bits);

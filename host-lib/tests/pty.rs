@@ -50,7 +50,8 @@ impl Write for FaultyPort {
             return Ok(buf.len());
         }
         if self.garbage_before_writes.load(Ordering::SeqCst) {
-            self.inner.write_all(b"\x13\x11garbage\r\n\xff\xfe\x01\x02\x00junk")?;
+            self.inner
+                .write_all(b"\x13\x11garbage\r\n\xff\xfe\x01\x02\x00junk")?;
         }
         self.inner.write(buf)
     }
@@ -93,7 +94,10 @@ fn bench() -> (Bench, Box<dyn SerialPort>) {
         drop_next_writes: b.drop_next_writes.clone(),
         garbage_before_writes: b.garbage.clone(),
     };
-    let mut device = TestDevice { boot_id: b.boot_id.clone(), runs: b.runs.clone() };
+    let mut device = TestDevice {
+        boot_id: b.boot_id.clone(),
+        runs: b.runs.clone(),
+    };
     let stop = b.stop.clone();
     b.thread = Some(std::thread::spawn(move || {
         kerfmeter_firmware::twin::serve(&mut port, &mut device, &stop).unwrap();
@@ -102,7 +106,10 @@ fn bench() -> (Bench, Box<dyn SerialPort>) {
 }
 
 fn fast() -> Options {
-    Options { timeout: Duration::from_millis(100), retries: 3 }
+    Options {
+        timeout: Duration::from_millis(100),
+        retries: 3,
+    }
 }
 
 #[test]
@@ -121,7 +128,11 @@ fn a_lost_response_is_retried_and_the_run_is_not_executed_twice() {
     bench.drop_next_writes.store(2, Ordering::SeqCst);
     let response = meter.call(Request::Run(RunParams::DEFAULT)).unwrap();
     assert_eq!(response, Response::Ok);
-    assert_eq!(bench.runs.load(Ordering::SeqCst), 1, "the retried Run must not run again");
+    assert_eq!(
+        bench.runs.load(Ordering::SeqCst),
+        1,
+        "the retried Run must not run again"
+    );
     // And a new request is executed.
     meter.call(Request::Run(RunParams::DEFAULT)).unwrap();
     assert_eq!(bench.runs.load(Ordering::SeqCst), 2);
@@ -152,7 +163,16 @@ fn device_refusals_are_typed() {
     let (_bench, port) = bench();
     let mut meter = Kerfmeter::from_port(port, fast()).unwrap();
     let err = meter.call(Request::GetKerf).unwrap_err();
-    assert!(matches!(err, Error::Device { code: ErrorCode::Unsupported, .. }), "{err:?}");
+    assert!(
+        matches!(
+            err,
+            Error::Device {
+                code: ErrorCode::Unsupported,
+                ..
+            }
+        ),
+        "{err:?}"
+    );
     assert!(!err.is_communication());
 }
 
@@ -162,7 +182,16 @@ fn a_restarted_device_is_detected() {
     let mut meter = Kerfmeter::from_port(port, fast()).unwrap();
     bench.boot_id.store(0xB007_0002, Ordering::SeqCst);
     let err = meter.info().unwrap_err();
-    assert!(matches!(err, Error::DeviceReset { old: 0xB007_0001, new: 0xB007_0002 }), "{err:?}");
+    assert!(
+        matches!(
+            err,
+            Error::DeviceReset {
+                old: 0xB007_0001,
+                new: 0xB007_0002
+            }
+        ),
+        "{err:?}"
+    );
     // Reported once; the client then carries on with the new boot.
     meter.info().unwrap();
 }
@@ -174,7 +203,10 @@ fn a_vanished_port_is_a_clear_error() {
     drop(bench); // closes the master end: the device is gone
     let err = meter.info().unwrap_err();
     assert!(err.is_communication());
-    assert!(matches!(err, Error::PortVanished { .. } | Error::Timeout { .. }), "{err:?}");
+    assert!(
+        matches!(err, Error::PortVanished { .. } | Error::Timeout { .. }),
+        "{err:?}"
+    );
 }
 
 #[test]

@@ -61,12 +61,12 @@ mod params;
 mod report;
 
 pub use frame::{
-    CRC16, DecodeError, Deframer, DeframerStats, EncodeError, Feed, FrameError, MAX_REQUEST_FRAME_LEN,
-    MAX_RESPONSE_FRAME_LEN, encode_frame, max_frame_len,
+    CRC16, DecodeError, Deframer, DeframerStats, EncodeError, Feed, FrameError,
+    MAX_REQUEST_FRAME_LEN, MAX_RESPONSE_FRAME_LEN, encode_frame, max_frame_len,
 };
 pub use messages::{
-    ConfigReport, DeviceInfo, Envelope, ErrorCode, FirmwareVersion, HardwareInfo, ParamField, ProtocolVersion,
-    Request, Response, BOARD_NAME_LEN,
+    BOARD_NAME_LEN, ConfigReport, DeviceInfo, Envelope, ErrorCode, FirmwareVersion, HardwareInfo,
+    ParamField, ProtocolVersion, Request, Response,
 };
 pub use params::{DeviceConfig, EncoderPlacement, GaugeGeometry, JamDirection, RunParams};
 pub use report::{

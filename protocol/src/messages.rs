@@ -50,6 +50,9 @@ pub enum Request {
 }
 
 /// What the device answers.
+// `Samples` dominates the size; there is no heap on the device to box it in, and a response is
+// built once per request, so the size costs nothing but stack.
+#[allow(clippy::large_enum_variant)]
 #[derive(Serialize, Deserialize, MaxSize, Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Response {
@@ -133,7 +136,8 @@ pub struct HardwareInfo {
 }
 
 impl MaxSize for HardwareInfo {
-    const POSTCARD_MAX_SIZE: usize = varint_len(BOARD_NAME_LEN) + BOARD_NAME_LEN
+    const POSTCARD_MAX_SIZE: usize = varint_len(BOARD_NAME_LEN)
+        + BOARD_NAME_LEN
         + u16::POSTCARD_MAX_SIZE
         + u8::POSTCARD_MAX_SIZE
         + u8::POSTCARD_MAX_SIZE

@@ -11,13 +11,20 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 fn unhex(s: &str) -> Vec<u8> {
-    (0..s.len()).step_by(2).map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap()).collect()
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
+        .collect()
 }
 
 fn sample_info() -> DeviceInfo {
     DeviceInfo {
         protocol: ProtocolVersion { major: 1, minor: 0 },
-        firmware: FirmwareVersion { major: 0, minor: 1, patch: 0 },
+        firmware: FirmwareVersion {
+            major: 0,
+            minor: 1,
+            patch: 0,
+        },
         boot_id: 0xDEAD_BEEF,
         hardware: HardwareInfo {
             board: heapless::String::try_from("esp32c3").unwrap(),
@@ -32,19 +39,67 @@ fn sample_info() -> DeviceInfo {
 
 fn golden_requests() -> Vec<(&'static str, Envelope<Request>)> {
     vec![
-        ("000201039f1600", Envelope { seq: 1, body: Request::GetInfo }),
-        ("00070201378931400103204101010a4048e11a409a99a9400101031b4301038040010b5c4233331743cdcc4c3f0109803f904ee807784000", Envelope { seq: 2, body: Request::Run(RunParams::DEFAULT) }),
-        ("0007ac020340031400", Envelope { seq: 300, body: Request::GetSamples { from: 64 } }),
-        ("000dffff030aae47613f0ad7233d01010103a841010101052040d43400", Envelope { seq: 65535, body: Request::SetConfig(DeviceConfig::DEFAULT) }),
+        (
+            "000201039f1600",
+            Envelope {
+                seq: 1,
+                body: Request::GetInfo,
+            },
+        ),
+        (
+            "00070201378931400103204101010a4048e11a409a99a9400101031b4301038040010b5c4233331743cdcc4c3f0109803f904ee807784000",
+            Envelope {
+                seq: 2,
+                body: Request::Run(RunParams::DEFAULT),
+            },
+        ),
+        (
+            "0007ac020340031400",
+            Envelope {
+                seq: 300,
+                body: Request::GetSamples { from: 64 },
+            },
+        ),
+        (
+            "000dffff030aae47613f0ad7233d01010103a841010101052040d43400",
+            Envelope {
+                seq: 65535,
+                body: Request::SetConfig(DeviceConfig::DEFAULT),
+            },
+        ),
     ]
 }
 
 fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
     vec![
-        ("000201020101020117effdb6f50d0765737033326333e8070e0b801050b13300", Envelope { seq: 1, body: Response::Info(sample_info()) }),
-        ("000502017e2d00", Envelope { seq: 2, body: Response::Ok }),
-        ("000703020406fd6e00", Envelope { seq: 3, body: Response::Error(ErrorCode::InvalidParam(ParamField::ThicknessMm)) }),
-        ("000704020309238c00", Envelope { seq: 4, body: Response::Error(ErrorCode::Faulted(Fault::HostSilent)) }),
+        (
+            "000201020101020117effdb6f50d0765737033326333e8070e0b801050b13300",
+            Envelope {
+                seq: 1,
+                body: Response::Info(sample_info()),
+            },
+        ),
+        (
+            "000502017e2d00",
+            Envelope {
+                seq: 2,
+                body: Response::Ok,
+            },
+        ),
+        (
+            "000703020406fd6e00",
+            Envelope {
+                seq: 3,
+                body: Response::Error(ErrorCode::InvalidParam(ParamField::ThicknessMm)),
+            },
+        ),
+        (
+            "000704020309238c00",
+            Envelope {
+                seq: 4,
+                body: Response::Error(ErrorCode::Faulted(Fault::HostSilent)),
+            },
+        ),
         (
             "000705030207d2090103803e01082a42d209020a4d00",
             Envelope {
@@ -85,8 +140,16 @@ fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
                     total: 2,
                     ticks_per_sample: 1,
                     samples: heapless::Vec::from_slice(&[
-                        Sample { t_ms: 0, torque_nm: 0.0, angle_deg: 0.0 },
-                        Sample { t_ms: 1, torque_nm: 0.001, angle_deg: 0.5 },
+                        Sample {
+                            t_ms: 0,
+                            torque_nm: 0.0,
+                            angle_deg: 0.0,
+                        },
+                        Sample {
+                            t_ms: 1,
+                            torque_nm: 0.001,
+                            angle_deg: 0.5,
+                        },
                     ])
                     .unwrap(),
                 }),
@@ -95,7 +158,9 @@ fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
     ]
 }
 
-fn check_golden<T: serde::Serialize + serde::de::DeserializeOwned>(golden: Vec<(&str, T)>) -> Vec<String> {
+fn check_golden<T: serde::Serialize + serde::de::DeserializeOwned>(
+    golden: Vec<(&str, T)>,
+) -> Vec<String> {
     let mut mismatches = Vec::new();
     for (expected, msg) in &golden {
         let got = hex(&frame(msg));
@@ -109,13 +174,21 @@ fn check_golden<T: serde::Serialize + serde::de::DeserializeOwned>(golden: Vec<(
 #[test]
 fn golden_request_frames() {
     let m = check_golden(golden_requests());
-    assert!(m.is_empty(), "request wire bytes changed:\n{}", m.join("\n"));
+    assert!(
+        m.is_empty(),
+        "request wire bytes changed:\n{}",
+        m.join("\n")
+    );
 }
 
 #[test]
 fn golden_response_frames() {
     let m = check_golden(golden_responses());
-    assert!(m.is_empty(), "response wire bytes changed:\n{}", m.join("\n"));
+    assert!(
+        m.is_empty(),
+        "response wire bytes changed:\n{}",
+        m.join("\n")
+    );
 }
 
 /// Every one-byte change of a golden frame (every position, every other value) is rejected:
@@ -134,9 +207,13 @@ fn no_mutation_accepted<T: serde::de::DeserializeOwned + std::fmt::Debug>(hex_fr
                 // A trailing 0x00 closes whatever the mutation left open.
                 mutated.push(0);
                 let mut d = Deframer::<{ MAX_RESPONSE_FRAME_LEN }>::new();
-                let out: Vec<Result<T, FrameError>> = deframe_all(&mut d, &mutated, &[mutated.len()]);
+                let out: Vec<Result<T, FrameError>> =
+                    deframe_all(&mut d, &mutated, &[mutated.len()]);
                 let accepted: Vec<_> = out.iter().filter(|r| r.is_ok()).collect();
-                assert!(accepted.is_empty(), "frame {h} with byte {pos} = {value:#04x} was accepted: {accepted:?}");
+                assert!(
+                    accepted.is_empty(),
+                    "frame {h} with byte {pos} = {value:#04x} was accepted: {accepted:?}"
+                );
                 checked += 1;
             }
         }

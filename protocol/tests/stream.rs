@@ -10,13 +10,21 @@ type Resp = Envelope<Response>;
 const N: usize = MAX_RESPONSE_FRAME_LEN;
 
 fn ok_frames(out: Vec<Result<Resp, FrameError>>) -> Vec<Vec<u8>> {
-    out.into_iter().filter_map(|r| r.ok()).map(|m| frame(&m)).collect()
+    out.into_iter()
+        .filter_map(|r| r.ok())
+        .map(|m| frame(&m))
+        .collect()
 }
 
 #[test]
 fn boot_banner_before_the_first_frame_is_skipped() {
-    let msg = Envelope { seq: 9, body: Response::Ok };
-    let mut stream = b"ESP-ROM:esp32c3-api1-20210207\r\nBuild:Feb  7 2021\r\nrst:0x15 (USB_UART_CHIP_RESET)".to_vec();
+    let msg = Envelope {
+        seq: 9,
+        body: Response::Ok,
+    };
+    let mut stream =
+        b"ESP-ROM:esp32c3-api1-20210207\r\nBuild:Feb  7 2021\r\nrst:0x15 (USB_UART_CHIP_RESET)"
+            .to_vec();
     stream.extend(frame(&msg));
     let mut d = Deframer::<N>::new();
     let out: Vec<Result<Resp, _>> = deframe_all(&mut d, &stream, &[5]);
@@ -28,7 +36,10 @@ fn boot_banner_before_the_first_frame_is_skipped() {
 
 #[test]
 fn a_long_run_of_garbage_overflows_and_resyncs() {
-    let msg = Envelope { seq: 1, body: Response::Ok };
+    let msg = Envelope {
+        seq: 1,
+        body: Response::Ok,
+    };
     let mut stream = vec![0x55u8; 3 * N];
     stream.extend(frame(&msg));
     let mut d = Deframer::<N>::new();
@@ -41,10 +52,16 @@ fn a_long_run_of_garbage_overflows_and_resyncs() {
 #[test]
 fn an_intact_frame_with_an_unknown_message_reports_its_seq() {
     // A request frame is not a response: variant 11 of Response does not exist.
-    let bytes = frame(&Envelope { seq: 77, body: 11u8 });
+    let bytes = frame(&Envelope {
+        seq: 77,
+        body: 11u8,
+    });
     let mut d = Deframer::<N>::new();
     let out: Vec<Result<Resp, _>> = deframe_all(&mut d, &bytes, &[1]);
-    assert_eq!(out, vec![Err(FrameError::Decode(DecodeError { seq: Some(77) }))]);
+    assert_eq!(
+        out,
+        vec![Err(FrameError::Decode(DecodeError { seq: Some(77) }))]
+    );
 }
 
 /// Exhaustively: every single bit flip in a stream of three frames. The frame it hits (and, when
@@ -53,9 +70,18 @@ fn an_intact_frame_with_an_unknown_message_reports_its_seq() {
 #[test]
 fn every_single_bit_flip_is_rejected_and_neighbours_survive() {
     let msgs = [
-        Envelope { seq: 1, body: Response::Ok },
-        Envelope { seq: 2, body: Response::Kerf(None) },
-        Envelope { seq: 3, body: Response::Error(ErrorCode::Busy) },
+        Envelope {
+            seq: 1,
+            body: Response::Ok,
+        },
+        Envelope {
+            seq: 2,
+            body: Response::Kerf(None),
+        },
+        Envelope {
+            seq: 3,
+            body: Response::Error(ErrorCode::Busy),
+        },
     ];
     let frames: Vec<Vec<u8>> = msgs.iter().map(frame).collect();
     let stream: Vec<u8> = frames.concat();
@@ -67,7 +93,10 @@ fn every_single_bit_flip_is_rejected_and_neighbours_survive() {
         let mut d = Deframer::<N>::new();
         let got = ok_frames(deframe_all(&mut d, &s, &[7]));
         for g in &got {
-            assert!(frames.contains(g), "flip of bit {bit} produced an unsent message");
+            assert!(
+                frames.contains(g),
+                "flip of bit {bit} produced an unsent message"
+            );
         }
         // Which frame did the flip land in? Frames that neither contain it nor touch it survive.
         let mut start = 0;
@@ -76,7 +105,10 @@ fn every_single_bit_flip_is_rejected_and_neighbours_survive() {
             let hit = bit / 8 >= start && bit / 8 < end;
             let touches = bit / 8 + 1 == start || bit / 8 == end;
             if !hit && !touches {
-                assert!(got.contains(f), "frame {i} lost by a flip at bit {bit} outside it");
+                assert!(
+                    got.contains(f),
+                    "frame {i} lost by a flip at bit {bit} outside it"
+                );
             }
             start = end;
         }

@@ -27,7 +27,14 @@ pub fn serve<P: Read + Write + ?Sized>(
         let n = match port.read(&mut buf) {
             Ok(0) => break,
             Ok(n) => n,
-            Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) => continue,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
+                ) =>
+            {
+                continue;
+            }
             Err(e) if is_hangup(&e) => break,
             Err(e) => return Err(e),
         };
@@ -46,5 +53,6 @@ pub fn serve<P: Read + Write + ?Sized>(
 
 /// A pseudo-terminal master reports `EIO` once the slave side is closed.
 fn is_hangup(e: &io::Error) -> bool {
-    e.raw_os_error() == Some(5) || matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::UnexpectedEof)
+    e.raw_os_error() == Some(5)
+        || matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::UnexpectedEof)
 }

@@ -17,7 +17,11 @@ pub fn gauge() -> impl Strategy<Value = GaugeGeometry> {
             prong_radius_mm: rp,
             hole_radius_mm: rh,
             hole_distance_mm: d,
-            jam_direction: if cw { JamDirection::Clockwise } else { JamDirection::CounterClockwise },
+            jam_direction: if cw {
+                JamDirection::Clockwise
+            } else {
+                JamDirection::CounterClockwise
+            },
             disengage_deg: dis,
         }
     })
@@ -39,22 +43,32 @@ pub fn run_params() -> impl Strategy<Value = RunParams> {
 }
 
 pub fn config() -> impl Strategy<Value = DeviceConfig> {
-    (f(), f(), any::<u16>(), any::<bool>(), f(), any::<bool>(), any::<bool>(), f()).prop_map(
-        |(tpd, brk, zero, motor_side, gear, mi, ei, imax)| DeviceConfig {
-            torque_per_duty_nm: tpd,
-            breakaway_duty: brk,
-            encoder_zero_raw: zero,
-            encoder_placement: if motor_side {
-                EncoderPlacement::MotorShaft
-            } else {
-                EncoderPlacement::OutputShaft
-            },
-            gear_ratio: gear,
-            motor_inverted: mi,
-            encoder_inverted: ei,
-            max_current_a: imax,
-        },
+    (
+        f(),
+        f(),
+        any::<u16>(),
+        any::<bool>(),
+        f(),
+        any::<bool>(),
+        any::<bool>(),
+        f(),
     )
+        .prop_map(
+            |(tpd, brk, zero, motor_side, gear, mi, ei, imax)| DeviceConfig {
+                torque_per_duty_nm: tpd,
+                breakaway_duty: brk,
+                encoder_zero_raw: zero,
+                encoder_placement: if motor_side {
+                    EncoderPlacement::MotorShaft
+                } else {
+                    EncoderPlacement::OutputShaft
+                },
+                gear_ratio: gear,
+                motor_inverted: mi,
+                encoder_inverted: ei,
+                max_current_a: imax,
+            },
+        )
 }
 
 pub fn request() -> impl Strategy<Value = Request> {
@@ -93,9 +107,24 @@ pub fn fault() -> impl Strategy<Value = Fault> {
 pub fn param_field() -> impl Strategy<Value = ParamField> {
     use ParamField::*;
     proptest::sample::select(vec![
-        PitchUmPerDeg, RadiusMm, ProngRadiusMm, HoleRadiusMm, HoleDistanceMm, DisengageDeg,
-        ThicknessMm, TargetForceN, ContactAreaMm2, MaxTorqueNm, RampRateNmPerS, MaxTimeMs,
-        HostTimeoutMs, TorquePerDutyNm, BreakawayDuty, EncoderZeroRaw, GearRatio, MaxCurrentA,
+        PitchUmPerDeg,
+        RadiusMm,
+        ProngRadiusMm,
+        HoleRadiusMm,
+        HoleDistanceMm,
+        DisengageDeg,
+        ThicknessMm,
+        TargetForceN,
+        ContactAreaMm2,
+        MaxTorqueNm,
+        RampRateNmPerS,
+        MaxTimeMs,
+        HostTimeoutMs,
+        TorquePerDutyNm,
+        BreakawayDuty,
+        EncoderZeroRaw,
+        GearRatio,
+        MaxCurrentA,
     ])
 }
 
@@ -126,12 +155,16 @@ pub fn run_state() -> impl Strategy<Value = RunState> {
 }
 
 pub fn sample() -> impl Strategy<Value = Sample> {
-    (any::<u32>(), f(), f()).prop_map(|(t_ms, torque_nm, angle_deg)| Sample { t_ms, torque_nm, angle_deg })
+    (any::<u32>(), f(), f()).prop_map(|(t_ms, torque_nm, angle_deg)| Sample {
+        t_ms,
+        torque_nm,
+        angle_deg,
+    })
 }
 
 pub fn kerf_result() -> impl Strategy<Value = KerfResult> {
-    (any::<u32>(), f(), f(), f(), f(), f(), any::<u16>()).prop_map(|(run_id, k, a, p, t, force, fl)| {
-        KerfResult {
+    (any::<u32>(), f(), f(), f(), f(), f(), any::<u16>()).prop_map(
+        |(run_id, k, a, p, t, force, fl)| KerfResult {
             run_id,
             kerf_um: k,
             angle_deg: a,
@@ -139,20 +172,39 @@ pub fn kerf_result() -> impl Strategy<Value = KerfResult> {
             torque_at_jam_nm: t,
             force_at_jam_n: force,
             flags: QualityFlags(fl),
-        }
-    })
+        },
+    )
 }
 
 pub fn self_test_item() -> impl Strategy<Value = SelfTestItem> {
-    (prop_oneof![Just(TestOutcome::Pass), Just(TestOutcome::Fail), Just(TestOutcome::Skipped)], f())
+    (
+        prop_oneof![
+            Just(TestOutcome::Pass),
+            Just(TestOutcome::Fail),
+            Just(TestOutcome::Skipped)
+        ],
+        f(),
+    )
         .prop_map(|(outcome, value)| SelfTestItem { outcome, value })
 }
 
 pub fn info() -> impl Strategy<Value = DeviceInfo> {
-    (any::<[u16; 5]>(), any::<u32>(), "[a-z0-9-]{0,24}", any::<(u16, u8, u8, u16, u16)>()).prop_map(
-        |(v, boot_id, board, (rate, eb, pb, ms, mf))| DeviceInfo {
-            protocol: ProtocolVersion { major: v[0], minor: v[1] },
-            firmware: FirmwareVersion { major: v[2], minor: v[3], patch: v[4] },
+    (
+        any::<[u16; 5]>(),
+        any::<u32>(),
+        "[a-z0-9-]{0,24}",
+        any::<(u16, u8, u8, u16, u16)>(),
+    )
+        .prop_map(|(v, boot_id, board, (rate, eb, pb, ms, mf))| DeviceInfo {
+            protocol: ProtocolVersion {
+                major: v[0],
+                minor: v[1],
+            },
+            firmware: FirmwareVersion {
+                major: v[2],
+                minor: v[3],
+                patch: v[4],
+            },
             boot_id,
             hardware: HardwareInfo {
                 board: heapless::String::try_from(board.as_str()).unwrap(),
@@ -162,8 +214,7 @@ pub fn info() -> impl Strategy<Value = DeviceInfo> {
                 max_samples: ms,
                 max_request_frame_len: mf,
             },
-        },
-    )
+        })
 }
 
 pub fn response() -> impl Strategy<Value = Response> {
@@ -173,28 +224,51 @@ pub fn response() -> impl Strategy<Value = Response> {
         error_code().prop_map(Response::Error),
         (run_state(), any::<(u32, u32, u16, u16)>(), f(), f()).prop_map(
             |(state, (run_id, elapsed_ms, samples, encoder_errors), torque_nm, angle_deg)| {
-                Response::Status(Status { state, run_id, elapsed_ms, torque_nm, angle_deg, samples, encoder_errors })
+                Response::Status(Status {
+                    state,
+                    run_id,
+                    elapsed_ms,
+                    torque_nm,
+                    angle_deg,
+                    samples,
+                    encoder_errors,
+                })
             }
         ),
-        (any::<(u32, u16, u16, u16)>(), proptest::collection::vec(sample(), 0..=SAMPLES_PER_CHUNK)).prop_map(
-            |((run_id, from, total, ticks_per_sample), s)| Response::Samples(SampleChunk {
-                run_id,
-                from,
-                total,
-                ticks_per_sample,
-                samples: heapless::Vec::from_slice(&s).unwrap(),
-            })
-        ),
+        (
+            any::<(u32, u16, u16, u16)>(),
+            proptest::collection::vec(sample(), 0..=SAMPLES_PER_CHUNK)
+        )
+            .prop_map(
+                |((run_id, from, total, ticks_per_sample), s)| Response::Samples(SampleChunk {
+                    run_id,
+                    from,
+                    total,
+                    ticks_per_sample,
+                    samples: heapless::Vec::from_slice(&s).unwrap(),
+                })
+            ),
         proptest::option::of(kerf_result()).prop_map(Response::Kerf),
-        (self_test_item(), self_test_item(), self_test_item(), self_test_item()).prop_map(|(a, b, c, d)| {
-            Response::SelfTest(SelfTestReport {
-                encoder_ok_fraction: a,
-                magnet_magnitude: b,
-                direction_deg: c,
-                torque_per_duty_nm: d,
-            })
-        }),
-        (config(), any::<bool>()).prop_map(|(config, defaults_in_use)| Response::Config(ConfigReport { config, defaults_in_use })),
+        (
+            self_test_item(),
+            self_test_item(),
+            self_test_item(),
+            self_test_item()
+        )
+            .prop_map(|(a, b, c, d)| {
+                Response::SelfTest(SelfTestReport {
+                    encoder_ok_fraction: a,
+                    magnet_magnitude: b,
+                    direction_deg: c,
+                    torque_per_duty_nm: d,
+                })
+            }),
+        (config(), any::<bool>()).prop_map(|(config, defaults_in_use)| Response::Config(
+            ConfigReport {
+                config,
+                defaults_in_use
+            }
+        )),
     ]
 }
 
@@ -222,7 +296,11 @@ pub fn deframe_all<T: serde::de::DeserializeOwned, const N: usize>(
     let mut pos = 0;
     let mut k = 0;
     while pos < input.len() {
-        let size = chunks.get(k % chunks.len().max(1)).copied().unwrap_or(input.len()).max(1);
+        let size = chunks
+            .get(k % chunks.len().max(1))
+            .copied()
+            .unwrap_or(input.len())
+            .max(1);
         k += 1;
         let end = (pos + size).min(input.len());
         let mut window = &input[pos..end];
