@@ -6,17 +6,21 @@
 //!
 //! - [`link`]: the protocol server. Bytes in, requests out to a [`link::Handler`], responses back
 //!   out as bytes; retried requests are answered from memory, never executed twice.
+//! - [`as5048a`]: the magnetic encoder's driver, checked as the datasheet asks.
 //! - [`build`]: what this build is (firmware version, board name, hardware constants) for
 //!   `GetInfo`.
 //! - [`device`]: the request handler behind the link.
+//! - [`kerf`]: hole play, kerf from the jam angle, torque for a joint force.
 //! - `twin` (feature `twin`, std): the device served over a host byte stream.
 
 #![cfg_attr(not(any(test, feature = "twin")), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod as5048a;
 pub mod build;
 pub mod device;
+pub mod kerf;
 pub mod link;
-#[cfg(feature = "twin")]
+#[cfg(any(test, feature = "twin"))]
 pub mod twin;

@@ -5,6 +5,9 @@
 //! `Read + Write` port — in practice the master end of a pseudo-terminal pair, whose slave end the
 //! host library opens as an ordinary serial port.
 
+pub mod as5048a;
+pub mod rng;
+
 use std::io::{self, ErrorKind, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 
