@@ -202,6 +202,7 @@ pub enum ParamField {
     EncoderZeroRaw,
     GearRatio,
     MaxCurrentA,
+    TorquePerAmpNm,
 }
 
 impl ParamField {
@@ -226,6 +227,7 @@ impl ParamField {
             Self::EncoderZeroRaw => "encoder_zero_raw",
             Self::GearRatio => "gear_ratio",
             Self::MaxCurrentA => "max_current_a",
+            Self::TorquePerAmpNm => "torque_per_amp_nm",
         }
     }
 
@@ -251,6 +253,7 @@ impl ParamField {
             Self::EncoderZeroRaw => (0.0, 16_383.0),
             Self::GearRatio => (1.0, 1_000.0),
             Self::MaxCurrentA => (0.1, 30.0),
+            Self::TorquePerAmpNm => (0.001, 10.0),
         }
     }
 }

@@ -191,10 +191,14 @@ pub struct DeviceConfig {
     pub encoder_inverted: bool,
     /// Motor current that trips the over-current fault, A.
     pub max_current_a: f32,
+    /// Output torque per amp of motor current, N·m/A (gear ratio × efficiency × motor kt); the
+    /// self-test estimates the torque constant from it and the current at standstill.
+    pub torque_per_amp_nm: f32,
 }
 
 impl DeviceConfig {
-    /// The reference build: 21:1 gearbox, encoder on the output shaft, 0.88 N·m at full duty.
+    /// The reference build: 12 V, 21:1 gearbox, encoder on the output shaft, 0.88 N·m and 5.6 A
+    /// at full duty and standstill.
     pub const DEFAULT: Self = Self {
         torque_per_duty_nm: 0.88,
         breakaway_duty: 0.04,
@@ -203,7 +207,8 @@ impl DeviceConfig {
         gear_ratio: 21.0,
         motor_inverted: false,
         encoder_inverted: false,
-        max_current_a: 2.5,
+        max_current_a: 6.5,
+        torque_per_amp_nm: 0.157,
     };
 
     /// Check every field against its range; returns the first offending field.
@@ -213,6 +218,7 @@ impl DeviceConfig {
         check(f32::from(self.encoder_zero_raw), ParamField::EncoderZeroRaw)?;
         check(self.gear_ratio, ParamField::GearRatio)?;
         check(self.max_current_a, ParamField::MaxCurrentA)?;
+        check(self.torque_per_amp_nm, ParamField::TorquePerAmpNm)?;
         Ok(())
     }
 }

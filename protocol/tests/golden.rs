@@ -61,7 +61,7 @@ fn golden_requests() -> Vec<(&'static str, Envelope<Request>)> {
             },
         ),
         (
-            "000dffff030aae47613f0ad7233d01010103a841010101052040d43400",
+            "000dffff030aae47613f0ad7233d01010103a84101010109d0409cc4203ee8b800",
             Envelope {
                 seq: 65535,
                 body: Request::SetConfig(DeviceConfig::DEFAULT),

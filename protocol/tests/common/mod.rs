@@ -52,9 +52,10 @@ pub fn config() -> impl Strategy<Value = DeviceConfig> {
         any::<bool>(),
         any::<bool>(),
         f(),
+        f(),
     )
         .prop_map(
-            |(tpd, brk, zero, motor_side, gear, mi, ei, imax)| DeviceConfig {
+            |(tpd, brk, zero, motor_side, gear, mi, ei, imax, tpa)| DeviceConfig {
                 torque_per_duty_nm: tpd,
                 breakaway_duty: brk,
                 encoder_zero_raw: zero,
@@ -67,6 +68,7 @@ pub fn config() -> impl Strategy<Value = DeviceConfig> {
                 motor_inverted: mi,
                 encoder_inverted: ei,
                 max_current_a: imax,
+                torque_per_amp_nm: tpa,
             },
         )
 }
@@ -125,6 +127,7 @@ pub fn param_field() -> impl Strategy<Value = ParamField> {
         EncoderZeroRaw,
         GearRatio,
         MaxCurrentA,
+        TorquePerAmpNm,
     ])
 }
 
