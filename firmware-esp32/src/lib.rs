@@ -9,6 +9,7 @@
 //! - [`as5048a`]: the magnetic encoder's driver, checked as the datasheet asks.
 //! - [`build`]: what this build is (firmware version, board name, hardware constants) for
 //!   `GetInfo`.
+//! - [`motor`]: the Pololu G2 motor driver; safe state on construction, on drop, on request.
 //! - [`device`]: the request handler behind the link.
 //! - [`kerf`]: hole play, kerf from the jam angle, torque for a joint force.
 //! - `twin` (feature `twin`, std): the device served over a host byte stream.
@@ -22,5 +23,6 @@ pub mod build;
 pub mod device;
 pub mod kerf;
 pub mod link;
+pub mod motor;
 #[cfg(any(test, feature = "twin"))]
 pub mod twin;

@@ -6,6 +6,7 @@
 //! host library opens as an ordinary serial port.
 
 pub mod as5048a;
+pub mod pins;
 pub mod rng;
 
 use std::io::{self, ErrorKind, Read, Write};
