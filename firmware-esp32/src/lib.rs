@@ -10,6 +10,8 @@
 //! - [`build`]: what this build is (firmware version, board name, hardware constants) for
 //!   `GetInfo`.
 //! - [`motor`]: the Pololu G2 motor driver; safe state on construction, on drop, on request.
+//! - [`jam`]: jam detection: windowed slope, hold median.
+//! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.
 //! - [`device`]: the request handler behind the link.
 //! - [`kerf`]: hole play, kerf from the jam angle, torque for a joint force.
 //! - `twin` (feature `twin`, std): the device served over a host byte stream.
@@ -21,8 +23,10 @@
 pub mod as5048a;
 pub mod build;
 pub mod device;
+pub mod jam;
 pub mod kerf;
 pub mod link;
 pub mod motor;
+pub mod samples;
 #[cfg(any(test, feature = "twin"))]
 pub mod twin;

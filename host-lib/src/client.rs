@@ -296,6 +296,7 @@ pub(crate) fn request_name(request: &Request) -> &'static str {
         Request::SelfTest => "SelfTest",
         Request::GetConfig => "GetConfig",
         Request::SetConfig(_) => "SetConfig",
+        Request::GetSelfTest => "GetSelfTest",
     }
 }
 

@@ -137,6 +137,9 @@ pub fn describe_error_code(code: ErrorCode) -> String {
         ErrorCode::Storage => {
             "the configuration could not be saved to flash; the old one stays in use".into()
         }
+        ErrorCode::NotAtZero => {
+            "the hub is not at its zero position (prongs centred in the gauge holes): run `reset` first".into()
+        }
     }
 }
 

@@ -41,12 +41,15 @@ pub enum Request {
     Abort,
     /// Leave a latched fault (the motor stays in its safe state).
     ClearFault,
-    /// Check encoder, magnet, drive direction and torque constant; answered with `SelfTest`.
+    /// Start the self-test (encoder, magnet, drive direction, torque constant) with no gauge
+    /// under the prongs: the hub turns a little each way. Answered with `Ok` once started.
     SelfTest,
     /// Read the stored device configuration.
     GetConfig,
     /// Validate, store and apply a new device configuration.
     SetConfig(DeviceConfig),
+    /// The last self-test's report (`None` before the first, or while one runs).
+    GetSelfTest,
 }
 
 /// What the device answers.
@@ -68,8 +71,8 @@ pub enum Response {
     Samples(SampleChunk),
     /// Answer to [`Request::GetKerf`].
     Kerf(Option<KerfResult>),
-    /// Answer to [`Request::SelfTest`] once it is done (while it runs: `Error(Busy)`).
-    SelfTest(SelfTestReport),
+    /// Answer to [`Request::GetSelfTest`].
+    SelfTest(Option<SelfTestReport>),
     /// Answer to [`Request::GetConfig`] and [`Request::SetConfig`].
     Config(ConfigReport),
 }
@@ -177,6 +180,9 @@ pub enum ErrorCode {
     NoSamples,
     /// The configuration could not be written to flash; the old one is still in use.
     Storage,
+    /// A run must start with the hub at its zero position (prongs centred in the gauge's holes):
+    /// send `Reset` first.
+    NotAtZero,
 }
 
 /// A parameter of [`RunParams`] or [`DeviceConfig`], named in [`ErrorCode::InvalidParam`].

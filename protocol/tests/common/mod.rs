@@ -86,6 +86,7 @@ pub fn request() -> impl Strategy<Value = Request> {
         Just(Request::SelfTest),
         Just(Request::GetConfig),
         config().prop_map(Request::SetConfig),
+        Just(Request::GetSelfTest),
     ]
 }
 
@@ -140,6 +141,7 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         param_field().prop_map(ErrorCode::InvalidParam),
         Just(ErrorCode::NoSamples),
         Just(ErrorCode::Storage),
+        Just(ErrorCode::NotAtZero),
     ]
 }
 
@@ -259,13 +261,14 @@ pub fn response() -> impl Strategy<Value = Response> {
             self_test_item()
         )
             .prop_map(|(a, b, c, d)| {
-                Response::SelfTest(SelfTestReport {
+                Response::SelfTest(Some(SelfTestReport {
                     encoder_ok_fraction: a,
                     magnet_magnitude: b,
                     direction_deg: c,
                     torque_per_duty_nm: d,
-                })
+                }))
             }),
+        Just(Response::SelfTest(None)),
         (config(), any::<bool>()).prop_map(|(config, defaults_in_use)| Response::Config(
             ConfigReport {
                 config,
