@@ -75,6 +75,9 @@ pub const AGC_WARN: (u8, u8) = (20, 220);
 /// Magnitude band accepted (CORDIC magnitude; the AGC holds it near mid-scale).
 pub const MAGNITUDE_RANGE: (u16, u16) = (500, 16_000);
 
+/// Largest believable hub motion between two samples, degrees.
+pub const MAX_HUB_STEP_DEG: f32 = 10.0;
+
 /// Even parity bit for the 15 low bits, in bit 15.
 pub const fn with_parity(word: u16) -> u16 {
     let low = word & 0x7FFF;
@@ -113,14 +116,18 @@ pub struct EncoderSettings {
 impl EncoderSettings {
     /// Settings from the stored device configuration.
     pub fn from_config(config: &DeviceConfig) -> Self {
-        Self {
+        let mut settings = Self {
             placement: config.encoder_placement,
             gear_ratio: config.gear_ratio,
             inverted: config.encoder_inverted,
             zero_raw: config.encoder_zero_raw,
-            // At 1 kHz even a free-running motor shaft turns well under 90° per sample.
-            max_step_deg: 90.0,
-        }
+            max_step_deg: 0.0,
+        };
+        // The hub never turns 10° in one 1 ms tick (the reference motor's no-load output speed
+        // is about 3°/ms); on the motor shaft that is 10° × gear ratio, kept under half a turn
+        // so that the unwrap stays unambiguous.
+        settings.max_step_deg = (MAX_HUB_STEP_DEG * settings.turns_per_hub_turn()).min(170.0);
+        settings
     }
 
     /// Encoder turns per hub turn.
@@ -262,6 +269,11 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
     /// Give the bus back.
     pub fn release(self) -> SPI {
         self.spi
+    }
+
+    /// The bus (a test harness sets the fake chip's angle through it).
+    pub fn bus_mut(&mut self) -> &mut SPI {
+        &mut self.spi
     }
 
     /// One 16-bit frame: send `command`, return what the chip shifted out (the answer to the

@@ -1,22 +1,56 @@
-//! The device behind the link: answers each request from the device's state.
+//! The device behind the link: the controller, the configuration and what `GetInfo` says.
 //!
-//! For now the device answers `GetInfo` and refuses every other request with the typed
-//! [`ErrorCode::Unsupported`]; the measuring controller plugs in here.
+//! [`Device::step`] runs one control tick; [`Device::handle`] (the link's [`Handler`]) answers
+//! each request at the time of the last tick: run requests go to the [`Controller`], `GetInfo`
+//! and the configuration are answered here. A new configuration is validated, refused while the
+//! motor runs, stored through [`ConfigPersist`] *before* it is applied and acknowledged, and a
+//! failed store leaves the old configuration in force (`ErrorCode::Storage`).
 
-use kerfmeter_protocol::{DeviceInfo, ErrorCode, Request, Response};
+use kerfmeter_protocol::{ConfigReport, DeviceConfig, DeviceInfo, ErrorCode, Request, Response};
 
+use crate::config_store::{ConfigPersist, ConfigSource};
+use crate::controller::{Controller, Inputs};
 use crate::link::Handler;
+use crate::motor::MotorOutput;
 
-/// The device's request handler.
-pub struct Device {
+/// The device's state and request handler, generic over how the configuration is persisted.
+pub struct Device<S: ConfigPersist = ()> {
     info: DeviceInfo,
+    controller: Controller,
+    source: ConfigSource,
+    store: S,
+    now_us: u64,
 }
 
-impl Device {
-    /// A device that reports itself as `board` with this boot's random `boot_id`.
+impl Device<()> {
+    /// A device with the default configuration and no persistence (tests, fuzzing).
     pub fn new(board: &str, boot_id: u32) -> Self {
+        Self::with_config(
+            board,
+            boot_id,
+            DeviceConfig::DEFAULT,
+            ConfigSource::Missing,
+            (),
+        )
+    }
+}
+
+impl<S: ConfigPersist> Device<S> {
+    /// A device named `board`, booted with `boot_id`, running `config` (loaded from `source`),
+    /// saving new configurations to `store`.
+    pub fn with_config(
+        board: &str,
+        boot_id: u32,
+        config: DeviceConfig,
+        source: ConfigSource,
+        store: S,
+    ) -> Self {
         Self {
             info: crate::build::device_info(board, boot_id),
+            controller: Controller::new(config),
+            source,
+            store,
+            now_us: 0,
         }
     }
 
@@ -24,13 +58,59 @@ impl Device {
     pub fn info(&self) -> &DeviceInfo {
         &self.info
     }
+
+    /// The controller (for inspection).
+    pub fn controller(&self) -> &Controller {
+        &self.controller
+    }
+
+    /// One control tick at `now_us`.
+    pub fn step(&mut self, now_us: u64, inputs: &Inputs) -> MotorOutput {
+        self.now_us = now_us;
+        self.controller.step(now_us, inputs)
+    }
+
+    fn config_report(&self) -> Response {
+        Response::Config(ConfigReport {
+            config: *self.controller.config(),
+            defaults_in_use: self.source.defaults_in_use(),
+        })
+    }
+
+    fn set_config(&mut self, config: &DeviceConfig) -> Response {
+        if let Err(field) = config.validate() {
+            return Response::Error(ErrorCode::InvalidParam(field));
+        }
+        if let Some(f) = self.controller.fault() {
+            return Response::Error(ErrorCode::Faulted(f));
+        }
+        if self.controller.is_active() {
+            return Response::Error(ErrorCode::Busy);
+        }
+        if self.store.save(config).is_err() {
+            return Response::Error(ErrorCode::Storage);
+        }
+        match self.controller.set_config(*config) {
+            Ok(()) => {
+                self.source = ConfigSource::Stored;
+                self.config_report()
+            }
+            Err(e) => Response::Error(e),
+        }
+    }
 }
 
-impl Handler for Device {
+impl<S: ConfigPersist> Handler for Device<S> {
     fn handle(&mut self, request: &Request) -> Response {
+        if let Some(response) = self.controller.request(self.now_us, request) {
+            return response;
+        }
         match request {
             Request::GetInfo => Response::Info(self.info.clone()),
-            _ => Response::Error(ErrorCode::Unsupported),
+            Request::GetConfig => self.config_report(),
+            Request::SetConfig(config) => self.set_config(config),
+            // Every other request is the controller's and was answered above.
+            _ => Response::Error(ErrorCode::UnknownRequest),
         }
     }
 }
@@ -38,9 +118,10 @@ impl Handler for Device {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use kerfmeter_protocol::ParamField;
 
     #[test]
-    fn answers_info_and_refuses_the_rest_with_a_typed_error() {
+    fn answers_info() {
         let mut d = Device::new("twin", 0x1234);
         match d.handle(&Request::GetInfo) {
             Response::Info(i) => {
@@ -50,9 +131,79 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn every_request_has_an_answer_other_than_unsupported() {
+        let mut d = Device::new("twin", 1);
+        let requests = [
+            Request::GetInfo,
+            Request::Run(kerfmeter_protocol::RunParams::DEFAULT),
+            Request::GetStatus,
+            Request::GetSamples { from: 0 },
+            Request::GetKerf,
+            Request::Reset,
+            Request::Abort,
+            Request::ClearFault,
+            Request::SelfTest,
+            Request::GetConfig,
+            Request::SetConfig(DeviceConfig::DEFAULT),
+            Request::GetSelfTest,
+        ];
+        for r in &requests {
+            let answer = d.handle(r);
+            assert_ne!(answer, Response::Error(ErrorCode::Unsupported), "{r:?}");
+            assert_ne!(answer, Response::Error(ErrorCode::UnknownRequest), "{r:?}");
+        }
+    }
+
+    #[test]
+    fn config_is_validated_stored_and_reported() {
+        struct Failing(bool);
+        impl ConfigPersist for Failing {
+            fn save(&mut self, _: &DeviceConfig) -> Result<(), ()> {
+                if self.0 { Err(()) } else { Ok(()) }
+            }
+        }
+        let mut d = Device::with_config(
+            "twin",
+            1,
+            DeviceConfig::DEFAULT,
+            ConfigSource::Corrupt,
+            Failing(true),
+        );
+        match d.handle(&Request::GetConfig) {
+            Response::Config(r) => assert!(r.defaults_in_use),
+            other => panic!("{other:?}"),
+        }
+        let new = DeviceConfig {
+            gear_ratio: 30.0,
+            ..DeviceConfig::DEFAULT
+        };
         assert_eq!(
-            d.handle(&Request::GetKerf),
-            Response::Error(ErrorCode::Unsupported)
+            d.handle(&Request::SetConfig(new)),
+            Response::Error(ErrorCode::Storage)
+        );
+        assert_eq!(
+            d.controller().config().gear_ratio,
+            21.0,
+            "a failed store changes nothing"
+        );
+        d.store.0 = false;
+        match d.handle(&Request::SetConfig(new)) {
+            Response::Config(r) => {
+                assert_eq!(r.config, new);
+                assert!(!r.defaults_in_use);
+            }
+            other => panic!("{other:?}"),
+        }
+        let bad = DeviceConfig {
+            gear_ratio: 0.0,
+            ..DeviceConfig::DEFAULT
+        };
+        assert_eq!(
+            d.handle(&Request::SetConfig(bad)),
+            Response::Error(ErrorCode::InvalidParam(ParamField::GearRatio))
         );
     }
 }

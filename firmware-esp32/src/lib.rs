@@ -10,6 +10,9 @@
 //! - [`build`]: what this build is (firmware version, board name, hardware constants) for
 //!   `GetInfo`.
 //! - [`motor`]: the Pololu G2 motor driver; safe state on construction, on drop, on request.
+//! - [`config_store`]: the device configuration in flash, versioned and CRC-checked.
+//! - [`controller`]: the measuring state machine, stepped at 1 kHz: ramp, jam, kerf, faults.
+//! - [`hardware`]: one control tick on the real drivers (shared by the board and the twin).
 //! - [`jam`]: jam detection: windowed slope, hold median.
 //! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.
 //! - [`device`]: the request handler behind the link.
@@ -22,7 +25,10 @@
 
 pub mod as5048a;
 pub mod build;
+pub mod config_store;
+pub mod controller;
 pub mod device;
+pub mod hardware;
 pub mod jam;
 pub mod kerf;
 pub mod link;

@@ -6,6 +6,7 @@
 //! host library opens as an ordinary serial port.
 
 pub mod as5048a;
+pub mod flash;
 pub mod pins;
 pub mod rng;
 

@@ -1,0 +1,110 @@
+//! One control tick on the real drivers, shared by the board binary and the digital twin so that
+//! both run exactly the same sequence:
+//!
+//! 1. read the hub angle from the AS5048A;
+//! 2. read its diagnostics every [`DIAGNOSTICS_PERIOD_TICKS`] ticks, and at once after any read
+//!    error (so that a lost magnet is reported as such, not as a run of bad reads);
+//! 3. read the driver's FLT line (an unreadable FLT counts as a fault);
+//! 4. step the [`Device`] with these inputs and the motor current;
+//! 5. apply its output to the motor driver (a failed apply forces the motor safe and is reported
+//!    as a driver fault on the next tick).
+//!
+//! Configuration changes (encoder zero, placement, sense) reach the encoder driver here.
+
+use embedded_hal::digital::{InputPin, OutputPin};
+use embedded_hal::pwm::SetDutyCycle;
+use embedded_hal::spi::SpiDevice;
+use kerfmeter_protocol::DeviceConfig;
+
+use crate::as5048a::{As5048a, EncoderError, EncoderSettings};
+use crate::config_store::ConfigPersist;
+use crate::controller::{DiagnosticsReading, EncoderFault, Inputs};
+use crate::device::Device;
+use crate::motor::{G2Motor, MotorOutput};
+
+/// Diagnostics are read this often (ticks), and after every read error.
+pub const DIAGNOSTICS_PERIOD_TICKS: u32 = 50;
+
+/// The encoder and motor drivers of one device.
+pub struct Hardware<SPI, PWM, DIR, SLP, FLT>
+where
+    SPI: SpiDevice<u8>,
+    PWM: SetDutyCycle,
+    DIR: OutputPin,
+    SLP: OutputPin,
+    FLT: InputPin,
+{
+    /// The encoder driver.
+    pub encoder: As5048a<SPI>,
+    /// The motor driver.
+    pub motor: G2Motor<PWM, DIR, SLP, FLT>,
+    diagnostics_countdown: u32,
+    motor_error: bool,
+    applied: Option<DeviceConfig>,
+}
+
+impl<SPI, PWM, DIR, SLP, FLT> Hardware<SPI, PWM, DIR, SLP, FLT>
+where
+    SPI: SpiDevice<u8>,
+    PWM: SetDutyCycle,
+    DIR: OutputPin,
+    SLP: OutputPin,
+    FLT: InputPin,
+{
+    /// Wrap the drivers; diagnostics are read on the first tick.
+    pub fn new(encoder: As5048a<SPI>, motor: G2Motor<PWM, DIR, SLP, FLT>) -> Self {
+        Self {
+            encoder,
+            motor,
+            diagnostics_countdown: 0,
+            motor_error: false,
+            applied: None,
+        }
+    }
+
+    /// One control tick at `now_us`, with the motor current measured for it.
+    pub fn tick<S: ConfigPersist>(
+        &mut self,
+        now_us: u64,
+        current_a: f32,
+        device: &mut Device<S>,
+    ) -> MotorOutput {
+        let config = *device.controller().config();
+        if self.applied != Some(config) {
+            self.encoder
+                .set_settings(EncoderSettings::from_config(&config));
+            self.applied = Some(config);
+        }
+        let angle_deg = self.encoder.read_hub_deg().map_err(|e| match e {
+            EncoderError::Bus(_) => EncoderFault::Bus,
+            EncoderError::Parity => EncoderFault::Parity,
+            EncoderError::ErrorFlag(_) => EncoderFault::ErrorFlag,
+            EncoderError::Jump | EncoderError::Diagnostics(_) => EncoderFault::Jump,
+        });
+        let diagnostics = if self.diagnostics_countdown == 0 || angle_deg.is_err() {
+            self.diagnostics_countdown = DIAGNOSTICS_PERIOD_TICKS;
+            match self.encoder.diagnostics() {
+                Ok(d) => Some(Ok(DiagnosticsReading {
+                    magnitude: d.magnitude,
+                    marginal: d.marginal(),
+                })),
+                Err(EncoderError::Diagnostics(f)) => Some(Err(f)),
+                // A bus-level error while reading them: the angle reads show it too.
+                Err(_) => None,
+            }
+        } else {
+            self.diagnostics_countdown -= 1;
+            None
+        };
+        let driver_fault = self.motor_error || self.motor.fault().unwrap_or(true);
+        let inputs = Inputs {
+            angle_deg,
+            diagnostics,
+            current_a,
+            driver_fault,
+        };
+        let out = device.step(now_us, &inputs);
+        self.motor_error = self.motor.apply(&out).is_err();
+        out
+    }
+}
