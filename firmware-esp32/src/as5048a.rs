@@ -90,7 +90,7 @@ pub const fn with_parity(word: u16) -> u16 {
 
 /// True when the 16-bit word has even parity.
 pub const fn parity_ok(word: u16) -> bool {
-    word.count_ones() % 2 == 0
+    word.count_ones().is_multiple_of(2)
 }
 
 /// A read command for `address`.
@@ -348,22 +348,38 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
     /// Fold a new raw reading into the multi-turn count; rejects impossible jumps.
     fn unwrap(&mut self, raw: u16) -> Result<f32, EncoderError<SPI::Error>> {
         let counts = i32::from(COUNTS_PER_TURN);
-        if let Some(last) = self.last_raw {
-            let mut delta = i32::from(raw) - i32::from(last);
-            if delta > counts / 2 {
-                delta -= counts;
-            } else if delta < -counts / 2 {
-                delta += counts;
+        let half = counts / 2;
+        let raw_counts = i32::from(raw);
+        match self.last_raw {
+            Some(last) => {
+                // The shortest way round: a step of more than half a turn crossed the wrap.
+                let step = raw_counts - i32::from(last);
+                let wrap = if step > half {
+                    -1
+                } else if step < -half {
+                    1
+                } else {
+                    0
+                };
+                let step_deg = (step + wrap * counts) as f32 * 360.0 / counts as f32;
+                if step_deg.abs() > self.settings.max_step_deg {
+                    self.stats.jumps += 1;
+                    return Err(EncoderError::Jump);
+                }
+                self.turns += wrap;
             }
-            let delta_deg = delta as f32 * 360.0 / counts as f32;
-            if delta_deg.abs() > self.settings.max_step_deg {
-                self.stats.jumps += 1;
-                return Err(EncoderError::Jump);
-            }
-            if i32::from(raw) - i32::from(last) > counts / 2 {
-                self.turns -= 1;
-            } else if i32::from(last) - i32::from(raw) > counts / 2 {
-                self.turns += 1;
+            None => {
+                // First reading: the turn that puts the hub nearest its zero. (On the motor
+                // shaft that assumes the hub boots within ±180°/gear ratio of zero: a motor-shaft
+                // encoder cannot tell hub positions a motor turn apart.)
+                let offset = raw_counts - i32::from(self.settings.zero_raw);
+                self.turns = if offset > half {
+                    -1
+                } else if offset < -half {
+                    1
+                } else {
+                    0
+                };
             }
         }
         self.last_raw = Some(raw);

@@ -86,16 +86,21 @@ pub fn decode_record(record: &[u8]) -> Result<DeviceConfig, RecordError> {
     Ok(config)
 }
 
+/// The configuration could not be written; the old record stays valid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StoreError;
+
 /// Persisting the configuration, as the device needs it (synchronous: it is only called while the
 /// motor is at rest).
 pub trait ConfigPersist {
-    /// Store `config`; `Err` when it could not be written (the old record stays valid).
-    fn save(&mut self, config: &DeviceConfig) -> Result<(), ()>;
+    /// Store `config`.
+    fn save(&mut self, config: &DeviceConfig) -> Result<(), StoreError>;
 }
 
 /// No persistence (the configuration lives until reboot).
 impl ConfigPersist for () {
-    fn save(&mut self, _: &DeviceConfig) -> Result<(), ()> {
+    fn save(&mut self, _: &DeviceConfig) -> Result<(), StoreError> {
         Ok(())
     }
 }
@@ -146,8 +151,8 @@ impl<F: NorFlash> FlashConfigStore<F> {
 /// A store whose flash completes every operation immediately (blocking flash behind an async
 /// adapter, or the twin's RAM flash) can be driven synchronously.
 impl<F: NorFlash> ConfigPersist for FlashConfigStore<F> {
-    fn save(&mut self, config: &DeviceConfig) -> Result<(), ()> {
-        embassy_futures::block_on(FlashConfigStore::save(self, config)).map_err(|_| ())
+    fn save(&mut self, config: &DeviceConfig) -> Result<(), StoreError> {
+        embassy_futures::block_on(FlashConfigStore::save(self, config)).map_err(|_| StoreError)
     }
 }
 

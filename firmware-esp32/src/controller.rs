@@ -87,12 +87,13 @@ pub const NEAR_DISENGAGE_FRACTION: f32 = 0.9;
 pub const ENGAGE_SPEED_DEG_PER_S: f32 = 60.0;
 /// Engaging torque ceiling, N·m (well above breakaway, far below any measuring torque).
 pub const ENGAGE_MAX_TORQUE_NM: f32 = 0.12;
-/// Engaging speed-loop gain, N·m per second per (degree per second) of speed error.
-pub const ENGAGE_GAIN: f32 = 0.02;
-/// While ramping, torque is eased off above this hub speed, degrees per second.
+/// While ramping, the hub never turns faster than this, degrees per second, so that the inset
+/// does not slam into the jam (the impact would compress the contact beyond the static value).
 pub const MAX_TURN_SPEED_DEG_PER_S: f32 = 90.0;
-/// How hard the ramp is eased off, N·m per second per (degree per second) over the limit.
-pub const SPEED_LIMIT_GAIN: f32 = 0.05;
+/// Speed loop (engage, ramp ceiling, reset): proportional gain, N·m per (degree per second).
+pub const SPEED_KP: f32 = 0.0005;
+/// Speed loop: integral gain, N·m per second per (degree per second).
+pub const SPEED_KI: f32 = 0.01;
 /// Torque ramp-down rate when releasing, N·m per second.
 pub const RELEASE_RATE_NM_PER_S: f32 = 4.0;
 
@@ -109,10 +110,10 @@ pub const OVERRUN_PERIODS: u64 = 3;
 /// A run starts only within this angle of zero.
 pub const START_TOLERANCE_DEG: f32 = 1.0;
 
-/// Reset: position gain, N·m per degree.
-pub const RESET_KP: f32 = 0.004;
-/// Reset: damping, N·m per (degree per second).
-pub const RESET_KD: f32 = 0.0004;
+/// Reset: hub speed target per degree from zero, (degrees per second) per degree.
+pub const RESET_SPEED_PER_DEG: f32 = 4.0;
+/// Reset: fastest return, degrees per second.
+pub const RESET_MAX_SPEED_DEG_PER_S: f32 = 90.0;
 /// Reset: torque ceiling, N·m.
 pub const RESET_MAX_TORQUE_NM: f32 = 0.15;
 /// Reset is done within this angle of zero...
@@ -219,6 +220,7 @@ pub struct Controller {
     max_deg: f32,
     no_motion_ticks: u32,
     still_ticks: u32,
+    speed_integral_nm: f32,
     consecutive_encoder_errors: u16,
     run_encoder_errors: u16,
     flags: QualityFlags,
@@ -254,6 +256,7 @@ impl Controller {
             max_deg: 0.0,
             no_motion_ticks: 0,
             still_ticks: 0,
+            speed_integral_nm: 0.0,
             consecutive_encoder_errors: 0,
             run_encoder_errors: 0,
             flags: QualityFlags::empty(),
@@ -413,6 +416,7 @@ impl Controller {
         self.max_deg = angle;
         self.no_motion_ticks = 0;
         self.still_ticks = 0;
+        self.speed_integral_nm = 0.0;
         self.last_host_us = now_us;
         self.state = State::Engaging;
         Response::Ok
@@ -424,6 +428,7 @@ impl Controller {
                 self.result = None;
                 self.consecutive_encoder_errors = 0;
                 self.torque_nm = 0.0;
+                self.speed_integral_nm = 0.0;
                 self.slope.clear();
                 self.state = State::Resetting {
                     ticks: 0,
@@ -639,10 +644,19 @@ impl Controller {
         }
     }
 
+    /// The speed loop (PI): the torque, within ±`cap_nm`, that holds the hub at `target`
+    /// degrees per second. The integrator is clamped to the same bounds (no wind-up).
+    fn speed_loop(&mut self, target_deg_per_s: f32, cap_nm: f32) -> f32 {
+        let error = target_deg_per_s - self.speed_deg_per_s();
+        self.speed_integral_nm =
+            (self.speed_integral_nm + SPEED_KI * error * DT_S).clamp(-cap_nm, cap_nm);
+        (SPEED_KP * error + self.speed_integral_nm).clamp(-cap_nm, cap_nm)
+    }
+
     fn engage(&mut self) {
-        let error = ENGAGE_SPEED_DEG_PER_S - self.speed_deg_per_s();
-        self.torque_nm =
-            (self.torque_nm + ENGAGE_GAIN * error * DT_S).clamp(0.0, ENGAGE_MAX_TORQUE_NM);
+        self.torque_nm = self
+            .speed_loop(ENGAGE_SPEED_DEG_PER_S, ENGAGE_MAX_TORQUE_NM)
+            .max(0.0);
         let gauge = &self.params.gauge;
         // No kerf has less play than a zero kerf: the prongs cannot drag the inset before this.
         if self.angle_deg >= play_deg(gauge, 0.0) - JAM_SLIP_DEG {
@@ -665,12 +679,11 @@ impl Controller {
 
     fn ramp(&mut self) {
         let (target, limited) = self.ramp_target_nm();
-        let mut torque = self.torque_nm + self.params.ramp_rate_nm_per_s * DT_S;
-        let excess = self.speed_deg_per_s() - MAX_TURN_SPEED_DEG_PER_S;
-        if excess > 0.0 {
-            torque = self.torque_nm - SPEED_LIMIT_GAIN * excess * DT_S;
-        }
-        self.torque_nm = torque.clamp(0.0, target);
+        // The torque rises at the ramp rate, never above the speed loop's (so the inset turns at
+        // most at the speed limit) nor above the target for the current angle.
+        let speed_capped = self.speed_loop(MAX_TURN_SPEED_DEG_PER_S, target);
+        let ramped = self.torque_nm + self.params.ramp_rate_nm_per_s * DT_S;
+        self.torque_nm = ramped.min(speed_capped).clamp(0.0, target);
         let at_target = self.torque_nm >= target * 0.999 && target > self.breakaway_torque_nm();
         let inset = self.angle_deg - play_deg(&self.params.gauge, 0.0);
         if at_target && self.is_still() && inset >= JAM_MIN_INSET_DEG {
@@ -741,13 +754,18 @@ impl Controller {
             self.latch(Fault::ResetFailed);
             return;
         }
-        let speed = self.speed_deg_per_s();
-        let torque = -RESET_KP * self.angle_deg - RESET_KD * speed;
-        self.torque_nm = torque.clamp(-RESET_MAX_TORQUE_NM, RESET_MAX_TORQUE_NM);
-        let near = self.angle_deg.abs() <= RESET_TOLERANCE_DEG
-            && self.slope.is_full()
-            && speed.abs() < 5.0;
-        let settled = if near { settled + 1 } else { 0 };
+        // Within tolerance: brake and check that the hub stays there; outside, drive towards
+        // zero at a speed that falls with the distance left.
+        let settled = if self.angle_deg.abs() <= RESET_TOLERANCE_DEG {
+            self.torque_nm = 0.0;
+            self.speed_integral_nm = 0.0;
+            settled + 1
+        } else {
+            let target = (-RESET_SPEED_PER_DEG * self.angle_deg)
+                .clamp(-RESET_MAX_SPEED_DEG_PER_S, RESET_MAX_SPEED_DEG_PER_S);
+            self.torque_nm = self.speed_loop(target, RESET_MAX_TORQUE_NM);
+            0
+        };
         if settled >= RESET_SETTLE_TICKS {
             self.torque_nm = 0.0;
             self.state = State::Idle;
@@ -850,8 +868,12 @@ impl Controller {
 
     /// The motor output for the current torque (jam frame).
     fn output(&self) -> MotorOutput {
-        if self.torque_nm == 0.0 || !self.is_active() {
+        if !self.is_active() {
             return MotorOutput::SAFE;
+        }
+        if self.torque_nm == 0.0 {
+            // Active but no torque wanted: brake (both low-side switches on) rather than coast.
+            return MotorOutput::BRAKE;
         }
         let duty =
             self.config.breakaway_duty + self.torque_nm.abs() / self.config.torque_per_duty_nm;

@@ -59,6 +59,11 @@ impl<S: ConfigPersist> Device<S> {
         &self.info
     }
 
+    /// Give back the configuration store (a simulated reboot keeps its flash).
+    pub fn into_store(self) -> S {
+        self.store
+    }
+
     /// The controller (for inspection).
     pub fn controller(&self) -> &Controller {
         &self.controller
@@ -118,6 +123,7 @@ impl<S: ConfigPersist> Handler for Device<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config_store::StoreError;
     use kerfmeter_protocol::ParamField;
 
     #[test]
@@ -161,8 +167,8 @@ mod tests {
     fn config_is_validated_stored_and_reported() {
         struct Failing(bool);
         impl ConfigPersist for Failing {
-            fn save(&mut self, _: &DeviceConfig) -> Result<(), ()> {
-                if self.0 { Err(()) } else { Ok(()) }
+            fn save(&mut self, _: &DeviceConfig) -> Result<(), StoreError> {
+                if self.0 { Err(StoreError) } else { Ok(()) }
             }
         }
         let mut d = Device::with_config(

@@ -32,7 +32,15 @@ impl MotorOutput {
         awake: false,
     };
 
-    /// True when this output applies no torque.
+    /// Duty 0 with the driver awake: the G2 shorts the motor through its low-side switches,
+    /// braking it (back-EMF drives the current). No drive torque.
+    pub const BRAKE: Self = Self {
+        duty: 0.0,
+        dir_high: false,
+        awake: true,
+    };
+
+    /// True when this output applies no drive torque (asleep, or braking).
     pub fn is_safe(&self) -> bool {
         !self.awake || self.duty <= 0.0
     }
@@ -87,9 +95,9 @@ where
         pwm.and(slp).and(dir)
     }
 
-    /// Apply the controller's output. A safe output takes the safe path.
+    /// Apply the controller's output. An output with the driver asleep takes the safe path.
     pub fn apply(&mut self, out: &MotorOutput) -> Result<(), MotorError> {
-        if out.is_safe() {
+        if !out.awake {
             return self.safe();
         }
         let result = self.drive(out);

@@ -46,7 +46,7 @@ impl<const N: usize> SampleLog<N> {
 
     /// Offer this tick's sample; it is kept when the tick falls on the current rate.
     pub fn record(&mut self, sample: Sample) {
-        let keep = self.tick % u32::from(self.ticks_per_sample) == 0;
+        let keep = self.tick.is_multiple_of(u32::from(self.ticks_per_sample));
         self.tick = self.tick.wrapping_add(1);
         if !keep {
             return;
@@ -54,7 +54,7 @@ impl<const N: usize> SampleLog<N> {
         if self.len == N {
             self.decimate();
             // After halving, this tick may no longer fall on the rate.
-            if (self.tick - 1) % u32::from(self.ticks_per_sample) != 0 {
+            if !(self.tick - 1).is_multiple_of(u32::from(self.ticks_per_sample)) {
                 return;
             }
         }
@@ -160,7 +160,10 @@ mod tests {
             log.record(s(t));
         }
         let a = log.chunk(1, 0).unwrap();
-        assert_eq!((a.from, a.total, a.samples.len()), (0, 70, SAMPLES_PER_CHUNK));
+        assert_eq!(
+            (a.from, a.total, a.samples.len()),
+            (0, 70, SAMPLES_PER_CHUNK)
+        );
         let c = log.chunk(1, 64).unwrap();
         assert_eq!(c.samples.len(), 6);
         assert_eq!(log.chunk(1, 70).unwrap().samples.len(), 0);

@@ -29,8 +29,14 @@ pub const MAX_REQUEST_FRAME_LEN: usize = max_frame_len(Envelope::<Request>::POST
 pub const MAX_RESPONSE_FRAME_LEN: usize = max_frame_len(Envelope::<Response>::POSTCARD_MAX_SIZE);
 
 // The device keeps one request and one response buffer in static RAM: keep them small.
-const _: () = assert!(MAX_REQUEST_FRAME_LEN <= 128, "request frames grew past 128 bytes");
-const _: () = assert!(MAX_RESPONSE_FRAME_LEN <= 512, "response frames grew past 512 bytes");
+const _: () = assert!(
+    MAX_REQUEST_FRAME_LEN <= 128,
+    "request frames grew past 128 bytes"
+);
+const _: () = assert!(
+    MAX_RESPONSE_FRAME_LEN <= 512,
+    "response frames grew past 512 bytes"
+);
 
 /// Why a message could not be framed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -53,7 +53,7 @@ impl RamFlash {
     }
 
     fn check(&self, offset: u32, len: usize, align: u32) -> Result<(), RamFlashError> {
-        if offset % align != 0 || len as u32 % align != 0 {
+        if !offset.is_multiple_of(align) || !(len as u32).is_multiple_of(align) {
             return Err(RamFlashError(NorFlashErrorKind::NotAligned));
         }
         if offset as usize + len > self.bytes.len() {

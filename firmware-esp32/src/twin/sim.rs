@@ -1,0 +1,454 @@
+//! The twin itself: the real firmware (link, device, controller, AS5048A and G2 drivers, the
+//! shared control tick) wired to fake peripherals that speak the chips' protocols, stepped in
+//! lock-step with the [`Plant`], deterministic for a seed.
+//!
+//! Time is simulated: [`Twin::tick`] advances one 1 ms control period. Served on a serial port
+//! ([`super::serve_twin`]), simulated time runs ahead of the host by at most [`MAX_LEAD_MS`] past
+//! its last request — much faster than real time, yet a host that keeps polling never looks
+//! silent to the device's watchdog — or follows the wall clock in real-time mode.
+
+use core::fmt;
+use core::str::FromStr;
+
+use kerfmeter_protocol::{DeviceConfig, GaugeGeometry, Request, Response, RunState};
+
+use super::as5048a::{FakeAs5048a, MisoFault};
+use super::flash::RamFlash;
+use super::pins::{FakeInput, FakeOutput, FakePwm};
+use super::plant::{Bridge, Plant, PlantParams};
+use super::rng::Rng;
+use crate::as5048a::{As5048a, EncoderSettings};
+use crate::config_store::FlashConfigStore;
+use crate::controller::PERIOD_US;
+use crate::device::Device;
+use crate::hardware::Hardware;
+use crate::link::{Handler, Link};
+use crate::motor::G2Motor;
+
+/// How far simulated time may run past the host's last request, ms.
+pub const MAX_LEAD_MS: u64 = 100;
+/// When a mid-run fault strikes, ms after the run started.
+pub const FAULT_AT_MS: u64 = 200;
+/// Every this many encoder frames, one response is corrupted (`parity` fault).
+pub const PARITY_ERROR_EVERY_FRAMES: u32 = 40;
+
+/// Flash reserved for the configuration store (four 4 KiB sectors).
+const FLASH_PAGES: usize = 4;
+
+/// A fault the twin can inject, by the name used everywhere (twin binary, CLI, tests).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InjectedFault {
+    /// Parity and error-flag errors on the encoder bus, all run long: ridden through, counted.
+    Parity,
+    /// The encoder magnet falls off mid-run.
+    MagnetLost,
+    /// The encoder's MISO line sticks low mid-run (valid-looking zeros).
+    MisoStuck,
+    /// No inset under the prongs: they turn freely, nothing jams.
+    NoInset,
+    /// The motor leads are disconnected: no current, no motion.
+    MotorDisconnected,
+    /// The driver pulls FLT low mid-run.
+    DriverFault,
+    /// A short: the current sense reads far above the limit mid-run.
+    OverCurrent,
+    /// The host stops talking mid-run (the twin ignores it until the device has reacted).
+    HostSilent,
+    /// A prong slips out of its hole mid-run: the hub turns on without the inset.
+    ProngSlip,
+}
+
+impl InjectedFault {
+    /// Every fault, in a fixed order.
+    pub const ALL: [InjectedFault; 9] = [
+        InjectedFault::Parity,
+        InjectedFault::MagnetLost,
+        InjectedFault::MisoStuck,
+        InjectedFault::NoInset,
+        InjectedFault::MotorDisconnected,
+        InjectedFault::DriverFault,
+        InjectedFault::OverCurrent,
+        InjectedFault::HostSilent,
+        InjectedFault::ProngSlip,
+    ];
+
+    /// The fault's name.
+    pub const fn name(self) -> &'static str {
+        match self {
+            InjectedFault::Parity => "parity",
+            InjectedFault::MagnetLost => "magnet-lost",
+            InjectedFault::MisoStuck => "miso-stuck",
+            InjectedFault::NoInset => "no-inset",
+            InjectedFault::MotorDisconnected => "motor-disconnected",
+            InjectedFault::DriverFault => "driver-fault",
+            InjectedFault::OverCurrent => "over-current",
+            InjectedFault::HostSilent => "host-silent",
+            InjectedFault::ProngSlip => "prong-slip",
+        }
+    }
+
+    /// The typed device fault a run ends in, or `None` for a fault the device rides through.
+    pub const fn expected(self) -> Option<kerfmeter_protocol::Fault> {
+        use kerfmeter_protocol::Fault;
+        match self {
+            InjectedFault::Parity => None,
+            InjectedFault::MagnetLost => Some(Fault::Magnet),
+            InjectedFault::MisoStuck => Some(Fault::EncoderDiagnostics),
+            InjectedFault::NoInset => Some(Fault::Overtravel),
+            InjectedFault::MotorDisconnected => Some(Fault::NoMotion),
+            InjectedFault::DriverFault => Some(Fault::DriverFault),
+            InjectedFault::OverCurrent => Some(Fault::OverCurrent),
+            InjectedFault::HostSilent => Some(Fault::HostSilent),
+            InjectedFault::ProngSlip => Some(Fault::Overtravel),
+        }
+    }
+}
+
+impl fmt::Display for InjectedFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An unknown fault name.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UnknownFault(pub String);
+
+impl fmt::Display for UnknownFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "unknown fault `{}`; known faults:", self.0)?;
+        for fault in InjectedFault::ALL {
+            write!(f, " {fault}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for UnknownFault {}
+
+impl FromStr for InjectedFault {
+    type Err = UnknownFault;
+    fn from_str(s: &str) -> Result<Self, UnknownFault> {
+        InjectedFault::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| UnknownFault(s.to_owned()))
+    }
+}
+
+/// How a twin is set up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwinOptions {
+    /// True kerf of every gauge placed under the prongs, µm.
+    pub kerf_um: f64,
+    /// Standard deviation of the cutter's kerf from gauge to gauge, µm (0: every gauge the same).
+    pub kerf_sd_um: f64,
+    /// Seed of every random number (noise, boot id, kerf variation).
+    pub seed: u64,
+    /// The fault to inject, if any.
+    pub fault: Option<InjectedFault>,
+    /// The physics.
+    pub plant: PlantParams,
+    /// The gauge that is cut (its sense and pitch must match what the host sends for a reading).
+    pub gauge: GaugeGeometry,
+}
+
+impl Default for TwinOptions {
+    fn default() -> Self {
+        Self {
+            kerf_um: 150.0,
+            kerf_sd_um: 0.0,
+            seed: 1,
+            fault: None,
+            plant: PlantParams::default(),
+            gauge: GaugeGeometry::PAPER,
+        }
+    }
+}
+
+type TwinHardware = Hardware<FakeAs5048a, FakePwm, FakeOutput, FakeOutput, FakeInput>;
+
+/// The twin: firmware, fake peripherals and plant.
+pub struct Twin {
+    options: TwinOptions,
+    rng: Rng,
+    plant: Plant,
+    hardware: TwinHardware,
+    pwm: FakePwm,
+    dir: FakeOutput,
+    slp: FakeOutput,
+    flt: FakeInput,
+    device: Device<FlashConfigStore<RamFlash>>,
+    link: Link,
+    now_us: u64,
+    last_request_us: u64,
+    run_started_us: Option<u64>,
+    fault_struck: bool,
+    over_current: bool,
+    boots: u32,
+}
+
+impl Twin {
+    /// Boot a twin.
+    pub fn new(options: TwinOptions) -> Self {
+        Self::boot(options, RamFlash::new(FLASH_PAGES), 0)
+    }
+
+    fn boot(options: TwinOptions, flash: RamFlash, boots: u32) -> Self {
+        let mut rng = Rng::new(options.seed ^ (u64::from(boots) << 32));
+        let boot_id = rng.next_u64() as u32;
+        // Safe state first: the driver's constructor drives the pins safe.
+        let (pwm, dir, slp, flt) = (
+            FakePwm::new((1 << crate::build::PWM_BITS) - 1),
+            FakeOutput::new(false),
+            FakeOutput::new(false),
+            FakeInput::new(true),
+        );
+        let (motor, _) = G2Motor::new(pwm.clone(), dir.clone(), slp.clone(), flt.clone());
+        let mut chip = FakeAs5048a::new(rng.next_u64());
+        chip.set_noise_lsb(options.plant.encoder_noise_lsb);
+        let mut store = FlashConfigStore::new(flash, 0..FLASH_PAGES as u32 * RamFlash::PAGE);
+        let (config, source) = embassy_futures::block_on(store.load());
+        let encoder = As5048a::new(chip, EncoderSettings::from_config(&config));
+        let device = Device::with_config("twin", boot_id, config, source, store);
+        let mut plant = Plant::new(options.plant, options.gauge, options.kerf_um);
+        match options.fault {
+            Some(InjectedFault::NoInset) => plant.set_inset_present(false),
+            Some(InjectedFault::MotorDisconnected) => plant.set_motor_connected(false),
+            _ => {}
+        }
+        Self {
+            options,
+            rng,
+            plant,
+            hardware: Hardware::new(encoder, motor),
+            pwm,
+            dir,
+            slp,
+            flt,
+            device,
+            link: Link::new(),
+            now_us: 0,
+            last_request_us: 0,
+            run_started_us: None,
+            fault_struck: false,
+            over_current: false,
+            boots,
+        }
+    }
+
+    /// Power-cycle the device: new boot id, state lost, flash (configuration) kept, hub where it
+    /// stands.
+    pub fn reboot(&mut self) {
+        let flash = core::mem::replace(
+            &mut self.device,
+            Device::with_config(
+                "twin",
+                0,
+                DeviceConfig::DEFAULT,
+                crate::config_store::ConfigSource::Missing,
+                FlashConfigStore::new(
+                    RamFlash::new(FLASH_PAGES),
+                    0..FLASH_PAGES as u32 * RamFlash::PAGE,
+                ),
+            ),
+        )
+        .into_store()
+        .release();
+        let plant = self.plant.clone();
+        let now = self.now_us;
+        *self = Self::boot(self.options.clone(), flash, self.boots + 1);
+        self.plant = plant;
+        self.now_us = now;
+        self.last_request_us = now;
+    }
+
+    /// Simulated time, µs.
+    pub fn now_us(&self) -> u64 {
+        self.now_us
+    }
+
+    /// The plant (for checks).
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
+    /// The device (for checks).
+    pub fn device(&self) -> &Device<FlashConfigStore<RamFlash>> {
+        &self.device
+    }
+
+    /// The options it was built with.
+    pub fn options(&self) -> &TwinOptions {
+        &self.options
+    }
+
+    /// True when the motor bridge is in its safe state (duty 0 or driver asleep).
+    pub fn motor_safe(&self) -> bool {
+        self.pwm.duty() == 0.0 || !self.slp.is_high()
+    }
+
+    /// True while the injected `host-silent` fault swallows the host's bytes.
+    fn host_muted(&self) -> bool {
+        self.options.fault == Some(InjectedFault::HostSilent)
+            && self.fault_struck
+            && !matches!(self.device.controller().run_state(), RunState::Fault(_))
+    }
+
+    /// Bytes from the host: handled by the firmware's link; responses go to `transmit`.
+    pub fn receive(&mut self, bytes: &[u8], transmit: impl FnMut(&[u8])) {
+        if self.host_muted() {
+            return;
+        }
+        self.last_request_us = self.now_us;
+        let mut handler = TwinHandler {
+            device: &mut self.device,
+            plant: &mut self.plant,
+            rng: &mut self.rng,
+            options: &self.options,
+            run_started: &mut self.run_started_us,
+            now_us: self.now_us,
+        };
+        self.link.receive(bytes, &mut handler, transmit);
+    }
+
+    /// A request without framing (in-process tests).
+    pub fn request(&mut self, request: &Request) -> Response {
+        self.last_request_us = self.now_us;
+        let mut handler = TwinHandler {
+            device: &mut self.device,
+            plant: &mut self.plant,
+            rng: &mut self.rng,
+            options: &self.options,
+            run_started: &mut self.run_started_us,
+            now_us: self.now_us,
+        };
+        handler.handle(request)
+    }
+
+    /// Ticks the twin may run before it must wait for the host (lock-step mode).
+    pub fn lead_ticks(&self) -> u64 {
+        let limit = self.last_request_us + MAX_LEAD_MS * 1000;
+        let host_silent =
+            self.options.fault == Some(InjectedFault::HostSilent) && self.fault_struck;
+        if host_silent {
+            return u64::MAX;
+        }
+        limit.saturating_sub(self.now_us) / PERIOD_US
+    }
+
+    /// One 1 ms control period: sensors → firmware tick → motor → physics.
+    pub fn tick(&mut self) {
+        self.strike_faults();
+        let cw = self.plant.hub_cw_deg();
+        self.hardware.encoder.bus_mut().set_angle_deg(cw);
+        let current = if self.over_current {
+            30.0
+        } else {
+            self.plant.current_a().abs()
+                + f64::from(self.rng.normal()) * self.options.plant.current_noise_a
+        };
+        let out = self
+            .hardware
+            .tick(self.now_us, current.max(0.0) as f32, &mut self.device);
+        debug_assert_eq!(out.is_safe(), self.motor_safe());
+        let clockwise = self.dir.is_high();
+        let cw_sign = if clockwise { 1.0 } else { -1.0 };
+        let jam_sign = match self.options.gauge.jam_direction {
+            kerfmeter_protocol::JamDirection::Clockwise => 1.0,
+            kerfmeter_protocol::JamDirection::CounterClockwise => -1.0,
+        };
+        let bridge = Bridge {
+            duty: f64::from(self.pwm.duty()),
+            direction: cw_sign * jam_sign,
+            awake: self.slp.is_high(),
+        };
+        self.plant.tick(&bridge);
+        self.now_us += PERIOD_US;
+    }
+
+    /// Run `n` ticks.
+    pub fn advance_ticks(&mut self, n: u64) {
+        for _ in 0..n {
+            self.tick();
+        }
+    }
+
+    fn strike_faults(&mut self) {
+        let Some(fault) = self.options.fault else {
+            return;
+        };
+        let chip = self.hardware.encoder.bus_mut();
+        if fault == InjectedFault::Parity && chip.frames().is_multiple_of(PARITY_ERROR_EVERY_FRAMES) {
+            chip.corrupt_next_responses(1);
+        }
+        let Some(start) = self.run_started_us else {
+            return;
+        };
+        if self.fault_struck || self.now_us < start + FAULT_AT_MS * 1000 {
+            return;
+        }
+        self.fault_struck = true;
+        match fault {
+            InjectedFault::MagnetLost => chip.set_magnet_lost(true),
+            InjectedFault::MisoStuck => chip.set_miso_fault(Some(MisoFault::StuckLow)),
+            InjectedFault::DriverFault => self.flt.set_high(false),
+            InjectedFault::OverCurrent => self.over_current = true,
+            InjectedFault::ProngSlip => self.plant.slip_prong(),
+            InjectedFault::HostSilent
+            | InjectedFault::Parity
+            | InjectedFault::NoInset
+            | InjectedFault::MotorDisconnected => {}
+        }
+    }
+
+    /// Clear a struck mid-run fault's cause (the magnet is put back, the short removed, ...), as a
+    /// person would before `ClearFault`.
+    pub fn repair(&mut self) {
+        let chip = self.hardware.encoder.bus_mut();
+        chip.set_magnet_lost(false);
+        chip.set_miso_fault(None);
+        self.flt.set_high(true);
+        self.over_current = false;
+        self.plant.set_inset_present(true);
+        self.plant.set_motor_connected(true);
+        self.options.fault = None;
+        self.fault_struck = false;
+    }
+}
+
+/// The device as the link sees it inside the twin, acting out how the device is used: a freshly
+/// cut gauge is under the prongs when a run starts; the prongs are out of it (the head has moved
+/// on) for a reset or a self-test.
+struct TwinHandler<'a> {
+    device: &'a mut Device<FlashConfigStore<RamFlash>>,
+    plant: &'a mut Plant,
+    rng: &'a mut Rng,
+    options: &'a TwinOptions,
+    run_started: &'a mut Option<u64>,
+    now_us: u64,
+}
+
+impl Handler for TwinHandler<'_> {
+    fn handle(&mut self, request: &Request) -> Response {
+        let response = self.device.handle(request);
+        if response != Response::Ok {
+            return response;
+        }
+        match request {
+            Request::Run(_) => {
+                let kerf =
+                    self.options.kerf_um + f64::from(self.rng.normal()) * self.options.kerf_sd_um;
+                self.plant.place_gauge(kerf.max(0.0));
+                if self.options.fault == Some(InjectedFault::NoInset) {
+                    self.plant.lift_prongs();
+                }
+                *self.run_started = Some(self.now_us);
+            }
+            // The head has moved away from the last gauge: the prongs turn freely back to zero.
+            Request::Reset | Request::SelfTest => self.plant.lift_prongs(),
+            _ => {}
+        }
+        response
+    }
+}

@@ -1,0 +1,254 @@
+//! The firmware measuring on the digital twin, in-process: real drivers and controller, fake
+//! peripherals, physics.
+
+use kerfmeter_firmware::twin::{InjectedFault, Twin, TwinOptions};
+use kerfmeter_protocol::{Fault, KerfResult, QualityFlags, Request, Response, RunParams, RunState};
+
+/// Run one measurement, polling like a host every 10 ms; the run's end or its fault.
+fn measure(twin: &mut Twin, params: &RunParams) -> Result<KerfResult, Fault> {
+    assert_eq!(twin.request(&Request::Run(*params)), Response::Ok);
+    for _ in 0..3000 {
+        twin.advance_ticks(10);
+        match twin.request(&Request::GetStatus) {
+            Response::Status(s) => match s.state {
+                RunState::Done => match twin.request(&Request::GetKerf) {
+                    Response::Kerf(Some(k)) => return Ok(k),
+                    other => panic!("no result after Done: {other:?}"),
+                },
+                RunState::Fault(f) => return Err(f),
+                _ => {}
+            },
+            other => panic!("{other:?}"),
+        }
+    }
+    panic!("the run neither finished nor faulted in 30 s");
+}
+
+fn reset(twin: &mut Twin) {
+    assert_eq!(twin.request(&Request::Reset), Response::Ok);
+    for _ in 0..1000 {
+        twin.advance_ticks(10);
+        if let Response::Status(s) = twin.request(&Request::GetStatus) {
+            if s.state == RunState::Idle {
+                return;
+            }
+            assert!(!matches!(s.state, RunState::Fault(_)), "{:?}", s.state);
+        }
+    }
+    panic!("reset did not finish");
+}
+
+fn twin(kerf_um: f64, seed: u64) -> Twin {
+    let mut t = Twin::new(TwinOptions {
+        kerf_um,
+        seed,
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    t
+}
+
+#[test]
+fn a_run_measures_the_effective_kerf() {
+    let mut t = twin(150.0, 1);
+    let k = measure(&mut t, &RunParams::DEFAULT).unwrap();
+    let truth = t.plant().effective_kerf_um(&RunParams::DEFAULT);
+    assert!(
+        (f64::from(k.kerf_um) - truth).abs() < 2.0,
+        "measured {} vs {truth}",
+        k.kerf_um
+    );
+    assert!(k.flags.is_empty(), "{:?}", k.flags);
+    // The force at the jam is the requested one.
+    assert!(
+        (k.force_at_jam_n - 55.0).abs() < 1.0,
+        "{}",
+        k.force_at_jam_n
+    );
+    assert!(t.motor_safe());
+    assert!(
+        t.now_us() < 3_000_000,
+        "one measurement took {} ms of simulated time",
+        t.now_us() / 1000
+    );
+}
+
+#[test]
+fn the_sweep_is_recorded_and_monotone_while_ramping() {
+    let mut t = twin(200.0, 2);
+    measure(&mut t, &RunParams::DEFAULT).unwrap();
+    let samples = t.device().controller().samples();
+    assert!(samples.len() > 100);
+    for w in samples.windows(2) {
+        assert!(w[1].t_ms > w[0].t_ms);
+    }
+    // Angles never fall back by more than encoder noise (8 LSB: a still hub's 1-LSB Gaussian
+    // noise spans about ±3.5 LSB over a thousand samples) before the release.
+    let noise_deg = 8.0 * 360.0 / 16384.0;
+    let max_torque_at = samples
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.torque_nm.total_cmp(&b.1.torque_nm))
+        .unwrap()
+        .0;
+    let mut furthest = f32::MIN;
+    for (i, s) in samples[..max_torque_at].iter().enumerate() {
+        furthest = furthest.max(s.angle_deg);
+        assert!(
+            s.angle_deg > furthest - noise_deg,
+            "sample {i}: {s:?} fell back from {furthest}; around it: {:?}",
+            &samples[i.saturating_sub(5)..(i + 3).min(samples.len())]
+        );
+    }
+}
+
+#[test]
+fn reset_returns_the_hub_to_zero_and_clears_the_result() {
+    let mut t = twin(150.0, 3);
+    measure(&mut t, &RunParams::DEFAULT).unwrap();
+    reset(&mut t);
+    assert!(t.plant().hub_deg().abs() < 0.5, "{}", t.plant().hub_deg());
+    assert_eq!(t.request(&Request::GetKerf), Response::Kerf(None));
+    // And the next run works.
+    measure(&mut t, &RunParams::DEFAULT).unwrap();
+}
+
+#[test]
+fn abort_mid_ramp_is_safe_within_one_tick_and_the_next_run_works() {
+    let mut t = twin(300.0, 4);
+    assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+    t.advance_ticks(300);
+    assert!(!t.motor_safe(), "the motor is driven mid-run");
+    assert_eq!(t.request(&Request::Abort), Response::Ok);
+    t.advance_ticks(1);
+    assert!(t.motor_safe(), "safe one tick after Abort");
+    t.advance_ticks(200);
+    reset(&mut t);
+    measure(&mut t, &RunParams::DEFAULT).unwrap();
+}
+
+#[test]
+fn a_run_away_from_zero_is_refused() {
+    let mut t = twin(150.0, 5);
+    measure(&mut t, &RunParams::DEFAULT).unwrap();
+    assert_eq!(
+        t.request(&Request::Run(RunParams::DEFAULT)),
+        Response::Error(kerfmeter_protocol::ErrorCode::NotAtZero)
+    );
+}
+
+#[test]
+fn requests_out_of_order_are_refused_with_typed_errors() {
+    use kerfmeter_protocol::ErrorCode;
+    let mut t = twin(150.0, 6);
+    assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+    t.advance_ticks(100);
+    assert_eq!(
+        t.request(&Request::Run(RunParams::DEFAULT)),
+        Response::Error(ErrorCode::Busy)
+    );
+    assert_eq!(t.request(&Request::Reset), Response::Error(ErrorCode::Busy));
+    assert_eq!(
+        t.request(&Request::SelfTest),
+        Response::Error(ErrorCode::Busy)
+    );
+    assert_eq!(t.request(&Request::GetKerf), Response::Kerf(None));
+    let mut bad = RunParams::DEFAULT;
+    bad.thickness_mm = -1.0;
+    assert_eq!(
+        t.request(&Request::Run(bad)),
+        Response::Error(ErrorCode::Busy)
+    );
+}
+
+#[test]
+fn every_injected_fault_ends_in_its_typed_error_with_the_motor_safe_and_recovers() {
+    for fault in InjectedFault::ALL {
+        let mut t = Twin::new(TwinOptions {
+            kerf_um: 200.0,
+            seed: 7,
+            fault: Some(fault),
+            ..TwinOptions::default()
+        });
+        t.advance_ticks(5);
+        let outcome = if fault == InjectedFault::HostSilent {
+            // The host stops polling once the run is going.
+            assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+            t.advance_ticks(3000);
+            match t.request(&Request::GetStatus) {
+                Response::Status(s) => match s.state {
+                    RunState::Fault(f) => Err(f),
+                    other => panic!("{fault}: {other:?}"),
+                },
+                other => panic!("{other:?}"),
+            }
+        } else {
+            measure(&mut t, &RunParams::DEFAULT)
+        };
+        match fault.expected() {
+            Some(expected) => assert_eq!(outcome.err(), Some(expected), "{fault}"),
+            None => {
+                let k = outcome
+                    .unwrap_or_else(|f| panic!("{fault} should be ridden through, faulted {f:?}"));
+                assert!(
+                    k.flags.contains(QualityFlags::ENCODER_ERRORS),
+                    "{fault}: errors must be reported"
+                );
+            }
+        }
+        assert!(t.motor_safe(), "{fault}: motor safe");
+        // Repair, clear, reset, measure again.
+        t.repair();
+        assert_eq!(t.request(&Request::ClearFault), Response::Ok);
+        t.advance_ticks(100);
+        reset(&mut t);
+        let k = measure(&mut t, &RunParams::DEFAULT)
+            .unwrap_or_else(|f| panic!("{fault}: after recovery {f:?}"));
+        assert!((k.kerf_um - 200.0).abs() < 6.0, "{fault}: {}", k.kerf_um);
+    }
+}
+
+#[test]
+fn the_motor_is_safe_in_the_tick_a_fault_is_detected() {
+    let mut t = Twin::new(TwinOptions {
+        fault: Some(InjectedFault::DriverFault),
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+    let mut was_driven = false;
+    for _ in 0..2000 {
+        t.tick();
+        match t.device().controller().run_state() {
+            RunState::Fault(Fault::DriverFault) => {
+                assert!(t.motor_safe(), "not safe in the fault's tick");
+                assert!(was_driven);
+                return;
+            }
+            _ => was_driven |= !t.motor_safe(),
+        }
+    }
+    panic!("no fault");
+}
+
+#[test]
+fn self_test_passes_on_a_healthy_device() {
+    // The self-test runs with no gauge under the prongs.
+    let mut t2 = Twin::new(TwinOptions::default());
+    t2.advance_ticks(5);
+    assert_eq!(t2.request(&Request::SelfTest), Response::Ok);
+    for _ in 0..100 {
+        t2.advance_ticks(10);
+        t2.request(&Request::GetStatus);
+    }
+    match t2.request(&Request::GetSelfTest) {
+        Response::SelfTest(Some(r)) => {
+            use kerfmeter_protocol::TestOutcome::Pass;
+            assert_eq!(r.encoder_ok_fraction.outcome, Pass, "{r:?}");
+            assert_eq!(r.magnet_magnitude.outcome, Pass, "{r:?}");
+            assert_eq!(r.direction_deg.outcome, Pass, "{r:?}");
+            assert_eq!(r.torque_per_duty_nm.outcome, Pass, "{r:?}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
