@@ -87,6 +87,17 @@ pub enum Error {
     /// The `--sim` twin could not be started.
     #[error("cannot start the simulated device: {0}")]
     Sim(String),
+    /// A bad argument or parameter; the message names it and its allowed range.
+    #[error("{0}")]
+    InvalidArgument(String),
+    /// A file could not be read, parsed or written.
+    #[error("{}: {message}", path.display())]
+    File {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What went wrong.
+        message: String,
+    },
 }
 
 impl Error {

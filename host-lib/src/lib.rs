@@ -17,6 +17,9 @@
 
 mod client;
 mod error;
+pub mod files;
+pub mod map;
+pub mod plan;
 #[cfg(feature = "sim")]
 pub mod sim;
 

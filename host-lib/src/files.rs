@@ -1,0 +1,76 @@
+//! Writing output files safely: never over an input, never half-written.
+
+use std::io::Write;
+use std::path::Path;
+
+use crate::error::{Error, Result};
+
+/// Write `bytes` to `path` atomically: into a temporary file in the same folder, flushed to disk,
+/// then renamed over `path`. A crash or a full disk leaves either the old file or the new one,
+/// never a mix.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    let file_error = |message: String| Error::File {
+        path: path.to_owned(),
+        message,
+    };
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".kerfmeter-")
+        .tempfile_in(dir)
+        .map_err(|e| {
+            file_error(format!(
+                "cannot create a temporary file in {}: {e}",
+                dir.display()
+            ))
+        })?;
+    tmp.write_all(bytes)
+        .and_then(|()| tmp.as_file().sync_all())
+        .map_err(|e| file_error(format!("cannot write: {e}")))?;
+    tmp.persist(path)
+        .map_err(|e| file_error(format!("cannot replace the file: {}", e.error)))?;
+    Ok(())
+}
+
+/// Refuse to write `output` when it is the same file as `input` (the user's input is never
+/// overwritten).
+pub fn ensure_not_input(input: &Path, output: &Path) -> Result<()> {
+    let same = match (input.canonicalize(), output.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        return Err(Error::InvalidArgument(format!(
+            "the output {} is the input file; choose another output path (inputs are never overwritten)",
+            output.display()
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_and_replaces_atomically() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("out.txt");
+        write_atomically(&p, b"one").unwrap();
+        write_atomically(&p, b"two").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"two");
+        // No temporary files left behind.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn an_output_equal_to_the_input_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("in.svg");
+        std::fs::write(&p, "x").unwrap();
+        assert!(ensure_not_input(&p, &p).is_err());
+        assert!(ensure_not_input(&p, &dir.path().join("out.svg")).is_ok());
+    }
+}
