@@ -18,6 +18,9 @@ pub struct Options {
     pub timeout: Duration,
     /// How many times a request is re-sent (with the same sequence number) after a timeout.
     pub retries: u32,
+    /// How often long calls (run, reset, self-test) poll the device's status. Each poll feeds the
+    /// device's communication watchdog, so keep it well under the run's `host_timeout_ms`.
+    pub poll_interval: Duration,
 }
 
 impl Default for Options {
@@ -25,6 +28,7 @@ impl Default for Options {
         Self {
             timeout: Duration::from_millis(300),
             retries: 3,
+            poll_interval: Duration::from_millis(20),
         }
     }
 }
@@ -57,6 +61,16 @@ impl Kerfmeter {
     /// Open the device on the serial port at `path` and check that it speaks our protocol.
     pub fn open(path: &str) -> Result<Self> {
         Self::open_with(path, Options::default())
+    }
+
+    /// Find the device among the serial ports: the one USB port with Espressif's USB-Serial-JTAG
+    /// ids (VID 0x303A, PID 0x1001), or else the only USB serial port there is. Anything else is
+    /// an error that lists what was found.
+    pub fn discover(options: Options) -> Result<Self> {
+        let ports = serialport::available_ports()
+            .map_err(|e| Error::Discover(format!("cannot list serial ports: {e}")))?;
+        let path = choose_port(&ports)?;
+        Self::open_with(&path, options)
     }
 
     /// [`Kerfmeter::open`] with explicit [`Options`].
@@ -98,6 +112,11 @@ impl Kerfmeter {
         };
         meter.info = meter.fetch_info()?;
         Ok(meter)
+    }
+
+    /// The options in use.
+    pub fn options(&self) -> &Options {
+        &self.options
     }
 
     /// The path of the port in use.
@@ -245,6 +264,63 @@ impl Kerfmeter {
     }
 }
 
+/// Pick the device's port from a list (see [`Kerfmeter::discover`]).
+pub fn choose_port(ports: &[serialport::SerialPortInfo]) -> Result<String> {
+    use serialport::SerialPortType;
+    let usb: Vec<(&str, &serialport::UsbPortInfo)> = ports
+        .iter()
+        .filter_map(|p| match &p.port_type {
+            SerialPortType::UsbPort(info) => Some((p.port_name.as_str(), info)),
+            _ => None,
+        })
+        .collect();
+    let espressif: Vec<&str> = usb
+        .iter()
+        .filter(|(_, i)| {
+            i.vid == kerfmeter_protocol::USB_VID_ESPRESSIF
+                && i.pid == kerfmeter_protocol::USB_PID_SERIAL_JTAG
+        })
+        .map(|(name, _)| *name)
+        .collect();
+    match (espressif.as_slice(), usb.as_slice()) {
+        ([one], _) => Ok((*one).to_owned()),
+        ([], [(one, _)]) => Ok((*one).to_owned()),
+        _ => {
+            let listing: Vec<String> = ports
+                .iter()
+                .map(|p| match &p.port_type {
+                    SerialPortType::UsbPort(i) => format!(
+                        "{} (USB {:04x}:{:04x}{})",
+                        p.port_name,
+                        i.vid,
+                        i.pid,
+                        i.product
+                            .as_deref()
+                            .map(|s| format!(" {s}"))
+                            .unwrap_or_default()
+                    ),
+                    other => format!("{} ({other:?})", p.port_name),
+                })
+                .collect();
+            let what = if espressif.len() > 1 {
+                "more than one Kerfmeter (ESP32 USB-Serial-JTAG, 303a:1001) is connected"
+            } else if usb.is_empty() {
+                "no Kerfmeter found: no USB serial port is connected"
+            } else {
+                "no Kerfmeter (ESP32 USB-Serial-JTAG, 303a:1001) found among several USB serial ports"
+            };
+            let found = if listing.is_empty() {
+                "none".to_owned()
+            } else {
+                listing.join(", ")
+            };
+            Err(Error::Discover(format!(
+                "{what}. Ports found: {found}. Pass --port PATH, or --sim for the simulated device"
+            )))
+        }
+    }
+}
+
 /// Start the sequence numbers somewhere unpredictable, so that a restarted host does not repeat
 /// the device's remembered last (seq, request) pair by accident.
 fn initial_seq() -> u16 {
@@ -275,7 +351,7 @@ fn placeholder_info() -> DeviceInfo {
     }
 }
 
-fn unexpected(request: &'static str, response: &Response) -> Error {
+pub(crate) fn unexpected(request: &'static str, response: &Response) -> Error {
     Error::UnexpectedResponse {
         request,
         response: response_name(response),
@@ -310,5 +386,59 @@ fn response_name(response: &Response) -> &'static str {
         Response::Kerf(_) => "Kerf",
         Response::SelfTest(_) => "SelfTest",
         Response::Config(_) => "Config",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serialport::{SerialPortInfo, SerialPortType, UsbPortInfo};
+
+    fn usb(name: &str, vid: u16, pid: u16) -> SerialPortInfo {
+        SerialPortInfo {
+            port_name: name.into(),
+            port_type: SerialPortType::UsbPort(UsbPortInfo {
+                vid,
+                pid,
+                serial_number: None,
+                manufacturer: None,
+                product: None,
+            }),
+        }
+    }
+
+    #[test]
+    fn discovery_prefers_the_espressif_port_then_the_only_usb_port() {
+        let ports = [
+            usb("/dev/ttyUSB0", 0x10c4, 0xea60),
+            usb("/dev/ttyACM0", 0x303a, 0x1001),
+        ];
+        assert_eq!(choose_port(&ports).unwrap(), "/dev/ttyACM0");
+        assert_eq!(choose_port(&ports[..1]).unwrap(), "/dev/ttyUSB0");
+    }
+
+    #[test]
+    fn discovery_errors_list_what_was_found() {
+        let e = choose_port(&[]).unwrap_err().to_string();
+        assert!(
+            e.contains("no USB serial port") && e.contains("--sim"),
+            "{e}"
+        );
+        let two = [usb("/dev/ttyUSB0", 1, 2), usb("/dev/ttyUSB1", 3, 4)];
+        let e = choose_port(&two).unwrap_err().to_string();
+        assert!(
+            e.contains("/dev/ttyUSB0 (USB 0001:0002)") && e.contains("/dev/ttyUSB1"),
+            "{e}"
+        );
+        let twins = [
+            usb("/dev/ttyACM0", 0x303a, 0x1001),
+            usb("/dev/ttyACM1", 0x303a, 0x1001),
+        ];
+        assert!(
+            choose_port(&twins)
+                .unwrap_err()
+                .to_string()
+                .contains("more than one")
+        );
     }
 }

@@ -84,6 +84,26 @@ pub enum Error {
         /// Boot id now.
         new: u32,
     },
+    /// The device stopped a run (or reset, or self-test) on a fault, and latched it.
+    #[error("the device stopped: {}. Fix the cause, then `kerfmeter clear-fault` and `kerfmeter reset`", describe_fault(*fault))]
+    Fault {
+        /// The latched fault.
+        fault: Fault,
+    },
+    /// The run ended without a result: aborted by another program, or the device was reset.
+    #[error(
+        "the run ended without a result (aborted from elsewhere, or the device was reset); start it again"
+    )]
+    RunInterrupted,
+    /// The device did not finish in time.
+    #[error("the device did not finish within {seconds} s; it was told to abort")]
+    RunTimeout {
+        /// The time allowed.
+        seconds: u64,
+    },
+    /// `discover` found no device, or more than one.
+    #[error("{0}")]
+    Discover(String),
     /// The `--sim` twin could not be started.
     #[error("cannot start the simulated device: {0}")]
     Sim(String),
@@ -124,6 +144,8 @@ impl Error {
                 | Error::ProtocolMismatch { .. }
                 | Error::UnexpectedResponse { .. }
                 | Error::DeviceReset { .. }
+                | Error::Discover(_)
+                | Error::Sim(_)
         )
     }
 }

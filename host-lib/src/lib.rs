@@ -15,14 +15,20 @@
 
 #![warn(missing_docs)]
 
+mod calls;
 mod client;
 mod error;
 pub mod files;
 pub mod map;
+pub mod params;
 pub mod plan;
+pub mod plot;
 #[cfg(feature = "sim")]
 pub mod sim;
+pub mod stats;
 
+pub use calls::{Curve, Progress};
 pub use client::{Kerfmeter, Options};
 pub use error::{Error, Result, describe_error_code};
 pub use kerfmeter_protocol as protocol;
+pub use params::JointSpec;

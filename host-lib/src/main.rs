@@ -1,15 +1,23 @@
 //! The `kerfmeter` command-line tool: drive a Kerfmeter (or its simulated twin) from a terminal
 //! or a script. `kerfmeter --help` lists the commands; `--json` makes every command print one JSON
-//! object for scripts.
+//! object on stdout for scripts.
 //!
-//! Exit codes: 0 success; 2 bad arguments; 3 communication error (port, timeout, protocol);
-//! 4 the device refused or faulted.
+//! Exit codes: 0 success; 2 bad arguments; 3 communication error (port, timeout, protocol,
+//! device restarted); 4 the device refused, faulted or could not finish.
 
+use std::io::{BufRead, IsTerminal, Write};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use clap::{Parser, Subcommand};
-use kerfmeter::{Error, Kerfmeter, Options};
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use kerfmeter::protocol::{
+    DeviceConfig, EncoderPlacement, GaugeGeometry, KerfResult, QualityFlags, RunState,
+    SelfTestItem, TestOutcome,
+};
+use kerfmeter::{Error, JointSpec, Kerfmeter, Options, Progress};
+use serde_json::json;
 
 /// Exit code for bad arguments (clap uses it too).
 const EXIT_USAGE: u8 = 2;
@@ -22,56 +30,172 @@ const EXIT_DEVICE: u8 = 4;
 #[command(
     name = "kerfmeter",
     version,
-    about = "Measure a laser cutter's kerf with a Kerfmeter"
+    about = "Measure a laser cutter's kerf with a Kerfmeter, and use it",
+    after_help = "Without --port or --sim, the device is found by its USB ids (303a:1001).\nExamples:\n  kerfmeter --sim run --samples 3\n  kerfmeter --port /dev/ttyACM0 run --thickness-mm 3 --plot curve.png"
 )]
 struct Cli {
+    #[command(flatten)]
+    global: Global,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Args)]
+struct Global {
     /// Serial port of the device (e.g. /dev/ttyACM0). Also from KERFMETER_PORT.
     #[arg(long, global = true, env = "KERFMETER_PORT", conflicts_with = "sim")]
     port: Option<String>,
-    /// Talk to the simulated device (the digital twin) instead of hardware.
+    /// Use the simulated device (the digital twin) instead of hardware.
     #[arg(long, global = true)]
     sim: bool,
-    /// Seed of the simulated device.
-    #[arg(long, global = true, default_value_t = 1, requires = "sim")]
+    /// Simulated device: true kerf of the cut gauges, µm.
+    #[arg(long, global = true, default_value_t = 150.0, value_name = "UM")]
+    sim_kerf_um: f64,
+    /// Simulated device: gauge-to-gauge spread (SD) of the simulated cutter's kerf, µm.
+    #[arg(long, global = true, default_value_t = 0.0, value_name = "UM")]
+    sim_kerf_sd_um: f64,
+    /// Simulated device: seed of every random number (same seed, same result).
+    #[arg(long, global = true, default_value_t = 1)]
     sim_seed: u64,
-    /// Print machine-readable JSON instead of text.
+    /// Simulated device: inject a fault (parity, magnet-lost, miso-stuck, no-inset,
+    /// motor-disconnected, driver-fault, over-current, host-silent, prong-slip).
+    #[arg(long, global = true, value_name = "NAME")]
+    sim_fault: Option<kerfmeter::sim::SimFault>,
+    /// Simulated device: run in real time instead of as fast as the host keeps up.
+    #[arg(long, global = true)]
+    sim_realtime: bool,
+    /// Print one JSON object instead of text.
     #[arg(long, global = true)]
     json: bool,
     /// Per-attempt response timeout, ms.
     #[arg(long, global = true, default_value_t = 300, value_parser = clap::value_parser!(u64).range(10..=60_000))]
     timeout_ms: u64,
-    #[command(subcommand)]
-    command: Command,
 }
 
 #[derive(Subcommand)]
 enum Command {
     /// Print the device's protocol and firmware versions, boot id and hardware constants.
     Info,
+    /// Measure the kerf (resets the hub to zero first). With --samples N, N gauges are measured
+    /// and the mean with its 95 % confidence interval is reported.
+    Run(RunArgs),
+    /// Print the last result kept by the device.
+    Kerf,
+    /// Turn the hub back to zero and clear the last result (and a latched fault).
+    Reset,
+    /// Stop the motor and end whatever the device is doing.
+    Abort,
+    /// Leave a latched fault (fix its cause first).
+    ClearFault,
+    /// Check the encoder, magnet, drive direction and torque constant (no gauge under the prongs).
+    SelfTest,
+    /// Read or change the device configuration (stored in its flash).
+    #[command(subcommand)]
+    Config(ConfigCommand),
+    /// Measure a grid of gauges across the bed and save a location-compensation map (JSON).
+    Map(MapArgs),
 }
 
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    match run(&cli) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            if cli.json {
-                println!("{}", serde_json::json!({ "error": e.to_string() }));
-            } else {
-                eprintln!("error: {e}");
-            }
-            ExitCode::from(exit_code(&e))
-        }
-    }
+#[derive(Args)]
+struct RunArgs {
+    /// Sheet thickness, mm.
+    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_THICKNESS_MM)]
+    thickness_mm: f64,
+    /// Assembly force of the joint, N (default: 18.3 N per finger, the paper's fit-window centre).
+    #[arg(long)]
+    force_n: Option<f64>,
+    /// Fingers in the joint.
+    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_FINGERS)]
+    fingers: u32,
+    /// Length of each finger's pressed face, mm.
+    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_FINGER_LENGTH_MM)]
+    finger_length_mm: f64,
+    /// Gauges to measure (a fresh gauge for each).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=50))]
+    samples: u32,
+    /// Draw the last run's torque–angle curve into this .png or .svg file.
+    #[arg(long, value_name = "FILE")]
+    plot: Option<PathBuf>,
+    /// Do not ask before each gauge (hardware only; the simulator never asks).
+    #[arg(long, short = 'y')]
+    yes: bool,
 }
 
-fn exit_code(e: &CliError) -> u8 {
-    match e {
-        CliError::Usage(_) => EXIT_USAGE,
-        CliError::Meter(e) if e.is_communication() => EXIT_COMMUNICATION,
-        CliError::Meter(Error::Sim(_)) => EXIT_COMMUNICATION,
-        CliError::Meter(_) => EXIT_DEVICE,
-    }
+#[derive(Subcommand)]
+enum ConfigCommand {
+    /// Print the configuration and whether it is the default.
+    Get,
+    /// Change some values; the others stay as they are.
+    Set(ConfigSet),
+}
+
+#[derive(Args)]
+struct ConfigSet {
+    /// Output torque at full duty and standstill, N·m.
+    #[arg(long)]
+    torque_per_duty_nm: Option<f32>,
+    /// Duty (0–0.5) below which the gearbox does not move.
+    #[arg(long)]
+    breakaway_duty: Option<f32>,
+    /// Raw encoder reading (0–16383) at the hub's zero position.
+    #[arg(long)]
+    encoder_zero_raw: Option<u16>,
+    /// Encoder magnet on the output shaft (hub) or the motor shaft.
+    #[arg(long, value_parser = ["output", "motor"])]
+    encoder_on: Option<String>,
+    /// Gearbox ratio.
+    #[arg(long)]
+    gear_ratio: Option<f32>,
+    /// Motor wired the other way round.
+    #[arg(long)]
+    motor_inverted: Option<bool>,
+    /// Encoder counting the other way round.
+    #[arg(long)]
+    encoder_inverted: Option<bool>,
+    /// Over-current trip, A.
+    #[arg(long)]
+    max_current_a: Option<f32>,
+    /// Output torque per motor amp, N·m/A.
+    #[arg(long)]
+    torque_per_amp_nm: Option<f32>,
+}
+
+#[derive(Args)]
+struct MapArgs {
+    /// Where to save the map (JSON).
+    #[arg(long, short = 'o', default_value = "kerf-map.json")]
+    output: PathBuf,
+    /// Bed width (x), mm.
+    #[arg(long, default_value_t = 600.0)]
+    bed_width_mm: f64,
+    /// Bed depth (y), mm.
+    #[arg(long, default_value_t = 400.0)]
+    bed_depth_mm: f64,
+    /// Grid columns along x.
+    #[arg(long, default_value_t = 4)]
+    cols: usize,
+    /// Grid rows along y.
+    #[arg(long, default_value_t = 3)]
+    rows: usize,
+    /// Measurements per cell.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=20))]
+    per_cell: u32,
+    /// Reference cell column.
+    #[arg(long, default_value_t = 0)]
+    reference_col: usize,
+    /// Reference cell row.
+    #[arg(long, default_value_t = 0)]
+    reference_row: usize,
+    /// Sheet thickness, mm.
+    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_THICKNESS_MM)]
+    thickness_mm: f64,
+    /// Simulated device only: how much the simulated bed's kerf grows from one corner to the
+    /// opposite one, µm.
+    #[arg(long, default_value_t = 20.0, value_name = "UM")]
+    sim_bed_variation_um: f64,
+    /// Do not ask before each cell (hardware only).
+    #[arg(long, short = 'y')]
+    yes: bool,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -82,74 +206,492 @@ enum CliError {
     Meter(#[from] Error),
 }
 
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(&cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            if cli.global.json {
+                let fault = match &e {
+                    CliError::Meter(m) => m.fault().map(|f| format!("{f:?}")),
+                    CliError::Usage(_) => None,
+                };
+                println!("{}", json!({ "error": e.to_string(), "fault": fault }));
+            } else {
+                eprintln!("error: {e}");
+            }
+            ExitCode::from(exit_code(&e))
+        }
+    }
+}
+
+fn exit_code(e: &CliError) -> u8 {
+    match e {
+        CliError::Usage(_) | CliError::Meter(Error::InvalidArgument(_)) => EXIT_USAGE,
+        CliError::Meter(e) if e.is_communication() => EXIT_COMMUNICATION,
+        CliError::Meter(_) => EXIT_DEVICE,
+    }
+}
+
 /// The connection: a real port, or the twin (kept alive as long as the client).
 struct Session {
     meter: Kerfmeter,
-    #[cfg(feature = "sim")]
-    _sim: Option<kerfmeter::sim::SimDevice>,
+    sim: Option<kerfmeter::sim::SimDevice>,
 }
 
-fn connect(cli: &Cli) -> Result<Session, CliError> {
-    let options = Options {
-        timeout: Duration::from_millis(cli.timeout_ms),
+fn client_options(g: &Global) -> Options {
+    Options {
+        timeout: Duration::from_millis(g.timeout_ms),
         ..Options::default()
-    };
-    if cli.sim {
-        #[cfg(feature = "sim")]
-        {
-            let sim_options = kerfmeter::sim::SimOptions { seed: cli.sim_seed };
-            let (sim, meter) = kerfmeter::sim::SimDevice::connect(sim_options, options)?;
-            return Ok(Session {
-                meter,
-                _sim: Some(sim),
-            });
-        }
-        #[cfg(not(feature = "sim"))]
+    }
+}
+
+fn sim_options(g: &Global, kerf_um: f64, seed: u64) -> kerfmeter::sim::SimOptions {
+    kerfmeter::sim::SimOptions {
+        kerf_um,
+        kerf_sd_um: g.sim_kerf_sd_um,
+        seed,
+        fault: g.sim_fault,
+        realtime: g.sim_realtime,
+    }
+}
+
+fn connect(g: &Global) -> Result<Session, CliError> {
+    if g.sim {
+        let (sim, meter) = kerfmeter::sim::SimDevice::connect(
+            sim_options(g, g.sim_kerf_um, g.sim_seed),
+            client_options(g),
+        )?;
+        return Ok(Session {
+            meter,
+            sim: Some(sim),
+        });
+    }
+    if g.sim_fault.is_some() || g.sim_realtime {
         return Err(CliError::Usage(
-            "this build has no simulator (feature `sim`)".into(),
+            "--sim-fault and --sim-realtime need --sim".into(),
         ));
     }
-    let Some(path) = &cli.port else {
-        return Err(CliError::Usage(
-            "no device given: pass --port PATH (or set KERFMETER_PORT), or --sim for the simulated device".into(),
-        ));
+    let meter = match &g.port {
+        Some(path) => Kerfmeter::open_with(path, client_options(g))?,
+        None => Kerfmeter::discover(client_options(g))?,
     };
-    Ok(Session {
-        meter: Kerfmeter::open_with(path, options)?,
-        #[cfg(feature = "sim")]
-        _sim: None,
-    })
+    Ok(Session { meter, sim: None })
 }
 
 fn run(cli: &Cli) -> Result<(), CliError> {
-    let mut session = connect(cli)?;
-    match cli.command {
-        Command::Info => {
-            let info = session.meter.info()?;
-            if cli.json {
+    let g = &cli.global;
+    match &cli.command {
+        Command::Info => info(g),
+        Command::Run(args) => measure(g, args),
+        Command::Kerf => {
+            let mut s = connect(g)?;
+            let result = s.meter.get_kerf_value()?;
+            if g.json {
                 println!(
                     "{}",
-                    serde_json::to_string_pretty(&info).expect("info serializes")
+                    json!({ "kerf_um": result.map(|r| r.kerf_um), "result": result })
                 );
             } else {
-                let h = &info.hardware;
-                println!("port:       {}", session.meter.path());
-                println!("board:      {}", h.board);
-                println!(
-                    "firmware:   {}.{}.{}",
-                    info.firmware.major, info.firmware.minor, info.firmware.patch
-                );
-                println!(
-                    "protocol:   {}.{}",
-                    info.protocol.major, info.protocol.minor
-                );
-                println!("boot id:    {:08x}", info.boot_id);
-                println!("control:    {} Hz", h.control_rate_hz);
-                println!("encoder:    {} bit", h.encoder_bits);
-                println!("pwm:        {} bit", h.pwm_bits);
-                println!("sample log: {} samples", h.max_samples);
+                match result {
+                    Some(r) => print_results(&[r]),
+                    None => println!("no result: the device has not measured since its last reset"),
+                }
             }
+            Ok(())
         }
+        Command::Reset => simple(g, "reset: the hub is at zero", |m| m.reset_kerfmeter()),
+        Command::Abort => simple(g, "aborted: the motor is stopped", |m| m.abort()),
+        Command::ClearFault => simple(g, "fault cleared", |m| m.clear_fault()),
+        Command::SelfTest => self_test(g),
+        Command::Config(c) => config(g, c),
+        Command::Map(args) => map(g, args),
+    }
+}
+
+fn simple(
+    g: &Global,
+    done: &str,
+    f: impl FnOnce(&mut Kerfmeter) -> kerfmeter::Result<()>,
+) -> Result<(), CliError> {
+    let mut s = connect(g)?;
+    f(&mut s.meter)?;
+    if g.json {
+        println!("{}", json!({ "ok": true }));
+    } else {
+        println!("{done}");
+    }
+    Ok(())
+}
+
+fn info(g: &Global) -> Result<(), CliError> {
+    let mut s = connect(g)?;
+    let info = s.meter.info()?;
+    if g.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&info).expect("info serializes")
+        );
+    } else {
+        let h = &info.hardware;
+        println!("port:       {}", s.meter.path());
+        println!("board:      {}", h.board);
+        println!(
+            "firmware:   {}.{}.{}",
+            info.firmware.major, info.firmware.minor, info.firmware.patch
+        );
+        println!(
+            "protocol:   {}.{}",
+            info.protocol.major, info.protocol.minor
+        );
+        println!("boot id:    {:08x}", info.boot_id);
+        println!("control:    {} Hz", h.control_rate_hz);
+        println!("encoder:    {} bit", h.encoder_bits);
+        println!("pwm:        {} bit", h.pwm_bits);
+        println!("sample log: {} samples", h.max_samples);
+    }
+    Ok(())
+}
+
+fn progress_bar(g: &Global, label: &str) -> ProgressBar {
+    if g.json {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new_spinner();
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {prefix} {msg}").expect("valid template"),
+    );
+    bar.set_prefix(label.to_owned());
+    bar.enable_steady_tick(Duration::from_millis(100));
+    bar
+}
+
+fn show(bar: &ProgressBar, p: &Progress) {
+    bar.set_message(format!(
+        "{:<10} torque {:6.3} N·m   angle {:7.2}°   {:5.2} s",
+        format!("{:?}", p.state),
+        p.torque_nm,
+        p.angle_deg,
+        f64::from(p.elapsed_ms) / 1000.0
+    ));
+}
+
+/// Ask the person at the cutter to do something (hardware only, interactive only).
+fn ask(g: &Global, yes: bool, sim: bool, what: &str) -> Result<(), CliError> {
+    if sim || yes || g.json || !std::io::stdin().is_terminal() {
+        return Ok(());
+    }
+    eprint!("{what}, then press Enter (Ctrl-C to stop) ");
+    std::io::stderr().flush().ok();
+    let mut line = String::new();
+    std::io::stdin()
+        .lock()
+        .read_line(&mut line)
+        .map_err(|e| CliError::Usage(format!("cannot read the answer: {e}")))?;
+    Ok(())
+}
+
+/// Reset to zero if needed, then one run with a progress bar.
+fn one_run(
+    g: &Global,
+    meter: &mut Kerfmeter,
+    params: &kerfmeter::protocol::RunParams,
+    label: &str,
+) -> Result<KerfResult, CliError> {
+    let status = meter.status()?;
+    if let RunState::Fault(fault) = status.state {
+        return Err(Error::Fault { fault }.into());
+    }
+    if status.angle_deg.abs() > 0.5 || status.state != RunState::Idle {
+        meter.reset_kerfmeter()?;
+    }
+    let bar = progress_bar(g, label);
+    let result = meter.run_kerfmeter(params, |p| show(&bar, p));
+    bar.finish_and_clear();
+    Ok(result?)
+}
+
+fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
+    let joint = JointSpec {
+        thickness_mm: args.thickness_mm,
+        fingers: args.fingers,
+        finger_length_mm: args.finger_length_mm,
+        force_n: args.force_n,
+    };
+    let params = joint.run_params(GaugeGeometry::PAPER)?;
+    if let Some(plot) = &args.plot {
+        kerfmeter::plot::PlotFormat::for_path(plot)?;
+    }
+    let mut s = connect(g)?;
+    let sim = s.sim.is_some();
+    let mut results = Vec::new();
+    for i in 0..args.samples {
+        if i > 0 {
+            s.meter.reset_kerfmeter()?;
+        }
+        ask(
+            g,
+            args.yes,
+            sim,
+            &format!("Place gauge {} of {} under the prongs", i + 1, args.samples),
+        )?;
+        let label = format!("gauge {}/{}", i + 1, args.samples);
+        results.push(one_run(g, &mut s.meter, &params, &label)?);
+    }
+    let kerfs: Vec<f64> = results.iter().map(|r| f64::from(r.kerf_um)).collect();
+    let summary = kerfmeter::stats::summarize(&kerfs);
+    if let Some(path) = &args.plot {
+        let curve = s.meter.curve()?;
+        kerfmeter::plot::plot_curve(&curve, results.last(), path)?;
+    }
+    if g.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json!({
+                "kerf_um": summary.mean_um,
+                "summary": summary,
+                "runs": results,
+                "force_n": params.target_force_n,
+                "thickness_mm": params.thickness_mm,
+                "simulated": sim,
+                "plot": args.plot,
+            }))
+            .expect("results serialize")
+        );
+    } else {
+        print_results(&results);
+        println!();
+        match summary.ci95_um {
+            Some(ci) => println!(
+                "kerf {:.1} µm ± {:.1} µm (95 % CI, n = {}, SD {:.1} µm) at {:.1} N",
+                summary.mean_um, ci, summary.n, summary.sd_um, params.target_force_n
+            ),
+            None => println!(
+                "kerf {:.1} µm at {:.1} N",
+                summary.mean_um, params.target_force_n
+            ),
+        }
+        for &i in &summary.outliers {
+            println!(
+                "warning: run {} ({:.1} µm) is an outlier; check that gauge",
+                i + 1,
+                kerfs[i]
+            );
+        }
+        if let Some(path) = &args.plot {
+            println!("curve: {}", path.display());
+        }
+        if sim {
+            println!("(simulated device: true kerf {:.1} µm)", g.sim_kerf_um);
+        }
+    }
+    Ok(())
+}
+
+fn flags_text(flags: QualityFlags) -> String {
+    let names: Vec<&str> = flags.names().collect();
+    if names.is_empty() {
+        "ok".into()
+    } else {
+        names.join(",")
+    }
+}
+
+fn print_results(results: &[KerfResult]) {
+    println!(
+        "{:>4} {:>10} {:>10} {:>9} {:>11} {:>9}  flags",
+        "run", "kerf µm", "angle °", "play °", "torque N·m", "force N"
+    );
+    for r in results {
+        println!(
+            "{:>4} {:>10.1} {:>10.2} {:>9.2} {:>11.3} {:>9.1}  {}",
+            r.run_id,
+            r.kerf_um,
+            r.angle_deg,
+            r.play_deg,
+            r.torque_at_jam_nm,
+            r.force_at_jam_n,
+            flags_text(r.flags)
+        );
+    }
+}
+
+fn self_test(g: &Global) -> Result<(), CliError> {
+    let mut s = connect(g)?;
+    let bar = progress_bar(g, "self-test");
+    let report = s.meter.self_test(|p| show(&bar, p));
+    bar.finish_and_clear();
+    let report = report?;
+    let items = [
+        ("encoder reads ok", report.encoder_ok_fraction, ""),
+        ("magnet magnitude", report.magnet_magnitude, ""),
+        ("direction", report.direction_deg, "°"),
+        ("torque constant", report.torque_per_duty_nm, " N·m"),
+    ];
+    let passed = items.iter().all(|(_, i, _)| i.outcome == TestOutcome::Pass);
+    if g.json {
+        println!("{}", json!({ "passed": passed, "report": report }));
+    } else {
+        for (name, SelfTestItem { outcome, value }, unit) in items {
+            println!("{name:<18} {:<8} {value:.3}{unit}", format!("{outcome:?}"));
+        }
+        println!(
+            "{}",
+            if passed {
+                "self-test passed"
+            } else {
+                "self-test FAILED"
+            }
+        );
+    }
+    if passed {
+        Ok(())
+    } else {
+        Err(Error::InvalidArgument("the self-test failed; see the items above".into()).into())
+    }
+}
+
+fn config(g: &Global, c: &ConfigCommand) -> Result<(), CliError> {
+    let mut s = connect(g)?;
+    let report = match c {
+        ConfigCommand::Get => s.meter.config()?,
+        ConfigCommand::Set(set) => {
+            let mut config: DeviceConfig = s.meter.config()?.config;
+            macro_rules! apply {
+                ($($field:ident),*) => { $( if let Some(v) = set.$field { config.$field = v; } )* };
+            }
+            apply!(
+                torque_per_duty_nm,
+                breakaway_duty,
+                encoder_zero_raw,
+                gear_ratio,
+                motor_inverted,
+                encoder_inverted,
+                max_current_a,
+                torque_per_amp_nm
+            );
+            if let Some(on) = &set.encoder_on {
+                config.encoder_placement = if on == "motor" {
+                    EncoderPlacement::MotorShaft
+                } else {
+                    EncoderPlacement::OutputShaft
+                };
+            }
+            s.meter.set_config(&config)?
+        }
+    };
+    if g.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).expect("config serializes")
+        );
+    } else {
+        let c = &report.config;
+        println!("torque_per_duty_nm  {}", c.torque_per_duty_nm);
+        println!("breakaway_duty      {}", c.breakaway_duty);
+        println!("encoder_zero_raw    {}", c.encoder_zero_raw);
+        println!(
+            "encoder_on          {}",
+            if c.encoder_placement == EncoderPlacement::MotorShaft {
+                "motor"
+            } else {
+                "output"
+            }
+        );
+        println!("gear_ratio          {}", c.gear_ratio);
+        println!("motor_inverted      {}", c.motor_inverted);
+        println!("encoder_inverted    {}", c.encoder_inverted);
+        println!("max_current_a       {}", c.max_current_a);
+        println!("torque_per_amp_nm   {}", c.torque_per_amp_nm);
+        if report.defaults_in_use {
+            println!("(defaults: no valid configuration is stored on the device)");
+        }
+    }
+    Ok(())
+}
+
+fn map(g: &Global, args: &MapArgs) -> Result<(), CliError> {
+    use kerfmeter::map::{Grid, KerfMap};
+    let grid = Grid::new(args.bed_width_mm, args.bed_depth_mm, args.cols, args.rows)?;
+    if args.reference_col >= args.cols || args.reference_row >= args.rows {
+        return Err(CliError::Usage(format!(
+            "the reference cell ({}, {}) is outside the {} × {} grid",
+            args.reference_col, args.reference_row, args.cols, args.rows
+        )));
+    }
+    let joint = JointSpec {
+        thickness_mm: args.thickness_mm,
+        ..JointSpec::default()
+    };
+    let params = joint.run_params(GaugeGeometry::PAPER)?;
+    let mut hardware = if g.sim { None } else { Some(connect(g)?) };
+    let mut runs = Vec::new();
+    for row in 0..args.rows {
+        for col in 0..args.cols {
+            let (x, y) = grid.centre_mm(col, row);
+            // The simulated bed: its kerf grows linearly from one corner to the opposite one.
+            let mut sim_session;
+            let session = match &mut hardware {
+                Some(s) => s,
+                None => {
+                    let across = (x / args.bed_width_mm + y / args.bed_depth_mm) / 2.0;
+                    let kerf = g.sim_kerf_um + args.sim_bed_variation_um * (across - 0.5);
+                    let seed = g
+                        .sim_seed
+                        .wrapping_add((row * args.cols + col) as u64 * 7919);
+                    let (sim, meter) = kerfmeter::sim::SimDevice::connect(
+                        sim_options(g, kerf, seed),
+                        client_options(g),
+                    )?;
+                    sim_session = Session {
+                        meter,
+                        sim: Some(sim),
+                    };
+                    &mut sim_session
+                }
+            };
+            let mut cell = Vec::new();
+            for i in 0..args.per_cell {
+                ask(
+                    g,
+                    args.yes,
+                    g.sim,
+                    &format!(
+                        "Cut and place gauge {} of {} at cell ({col}, {row}), x {x:.0} mm y {y:.0} mm",
+                        i + 1,
+                        args.per_cell
+                    ),
+                )?;
+                if i > 0 {
+                    session.meter.reset_kerfmeter()?;
+                }
+                let label = format!("cell ({col},{row}) {}/{}", i + 1, args.per_cell);
+                cell.push(f64::from(
+                    one_run(g, &mut session.meter, &params, &label)?.kerf_um,
+                ));
+            }
+            runs.push(cell);
+        }
+    }
+    let map = KerfMap::from_runs(grid, (args.reference_col, args.reference_row), runs)?;
+    map.save(&args.output)?;
+    if g.json {
+        println!(
+            "{}",
+            json!({ "map": args.output, "reference_kerf_um": map.reference_kerf_um, "cells": map.cells })
+        );
+    } else {
+        println!(
+            "compensation (µm) relative to cell ({}, {}) = {:.1} µm:",
+            args.reference_col, args.reference_row, map.reference_kerf_um
+        );
+        for row in 0..args.rows {
+            let line: Vec<String> = (0..args.cols)
+                .map(|col| format!("{:+7.1}", map.cells[row * args.cols + col].compensation_um))
+                .collect();
+            println!("  row {row}: {}", line.join(" "));
+        }
+        println!("saved {}", args.output.display());
     }
     Ok(())
 }

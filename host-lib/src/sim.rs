@@ -1,23 +1,78 @@
-//! The `--sim` device: the firmware's digital twin, run in a thread of this process and served on
-//! a pseudo-terminal, so that the client talks to it through a real serial port exactly as it
-//! talks to hardware.
+//! The `--sim` device: the firmware's digital twin (real firmware, fake peripherals, physics),
+//! run in a thread of this process and served on a pseudo-terminal, so that the client talks to
+//! it through a real serial port exactly as it talks to hardware.
+//!
+//! By default simulated time runs in lock-step with the host (far faster than real time, never
+//! more than 100 ms ahead of the host's last request); [`SimOptions::realtime`] makes it follow
+//! the wall clock instead.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use kerfmeter_firmware::device::Device;
+use kerfmeter_firmware::twin::{InjectedFault, Pace, Twin, TwinOptions};
 use serialport::{SerialPort, TTYPort};
 
 use crate::client::{Kerfmeter, Options};
 use crate::error::{Error, Result};
 
+pub use kerfmeter_firmware::twin::InjectedFault as SimFault;
+
 /// How the simulated device is set up.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimOptions {
-    /// Seed of the twin's random numbers (its boot id, and later its noise).
+    /// True kerf of the gauges the simulated cutter cuts, µm.
+    pub kerf_um: f64,
+    /// Gauge-to-gauge standard deviation of the simulated cutter's kerf, µm.
+    pub kerf_sd_um: f64,
+    /// Seed of every random number: the same seed gives the same run.
     pub seed: u64,
+    /// A fault to inject.
+    pub fault: Option<InjectedFault>,
+    /// Follow the wall clock instead of running ahead in lock-step.
+    pub realtime: bool,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        Self {
+            kerf_um: 150.0,
+            kerf_sd_um: 0.0,
+            seed: 1,
+            fault: None,
+            realtime: false,
+        }
+    }
+}
+
+impl SimOptions {
+    /// Check the options.
+    pub fn validate(&self) -> Result<()> {
+        if !(0.0..=2000.0).contains(&self.kerf_um) {
+            return Err(Error::InvalidArgument(format!(
+                "simulated kerf must be between 0 and 2000 µm, got {}",
+                self.kerf_um
+            )));
+        }
+        if !(0.0..=200.0).contains(&self.kerf_sd_um) {
+            return Err(Error::InvalidArgument(format!(
+                "simulated kerf spread must be between 0 and 200 µm, got {}",
+                self.kerf_sd_um
+            )));
+        }
+        Ok(())
+    }
+
+    fn twin_options(&self) -> TwinOptions {
+        TwinOptions {
+            kerf_um: self.kerf_um,
+            kerf_sd_um: self.kerf_sd_um,
+            seed: self.seed,
+            fault: self.fault,
+            ..TwinOptions::default()
+        }
+    }
 }
 
 /// A running simulated device. Dropping it stops the twin.
@@ -30,22 +85,28 @@ pub struct SimDevice {
 impl SimDevice {
     /// Start the twin on a new pseudo-terminal; returns it and the client side of the terminal.
     pub fn start(options: SimOptions) -> Result<(Self, Box<dyn SerialPort>)> {
+        options.validate()?;
         let (mut master, slave) = TTYPort::pair().map_err(|e| Error::Sim(e.to_string()))?;
         master
-            .set_timeout(Duration::from_millis(20))
+            .set_timeout(Duration::from_millis(1))
             .map_err(|e| Error::Sim(e.to_string()))?;
         let path = slave.name().unwrap_or_else(|| "<pty>".into());
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
             let stop = stop.clone();
-            let boot_id = boot_id(options.seed);
+            let pace = if options.realtime {
+                Pace::RealTime
+            } else {
+                Pace::LockStep
+            };
             std::thread::Builder::new()
                 .name("kerfmeter-twin".into())
                 .spawn(move || {
-                    let mut device = Device::new("twin", boot_id);
+                    let mut twin = Twin::new(options.twin_options());
                     // The twin ends when the client closes its side; an I/O error there has no
                     // one to be reported to but the client, which sees the port vanish.
-                    let _ = kerfmeter_firmware::twin::serve(&mut master, &mut device, &stop);
+                    let _ =
+                        kerfmeter_firmware::twin::serve_twin(&mut master, &mut twin, &stop, pace);
                 })
                 .map_err(|e| Error::Sim(e.to_string()))?
         };
@@ -79,12 +140,4 @@ impl Drop for SimDevice {
             let _ = t.join();
         }
     }
-}
-
-/// A boot id derived from the seed (splitmix64), so a seeded twin is reproducible.
-fn boot_id(seed: u64) -> u32 {
-    let mut z = seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    (z ^ (z >> 31)) as u32
 }

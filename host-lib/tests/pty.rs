@@ -109,6 +109,7 @@ fn fast() -> Options {
     Options {
         timeout: Duration::from_millis(100),
         retries: 3,
+        ..Options::default()
     }
 }
 
@@ -162,12 +163,13 @@ fn garbage_on_the_line_is_skipped() {
 fn device_refusals_are_typed() {
     let (_bench, port) = bench();
     let mut meter = Kerfmeter::from_port(port, fast()).unwrap();
-    let err = meter.call(Request::GetKerf).unwrap_err();
+    // No run yet: there are no samples to read.
+    let err = meter.call(Request::GetSamples { from: 0 }).unwrap_err();
     assert!(
         matches!(
             err,
             Error::Device {
-                code: ErrorCode::Unsupported,
+                code: ErrorCode::NoSamples,
                 ..
             }
         ),
@@ -212,12 +214,12 @@ fn a_vanished_port_is_a_clear_error() {
 #[test]
 fn the_sim_device_answers_through_a_pty() {
     let (sim, mut meter) =
-        kerfmeter::sim::SimDevice::connect(kerfmeter::sim::SimOptions { seed: 7 }, fast()).unwrap();
+        kerfmeter::sim::SimDevice::connect(kerfmeter::sim::SimOptions { seed: 7, ..Default::default() }, fast()).unwrap();
     assert!(sim.path().starts_with("/dev/"), "{}", sim.path());
     let info = meter.info().unwrap();
     assert_eq!(info.hardware.board.as_str(), "twin");
     // The seed makes the boot id reproducible.
     let (_sim2, mut meter2) =
-        kerfmeter::sim::SimDevice::connect(kerfmeter::sim::SimOptions { seed: 7 }, fast()).unwrap();
+        kerfmeter::sim::SimDevice::connect(kerfmeter::sim::SimOptions { seed: 7, ..Default::default() }, fast()).unwrap();
     assert_eq!(meter2.info().unwrap().boot_id, info.boot_id);
 }

@@ -1,0 +1,294 @@
+//! The calls: the paper's three — [`Kerfmeter::run_kerfmeter`], [`Kerfmeter::get_kerf_value`],
+//! [`Kerfmeter::reset_kerfmeter`] — and the rest of what the device does.
+//!
+//! Long calls (a run, a reset, a self-test) block, polling the device's status every
+//! [`Options::poll_interval`](crate::Options::poll_interval). Every poll is a request, and every
+//! request feeds the device's communication watchdog: if this program stops (or the port
+//! vanishes) mid-run, the device stops its motor on its own within the run's
+//! `host_timeout_ms`.
+
+use std::time::{Duration, Instant};
+
+use kerfmeter_protocol::{
+    ConfigReport, DeviceConfig, ErrorCode, KerfResult, Request, Response, RunParams, RunState,
+    Sample, SelfTestReport, Status,
+};
+use serde::Serialize;
+
+use crate::client::Kerfmeter;
+use crate::error::{Error, Result};
+
+/// What a long call reports while it runs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Progress {
+    /// The device's state.
+    pub state: RunState,
+    /// Commanded output torque, N·m.
+    pub torque_nm: f32,
+    /// Hub angle from zero, degrees.
+    pub angle_deg: f32,
+    /// Time since the run started, ms.
+    pub elapsed_ms: u32,
+}
+
+impl From<&Status> for Progress {
+    fn from(s: &Status) -> Self {
+        Self {
+            state: s.state,
+            torque_nm: s.torque_nm,
+            angle_deg: s.angle_deg,
+            elapsed_ms: s.elapsed_ms,
+        }
+    }
+}
+
+/// The (time, torque, angle) curve of a run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Curve {
+    /// The run.
+    pub run_id: u32,
+    /// Control ticks (ms) between samples (more than 1 when a long run was decimated).
+    pub ticks_per_sample: u16,
+    /// The samples, oldest first.
+    pub samples: Vec<Sample>,
+}
+
+/// How long a reset may take before the host gives up waiting (the device faults by itself
+/// after 5 s).
+const RESET_DEADLINE: Duration = Duration::from_secs(10);
+/// How long a self-test may take.
+const SELF_TEST_DEADLINE: Duration = Duration::from_secs(10);
+/// Slack on top of the run's own time limit.
+const RUN_SLACK: Duration = Duration::from_secs(5);
+
+fn unexpected(request: &'static str, response: &Response) -> Error {
+    crate::client::unexpected(request, response)
+}
+
+impl Kerfmeter {
+    /// The device's state, torque and angle.
+    pub fn status(&mut self) -> Result<Status> {
+        match self.call(Request::GetStatus)? {
+            Response::Status(s) => Ok(s),
+            other => Err(unexpected("GetStatus", &other)),
+        }
+    }
+
+    /// Measure the kerf: start a run with `params` and block until the device has a result.
+    ///
+    /// `progress` is called after every status poll with the state, torque and angle. The hub
+    /// must be at its zero position (call [`Kerfmeter::reset_kerfmeter`] first). A fault ends the
+    /// call with [`Error::Fault`]; a device that restarted with [`Error::DeviceReset`].
+    ///
+    /// ```no_run
+    /// use kerfmeter::{Kerfmeter, JointSpec, protocol::GaugeGeometry};
+    /// let mut meter = Kerfmeter::open("/dev/ttyACM0")?;
+    /// let params = JointSpec::default().run_params(GaugeGeometry::PAPER)?;
+    /// meter.reset_kerfmeter()?;
+    /// let result = meter.run_kerfmeter(&params, |p| eprintln!("{:?} {:.3} N·m", p.state, p.torque_nm))?;
+    /// println!("kerf {:.1} µm", result.kerf_um);
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
+    pub fn run_kerfmeter(
+        &mut self,
+        params: &RunParams,
+        mut progress: impl FnMut(&Progress),
+    ) -> Result<KerfResult> {
+        crate::params::check(params)?;
+        match self.call(Request::Run(*params))? {
+            Response::Ok => {}
+            other => return Err(unexpected("Run", &other)),
+        }
+        let deadline =
+            Instant::now() + Duration::from_millis(u64::from(params.max_time_ms)) + RUN_SLACK;
+        let mut run_id = None;
+        loop {
+            let status = self.status()?;
+            progress(&Progress::from(&status));
+            let id = *run_id.get_or_insert(status.run_id);
+            match status.state {
+                RunState::Done => {
+                    return match self.get_kerf_value()? {
+                        Some(result) if result.run_id == id => Ok(result),
+                        _ => Err(Error::RunInterrupted),
+                    };
+                }
+                RunState::Fault(fault) => return Err(Error::Fault { fault }),
+                RunState::Engaging | RunState::Ramping | RunState::Jammed | RunState::Releasing => {
+                }
+                // Back to idle (or busy with something else) without a result: aborted by
+                // another program, or the device restarted.
+                RunState::Idle | RunState::Resetting | RunState::SelfTest => {
+                    self.info()?;
+                    return Err(Error::RunInterrupted);
+                }
+            }
+            if Instant::now() > deadline {
+                let _ = self.abort();
+                return Err(Error::RunTimeout {
+                    seconds: deadline.elapsed().as_secs() + RUN_SLACK.as_secs(),
+                });
+            }
+            std::thread::sleep(self.options().poll_interval);
+        }
+    }
+
+    /// The last result, or `None` after a reset or before the first run.
+    ///
+    /// ```no_run
+    /// let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
+    /// match meter.get_kerf_value()? {
+    ///     Some(r) => println!("last kerf: {:.1} µm (run {})", r.kerf_um, r.run_id),
+    ///     None => println!("no result yet"),
+    /// }
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
+    pub fn get_kerf_value(&mut self) -> Result<Option<KerfResult>> {
+        match self.call(Request::GetKerf)? {
+            Response::Kerf(k) => Ok(k),
+            other => Err(unexpected("GetKerf", &other)),
+        }
+    }
+
+    /// Clear the last result and turn the hub back to its zero position (prongs aligned for the
+    /// next gauge); blocks until it is there. Also clears a latched fault.
+    ///
+    /// ```no_run
+    /// let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
+    /// meter.reset_kerfmeter()?;
+    /// assert!(meter.get_kerf_value()?.is_none());
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
+    pub fn reset_kerfmeter(&mut self) -> Result<()> {
+        match self.call(Request::Reset)? {
+            Response::Ok => {}
+            other => return Err(unexpected("Reset", &other)),
+        }
+        let deadline = Instant::now() + RESET_DEADLINE;
+        loop {
+            let status = self.status()?;
+            match status.state {
+                RunState::Idle => return Ok(()),
+                RunState::Fault(fault) => return Err(Error::Fault { fault }),
+                RunState::Resetting => {}
+                _ => return Err(Error::RunInterrupted),
+            }
+            if Instant::now() > deadline {
+                let _ = self.abort();
+                return Err(Error::RunTimeout {
+                    seconds: RESET_DEADLINE.as_secs(),
+                });
+            }
+            std::thread::sleep(self.options().poll_interval);
+        }
+    }
+
+    /// Stop the motor now and end the run, reset or self-test in progress.
+    pub fn abort(&mut self) -> Result<()> {
+        match self.call(Request::Abort)? {
+            Response::Ok => Ok(()),
+            other => Err(unexpected("Abort", &other)),
+        }
+    }
+
+    /// Leave a latched fault (the motor stays safe; fix the cause first).
+    pub fn clear_fault(&mut self) -> Result<()> {
+        match self.call(Request::ClearFault)? {
+            Response::Ok => Ok(()),
+            other => Err(unexpected("ClearFault", &other)),
+        }
+    }
+
+    /// Run the self-test (no gauge under the prongs: the hub turns a little each way) and return
+    /// its report.
+    pub fn self_test(&mut self, mut progress: impl FnMut(&Progress)) -> Result<SelfTestReport> {
+        match self.call(Request::SelfTest)? {
+            Response::Ok => {}
+            other => return Err(unexpected("SelfTest", &other)),
+        }
+        let deadline = Instant::now() + SELF_TEST_DEADLINE;
+        loop {
+            let status = self.status()?;
+            progress(&Progress::from(&status));
+            match status.state {
+                RunState::SelfTest => {}
+                RunState::Fault(fault) => return Err(Error::Fault { fault }),
+                _ => break,
+            }
+            if Instant::now() > deadline {
+                let _ = self.abort();
+                return Err(Error::RunTimeout {
+                    seconds: SELF_TEST_DEADLINE.as_secs(),
+                });
+            }
+            std::thread::sleep(self.options().poll_interval);
+        }
+        match self.call(Request::GetSelfTest)? {
+            Response::SelfTest(Some(report)) => Ok(report),
+            Response::SelfTest(None) => Err(Error::RunInterrupted),
+            other => Err(unexpected("GetSelfTest", &other)),
+        }
+    }
+
+    /// The device's configuration and whether it is the default.
+    pub fn config(&mut self) -> Result<ConfigReport> {
+        match self.call(Request::GetConfig)? {
+            Response::Config(c) => Ok(c),
+            other => Err(unexpected("GetConfig", &other)),
+        }
+    }
+
+    /// Store and apply a new configuration (the motor must be at rest).
+    pub fn set_config(&mut self, config: &DeviceConfig) -> Result<ConfigReport> {
+        config.validate().map_err(|field| {
+            let (lo, hi) = field.range();
+            Error::InvalidArgument(format!(
+                "{} is out of range (allowed {lo} to {hi})",
+                field.name()
+            ))
+        })?;
+        match self.call(Request::SetConfig(*config))? {
+            Response::Config(c) => Ok(c),
+            other => Err(unexpected("SetConfig", &other)),
+        }
+    }
+
+    /// The (time, torque, angle) curve of the last run, fetched in chunks.
+    pub fn curve(&mut self) -> Result<Curve> {
+        let mut samples = Vec::new();
+        let mut first = None;
+        loop {
+            let from = samples.len() as u16;
+            let chunk = match self.call(Request::GetSamples { from }) {
+                Ok(Response::Samples(chunk)) => chunk,
+                Ok(other) => return Err(unexpected("GetSamples", &other)),
+                Err(Error::Device {
+                    code: ErrorCode::NoSamples,
+                    ..
+                }) if samples.is_empty() => {
+                    return Ok(Curve {
+                        run_id: 0,
+                        ticks_per_sample: 1,
+                        samples,
+                    });
+                }
+                Err(e) => return Err(e),
+            };
+            let (run_id, _) = *first.get_or_insert((chunk.run_id, chunk.ticks_per_sample));
+            if chunk.run_id != run_id {
+                // A new run started while reading: the curve would mix two runs.
+                return Err(Error::RunInterrupted);
+            }
+            let done = chunk.samples.is_empty()
+                || usize::from(chunk.total) <= samples.len() + chunk.samples.len();
+            samples.extend_from_slice(&chunk.samples);
+            if done {
+                return Ok(Curve {
+                    run_id,
+                    ticks_per_sample: chunk.ticks_per_sample,
+                    samples,
+                });
+            }
+        }
+    }
+}
