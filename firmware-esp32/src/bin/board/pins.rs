@@ -11,7 +11,7 @@
 //! | motor direction         | Pololu G2 `DIR`     | out | GPIO4    | GPIO21   | |
 //! | motor sleep             | Pololu G2 `SLP`     | out | GPIO1    | GPIO1    | active-low sleep: low = asleep. **Board requirement:** a pull-down resistor (≈10 kΩ to GND) on this net, so the driver sleeps while the MCU is in reset, booting, halted after a panic, or unpowered |
 //! | motor fault             | Pololu G2 `FLT`     | in  | GPIO20   | GPIO20   | open-drain, active low; internal pull-up enabled (an external ≈10 kΩ pull-up to 3V3 is recommended) |
-//! | motor current           | Pololu G2 `CS`      | ain | GPIO0    | GPIO0    | ADC1 channel 0; the G2's current-sense voltage must stay below the ADC's 11 dB range (≈2.5 V) |
+//! | motor current           | Pololu G2 `CS`      | ain | GPIO0    | GPIO0    | ADC1 channel 0, 11 dB attenuation, calibrated to millivolts; ≈20 mV/A + ≈50 mV on the G2 18v17 ([`CURRENT_SENSE_MV_PER_A`], [`CURRENT_SENSE_OFFSET_MV`]); the voltage must stay below the ADC's 11 dB range (≈2.5 V) |
 //! | encoder clock           | AS5048A `CLK`       | out | GPIO6    | GPIO6    | SPI2 `SCLK`, mode 1, ≤ 10 MHz |
 //! | encoder data in         | AS5048A `MOSI`      | out | GPIO7    | GPIO7    | SPI2 `MOSI` |
 //! | encoder data out        | AS5048A `MISO`      | in  | GPIO5    | GPIO2    | SPI2 `MISO` |
@@ -40,6 +40,21 @@ compile_error!("features `esp32c3` and `esp32c6` are mutually exclusive");
 /// The pin wired to the G2's current-sense output (ADC1 channel 0 on both chips): a concrete
 /// type, because the ADC driver needs to know the ADC channel at compile time.
 pub type CurrentSensePin = esp_hal::peripherals::GPIO0<'static>;
+
+/// Current-sense gain of the Pololu G2 18v17 (the reference driver): its `CS` output rises by
+/// about 20 mV per amp of motor current. The gain depends on the G2 variant: look it up on
+/// Pololu's page for yours and adjust this (and [`CURRENT_SENSE_OFFSET_MV`]) for any other.
+pub const CURRENT_SENSE_MV_PER_A: f32 = 20.0;
+
+/// Current-sense offset of the Pololu G2 18v17: its `CS` output sits about 50 mV above ground
+/// at zero current. Depends on the G2 variant (and varies a little from board to board): adjust
+/// it for another driver.
+pub const CURRENT_SENSE_OFFSET_MV: f32 = 50.0;
+
+/// Motor current, A, from the G2's `CS` voltage in millivolts (never negative).
+pub fn motor_current_a(cs_mv: u16) -> f32 {
+    ((f32::from(cs_mv) - CURRENT_SENSE_OFFSET_MV) / CURRENT_SENSE_MV_PER_A).max(0.0)
+}
 
 /// The board's pins, named by what they are wired to (see the table in the module docs).
 pub struct Pins {
