@@ -101,6 +101,10 @@ pub const RELEASE_RATE_NM_PER_S: f32 = 4.0;
 pub const NO_MOTION_DEG: f32 = 0.5;
 /// ...for this long with torque above breakaway.
 pub const NO_MOTION_TICKS: u32 = 500;
+/// Overtravel: the inset may turn this far past the gauge's nominal disengage angle (the spiral
+/// of the paper's gauge lets go between 155° and 180°; a jam at the largest kerf plus the
+/// contact's compression lands just past 155°).
+pub const OVERTRAVEL_MARGIN_DEG: f32 = 10.0;
 /// Reverse motion: the hub fell back this far from the furthest angle it reached.
 pub const REVERSE_TOLERANCE_DEG: f32 = 2.0;
 /// Encoder errors in a row that fault the device.
@@ -577,7 +581,9 @@ impl Controller {
             return Some(Fault::MaxRunTime);
         }
         let gauge = &self.params.gauge;
-        if self.angle_deg > gauge.disengage_deg + play_deg(gauge, gauge.max_kerf_um()) {
+        if self.angle_deg - play_deg(gauge, gauge.max_kerf_um())
+            > gauge.disengage_deg + OVERTRAVEL_MARGIN_DEG
+        {
             return Some(Fault::Overtravel);
         }
         self.max_deg = self.max_deg.max(self.angle_deg);

@@ -37,7 +37,13 @@ pub fn connect(seed: u64) -> kerfmeter::Result<(Target, Kerfmeter)> {
             Ok((Target::Board(path), meter))
         }
         _ => {
-            let (sim, meter) = SimDevice::connect(SimOptions { seed }, options)?;
+            let (sim, meter) = SimDevice::connect(
+                SimOptions {
+                    seed,
+                    ..SimOptions::default()
+                },
+                options,
+            )?;
             Ok((Target::Twin(sim), meter))
         }
     }

@@ -127,7 +127,8 @@ impl Error {
             Error::Device {
                 code: ErrorCode::Faulted(f),
                 ..
-            } => Some(*f),
+            }
+            | Error::Fault { fault: f } => Some(*f),
             _ => None,
         }
     }

@@ -19,6 +19,18 @@ use kerfmeter::protocol::{
 use kerfmeter::{Error, JointSpec, Kerfmeter, Options, Progress};
 use serde_json::json;
 
+/// `println!` that ends the program quietly when stdout is closed (`kerfmeter … | head`).
+macro_rules! out {
+    () => { out!("") };
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if writeln!(std::io::stdout().lock(), $($arg)*).is_err() {
+            // The reader went away: there is no one left to tell anything.
+            std::process::exit(0);
+        }
+    }};
+}
+
 /// Exit code for bad arguments (clap uses it too).
 const EXIT_USAGE: u8 = 2;
 /// Exit code for errors of the serial link.
@@ -216,7 +228,7 @@ fn main() -> ExitCode {
                     CliError::Meter(m) => m.fault().map(|f| format!("{f:?}")),
                     CliError::Usage(_) => None,
                 };
-                println!("{}", json!({ "error": e.to_string(), "fault": fault }));
+                out!("{}", json!({ "error": e.to_string(), "fault": fault }));
             } else {
                 eprintln!("error: {e}");
             }
@@ -288,14 +300,14 @@ fn run(cli: &Cli) -> Result<(), CliError> {
             let mut s = connect(g)?;
             let result = s.meter.get_kerf_value()?;
             if g.json {
-                println!(
+                out!(
                     "{}",
                     json!({ "kerf_um": result.map(|r| r.kerf_um), "result": result })
                 );
             } else {
                 match result {
                     Some(r) => print_results(&[r]),
-                    None => println!("no result: the device has not measured since its last reset"),
+                    None => out!("no result: the device has not measured since its last reset"),
                 }
             }
             Ok(())
@@ -317,9 +329,9 @@ fn simple(
     let mut s = connect(g)?;
     f(&mut s.meter)?;
     if g.json {
-        println!("{}", json!({ "ok": true }));
+        out!("{}", json!({ "ok": true }));
     } else {
-        println!("{done}");
+        out!("{done}");
     }
     Ok(())
 }
@@ -328,27 +340,30 @@ fn info(g: &Global) -> Result<(), CliError> {
     let mut s = connect(g)?;
     let info = s.meter.info()?;
     if g.json {
-        println!(
+        out!(
             "{}",
             serde_json::to_string_pretty(&info).expect("info serializes")
         );
     } else {
         let h = &info.hardware;
-        println!("port:       {}", s.meter.path());
-        println!("board:      {}", h.board);
-        println!(
+        out!("port:       {}", s.meter.path());
+        out!("board:      {}", h.board);
+        out!(
             "firmware:   {}.{}.{}",
-            info.firmware.major, info.firmware.minor, info.firmware.patch
+            info.firmware.major,
+            info.firmware.minor,
+            info.firmware.patch
         );
-        println!(
+        out!(
             "protocol:   {}.{}",
-            info.protocol.major, info.protocol.minor
+            info.protocol.major,
+            info.protocol.minor
         );
-        println!("boot id:    {:08x}", info.boot_id);
-        println!("control:    {} Hz", h.control_rate_hz);
-        println!("encoder:    {} bit", h.encoder_bits);
-        println!("pwm:        {} bit", h.pwm_bits);
-        println!("sample log: {} samples", h.max_samples);
+        out!("boot id:    {:08x}", info.boot_id);
+        out!("control:    {} Hz", h.control_rate_hz);
+        out!("encoder:    {} bit", h.encoder_bits);
+        out!("pwm:        {} bit", h.pwm_bits);
+        out!("sample log: {} samples", h.max_samples);
     }
     Ok(())
 }
@@ -445,7 +460,7 @@ fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
         kerfmeter::plot::plot_curve(&curve, results.last(), path)?;
     }
     if g.json {
-        println!(
+        out!(
             "{}",
             serde_json::to_string_pretty(&json!({
                 "kerf_um": summary.mean_um,
@@ -460,29 +475,34 @@ fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
         );
     } else {
         print_results(&results);
-        println!();
+        out!();
         match summary.ci95_um {
-            Some(ci) => println!(
+            Some(ci) => out!(
                 "kerf {:.1} µm ± {:.1} µm (95 % CI, n = {}, SD {:.1} µm) at {:.1} N",
-                summary.mean_um, ci, summary.n, summary.sd_um, params.target_force_n
+                summary.mean_um,
+                ci,
+                summary.n,
+                summary.sd_um,
+                params.target_force_n
             ),
-            None => println!(
+            None => out!(
                 "kerf {:.1} µm at {:.1} N",
-                summary.mean_um, params.target_force_n
+                summary.mean_um,
+                params.target_force_n
             ),
         }
         for &i in &summary.outliers {
-            println!(
+            out!(
                 "warning: run {} ({:.1} µm) is an outlier; check that gauge",
                 i + 1,
                 kerfs[i]
             );
         }
         if let Some(path) = &args.plot {
-            println!("curve: {}", path.display());
+            out!("curve: {}", path.display());
         }
         if sim {
-            println!("(simulated device: true kerf {:.1} µm)", g.sim_kerf_um);
+            out!("(simulated device: true kerf {:.1} µm)", g.sim_kerf_um);
         }
     }
     Ok(())
@@ -498,12 +518,17 @@ fn flags_text(flags: QualityFlags) -> String {
 }
 
 fn print_results(results: &[KerfResult]) {
-    println!(
+    out!(
         "{:>4} {:>10} {:>10} {:>9} {:>11} {:>9}  flags",
-        "run", "kerf µm", "angle °", "play °", "torque N·m", "force N"
+        "run",
+        "kerf µm",
+        "angle °",
+        "play °",
+        "torque N·m",
+        "force N"
     );
     for r in results {
-        println!(
+        out!(
             "{:>4} {:>10.1} {:>10.2} {:>9.2} {:>11.3} {:>9.1}  {}",
             r.run_id,
             r.kerf_um,
@@ -530,12 +555,12 @@ fn self_test(g: &Global) -> Result<(), CliError> {
     ];
     let passed = items.iter().all(|(_, i, _)| i.outcome == TestOutcome::Pass);
     if g.json {
-        println!("{}", json!({ "passed": passed, "report": report }));
+        out!("{}", json!({ "passed": passed, "report": report }));
     } else {
         for (name, SelfTestItem { outcome, value }, unit) in items {
-            println!("{name:<18} {:<8} {value:.3}{unit}", format!("{outcome:?}"));
+            out!("{name:<18} {:<8} {value:.3}{unit}", format!("{outcome:?}"));
         }
-        println!(
+        out!(
             "{}",
             if passed {
                 "self-test passed"
@@ -581,16 +606,16 @@ fn config(g: &Global, c: &ConfigCommand) -> Result<(), CliError> {
         }
     };
     if g.json {
-        println!(
+        out!(
             "{}",
             serde_json::to_string_pretty(&report).expect("config serializes")
         );
     } else {
         let c = &report.config;
-        println!("torque_per_duty_nm  {}", c.torque_per_duty_nm);
-        println!("breakaway_duty      {}", c.breakaway_duty);
-        println!("encoder_zero_raw    {}", c.encoder_zero_raw);
-        println!(
+        out!("torque_per_duty_nm  {}", c.torque_per_duty_nm);
+        out!("breakaway_duty      {}", c.breakaway_duty);
+        out!("encoder_zero_raw    {}", c.encoder_zero_raw);
+        out!(
             "encoder_on          {}",
             if c.encoder_placement == EncoderPlacement::MotorShaft {
                 "motor"
@@ -598,13 +623,13 @@ fn config(g: &Global, c: &ConfigCommand) -> Result<(), CliError> {
                 "output"
             }
         );
-        println!("gear_ratio          {}", c.gear_ratio);
-        println!("motor_inverted      {}", c.motor_inverted);
-        println!("encoder_inverted    {}", c.encoder_inverted);
-        println!("max_current_a       {}", c.max_current_a);
-        println!("torque_per_amp_nm   {}", c.torque_per_amp_nm);
+        out!("gear_ratio          {}", c.gear_ratio);
+        out!("motor_inverted      {}", c.motor_inverted);
+        out!("encoder_inverted    {}", c.encoder_inverted);
+        out!("max_current_a       {}", c.max_current_a);
+        out!("torque_per_amp_nm   {}", c.torque_per_amp_nm);
         if report.defaults_in_use {
-            println!("(defaults: no valid configuration is stored on the device)");
+            out!("(defaults: no valid configuration is stored on the device)");
         }
     }
     Ok(())
@@ -676,22 +701,24 @@ fn map(g: &Global, args: &MapArgs) -> Result<(), CliError> {
     let map = KerfMap::from_runs(grid, (args.reference_col, args.reference_row), runs)?;
     map.save(&args.output)?;
     if g.json {
-        println!(
+        out!(
             "{}",
             json!({ "map": args.output, "reference_kerf_um": map.reference_kerf_um, "cells": map.cells })
         );
     } else {
-        println!(
+        out!(
             "compensation (µm) relative to cell ({}, {}) = {:.1} µm:",
-            args.reference_col, args.reference_row, map.reference_kerf_um
+            args.reference_col,
+            args.reference_row,
+            map.reference_kerf_um
         );
         for row in 0..args.rows {
             let line: Vec<String> = (0..args.cols)
                 .map(|col| format!("{:+7.1}", map.cells[row * args.cols + col].compensation_um))
                 .collect();
-            println!("  row {row}: {}", line.join(" "));
+            out!("  row {row}: {}", line.join(" "));
         }
-        println!("saved {}", args.output.display());
+        out!("saved {}", args.output.display());
     }
     Ok(())
 }

@@ -213,13 +213,25 @@ fn a_vanished_port_is_a_clear_error() {
 
 #[test]
 fn the_sim_device_answers_through_a_pty() {
-    let (sim, mut meter) =
-        kerfmeter::sim::SimDevice::connect(kerfmeter::sim::SimOptions { seed: 7, ..Default::default() }, fast()).unwrap();
+    let (sim, mut meter) = kerfmeter::sim::SimDevice::connect(
+        kerfmeter::sim::SimOptions {
+            seed: 7,
+            ..Default::default()
+        },
+        fast(),
+    )
+    .unwrap();
     assert!(sim.path().starts_with("/dev/"), "{}", sim.path());
     let info = meter.info().unwrap();
     assert_eq!(info.hardware.board.as_str(), "twin");
     // The seed makes the boot id reproducible.
-    let (_sim2, mut meter2) =
-        kerfmeter::sim::SimDevice::connect(kerfmeter::sim::SimOptions { seed: 7, ..Default::default() }, fast()).unwrap();
+    let (_sim2, mut meter2) = kerfmeter::sim::SimDevice::connect(
+        kerfmeter::sim::SimOptions {
+            seed: 7,
+            ..Default::default()
+        },
+        fast(),
+    )
+    .unwrap();
     assert_eq!(meter2.info().unwrap().boot_id, info.boot_id);
 }

@@ -30,6 +30,18 @@ enum Cmd {
     Firmware(firmware::FirmwareArgs),
     /// Run the protocol fuzz targets (cargo-fuzz on the nightly toolchain).
     Fuzz(fuzz::FuzzArgs),
+    /// The twin's accuracy table: kerf 50–430 µm × stock 3–6 mm, 20 seeds per point.
+    Accuracy(AccuracyArgs),
+}
+
+#[derive(clap::Args)]
+struct AccuracyArgs {
+    /// Seeds per point.
+    #[arg(long, default_value_t = 20)]
+    seeds: u32,
+    /// A smaller grid (3 kerfs × 2 stocks × 5 seeds).
+    #[arg(long)]
+    quick: bool,
 }
 
 #[derive(clap::Args)]
@@ -44,6 +56,7 @@ fn main() -> Result<()> {
         Cmd::Test(args) => test(&args),
         Cmd::Firmware(args) => firmware::run(&args),
         Cmd::Fuzz(args) => fuzz::run(&args),
+        Cmd::Accuracy(args) => accuracy(&args),
     }
 }
 
@@ -81,6 +94,26 @@ fn show(cmd: &Command) -> String {
         s.push_str(&a.to_string_lossy());
     }
     s
+}
+
+fn accuracy(args: &AccuracyArgs) -> Result<()> {
+    let mut cmd = cargo();
+    cmd.args([
+        "run",
+        "--release",
+        "-p",
+        "kerfmeter-firmware",
+        "--features",
+        "twin",
+        "--example",
+        "accuracy",
+        "--",
+    ]);
+    cmd.args(["--seeds", &args.seeds.to_string()]);
+    if args.quick {
+        cmd.arg("--quick");
+    }
+    run_cmd(&mut cmd)
 }
 
 fn test(args: &TestArgs) -> Result<()> {

@@ -1,12 +1,13 @@
 //! Fake PWM and GPIO peripherals implementing the embedded-hal traits, shared between the
 //! driver under test (or the twin's firmware side) and the plant that reads them.
 //!
-//! Each fake is a cheap handle (`Rc<Cell<…>>`): clone it, give one clone to the driver, keep one
-//! to read or set the level. Single-threaded, as the twin runs in lock-step.
+//! Each fake is a cheap handle (`Arc` of an atomic): clone it, give one clone to the driver, keep
+//! one to read or set the level. The twin runs in lock-step on one thread, but can be moved to
+//! another.
 
-use core::cell::Cell;
 use core::convert::Infallible;
-use std::rc::Rc;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU16, Ordering::Relaxed};
 
 use embedded_hal::digital::{self, InputPin, OutputPin};
 use embedded_hal::pwm::{self, SetDutyCycle};
@@ -25,8 +26,8 @@ impl pwm::Error for FakeError {
 #[derive(Debug, Clone)]
 pub struct FakePwm {
     max: u16,
-    raw: Rc<Cell<u16>>,
-    failing: Rc<Cell<bool>>,
+    raw: Arc<AtomicU16>,
+    failing: Arc<AtomicBool>,
 }
 
 impl FakePwm {
@@ -34,21 +35,21 @@ impl FakePwm {
     pub fn new(max: u16) -> Self {
         Self {
             max,
-            raw: Rc::new(Cell::new(0)),
-            failing: Rc::new(Cell::new(false)),
+            raw: Arc::new(AtomicU16::new(0)),
+            failing: Arc::new(AtomicBool::new(false)),
         }
     }
     /// Duty as a fraction, 0..=1.
     pub fn duty(&self) -> f32 {
-        f32::from(self.raw.get()) / f32::from(self.max)
+        f32::from(self.raw.load(Relaxed)) / f32::from(self.max)
     }
     /// Force the raw duty (to check that the driver overwrites it).
     pub fn set_raw(&self, raw: u16) {
-        self.raw.set(raw);
+        self.raw.store(raw, Relaxed);
     }
     /// Make every later call fail (and leave the duty as it is).
     pub fn fail(&self, failing: bool) {
-        self.failing.set(failing);
+        self.failing.store(failing, Relaxed);
     }
 }
 
@@ -61,26 +62,26 @@ impl SetDutyCycle for FakePwm {
         self.max
     }
     fn set_duty_cycle(&mut self, duty: u16) -> Result<(), FakeError> {
-        if self.failing.get() {
+        if self.failing.load(Relaxed) {
             return Err(FakeError);
         }
-        self.raw.set(duty.min(self.max));
+        self.raw.store(duty.min(self.max), Relaxed);
         Ok(())
     }
 }
 
 /// An output pin: records its level.
 #[derive(Debug, Clone)]
-pub struct FakeOutput(Rc<Cell<bool>>);
+pub struct FakeOutput(Arc<AtomicBool>);
 
 impl FakeOutput {
     /// A pin at `high`.
     pub fn new(high: bool) -> Self {
-        Self(Rc::new(Cell::new(high)))
+        Self(Arc::new(AtomicBool::new(high)))
     }
     /// The level the driver set.
     pub fn is_high(&self) -> bool {
-        self.0.get()
+        self.0.load(Relaxed)
     }
 }
 
@@ -90,27 +91,27 @@ impl digital::ErrorType for FakeOutput {
 
 impl OutputPin for FakeOutput {
     fn set_low(&mut self) -> Result<(), Infallible> {
-        self.0.set(false);
+        self.0.store(false, Relaxed);
         Ok(())
     }
     fn set_high(&mut self) -> Result<(), Infallible> {
-        self.0.set(true);
+        self.0.store(true, Relaxed);
         Ok(())
     }
 }
 
 /// An input pin whose level the test or plant sets.
 #[derive(Debug, Clone)]
-pub struct FakeInput(Rc<Cell<bool>>);
+pub struct FakeInput(Arc<AtomicBool>);
 
 impl FakeInput {
     /// A pin at `high`.
     pub fn new(high: bool) -> Self {
-        Self(Rc::new(Cell::new(high)))
+        Self(Arc::new(AtomicBool::new(high)))
     }
     /// Set the level the driver will read.
     pub fn set_high(&self, high: bool) {
-        self.0.set(high);
+        self.0.store(high, Relaxed);
     }
 }
 
@@ -120,9 +121,9 @@ impl digital::ErrorType for FakeInput {
 
 impl InputPin for FakeInput {
     fn is_high(&mut self) -> Result<bool, Infallible> {
-        Ok(self.0.get())
+        Ok(self.0.load(Relaxed))
     }
     fn is_low(&mut self) -> Result<bool, Infallible> {
-        Ok(!self.0.get())
+        Ok(!self.0.load(Relaxed))
     }
 }

@@ -249,6 +249,16 @@ impl Plant {
         self.kerf_um + compression_m * 1e6
     }
 
+    /// The kerf this plant's gauge shows when jammed moving forward under `torque_nm` at the hub:
+    /// the geometric kerf plus the contact's compression, F_n = τ / (c + μ·r), δ = F_n / K. This
+    /// is what an ideal device reports for a jam at that torque.
+    pub fn kerf_at_torque_um(&self, torque_nm: f64) -> f64 {
+        let lever = self.pitch_m_per_rad()
+            + self.params.contact_mu * f64::from(self.gauge.radius_mm) * 1e-3;
+        let stiffness = self.params.contact_stiffness_n_per_um * 1e6;
+        self.kerf_um + torque_nm.max(0.0) / lever / stiffness * 1e6
+    }
+
     /// Joint force the device reports for `torque_nm` at the current inset angle (for checks).
     pub fn equivalent_force_n(&self, run: &RunParams, torque_nm: f32) -> f32 {
         force_for_torque_n(run, torque_nm, self.inset_deg() as f32)

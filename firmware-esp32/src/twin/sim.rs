@@ -379,7 +379,8 @@ impl Twin {
             return;
         };
         let chip = self.hardware.encoder.bus_mut();
-        if fault == InjectedFault::Parity && chip.frames().is_multiple_of(PARITY_ERROR_EVERY_FRAMES) {
+        if fault == InjectedFault::Parity && chip.frames().is_multiple_of(PARITY_ERROR_EVERY_FRAMES)
+        {
             chip.corrupt_next_responses(1);
         }
         let Some(start) = self.run_started_us else {

@@ -1,0 +1,196 @@
+//! The twin's accuracy table (`cargo xtask accuracy`): the real firmware measuring simulated
+//! gauges across kerf 50–430 µm and stock 3–6 mm, many seeds per point, default noise.
+//!
+//! For every run the truth is the kerf an ideal device reports for a jam at the torque this one
+//! reported: the gauge's geometric kerf plus the contact's compression at that force
+//! (`Plant::kerf_at_torque_um`). Beside the corrected error, the table shows the error of the
+//! uncorrected reading c·θm, which ignores the hole play.
+//!
+//! Usage: `accuracy [--seeds N] [--quick]` (prints a table; exits non-zero if a point misses the
+//! targets |mean error| ≤ 1 µm and SD ≤ 2 µm, or if any run failed).
+
+use std::time::Instant;
+
+use kerfmeter_firmware::kerf::uncorrected_kerf_um;
+use kerfmeter_firmware::twin::{Twin, TwinOptions};
+use kerfmeter_protocol::{GaugeGeometry, KerfResult, Request, Response, RunParams, RunState};
+
+/// Target: |mean error| at every point, µm.
+const MAX_MEAN_ERROR_UM: f64 = 1.0;
+/// Target: per-run standard deviation at every point, µm.
+const MAX_SD_UM: f64 = 2.0;
+
+struct Run {
+    result: KerfResult,
+    truth_um: f64,
+    geometric_um: f64,
+    sim_ms: u64,
+}
+
+fn measure(kerf_um: f64, thickness_mm: f32, seed: u64) -> Result<Run, String> {
+    let mut twin = Twin::new(TwinOptions {
+        kerf_um,
+        seed,
+        ..TwinOptions::default()
+    });
+    twin.advance_ticks(5);
+    // The paper's joint in this stock: three fingers, two faces each, 6.3 mm long.
+    let params = RunParams {
+        thickness_mm,
+        contact_area_mm2: 3.0 * 2.0 * thickness_mm * 6.3,
+        ..RunParams::DEFAULT
+    };
+    let start = twin.now_us();
+    match twin.request(&Request::Run(params)) {
+        Response::Ok => {}
+        other => return Err(format!("Run refused: {other:?}")),
+    }
+    for _ in 0..2000 {
+        twin.advance_ticks(10);
+        let Response::Status(status) = twin.request(&Request::GetStatus) else {
+            return Err("no status".into());
+        };
+        match status.state {
+            RunState::Done => {
+                let Response::Kerf(Some(result)) = twin.request(&Request::GetKerf) else {
+                    return Err("Done without a result".into());
+                };
+                return Ok(Run {
+                    truth_um: twin
+                        .plant()
+                        .kerf_at_torque_um(f64::from(result.torque_at_jam_nm)),
+                    geometric_um: twin.plant().kerf_um(),
+                    sim_ms: (twin.now_us() - start) / 1000,
+                    result,
+                });
+            }
+            RunState::Fault(f) => return Err(format!("fault {f:?}")),
+            _ => {}
+        }
+    }
+    Err("no result within 20 s of simulated time".into())
+}
+
+fn mean_sd(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+    (mean, sd)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let quick = args.iter().any(|a| a == "--quick");
+    let seeds: u64 = args
+        .iter()
+        .position(|a| a == "--seeds")
+        .and_then(|i| args.get(i + 1))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(if quick { 5 } else { 20 });
+    let kerfs: &[f64] = if quick {
+        &[50.0, 200.0, 430.0]
+    } else {
+        &[50.0, 100.0, 150.0, 200.0, 250.0, 300.0, 350.0, 400.0, 430.0]
+    };
+    let thicknesses: &[f32] = if quick {
+        &[3.0, 6.0]
+    } else {
+        &[3.0, 4.0, 5.0, 6.0]
+    };
+    let gauge = GaugeGeometry::PAPER;
+
+    println!(
+        "Kerfmeter twin accuracy: {seeds} seeds per point, default noise, paper gauge, 55 N over 3 fingers"
+    );
+    println!(
+        "{:>7} {:>6} | {:>9} {:>8} {:>7} | {:>10} {:>9} | {:>11} | {:>7} {:>7} | flags",
+        "kerf",
+        "stock",
+        "mean err",
+        "SD",
+        "max|e|",
+        "uncorr err",
+        "compress",
+        "force N",
+        "sim ms",
+        "wall ms"
+    );
+    println!(
+        "{:>7} {:>6} | {:>9} {:>8} {:>7} | {:>10} {:>9} | {:>11} | {:>7} {:>7} |",
+        "µm", "mm", "µm", "µm", "µm", "µm", "µm", "at jam", "max", "mean"
+    );
+    let mut misses = 0;
+    let mut failures = 0;
+    let mut worst_sim_ms = 0;
+    let mut worst_wall_ms: f64 = 0.0;
+    for &kerf in kerfs {
+        for &thickness in thicknesses {
+            let mut errors = Vec::new();
+            let mut uncorrected = Vec::new();
+            let mut compression = Vec::new();
+            let mut forces = Vec::new();
+            let mut flags = std::collections::BTreeSet::new();
+            let mut sim_ms = 0;
+            let mut wall_ms = 0.0;
+            for seed in 0..seeds {
+                let t0 = Instant::now();
+                let outcome = measure(kerf, thickness, 1000 + seed);
+                let wall = t0.elapsed().as_secs_f64() * 1000.0;
+                wall_ms += wall / seeds as f64;
+                worst_wall_ms = worst_wall_ms.max(wall);
+                match outcome {
+                    Ok(run) => {
+                        let measured = f64::from(run.result.kerf_um);
+                        errors.push(measured - run.truth_um);
+                        uncorrected.push(
+                            f64::from(uncorrected_kerf_um(&gauge, run.result.angle_deg))
+                                - run.truth_um,
+                        );
+                        compression.push(run.truth_um - run.geometric_um);
+                        forces.push(f64::from(run.result.force_at_jam_n));
+                        flags.extend(run.result.flags.names());
+                        sim_ms = sim_ms.max(run.sim_ms);
+                    }
+                    Err(e) => {
+                        failures += 1;
+                        eprintln!("kerf {kerf} µm, {thickness} mm, seed {seed}: {e}");
+                    }
+                }
+            }
+            worst_sim_ms = worst_sim_ms.max(sim_ms);
+            if errors.is_empty() {
+                println!("{kerf:>7.0} {thickness:>6.1} | every run failed");
+                misses += 1;
+                continue;
+            }
+            let (mean, sd) = mean_sd(&errors);
+            let max_abs = errors.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+            let (unc, _) = mean_sd(&uncorrected);
+            let (comp, _) = mean_sd(&compression);
+            let (force, _) = mean_sd(&forces);
+            let ok = mean.abs() <= MAX_MEAN_ERROR_UM && sd <= MAX_SD_UM;
+            if !ok {
+                misses += 1;
+            }
+            let flag_text: Vec<&str> = flags.into_iter().collect();
+            println!(
+                "{kerf:>7.0} {thickness:>6.1} | {mean:>+9.2} {sd:>8.2} {max_abs:>7.2} | {unc:>+10.1} {comp:>9.2} | {force:>11.1} | {sim_ms:>7} {wall_ms:>7.1} | {}{}",
+                if flag_text.is_empty() {
+                    "-".to_owned()
+                } else {
+                    flag_text.join(",")
+                },
+                if ok { "" } else { "  <-- MISSES TARGET" }
+            );
+        }
+    }
+    println!();
+    println!("targets: |mean error| <= {MAX_MEAN_ERROR_UM} µm, SD <= {MAX_SD_UM} µm per point");
+    println!(
+        "slowest measurement: {worst_sim_ms} ms simulated (target <= 3000), {worst_wall_ms:.1} ms wall (target <= 100)"
+    );
+    println!("points missing the targets: {misses}; failed runs: {failures}");
+    if misses > 0 || failures > 0 {
+        std::process::exit(1);
+    }
+}
