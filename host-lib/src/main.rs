@@ -501,8 +501,17 @@ fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
         if let Some(path) = &args.plot {
             out!("curve: {}", path.display());
         }
-        if sim {
-            out!("(simulated device: true kerf {:.1} µm)", g.sim_kerf_um);
+        if let (Some(sim), Some(last)) = (&s.sim, results.last()) {
+            out!(
+                "(simulated device: gauges cut with {:.1} µm{}; at the applied force the spiral contact compresses, so an ideal device reads {:.1} µm)",
+                g.sim_kerf_um,
+                if g.sim_kerf_sd_um > 0.0 {
+                    format!(" ± {:.1} µm SD", g.sim_kerf_sd_um)
+                } else {
+                    String::new()
+                },
+                sim.ideal_reading_um(last.torque_at_jam_nm)
+            );
         }
     }
     Ok(())

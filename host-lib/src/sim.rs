@@ -77,6 +77,7 @@ impl SimOptions {
 
 /// A running simulated device. Dropping it stops the twin.
 pub struct SimDevice {
+    options: SimOptions,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
     path: String,
@@ -112,6 +113,7 @@ impl SimDevice {
         };
         Ok((
             Self {
+                options,
                 stop,
                 thread: Some(thread),
                 path,
@@ -125,6 +127,17 @@ impl SimDevice {
         let (sim, port) = Self::start(options)?;
         let meter = Kerfmeter::from_port(port, client)?;
         Ok((sim, meter))
+    }
+
+    /// What an ideal device reads on this twin's gauge (with no cutter spread) for a jam at
+    /// `torque_nm`: the geometric kerf plus the spiral contact's compression at that torque.
+    pub fn ideal_reading_um(&self, torque_nm: f32) -> f64 {
+        kerfmeter_firmware::twin::plant::Plant::new(
+            kerfmeter_firmware::twin::plant::PlantParams::default(),
+            kerfmeter_protocol::GaugeGeometry::PAPER,
+            self.options.kerf_um,
+        )
+        .kerf_at_torque_um(f64::from(torque_nm))
     }
 
     /// Path of the pseudo-terminal's client side.

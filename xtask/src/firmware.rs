@@ -26,6 +26,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use anyhow::{Context, Result, bail};
+
+use crate::{cargo, root, run_cmd, show};
 use object::elf::{SHF_ALLOC, SHT_NOBITS};
 use object::read::elf::{ElfFile32, SectionHeader};
 use object::{Endianness, Object, ObjectSection};
@@ -64,6 +66,14 @@ pub enum Chip {
 impl Chip {
     /// Every chip, for installing targets.
     pub const ALL: [Chip; 2] = [Chip::C3, Chip::C6];
+
+    /// The chip's name for espflash.
+    pub fn espflash_name(self) -> &'static str {
+        match self {
+            Chip::C3 => "esp32c3",
+            Chip::C6 => "esp32c6",
+        }
+    }
 
     /// The firmware crate's feature for this chip.
     pub fn feature(self) -> &'static str {
@@ -257,6 +267,84 @@ pub fn build(chip: Chip) -> Result<SizeReport> {
     Ok(report)
 }
 
+/// `cargo xtask flash` options: real hardware only.
+#[derive(clap::Args)]
+pub struct FlashArgs {
+    /// The chip on the board.
+    #[arg(long, value_enum, default_value_t = Chip::C3)]
+    pub chip: Chip,
+    /// Serial port of the board (its USB-Serial-JTAG port, e.g. /dev/ttyACM0).
+    #[arg(long, env = "KERFMETER_PORT")]
+    pub port: String,
+    /// Stay attached afterwards and print the board's output.
+    #[arg(long)]
+    pub monitor: bool,
+}
+
+/// espflash is needed to write the image to a board and to turn the ELF into a flash image.
+fn ensure_espflash() -> Result<()> {
+    let present = Command::new("espflash")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false);
+    if !present {
+        eprintln!(
+            "espflash is missing: installing it (`cargo install espflash --locked`, a few minutes once)"
+        );
+        run_cmd(
+            Command::new("cargo")
+                .args(["install", "espflash", "--locked"])
+                .env_remove("RUSTUP_TOOLCHAIN"),
+        )?;
+    }
+    Ok(())
+}
+
+/// Turn the built ELF into the image espflash would write (offline): proves the image is
+/// flashable (bootloader app descriptor present, segments valid). Returns the image's path.
+pub fn save_image(report: &SizeReport) -> Result<PathBuf> {
+    ensure_espflash()?;
+    let image = report.elf.with_extension("bin");
+    run_cmd(
+        Command::new("espflash")
+            .args(["save-image", "--chip", report.chip.espflash_name()])
+            .arg(&report.elf)
+            .arg(&image),
+    )?;
+    let bytes = std::fs::metadata(&image)
+        .with_context(|| format!("reading {}", image.display()))?
+        .len();
+    println!(
+        "flash image {}: {:.1} KiB",
+        image.display(),
+        bytes as f64 / 1024.0
+    );
+    Ok(image)
+}
+
+/// `cargo xtask flash`: build the image and write it to the board on `--port`.
+pub fn flash(args: &FlashArgs) -> Result<()> {
+    ensure_targets()?;
+    let report = build(args.chip)?;
+    ensure_espflash()?;
+    let mut cmd = Command::new("espflash");
+    cmd.args([
+        "flash",
+        "--chip",
+        args.chip.espflash_name(),
+        "--port",
+        &args.port,
+    ]);
+    if args.monitor {
+        cmd.arg("--monitor");
+    }
+    cmd.arg(&report.elf);
+    run_cmd(&mut cmd)
+}
+
 /// Clippy with `-D warnings` on the firmware crate (library and board binary) for `chip`.
 pub fn clippy(chip: Chip) -> Result<()> {
     run_cmd(
@@ -322,42 +410,6 @@ fn executable_artifact(line: &str) -> Option<PathBuf> {
         return None;
     }
     message.get("executable")?.as_str().map(PathBuf::from)
-}
-
-/// The workspace root.
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("xtask lives in the workspace")
-        .to_path_buf()
-}
-
-/// `cargo` (the one running xtask, from `$CARGO`), in the workspace root.
-fn cargo() -> Command {
-    let mut cmd = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()));
-    cmd.current_dir(root());
-    cmd
-}
-
-/// Run `cmd`, echoing it; fail unless it succeeds.
-fn run_cmd(cmd: &mut Command) -> Result<()> {
-    eprintln!("$ {}", show(cmd));
-    let status = cmd
-        .status()
-        .with_context(|| format!("cannot start {}", show(cmd)))?;
-    if !status.success() {
-        bail!("`{}` failed ({status})", show(cmd));
-    }
-    Ok(())
-}
-
-fn show(cmd: &Command) -> String {
-    let mut s = cmd.get_program().to_string_lossy().into_owned();
-    for arg in cmd.get_args() {
-        s.push(' ');
-        s.push_str(&arg.to_string_lossy());
-    }
-    s
 }
 
 #[cfg(test)]

@@ -28,6 +28,8 @@ enum Cmd {
     Test(TestArgs),
     /// Build the firmware image for a chip (release) and print its flash and RAM use.
     Firmware(firmware::FirmwareArgs),
+    /// Build the firmware and write it to a board (real hardware: needs --port).
+    Flash(firmware::FlashArgs),
     /// Run the protocol fuzz targets (cargo-fuzz on the nightly toolchain).
     Fuzz(fuzz::FuzzArgs),
     /// The twin's accuracy table: kerf 50–430 µm × stock 3–6 mm, 20 seeds per point.
@@ -55,6 +57,7 @@ fn main() -> Result<()> {
     match Cli::parse().command {
         Cmd::Test(args) => test(&args),
         Cmd::Firmware(args) => firmware::run(&args),
+        Cmd::Flash(args) => firmware::flash(&args),
         Cmd::Fuzz(args) => fuzz::run(&args),
         Cmd::Accuracy(args) => accuracy(&args),
     }
@@ -166,8 +169,11 @@ fn test(args: &TestArgs) -> Result<()> {
             }),
         ),
         (
-            "firmware image (esp32c3)",
-            Box::new(|| firmware::build(firmware::Chip::C3).map(|_| ())),
+            "firmware image (esp32c3), flashable",
+            Box::new(|| {
+                let report = firmware::build(firmware::Chip::C3)?;
+                firmware::save_image(&report).map(|_| ())
+            }),
         ),
         (
             "firmware image (esp32c6)",
