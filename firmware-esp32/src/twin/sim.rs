@@ -301,29 +301,40 @@ impl Twin {
             return;
         }
         self.last_request_us = self.now_us;
+        let mut repair = false;
         let mut handler = TwinHandler {
             device: &mut self.device,
             plant: &mut self.plant,
             rng: &mut self.rng,
             options: &self.options,
             run_started: &mut self.run_started_us,
+            repair: &mut repair,
             now_us: self.now_us,
         };
         self.link.receive(bytes, &mut handler, transmit);
+        if repair {
+            self.repair();
+        }
     }
 
     /// A request without framing (in-process tests).
     pub fn request(&mut self, request: &Request) -> Response {
         self.last_request_us = self.now_us;
+        let mut repair = false;
         let mut handler = TwinHandler {
             device: &mut self.device,
             plant: &mut self.plant,
             rng: &mut self.rng,
             options: &self.options,
             run_started: &mut self.run_started_us,
+            repair: &mut repair,
             now_us: self.now_us,
         };
-        handler.handle(request)
+        let response = handler.handle(request);
+        if repair {
+            self.repair();
+        }
+        response
     }
 
     /// Ticks the twin may run before it must wait for the host (lock-step mode).
@@ -403,8 +414,8 @@ impl Twin {
         }
     }
 
-    /// Clear a struck mid-run fault's cause (the magnet is put back, the short removed, ...), as a
-    /// person would before `ClearFault`.
+    /// Clear the injected fault's cause (the magnet is put back, the short removed, ...), as a
+    /// person would before `ClearFault`. A `ClearFault` request does this by itself.
     pub fn repair(&mut self) {
         let chip = self.hardware.encoder.bus_mut();
         chip.set_magnet_lost(false);
@@ -427,6 +438,7 @@ struct TwinHandler<'a> {
     rng: &'a mut Rng,
     options: &'a TwinOptions,
     run_started: &'a mut Option<u64>,
+    repair: &'a mut bool,
     now_us: u64,
 }
 
@@ -448,6 +460,9 @@ impl Handler for TwinHandler<'_> {
             }
             // The head has moved away from the last gauge: the prongs turn freely back to zero.
             Request::Reset | Request::SelfTest => self.plant.lift_prongs(),
+            // Whoever clears a fault is taken to have fixed its cause (put the magnet back,
+            // removed the short, ...): the injected fault is gone from now on.
+            Request::ClearFault => *self.repair = true,
             _ => {}
         }
         response
