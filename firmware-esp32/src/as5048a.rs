@@ -75,6 +75,13 @@ pub const AGC_WARN: (u8, u8) = (20, 220);
 /// Magnitude band accepted (CORDIC magnitude; the AGC holds it near mid-scale).
 pub const MAGNITUDE_RANGE: (u16, u16) = (500, 16_000);
 
+/// Consecutive rejected jumps after which an output-shaft encoder re-acquires its position (the
+/// last accepted reading is stale: the magnet was lost and is back, the bus glitched for a
+/// while). The hub never leaves ±180° of zero, so the turn nearest zero is the right one. A
+/// motor-shaft encoder cannot do this (a motor turn is 360°/gear ratio of hub angle): it keeps
+/// rejecting, the controller faults on encoder errors, and the device must restart at zero.
+pub const RESYNC_AFTER_JUMPS: u32 = 3;
+
 /// Largest believable hub motion between two samples, degrees.
 pub const MAX_HUB_STEP_DEG: f32 = 10.0;
 
@@ -238,6 +245,7 @@ pub struct As5048a<SPI> {
     /// Last accepted raw reading and the whole turns counted so far.
     last_raw: Option<u16>,
     turns: i32,
+    consecutive_jumps: u32,
     stats: EncoderStats,
 }
 
@@ -250,6 +258,7 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
             pending: reg::NOP,
             last_raw: None,
             turns: 0,
+            consecutive_jumps: 0,
             stats: EncoderStats::default(),
         }
     }
@@ -364,7 +373,15 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
                 let step_deg = (step + wrap * counts) as f32 * 360.0 / counts as f32;
                 if step_deg.abs() > self.settings.max_step_deg {
                     self.stats.jumps += 1;
-                    return Err(EncoderError::Jump);
+                    self.consecutive_jumps += 1;
+                    if self.consecutive_jumps < RESYNC_AFTER_JUMPS
+                        || self.settings.placement != EncoderPlacement::OutputShaft
+                    {
+                        return Err(EncoderError::Jump);
+                    }
+                    // Stale reference: re-acquire as at boot.
+                    self.last_raw = None;
+                    return self.unwrap(raw);
                 }
                 self.turns += wrap;
             }
@@ -383,6 +400,7 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
             }
         }
         self.last_raw = Some(raw);
+        self.consecutive_jumps = 0;
         self.stats.samples += 1;
         let total = self.turns * counts + i32::from(raw) - i32::from(self.settings.zero_raw);
         let encoder_deg = total as f32 * 360.0 / counts as f32;
@@ -547,6 +565,43 @@ mod tests {
         assert_eq!(enc.read_hub_deg(), Err(EncoderError::Jump));
         assert!((enc.read_hub_deg().unwrap() - 1.0).abs() < 0.05);
         assert_eq!(enc.stats().jumps, 2);
+    }
+
+    #[test]
+    fn an_output_shaft_encoder_resyncs_after_a_stale_reference() {
+        let mut fake = FakeAs5048a::new(11);
+        fake.set_angle_deg(60.0);
+        let mut enc = driver(fake);
+        enc.read_hub_deg().unwrap();
+        // The magnet goes away: noise is rejected or accepted at random...
+        enc.spi.set_magnet_lost(true);
+        for _ in 0..50 {
+            let _ = enc.read_hub_deg();
+        }
+        // ...and comes back: within a few reads the true angle is reported again.
+        enc.spi.set_magnet_lost(false);
+        let mut reads = Vec::new();
+        for _ in 0..(RESYNC_AFTER_JUMPS + 2) {
+            reads.push(enc.read_hub_deg());
+        }
+        let last = reads.last().unwrap().as_ref().expect("resynced");
+        assert!((last - 60.0).abs() < 0.1, "{reads:?}");
+    }
+
+    #[test]
+    fn a_motor_shaft_encoder_never_guesses_after_a_stale_reference() {
+        let mut fake = FakeAs5048a::new(12);
+        fake.set_angle_deg(100.0);
+        let mut s = settings();
+        s.placement = EncoderPlacement::MotorShaft;
+        let mut enc = As5048a::new(fake, s);
+        enc.read_hub_deg().unwrap();
+        // Half a motor turn away: ambiguous by a motor turn, so never accepted.
+        enc.spi.set_angle_deg(280.0);
+        enc.read_hub_deg().unwrap(); // the pipeline's older sample
+        for _ in 0..10 {
+            assert_eq!(enc.read_hub_deg().map(|_| ()), Err(EncoderError::Jump));
+        }
     }
 
     #[test]

@@ -90,10 +90,10 @@ pub struct Bench {
     pub soak_runs: u32,
 }
 
-/// Client options for the suite: quick polls.
+/// Client options for the suite: quick polls (also what lets the lock-stepped twin run ahead).
 pub fn options() -> Options {
     Options {
-        poll_interval: Duration::from_millis(10),
+        poll_interval: Duration::from_millis(2),
         ..Options::default()
     }
 }
