@@ -4,6 +4,7 @@
 //! the README tells a newcomer to run. `cargo xtask test` installs what it needs (the RISC-V
 //! targets, cargo-fuzz) and fails loudly when something it needs cannot be had.
 
+mod bench;
 mod firmware;
 mod fuzz;
 
@@ -34,6 +35,35 @@ enum Cmd {
     Fuzz(fuzz::FuzzArgs),
     /// The twin's accuracy table: kerf 50–430 µm × stock 3–6 mm, 20 seeds per point.
     Accuracy(AccuracyArgs),
+    /// Instructions per control step and per kerf solve on RV32IMC (qemu), and the CPU share at
+    /// 1 kHz on a 160 MHz ESP32-C3. A benchmark: not part of `test`.
+    BenchStep(bench::BenchArgs),
+    /// The acceptance suite: on the twin, or on a board with --port (see hil-tests/src/lib.rs
+    /// for the bench description).
+    Hil(HilArgs),
+    /// Round-trip latency of get_kerf_value over the serial port (p50, p99): the twin behind a
+    /// pseudo-terminal, or a board with --port.
+    BenchRtt(BenchRttArgs),
+}
+
+#[derive(clap::Args)]
+struct HilArgs {
+    /// Run against the board on this serial port instead of the twin.
+    #[arg(long)]
+    port: Option<String>,
+    /// Runs of the soak case (the default suite runs 100; the long soak is 1000).
+    #[arg(long)]
+    soak: Option<u32>,
+}
+
+#[derive(clap::Args)]
+struct BenchRttArgs {
+    /// Measure against the board on this serial port instead of the twin.
+    #[arg(long)]
+    port: Option<String>,
+    /// Round trips to time.
+    #[arg(long, default_value_t = 2000)]
+    calls: u32,
 }
 
 #[derive(clap::Args)]
@@ -60,6 +90,25 @@ fn main() -> Result<()> {
         Cmd::Flash(args) => firmware::flash(&args),
         Cmd::Fuzz(args) => fuzz::run(&args),
         Cmd::Accuracy(args) => accuracy(&args),
+        Cmd::BenchStep(args) => bench::step(&args),
+        Cmd::Hil(args) => hil(&args),
+        Cmd::BenchRtt(args) => {
+            let mut cmd = cargo();
+            cmd.args([
+                "run",
+                "--release",
+                "-p",
+                "kerfmeter",
+                "--example",
+                "roundtrip",
+                "--",
+            ]);
+            cmd.args(["--calls", &args.calls.to_string()]);
+            if let Some(port) = &args.port {
+                cmd.args(["--port", port]);
+            }
+            run_cmd(&mut cmd)
+        }
     }
 }
 
@@ -97,6 +146,48 @@ fn show(cmd: &Command) -> String {
         s.push_str(&a.to_string_lossy());
     }
     s
+}
+
+/// Run the acceptance suite and summarise the `HIL <case> <target> <outcome>` lines its cases
+/// print.
+fn hil(args: &HilArgs) -> Result<()> {
+    use std::io::BufRead;
+    let mut cmd = cargo();
+    cmd.args(["test", "-p", "kerfmeter-hil", "--", "--nocapture"]);
+    match &args.port {
+        // One device: one case at a time.
+        Some(port) => {
+            cmd.env("KERFMETER_PORT", port).arg("--test-threads=1");
+        }
+        None => {
+            cmd.env_remove("KERFMETER_PORT");
+        }
+    }
+    if let Some(runs) = args.soak {
+        cmd.env("KERFMETER_SOAK_RUNS", runs.to_string());
+    }
+    eprintln!("$ {}", show(&cmd));
+    let mut child = cmd
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .context("cannot start cargo test")?;
+    let mut summary = Vec::new();
+    for line in std::io::BufReader::new(child.stderr.take().expect("piped")).lines() {
+        let line = line?;
+        eprintln!("{line}");
+        if let Some(rest) = line.strip_prefix("HIL ") {
+            summary.push(rest.to_owned());
+        }
+    }
+    let status = child.wait()?;
+    eprintln!("\n=== acceptance suite: what ran against what");
+    for line in &summary {
+        eprintln!("  {line}");
+    }
+    if !status.success() {
+        bail!("the acceptance suite failed (see above)");
+    }
+    Ok(())
 }
 
 fn accuracy(args: &AccuracyArgs) -> Result<()> {
