@@ -53,6 +53,15 @@ pub struct Curve {
     pub samples: Vec<Sample>,
 }
 
+/// Repeated measurements and their summary (see [`Kerfmeter::measure`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Measurement {
+    /// Every run's result, in order.
+    pub runs: Vec<KerfResult>,
+    /// Mean, SD, 95 % confidence interval and outliers of their kerf.
+    pub summary: crate::stats::Summary,
+}
+
 /// How long a reset may take before the host gives up waiting (the device faults by itself
 /// after 5 s).
 const RESET_DEADLINE: Duration = Duration::from_secs(10);
@@ -133,6 +142,48 @@ impl Kerfmeter {
         }
     }
 
+    /// Measure `n` gauges (one fresh gauge each) and summarise: mean, SD, 95 % confidence interval,
+    /// outliers. Before each gauge the hub is reset to zero and `before_gauge(i)` is called (on
+    /// hardware: ask the person at the cutter to place gauge `i`, or move the head to it);
+    /// `progress(i, …)` reports each run as it goes.
+    ///
+    /// ```no_run
+    /// use kerfmeter::{JointSpec, Kerfmeter, protocol::GaugeGeometry};
+    /// let mut meter = Kerfmeter::open("/dev/ttyACM0")?;
+    /// let params = JointSpec::default().run_params(GaugeGeometry::PAPER)?;
+    /// let m = meter.measure(&params, 3, |i| { println!("place gauge {}", i + 1); Ok(()) }, |_, _| {})?;
+    /// println!("{:.1} ± {:.1} µm", m.summary.mean_um, m.summary.ci95_um.unwrap_or(0.0));
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
+    pub fn measure(
+        &mut self,
+        params: &RunParams,
+        n: usize,
+        mut before_gauge: impl FnMut(usize) -> Result<()>,
+        mut progress: impl FnMut(usize, &Progress),
+    ) -> Result<Measurement> {
+        if n == 0 {
+            return Err(Error::InvalidArgument("measure at least one gauge".into()));
+        }
+        let mut runs = Vec::with_capacity(n);
+        for i in 0..n {
+            let status = self.status()?;
+            if let RunState::Fault(fault) = status.state {
+                return Err(Error::Fault { fault });
+            }
+            if status.angle_deg.abs() > 0.5 || status.state != RunState::Idle {
+                self.reset_kerfmeter()?;
+            }
+            before_gauge(i)?;
+            runs.push(self.run_kerfmeter(params, |p| progress(i, p))?);
+        }
+        let kerfs: Vec<f64> = runs.iter().map(|r| f64::from(r.kerf_um)).collect();
+        Ok(Measurement {
+            summary: crate::stats::summarize(&kerfs),
+            runs,
+        })
+    }
+
     /// The last result, or `None` after a reset or before the first run.
     ///
     /// ```no_run
@@ -184,6 +235,12 @@ impl Kerfmeter {
     }
 
     /// Stop the motor now and end the run, reset or self-test in progress.
+    ///
+    /// ```no_run
+    /// let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
+    /// meter.abort()?; // safe within one control tick
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
     pub fn abort(&mut self) -> Result<()> {
         match self.call(Request::Abort)? {
             Response::Ok => Ok(()),
@@ -192,6 +249,15 @@ impl Kerfmeter {
     }
 
     /// Leave a latched fault (the motor stays safe; fix the cause first).
+    ///
+    /// ```no_run
+    /// let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
+    /// if let kerfmeter::protocol::RunState::Fault(f) = meter.status()?.state {
+    ///     eprintln!("fault: {}", kerfmeter::describe_fault(f));
+    ///     meter.clear_fault()?;
+    /// }
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
     pub fn clear_fault(&mut self) -> Result<()> {
         match self.call(Request::ClearFault)? {
             Response::Ok => Ok(()),
@@ -201,6 +267,13 @@ impl Kerfmeter {
 
     /// Run the self-test (no gauge under the prongs: the hub turns a little each way) and return
     /// its report.
+    ///
+    /// ```no_run
+    /// let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
+    /// let report = meter.self_test(|_| {})?;
+    /// println!("torque constant ≈ {:.2} N·m", report.torque_per_duty_nm.value);
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
     pub fn self_test(&mut self, mut progress: impl FnMut(&Progress)) -> Result<SelfTestReport> {
         match self.call(Request::SelfTest)? {
             Response::Ok => {}
@@ -239,6 +312,14 @@ impl Kerfmeter {
     }
 
     /// Store and apply a new configuration (the motor must be at rest).
+    ///
+    /// ```no_run
+    /// let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
+    /// let mut config = meter.config()?.config;
+    /// config.encoder_zero_raw = 8123;
+    /// meter.set_config(&config)?; // validated, stored in flash, then applied
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
     pub fn set_config(&mut self, config: &DeviceConfig) -> Result<ConfigReport> {
         config.validate().map_err(|field| {
             let (lo, hi) = field.range();

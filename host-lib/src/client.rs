@@ -82,10 +82,11 @@ impl Kerfmeter {
                 path: path.to_owned(),
                 source,
             })?;
-        // The ESP32-C3's USB-Serial-JTAG resets the chip on some DTR/RTS patterns (that is how
-        // flashing tools reset it). Hold both lines in a fixed, non-resetting state. A port
-        // without modem lines (a pseudo-terminal) refuses; that is fine.
-        let _ = port.write_data_terminal_ready(true);
+        // The ESP32-C3's USB-Serial-JTAG resets the chip while RTS is asserted with DTR released
+        // (that is how flashing tools reset it), and holds GPIO9 low (download mode at the next
+        // reset) while DTR is asserted. Hold both released: the idle state. A port without
+        // modem lines (a pseudo-terminal) refuses; that is fine.
+        let _ = port.write_data_terminal_ready(false);
         let _ = port.write_request_to_send(false);
         Self::from_port(port, options)
     }

@@ -27,8 +27,8 @@ pub mod plot;
 pub mod sim;
 pub mod stats;
 
-pub use calls::{Curve, Progress};
+pub use calls::{Curve, Measurement, Progress};
 pub use client::{Kerfmeter, Options};
-pub use error::{Error, Result, describe_error_code};
+pub use error::{Error, Result, describe_error_code, describe_fault};
 pub use kerfmeter_protocol as protocol;
 pub use params::JointSpec;

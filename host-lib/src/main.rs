@@ -439,22 +439,32 @@ fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
     }
     let mut s = connect(g)?;
     let sim = s.sim.is_some();
-    let mut results = Vec::new();
-    for i in 0..args.samples {
-        if i > 0 {
-            s.meter.reset_kerfmeter()?;
-        }
-        ask(
-            g,
-            args.yes,
-            sim,
-            &format!("Place gauge {} of {} under the prongs", i + 1, args.samples),
-        )?;
-        let label = format!("gauge {}/{}", i + 1, args.samples);
-        results.push(one_run(g, &mut s.meter, &params, &label)?);
-    }
+    let samples = args.samples as usize;
+    let bar = progress_bar(g, "gauge 1");
+    let measured = s.meter.measure(
+        &params,
+        samples,
+        |i| {
+            bar.suspend(|| {
+                ask(
+                    g,
+                    args.yes,
+                    sim,
+                    &format!("Place gauge {} of {samples} under the prongs", i + 1),
+                )
+            })
+            .map_err(|e| Error::InvalidArgument(e.to_string()))?;
+            bar.set_prefix(format!("gauge {}/{samples}", i + 1));
+            Ok(())
+        },
+        |_, p| show(&bar, p),
+    );
+    bar.finish_and_clear();
+    let kerfmeter::Measurement {
+        runs: results,
+        summary,
+    } = measured?;
     let kerfs: Vec<f64> = results.iter().map(|r| f64::from(r.kerf_um)).collect();
-    let summary = kerfmeter::stats::summarize(&kerfs);
     if let Some(path) = &args.plot {
         let curve = s.meter.curve()?;
         kerfmeter::plot::plot_curve(&curve, results.last(), path)?;
