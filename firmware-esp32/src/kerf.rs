@@ -15,7 +15,7 @@
 
 use core::f32::consts::PI;
 
-use kerfmeter_protocol::{GaugeGeometry, RunParams};
+use kerfmeter_protocol::{GaugeGeometry, RunParams, Sample};
 
 /// Stop iterating when an iterate moves less than this, µm.
 pub const KERF_TOLERANCE_UM: f32 = 0.001;
@@ -96,6 +96,42 @@ fn torque_per_newton_nm(params: &RunParams, inset_deg: f32) -> f32 {
     let r_mm = params.gauge.radius_mm;
     // mm² · mm / mm² = mm; × 1e-3 → m.
     arc_rad * r_mm * r_mm * params.thickness_mm / params.contact_area_mm2 / UM_PER_MM
+}
+
+/// The kerf at another assembly force, read off a run's (torque, angle) sweep: the angle where
+/// the torque first represents `force_n` (interpolated between samples, looking only at the
+/// loading part of the sweep, up to its highest torque), solved for kerf. `None` when the sweep
+/// never reached that force (ask for at most the force the run reached).
+///
+/// The design's point: the kerf that matters depends on how hard the joint is pressed; one run
+/// answers for every force up to its own.
+pub fn kerf_at_force_um(params: &RunParams, samples: &[Sample], force_n: f32) -> Option<f32> {
+    let peak = samples
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.torque_nm.total_cmp(&b.1.torque_nm))?
+        .0;
+    let gauge = &params.gauge;
+    let force_at = |s: &Sample| {
+        let inset = kerf_from_angle(gauge, s.angle_deg).inset_deg.max(0.0);
+        force_for_torque_n(params, s.torque_nm, inset)
+    };
+    let loading = &samples[..=peak];
+    let mut previous: Option<(f32, f32)> = None;
+    for s in loading {
+        let force = force_at(s);
+        if force >= force_n {
+            let angle = match previous {
+                Some((f0, a0)) if force > f0 => {
+                    a0 + (s.angle_deg - a0) * (force_n - f0) / (force - f0)
+                }
+                _ => s.angle_deg,
+            };
+            return Some(kerf_from_angle(gauge, angle).kerf_um);
+        }
+        previous = Some((force, s.angle_deg));
+    }
+    None
 }
 
 #[cfg(test)]

@@ -252,3 +252,30 @@ fn self_test_passes_on_a_healthy_device() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn the_sweep_gives_the_kerf_at_other_forces() {
+    use kerfmeter_firmware::kerf::kerf_at_force_um;
+    let mut t = twin(200.0, 21);
+    let params = RunParams::DEFAULT;
+    let k = measure(&mut t, &params).unwrap();
+    let samples = t.device().controller().samples();
+    // At the run's own force, the sweep agrees with the held jam reading.
+    let at_55 = kerf_at_force_um(&params, samples, 55.0).unwrap();
+    assert!((at_55 - k.kerf_um).abs() < 0.3, "{at_55} vs {}", k.kerf_um);
+    // Less force, less compression: a smaller kerf, close to what the physics say.
+    let at_25 = kerf_at_force_um(&params, samples, 25.0).unwrap();
+    assert!(at_25 < at_55, "{at_25} !< {at_55}");
+    let lever_torque = kerfmeter_firmware::kerf::torque_for_force_nm(
+        &params,
+        25.0,
+        at_25 / params.gauge.pitch_um_per_deg,
+    );
+    let ideal_25 = t.plant().kerf_at_torque_um(f64::from(lever_torque));
+    assert!(
+        (f64::from(at_25) - ideal_25).abs() < 1.0,
+        "{at_25} vs ideal {ideal_25}"
+    );
+    // More force than the run applied: not in the sweep.
+    assert_eq!(kerf_at_force_um(&params, samples, 90.0), None);
+}

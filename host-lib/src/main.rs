@@ -131,6 +131,9 @@ struct RunArgs {
     /// Do not ask before each gauge (hardware only; the simulator never asks).
     #[arg(long, short = 'y')]
     yes: bool,
+    /// Also read the kerf at these other assembly forces (N) off the last run's curve.
+    #[arg(long, value_name = "N", value_delimiter = ',')]
+    also_at_force_n: Vec<f32>,
 }
 
 #[derive(Subcommand)]
@@ -465,10 +468,22 @@ fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
         summary,
     } = measured?;
     let kerfs: Vec<f64> = results.iter().map(|r| f64::from(r.kerf_um)).collect();
-    if let Some(path) = &args.plot {
-        let curve = s.meter.curve()?;
-        kerfmeter::plot::plot_curve(&curve, results.last(), path)?;
+    let curve = if args.plot.is_some() || !args.also_at_force_n.is_empty() {
+        Some(s.meter.curve()?)
+    } else {
+        None
+    };
+    if let (Some(path), Some(curve)) = (&args.plot, &curve) {
+        kerfmeter::plot::plot_curve(curve, results.last(), path)?;
     }
+    let at_forces: Vec<(f32, Option<f32>)> = match &curve {
+        Some(c) => args
+            .also_at_force_n
+            .iter()
+            .map(|&f| (f, c.kerf_at_force_um(&params, f)))
+            .collect(),
+        None => Vec::new(),
+    };
     if g.json {
         out!(
             "{}",
@@ -480,6 +495,7 @@ fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
                 "thickness_mm": params.thickness_mm,
                 "simulated": sim,
                 "plot": args.plot,
+                "kerf_at_force_um": at_forces.iter().map(|(f, k)| json!({ "force_n": f, "kerf_um": k })).collect::<Vec<_>>(),
             }))
             .expect("results serialize")
         );
@@ -500,6 +516,12 @@ fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
                 summary.mean_um,
                 params.target_force_n
             ),
+        }
+        for (force, kerf) in &at_forces {
+            match kerf {
+                Some(k) => out!("  at {force:.1} N (from the last run's curve): {k:.1} µm"),
+                None => out!("  at {force:.1} N: beyond the force the last run reached"),
+            }
         }
         for &i in &summary.outliers {
             out!(
