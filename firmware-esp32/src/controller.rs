@@ -1106,7 +1106,7 @@ mod tests {
             s.angle_deg += 0.06;
             let mut inputs = s.inputs();
             // Isolated errors first (ridden through), then a burst.
-            if (i < 200 && i % 7 == 0) || i >= 200 {
+            if i.is_multiple_of(7) || i >= 200 {
                 inputs.angle_deg = Err(EncoderFault::Parity);
             }
             inputs
