@@ -225,23 +225,27 @@ fn a_rebooted_device_is_detected() {
     assert!(err.is_communication());
 }
 
-#[test]
-fn a_reboot_mid_run_ends_the_run_with_a_clear_error() {
+/// Start a long run and, at the `at_poll`-th status poll, `disturb` the wire; the run's error.
+fn run_disturbed(at_poll: u32, disturb: impl Fn(&Controls)) -> Error {
     let (bench, mut meter) = Bench::start(TwinOptions {
         kerf_um: 400.0,
         ..TwinOptions::default()
     });
     meter.reset_kerfmeter().unwrap();
-    let controls = bench.controls.clone();
     let mut polls = 0;
-    let err = meter
+    meter
         .run_kerfmeter(&params(), |_| {
             polls += 1;
-            if polls == 5 {
-                controls.reboot.store(true, Ordering::SeqCst);
+            if polls == at_poll {
+                disturb(&bench.controls);
             }
         })
-        .unwrap_err();
+        .unwrap_err()
+}
+
+#[test]
+fn a_reboot_mid_run_ends_the_run_with_a_clear_error() {
+    let err = run_disturbed(5, |c| c.reboot.store(true, Ordering::SeqCst));
     assert!(matches!(err, Error::DeviceReset { .. }), "{err:?}");
 }
 
@@ -281,26 +285,11 @@ fn a_host_that_vanishes_mid_run_leaves_the_motor_safe_by_the_watchdog() {
 
 #[test]
 fn a_port_that_vanishes_mid_run_is_a_clear_error() {
-    let (bench, mut meter) = Bench::start(TwinOptions {
-        kerf_um: 400.0,
-        ..TwinOptions::default()
-    });
-    meter.reset_kerfmeter().unwrap();
-    let controls = bench.controls.clone();
-    let mut polls = 0;
-    let err = meter
-        .run_kerfmeter(&params(), |_| {
-            polls += 1;
-            if polls == 3 {
-                // The device side goes away (unplugged).
-                controls.stop.store(true, Ordering::SeqCst);
-            }
-        })
-        .unwrap_err();
+    // The device side goes away (unplugged).
+    let err = run_disturbed(3, |c| c.stop.store(true, Ordering::SeqCst));
     assert!(err.is_communication(), "{err:?}");
     assert!(
         matches!(err, Error::PortVanished { .. } | Error::Timeout { .. }),
         "{err:?}"
     );
-    drop(bench);
 }

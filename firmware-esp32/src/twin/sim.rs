@@ -300,41 +300,37 @@ impl Twin {
         if self.host_muted() {
             return;
         }
-        self.last_request_us = self.now_us;
-        let mut repair = false;
-        let mut handler = TwinHandler {
-            device: &mut self.device,
-            plant: &mut self.plant,
-            rng: &mut self.rng,
-            options: &self.options,
-            run_started: &mut self.run_started_us,
-            repair: &mut repair,
-            now_us: self.now_us,
-        };
-        self.link.receive(bytes, &mut handler, transmit);
-        if repair {
-            self.repair();
-        }
+        self.with_handler(|handler, link| {
+            link.receive(bytes, handler, transmit);
+        });
     }
 
     /// A request without framing (in-process tests).
     pub fn request(&mut self, request: &Request) -> Response {
+        self.with_handler(|handler, _| handler.handle(request))
+    }
+
+    /// Host traffic goes through the twin's handler (which acts out how the device is used);
+    /// a `ClearFault` among it repairs the injected fault afterwards.
+    fn with_handler<R>(&mut self, serve: impl FnOnce(&mut TwinHandler<'_>, &mut Link) -> R) -> R {
         self.last_request_us = self.now_us;
         let mut repair = false;
-        let mut handler = TwinHandler {
-            device: &mut self.device,
-            plant: &mut self.plant,
-            rng: &mut self.rng,
-            options: &self.options,
-            run_started: &mut self.run_started_us,
-            repair: &mut repair,
-            now_us: self.now_us,
-        };
-        let response = handler.handle(request);
+        let result = serve(
+            &mut TwinHandler {
+                device: &mut self.device,
+                plant: &mut self.plant,
+                rng: &mut self.rng,
+                options: &self.options,
+                run_started: &mut self.run_started_us,
+                repair: &mut repair,
+                now_us: self.now_us,
+            },
+            &mut self.link,
+        );
         if repair {
             self.repair();
         }
-        response
+        result
     }
 
     /// Ticks the twin may run before it must wait for the host (lock-step mode).
