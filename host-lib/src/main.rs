@@ -106,6 +106,11 @@ enum Command {
     Config(ConfigCommand),
     /// Measure a grid of gauges across the bed and save a location-compensation map (JSON).
     Map(MapArgs),
+    /// Draw the spiral gauge to cut before a measurement (SVG or DXF by extension).
+    Gauge(kerfmeter::plan::GaugeArgs),
+    /// Dilate a cutting plan (SVG or DXF) by the measured kerf: cuts grow by half the kerf on
+    /// each side, so parts come out at their drawn size.
+    Dilate(kerfmeter::plan::DilateArgs),
 }
 
 #[derive(Args)]
@@ -321,6 +326,30 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::SelfTest => self_test(g),
         Command::Config(c) => config(g, c),
         Command::Map(args) => map(g, args),
+        Command::Gauge(args) => {
+            let report = kerfmeter::plan::run_gauge(args)?;
+            if g.json {
+                out!(
+                    "{}",
+                    serde_json::to_string_pretty(&report).expect("reports serialize")
+                );
+            } else {
+                out!("{report}");
+            }
+            Ok(())
+        }
+        Command::Dilate(args) => {
+            let report = kerfmeter::plan::run_dilate(args)?;
+            if g.json {
+                out!(
+                    "{}",
+                    serde_json::to_string_pretty(&report).expect("reports serialize")
+                );
+            } else {
+                out!("{report}");
+            }
+            Ok(())
+        }
     }
 }
 
