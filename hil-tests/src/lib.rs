@@ -112,7 +112,8 @@ fn env_f64(name: &str) -> Result<Option<f64>, String> {
 fn bench_file() -> Result<BenchFile, String> {
     match std::env::var("KERFMETER_BENCH_FILE") {
         Ok(path) if !path.is_empty() => {
-            let text = std::fs::read_to_string(&path).map_err(|e| format!("KERFMETER_BENCH_FILE {path}: {e}"))?;
+            let text = std::fs::read_to_string(&path)
+                .map_err(|e| format!("KERFMETER_BENCH_FILE {path}: {e}"))?;
             serde_json::from_str(&text).map_err(|e| format!("KERFMETER_BENCH_FILE {path}: {e}"))
         }
         _ => Ok(BenchFile::default()),
@@ -158,9 +159,13 @@ impl Bench {
     /// Attach the bench description to a connected target.
     pub fn describe(target: Target, meter: Kerfmeter) -> Result<Self, String> {
         let file = bench_file()?;
-        let thickness_mm = env_f64("KERFMETER_BENCH_THICKNESS_MM")?.or(file.thickness_mm).unwrap_or(4.0);
+        let thickness_mm = env_f64("KERFMETER_BENCH_THICKNESS_MM")?
+            .or(file.thickness_mm)
+            .unwrap_or(4.0);
         let soak_runs = match std::env::var("KERFMETER_SOAK_RUNS") {
-            Ok(v) if !v.is_empty() => v.parse().map_err(|_| format!("KERFMETER_SOAK_RUNS={v:?} is not a count"))?,
+            Ok(v) if !v.is_empty() => v
+                .parse()
+                .map_err(|_| format!("KERFMETER_SOAK_RUNS={v:?} is not a count"))?,
             _ => file.soak_runs.unwrap_or(100),
         };
         let (kerf_um, tolerance_um) = match &target {

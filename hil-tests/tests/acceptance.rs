@@ -23,8 +23,14 @@ fn handshake_and_info_fields_are_sane() {
     let mut b = bench("handshake", 11);
     let info = b.meter.info().expect("GetInfo");
     assert!(kerfmeter::protocol::PROTOCOL_VERSION.compatible_with(&info.protocol));
-    assert_eq!(info.hardware.encoder_bits, 14, "AS5048A is a 14-bit encoder");
-    assert!(info.hardware.control_rate_hz >= 1000, "control loop must run at 1 kHz or more");
+    assert_eq!(
+        info.hardware.encoder_bits, 14,
+        "AS5048A is a 14-bit encoder"
+    );
+    assert!(
+        info.hardware.control_rate_hz >= 1000,
+        "control loop must run at 1 kHz or more"
+    );
     assert!((8..=16).contains(&info.hardware.pwm_bits));
     assert!(info.hardware.max_samples >= 256);
     assert!(
@@ -34,7 +40,11 @@ fn handshake_and_info_fields_are_sane() {
     if b.target.is_twin() {
         assert_eq!(info.hardware.board.as_str(), "twin");
     } else {
-        assert!(info.hardware.board.starts_with("esp32"), "{}", info.hardware.board);
+        assert!(
+            info.hardware.board.starts_with("esp32"),
+            "{}",
+            info.hardware.board
+        );
     }
     // Stable while the device runs.
     assert_eq!(b.meter.info().expect("GetInfo").boot_id, info.boot_id);
@@ -45,12 +55,24 @@ fn the_reference_gauge_reads_its_kerf_and_the_curve_is_physical() {
     let mut b = bench("reference-gauge", 12);
     b.meter.reset_kerfmeter().unwrap();
     let mut progress: Vec<Progress> = Vec::new();
-    let result = b.meter.run_kerfmeter(&b.params, |p| progress.push(*p)).unwrap();
+    let result = b
+        .meter
+        .run_kerfmeter(&b.params, |p| progress.push(*p))
+        .unwrap();
     let expected = b.expected_kerf_um(result.torque_at_jam_nm);
     let error = f64::from(result.kerf_um) - expected;
-    eprintln!("reference gauge: {:.2} µm, expected {expected:.2} µm, error {error:+.2} µm", result.kerf_um);
-    assert!(error.abs() <= b.tolerance_um, "error {error:+.2} µm > {} µm", b.tolerance_um);
-    assert!((result.force_at_jam_n - b.params.target_force_n).abs() < 0.02 * b.params.target_force_n);
+    eprintln!(
+        "reference gauge: {:.2} µm, expected {expected:.2} µm, error {error:+.2} µm",
+        result.kerf_um
+    );
+    assert!(
+        error.abs() <= b.tolerance_um,
+        "error {error:+.2} µm > {} µm",
+        b.tolerance_um
+    );
+    assert!(
+        (result.force_at_jam_n - b.params.target_force_n).abs() < 0.02 * b.params.target_force_n
+    );
 
     // The curve: time strictly increases; until the jam the hub never turns back by more than
     // encoder noise (8 LSB); the torque never exceeds the run's limit.
@@ -65,7 +87,10 @@ fn the_reference_gauge_reads_its_kerf_and_the_curve_is_physical() {
         assert!(s.torque_nm <= b.params.max_torque_nm + 1e-4);
         if s.angle_deg < result.angle_deg - 1.0 {
             furthest = furthest.max(s.angle_deg);
-            assert!(s.angle_deg > furthest - noise_deg, "{s:?} fell back from {furthest}");
+            assert!(
+                s.angle_deg > furthest - noise_deg,
+                "{s:?} fell back from {furthest}"
+            );
         }
     }
     assert!(progress.iter().any(|p| p.state == RunState::Ramping));
@@ -79,7 +104,11 @@ fn reset_returns_the_hub_to_zero_and_forgets_the_result() {
     assert!(b.meter.get_kerf_value().unwrap().is_some());
     b.meter.reset_kerfmeter().unwrap();
     let status = b.meter.status().unwrap();
-    assert!(status.angle_deg.abs() <= 0.5, "hub at {}° after reset", status.angle_deg);
+    assert!(
+        status.angle_deg.abs() <= 0.5,
+        "hub at {}° after reset",
+        status.angle_deg
+    );
     assert_eq!(status.state, RunState::Idle);
     assert_eq!(b.meter.get_kerf_value().unwrap(), None);
 }
@@ -103,14 +132,20 @@ fn abort_mid_ramp_stops_the_motor_and_the_next_run_works() {
     assert_eq!(status.torque_nm, 0.0);
     b.meter.reset_kerfmeter().unwrap();
     let result = b.meter.run_kerfmeter(&b.params, |_| {}).unwrap();
-    assert!((f64::from(result.kerf_um) - b.expected_kerf_um(result.torque_at_jam_nm)).abs() <= b.tolerance_um);
+    assert!(
+        (f64::from(result.kerf_um) - b.expected_kerf_um(result.torque_at_jam_nm)).abs()
+            <= b.tolerance_um
+    );
 }
 
 #[test]
 fn every_injectable_fault_is_typed_safe_and_recoverable() {
     let probe = bench("faults", 15);
     if !probe.target.is_twin() {
-        probe.skip("faults", "faults other than host silence cannot be injected on a board; see host-silence");
+        probe.skip(
+            "faults",
+            "faults other than host silence cannot be injected on a board; see host-silence",
+        );
         return;
     }
     drop(probe);
@@ -143,13 +178,23 @@ fn every_injectable_fault_is_typed_safe_and_recoverable() {
                 b.meter.clear_fault().unwrap();
             }
             None => {
-                let result = outcome.unwrap_or_else(|e| panic!("{fault} must be ridden through: {e}"));
-                assert!(!result.flags.is_empty(), "{fault}: the errors ridden through are reported");
+                let result =
+                    outcome.unwrap_or_else(|e| panic!("{fault} must be ridden through: {e}"));
+                assert!(
+                    !result.flags.is_empty(),
+                    "{fault}: the errors ridden through are reported"
+                );
             }
         }
         b.meter.reset_kerfmeter().unwrap();
-        let result = b.meter.run_kerfmeter(&b.params, |_| {}).unwrap_or_else(|e| panic!("{fault}: no recovery: {e}"));
-        assert!((f64::from(result.kerf_um) - b.expected_kerf_um(result.torque_at_jam_nm)).abs() <= b.tolerance_um);
+        let result = b
+            .meter
+            .run_kerfmeter(&b.params, |_| {})
+            .unwrap_or_else(|e| panic!("{fault}: no recovery: {e}"));
+        assert!(
+            (f64::from(result.kerf_um) - b.expected_kerf_um(result.torque_at_jam_nm)).abs()
+                <= b.tolerance_um
+        );
         eprintln!("HIL fault-{fault} twin ran");
     }
 }
@@ -170,7 +215,9 @@ fn host_silence_mid_run_stops_the_motor_within_the_watchdog_period() {
     std::thread::sleep(Duration::from_millis(150));
     assert!(b.meter.status().unwrap().state != RunState::Idle);
     // The host goes quiet for the watchdog period and a margin.
-    std::thread::sleep(Duration::from_millis(u64::from(b.params.host_timeout_ms) + 300));
+    std::thread::sleep(Duration::from_millis(
+        u64::from(b.params.host_timeout_ms) + 300,
+    ));
     let status = b.meter.status().unwrap();
     assert_eq!(status.state, RunState::Fault(Fault::HostSilent));
     assert_eq!(status.torque_nm, 0.0);
@@ -180,12 +227,24 @@ fn host_silence_mid_run_stops_the_motor_within_the_watchdog_period() {
 /// A request frame with an arbitrary envelope, for abuse.
 fn frame(seq: u16, request: &Request) -> Vec<u8> {
     let mut buf = [0u8; MAX_REQUEST_FRAME_LEN];
-    encode_frame(&Envelope { seq, body: request.clone() }, &mut buf).unwrap().to_vec()
+    encode_frame(
+        &Envelope {
+            seq,
+            body: request.clone(),
+        },
+        &mut buf,
+    )
+    .unwrap()
+    .to_vec()
 }
 
 #[test]
 fn protocol_abuse_never_hangs_the_device_nor_moves_the_motor() {
-    let (target, port) = Bench::open(SimOptions { seed: 17, ..SimOptions::default() }).unwrap();
+    let (target, port) = Bench::open(SimOptions {
+        seed: 17,
+        ..SimOptions::default()
+    })
+    .unwrap();
     let mut raw = port.try_clone().unwrap();
     let meter = Kerfmeter::from_port(port, options()).unwrap();
     let mut b = Bench::describe(target, meter).unwrap();
@@ -229,7 +288,16 @@ fn protocol_abuse_never_hangs_the_device_nor_moves_the_motor() {
     // duplicate seq is answered from memory, not executed again.
     b.meter.call(Request::Run(b.params)).unwrap();
     let busy = b.meter.call(Request::Run(b.params)).unwrap_err();
-    assert!(matches!(busy, Error::Device { code: ErrorCode::Busy, .. }), "{busy:?}");
+    assert!(
+        matches!(
+            busy,
+            Error::Device {
+                code: ErrorCode::Busy,
+                ..
+            }
+        ),
+        "{busy:?}"
+    );
     assert_eq!(b.meter.get_kerf_value().unwrap(), None);
     let run_id = b.meter.status().unwrap().run_id;
     let dup = frame(50_000, &Request::Abort);
@@ -250,7 +318,10 @@ fn soak_runs_do_not_drift() {
     let mut errors = Vec::with_capacity(runs);
     for i in 0..runs {
         b.meter.reset_kerfmeter().unwrap();
-        let r = b.meter.run_kerfmeter(&b.params, |_| {}).unwrap_or_else(|e| panic!("run {i}: {e}"));
+        let r = b
+            .meter
+            .run_kerfmeter(&b.params, |_| {})
+            .unwrap_or_else(|e| panic!("run {i}: {e}"));
         errors.push(f64::from(r.kerf_um) - b.expected_kerf_um(r.torque_at_jam_nm));
     }
     let window = (runs / 10).max(1);
@@ -262,7 +333,11 @@ fn soak_runs_do_not_drift() {
     assert!(drift.abs() <= b.tolerance_um / 2.0, "drift {drift:+.3} µm");
     if let (Some(before), Some(after)) = (rss_before, resident_kib()) {
         eprintln!("soak: resident memory {before} KiB → {after} KiB");
-        assert!(after < before + 8 * 1024, "memory grew by {} KiB", after - before);
+        assert!(
+            after < before + 8 * 1024,
+            "memory grew by {} KiB",
+            after - before
+        );
     }
 }
 

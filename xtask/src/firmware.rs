@@ -412,6 +412,107 @@ fn executable_artifact(line: &str) -> Option<PathBuf> {
     message.get("executable")?.as_str().map(PathBuf::from)
 }
 
+/// The on-target driver tests (`firmware-esp32/tests/on_target.rs`, embedded-test): built for
+/// this chip only.
+const ON_TARGET_CHIP: Chip = Chip::C3;
+/// Their test target.
+const ON_TARGET_TEST: &str = "on_target";
+/// The probe-rs runner for them: the C3's built-in USB-Serial-JTAG is the probe.
+const ON_TARGET_RUNNER: &str = "probe-rs run --chip esp32c3";
+
+/// `cargo xtask on-target` options: real hardware only.
+#[derive(clap::Args)]
+pub struct OnTargetArgs {
+    /// A board is connected through its USB port (probe-rs uses the C3's built-in USB-JTAG):
+    /// flash and run the tests on it. Without this flag nothing runs.
+    #[arg(long)]
+    pub probe: bool,
+}
+
+/// `cargo test` of the on-target tests: the C3 target, the firmware image's profile (esp-hal is
+/// meant to be built optimised, and the image's dependencies are reused), defmt logs at `info`.
+fn on_target_cargo() -> Command {
+    let chip = ON_TARGET_CHIP;
+    let mut cmd = cargo();
+    cmd.args(["test", "--package", PACKAGE])
+        .args(["--features", &format!("{},on-target", chip.feature())])
+        .args(["--target", chip.target()])
+        .args(["--profile", PROFILE])
+        .args(["--test", ON_TARGET_TEST])
+        .env("DEFMT_LOG", "info");
+    cmd
+}
+
+/// Clippy (`-D warnings`) on the on-target driver tests, then build them for the C3 without
+/// running them (CI has no board). Only their own test target: the crate's other tests and its
+/// unit tests need std (the twin) and build on the host only.
+pub fn build_on_target_tests() -> Result<()> {
+    ensure_targets()?;
+    let chip = ON_TARGET_CHIP;
+    run_cmd(
+        cargo()
+            .args(["clippy", "--package", PACKAGE])
+            .args(["--features", &format!("{},on-target", chip.feature())])
+            .args(["--target", chip.target()])
+            .args(["--test", ON_TARGET_TEST])
+            .args(["--", "-D", "warnings"]),
+    )?;
+    run_cmd(on_target_cargo().arg("--no-run"))
+}
+
+/// probe-rs flashes and runs the on-target tests.
+fn ensure_probe_rs() -> Result<()> {
+    let present = Command::new("probe-rs")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !present {
+        eprintln!(
+            "probe-rs is missing: installing it (`cargo install probe-rs-tools --locked`, about ten minutes once)"
+        );
+        run_cmd(
+            Command::new("cargo")
+                .args(["install", "probe-rs-tools", "--locked"])
+                .env_remove("RUSTUP_TOOLCHAIN"),
+        )?;
+    }
+    Ok(())
+}
+
+/// Run the on-target driver tests on a board through probe-rs (`probe: true`); without a board
+/// (`probe: false`, or no probe found) fail, saying why: nothing is simulated.
+pub fn run_on_target_tests(probe: bool) -> Result<()> {
+    if !probe {
+        bail!(
+            "the on-target tests run on a real board only: connect the ESP32-C3 board's USB port \
+             (wired as README.md's wiring table says, no gauge on the hub, motor supply on) and \
+             pass --probe; nothing was run"
+        );
+    }
+    ensure_targets()?;
+    ensure_probe_rs()?;
+    let list = Command::new("probe-rs")
+        .arg("list")
+        .output()
+        .context("cannot run `probe-rs list`")?;
+    let probes = String::from_utf8_lossy(&list.stdout);
+    if !list.status.success() || probes.contains("No debug probes were found") {
+        bail!(
+            "no debug probe found (`probe-rs list`: {}): connect the board's USB port (the C3's \
+             built-in USB-JTAG); on Linux, install probe-rs's udev rules",
+            probes.trim()
+        );
+    }
+    eprintln!("{}", probes.trim());
+    let runner_var = format!(
+        "CARGO_TARGET_{}_RUNNER",
+        ON_TARGET_CHIP.target().to_uppercase().replace('-', "_")
+    );
+    run_cmd(on_target_cargo().env(runner_var, ON_TARGET_RUNNER))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -38,6 +38,9 @@ enum Cmd {
     /// Instructions per control step and per kerf solve on RV32IMC (qemu), and the CPU share at
     /// 1 kHz on a 160 MHz ESP32-C3. A benchmark: not part of `test`.
     BenchStep(bench::BenchArgs),
+    /// The on-target driver tests (encoder, PWM) on a real ESP32-C3 board through probe-rs
+    /// (needs --probe; see firmware-esp32/tests/on_target.rs for the bench set-up).
+    OnTarget(firmware::OnTargetArgs),
     /// The acceptance suite: on the twin, or on a board with --port (see hil-tests/src/lib.rs
     /// for the bench description).
     Hil(HilArgs),
@@ -91,6 +94,7 @@ fn main() -> Result<()> {
         Cmd::Fuzz(args) => fuzz::run(&args),
         Cmd::Accuracy(args) => accuracy(&args),
         Cmd::BenchStep(args) => bench::step(&args),
+        Cmd::OnTarget(args) => firmware::run_on_target_tests(args.probe),
         Cmd::Hil(args) => hil(&args),
         Cmd::BenchRtt(args) => {
             let mut cmd = cargo();
@@ -269,6 +273,10 @@ fn test(args: &TestArgs) -> Result<()> {
         (
             "firmware image (esp32c6)",
             Box::new(|| firmware::build(firmware::Chip::C6).map(|_| ())),
+        ),
+        (
+            "on-target tests build (esp32c3)",
+            Box::new(firmware::build_on_target_tests),
         ),
         (
             "fuzz",

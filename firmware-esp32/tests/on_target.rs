@@ -1,0 +1,644 @@
+//! On-target driver tests for the ESP32-C3 board: the library's AS5048A driver on SPI2 and its
+//! Pololu G2 motor driver on LEDC, on the board's own pins, against the real parts.
+//!
+//! Harness: embedded-test (`harness = false`, feature `on-target`); runner: probe-rs through the
+//! C3's built-in USB-Serial-JTAG (`probe-rs run --chip esp32c3`), which flashes the binary once
+//! and resets the chip before each test. Output: defmt over RTT. CI builds these tests
+//! (`cargo xtask test`); they run only on a board: `cargo xtask on-target --probe`.
+//!
+//! # Bench set-up
+//!
+//! The board wired as `src/bin/board/pins.rs` says (the pins come from that very module), the
+//! magnet over the AS5048A, the motor supply on, and **no gauge on the hub**: the motor tests turn
+//! the hub a few degrees each way. The direction test expects the mounting of the reference
+//! build, which `DeviceConfig::DEFAULT` describes: DIR high turns the hub clockwise seen from
+//! above, and the encoder, on the output shaft, counts clockwise-positive.
+//!
+//! # The motor stays safe
+//!
+//! Every test starts with the motor in its safe state and ends by putting it there again, both
+//! checked on the chip's registers (SLP driven low, DIR low, LEDC duty 0). The motor is driven
+//! only inside [`Board::pulse`], which puts it back to sleep before any check can fail; and the
+//! panic handler drives SLP low before it reports anything, so a failing test never leaves the
+//! motor running.
+
+#![no_std]
+#![no_main]
+
+use core::sync::atomic::{AtomicU8, Ordering};
+
+use embedded_hal_bus::spi::ExclusiveDevice;
+use esp_hal::{
+    Blocking,
+    clock::CpuClock,
+    delay::Delay,
+    gpio::{DriveMode, Input, InputConfig, Level, Output, OutputConfig, Pin, Pull},
+    ledc::{
+        LSGlobalClkSource, Ledc, LowSpeed,
+        channel::{self, ChannelIFace},
+        timer::{self, TimerIFace},
+    },
+    spi::{
+        Mode,
+        master::{Config as SpiConfig, Spi},
+    },
+    time::Rate,
+};
+use kerfmeter_firmware::as5048a::{As5048a, COUNTS_PER_TURN, EncoderSettings};
+use kerfmeter_firmware::motor::{G2Motor, MotorOutput};
+use kerfmeter_protocol::DeviceConfig;
+use static_cell::StaticCell;
+
+esp_bootloader_esp_idf::esp_app_desc!();
+
+#[cfg(not(feature = "esp32c3"))]
+compile_error!("the on-target tests are for the ESP32-C3: `--features esp32c3,on-target`");
+
+/// The board's pin assignment: the board binary's own module.
+#[allow(dead_code)] // The current-sense pin and its scaling are not used here.
+#[path = "../src/bin/board/pins.rs"]
+mod pins;
+
+/// Motor PWM frequency, as on the board.
+const PWM_FREQUENCY: Rate = Rate::from_khz(20);
+/// AS5048A SPI clock, as on the board.
+const ENCODER_SPI_FREQUENCY: Rate = Rate::from_mhz(10);
+/// The LEDC channel of the motor PWM (`channel::Number::Channel0`), as a register index.
+const PWM_LEDC_CHANNEL: usize = 0;
+/// Time for the LEDC duty read-back register to follow a change (one 20 kHz period is 50 µs).
+const DUTY_SETTLE_US: u32 = 200;
+/// Encoder sample period of the tests, ms (the control loop's).
+const SAMPLE_PERIOD_MS: u32 = 1;
+/// One encoder count, degrees of hub angle (encoder on the output shaft).
+const LSB_DEG: f32 = 360.0 / COUNTS_PER_TURN as f32;
+
+/// "No pin known yet" for [`SLEEP_GPIO`].
+const NO_GPIO: u8 = u8::MAX;
+/// GPIO number of the G2's SLP line, once the board is set up: the panic handler drives it low.
+static SLEEP_GPIO: AtomicU8 = AtomicU8::new(NO_GPIO);
+
+/// The LEDC timer behind the PWM channel: a channel borrows its timer, which must outlive it.
+static PWM_TIMER: StaticCell<timer::Timer<'static, LowSpeed>> = StaticCell::new();
+
+/// The AS5048A on SPI2 with its chip select, as the board binary builds it.
+type Encoder = As5048a<ExclusiveDevice<Spi<'static, Blocking>, Output<'static>, Delay>>;
+/// The G2 on the LEDC channel, DIR, SLP and FLT, as the board binary builds it.
+type Motor =
+    G2Motor<channel::Channel<'static, LowSpeed>, Output<'static>, Output<'static>, Input<'static>>;
+
+/// Drive SLP low straight on the GPIO registers: the driver object may be out of reach.
+fn force_motor_asleep() {
+    let gpio = SLEEP_GPIO.load(Ordering::Relaxed);
+    if gpio < 32 {
+        // SAFETY: a write-1-to-clear of one output bit; no other bit changes.
+        esp_hal::peripherals::GPIO::regs()
+            .out_w1tc()
+            .write(|w| unsafe { w.bits(1 << gpio) });
+    }
+}
+
+/// Motor asleep first, then the report, then the failure to the runner.
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    force_motor_asleep();
+    defmt::error!("{}", defmt::Display2Format(info));
+    semihosting::process::abort()
+}
+
+/// The motor lines' state, read back from the registers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct MotorLines {
+    /// SLP driven high (driver awake).
+    sleep_high: bool,
+    /// DIR driven high.
+    dir_high: bool,
+    /// The LEDC channel's current duty register (duty × 16: four fraction bits).
+    duty_raw: u32,
+}
+
+impl MotorLines {
+    /// The safe state: asleep, DIR low, duty 0.
+    fn is_safe(&self) -> bool {
+        !self.sleep_high && !self.dir_high && self.duty_raw == 0
+    }
+}
+
+/// How the motor lines are driven before the motor driver takes them (to check that it puts them
+/// safe). Each is harmless on its own: awake with duty 0 brakes, a duty while asleep is ignored.
+#[derive(Clone, Copy)]
+struct LinesBefore {
+    sleep_high: bool,
+    dir_high: bool,
+    duty_pct: u8,
+}
+
+impl LinesBefore {
+    /// What the board binary does: everything low.
+    const SAFE: Self = Self {
+        sleep_high: false,
+        dir_high: false,
+        duty_pct: 0,
+    };
+}
+
+/// What a motor pulse did.
+struct PulseOutcome {
+    /// Hub motion from the start of the pulse to rest afterwards, degrees (clockwise-positive).
+    moved_deg: f32,
+    /// Encoder reads that failed during the pulse and the settling.
+    encoder_errors: u32,
+    /// FLT was seen low.
+    driver_fault: bool,
+    /// Applying the output failed.
+    apply_failed: bool,
+}
+
+/// The parts under test.
+struct Board {
+    encoder: Encoder,
+    motor: Motor,
+    delay: Delay,
+    sleep_gpio: u8,
+    dir_gpio: u8,
+    /// The motor lines just before the motor driver was constructed.
+    before: MotorLines,
+}
+
+/// Set the chip up as the board binary does, with the motor lines at `lines` until the motor
+/// driver takes them.
+fn build(lines: LinesBefore) -> Board {
+    let p = esp_hal::init(esp_hal::Config::default().with_cpu_clock(CpuClock::max()));
+    let pins = pins::take!(p);
+    let sleep_gpio = pins.motor_sleep.number();
+    let dir_gpio = pins.motor_dir.number();
+    SLEEP_GPIO.store(sleep_gpio, Ordering::Relaxed);
+    let level = |high| if high { Level::High } else { Level::Low };
+
+    let sleep = Output::new(
+        pins.motor_sleep,
+        level(lines.sleep_high),
+        OutputConfig::default(),
+    );
+    let dir = Output::new(
+        pins.motor_dir,
+        level(lines.dir_high),
+        OutputConfig::default(),
+    );
+    let pwm_pin = Output::new(pins.motor_pwm, Level::Low, OutputConfig::default());
+
+    let mut ledc = Ledc::new(p.LEDC);
+    ledc.set_global_slow_clock(LSGlobalClkSource::APBClk);
+    let pwm_timer = PWM_TIMER.init(ledc.timer::<LowSpeed>(timer::Number::Timer0));
+    pwm_timer
+        .configure(timer::config::Config {
+            duty: timer::config::Duty::Duty11Bit,
+            clock_source: timer::LSClockSource::APBClk,
+            frequency: PWM_FREQUENCY,
+        })
+        .expect("LEDC timer: 20 kHz with 11-bit duty");
+    let mut pwm = ledc.channel(channel::Number::Channel0, pwm_pin);
+    pwm.configure(channel::config::Config {
+        timer: &*pwm_timer,
+        duty_pct: lines.duty_pct,
+        drive_mode: DriveMode::PushPull,
+    })
+    .expect("LEDC channel");
+    let fault = Input::new(pins.motor_fault, InputConfig::default().with_pull(Pull::Up));
+
+    let delay = Delay::new();
+    delay.delay_micros(DUTY_SETTLE_US);
+    let before = read_lines(sleep_gpio, dir_gpio);
+
+    let (motor, safe) = G2Motor::new(pwm, dir, sleep, fault);
+    safe.expect("motor driver: safe state at construction");
+
+    let spi = Spi::new(
+        p.SPI2,
+        SpiConfig::default()
+            .with_frequency(ENCODER_SPI_FREQUENCY)
+            .with_mode(Mode::_1),
+    )
+    .expect("SPI2 config")
+    .with_sck(pins.encoder_sclk)
+    .with_mosi(pins.encoder_mosi)
+    .with_miso(pins.encoder_miso);
+    let cs = Output::new(pins.encoder_cs, Level::High, OutputConfig::default());
+    let Ok(spi) = ExclusiveDevice::new(spi, cs, Delay::new());
+    let encoder = As5048a::new(spi, EncoderSettings::from_config(&DeviceConfig::DEFAULT));
+
+    Board {
+        encoder,
+        motor,
+        delay,
+        sleep_gpio,
+        dir_gpio,
+        before,
+    }
+}
+
+/// SLP and DIR from the GPIO output register, the duty from the LEDC channel's read-back
+/// register.
+fn read_lines(sleep_gpio: u8, dir_gpio: u8) -> MotorLines {
+    let out = esp_hal::peripherals::GPIO::regs().out().read().bits();
+    let duty_raw = esp_hal::peripherals::LEDC::regs()
+        .ch(PWM_LEDC_CHANNEL)
+        .duty_r()
+        .read()
+        .duty_r()
+        .bits();
+    MotorLines {
+        sleep_high: out & (1 << sleep_gpio) != 0,
+        dir_high: out & (1 << dir_gpio) != 0,
+        duty_raw,
+    }
+}
+
+impl Board {
+    /// The motor lines now.
+    fn lines(&self) -> MotorLines {
+        self.delay.delay_micros(DUTY_SETTLE_US);
+        read_lines(self.sleep_gpio, self.dir_gpio)
+    }
+
+    /// Fail unless the motor lines are in the safe state.
+    fn assert_safe(&self, when: &str) {
+        let lines = self.lines();
+        assert!(lines.is_safe(), "motor not safe {}: {:?}", when, lines);
+    }
+
+    /// Put the motor safe through its driver and check it on the registers.
+    fn finish(mut self) {
+        let safe = self.motor.safe();
+        self.assert_safe("at the end of the test");
+        assert!(safe.is_ok(), "motor driver: safe() failed: {:?}", safe);
+    }
+
+    /// The hub angle, degrees, retried over a few samples (fails the test if none is good; call
+    /// it only with the motor safe).
+    fn hub_deg(&mut self) -> f32 {
+        for _ in 0..5 {
+            if let Ok(deg) = self.encoder.read_hub_deg() {
+                return deg;
+            }
+            self.delay.delay_millis(SAMPLE_PERIOD_MS);
+        }
+        panic!("the encoder gave no angle in 5 reads");
+    }
+
+    /// Drive the motor at `duty` with DIR at `dir_high` until the hub has turned `stop_deg` or
+    /// `max_ms` have passed, sampling the encoder every millisecond; then put it safe, let the
+    /// hub come to rest for `settle_ms`, and say how far it moved. Nothing here can panic while
+    /// the motor is driven.
+    fn pulse(
+        &mut self,
+        duty: f32,
+        dir_high: bool,
+        stop_deg: f32,
+        max_ms: u32,
+        settle_ms: u32,
+    ) -> PulseOutcome {
+        let start_deg = self.hub_deg();
+        let mut last_deg = start_deg;
+        let mut encoder_errors = 0;
+        let mut driver_fault = false;
+        let apply_failed = self
+            .motor
+            .apply(&MotorOutput {
+                duty,
+                dir_high,
+                awake: true,
+            })
+            .is_err();
+        if !apply_failed {
+            for _ in 0..max_ms {
+                self.delay.delay_millis(SAMPLE_PERIOD_MS);
+                match self.encoder.read_hub_deg() {
+                    Ok(deg) => last_deg = deg,
+                    Err(_) => encoder_errors += 1,
+                }
+                if self.motor.fault() != Ok(false) {
+                    driver_fault = true;
+                    break;
+                }
+                if (last_deg - start_deg).abs() >= stop_deg {
+                    break;
+                }
+            }
+        }
+        let _ = self.motor.safe();
+        force_motor_asleep();
+        // Keep sampling while the hub coasts, so that the driver's unwrap follows it.
+        for _ in 0..settle_ms {
+            self.delay.delay_millis(SAMPLE_PERIOD_MS);
+            match self.encoder.read_hub_deg() {
+                Ok(deg) => last_deg = deg,
+                Err(_) => encoder_errors += 1,
+            }
+        }
+        PulseOutcome {
+            moved_deg: last_deg - start_deg,
+            encoder_errors,
+            driver_fault,
+            apply_failed,
+        }
+    }
+}
+
+/// Defmt over RTT, before any test runs (embedded-test logs through it too).
+#[embedded_test::setup]
+fn setup_log() {
+    rtt_target::rtt_init_defmt!();
+}
+
+#[embedded_test::tests(default_timeout = 30)]
+mod tests {
+    use defmt::info;
+    use kerfmeter_firmware::as5048a::{
+        AGC_MAX, AGC_MIN, COUNTS_PER_TURN, Diagnostics, MAGNITUDE_RANGE, reg,
+    };
+    use kerfmeter_firmware::controller::{
+        HOLD_TICKS, JAM_SETTLE_TICKS, JAM_STILL_LSB, JAM_WINDOW_TICKS, NOISY_HOLD_LSB,
+    };
+    use kerfmeter_firmware::jam::SlopeWindow;
+    use kerfmeter_firmware::motor::MotorOutput;
+    use kerfmeter_protocol::DeviceConfig;
+
+    use super::{Board, LSB_DEG, LinesBefore, SAMPLE_PERIOD_MS, build};
+
+    /// Consecutive raw angle reads that must all pass the parity (and error-flag) check.
+    const PARITY_READS: u32 = 2000;
+    /// Ticks within which the firmware's stillness test must see a still hub as still for
+    /// [`JAM_SETTLE_TICKS`] ticks in a row.
+    const STILL_WITHIN_TICKS: u32 = 500;
+    /// Pulse duty: a few times the reference gearbox's breakaway duty (0.04), well below any
+    /// measuring torque.
+    const PULSE_DUTY: f32 = 0.15;
+    /// The pulse stops once the hub has turned this far, degrees.
+    const PULSE_STOP_DEG: f32 = 5.0;
+    /// The longest pulse, ms.
+    const PULSE_MAX_MS: u32 = 250;
+    /// Coasting time after a pulse, ms.
+    const PULSE_SETTLE_MS: u32 = 300;
+    /// A pulse must turn the hub at least this far, degrees.
+    const MIN_MOTION_DEG: f32 = 1.0;
+    /// FLT samples per check.
+    const FLT_READS: u32 = 100;
+    /// Time for the G2 to wake up before FLT is read, ms.
+    const WAKE_MS: u32 = 10;
+
+    #[init]
+    fn init() -> Board {
+        build(LinesBefore::SAFE)
+    }
+
+    /// The driver awake (braking, no torque) and DIR high before the motor driver takes them.
+    fn init_awake() -> Board {
+        build(LinesBefore {
+            sleep_high: true,
+            dir_high: true,
+            duty_pct: 0,
+        })
+    }
+
+    /// A duty on the PWM channel while the driver sleeps (its outputs stay off).
+    fn init_duty_asleep() -> Board {
+        build(LinesBefore {
+            sleep_high: false,
+            dir_high: false,
+            duty_pct: 25,
+        })
+    }
+
+    /// Signed distance from `from` to `to` in counts, the short way round.
+    fn counts_between(from: u16, to: u16) -> i32 {
+        let turn = i32::from(COUNTS_PER_TURN);
+        let d = (i32::from(to) - i32::from(from)).rem_euclid(turn);
+        if d > turn / 2 { d - turn } else { d }
+    }
+
+    #[test(init = init_awake)]
+    fn construction_puts_an_awake_driver_to_sleep(board: Board) {
+        assert!(
+            board.before.sleep_high && board.before.dir_high,
+            "set-up: SLP and DIR should have been high before construction: {:?}",
+            board.before
+        );
+        board.assert_safe("after G2Motor::new");
+        board.finish();
+    }
+
+    #[test(init = init_duty_asleep)]
+    fn construction_zeroes_the_pwm_duty(board: Board) {
+        assert!(
+            board.before.duty_raw > 0,
+            "set-up: the LEDC duty should have been non-zero before construction: {:?}",
+            board.before
+        );
+        board.assert_safe("after G2Motor::new");
+        board.finish();
+    }
+
+    #[test]
+    fn encoder_diagnostics_pass(mut board: Board) {
+        board.assert_safe("at the start");
+        let diag_agc = board.encoder.read_register(reg::DIAG_AGC);
+        let magnitude = board.encoder.read_register(reg::MAGNITUDE);
+        let (Ok(diag_agc), Ok(magnitude)) = (diag_agc, magnitude) else {
+            panic!(
+                "reading the diagnostics registers failed: {:?} {:?}",
+                diag_agc, magnitude
+            );
+        };
+        let d = Diagnostics::from_registers(diag_agc, magnitude);
+        info!(
+            "AS5048A: OCF {} COF {} COMP_L {} COMP_H {} AGC {} magnitude {}",
+            d.ocf, d.cof, d.comp_low, d.comp_high, d.agc, d.magnitude
+        );
+        assert!(
+            d.ocf,
+            "OCF clear: offset compensation not finished (or MISO stuck)"
+        );
+        assert!(!d.cof, "COF set: CORDIC overflow");
+        assert!(!d.comp_low, "COMP_L set: magnetic field too strong");
+        assert!(!d.comp_high, "COMP_H set: magnetic field too weak");
+        assert!(
+            (AGC_MIN..=AGC_MAX).contains(&d.agc),
+            "AGC {} outside {}..={}",
+            d.agc,
+            AGC_MIN,
+            AGC_MAX
+        );
+        assert!(
+            (MAGNITUDE_RANGE.0..=MAGNITUDE_RANGE.1).contains(&d.magnitude),
+            "magnitude {} outside {:?}",
+            d.magnitude,
+            MAGNITUDE_RANGE
+        );
+        // And the driver's own check agrees.
+        let checked = board.encoder.diagnostics();
+        assert!(checked.is_ok(), "As5048a::diagnostics: {:?}", checked);
+        board.finish();
+    }
+
+    #[test]
+    fn encoder_parity_is_good_on_consecutive_reads(mut board: Board) {
+        board.assert_safe("at the start");
+        for i in 0..PARITY_READS {
+            if let Err(e) = board.encoder.read_raw() {
+                panic!("read {} of {} failed: {:?}", i + 1, PARITY_READS, e);
+            }
+        }
+        let stats = board.encoder.stats();
+        info!(
+            "{} reads: parity errors {}, error flags {}",
+            PARITY_READS, stats.parity_errors, stats.error_flags
+        );
+        assert_eq!(stats.parity_errors, 0, "parity errors");
+        assert_eq!(stats.error_flags, 0, "error flags");
+        board.finish();
+    }
+
+    #[test]
+    fn encoder_angle_is_stable_with_the_motor_asleep(mut board: Board) {
+        board.assert_safe("at the start");
+        // The hold window, sampled as the controller samples it at a jam: its spread must stay
+        // within the controller's noisy-hold threshold.
+        let Ok(first) = board.encoder.read_raw() else {
+            panic!("the first angle read failed");
+        };
+        let (mut low, mut high) = (0i32, 0i32);
+        let (mut sum, mut sum_sq) = (0i64, 0i64);
+        for i in 0..HOLD_TICKS {
+            board.delay.delay_millis(SAMPLE_PERIOD_MS);
+            let raw = match board.encoder.read_raw() {
+                Ok(raw) => raw,
+                Err(e) => panic!("read {} failed: {:?}", i + 1, e),
+            };
+            let d = counts_between(first, raw);
+            low = low.min(d);
+            high = high.max(d);
+            sum += i64::from(d);
+            sum_sq += i64::from(d) * i64::from(d);
+        }
+        let n = HOLD_TICKS as i64;
+        let spread = high - low;
+        // Variance × n², kept in integers.
+        let var_n2 = n * sum_sq - sum * sum;
+        info!(
+            "still hub: spread {} LSB over {} samples, variance {} LSB²",
+            spread,
+            HOLD_TICKS,
+            var_n2 as f32 / (n * n) as f32
+        );
+        assert!(
+            spread as f32 <= NOISY_HOLD_LSB,
+            "spread {} LSB over the hold window (limit {} LSB): every run would be flagged NOISY_HOLD",
+            spread,
+            NOISY_HOLD_LSB
+        );
+
+        // The jam detector's stillness test (the fitted change over the regression window
+        // within JAM_STILL_LSB) must see the still hub as still for JAM_SETTLE_TICKS in a row.
+        let mut window = SlopeWindow::new();
+        let mut still_run = 0;
+        let mut best_run = 0;
+        let mut ticks = 0;
+        while ticks < STILL_WITHIN_TICKS && best_run < JAM_SETTLE_TICKS {
+            board.delay.delay_millis(SAMPLE_PERIOD_MS);
+            ticks += 1;
+            let deg = match board.encoder.read_hub_deg() {
+                Ok(deg) => deg,
+                Err(e) => panic!("angle read failed: {:?}", e),
+            };
+            window.push(deg);
+            if window.is_full() && window.change_over_window_deg().abs() <= JAM_STILL_LSB * LSB_DEG
+            {
+                still_run += 1;
+                best_run = best_run.max(still_run);
+            } else {
+                still_run = 0;
+            }
+        }
+        info!(
+            "stillness: {} still ticks in a row after {} ticks ({}-tick window)",
+            best_run, ticks, JAM_WINDOW_TICKS
+        );
+        assert!(
+            best_run >= JAM_SETTLE_TICKS,
+            "the jam detector never saw the still hub as still for {} ticks in {} ticks",
+            JAM_SETTLE_TICKS,
+            STILL_WITHIN_TICKS
+        );
+        board.finish();
+    }
+
+    #[test]
+    fn flt_reads_high_asleep_and_awake(mut board: Board) {
+        board.assert_safe("at the start");
+        for _ in 0..FLT_READS {
+            assert_eq!(
+                board.motor.fault(),
+                Ok(false),
+                "FLT low with the driver asleep"
+            );
+        }
+        // Awake with duty 0: the G2 brakes, no drive torque.
+        let braked = board.motor.apply(&MotorOutput::BRAKE);
+        board.delay.delay_millis(WAKE_MS);
+        let mut low = 0;
+        for _ in 0..FLT_READS {
+            if board.motor.fault() != Ok(false) {
+                low += 1;
+            }
+        }
+        let _ = board.motor.safe();
+        assert!(braked.is_ok(), "waking the driver failed: {:?}", braked);
+        assert_eq!(low, 0, "FLT low with the driver awake (duty 0)");
+        board.finish();
+    }
+
+    #[test]
+    #[timeout(20)]
+    fn a_short_pulse_turns_the_hub_the_way_dir_says(mut board: Board) {
+        board.assert_safe("at the start");
+        let config = DeviceConfig::DEFAULT;
+        for dir_high in [true, false] {
+            let outcome = board.pulse(
+                PULSE_DUTY,
+                dir_high,
+                PULSE_STOP_DEG,
+                PULSE_MAX_MS,
+                PULSE_SETTLE_MS,
+            );
+            board.assert_safe("after the pulse");
+            // DIR high turns the hub clockwise (angle rising) unless the motor is inverted.
+            let expected_sign = if dir_high != config.motor_inverted {
+                1.0
+            } else {
+                -1.0
+            };
+            info!(
+                "DIR {}: hub moved {} deg, {} encoder errors",
+                if dir_high { "high" } else { "low" },
+                outcome.moved_deg,
+                outcome.encoder_errors
+            );
+            assert!(!outcome.apply_failed, "applying the pulse failed");
+            assert!(!outcome.driver_fault, "FLT went low during the pulse");
+            assert_eq!(outcome.encoder_errors, 0, "encoder errors during the pulse");
+            assert!(
+                outcome.moved_deg * expected_sign >= MIN_MOTION_DEG,
+                "DIR {}: the hub moved {} deg, expected at least {} deg {}",
+                dir_high,
+                outcome.moved_deg,
+                MIN_MOTION_DEG,
+                if expected_sign > 0.0 {
+                    "clockwise (rising)"
+                } else {
+                    "counter-clockwise (falling)"
+                }
+            );
+        }
+        board.finish();
+    }
+}
