@@ -225,6 +225,7 @@ pub struct Controller {
     no_motion_ticks: u32,
     still_ticks: u32,
     speed_integral_nm: f32,
+    slope_deg_per_tick: f32,
     consecutive_encoder_errors: u16,
     run_encoder_errors: u16,
     flags: QualityFlags,
@@ -261,6 +262,7 @@ impl Controller {
             no_motion_ticks: 0,
             still_ticks: 0,
             speed_integral_nm: 0.0,
+            slope_deg_per_tick: 0.0,
             consecutive_encoder_errors: 0,
             run_encoder_errors: 0,
             flags: QualityFlags::empty(),
@@ -489,6 +491,9 @@ impl Controller {
         if let Some(angle) = fresh {
             self.slope.push(angle);
         }
+        // One least-squares fit per tick (it is the step's most expensive part in soft float):
+        // the speed loop and the stillness test both use it.
+        self.slope_deg_per_tick = self.slope.slope_deg_per_tick();
         self.advance(inputs, fresh);
         if let Some(fault) = self.check_run_limits() {
             self.latch(fault);
@@ -622,12 +627,12 @@ impl Controller {
     }
 
     fn speed_deg_per_s(&self) -> f32 {
-        self.slope.slope_deg_per_tick() * f32::from(CONTROL_RATE_HZ)
+        self.slope_deg_per_tick * f32::from(CONTROL_RATE_HZ)
     }
 
     fn is_still(&self) -> bool {
-        self.slope.is_full()
-            && self.slope.change_over_window_deg().abs() <= JAM_STILL_LSB * self.lsb_deg()
+        let change_over_window_deg = self.slope_deg_per_tick * (JAM_WINDOW_TICKS - 1) as f32;
+        self.slope.is_full() && change_over_window_deg.abs() <= JAM_STILL_LSB * self.lsb_deg()
     }
 
     fn advance(&mut self, inputs: &Inputs, fresh: Option<f32>) {
