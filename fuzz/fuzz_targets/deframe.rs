@@ -27,7 +27,9 @@ where
                 let frame = encode_frame(&msg, &mut buf).expect("accepted messages re-encode");
                 let mut again = Deframer::<MAX_RESPONSE_FRAME_LEN>::new();
                 match again.feed::<T>(frame) {
-                    Feed::Frame { result: Ok(back), .. } => {
+                    Feed::Frame {
+                        result: Ok(back), ..
+                    } => {
                         let mut buf2 = [0u8; MAX_RESPONSE_FRAME_LEN];
                         let frame2 = encode_frame(&back, &mut buf2).unwrap();
                         assert_eq!(frame2, &buf[..frame2.len()]);
@@ -42,7 +44,9 @@ where
 }
 
 fuzz_target!(|data: &[u8]| {
-    let Some((&first, rest)) = data.split_first() else { return };
+    let Some((&first, rest)) = data.split_first() else {
+        return;
+    };
     let chunk = usize::from(first % 64) + 1;
     check::<Envelope<Request>, MAX_REQUEST_FRAME_LEN>(rest, chunk);
     check::<Envelope<Response>, MAX_RESPONSE_FRAME_LEN>(rest, chunk);
