@@ -31,6 +31,22 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
         .map_err(|e| file_error(format!("cannot write: {e}")))?;
     tmp.persist(path)
         .map_err(|e| file_error(format!("cannot replace the file: {}", e.error)))?;
+    make_readable(path)
+}
+
+/// Give a file written through a temporary file ordinary permissions (temporary files are created
+/// private to their owner, and the mode survives the rename).
+pub fn make_readable(path: &Path) -> Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o644)).map_err(|e| {
+            Error::File {
+                path: path.to_owned(),
+                message: format!("cannot set its permissions: {e}"),
+            }
+        })?;
+    }
     Ok(())
 }
 
@@ -61,6 +77,22 @@ mod tests {
         write_atomically(&p, b"one").unwrap();
         write_atomically(&p, b"two").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"two");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            assert_eq!(
+                std::fs::metadata(&p).unwrap().permissions().mode() & 0o777,
+                0o644
+            );
+        }
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            assert_eq!(
+                std::fs::metadata(&p).unwrap().permissions().mode() & 0o777,
+                0o644
+            );
+        }
         // No temporary files left behind.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }

@@ -94,7 +94,7 @@ pub fn plot_curve(curve: &Curve, result: Option<&KerfResult>, path: &Path) -> Re
     drawn.map_err(file_error)?;
     tmp.persist(path)
         .map_err(|e| file_error(format!("cannot write: {}", e.error)))?;
-    Ok(())
+    crate::files::make_readable(path)
 }
 
 fn draw<DB: DrawingBackend>(
