@@ -326,31 +326,25 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::SelfTest => self_test(g),
         Command::Config(c) => config(g, c),
         Command::Map(args) => map(g, args),
-        Command::Gauge(args) => {
-            let report = kerfmeter::plan::run_gauge(args)?;
-            if g.json {
-                out!(
-                    "{}",
-                    serde_json::to_string_pretty(&report).expect("reports serialize")
-                );
-            } else {
-                out!("{report}");
-            }
-            Ok(())
-        }
-        Command::Dilate(args) => {
-            let report = kerfmeter::plan::run_dilate(args)?;
-            if g.json {
-                out!(
-                    "{}",
-                    serde_json::to_string_pretty(&report).expect("reports serialize")
-                );
-            } else {
-                out!("{report}");
-            }
-            Ok(())
-        }
+        Command::Gauge(args) => print_report(g, &kerfmeter::plan::run_gauge(args)?),
+        Command::Dilate(args) => print_report(g, &kerfmeter::plan::run_dilate(args)?),
     }
+}
+
+/// Print a report as JSON (`--json`) or as its text.
+fn print_report(
+    g: &Global,
+    report: &(impl serde::Serialize + std::fmt::Display),
+) -> Result<(), CliError> {
+    if g.json {
+        out!(
+            "{}",
+            serde_json::to_string_pretty(report).expect("reports serialize")
+        );
+    } else {
+        out!("{report}");
+    }
+    Ok(())
 }
 
 fn simple(
