@@ -492,8 +492,11 @@ impl Controller {
             self.slope.push(angle);
         }
         // One least-squares fit per tick (it is the step's most expensive part in soft float):
-        // the speed loop and the stillness test both use it.
-        self.slope_deg_per_tick = self.slope.slope_deg_per_tick();
+        // the speed loop and the stillness test both use it, and only while the motor may be
+        // driven; at rest nothing reads it.
+        if self.is_active() {
+            self.slope_deg_per_tick = self.slope.slope_deg_per_tick();
+        }
         self.advance(inputs, fresh);
         if let Some(fault) = self.check_run_limits() {
             self.latch(fault);
