@@ -27,7 +27,7 @@ use std::process::{Command, Stdio};
 
 use anyhow::{Context, Result, bail};
 
-use crate::{cargo, root, run_cmd, show};
+use crate::{cargo, root, run_cmd, show, tools};
 use object::elf::{SHF_ALLOC, SHT_NOBITS};
 use object::read::elf::{ElfFile32, SectionHeader};
 use object::{Endianness, Object, ObjectSection};
@@ -283,24 +283,14 @@ pub struct FlashArgs {
 
 /// espflash is needed to write the image to a board and to turn the ELF into a flash image.
 fn ensure_espflash() -> Result<()> {
-    let present = Command::new("espflash")
-        .arg("--version")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false);
-    if !present {
-        eprintln!(
-            "espflash is missing: installing it (`cargo install espflash --locked`, a few minutes once)"
-        );
-        run_cmd(
-            Command::new("cargo")
-                .args(["install", "espflash", "--locked"])
-                .env_remove("RUSTUP_TOOLCHAIN"),
-        )?;
-    }
-    Ok(())
+    let tool = tools::CargoTool {
+        name: "espflash",
+        crate_name: "espflash",
+        install_time: "a few minutes",
+    };
+    let mut probe = Command::new("espflash");
+    probe.arg("--version");
+    tools::ensure(&tool, probe)
 }
 
 /// Turn the built ELF into the image espflash would write (offline): proves the image is
@@ -462,23 +452,14 @@ pub fn build_on_target_tests() -> Result<()> {
 
 /// probe-rs flashes and runs the on-target tests.
 fn ensure_probe_rs() -> Result<()> {
-    let present = Command::new("probe-rs")
-        .arg("--version")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !present {
-        eprintln!(
-            "probe-rs is missing: installing it (`cargo install probe-rs-tools --locked`, about ten minutes once)"
-        );
-        run_cmd(
-            Command::new("cargo")
-                .args(["install", "probe-rs-tools", "--locked"])
-                .env_remove("RUSTUP_TOOLCHAIN"),
-        )?;
-    }
-    Ok(())
+    let tool = tools::CargoTool {
+        name: "probe-rs",
+        crate_name: "probe-rs-tools",
+        install_time: "about ten minutes",
+    };
+    let mut probe = Command::new("probe-rs");
+    probe.arg("--version");
+    tools::ensure(&tool, probe)
 }
 
 /// Run the on-target driver tests on a board through probe-rs (`probe: true`); without a board

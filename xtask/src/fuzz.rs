@@ -5,7 +5,7 @@ use std::process::Command;
 
 use anyhow::{Context, Result, bail};
 
-use crate::{root, run_cmd};
+use crate::{root, run_cmd, tools};
 
 /// The fuzz targets in `fuzz/fuzz_targets`.
 pub const TARGETS: [&str; 2] = ["deframe", "link"];
@@ -46,20 +46,14 @@ fn ensure_tools() -> Result<()> {
             "fuzzing needs a nightly toolchain (`rustup toolchain install nightly`); none is installed"
         );
     }
-    let has_fuzz = nightly_cargo()
-        .args(["fuzz", "--version"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !has_fuzz {
-        eprintln!("cargo-fuzz is missing: installing it (takes a few minutes once)");
-        run_cmd(
-            Command::new("cargo")
-                .args(["install", "cargo-fuzz", "--locked"])
-                .env_remove("RUSTUP_TOOLCHAIN"),
-        )?;
-    }
-    Ok(())
+    let tool = tools::CargoTool {
+        name: "cargo-fuzz",
+        crate_name: "cargo-fuzz",
+        install_time: "a few minutes",
+    };
+    let mut probe = nightly_cargo();
+    probe.args(["fuzz", "--version"]);
+    tools::ensure(&tool, probe)
 }
 
 pub fn run(args: &FuzzArgs) -> Result<()> {

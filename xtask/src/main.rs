@@ -7,6 +7,7 @@
 mod bench;
 mod firmware;
 mod fuzz;
+mod tools;
 
 use std::path::PathBuf;
 use std::process::Command;
