@@ -11,8 +11,8 @@
 
 use std::time::Instant;
 
-use kerfmeter_firmware::kerf::uncorrected_kerf_um;
 use kerfmeter_firmware::twin::{Twin, TwinOptions};
+use kerfmeter_protocol::spiral::uncorrected_kerf_um;
 use kerfmeter_protocol::{GaugeGeometry, KerfResult, Request, Response, RunParams, RunState};
 
 /// Target: |mean error| at every point, µm.

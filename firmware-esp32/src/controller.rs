@@ -53,6 +53,9 @@
 //! row, failed encoder diagnostics (chip or magnet), over-current, driver FLT, host silence
 //! (communication watchdog) and a late control step.
 
+use kerfmeter_protocol::spiral::{
+    force_for_torque_n, kerf_from_angle, play_deg, torque_for_force_nm,
+};
 use kerfmeter_protocol::{
     DeviceConfig, ErrorCode, Fault, KerfResult, QualityFlags, Request, Response, RunParams,
     RunState, Sample, SelfTestItem, SelfTestReport, Status, TestOutcome,
@@ -62,7 +65,6 @@ use crate::as5048a::{COUNTS_PER_TURN, DiagnosticFault};
 use crate::build::{CONTROL_RATE_HZ, MAX_SAMPLES};
 pub use crate::jam::{HOLD_TICKS, JAM_WINDOW_TICKS};
 use crate::jam::{HoldWindow, SlopeWindow};
-use crate::kerf::{force_for_torque_n, kerf_from_angle, play_deg, torque_for_force_nm};
 use crate::motor::MotorOutput;
 use crate::samples::SampleLog;
 

@@ -11,12 +11,12 @@
 //!   `GetInfo`.
 //! - [`motor`]: the Pololu G2 motor driver; safe state on construction, on drop, on request.
 //! - [`config_store`]: the device configuration in flash, versioned and CRC-checked.
-//! - [`controller`]: the measuring state machine, stepped at 1 kHz: ramp, jam, kerf, faults.
+//! - [`controller`]: the measuring state machine, stepped at 1 kHz: ramp, jam, kerf, faults. Its
+//!   kerf and torque math is the gauge's model in `kerfmeter_protocol::spiral`, shared with the host.
 //! - [`hardware`]: one control tick on the real drivers (shared by the board and the twin).
 //! - [`jam`]: jam detection: windowed slope, hold median.
 //! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.
 //! - [`device`]: the request handler behind the link.
-//! - [`kerf`]: hole play, kerf from the jam angle, torque for a joint force.
 //! - `twin` (feature `twin`, std): the device served over a host byte stream.
 
 #![cfg_attr(not(any(test, feature = "twin")), no_std)]
@@ -30,7 +30,6 @@ pub mod controller;
 pub mod device;
 pub mod hardware;
 pub mod jam;
-pub mod kerf;
 pub mod link;
 pub mod motor;
 pub mod samples;

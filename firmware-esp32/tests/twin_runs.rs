@@ -255,7 +255,7 @@ fn self_test_passes_on_a_healthy_device() {
 
 #[test]
 fn the_sweep_gives_the_kerf_at_other_forces() {
-    use kerfmeter_firmware::kerf::kerf_at_force_um;
+    use kerfmeter_protocol::spiral::{kerf_at_force_um, torque_for_force_nm};
     let mut t = twin(200.0, 21);
     let params = RunParams::DEFAULT;
     let k = measure(&mut t, &params).unwrap();
@@ -266,11 +266,7 @@ fn the_sweep_gives_the_kerf_at_other_forces() {
     // Less force, less compression: a smaller kerf, close to what the physics say.
     let at_25 = kerf_at_force_um(&params, samples, 25.0).unwrap();
     assert!(at_25 < at_55, "{at_25} !< {at_55}");
-    let lever_torque = kerfmeter_firmware::kerf::torque_for_force_nm(
-        &params,
-        25.0,
-        at_25 / params.gauge.pitch_um_per_deg,
-    );
+    let lever_torque = torque_for_force_nm(&params, 25.0, at_25 / params.gauge.pitch_um_per_deg);
     let ideal_25 = t.plant().kerf_at_torque_um(f64::from(lever_torque));
     assert!(
         (f64::from(at_25) - ideal_25).abs() < 1.0,

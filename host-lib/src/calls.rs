@@ -55,9 +55,9 @@ pub struct Curve {
 
 impl Curve {
     /// The kerf at another assembly force read off this run's sweep (`params` are the run's), µm;
-    /// `None` beyond the force the run reached. See the firmware's `kerf::kerf_at_force_um`.
+    /// `None` beyond the force the run reached. See [`kerfmeter_protocol::spiral::kerf_at_force_um`].
     pub fn kerf_at_force_um(&self, params: &RunParams, force_n: f32) -> Option<f32> {
-        kerfmeter_firmware::kerf::kerf_at_force_um(params, &self.samples, force_n)
+        kerfmeter_protocol::spiral::kerf_at_force_um(params, &self.samples, force_n)
     }
 }
 

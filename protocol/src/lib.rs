@@ -1,6 +1,9 @@
 //! The Kerfmeter wire protocol, shared by the device firmware and the host library.
 //!
 //! `no_std`, no allocation: the same types and the same framing code run on the ESP32 and on a PC.
+//! So does the gauge's model, [`spiral`]: hole play, the kerf from a jam angle, the torque for a
+//! joint force and the spiral's pitch, shared by the device, its digital twin, the host and the
+//! gauge drawer.
 //!
 //! # Wire format
 //!
@@ -59,6 +62,7 @@ mod frame;
 mod messages;
 mod params;
 mod report;
+pub mod spiral;
 
 pub use frame::{
     CRC16, DecodeError, Deframer, DeframerStats, EncodeError, Feed, FrameError,

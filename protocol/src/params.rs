@@ -30,7 +30,9 @@ pub enum JamDirection {
 ///
 /// The cut line is r(φ) = a + c·φ for one turn (φ in radians), closed by a radial step of height
 /// 2π·c, with `a = radius_mm − π·c` so that `radius_mm` is the spiral's mean radius. Two prong
-/// holes sit diametrically opposite at `hole_distance_mm` from the centre.
+/// holes sit diametrically opposite at `hole_distance_mm` from the centre. What the device and the
+/// host compute from it (hole play, kerf, torque, the pitch in mm per radian) is in
+/// [`crate::spiral`].
 #[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct GaugeGeometry {
@@ -125,8 +127,8 @@ impl RunParams {
             return Err(ParamField::HoleRadiusMm);
         }
         check(g.hole_distance_mm, ParamField::HoleDistanceMm)?;
-        // The prong hole must lie inside the spiral, and the play formula needs
-        // (r_h − r_p + k/2) < 2R.
+        // The prong hole must lie inside the spiral, and the play formula
+        // (`spiral::play_deg`) needs (r_h − r_p + k/2) < 2R.
         if g.hole_distance_mm + g.hole_radius_mm >= g.radius_mm
             || g.hole_radius_mm - g.prong_radius_mm >= g.hole_distance_mm
         {

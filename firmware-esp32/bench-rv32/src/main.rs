@@ -6,7 +6,8 @@
 //! on the ESP32-C3) with the firmware image's profile. It measures, with the `minstret` and
 //! `mcycle` counters read just before and just after each call:
 //!
-//! 1. the kerf solve, [`kerf_from_angle`] on the paper's gauge, at several hub angles;
+//! 1. the kerf solve, [`kerf_from_angle`] (the gauge model in `kerfmeter-protocol`) on the paper's
+//!    gauge, at several hub angles;
 //! 2. one [`Controller::step`] in every state a run passes through (Idle, Engaging, Ramping,
 //!    Jammed, Releasing, Done, Resetting), driven by synthetic encoder angles through complete runs
 //!    to several jam angles, with the encoder diagnostics supplied every
@@ -47,7 +48,7 @@ use core::panic::PanicInfo;
 use kerfmeter_firmware::controller::{Controller, DiagnosticsReading, Inputs, PERIOD_US};
 use kerfmeter_firmware::hardware::DIAGNOSTICS_PERIOD_TICKS;
 use kerfmeter_firmware::jam::{HOLD_TICKS, HoldWindow, JAM_WINDOW_TICKS, SlopeWindow};
-use kerfmeter_firmware::kerf::{kerf_from_angle, play_deg, torque_for_force_nm};
+use kerfmeter_protocol::spiral::{kerf_from_angle, play_deg, torque_for_force_nm};
 use kerfmeter_protocol::{DeviceConfig, GaugeGeometry, Request, Response, RunParams, RunState};
 
 /// qemu virt's NS16550A UART: transmit holding register.

@@ -1,6 +1,7 @@
 //! The spiral gauge to cut: one turn of the Archimedean spiral r(φ) = a + c·φ closed by its radial
 //! step, and the two prong holes, from the same [`GaugeGeometry`] the device receives with every
-//! run. Written as SVG or DXF, in mm.
+//! run and the same spiral model the device measures with ([`kerfmeter_protocol::spiral`]: pitch
+//! and start radius). Written as SVG or DXF, in mm.
 //!
 //! ```text
 //!   Seen from above (the top face of the sheet, as the drawing is shown), for
@@ -35,10 +36,11 @@
 //!   beside the gauge: a one-finger box-joint pair (a tab part and a slot part, finger width × sheet
 //!   thickness) dilated by a given kerf with the plan-dilation code, to check a fit by hand.
 
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 use std::fmt::Write as _;
 
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut, PlineVertex};
+use kerfmeter_protocol::spiral::{pitch_mm_per_rad, start_radius_mm};
 use kerfmeter_protocol::{GaugeGeometry, JamDirection, RunParams};
 use serde::Serialize;
 
@@ -124,8 +126,7 @@ pub fn check_geometry(g: &GaugeGeometry) -> Result<()> {
             field.name()
         )));
     }
-    let c = pitch_mm_per_rad(g);
-    let a = f64::from(g.radius_mm) - PI * c;
+    let a = start_radius_mm(g);
     let hole_reach = f64::from(g.hole_distance_mm) + f64::from(g.hole_radius_mm);
     if a <= hole_reach + 0.5 {
         return Err(Error::InvalidArgument(format!(
@@ -133,11 +134,6 @@ pub fn check_geometry(g: &GaugeGeometry) -> Result<()> {
         )));
     }
     Ok(())
-}
-
-/// The pitch c in mm per radian.
-pub fn pitch_mm_per_rad(g: &GaugeGeometry) -> f64 {
-    f64::from(g.pitch_um_per_deg) * 1e-3 * 180.0 / PI
 }
 
 /// One turn of the spiral and its step as a closed polyline centred at the origin, y-up, φ
@@ -235,7 +231,7 @@ fn test_parts(spec: &TestPieceSpec, origin: V2) -> [(String, Pline); 2] {
 pub fn build(g: &GaugeGeometry, opts: &GaugeOptions) -> Result<GaugeDrawing> {
     check_geometry(g)?;
     let c = pitch_mm_per_rad(g);
-    let a = f64::from(g.radius_mm) - PI * c;
+    let a = start_radius_mm(g);
     let outer = a + TAU * c;
     let label_h = if opts.label { LABEL_MM } else { 0.0 };
     let center = v2(MARGIN_MM + outer, MARGIN_MM + label_h + outer);
@@ -499,6 +495,8 @@ pub fn to_dxf(d: &GaugeDrawing) -> Result<Vec<u8>> {
 
 #[cfg(test)]
 mod tests {
+    use std::f64::consts::PI;
+
     use super::*;
 
     #[test]

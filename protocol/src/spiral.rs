@@ -1,21 +1,66 @@
-//! The measurement's math (DESIGN.md §3): hole play, kerf from the jam angle, and the torque that
-//! represents a joint's assembly force. Pure functions, `f32`, no FPU needed (`libm`).
+//! The spiral gauge's model: the one place where an angle becomes a kerf and a force becomes a
+//! torque. The device solves its jam angle here, the digital twin's plant builds its physics on
+//! it, the host reads a run's sweep at other forces with it, and the gauge drawer takes the
+//! spiral's pitch and start radius from it, so the gauge that is cut and the device that measures
+//! it cannot disagree. Pure `f32` functions (`f64` for the drawer's conversions), `no_std`, no FPU
+//! needed (`libm`).
 //!
-//! Symbols: pitch c (µm per degree), kerf k (µm), hub (encoder) angle θm and inset angle θs
-//! (degrees from the zero position), prong radius r_p, hole radius r_h, hole distance R.
+//! Symbols: pitch c, kerf k (the full cut width, µm), hub (encoder) angle θm and inset angle θs
+//! (both from the zero position, prongs centred in their holes), prong radius r_p, nominal hole
+//! radius r_h, hole distance R from the gauge centre, gauge mean radius r, sheet thickness L,
+//! joint force F, total finger contact area A_j ([`GaugeGeometry`] and [`RunParams`] hold them).
+//! Angles are degrees and c is µm per degree unless a name says otherwise.
 //!
-//! - The laser enlarges each prong hole's radius by k/2, so the hub turns freely by
-//!   θplay(k) = 2·asin((r_h − r_p + k/2) / (2R)) before the prongs drag the inset.
-//! - The spiral's gap k − c·θs closes at θs = k / c. Hence θm = θplay(k) + k / c, solved for k by
-//!   the fixed point k ← c·(θm − θplay(k)). It contracts with factor ≈ c / (4R) ≈ 0.008 (c in
-//!   mm/rad): three iterations reach 0.001 µm.
-//! - A box joint held by friction needs force F = μ·P·A_j; the inset sees the same μ·P over a
-//!   contact arc that shrinks as it turns, so the torque equivalent to F is
-//!   τ(θs) = (2π − 2θs)·r²·L·F / A_j.
+//! # The spiral
+//!
+//! The cut line is r(φ) = a + c·φ for one turn, closed by a radial step of height 2π·c, with
+//! a = r − π·c ([`start_radius_mm`]; c in mm per radian: [`pitch_mm_per_rad`]). The cut removes
+//! k/2 on both sides of the line. Turning the inset by θs towards *decreasing* φ narrows the gap
+//! everywhere at once, because the spiral is self-similar:
+//!
+//! ```text
+//!   gap = k − c·θs,   so the inset jams at θs = k / c.
+//! ```
+//!
+//! Past the gauge's disengage angle the inset leaves the spiral: a fault, not a reading.
+//!
+//! # Hole play
+//!
+//! The laser enlarges each prong hole's radius by k/2 as well, so the hub turns freely by
+//!
+//! ```text
+//!   θplay(k) = 2·asin((r_h − r_p + k/2) / (2R))
+//! ```
+//!
+//! before the prongs drag the inset ([`play_deg`]). The encoder therefore reads
+//! θm = θplay(k) + k / c, which [`kerf_from_angle`] solves for k by the fixed point
+//!
+//! ```text
+//!   k ← c·(θm − θplay(k)),   starting from the uncorrected reading k = c·θm.
+//! ```
+//!
+//! It contracts because its slope is c·dθplay/dk = c / (2R·cos(θplay/2)) (c in mm per radian),
+//! about 0.015 on the paper's gauge (c = 0.159 mm/rad, R = 5.3 mm): each iteration shrinks the
+//! error some 65-fold, so from the uncorrected reading (10–20 µm off, [`uncorrected_kerf_um`])
+//! three iterations reach 0.001 µm and a fourth confirms it ([`KERF_TOLERANCE_UM`]).
+//!
+//! # Force and torque
+//!
+//! A box joint held by friction needs the assembly force F = μ·P·A_j. The inset sees the same
+//! material, strain and μ·P over a contact arc that shrinks as it turns, so the hub torque that
+//! presses it as hard as the joint is pressed by F is ([`torque_for_force_nm`])
+//!
+//! ```text
+//!   τ(θs) = (2π − 2θs)·r²·L·F / A_j      (SI units, θs in radians)
+//! ```
+//!
+//! e.g. three fingers of 4 mm stock at 50 N (A_j ≈ 152 mm², r = 10 mm): ≈ 0.62 N·m at 45° and
+//! ≈ 0.41 N·m at 90°. A run records (torque, angle) all along its ramp, so one run answers for
+//! every force up to its own ([`kerf_at_force_um`]).
 
 use core::f32::consts::PI;
 
-use kerfmeter_protocol::{GaugeGeometry, RunParams, Sample};
+use crate::{GaugeGeometry, RunParams, Sample};
 
 /// Stop iterating when an iterate moves less than this, µm.
 pub const KERF_TOLERANCE_UM: f32 = 0.001;
@@ -24,6 +69,17 @@ pub const KERF_MAX_ITERATIONS: u32 = 20;
 
 const DEG_PER_RAD: f32 = 180.0 / PI;
 const UM_PER_MM: f32 = 1000.0;
+
+/// The spiral's pitch c in mm of radius per radian of turn (the gauge stores µm per degree).
+pub fn pitch_mm_per_rad(gauge: &GaugeGeometry) -> f64 {
+    f64::from(gauge.pitch_um_per_deg) * 1e-3 * 180.0 / core::f64::consts::PI
+}
+
+/// The spiral's radius a at φ = 0, mm: a = r − π·c, so that the gauge's `radius_mm` is the mean
+/// radius over the turn.
+pub fn start_radius_mm(gauge: &GaugeGeometry) -> f64 {
+    f64::from(gauge.radius_mm) - core::f64::consts::PI * pitch_mm_per_rad(gauge)
+}
 
 /// Hub rotation before the prongs drag the inset, degrees, for a gauge cut with kerf `kerf_um`.
 pub fn play_deg(gauge: &GaugeGeometry, kerf_um: f32) -> f32 {
@@ -103,8 +159,8 @@ fn torque_per_newton_nm(params: &RunParams, inset_deg: f32) -> f32 {
 /// loading part of the sweep, up to its highest torque), solved for kerf. `None` when the sweep
 /// never reached that force (ask for at most the force the run reached).
 ///
-/// The design's point: the kerf that matters depends on how hard the joint is pressed; one run
-/// answers for every force up to its own.
+/// The kerf that matters depends on how hard the joint is pressed; one run answers for every
+/// force up to its own.
 pub fn kerf_at_force_um(params: &RunParams, samples: &[Sample], force_n: f32) -> Option<f32> {
     let peak = samples
         .iter()
@@ -202,6 +258,53 @@ mod tests {
         let p = RunParams::DEFAULT;
         assert_eq!(torque_for_force_nm(&p, 50.0, 180.0), 0.0);
         assert_eq!(force_for_torque_n(&p, 0.1, 180.0), f32::INFINITY);
+    }
+
+    #[test]
+    fn the_papers_pitch_is_about_a_millimetre_a_turn() {
+        // 2.774 µm/° = 0.158938 mm/rad; the spiral starts at 10 − π·c and steps out by 2π·c.
+        let c = pitch_mm_per_rad(&paper());
+        assert!((c - 0.158938).abs() < 1e-6, "{c}");
+        let a = start_radius_mm(&paper());
+        assert!((a - 9.500680).abs() < 1e-6, "{a}");
+    }
+
+    /// A loading sweep whose jam angle grows 1 µm of kerf per 2 N, up to 80 N, then an unloading
+    /// tail: the hub slips on at nine tenths of the peak torque.
+    fn sweep(p: &RunParams) -> [Sample; 42] {
+        let c = p.gauge.pitch_um_per_deg;
+        let mut samples = [Sample {
+            t_ms: 0,
+            torque_nm: 0.0,
+            angle_deg: 0.0,
+        }; 42];
+        for (i, s) in samples.iter_mut().enumerate().take(41) {
+            let kerf_um = 150.0 + i as f32;
+            *s = Sample {
+                t_ms: i as u32,
+                torque_nm: torque_for_force_nm(p, 2.0 * i as f32, kerf_um / c),
+                angle_deg: angle_for(&p.gauge, kerf_um),
+            };
+        }
+        samples[41] = Sample {
+            t_ms: 41,
+            torque_nm: 0.9 * samples[40].torque_nm,
+            angle_deg: angle_for(&p.gauge, 400.0),
+        };
+        samples
+    }
+
+    #[test]
+    fn the_sweep_is_read_where_the_loading_part_first_reaches_the_force() {
+        let p = RunParams::DEFAULT;
+        let samples = sweep(&p);
+        // 55 N lies halfway between the samples at 54 N (177 µm) and 56 N (178 µm).
+        let k = kerf_at_force_um(&p, &samples, 55.0).unwrap();
+        assert!((k - 177.5).abs() < 0.01, "{k}");
+        assert!((kerf_at_force_um(&p, &samples, 79.0).unwrap() - 189.5).abs() < 0.01);
+        // The tail represents far more than 80 N at its large angle, but it is unloading.
+        assert_eq!(kerf_at_force_um(&p, &samples, 85.0), None);
+        assert_eq!(kerf_at_force_um(&p, &[], 10.0), None);
     }
 
     #[test]
