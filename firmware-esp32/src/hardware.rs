@@ -16,7 +16,7 @@ use embedded_hal::pwm::SetDutyCycle;
 use embedded_hal::spi::SpiDevice;
 use kerfmeter_protocol::DeviceConfig;
 
-use crate::as5048a::{As5048a, EncoderError, EncoderSettings};
+use crate::as5048a::{As5048a, DiagnosticsError, EncoderError, EncoderSettings};
 use crate::config_store::ConfigPersist;
 use crate::controller::{DiagnosticsReading, EncoderFault, Inputs};
 use crate::device::Device;
@@ -79,7 +79,7 @@ where
             EncoderError::Bus(_) => EncoderFault::Bus,
             EncoderError::Parity => EncoderFault::Parity,
             EncoderError::ErrorFlag(_) => EncoderFault::ErrorFlag,
-            EncoderError::Jump | EncoderError::Diagnostics(_) => EncoderFault::Jump,
+            EncoderError::Jump => EncoderFault::Jump,
         });
         let diagnostics = if self.diagnostics_countdown == 0 || angle_deg.is_err() {
             self.diagnostics_countdown = DIAGNOSTICS_PERIOD_TICKS;
@@ -88,9 +88,9 @@ where
                     magnitude: d.magnitude,
                     marginal: d.marginal(),
                 })),
-                Err(EncoderError::Diagnostics(f)) => Some(Err(f)),
+                Err(DiagnosticsError::Failed(f)) => Some(Err(f)),
                 // A bus-level error while reading them: the angle reads show it too.
-                Err(_) => None,
+                Err(DiagnosticsError::Read(_)) => None,
             }
         } else {
             self.diagnostics_countdown -= 1;
