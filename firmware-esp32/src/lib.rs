@@ -15,7 +15,7 @@
 //! - [`hardware`]: one control tick on the real drivers (shared by the board and the twin).
 //! - [`jam`]: jam detection: windowed slope, hold median.
 //! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.
-//! - [`device`]: the request handler behind the link.
+//! - [`device`]: the request handler behind the link: the whole request table.
 //! - [`kerf`]: hole play, kerf from the jam angle, torque for a joint force.
 //! - `twin` (feature `twin`, std): the device served over a host byte stream.
 
