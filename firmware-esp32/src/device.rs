@@ -201,7 +201,7 @@ mod tests {
             let mut inputs = Inputs {
                 angle_deg: Ok(0.0),
                 diagnostics: None,
-                current_a: 0.5,
+                current_a: Some(0.5),
                 driver_fault: false,
             };
             d.step(PERIOD_US, &inputs);

@@ -5,7 +5,7 @@
 //! 2. read its diagnostics every [`DIAGNOSTICS_PERIOD_TICKS`] ticks, and at once after any read
 //!    error (so that a lost magnet is reported as such, not as a run of bad reads);
 //! 3. read the driver's FLT line (an unreadable FLT counts as a fault);
-//! 4. step the [`Device`] with these inputs and the motor current;
+//! 4. step the [`Device`] with these inputs and the motor current (or that it is unknown);
 //! 5. apply its output to the motor driver (a failed apply forces the motor safe and is reported
 //!    as a driver fault on the next tick).
 //!
@@ -62,11 +62,12 @@ where
         }
     }
 
-    /// One control tick at `now_us`, with the motor current measured for it.
+    /// One control tick at `now_us`, with the motor current measured for it, A (`None` when the
+    /// current sense has no fresh reading: the controller then faults with `OverCurrent`).
     pub fn tick<S: ConfigPersist>(
         &mut self,
         now_us: u64,
-        current_a: f32,
+        current_a: Option<f32>,
         device: &mut Device<S>,
     ) -> MotorOutput {
         let config = *device.controller().config();

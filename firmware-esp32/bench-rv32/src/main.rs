@@ -295,7 +295,7 @@ impl StepBench {
         let inputs = Inputs {
             angle_deg: Ok(angle_deg),
             diagnostics,
-            current_a: 0.5,
+            current_a: Some(0.5),
             driver_fault: false,
         };
         let before = self.controller.run_state();

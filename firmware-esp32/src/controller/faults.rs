@@ -30,7 +30,11 @@ impl Controller {
         if inputs.driver_fault {
             return Some(Fault::DriverFault);
         }
-        if inputs.current_a > self.config.max_current_a {
+        // An unknown current cannot be shown to be within the limit.
+        if inputs
+            .current_a
+            .is_none_or(|current_a| current_a > self.config.max_current_a)
+        {
             return Some(Fault::OverCurrent);
         }
         if self.consecutive_encoder_errors >= MAX_CONSECUTIVE_ENCODER_ERRORS {

@@ -10,7 +10,7 @@
 //! ```
 //!
 //! [`Controller::step`] takes this tick's [`Inputs`] (hub angle from the encoder driver, encoder
-//! diagnostics when they were read, motor current, the driver's FLT line)
+//! diagnostics when they were read, motor current or that it is unknown, the driver's FLT line)
 //! and returns the [`MotorOutput`] to apply. The device's request handler calls the typed
 //! methods between steps: [`Controller::start_run`], [`Controller::start_reset`],
 //! [`Controller::start_self_test`], [`Controller::abort`], [`Controller::clear_fault`] act;
@@ -63,7 +63,7 @@
 //! Checked every tick; the first one found is latched as `Fault(reason)` and the output of that
 //! very tick is the safe state: max run time, overtravel past the disengage angle, no motion with
 //! torque above breakaway, reverse motion, [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a
-//! row, failed encoder diagnostics (chip or magnet), over-current,
+//! row, failed encoder diagnostics (chip or magnet), over-current (or a current that is unknown),
 //! driver FLT, host silence (communication watchdog) and a late control step.
 
 use kerfmeter_protocol::{
@@ -120,8 +120,10 @@ pub struct Inputs {
     pub angle_deg: Result<f32, EncoderFault>,
     /// The encoder diagnostics, on the ticks they were read.
     pub diagnostics: Option<Result<DiagnosticsReading, DiagnosticFault>>,
-    /// Motor current magnitude, A.
-    pub current_a: f32,
+    /// Motor current magnitude, A; `None` when it is unknown (the current sense has no fresh
+    /// reading). An unknown current cannot be shown to be within `max_current_a`, so it faults
+    /// with `OverCurrent` like a current above it.
+    pub current_a: Option<f32>,
     /// The driver's FLT line is low.
     pub driver_fault: bool,
 }

@@ -159,8 +159,11 @@ impl Controller {
         let torque =
             (SELFTEST_PULSE_DUTY - self.config.breakaway_duty) * self.config.torque_per_duty_nm;
         self.torque_nm = -self.jam_frame(torque);
+        // The current is known here: an unknown one latched `OverCurrent` before this step
+        // advanced the state.
+        let current_a = inputs.current_a.unwrap_or(0.0);
         let current_sum_a = if (1..=AVERAGED).contains(&ticks) {
-            current_sum_a + inputs.current_a
+            current_sum_a + current_a
         } else {
             current_sum_a
         };

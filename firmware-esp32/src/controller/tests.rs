@@ -28,7 +28,7 @@ impl Script {
         Inputs {
             angle_deg: Ok(self.angle_deg),
             diagnostics: None,
-            current_a: 0.5,
+            current_a: Some(0.5),
             driver_fault: false,
         }
     }
@@ -237,13 +237,35 @@ fn over_current_and_driver_fault() {
             s.angle_deg += 0.06;
             let mut inputs = s.inputs();
             if i > 100 {
-                inputs.current_a = current_a;
+                inputs.current_a = Some(current_a);
                 inputs.driver_fault = flt;
             }
             inputs
         });
         assert_eq!(f, fault);
     }
+}
+
+#[test]
+fn an_unknown_current_faults_as_over_current_in_any_state() {
+    // At rest...
+    let mut s = Script::new();
+    let mut inputs = s.inputs();
+    inputs.current_a = None;
+    s.tick_with(&inputs);
+    assert_eq!(s.state(), RunState::Fault(Fault::OverCurrent));
+    // ...and mid-run, with the motor safe in the same tick.
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    let f = run_until_fault(&mut s, |s, i| {
+        s.angle_deg += 0.06;
+        let mut inputs = s.inputs();
+        if i > 100 {
+            inputs.current_a = None;
+        }
+        inputs
+    });
+    assert_eq!(f, Fault::OverCurrent);
 }
 
 #[test]
