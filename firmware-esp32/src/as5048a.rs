@@ -217,10 +217,26 @@ pub enum EncoderError<E> {
     Parity,
     /// The chip flagged an error; the error register's bits (see [`err`]).
     ErrorFlag(u16),
-    /// The angle moved more than is physically possible since the last sample.
+    /// The angle moved more than is physically possible since the last sample (angle reads
+    /// only).
     Jump,
-    /// Diagnostics failed.
-    Diagnostics(DiagnosticFault),
+}
+
+/// Why [`As5048a::diagnostics`] failed: the registers could not be read, or they were read and
+/// report a fault.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DiagnosticsError<E> {
+    /// Reading the registers failed.
+    Read(EncoderError<E>),
+    /// The registers report a fault.
+    Failed(DiagnosticFault),
+}
+
+impl<E> From<EncoderError<E>> for DiagnosticsError<E> {
+    fn from(e: EncoderError<E>) -> Self {
+        Self::Read(e)
+    }
 }
 
 /// Counters since construction.
@@ -335,11 +351,11 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
     }
 
     /// Read and check the diagnostics and magnitude registers.
-    pub fn diagnostics(&mut self) -> Result<Diagnostics, EncoderError<SPI::Error>> {
+    pub fn diagnostics(&mut self) -> Result<Diagnostics, DiagnosticsError<SPI::Error>> {
         let diag_agc = self.read_register(reg::DIAG_AGC)?;
         let magnitude = self.read_register(reg::MAGNITUDE)?;
         let d = Diagnostics::from_registers(diag_agc, magnitude);
-        d.check().map_err(EncoderError::Diagnostics)?;
+        d.check().map_err(DiagnosticsError::Failed)?;
         Ok(d)
     }
 
@@ -520,7 +536,7 @@ mod tests {
         let mut enc = driver(fake);
         assert_eq!(
             enc.diagnostics(),
-            Err(EncoderError::Diagnostics(DiagnosticFault::Magnet))
+            Err(DiagnosticsError::Failed(DiagnosticFault::Magnet))
         );
     }
 
@@ -535,7 +551,7 @@ mod tests {
         assert_eq!(enc.read_hub_deg(), Ok(0.0));
         assert_eq!(
             enc.diagnostics(),
-            Err(EncoderError::Diagnostics(DiagnosticFault::Chip))
+            Err(DiagnosticsError::Failed(DiagnosticFault::Chip))
         );
     }
 

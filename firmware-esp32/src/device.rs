@@ -1,10 +1,13 @@
 //! The device behind the link: the controller, the configuration and what `GetInfo` says.
 //!
 //! [`Device::step`] runs one control tick; [`Device::handle`] (the link's [`Handler`]) answers
-//! each request at the time of the last tick: run requests go to the [`Controller`], `GetInfo`
-//! and the configuration are answered here. A new configuration is validated, refused while the
-//! motor runs, stored through [`ConfigPersist`] *before* it is applied and acknowledged, and a
-//! failed store leaves the old configuration in force (`ErrorCode::Storage`).
+//! each request at the time of the last tick. The whole request table is here, one arm per
+//! request: every request first counts as host activity for the [`Controller`]'s communication
+//! watchdog, then runs, resets, self-tests and their reports go to the controller's typed
+//! methods, while `GetInfo` and the configuration are answered here. A new configuration is
+//! validated, refused while the motor runs, stored through [`ConfigPersist`] *before* it is
+//! applied and acknowledged, and a failed store leaves the old configuration in force
+//! (`ErrorCode::Storage`).
 
 use kerfmeter_protocol::{ConfigReport, DeviceConfig, DeviceInfo, ErrorCode, Request, Response};
 
@@ -107,16 +110,39 @@ impl<S: ConfigPersist> Device<S> {
 
 impl<S: ConfigPersist> Handler for Device<S> {
     fn handle(&mut self, request: &Request) -> Response {
-        if let Some(response) = self.controller.request(self.now_us, request) {
-            return response;
-        }
+        self.controller.host_activity(self.now_us);
+        let controller = &mut self.controller;
         match request {
             Request::GetInfo => Response::Info(self.info.clone()),
+            Request::Run(params) => started(controller.start_run(params)),
+            Request::GetStatus => Response::Status(controller.status()),
+            Request::GetSamples { from } => match controller.sample_chunk(*from) {
+                Ok(chunk) => Response::Samples(chunk),
+                Err(e) => Response::Error(e),
+            },
+            Request::GetKerf => Response::Kerf(controller.result().copied()),
+            Request::Reset => started(controller.start_reset()),
+            Request::Abort => {
+                controller.abort();
+                Response::Ok
+            }
+            Request::ClearFault => {
+                controller.clear_fault();
+                Response::Ok
+            }
+            Request::SelfTest => started(controller.start_self_test()),
             Request::GetConfig => self.config_report(),
             Request::SetConfig(config) => self.set_config(config),
-            // Every other request is the controller's and was answered above.
-            _ => Response::Error(ErrorCode::UnknownRequest),
+            Request::GetSelfTest => Response::SelfTest(controller.self_test_report().copied()),
         }
+    }
+}
+
+/// `Ok` once started, or why not.
+fn started(result: Result<(), ErrorCode>) -> Response {
+    match result {
+        Ok(()) => Response::Ok,
+        Err(e) => Response::Error(e),
     }
 }
 
@@ -160,6 +186,41 @@ mod tests {
             let answer = d.handle(r);
             assert_ne!(answer, Response::Error(ErrorCode::Unsupported), "{r:?}");
             assert_ne!(answer, Response::Error(ErrorCode::UnknownRequest), "{r:?}");
+        }
+    }
+
+    #[test]
+    fn every_request_feeds_the_communication_watchdog() {
+        use crate::controller::{Inputs, PERIOD_US};
+        use kerfmeter_protocol::{Fault, RunParams, RunState};
+
+        let timeout_ticks = u64::from(RunParams::DEFAULT.host_timeout_ms) * 1000 / PERIOD_US;
+        // Requests that are not the controller's keep a run alive too; no requests do not.
+        for keep_alive in [Some(Request::GetInfo), Some(Request::GetConfig), None] {
+            let mut d = Device::new("twin", 1);
+            let mut inputs = Inputs {
+                angle_deg: Ok(0.0),
+                diagnostics: None,
+                current_a: Some(0.5),
+                driver_fault: false,
+            };
+            d.step(PERIOD_US, &inputs);
+            assert_eq!(d.handle(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+            for tick in 2..2 * timeout_ticks {
+                // A hub creeping on, slowly enough to stay in the run throughout.
+                inputs.angle_deg = Ok(tick as f32 * 0.01);
+                d.step(tick * PERIOD_US, &inputs);
+                if let Some(request) = &keep_alive
+                    && tick % 100 == 0
+                {
+                    d.handle(request);
+                }
+            }
+            let state = d.controller().run_state();
+            match keep_alive {
+                Some(_) => assert!(d.controller().is_active(), "{keep_alive:?}: {state:?}"),
+                None => assert_eq!(state, RunState::Fault(Fault::HostSilent)),
+            }
         }
     }
 

@@ -5,7 +5,7 @@
 //! 2. read its diagnostics every [`DIAGNOSTICS_PERIOD_TICKS`] ticks, and at once after any read
 //!    error (so that a lost magnet is reported as such, not as a run of bad reads);
 //! 3. read the driver's FLT line (an unreadable FLT counts as a fault);
-//! 4. step the [`Device`] with these inputs and the motor current;
+//! 4. step the [`Device`] with these inputs and the motor current (or that it is unknown);
 //! 5. apply its output to the motor driver (a failed apply forces the motor safe and is reported
 //!    as a driver fault on the next tick).
 //!
@@ -16,7 +16,7 @@ use embedded_hal::pwm::SetDutyCycle;
 use embedded_hal::spi::SpiDevice;
 use kerfmeter_protocol::DeviceConfig;
 
-use crate::as5048a::{As5048a, EncoderError, EncoderSettings};
+use crate::as5048a::{As5048a, DiagnosticsError, EncoderError, EncoderSettings};
 use crate::config_store::ConfigPersist;
 use crate::controller::{DiagnosticsReading, EncoderFault, Inputs};
 use crate::device::Device;
@@ -62,11 +62,12 @@ where
         }
     }
 
-    /// One control tick at `now_us`, with the motor current measured for it.
+    /// One control tick at `now_us`, with the motor current measured for it, A (`None` when the
+    /// current sense has no fresh reading: the controller then faults with `OverCurrent`).
     pub fn tick<S: ConfigPersist>(
         &mut self,
         now_us: u64,
-        current_a: f32,
+        current_a: Option<f32>,
         device: &mut Device<S>,
     ) -> MotorOutput {
         let config = *device.controller().config();
@@ -79,7 +80,7 @@ where
             EncoderError::Bus(_) => EncoderFault::Bus,
             EncoderError::Parity => EncoderFault::Parity,
             EncoderError::ErrorFlag(_) => EncoderFault::ErrorFlag,
-            EncoderError::Jump | EncoderError::Diagnostics(_) => EncoderFault::Jump,
+            EncoderError::Jump => EncoderFault::Jump,
         });
         let diagnostics = if self.diagnostics_countdown == 0 || angle_deg.is_err() {
             self.diagnostics_countdown = DIAGNOSTICS_PERIOD_TICKS;
@@ -88,9 +89,9 @@ where
                     magnitude: d.magnitude,
                     marginal: d.marginal(),
                 })),
-                Err(EncoderError::Diagnostics(f)) => Some(Err(f)),
+                Err(DiagnosticsError::Failed(f)) => Some(Err(f)),
                 // A bus-level error while reading them: the angle reads show it too.
-                Err(_) => None,
+                Err(DiagnosticsError::Read(_)) => None,
             }
         } else {
             self.diagnostics_countdown -= 1;

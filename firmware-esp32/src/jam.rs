@@ -1,5 +1,11 @@
-//! Jam detection (DESIGN.md §3): the angle's slope over a short window, and the median angle over
-//! the hold window.
+//! Jam detection: the angle's slope over a short window, and the median angle over the hold
+//! window.
+//!
+//! The rule: the hub counts as jammed when the angle's change over a short regression window
+//! (about 20 ms) stays within a few encoder LSB, with the commanded torque above breakaway and
+//! the inset turned past a minimum; the torque is then held for 50–100 ms, the jam angle θm is the
+//! median over that hold, and the gauge is unloaded. (The controller applies the rule; this
+//! module holds the two windows it needs.)
 //!
 //! [`SlopeWindow`] keeps the last [`JAM_WINDOW_TICKS`] angles and fits a least-squares line: its
 //! slope is the hub speed, and slope × window length is the angle change "over the window" that
@@ -9,7 +15,7 @@
 
 /// Regression window, control ticks (20 ms at 1 kHz).
 pub const JAM_WINDOW_TICKS: usize = 20;
-/// Hold window, control ticks (80 ms at 1 kHz, inside the 50–100 ms the design asks for).
+/// Hold window, control ticks (80 ms at 1 kHz, inside the 50–100 ms hold of the rule above).
 pub const HOLD_TICKS: usize = 80;
 
 /// The last angles, with a least-squares slope.

@@ -16,7 +16,7 @@
 //! - [`hardware`]: one control tick on the real drivers (shared by the board and the twin).
 //! - [`jam`]: jam detection: windowed slope, hold median.
 //! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.
-//! - [`device`]: the request handler behind the link.
+//! - [`device`]: the request handler behind the link: the whole request table.
 //! - `twin` (feature `twin`, std): the device served over a host byte stream.
 
 #![cfg_attr(not(any(test, feature = "twin")), no_std)]

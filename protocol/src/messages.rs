@@ -180,10 +180,19 @@ pub enum ErrorCode {
     NoSamples,
     /// The configuration could not be written to flash; the old one is still in use.
     Storage,
-    /// A run must start with the hub at its zero position (prongs centred in the gauge's holes):
-    /// send `Reset` first.
+    /// A run must start with the hub at its zero position (prongs centred in the gauge's holes),
+    /// within [`START_TOLERANCE_DEG`]: send `Reset` first.
     NotAtZero,
 }
+
+/// How far from its zero position, degrees either way, the hub may stand when a run starts.
+/// Further out the device refuses the run with [`ErrorCode::NotAtZero`], and the host resets the
+/// hub before a run by the same rule, so the two sides cannot disagree about "at zero".
+///
+/// Wider than the 0.3° band within which `Reset` settles, so that a hub nudged a little while a
+/// gauge is placed needs no second reset; narrow against the hole play (about 4.5° for the
+/// paper's gauge) that a run turns through before the prongs drag the inset.
+pub const START_TOLERANCE_DEG: f32 = 1.0;
 
 /// A parameter of [`RunParams`] or [`DeviceConfig`], named in [`ErrorCode::InvalidParam`].
 #[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
@@ -212,6 +221,29 @@ pub enum ParamField {
 }
 
 impl ParamField {
+    /// Every field, in wire order (`ALL[i]` is variant index `i`).
+    pub const ALL: &'static [Self] = &[
+        Self::PitchUmPerDeg,
+        Self::RadiusMm,
+        Self::ProngRadiusMm,
+        Self::HoleRadiusMm,
+        Self::HoleDistanceMm,
+        Self::DisengageDeg,
+        Self::ThicknessMm,
+        Self::TargetForceN,
+        Self::ContactAreaMm2,
+        Self::MaxTorqueNm,
+        Self::RampRateNmPerS,
+        Self::MaxTimeMs,
+        Self::HostTimeoutMs,
+        Self::TorquePerDutyNm,
+        Self::BreakawayDuty,
+        Self::EncoderZeroRaw,
+        Self::GearRatio,
+        Self::MaxCurrentA,
+        Self::TorquePerAmpNm,
+    ];
+
     /// The field's name as it appears in the Rust types and the JSON output.
     pub const fn name(self) -> &'static str {
         match self {
@@ -272,4 +304,22 @@ pub(crate) const fn varint_len(mut n: usize) -> usize {
         len += 1;
     }
     len
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn param_field_all_is_every_variant_in_wire_order() {
+        // `ALL[i]` encodes as variant index `i`, and the index one past the list is not a
+        // variant: the list is complete, in order and without repeats.
+        let mut buf = [0u8; 4];
+        for (i, field) in ParamField::ALL.iter().enumerate() {
+            let bytes = postcard::to_slice(field, &mut buf).unwrap();
+            assert_eq!(bytes, [i as u8], "{field:?}");
+        }
+        let past_the_end = [ParamField::ALL.len() as u8];
+        assert!(postcard::from_bytes::<ParamField>(&past_the_end).is_err());
+    }
 }

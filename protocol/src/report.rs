@@ -36,6 +36,24 @@ pub enum Fault {
     ResetFailed,
 }
 
+impl Fault {
+    /// Every fault, in wire order (`ALL[i]` is variant index `i`).
+    pub const ALL: &'static [Self] = &[
+        Self::MaxRunTime,
+        Self::Overtravel,
+        Self::NoMotion,
+        Self::ReverseMotion,
+        Self::EncoderErrors,
+        Self::EncoderDiagnostics,
+        Self::Magnet,
+        Self::OverCurrent,
+        Self::DriverFault,
+        Self::HostSilent,
+        Self::StepOverrun,
+        Self::ResetFailed,
+    ];
+}
+
 /// What the device is doing.
 #[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -229,4 +247,22 @@ pub struct SelfTestReport {
     pub direction_deg: SelfTestItem,
     /// Estimated output torque at full duty, N·m.
     pub torque_per_duty_nm: SelfTestItem,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fault_all_is_every_variant_in_wire_order() {
+        // `ALL[i]` encodes as variant index `i`, and the index one past the list is not a
+        // variant: the list is complete, in order and without repeats.
+        let mut buf = [0u8; 4];
+        for (i, fault) in Fault::ALL.iter().enumerate() {
+            let bytes = postcard::to_slice(fault, &mut buf).unwrap();
+            assert_eq!(bytes, [i as u8], "{fault:?}");
+        }
+        let past_the_end = [Fault::ALL.len() as u8];
+        assert!(postcard::from_bytes::<Fault>(&past_the_end).is_err());
+    }
 }

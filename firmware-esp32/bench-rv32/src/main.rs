@@ -49,7 +49,7 @@ use kerfmeter_firmware::controller::{Controller, DiagnosticsReading, Inputs, PER
 use kerfmeter_firmware::hardware::DIAGNOSTICS_PERIOD_TICKS;
 use kerfmeter_firmware::jam::{HOLD_TICKS, HoldWindow, JAM_WINDOW_TICKS, SlopeWindow};
 use kerfmeter_protocol::spiral::{kerf_from_angle, play_deg, torque_for_force_nm};
-use kerfmeter_protocol::{DeviceConfig, GaugeGeometry, Request, Response, RunParams, RunState};
+use kerfmeter_protocol::{DeviceConfig, GaugeGeometry, RunParams, RunState};
 
 /// qemu virt's NS16550A UART: transmit holding register.
 const UART_THR: *mut u8 = 0x1000_0000 as *mut u8;
@@ -79,7 +79,7 @@ const HOLD_ANGLES_DEG: [f32; 4] = [20.0, 45.0, 90.0, 130.0];
 const IDLE_TICKS: u32 = 500;
 /// Done steps after each run.
 const DONE_TICKS: u32 = 50;
-/// The host's keep-alive period (a `GetStatus` between steps, outside the measurement), ticks.
+/// The host's keep-alive period (a request between steps, outside the measurement), ticks.
 const KEEPALIVE_TICKS: u32 = 100;
 /// Hub motion while engaging, degrees per tick (60 °/s, the engaging speed target).
 const ENGAGE_DEG_PER_TICK: f32 = 0.06;
@@ -296,7 +296,7 @@ impl StepBench {
         let inputs = Inputs {
             angle_deg: Ok(angle_deg),
             diagnostics,
-            current_a: 0.5,
+            current_a: Some(0.5),
             driver_fault: false,
         };
         let before = self.controller.run_state();
@@ -313,7 +313,7 @@ impl StepBench {
         self.now_us += PERIOD_US;
         self.tick += 1;
         if self.tick.is_multiple_of(KEEPALIVE_TICKS) {
-            self.request(&Request::GetStatus);
+            self.controller.host_activity(self.now_us);
         }
         let after = self.controller.run_state();
         if let RunState::Fault(fault) = after {
@@ -325,19 +325,14 @@ impl StepBench {
         after
     }
 
-    /// A host request between steps (not measured).
-    fn request(&mut self, request: &Request) -> Option<Response> {
-        self.controller.request(self.now_us, request)
-    }
-
     /// One run from zero to a jam at `hold_deg`, through release, then a reset back to Idle.
     fn run(&mut self, hold_deg: f32) {
         for _ in 0..IDLE_TICKS {
             self.step(0.0);
         }
-        match self.request(&Request::Run(RunParams::DEFAULT)) {
-            Some(Response::Ok) => {}
-            other => fail(format_args!("Run refused: {other:?}")),
+        self.controller.host_activity(self.now_us);
+        if let Err(e) = self.controller.start_run(&RunParams::DEFAULT) {
+            fail(format_args!("Run refused: {e:?}"));
         }
         let mut deg = 0.0f32;
         let mut ticks = 0;
@@ -369,9 +364,9 @@ impl StepBench {
             result.flags.0
         );
 
-        match self.request(&Request::Reset) {
-            Some(Response::Ok) => {}
-            other => fail(format_args!("Reset refused: {other:?}")),
+        self.controller.host_activity(self.now_us);
+        if let Err(e) = self.controller.start_reset() {
+            fail(format_args!("Reset refused: {e:?}"));
         }
         let mut reset_ticks = 0;
         while self.step(0.0) != RunState::Idle {

@@ -357,7 +357,7 @@ impl Twin {
         };
         let out = self
             .hardware
-            .tick(self.now_us, current.max(0.0) as f32, &mut self.device);
+            .tick(self.now_us, Some(current.max(0.0) as f32), &mut self.device);
         debug_assert_eq!(out.is_safe(), self.motor_safe());
         let clockwise = self.dir.is_high();
         let cw_sign = if clockwise { 1.0 } else { -1.0 };

@@ -91,45 +91,11 @@ pub fn request() -> impl Strategy<Value = Request> {
 }
 
 pub fn fault() -> impl Strategy<Value = Fault> {
-    prop_oneof![
-        Just(Fault::MaxRunTime),
-        Just(Fault::Overtravel),
-        Just(Fault::NoMotion),
-        Just(Fault::ReverseMotion),
-        Just(Fault::EncoderErrors),
-        Just(Fault::EncoderDiagnostics),
-        Just(Fault::Magnet),
-        Just(Fault::OverCurrent),
-        Just(Fault::DriverFault),
-        Just(Fault::HostSilent),
-        Just(Fault::StepOverrun),
-        Just(Fault::ResetFailed),
-    ]
+    proptest::sample::select(Fault::ALL)
 }
 
 pub fn param_field() -> impl Strategy<Value = ParamField> {
-    use ParamField::*;
-    proptest::sample::select(vec![
-        PitchUmPerDeg,
-        RadiusMm,
-        ProngRadiusMm,
-        HoleRadiusMm,
-        HoleDistanceMm,
-        DisengageDeg,
-        ThicknessMm,
-        TargetForceN,
-        ContactAreaMm2,
-        MaxTorqueNm,
-        RampRateNmPerS,
-        MaxTimeMs,
-        HostTimeoutMs,
-        TorquePerDutyNm,
-        BreakawayDuty,
-        EncoderZeroRaw,
-        GearRatio,
-        MaxCurrentA,
-        TorquePerAmpNm,
-    ])
+    proptest::sample::select(ParamField::ALL)
 }
 
 pub fn error_code() -> impl Strategy<Value = ErrorCode> {

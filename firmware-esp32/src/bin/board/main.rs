@@ -202,17 +202,13 @@ struct CurrentSense {
 
 impl CurrentSense {
     /// The motor current for this tick, A: the last finished conversion. After
-    /// [`CURRENT_STALE_TICKS`] ticks without one the current is unknown, and reads as infinite
-    /// so that the controller faults with `OverCurrent` (its inputs have no "current unknown").
-    fn read_a(&mut self) -> f32 {
+    /// [`CURRENT_STALE_TICKS`] ticks without one the current is unknown (`None`), and the
+    /// controller faults with `OverCurrent`.
+    fn read_a(&mut self) -> Option<f32> {
         if !self.poll() {
             self.stale_ticks = self.stale_ticks.saturating_add(1);
         }
-        if self.stale_ticks > CURRENT_STALE_TICKS {
-            f32::INFINITY
-        } else {
-            self.last_a
-        }
+        (self.stale_ticks <= CURRENT_STALE_TICKS).then_some(self.last_a)
     }
 
     /// Start the next conversion (late in the tick, well after the last one was read out, as

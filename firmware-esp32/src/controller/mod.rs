@@ -1,0 +1,461 @@
+//! The measuring controller: a pure state machine stepped at a fixed rate (1 kHz).
+//!
+//! ```text
+//!            Run                 θ ≥ θplay(0)          still at τ(θs)          hold done
+//!   Idle ─────────▶ Engaging ─────────────▶ Ramping ──────────────▶ Jammed ─────────────▶ Releasing ──▶ Done
+//!    ▲  ▲                                     ▲                       │ slipped                          │
+//!    │  │ Abort (any state, safe this tick)   └───────────────────────┘                                 │
+//!    │  └──────────── Resetting ◀── Reset (Idle, Done, Fault) ◀──────────────────────────────────────────┘
+//!    └── ClearFault ── Fault(reason) ◀── any state, the tick a fault is detected (motor safe that tick)
+//! ```
+//!
+//! [`Controller::step`] takes this tick's [`Inputs`] (hub angle from the encoder driver, encoder
+//! diagnostics when they were read, motor current or that it is unknown, the driver's FLT line)
+//! and returns the [`MotorOutput`] to apply. The device's request handler calls the typed
+//! methods between steps: [`Controller::start_run`], [`Controller::start_reset`],
+//! [`Controller::start_self_test`], [`Controller::abort`], [`Controller::clear_fault`] act;
+//! [`Controller::status`], [`Controller::result`], [`Controller::sample_chunk`] and
+//! [`Controller::self_test_report`] read. Every request first goes to
+//! [`Controller::host_activity`], which feeds the communication watchdog. No I/O, no allocation,
+//! no waiting: the board binary and the twin call it the same way.
+//!
+//! The code is split by concern: `run.rs` (engage, ramp, jam, kerf, and the per-run state, which
+//! every run builds afresh), `reset.rs`, `self_test.rs`, `faults.rs` (every fault check) and
+//! `tuning.rs` (every tuning constant, with its unit and its reason; re-exported here).
+//!
+//! # Angles, torque and direction
+//!
+//! The encoder driver reports the hub angle clockwise-positive seen from above (`encoder_inverted`
+//! in the configuration makes it so); `DIR` high turns the hub clockwise (`motor_inverted` makes
+//! it so). The controller works in the *jam frame*: θ and τ positive in the gauge's
+//! `jam_direction`, sent with every run.
+//!
+//! # Torque from duty
+//!
+//! Output torque is linear in duty at standstill: duty = breakaway + τ / torque_per_duty, where
+//! `breakaway_duty` covers the gearbox's friction. Back-EMF lowers the torque while the hub turns
+//! (by ke·N·ω/Vs of duty); it is deliberately *not* compensated: the kerf is read at a jam, at
+//! standstill, where back-EMF is zero and the duty-derived torque is exact; while the inset turns
+//! a lower torque only slows the approach, and the ramp's speed limit keeps it slow anyway.
+//!
+//! # The run
+//!
+//! A run starts only with the hub within
+//! [`START_TOLERANCE_DEG`](kerfmeter_protocol::START_TOLERANCE_DEG) of zero (the protocol's rule,
+//! shared with the host).
+//!
+//! - **Engaging**: a speed-limited low torque turns the hub through the hole play. No kerf can
+//!   have less play than θplay(0), so the hub is driven at least that far before the ramp starts.
+//! - **Ramping**: torque rises at `ramp_rate_nm_per_s`, never above τ(θs) = (2π − 2θs)·r²·L·F/A_j
+//!   for the inset angle θs of the current hub angle (the torque that presses the inset as hard
+//!   as the joint is pressed by F), nor above `max_torque_nm` (the result is then flagged
+//!   `TORQUE_LIMITED`), and is eased off when the hub turns faster than [`MAX_TURN_SPEED_DEG_PER_S`]
+//!   so that the inset never slams into the jam.
+//! - **Jam**: the angle's change over a [`JAM_WINDOW_TICKS`]-tick regression stays within
+//!   [`JAM_STILL_LSB`] encoder LSB for [`JAM_SETTLE_TICKS`] ticks, with the torque at its target
+//!   (above breakaway) and the inset past [`JAM_MIN_INSET_DEG`]. Then the torque is held for
+//!   [`HOLD_TICKS`] ticks; θm is the median angle over the hold. If the hub slips by more than
+//!   [`JAM_SLIP_DEG`] meanwhile, the ramp resumes.
+//! - **Releasing** ramps the torque down; **Done** holds the result for `GetKerf`.
+//!
+//! # Faults
+//!
+//! Checked every tick; the first one found is latched as `Fault(reason)` and the output of that
+//! very tick is the safe state: max run time, overtravel past the disengage angle, no motion with
+//! torque above breakaway, reverse motion, [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a
+//! row, failed encoder diagnostics (chip or magnet), over-current (or a current that is unknown),
+//! driver FLT, host silence (communication watchdog) and a late control step.
+
+use kerfmeter_protocol::{
+    DeviceConfig, ErrorCode, Fault, JamDirection, KerfResult, RunParams, RunState, Sample,
+    SampleChunk, SelfTestReport, Status,
+};
+
+use crate::as5048a::{COUNTS_PER_TURN, DiagnosticFault};
+use crate::build::{CONTROL_RATE_HZ, MAX_SAMPLES};
+use crate::jam::SlopeWindow;
+use crate::motor::MotorOutput;
+use crate::samples::SampleLog;
+
+mod faults;
+mod reset;
+mod run;
+mod self_test;
+#[cfg(test)]
+mod tests;
+mod tuning;
+
+use run::Run;
+use self_test::SelfTestPhase;
+pub use tuning::*;
+
+/// Why an encoder read failed (the driver's error, without the bus type).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EncoderFault {
+    /// The SPI transfer failed.
+    Bus,
+    /// Bad parity on a response.
+    Parity,
+    /// The chip's error flag.
+    ErrorFlag,
+    /// An impossible jump.
+    Jump,
+}
+
+/// The encoder diagnostics, as the controller needs them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DiagnosticsReading {
+    /// CORDIC magnitude.
+    pub magnitude: u16,
+    /// AGC near the edge of its band.
+    pub marginal: bool,
+}
+
+/// What the controller reads each tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inputs {
+    /// Hub angle from zero, degrees, clockwise-positive seen from above; or why it is missing.
+    pub angle_deg: Result<f32, EncoderFault>,
+    /// The encoder diagnostics, on the ticks they were read.
+    pub diagnostics: Option<Result<DiagnosticsReading, DiagnosticFault>>,
+    /// Motor current magnitude, A; `None` when it is unknown (the current sense has no fresh
+    /// reading). An unknown current cannot be shown to be within `max_current_a`, so it faults
+    /// with `OverCurrent` like a current above it.
+    pub current_a: Option<f32>,
+    /// The driver's FLT line is low.
+    pub driver_fault: bool,
+}
+
+/// Internal states, with their working data.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum State {
+    Idle,
+    Engaging,
+    Ramping,
+    Jammed { torque_nm: f32, entry_deg: f32 },
+    Releasing,
+    Done,
+    Resetting { ticks: u32, settled: u32 },
+    SelfTest(SelfTestPhase),
+    Fault(Fault),
+}
+
+impl State {
+    /// The states of a run, from `Run` to `Done`.
+    fn is_run(self) -> bool {
+        matches!(
+            self,
+            State::Engaging | State::Ramping | State::Jammed { .. } | State::Releasing
+        )
+    }
+}
+
+/// The hub's recent motion and the speed loop's memory. A run and a reset each start a fresh one.
+struct Motion {
+    /// The last angles, for the regression.
+    slope: SlopeWindow,
+    /// This tick's fitted slope, degrees per tick (fitted only while the motor may be driven).
+    slope_deg_per_tick: f32,
+    /// The speed loop's integral term, N·m.
+    speed_integral_nm: f32,
+}
+
+impl Motion {
+    const fn new() -> Self {
+        Self {
+            slope: SlopeWindow::new(),
+            slope_deg_per_tick: 0.0,
+            speed_integral_nm: 0.0,
+        }
+    }
+}
+
+/// The measuring controller.
+pub struct Controller {
+    config: DeviceConfig,
+    state: State,
+    /// The jam frame's sense: the gauge's, from the last valid run request (also one refused as
+    /// not at zero). Reset and self-test keep working in it.
+    jam_direction: JamDirection,
+    /// The current (or last) run's own state.
+    run: Run,
+    run_id: u32,
+    last_step_us: Option<u64>,
+    last_host_us: u64,
+    /// Commanded torque, N·m, jam frame.
+    torque_nm: f32,
+    /// Last good hub angle, degrees, jam frame.
+    angle_deg: f32,
+    have_angle: bool,
+    motion: Motion,
+    consecutive_encoder_errors: u16,
+    last_diagnostics: Option<DiagnosticsReading>,
+    /// The last run's samples (kept outside [`Run`]: 24 KiB are cleared, not rebuilt).
+    log: SampleLog<{ MAX_SAMPLES as usize }>,
+    result: Option<KerfResult>,
+    self_test: Option<SelfTestReport>,
+    self_test_partial: SelfTestReport,
+}
+
+impl Controller {
+    /// A controller in `Idle`, motor safe.
+    pub fn new(config: DeviceConfig) -> Self {
+        Self {
+            config,
+            state: State::Idle,
+            jam_direction: RunParams::DEFAULT.gauge.jam_direction,
+            run: Run::new(RunParams::DEFAULT, 0.0),
+            run_id: 0,
+            last_step_us: None,
+            last_host_us: 0,
+            torque_nm: 0.0,
+            angle_deg: 0.0,
+            have_angle: false,
+            motion: Motion::new(),
+            consecutive_encoder_errors: 0,
+            last_diagnostics: None,
+            log: SampleLog::new(),
+            result: None,
+            self_test: None,
+            self_test_partial: self_test::NOT_RUN,
+        }
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &DeviceConfig {
+        &self.config
+    }
+
+    /// Replace the configuration; only while the motor is at rest.
+    pub fn set_config(&mut self, config: DeviceConfig) -> Result<(), ErrorCode> {
+        config.validate().map_err(ErrorCode::InvalidParam)?;
+        if self.is_active() {
+            return Err(ErrorCode::Busy);
+        }
+        self.config = config;
+        Ok(())
+    }
+
+    /// The latched fault, if any.
+    pub fn fault(&self) -> Option<Fault> {
+        match self.state {
+            State::Fault(f) => Some(f),
+            _ => None,
+        }
+    }
+
+    /// True while the motor may be driven (a run, a reset or a self-test).
+    pub fn is_active(&self) -> bool {
+        !matches!(self.state, State::Idle | State::Done | State::Fault(_))
+    }
+
+    /// The last result (`GetKerf`): `None` before the first run, during a run and after a reset.
+    pub fn result(&self) -> Option<&KerfResult> {
+        self.result.as_ref()
+    }
+
+    /// The run's sample log.
+    pub fn samples(&self) -> &[Sample] {
+        self.log.as_slice()
+    }
+
+    /// The run's samples from index `from` (`GetSamples`); `NoSamples` before the first run or
+    /// past the end of the log.
+    pub fn sample_chunk(&self, from: u16) -> Result<SampleChunk, ErrorCode> {
+        match self.log.chunk(self.run_id, from) {
+            Some(chunk) if self.run_id > 0 => Ok(chunk),
+            _ => Err(ErrorCode::NoSamples),
+        }
+    }
+
+    /// The last self-test's report (`GetSelfTest`): `None` before the first and while one runs.
+    pub fn self_test_report(&self) -> Option<&SelfTestReport> {
+        self.self_test.as_ref()
+    }
+
+    /// The public state.
+    pub fn run_state(&self) -> RunState {
+        match self.state {
+            State::Idle => RunState::Idle,
+            State::Engaging => RunState::Engaging,
+            State::Ramping => RunState::Ramping,
+            State::Jammed { .. } => RunState::Jammed,
+            State::Releasing => RunState::Releasing,
+            State::Done => RunState::Done,
+            State::Resetting { .. } => RunState::Resetting,
+            State::SelfTest(_) => RunState::SelfTest,
+            State::Fault(f) => RunState::Fault(f),
+        }
+    }
+
+    /// What `GetStatus` answers.
+    pub fn status(&self) -> Status {
+        Status {
+            state: self.run_state(),
+            run_id: self.run_id,
+            elapsed_ms: self.run.ticks * 1000 / u32::from(CONTROL_RATE_HZ),
+            torque_nm: self.torque_nm,
+            angle_deg: self.angle_deg,
+            samples: self.log.len() as u16,
+            encoder_errors: self.run.encoder_errors,
+        }
+    }
+
+    /// A request from the host arrived at `now_us`. Every request, whatever it asks, counts as
+    /// host activity for the communication watchdog: the device calls this for each one.
+    pub fn host_activity(&mut self, now_us: u64) {
+        self.last_host_us = now_us;
+    }
+
+    /// Stop the motor now (safe from the next step on) and end the run, reset or self-test. A
+    /// latched fault stays latched.
+    pub fn abort(&mut self) {
+        if !matches!(self.state, State::Fault(_)) {
+            self.state = State::Idle;
+        }
+        self.torque_nm = 0.0;
+    }
+
+    /// Leave a latched fault (the motor stays safe); nothing happens without one.
+    pub fn clear_fault(&mut self) {
+        if let State::Fault(_) = self.state {
+            self.state = State::Idle;
+            self.consecutive_encoder_errors = 0;
+        }
+    }
+
+    /// Refuses with `Faulted` or `Busy` unless the motor is at rest with no fault latched.
+    fn refuse_unless_ready(&self) -> Result<(), ErrorCode> {
+        match self.state {
+            State::Fault(f) => Err(ErrorCode::Faulted(f)),
+            State::Idle | State::Done => Ok(()),
+            _ => Err(ErrorCode::Busy),
+        }
+    }
+
+    /// The last known hub angle, clockwise-positive.
+    fn angle_deg_cw(&self) -> f32 {
+        // `angle_deg` is kept in the jam frame; the jam frame is its own inverse.
+        self.jam_frame(self.angle_deg)
+    }
+
+    /// Clockwise ↔ jam frame.
+    fn jam_frame(&self, deg: f32) -> f32 {
+        match self.jam_direction {
+            JamDirection::Clockwise => deg,
+            JamDirection::CounterClockwise => -deg,
+        }
+    }
+
+    /// One control step at `now_us`: read the inputs, advance the state, return the motor output.
+    pub fn step(&mut self, now_us: u64, inputs: &Inputs) -> MotorOutput {
+        let overrun = self
+            .last_step_us
+            .is_some_and(|last| now_us.saturating_sub(last) > OVERRUN_PERIODS * PERIOD_US);
+        self.last_step_us = Some(now_us);
+
+        let fresh = self.read_angle(inputs);
+        if let Some(fault) = self.check_faults(now_us, inputs, overrun) {
+            self.latch(fault);
+            return MotorOutput::SAFE;
+        }
+        if let Some(angle) = fresh {
+            self.motion.slope.push(angle);
+        }
+        // One least-squares fit per tick (it is the step's most expensive part in soft float):
+        // the speed loop and the stillness test both use it, and only while the motor may be
+        // driven; at rest nothing reads it.
+        if self.is_active() {
+            self.motion.slope_deg_per_tick = self.motion.slope.slope_deg_per_tick();
+        }
+        self.advance(inputs, fresh);
+        if let Some(fault) = self.check_run_limits() {
+            self.latch(fault);
+            return MotorOutput::SAFE;
+        }
+        if self.state.is_run() {
+            self.record_sample();
+        }
+        self.output()
+    }
+
+    fn read_angle(&mut self, inputs: &Inputs) -> Option<f32> {
+        match inputs.angle_deg {
+            Ok(cw) => {
+                self.consecutive_encoder_errors = 0;
+                self.angle_deg = self.jam_frame(cw);
+                self.have_angle = true;
+                Some(self.angle_deg)
+            }
+            Err(_) => {
+                self.consecutive_encoder_errors = self.consecutive_encoder_errors.saturating_add(1);
+                if self.is_active() {
+                    self.run.encoder_error();
+                }
+                None
+            }
+        }
+    }
+
+    fn advance(&mut self, inputs: &Inputs, fresh: Option<f32>) {
+        match self.state {
+            State::Idle | State::Done | State::Fault(_) => self.torque_nm = 0.0,
+            State::Engaging => self.engage(),
+            State::Ramping => self.ramp(),
+            State::Jammed {
+                torque_nm,
+                entry_deg,
+            } => self.hold_jam(torque_nm, entry_deg, fresh),
+            State::Releasing => self.release(),
+            State::Resetting { ticks, settled } => self.reset_step(ticks, settled),
+            State::SelfTest(phase) => self.self_test_step(phase, inputs, fresh),
+        }
+    }
+
+    fn breakaway_torque_nm(&self) -> f32 {
+        self.config.breakaway_duty * self.config.torque_per_duty_nm
+    }
+
+    /// One encoder LSB as hub angle, degrees.
+    fn lsb_deg(&self) -> f32 {
+        let turns_per_hub_turn = match self.config.encoder_placement {
+            kerfmeter_protocol::EncoderPlacement::OutputShaft => 1.0,
+            kerfmeter_protocol::EncoderPlacement::MotorShaft => self.config.gear_ratio,
+        };
+        360.0 / f32::from(COUNTS_PER_TURN) / turns_per_hub_turn
+    }
+
+    fn speed_deg_per_s(&self) -> f32 {
+        self.motion.slope_deg_per_tick * f32::from(CONTROL_RATE_HZ)
+    }
+
+    /// The speed loop (PI): the torque, within ±`cap_nm`, that holds the hub at `target`
+    /// degrees per second. The integrator is clamped to the same bounds (no wind-up).
+    fn speed_loop(&mut self, target_deg_per_s: f32, cap_nm: f32) -> f32 {
+        let error = target_deg_per_s - self.speed_deg_per_s();
+        let integral = &mut self.motion.speed_integral_nm;
+        *integral = (*integral + SPEED_KI * error * DT_S).clamp(-cap_nm, cap_nm);
+        (SPEED_KP * error + *integral).clamp(-cap_nm, cap_nm)
+    }
+
+    /// The motor output for the current torque (jam frame).
+    fn output(&self) -> MotorOutput {
+        if !self.is_active() {
+            return MotorOutput::SAFE;
+        }
+        if self.torque_nm == 0.0 {
+            // Active but no torque wanted: brake (both low-side switches on) rather than coast.
+            return MotorOutput::BRAKE;
+        }
+        let duty =
+            self.config.breakaway_duty + self.torque_nm.abs() / self.config.torque_per_duty_nm;
+        let clockwise = self.jam_frame(self.torque_nm) > 0.0;
+        MotorOutput {
+            duty: duty.min(1.0),
+            dir_high: clockwise != self.config.motor_inverted,
+            awake: true,
+        }
+    }
+}

@@ -1,0 +1,224 @@
+//! The run: starting it, engaging through the hole play, the torque ramp, the jam and its hold,
+//! the kerf result, and the release. The state a run keeps for itself lives in [`Run`], which
+//! every run builds afresh: nothing of the previous run can leak into the next.
+
+use kerfmeter_protocol::{
+    ErrorCode, KerfResult, QualityFlags, RunParams, START_TOLERANCE_DEG, Sample,
+};
+
+use super::{
+    Controller, DT_S, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, JAM_MIN_INSET_DEG,
+    JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_TURN_SPEED_DEG_PER_S,
+    Motion, NEAR_DISENGAGE_FRACTION, NOISY_HOLD_LSB, RELEASE_RATE_NM_PER_S, State,
+};
+use crate::build::CONTROL_RATE_HZ;
+use crate::jam::HoldWindow;
+use kerfmeter_protocol::spiral::{force_for_torque_n, kerf_from_angle, play_deg, torque_for_force_nm};
+
+/// One run's own state, from `Run` to the next `Run`.
+pub(super) struct Run {
+    /// The run's parameters.
+    pub(super) params: RunParams,
+    /// Quality flags collected so far.
+    pub(super) flags: QualityFlags,
+    /// Ticks spent in the run's states.
+    pub(super) ticks: u32,
+    /// Encoder read errors while the motor could be driven (this run and the reset or
+    /// self-test after it).
+    pub(super) encoder_errors: u16,
+    /// Hub angle at the start, degrees, jam frame.
+    pub(super) start_deg: f32,
+    /// Furthest hub angle reached, degrees, jam frame.
+    pub(super) max_deg: f32,
+    /// Ticks in a row with torque above breakaway and no motion yet.
+    pub(super) no_motion_ticks: u32,
+    /// Ticks in a row the hub has been still at the target torque.
+    pub(super) still_ticks: u32,
+    /// Angles collected while a jam is held.
+    pub(super) hold: HoldWindow,
+}
+
+impl Run {
+    /// A run with `params`, starting with the hub at `start_deg` (jam frame).
+    pub(super) fn new(params: RunParams, start_deg: f32) -> Self {
+        Self {
+            params,
+            flags: QualityFlags::empty(),
+            ticks: 0,
+            encoder_errors: 0,
+            start_deg,
+            max_deg: start_deg,
+            no_motion_ticks: 0,
+            still_ticks: 0,
+            hold: HoldWindow::new(),
+        }
+    }
+
+    /// Count an encoder read error.
+    pub(super) fn encoder_error(&mut self) {
+        self.encoder_errors = self.encoder_errors.saturating_add(1);
+        self.flags.insert(QualityFlags::ENCODER_ERRORS);
+    }
+}
+
+impl Controller {
+    /// Start a measurement with `params` (`Run`). Refused while a run, reset or self-test is in
+    /// progress (`Busy`), with a fault latched (`Faulted`), with an invalid parameter
+    /// (`InvalidParam`), and unless the hub stands within [`START_TOLERANCE_DEG`] of zero
+    /// (`NotAtZero`). A refused run leaves the last result and samples as they were; one refused
+    /// as not at zero has already switched the jam frame to the new gauge's sense.
+    pub fn start_run(&mut self, params: &RunParams) -> Result<(), ErrorCode> {
+        self.refuse_unless_ready()?;
+        params.validate().map_err(ErrorCode::InvalidParam)?;
+        // The gauge's sense defines the jam frame: re-express the angle in the new one.
+        let cw = self.angle_deg_cw();
+        self.jam_direction = params.gauge.jam_direction;
+        let angle = self.jam_frame(cw);
+        self.angle_deg = angle;
+        if !self.have_angle || angle.abs() > START_TOLERANCE_DEG {
+            return Err(ErrorCode::NotAtZero);
+        }
+        self.run_id = self.run_id.wrapping_add(1).max(1);
+        self.result = None;
+        self.log.clear();
+        self.run = Run::new(*params, angle);
+        if self.last_diagnostics.is_some_and(|d| d.marginal) {
+            self.run.flags.insert(QualityFlags::WEAK_MAGNET);
+        }
+        self.motion = Motion::new();
+        self.torque_nm = 0.0;
+        self.state = State::Engaging;
+        Ok(())
+    }
+
+    /// Log this tick of the run.
+    pub(super) fn record_sample(&mut self) {
+        self.run.ticks += 1;
+        self.log.record(Sample {
+            t_ms: self.run.ticks * 1000 / u32::from(CONTROL_RATE_HZ),
+            torque_nm: self.torque_nm,
+            angle_deg: self.angle_deg,
+        });
+    }
+
+    /// Fitted angle change over the regression window within the stillness band.
+    fn is_still(&self) -> bool {
+        let change_over_window_deg = self.motion.slope_deg_per_tick * (JAM_WINDOW_TICKS - 1) as f32;
+        self.motion.slope.is_full()
+            && change_over_window_deg.abs() <= JAM_STILL_LSB * self.lsb_deg()
+    }
+
+    /// Engaging: turn slowly through the hole play.
+    pub(super) fn engage(&mut self) {
+        self.torque_nm = self
+            .speed_loop(ENGAGE_SPEED_DEG_PER_S, ENGAGE_MAX_TORQUE_NM)
+            .max(0.0);
+        let gauge = &self.run.params.gauge;
+        // No kerf has less play than a zero kerf: the prongs cannot drag the inset before this.
+        if self.angle_deg >= play_deg(gauge, 0.0) - JAM_SLIP_DEG {
+            self.state = State::Ramping;
+        }
+    }
+
+    /// The ramp's ceiling at the current angle, and whether `max_torque_nm` capped it.
+    fn ramp_target_nm(&self) -> (f32, bool) {
+        let params = &self.run.params;
+        let inset = kerf_from_angle(&params.gauge, self.angle_deg)
+            .inset_deg
+            .max(0.0);
+        let target = torque_for_force_nm(params, params.target_force_n, inset);
+        if target > params.max_torque_nm {
+            (params.max_torque_nm, true)
+        } else {
+            (target, false)
+        }
+    }
+
+    /// Ramping: raise the torque towards the target while watching for the jam.
+    pub(super) fn ramp(&mut self) {
+        let (target, limited) = self.ramp_target_nm();
+        // The torque rises at the ramp rate, never above the speed loop's (so the inset turns at
+        // most at the speed limit) nor above the target for the current angle.
+        let speed_capped = self.speed_loop(MAX_TURN_SPEED_DEG_PER_S, target);
+        let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * DT_S;
+        self.torque_nm = ramped.min(speed_capped).clamp(0.0, target);
+        let at_target = self.torque_nm >= target * 0.999 && target > self.breakaway_torque_nm();
+        let inset = self.angle_deg - play_deg(&self.run.params.gauge, 0.0);
+        if at_target && self.is_still() && inset >= JAM_MIN_INSET_DEG {
+            self.run.still_ticks += 1;
+        } else {
+            self.run.still_ticks = 0;
+        }
+        if self.run.still_ticks >= JAM_SETTLE_TICKS {
+            if limited {
+                self.run.flags.insert(QualityFlags::TORQUE_LIMITED);
+            }
+            self.run.hold.clear();
+            self.state = State::Jammed {
+                torque_nm: self.torque_nm,
+                entry_deg: self.angle_deg,
+            };
+        }
+    }
+
+    /// Jammed: hold the torque and collect the angles; back to ramping if the jam slips.
+    pub(super) fn hold_jam(&mut self, torque_nm: f32, entry_deg: f32, fresh: Option<f32>) {
+        self.torque_nm = torque_nm;
+        if (self.angle_deg - entry_deg).abs() > JAM_SLIP_DEG {
+            // The jam gave way (stick-slip): keep ramping from here.
+            self.run.still_ticks = 0;
+            self.state = State::Ramping;
+            return;
+        }
+        if let Some(angle) = fresh {
+            self.run.hold.push(angle);
+        }
+        if !self.run.hold.is_full() {
+            return;
+        }
+        let (median, spread) = self
+            .run
+            .hold
+            .median_and_spread()
+            .unwrap_or((entry_deg, 0.0));
+        self.finish(median, spread, torque_nm);
+        self.state = State::Releasing;
+    }
+
+    /// The result from the hold's median angle and spread at `torque_nm`.
+    fn finish(&mut self, angle_deg: f32, spread_deg: f32, torque_nm: f32) {
+        let params = &self.run.params;
+        let gauge = &params.gauge;
+        let solution = kerf_from_angle(gauge, angle_deg);
+        let mut flags = self.run.flags;
+        if spread_deg > NOISY_HOLD_LSB * self.lsb_deg() {
+            flags.insert(QualityFlags::NOISY_HOLD);
+        }
+        if solution.inset_deg > NEAR_DISENGAGE_FRACTION * gauge.disengage_deg {
+            flags.insert(QualityFlags::NEAR_DISENGAGE);
+        }
+        if !solution.converged {
+            flags.insert(QualityFlags::PLAY_NOT_CONVERGED);
+        }
+        if self.log.ticks_per_sample() > 1 {
+            flags.insert(QualityFlags::DECIMATED);
+        }
+        self.result = Some(KerfResult {
+            run_id: self.run_id,
+            kerf_um: solution.kerf_um,
+            angle_deg,
+            play_deg: solution.play_deg,
+            torque_at_jam_nm: torque_nm,
+            force_at_jam_n: force_for_torque_n(params, torque_nm, solution.inset_deg),
+            flags,
+        });
+    }
+
+    /// Releasing: ramp the torque down, then `Done`.
+    pub(super) fn release(&mut self) {
+        self.torque_nm = (self.torque_nm - RELEASE_RATE_NM_PER_S * DT_S).max(0.0);
+        if self.torque_nm == 0.0 {
+            self.state = State::Done;
+        }
+    }
+}

@@ -1,0 +1,183 @@
+//! The self-test, with no gauge under the prongs: encoder reads with the motor off (and the
+//! magnet's field from the diagnostics), the drive direction, and an estimate of the torque
+//! constant from the current drawn by a short pulse from standstill.
+
+use kerfmeter_protocol::{ErrorCode, SelfTestItem, SelfTestReport, TestOutcome};
+
+use super::{
+    Controller, Inputs, SELFTEST_DIRECTION_MIN_DEG, SELFTEST_DIRECTION_TICKS,
+    SELFTEST_DIRECTION_TORQUE_NM, SELFTEST_ENCODER_MIN_OK, SELFTEST_ENCODER_TICKS,
+    SELFTEST_PULSE_DUTY, SELFTEST_PULSE_TICKS, SELFTEST_SETTLE_TICKS, SELFTEST_TORQUE_TOLERANCE,
+    State,
+};
+
+/// The phases, in order, with their working data.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum SelfTestPhase {
+    Encoder { ticks: u32, ok: u32 },
+    Direction { ticks: u32, start_deg: f32 },
+    Settle { ticks: u32 },
+    Pulse { ticks: u32, current_sum_a: f32 },
+}
+
+const SKIPPED: SelfTestItem = SelfTestItem {
+    outcome: TestOutcome::Skipped,
+    value: 0.0,
+};
+
+/// A report with nothing run yet.
+pub(super) const NOT_RUN: SelfTestReport = SelfTestReport {
+    encoder_ok_fraction: SKIPPED,
+    magnet_magnitude: SKIPPED,
+    direction_deg: SKIPPED,
+    torque_per_duty_nm: SKIPPED,
+};
+
+/// Pulse ticks whose current is averaged (the first tick's current is from before the pulse).
+const AVERAGED: u32 = 3;
+
+fn item(pass: bool, value: f32) -> SelfTestItem {
+    SelfTestItem {
+        outcome: if pass {
+            TestOutcome::Pass
+        } else {
+            TestOutcome::Fail
+        },
+        value,
+    }
+}
+
+impl Controller {
+    /// Start the self-test (`SelfTest`); its report replaces the last one when it ends. Refused
+    /// while a run, reset or self-test is in progress (`Busy`) and with a fault latched
+    /// (`Faulted`).
+    pub fn start_self_test(&mut self) -> Result<(), ErrorCode> {
+        self.refuse_unless_ready()?;
+        self.self_test = None;
+        self.self_test_partial = NOT_RUN;
+        self.torque_nm = 0.0;
+        self.state = State::SelfTest(SelfTestPhase::Encoder { ticks: 0, ok: 0 });
+        Ok(())
+    }
+
+    /// One tick of the self-test in `phase`.
+    pub(super) fn self_test_step(
+        &mut self,
+        phase: SelfTestPhase,
+        inputs: &Inputs,
+        fresh: Option<f32>,
+    ) {
+        let mut report = self.self_test_partial;
+        let next = match phase {
+            SelfTestPhase::Encoder { ticks, ok } => {
+                self.self_test_encoder(&mut report, ticks, ok + u32::from(fresh.is_some()))
+            }
+            SelfTestPhase::Direction { ticks, start_deg } => {
+                self.self_test_direction(&mut report, ticks, start_deg)
+            }
+            SelfTestPhase::Settle { ticks } => {
+                self.torque_nm = 0.0;
+                if ticks + 1 < SELFTEST_SETTLE_TICKS {
+                    Some(SelfTestPhase::Settle { ticks: ticks + 1 })
+                } else {
+                    Some(SelfTestPhase::Pulse {
+                        ticks: 0,
+                        current_sum_a: 0.0,
+                    })
+                }
+            }
+            SelfTestPhase::Pulse {
+                ticks,
+                current_sum_a,
+            } => self.self_test_pulse(&mut report, ticks, current_sum_a, inputs),
+        };
+        self.self_test_partial = report;
+        match next {
+            Some(phase) => self.state = State::SelfTest(phase),
+            None => {
+                self.self_test = Some(report);
+                self.state = State::Idle;
+            }
+        }
+    }
+
+    /// Encoder phase, `ok` good reads in `ticks + 1` ticks; then the encoder and magnet items.
+    fn self_test_encoder(
+        &mut self,
+        report: &mut SelfTestReport,
+        ticks: u32,
+        ok: u32,
+    ) -> Option<SelfTestPhase> {
+        self.torque_nm = 0.0;
+        if ticks + 1 < SELFTEST_ENCODER_TICKS {
+            return Some(SelfTestPhase::Encoder {
+                ticks: ticks + 1,
+                ok,
+            });
+        }
+        let fraction = ok as f32 / SELFTEST_ENCODER_TICKS as f32;
+        report.encoder_ok_fraction = item(fraction >= SELFTEST_ENCODER_MIN_OK, fraction);
+        report.magnet_magnitude = match self.last_diagnostics {
+            Some(d) => item(!d.marginal, f32::from(d.magnitude)),
+            None => item(false, 0.0),
+        };
+        Some(SelfTestPhase::Direction {
+            ticks: 0,
+            start_deg: self.angle_deg_cw(),
+        })
+    }
+
+    /// Direction phase: a clockwise torque, whatever the last gauge's sense (this checks the
+    /// wiring); then the direction item.
+    fn self_test_direction(
+        &mut self,
+        report: &mut SelfTestReport,
+        ticks: u32,
+        start_deg: f32,
+    ) -> Option<SelfTestPhase> {
+        self.torque_nm = self.jam_frame(SELFTEST_DIRECTION_TORQUE_NM);
+        if ticks + 1 < SELFTEST_DIRECTION_TICKS {
+            return Some(SelfTestPhase::Direction {
+                ticks: ticks + 1,
+                start_deg,
+            });
+        }
+        let moved = self.jam_frame(self.angle_deg) - start_deg;
+        report.direction_deg = item(moved >= SELFTEST_DIRECTION_MIN_DEG, moved);
+        Some(SelfTestPhase::Settle { ticks: 0 })
+    }
+
+    /// Pulse phase: counter-clockwise, bringing the hub back, at exactly the pulse duty; then
+    /// the torque-constant item, and the self-test ends (`None`).
+    fn self_test_pulse(
+        &mut self,
+        report: &mut SelfTestReport,
+        ticks: u32,
+        current_sum_a: f32,
+        inputs: &Inputs,
+    ) -> Option<SelfTestPhase> {
+        let torque =
+            (SELFTEST_PULSE_DUTY - self.config.breakaway_duty) * self.config.torque_per_duty_nm;
+        self.torque_nm = -self.jam_frame(torque);
+        // The current is known here: an unknown one latched `OverCurrent` before this step
+        // advanced the state.
+        let current_a = inputs.current_a.unwrap_or(0.0);
+        let current_sum_a = if (1..=AVERAGED).contains(&ticks) {
+            current_sum_a + current_a
+        } else {
+            current_sum_a
+        };
+        if ticks + 1 < SELFTEST_PULSE_TICKS {
+            return Some(SelfTestPhase::Pulse {
+                ticks: ticks + 1,
+                current_sum_a,
+            });
+        }
+        let current_a = current_sum_a / AVERAGED as f32;
+        let estimate = self.config.torque_per_amp_nm * current_a / SELFTEST_PULSE_DUTY;
+        let relative = (estimate / self.config.torque_per_duty_nm - 1.0).abs();
+        report.torque_per_duty_nm = item(relative <= SELFTEST_TORQUE_TOLERANCE, estimate);
+        self.torque_nm = 0.0;
+        None
+    }
+}

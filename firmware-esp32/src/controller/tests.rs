@@ -1,0 +1,419 @@
+//! Every state transition and every fault, with scripted inputs (the twin covers them with
+//! physics in `tests/twin_runs.rs`).
+
+use kerfmeter_protocol::{DeviceConfig, ErrorCode, Fault, RunParams, RunState};
+
+use super::*;
+use kerfmeter_protocol::spiral::kerf_from_angle;
+
+/// A controller and a clock, fed scripted hub angles.
+struct Script {
+    c: Controller,
+    now_us: u64,
+    angle_deg: f32,
+}
+
+impl Script {
+    fn new() -> Self {
+        let mut s = Self {
+            c: Controller::new(DeviceConfig::DEFAULT),
+            now_us: 0,
+            angle_deg: 0.0,
+        };
+        s.tick();
+        s
+    }
+
+    fn inputs(&self) -> Inputs {
+        Inputs {
+            angle_deg: Ok(self.angle_deg),
+            diagnostics: None,
+            current_a: Some(0.5),
+            driver_fault: false,
+        }
+    }
+
+    fn tick(&mut self) -> MotorOutput {
+        let inputs = self.inputs();
+        self.tick_with(&inputs)
+    }
+
+    fn tick_with(&mut self, inputs: &Inputs) -> MotorOutput {
+        self.now_us += PERIOD_US;
+        let out = self.c.step(self.now_us, inputs);
+        // A host that polls every 10 ms.
+        if (self.now_us / PERIOD_US).is_multiple_of(10) {
+            self.c.host_activity(self.now_us);
+        }
+        out
+    }
+
+    /// The controller, a request from the host having just arrived (the device notes host
+    /// activity for every request before it carries the request out).
+    fn host(&mut self) -> &mut Controller {
+        self.c.host_activity(self.now_us);
+        &mut self.c
+    }
+
+    fn state(&self) -> RunState {
+        self.c.run_state()
+    }
+
+    fn start(&mut self, params: RunParams) {
+        assert_eq!(self.host().start_run(&params), Ok(()));
+    }
+}
+
+#[test]
+fn a_scripted_run_goes_through_every_run_state_to_a_result() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    let mut seen = [RunState::Idle; 0].to_vec();
+    // The hub turns 0.06°/tick until the "gap" closes at 60°, then stands still.
+    for _ in 0..5000 {
+        if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
+            s.angle_deg += 0.06;
+        }
+        let out = s.tick();
+        let st = s.state();
+        if seen.last() != Some(&st) {
+            seen.push(st);
+        }
+        if st == RunState::Done {
+            assert!(out.is_safe());
+            break;
+        }
+    }
+    assert_eq!(
+        seen,
+        [
+            RunState::Engaging,
+            RunState::Ramping,
+            RunState::Jammed,
+            RunState::Releasing,
+            RunState::Done
+        ]
+    );
+    let r = s.c.result().unwrap();
+    let expected = kerf_from_angle(&kerfmeter_protocol::GaugeGeometry::PAPER, 60.0).kerf_um;
+    assert!((r.kerf_um - expected).abs() < 0.01);
+    assert!((r.force_at_jam_n - 55.0).abs() < 0.5);
+    // Reset: to Resetting, back to zero, then Idle with the result gone.
+    assert_eq!(s.host().start_reset(), Ok(()));
+    assert_eq!(s.state(), RunState::Resetting);
+    for _ in 0..3000 {
+        let out = s.tick();
+        if out.awake && out.duty > 0.0 {
+            // The scripted hub follows the drive back.
+            s.angle_deg = (s.angle_deg - 0.09).max(0.0);
+        }
+        if s.state() == RunState::Idle {
+            break;
+        }
+    }
+    assert_eq!(s.state(), RunState::Idle);
+    assert_eq!(s.host().result(), None);
+}
+
+#[test]
+fn a_slipping_jam_goes_back_to_ramping() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    for _ in 0..5000 {
+        if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
+            s.angle_deg += 0.06;
+        }
+        s.tick();
+        if s.state() == RunState::Jammed {
+            break;
+        }
+    }
+    assert_eq!(s.state(), RunState::Jammed);
+    s.angle_deg += 2.0 * JAM_SLIP_DEG;
+    s.tick();
+    assert_eq!(s.state(), RunState::Ramping);
+}
+
+fn run_until_fault(s: &mut Script, mut script: impl FnMut(&mut Script, u32) -> Inputs) -> Fault {
+    for i in 0..20_000 {
+        let inputs = script(s, i);
+        let out = s.tick_with(&inputs);
+        if let RunState::Fault(f) = s.state() {
+            assert!(
+                out.is_safe() && !out.awake,
+                "motor safe in the fault's own tick"
+            );
+            return f;
+        }
+    }
+    panic!("no fault");
+}
+
+#[test]
+fn max_run_time() {
+    let mut s = Script::new();
+    s.start(RunParams {
+        max_time_ms: 100,
+        ..RunParams::DEFAULT
+    });
+    // The hub creeps on and never jams.
+    let f = run_until_fault(&mut s, |s, _| {
+        s.angle_deg += 0.01;
+        s.inputs()
+    });
+    assert_eq!(f, Fault::MaxRunTime);
+}
+
+#[test]
+fn overtravel() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    let f = run_until_fault(&mut s, |s, _| {
+        s.angle_deg += 0.09;
+        s.inputs()
+    });
+    assert_eq!(f, Fault::Overtravel);
+    assert!(s.angle_deg > 160.0);
+}
+
+#[test]
+fn no_motion() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    assert_eq!(run_until_fault(&mut s, |s, _| s.inputs()), Fault::NoMotion);
+}
+
+#[test]
+fn reverse_motion() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    let f = run_until_fault(&mut s, |s, i| {
+        s.angle_deg = if i < 300 { i as f32 * 0.06 } else { 18.0 - 3.0 };
+        s.inputs()
+    });
+    assert_eq!(f, Fault::ReverseMotion);
+}
+
+#[test]
+fn consecutive_encoder_errors_fault_but_a_few_are_ridden_through() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    let f = run_until_fault(&mut s, |s, i| {
+        s.angle_deg += 0.06;
+        let mut inputs = s.inputs();
+        // Isolated errors first (ridden through), then a burst.
+        if i.is_multiple_of(7) || i >= 200 {
+            inputs.angle_deg = Err(EncoderFault::Parity);
+        }
+        inputs
+    });
+    assert_eq!(f, Fault::EncoderErrors);
+    assert!(s.c.status().encoder_errors >= MAX_CONSECUTIVE_ENCODER_ERRORS + 20);
+}
+
+#[test]
+fn diagnostics_faults_are_typed() {
+    for (diag, fault) in [
+        (DiagnosticFault::Chip, Fault::EncoderDiagnostics),
+        (DiagnosticFault::Magnet, Fault::Magnet),
+    ] {
+        let mut s = Script::new();
+        let mut inputs = s.inputs();
+        inputs.diagnostics = Some(Err(diag));
+        s.tick_with(&inputs);
+        assert_eq!(s.state(), RunState::Fault(fault));
+    }
+}
+
+#[test]
+fn over_current_and_driver_fault() {
+    for (current_a, flt, fault) in [
+        (7.0, false, Fault::OverCurrent),
+        (0.5, true, Fault::DriverFault),
+    ] {
+        let mut s = Script::new();
+        s.start(RunParams::DEFAULT);
+        let f = run_until_fault(&mut s, |s, i| {
+            s.angle_deg += 0.06;
+            let mut inputs = s.inputs();
+            if i > 100 {
+                inputs.current_a = Some(current_a);
+                inputs.driver_fault = flt;
+            }
+            inputs
+        });
+        assert_eq!(f, fault);
+    }
+}
+
+#[test]
+fn an_unknown_current_faults_as_over_current_in_any_state() {
+    // At rest...
+    let mut s = Script::new();
+    let mut inputs = s.inputs();
+    inputs.current_a = None;
+    s.tick_with(&inputs);
+    assert_eq!(s.state(), RunState::Fault(Fault::OverCurrent));
+    // ...and mid-run, with the motor safe in the same tick.
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    let f = run_until_fault(&mut s, |s, i| {
+        s.angle_deg += 0.06;
+        let mut inputs = s.inputs();
+        if i > 100 {
+            inputs.current_a = None;
+        }
+        inputs
+    });
+    assert_eq!(f, Fault::OverCurrent);
+}
+
+#[test]
+fn host_silence_during_a_run() {
+    let mut s = Script::new();
+    s.start(RunParams {
+        host_timeout_ms: 200,
+        ..RunParams::DEFAULT
+    });
+    let mut f = None;
+    for _ in 0..1000 {
+        s.angle_deg += 0.06;
+        // No requests: step directly, bypassing the script's polling.
+        s.now_us += PERIOD_US;
+        let out = s.c.step(s.now_us, &s.inputs());
+        if let RunState::Fault(fault) = s.state() {
+            assert!(!out.awake);
+            f = Some(fault);
+            break;
+        }
+    }
+    assert_eq!(f, Some(Fault::HostSilent));
+}
+
+#[test]
+fn a_late_step_is_an_overrun_while_active_only() {
+    let mut s = Script::new();
+    // Idle: a late step is harmless (the board writes flash while idle).
+    s.now_us += 50 * PERIOD_US;
+    s.tick();
+    assert_eq!(s.state(), RunState::Idle);
+    s.start(RunParams::DEFAULT);
+    s.tick();
+    s.now_us += (OVERRUN_PERIODS + 1) * PERIOD_US;
+    s.tick();
+    assert_eq!(s.state(), RunState::Fault(Fault::StepOverrun));
+}
+
+#[test]
+fn a_blocked_reset_fails_with_a_typed_fault() {
+    let mut s = Script::new();
+    s.angle_deg = 40.0;
+    s.tick();
+    assert_eq!(s.host().start_reset(), Ok(()));
+    // The hub never moves.
+    assert_eq!(
+        run_until_fault(&mut s, |s, _| s.inputs()),
+        Fault::ResetFailed
+    );
+}
+
+#[test]
+fn faults_latch_until_cleared_and_refuse_runs_meanwhile() {
+    let mut s = Script::new();
+    let mut inputs = s.inputs();
+    inputs.driver_fault = true;
+    s.tick_with(&inputs);
+    assert_eq!(s.state(), RunState::Fault(Fault::DriverFault));
+    // Latched: the cause going away changes nothing.
+    s.tick();
+    assert_eq!(s.state(), RunState::Fault(Fault::DriverFault));
+    assert_eq!(
+        s.host().start_run(&RunParams::DEFAULT),
+        Err(ErrorCode::Faulted(Fault::DriverFault))
+    );
+    assert_eq!(
+        s.host().start_self_test(),
+        Err(ErrorCode::Faulted(Fault::DriverFault))
+    );
+    s.host().abort();
+    assert_eq!(
+        s.state(),
+        RunState::Fault(Fault::DriverFault),
+        "Abort does not clear a fault"
+    );
+    s.host().clear_fault();
+    assert_eq!(s.state(), RunState::Idle);
+    // Reset also leaves a fault (and drives to zero).
+    s.tick_with(&inputs);
+    assert_eq!(s.host().start_reset(), Ok(()));
+    assert_eq!(s.state(), RunState::Resetting);
+}
+
+#[test]
+fn abort_is_safe_in_the_next_tick_from_every_active_state() {
+    for ticks in [5, 200, 1200] {
+        let mut s = Script::new();
+        s.start(RunParams::DEFAULT);
+        for _ in 0..ticks {
+            if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
+                s.angle_deg += 0.06;
+            }
+            s.tick();
+        }
+        assert!(s.c.is_active());
+        s.host().abort();
+        let out = s.tick();
+        assert!(!out.awake && out.duty == 0.0, "after {ticks} ticks");
+        assert_eq!(s.state(), RunState::Idle);
+    }
+}
+
+#[test]
+fn invalid_params_and_out_of_order_requests_are_refused() {
+    let mut s = Script::new();
+    let bad = RunParams {
+        target_force_n: f32::NAN,
+        ..RunParams::DEFAULT
+    };
+    assert_eq!(
+        s.host().start_run(&bad),
+        Err(ErrorCode::InvalidParam(
+            kerfmeter_protocol::ParamField::TargetForceN
+        ))
+    );
+    assert_eq!(s.host().sample_chunk(0), Err(ErrorCode::NoSamples));
+    s.angle_deg = 5.0;
+    s.tick();
+    assert_eq!(
+        s.host().start_run(&RunParams::DEFAULT),
+        Err(ErrorCode::NotAtZero)
+    );
+    s.angle_deg = 0.0;
+    s.tick();
+    s.start(RunParams::DEFAULT);
+    assert_eq!(
+        s.host().start_run(&RunParams::DEFAULT),
+        Err(ErrorCode::Busy)
+    );
+    assert_eq!(s.host().start_reset(), Err(ErrorCode::Busy));
+    assert_eq!(s.c.set_config(DeviceConfig::DEFAULT), Err(ErrorCode::Busy));
+}
+
+#[test]
+fn the_motor_is_driven_in_the_gauges_sense() {
+    for (jam_direction, expect_dir_high) in [
+        (kerfmeter_protocol::JamDirection::Clockwise, true),
+        (kerfmeter_protocol::JamDirection::CounterClockwise, false),
+    ] {
+        let mut s = Script::new();
+        let mut params = RunParams::DEFAULT;
+        params.gauge.jam_direction = jam_direction;
+        s.start(params);
+        let mut out = MotorOutput::SAFE;
+        for _ in 0..50 {
+            out = s.tick();
+        }
+        assert!(out.awake && out.duty > 0.0);
+        assert_eq!(out.dir_high, expect_dir_high, "{jam_direction:?}");
+    }
+}
