@@ -1,9 +1,15 @@
-//! The `kerfmeter` command-line tool: drive a Kerfmeter (or its simulated twin) from a terminal
-//! or a script. `kerfmeter --help` lists the commands; `--json` makes every command print one JSON
-//! object on stdout for scripts.
+//! `kerfmeter-cli`: the `kerfmeter` command-line tool. Drive a Kerfmeter (or its simulated twin)
+//! from a terminal or a script, draw the gauge, dilate plans. `kerfmeter --help` lists the
+//! commands; `--json` makes every command print one JSON object on stdout for scripts.
 //!
-//! Exit codes: 0 success; 2 bad arguments; 3 communication error (port, timeout, protocol,
-//! device restarted); 4 the device refused, faulted or could not finish.
+//! This package holds what only a terminal needs: the arguments (clap), progress bars, plots
+//! ([`plot`]) and the reports; the work is done by the `kerfmeter` library (device, statistics, bed
+//! map, twin) and `kerfmeter-plan` (gauge drawing, dilation). The package's other binary,
+//! `kerfmeter-twin`, serves the digital twin on a real serial port.
+//!
+//! Exit codes follow the error's category ([`exit_code`]): 0 success; 2 bad arguments;
+//! 3 communication error (port, timeout, protocol, device restarted); 4 the device refused,
+//! faulted, failed its self-test or could not finish, or a file could not be read or written.
 
 use std::io::{BufRead, IsTerminal, Write};
 use std::path::PathBuf;
@@ -13,11 +19,15 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use kerfmeter::protocol::{
-    DeviceConfig, EncoderPlacement, GaugeGeometry, KerfResult, QualityFlags, RunState,
-    SelfTestItem, TestOutcome,
+    DeviceConfig, EncoderPlacement, GaugeGeometry, KerfResult, QualityFlags, SelfTestItem,
+    TestOutcome,
 };
-use kerfmeter::{Error, JointSpec, Kerfmeter, Options, Progress};
+use kerfmeter::{Category, Error, JointSpec, Kerfmeter, Options, Progress};
+use kerfmeter_plan::PlanError;
 use serde_json::json;
+
+mod plan;
+mod plot;
 
 /// `println!` that ends the program quietly when stdout is closed (`kerfmeter … | head`).
 macro_rules! out {
@@ -107,10 +117,10 @@ enum Command {
     /// Measure a grid of gauges across the bed and save a location-compensation map (JSON).
     Map(MapArgs),
     /// Draw the spiral gauge to cut before a measurement (SVG or DXF by extension).
-    Gauge(kerfmeter::plan::GaugeArgs),
+    Gauge(plan::GaugeArgs),
     /// Dilate a cutting plan (SVG or DXF) by the measured kerf: cuts grow by half the kerf on
     /// each side, so parts come out at their drawn size.
-    Dilate(kerfmeter::plan::DilateArgs),
+    Dilate(plan::DilateArgs),
 }
 
 #[derive(Args)]
@@ -218,12 +228,35 @@ struct MapArgs {
     yes: bool,
 }
 
+/// Why a command failed.
 #[derive(Debug, thiserror::Error)]
 enum CliError {
+    /// The arguments do not fit together.
     #[error("{0}")]
     Usage(String),
+    /// The library (device, map, files) failed.
     #[error(transparent)]
     Meter(#[from] Error),
+    /// A cutting plan could not be drawn, read or dilated.
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+    /// The device ran its self-test and an item failed.
+    #[error("the self-test failed; see the items above")]
+    SelfTestFailed,
+}
+
+impl CliError {
+    /// What kind of failure this is.
+    fn category(&self) -> Category {
+        match self {
+            CliError::Usage(_) => Category::Usage,
+            CliError::Meter(e) => e.category(),
+            // A plan error about a file is the file's; any other is about the arguments.
+            CliError::Plan(e) if e.path().is_some() => Category::File,
+            CliError::Plan(_) => Category::Usage,
+            CliError::SelfTestFailed => Category::Device,
+        }
+    }
 }
 
 fn main() -> ExitCode {
@@ -234,7 +267,7 @@ fn main() -> ExitCode {
             if cli.global.json {
                 let fault = match &e {
                     CliError::Meter(m) => m.fault().map(|f| format!("{f:?}")),
-                    CliError::Usage(_) => None,
+                    CliError::Usage(_) | CliError::Plan(_) | CliError::SelfTestFailed => None,
                 };
                 out!("{}", json!({ "error": e.to_string(), "fault": fault }));
             } else {
@@ -245,11 +278,12 @@ fn main() -> ExitCode {
     }
 }
 
+/// The process's exit code for an error: from its category, and from nothing else.
 fn exit_code(e: &CliError) -> u8 {
-    match e {
-        CliError::Usage(_) | CliError::Meter(Error::InvalidArgument(_)) => EXIT_USAGE,
-        CliError::Meter(e) if e.is_communication() => EXIT_COMMUNICATION,
-        CliError::Meter(_) => EXIT_DEVICE,
+    match e.category() {
+        Category::Usage => EXIT_USAGE,
+        Category::Communication => EXIT_COMMUNICATION,
+        Category::Device | Category::File => EXIT_DEVICE,
     }
 }
 
@@ -326,8 +360,8 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::SelfTest => self_test(g),
         Command::Config(c) => config(g, c),
         Command::Map(args) => map(g, args),
-        Command::Gauge(args) => print_report(g, &kerfmeter::plan::run_gauge(args)?),
-        Command::Dilate(args) => print_report(g, &kerfmeter::plan::run_dilate(args)?),
+        Command::Gauge(args) => print_report(g, &plan::run_gauge(args)?),
+        Command::Dilate(args) => print_report(g, &plan::run_dilate(args)?),
     }
 }
 
@@ -432,20 +466,14 @@ fn ask(g: &Global, yes: bool, sim: bool, what: &str) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Reset to zero if needed, then one run with a progress bar.
+/// Prepare for a run (reset to zero if needed), then one run with a progress bar.
 fn one_run(
     g: &Global,
     meter: &mut Kerfmeter,
     params: &kerfmeter::protocol::RunParams,
     label: &str,
 ) -> Result<KerfResult, CliError> {
-    let status = meter.status()?;
-    if let RunState::Fault(fault) = status.state {
-        return Err(Error::Fault { fault }.into());
-    }
-    if status.angle_deg.abs() > 0.5 || status.state != RunState::Idle {
-        meter.reset_kerfmeter()?;
-    }
+    meter.prepare_for_run()?;
     let bar = progress_bar(g, label);
     let result = meter.run_kerfmeter(params, |p| show(&bar, p));
     bar.finish_and_clear();
@@ -461,7 +489,7 @@ fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
     };
     let params = joint.run_params(GaugeGeometry::PAPER)?;
     if let Some(plot) = &args.plot {
-        kerfmeter::plot::PlotFormat::for_path(plot)?;
+        plot::PlotFormat::for_path(plot)?;
     }
     let mut s = connect(g)?;
     let sim = s.sim.is_some();
@@ -497,7 +525,7 @@ fn measure(g: &Global, args: &RunArgs) -> Result<(), CliError> {
         None
     };
     if let (Some(path), Some(curve)) = (&args.plot, &curve) {
-        kerfmeter::plot::plot_curve(curve, results.last(), path)?;
+        plot::plot_curve(curve, results.last(), path)?;
     }
     let at_forces: Vec<(f32, Option<f32>)> = match &curve {
         Some(c) => args
@@ -636,7 +664,7 @@ fn self_test(g: &Global) -> Result<(), CliError> {
     if passed {
         Ok(())
     } else {
-        Err(Error::InvalidArgument("the self-test failed; see the items above".into()).into())
+        Err(CliError::SelfTestFailed)
     }
 }
 

@@ -1,22 +1,25 @@
 //! The `gauge` and `dilate` commands: their arguments (clap), entry points and reports (text via
-//! `Display`, JSON via `serde`).
+//! `Display`, JSON via `serde`). The plan work itself is `kerfmeter_plan`'s; this module turns
+//! arguments into its options and writes the output files (atomically, never over the input).
 
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+use std::sync::Arc;
 
-use cavalier_contours::polyline::PlineSource;
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use kerfmeter::files::{ensure_not_input, write_atomically};
+use kerfmeter::map::KerfMap;
+use kerfmeter_plan::dilate::KerfSource;
+use kerfmeter_plan::gauge::{self, GaugeOptions, TestPieceSpec};
+use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
+use kerfmeter_plan::rules::CutRules;
+use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file};
 use kerfmeter_protocol::{GaugeGeometry, JamDirection};
 use serde::Serialize;
 
-use super::dilate::KerfSource;
-use super::dxf_plan::{DxfOptions, dilate_dxf};
-use super::gauge::{self, GaugeOptions, TestPieceSpec};
-use super::outcome::{AssumedUnits, PlanSummary};
-use super::rules::CutRules;
-use super::svg::{SvgOptions, dilate_svg};
-use crate::error::{Error, Result};
-use crate::files::{ensure_not_input, write_atomically};
-use crate::map::KerfMap;
+use crate::CliError;
+
+type Result<T, E = CliError> = std::result::Result<T, E>;
 
 /// Sense in which the hub turns to close the gauge's gap, seen from above.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
@@ -37,42 +40,12 @@ impl From<JamDirectionArg> for JamDirection {
     }
 }
 
-/// Plan file formats.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum PlanFormat {
-    /// SVG.
-    Svg,
-    /// DXF.
-    Dxf,
-}
-
-impl PlanFormat {
-    /// The format a path's extension names.
-    pub fn of(path: &Path) -> Result<PlanFormat> {
-        match path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .as_deref()
-        {
-            Some("svg") => Ok(PlanFormat::Svg),
-            Some("dxf") => Ok(PlanFormat::Dxf),
-            _ => Err(Error::InvalidArgument(format!(
-                "{}: the file name must end in .svg or .dxf",
-                path.display()
-            ))),
-        }
-    }
-}
-
-impl fmt::Display for PlanFormat {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            PlanFormat::Svg => "SVG",
-            PlanFormat::Dxf => "DXF",
-        })
-    }
+/// `--units`: the names of [`AssumedUnits`], each with its description in `--help`.
+fn units_parser() -> impl TypedValueParser<Value = AssumedUnits> {
+    PossibleValuesParser::new(
+        AssumedUnits::ALL.map(|u| PossibleValue::new(u.name()).help(u.describe())),
+    )
+    .map(|name| name.parse().expect("clap only passes the names listed"))
 }
 
 /// `kerfmeter gauge`: write the spiral gauge to cut.
@@ -121,26 +94,6 @@ pub struct GaugeArgs {
 }
 
 impl GaugeArgs {
-    /// The paper's gauge, written to `output`, no extras.
-    pub fn new(output: impl Into<PathBuf>) -> Self {
-        let g = GaugeGeometry::PAPER;
-        Self {
-            output: output.into(),
-            pitch_um_per_deg: g.pitch_um_per_deg,
-            radius_mm: g.radius_mm,
-            prong_radius_mm: g.prong_radius_mm,
-            hole_radius_mm: g.hole_radius_mm,
-            hole_distance_mm: g.hole_distance_mm,
-            jam_direction: JamDirectionArg::Cw,
-            disengage_deg: g.disengage_deg,
-            test_piece: false,
-            thickness_mm: 4.0,
-            finger_width_mm: 6.3,
-            test_piece_kerf_um: None,
-            label: false,
-        }
-    }
-
     /// The gauge geometry these arguments describe.
     pub fn geometry(&self) -> GaugeGeometry {
         GaugeGeometry {
@@ -154,11 +107,11 @@ impl GaugeArgs {
         }
     }
 
-    fn options(&self) -> Result<GaugeOptions> {
+    fn options(&self) -> Result<GaugeOptions, PlanError> {
         let test_piece = match (self.test_piece, self.test_piece_kerf_um) {
             (false, _) => None,
             (true, None) => {
-                return Err(Error::InvalidArgument(
+                return Err(PlanError::InvalidArgument(
                     "--test-piece needs --test-piece-kerf-um (the kerf to dilate it by)".into(),
                 ));
             }
@@ -268,7 +221,8 @@ pub fn run_gauge(args: &GaugeArgs) -> Result<GaugeReport> {
     write_atomically(&args.output, &bytes)?;
     let arcs = drawing
         .spiral
-        .iter_vertexes()
+        .vertex_data
+        .iter()
         .filter(|v| v.bulge != 0.0)
         .count();
     Ok(GaugeReport {
@@ -322,26 +276,8 @@ pub struct DilateArgs {
     #[arg(long = "cut-layer", value_name = "LAYER", value_delimiter = ',')]
     pub cut_layers: Vec<String>,
     /// What one drawing unit is, for files that do not say (unitless SVG, DXF without $INSUNITS).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = units_parser())]
     pub units: Option<AssumedUnits>,
-}
-
-impl DilateArgs {
-    /// Dilate `input` by `kerf_um` into `output` with the default rules.
-    pub fn new(input: impl Into<PathBuf>, kerf_um: f64, output: Option<PathBuf>) -> Self {
-        Self {
-            input: input.into(),
-            kerf_um,
-            map: None,
-            output,
-            strict: false,
-            dry_run: false,
-            cut_colors: Vec::new(),
-            cut_max_width_mm: CutRules::default().max_width_mm,
-            cut_layers: Vec::new(),
-            units: None,
-        }
-    }
 }
 
 /// What `dilate` did (or, with `--dry-run`, would do).
@@ -434,7 +370,7 @@ impl fmt::Display for DilateReport {
                 }
             )?;
             for o in &s.open_paths {
-                writeln!(f, "    - {}", describe_open(o))?;
+                writeln!(f, "    - {o}")?;
             }
         }
         for n in &s.notes {
@@ -442,13 +378,6 @@ impl fmt::Display for DilateReport {
         }
         Ok(())
     }
-}
-
-fn describe_open(o: &super::outcome::OpenPath) -> String {
-    format!(
-        "{} from ({:.3}, {:.3}) to ({:.3}, {:.3}) mm",
-        o.id, o.start_mm[0], o.start_mm[1], o.end_mm[0], o.end_mm[1]
-    )
 }
 
 fn plural(n: usize) -> &'static str {
@@ -461,63 +390,30 @@ pub fn run_dilate(args: &DilateArgs) -> Result<DilateReport> {
     if let Some(out) = &args.output {
         let out_format = PlanFormat::of(out)?;
         if out_format != format {
-            return Err(Error::InvalidArgument(format!(
+            return Err(PlanError::InvalidArgument(format!(
                 "the output {} must have the input's format ({format})",
                 out.display()
-            )));
+            ))
+            .into());
         }
         ensure_not_input(&args.input, out)?;
     }
     let kerf_um = KerfSource::check_kerf_um(args.kerf_um)?;
     let kerf = match &args.map {
         None => KerfSource::Uniform(kerf_um),
-        Some(path) => KerfSource::Map {
-            map: KerfMap::load(path)?,
-            reference_kerf_um: kerf_um,
-        },
-    };
-    let rules = CutRules::new(&args.cut_colors, args.cut_max_width_mm, &args.cut_layers)?;
-    let file_error = |message: String| Error::File {
-        path: args.input.clone(),
-        message,
-    };
-    let bytes = std::fs::read(&args.input).map_err(|e| file_error(format!("cannot read: {e}")))?;
-    let in_file = |e: Error| match e {
-        Error::InvalidArgument(m) => file_error(m),
-        other => other,
-    };
-    let (output, summary) = match format {
-        PlanFormat::Svg => {
-            if bytes.starts_with(&[0x1f, 0x8b]) {
-                return Err(file_error(
-                    "a compressed SVG (.svgz) is not supported; save it uncompressed".into(),
-                ));
-            }
-            let text = String::from_utf8(bytes)
-                .map_err(|_| file_error("not a readable SVG file (not UTF-8 text)".into()))?;
-            let opts = SvgOptions {
-                rules: rules.clone(),
-                assume_units: args.units,
-            };
-            let (out, summary) = dilate_svg(&text, &kerf, &opts).map_err(in_file)?;
-            (out.into_bytes(), summary)
-        }
-        PlanFormat::Dxf => {
-            let opts = DxfOptions {
-                rules: rules.clone(),
-                assume_units: args.units,
-            };
-            dilate_dxf(&bytes, &kerf, &opts).map_err(in_file)?
+        Some(path) => {
+            let map = KerfMap::load(path)?;
+            KerfSource::Map(Arc::new(move |x_mm, y_mm| {
+                map.kerf_at_um(kerf_um, x_mm, y_mm)
+            }))
         }
     };
-    if args.strict && !summary.open_paths.is_empty() {
-        let list: Vec<String> = summary.open_paths.iter().map(describe_open).collect();
-        return Err(file_error(format!(
-            "{} open cut path(s) cannot be dilated (--strict; nothing was written):\n  - {}",
-            list.len(),
-            list.join("\n  - ")
-        )));
-    }
+    let options = DilateOptions {
+        rules: CutRules::new(&args.cut_colors, args.cut_max_width_mm, &args.cut_layers)?,
+        assume_units: args.units,
+        strict: args.strict,
+    };
+    let (output, summary) = dilate_file(&args.input, &kerf, &options)?;
     if !args.dry_run
         && let Some(out) = &args.output
     {
@@ -534,7 +430,7 @@ pub fn run_dilate(args: &DilateArgs) -> Result<DilateReport> {
         format,
         kerf_um,
         map: args.map.clone(),
-        cut_rules: rules.describe(),
+        cut_rules: options.rules.describe(),
         summary,
     })
 }

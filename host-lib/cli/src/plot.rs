@@ -6,8 +6,7 @@ use std::path::Path;
 use kerfmeter_protocol::KerfResult;
 use plotters::prelude::*;
 
-use crate::calls::Curve;
-use crate::error::{Error, Result};
+use kerfmeter::{Curve, Error, Result};
 
 /// Picture size, pixels.
 const SIZE: (u32, u32) = (1000, 650);
@@ -94,7 +93,7 @@ pub fn plot_curve(curve: &Curve, result: Option<&KerfResult>, path: &Path) -> Re
     drawn.map_err(file_error)?;
     tmp.persist(path)
         .map_err(|e| file_error(format!("cannot write: {}", e.error)))?;
-    crate::files::make_readable(path)
+    kerfmeter::files::make_readable(path)
 }
 
 fn draw<DB: DrawingBackend>(

@@ -6,8 +6,14 @@
 //! request feeds the device's communication watchdog: if this program stops (or the port
 //! vanishes) mid-run, the device stops its motor on its own within the run's
 //! `host_timeout_ms`.
+//!
+//! A run starts only with the hub at its zero position: [`Kerfmeter::prepare_for_run`] resets it
+//! first when it is further from zero than the firmware's own start tolerance.
 
 use std::time::{Duration, Instant};
+
+// The device refuses to start a run further than this from zero; the host resets beyond it.
+use kerfmeter_firmware::controller::START_TOLERANCE_DEG;
 
 use kerfmeter_protocol::{
     ConfigReport, DeviceConfig, ErrorCode, KerfResult, Request, Response, RunParams, RunState,
@@ -82,6 +88,9 @@ fn unexpected(request: &'static str, response: &Response) -> Error {
     crate::client::unexpected(request, response)
 }
 
+/// What one status poll decided: keep polling, or the call's outcome.
+type Poll<T> = Result<Option<T>>;
+
 impl Kerfmeter {
     /// The device's state, torque and angle.
     pub fn status(&mut self) -> Result<Status> {
@@ -116,34 +125,71 @@ impl Kerfmeter {
             Response::Ok => {}
             other => return Err(unexpected("Run", &other)),
         }
-        let deadline =
-            Instant::now() + Duration::from_millis(u64::from(params.max_time_ms)) + RUN_SLACK;
+        let limit = Duration::from_millis(u64::from(params.max_time_ms)) + RUN_SLACK;
         let mut run_id = None;
-        loop {
-            let status = self.status()?;
-            progress(&Progress::from(&status));
+        self.poll_until(limit, |meter, status| {
+            progress(&Progress::from(status));
             let id = *run_id.get_or_insert(status.run_id);
             match status.state {
-                RunState::Done => {
-                    return match self.get_kerf_value()? {
-                        Some(result) if result.run_id == id => Ok(result),
-                        _ => Err(Error::RunInterrupted),
-                    };
-                }
-                RunState::Fault(fault) => return Err(Error::Fault { fault }),
+                RunState::Done => match meter.get_kerf_value()? {
+                    Some(result) if result.run_id == id => Ok(Some(result)),
+                    _ => Err(Error::RunInterrupted),
+                },
+                RunState::Fault(fault) => Err(Error::Fault { fault }),
                 RunState::Engaging | RunState::Ramping | RunState::Jammed | RunState::Releasing => {
+                    Ok(None)
                 }
                 // Back to idle (or busy with something else) without a result: aborted by
                 // another program, or the device restarted.
                 RunState::Idle | RunState::Resetting | RunState::SelfTest => {
-                    self.info()?;
-                    return Err(Error::RunInterrupted);
+                    meter.info()?;
+                    Err(Error::RunInterrupted)
                 }
+            }
+        })
+    }
+
+    /// Make the device ready for a run: a latched fault ends the call with [`Error::Fault`] (clear
+    /// it knowingly, with [`Kerfmeter::clear_fault`] or a reset); a device that is busy, or whose
+    /// hub is further from zero than the firmware accepts for a start, is reset first.
+    ///
+    /// ```no_run
+    /// use kerfmeter::{Kerfmeter, JointSpec, protocol::GaugeGeometry};
+    /// let mut meter = Kerfmeter::open("/dev/ttyACM0")?;
+    /// let params = JointSpec::default().run_params(GaugeGeometry::PAPER)?;
+    /// meter.prepare_for_run()?;
+    /// meter.run_kerfmeter(&params, |_| {})?;
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
+    pub fn prepare_for_run(&mut self) -> Result<()> {
+        let status = self.status()?;
+        if let RunState::Fault(fault) = status.state {
+            return Err(Error::Fault { fault });
+        }
+        if status.angle_deg.abs() > START_TOLERANCE_DEG || status.state != RunState::Idle {
+            self.reset_kerfmeter()?;
+        }
+        Ok(())
+    }
+
+    /// Poll the status every [`Options::poll_interval`](crate::Options::poll_interval) until
+    /// `decide` returns an outcome or an error. Past `limit` the device is told to abort and the
+    /// call ends with [`Error::RunTimeout`] naming `limit`.
+    fn poll_until<T>(
+        &mut self,
+        limit: Duration,
+        mut decide: impl FnMut(&mut Self, &Status) -> Poll<T>,
+    ) -> Result<T> {
+        let deadline = Instant::now() + limit;
+        loop {
+            let status = self.status()?;
+            if let Some(outcome) = decide(self, &status)? {
+                return Ok(outcome);
             }
             if Instant::now() > deadline {
                 let _ = self.abort();
                 return Err(Error::RunTimeout {
-                    seconds: deadline.elapsed().as_secs() + RUN_SLACK.as_secs(),
+                    seconds: limit.as_secs(),
                 });
             }
             std::thread::sleep(self.options().poll_interval);
@@ -175,13 +221,7 @@ impl Kerfmeter {
         }
         let mut runs = Vec::with_capacity(n);
         for i in 0..n {
-            let status = self.status()?;
-            if let RunState::Fault(fault) = status.state {
-                return Err(Error::Fault { fault });
-            }
-            if status.angle_deg.abs() > 0.5 || status.state != RunState::Idle {
-                self.reset_kerfmeter()?;
-            }
+            self.prepare_for_run()?;
             before_gauge(i)?;
             runs.push(self.run_kerfmeter(params, |p| progress(i, p))?);
         }
@@ -223,23 +263,12 @@ impl Kerfmeter {
             Response::Ok => {}
             other => return Err(unexpected("Reset", &other)),
         }
-        let deadline = Instant::now() + RESET_DEADLINE;
-        loop {
-            let status = self.status()?;
-            match status.state {
-                RunState::Idle => return Ok(()),
-                RunState::Fault(fault) => return Err(Error::Fault { fault }),
-                RunState::Resetting => {}
-                _ => return Err(Error::RunInterrupted),
-            }
-            if Instant::now() > deadline {
-                let _ = self.abort();
-                return Err(Error::RunTimeout {
-                    seconds: RESET_DEADLINE.as_secs(),
-                });
-            }
-            std::thread::sleep(self.options().poll_interval);
-        }
+        self.poll_until(RESET_DEADLINE, |_, status| match status.state {
+            RunState::Idle => Ok(Some(())),
+            RunState::Fault(fault) => Err(Error::Fault { fault }),
+            RunState::Resetting => Ok(None),
+            _ => Err(Error::RunInterrupted),
+        })
     }
 
     /// Stop the motor now and end the run, reset or self-test in progress.
@@ -287,23 +316,14 @@ impl Kerfmeter {
             Response::Ok => {}
             other => return Err(unexpected("SelfTest", &other)),
         }
-        let deadline = Instant::now() + SELF_TEST_DEADLINE;
-        loop {
-            let status = self.status()?;
-            progress(&Progress::from(&status));
+        self.poll_until(SELF_TEST_DEADLINE, |_, status| {
+            progress(&Progress::from(status));
             match status.state {
-                RunState::SelfTest => {}
-                RunState::Fault(fault) => return Err(Error::Fault { fault }),
-                _ => break,
+                RunState::SelfTest => Ok(None),
+                RunState::Fault(fault) => Err(Error::Fault { fault }),
+                _ => Ok(Some(())),
             }
-            if Instant::now() > deadline {
-                let _ = self.abort();
-                return Err(Error::RunTimeout {
-                    seconds: SELF_TEST_DEADLINE.as_secs(),
-                });
-            }
-            std::thread::sleep(self.options().poll_interval);
-        }
+        })?;
         match self.call(Request::GetSelfTest)? {
             Response::SelfTest(Some(report)) => Ok(report),
             Response::SelfTest(None) => Err(Error::RunInterrupted),

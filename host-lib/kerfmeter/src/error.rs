@@ -133,22 +133,45 @@ impl Error {
         }
     }
 
+    /// What kind of failure this is (the command-line tool's exit code follows from it).
+    pub fn category(&self) -> Category {
+        match self {
+            Error::Open { .. }
+            | Error::PortVanished { .. }
+            | Error::Io { .. }
+            | Error::Timeout { .. }
+            | Error::ProtocolMismatch { .. }
+            | Error::UnexpectedResponse { .. }
+            | Error::DeviceReset { .. }
+            | Error::Discover(_)
+            | Error::Sim(_) => Category::Communication,
+            Error::Device { .. }
+            | Error::Fault { .. }
+            | Error::RunInterrupted
+            | Error::RunTimeout { .. } => Category::Device,
+            Error::InvalidArgument(_) => Category::Usage,
+            Error::File { .. } => Category::File,
+        }
+    }
+
     /// True for errors of the link itself (port, timeout, protocol), as opposed to the device
     /// refusing or failing a request.
     pub fn is_communication(&self) -> bool {
-        matches!(
-            self,
-            Error::Open { .. }
-                | Error::PortVanished { .. }
-                | Error::Io { .. }
-                | Error::Timeout { .. }
-                | Error::ProtocolMismatch { .. }
-                | Error::UnexpectedResponse { .. }
-                | Error::DeviceReset { .. }
-                | Error::Discover(_)
-                | Error::Sim(_)
-        )
+        self.category() == Category::Communication
     }
+}
+
+/// The kinds of failure, coarse enough for a script to act on (see [`Error::category`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Category {
+    /// A bad argument or parameter: change the command.
+    Usage,
+    /// The link to the device: the port, a timeout, the protocol, a restarted device.
+    Communication,
+    /// The device refused, faulted or could not finish.
+    Device,
+    /// A file could not be read, parsed or written.
+    File,
 }
 
 /// A sentence for a device error code, saying what to do about it.

@@ -6,6 +6,15 @@
 //! answers from memory instead of acting twice), skips garbage on the line, and turns every
 //! device refusal into an [`Error`] whose message says what to do.
 //!
+//! Beside the client: the calls ([`Kerfmeter::run_kerfmeter`], [`Kerfmeter::get_kerf_value`],
+//! [`Kerfmeter::reset_kerfmeter`] and the rest), run parameters from a joint ([`params`]),
+//! statistics over repeated runs ([`stats`]), the bed map ([`map`]), safe output files
+//! ([`files`]) and, with the `sim` feature (on by default), the digital twin in-process ([`sim`]).
+//!
+//! This crate is not the command-line tool (that is `kerfmeter-cli`, which also draws the plots)
+//! and does not read or write cutting plans (that is `kerfmeter-plan`): it has no argument parser,
+//! no plotting and no SVG/DXF code.
+//!
 //! ```no_run
 //! let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
 //! let info = meter.info()?;
@@ -21,14 +30,12 @@ mod error;
 pub mod files;
 pub mod map;
 pub mod params;
-pub mod plan;
-pub mod plot;
 #[cfg(feature = "sim")]
 pub mod sim;
 pub mod stats;
 
 pub use calls::{Curve, Measurement, Progress};
 pub use client::{Kerfmeter, Options};
-pub use error::{Error, Result, describe_error_code, describe_fault};
+pub use error::{Category, Error, Result, describe_error_code, describe_fault};
 pub use kerfmeter_protocol as protocol;
 pub use params::JointSpec;

@@ -1,6 +1,6 @@
 //! Dilating a large plan: 2,500 box-joint parts on a 50 × 50 grid, each an outline with 28
 //! fingers (116 vertices) and three holes (a slot, a round hole, a rounded rectangle) — 10,000
-//! closed contours, 325,000 vertices — by 150 µm with `kerfmeter::plan::dilate::dilate`
+//! closed contours, 325,000 vertices — by 150 µm with `kerfmeter_plan::dilate::dilate`
 //! (nesting, per-part kerf, offsets, merge check). Budget: under 1 s.
 //!
 //! `cargo bench -p kerfmeter --bench dilate`
@@ -10,7 +10,7 @@ use std::hint::black_box;
 
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
 use criterion::{Criterion, criterion_group, criterion_main};
-use kerfmeter::plan::dilate::{Contour, KerfSource, dilate};
+use kerfmeter_plan::dilate::{Contour, KerfSource, dilate};
 
 /// One part at (`x`, `y`): 40 × 40 mm, seven 2.5 mm fingers (3 mm long) on each side, three
 /// holes.

@@ -28,9 +28,11 @@ use cavalier_contours::polyline::{PlineSource, PlineSourceMut};
 use cavalier_contours::static_aabb2d_index::{StaticAABB2DIndex, StaticAABB2DIndexBuilder};
 use serde::Serialize;
 
+use std::fmt;
+use std::sync::Arc;
+
 use super::geom::{Pline, V2, area_and_centroid, v2};
-use crate::error::{Error, Result};
-use crate::map::KerfMap;
+use crate::error::{PlanError, Result};
 
 /// Largest kerf accepted, µm (a sanity bound: real kerfs are 50–500 µm).
 pub const MAX_KERF_UM: f64 = 5000.0;
@@ -44,19 +46,26 @@ pub struct Contour {
     pub label: String,
 }
 
+/// The kerf (µm) at a point of the bed (x, y in mm).
+pub type KerfField = dyn Fn(f64, f64) -> f64 + Send + Sync;
+
 /// Where the kerf comes from.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub enum KerfSource {
     /// The same kerf everywhere, µm.
     Uniform(f64),
-    /// A kerf map: the kerf measured at the map's reference cell (µm) plus the map's
-    /// compensation at each part's centroid.
-    Map {
-        /// The map.
-        map: KerfMap,
-        /// Kerf at the reference cell, µm.
-        reference_kerf_um: f64,
-    },
+    /// A kerf that varies over the bed, e.g. a bed map's: each part uses the kerf at its
+    /// centroid.
+    Map(Arc<KerfField>),
+}
+
+impl fmt::Debug for KerfSource {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            KerfSource::Uniform(k) => f.debug_tuple("Uniform").field(k).finish(),
+            KerfSource::Map(_) => f.write_str("Map(..)"),
+        }
+    }
 }
 
 impl KerfSource {
@@ -64,10 +73,7 @@ impl KerfSource {
     pub fn kerf_at_um(&self, x_mm: f64, y_mm: f64) -> f64 {
         match self {
             KerfSource::Uniform(k) => *k,
-            KerfSource::Map {
-                map,
-                reference_kerf_um,
-            } => map.kerf_at_um(*reference_kerf_um, x_mm, y_mm),
+            KerfSource::Map(field) => field(x_mm, y_mm),
         }
     }
 
@@ -76,7 +82,7 @@ impl KerfSource {
         if kerf_um.is_finite() && (0.0..=MAX_KERF_UM).contains(&kerf_um) {
             Ok(kerf_um)
         } else {
-            Err(Error::InvalidArgument(format!(
+            Err(PlanError::InvalidArgument(format!(
                 "the kerf must be between 0 and {MAX_KERF_UM} µm, got {kerf_um} µm"
             )))
         }
@@ -205,7 +211,7 @@ impl Problems {
         if n > SHOWN {
             msg.push_str(&format!("\n  … and {} more", n - SHOWN));
         }
-        Err(Error::InvalidArgument(msg))
+        Err(PlanError::CannotDilate(msg))
     }
 }
 
@@ -594,20 +600,13 @@ mod tests {
 
     #[test]
     fn a_map_gives_each_part_the_kerf_at_its_centroid() {
-        let grid = crate::map::Grid::new(200.0, 100.0, 2, 1).unwrap();
-        let map = KerfMap::from_runs(grid, (0, 0), vec![vec![100.0], vec![140.0]]).unwrap();
+        // 120 µm left of x = 100 mm, 160 µm right of it.
+        let field = |x_mm: f64, _y_mm: f64| if x_mm < 100.0 { 120.0 } else { 160.0 };
         let contours = vec![
             c(rect(40.0, 40.0, 60.0, 60.0, true), "left"),
             c(rect(140.0, 40.0, 160.0, 60.0, true), "right"),
         ];
-        let d = dilate(
-            &contours,
-            &KerfSource::Map {
-                map,
-                reference_kerf_um: 120.0,
-            },
-        )
-        .unwrap();
+        let d = dilate(&contours, &KerfSource::Map(Arc::new(field))).unwrap();
         assert!((d.parts[0].kerf_um - 120.0).abs() < 1e-9);
         assert!((d.parts[1].kerf_um - 160.0).abs() < 1e-9);
     }

@@ -35,7 +35,7 @@ use super::dilate::{self, Contour, KerfSource};
 use super::geom::{PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, OpenPath, PlanSummary};
 use super::rules::{CutRules, Rgb, Verdict};
-use crate::error::{Error, Result};
+use crate::error::{PlanError, Result};
 
 /// Ends closer than this join (mm).
 const JOIN_MM: f64 = 1e-4;
@@ -49,8 +49,8 @@ pub struct DxfOptions {
     pub assume_units: Option<AssumedUnits>,
 }
 
-fn bad(message: impl Into<String>) -> Error {
-    Error::InvalidArgument(message.into())
+fn bad(message: impl Into<String>) -> PlanError {
+    PlanError::Dxf(message.into())
 }
 
 /// What a closed contour came from, and how to write it back.
@@ -154,7 +154,7 @@ fn units_mm(
             ));
             Ok(u.mm())
         }
-        (None, None) => Err(bad(format!(
+        (None, None) => Err(PlanError::Units(format!(
             "unknown units: $INSUNITS is {:?} (R12 files and many exports leave it unset); save the drawing in mm, or say what one unit is with --units mm|cm|in",
             drawing.header.default_drawing_units
         ))),

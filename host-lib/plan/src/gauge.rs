@@ -45,7 +45,7 @@ use serde::Serialize;
 use super::dilate::{self, Contour, KerfSource};
 use super::geom::{Affine, CURVE_TOLERANCE_MM, Pline, V2, fit_biarcs, segment_distance, v2};
 use super::svg::write_pline;
-use crate::error::{Error, Result};
+use crate::error::{PlanError, Result};
 
 /// Margin around the drawing, mm.
 const MARGIN_MM: f64 = 5.0;
@@ -119,7 +119,7 @@ pub fn check_geometry(g: &GaugeGeometry) -> Result<()> {
     };
     if let Err(field) = params.validate() {
         let (lo, hi) = field.range();
-        return Err(Error::InvalidArgument(format!(
+        return Err(PlanError::InvalidArgument(format!(
             "gauge {} is out of range (allowed {lo} to {hi}, and the holes must fit inside the spiral with the hole larger than the prong)",
             field.name()
         )));
@@ -128,7 +128,7 @@ pub fn check_geometry(g: &GaugeGeometry) -> Result<()> {
     let a = f64::from(g.radius_mm) - PI * c;
     let hole_reach = f64::from(g.hole_distance_mm) + f64::from(g.hole_radius_mm);
     if a <= hole_reach + 0.5 {
-        return Err(Error::InvalidArgument(format!(
+        return Err(PlanError::InvalidArgument(format!(
             "the spiral starts at r = {a:.3} mm, too close to the prong holes (they reach {hole_reach:.3} mm from the centre): use a larger radius, a smaller pitch or holes nearer the centre"
         )));
     }
@@ -266,7 +266,7 @@ pub fn build(g: &GaugeGeometry, opts: &GaugeOptions) -> Result<GaugeDrawing> {
             ("--finger-width-mm", spec.finger_width_mm),
         ] {
             if !(v.is_finite() && (0.5..=50.0).contains(&v)) {
-                return Err(Error::InvalidArgument(format!(
+                return Err(PlanError::InvalidArgument(format!(
                     "{name} must be between 0.5 and 50 mm, got {v}"
                 )));
             }
@@ -493,7 +493,7 @@ pub fn to_dxf(d: &GaugeDrawing) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     drawing
         .save(&mut out)
-        .map_err(|e| Error::InvalidArgument(format!("cannot write the DXF: {e}")))?;
+        .map_err(|e| PlanError::Dxf(format!("cannot write the DXF: {e}")))?;
     Ok(out)
 }
 

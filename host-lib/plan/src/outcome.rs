@@ -2,12 +2,14 @@
 //! files that do not say.
 
 use std::collections::BTreeMap;
+use std::fmt;
+use std::str::FromStr;
 
 use serde::Serialize;
 
 /// The length of one drawing unit when the file does not say (an SVG without absolute
 /// `width`/`height`, a DXF with `$INSUNITS` 0).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum AssumedUnits {
     /// Millimetres.
@@ -25,6 +27,40 @@ pub enum AssumedUnits {
 }
 
 impl AssumedUnits {
+    /// Every unit, in the order a user is offered them.
+    pub const ALL: [AssumedUnits; 6] = [
+        AssumedUnits::Mm,
+        AssumedUnits::Cm,
+        AssumedUnits::In,
+        AssumedUnits::Pt,
+        AssumedUnits::Px96,
+        AssumedUnits::Px72,
+    ];
+
+    /// Its name as a user writes it (and as it is serialized): `mm`, `px96`, ….
+    pub fn name(self) -> &'static str {
+        match self {
+            AssumedUnits::Mm => "mm",
+            AssumedUnits::Cm => "cm",
+            AssumedUnits::In => "in",
+            AssumedUnits::Pt => "pt",
+            AssumedUnits::Px96 => "px96",
+            AssumedUnits::Px72 => "px72",
+        }
+    }
+
+    /// What it is, in words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            AssumedUnits::Mm => "Millimetres",
+            AssumedUnits::Cm => "Centimetres",
+            AssumedUnits::In => "Inches",
+            AssumedUnits::Pt => "Points (1/72 in)",
+            AssumedUnits::Px96 => "CSS pixels, 96 per inch (Inkscape, browsers)",
+            AssumedUnits::Px72 => "Pixels at 72 per inch (older Illustrator exports)",
+        }
+    }
+
     /// One unit, mm.
     pub fn mm(self) -> f64 {
         match self {
@@ -38,6 +74,20 @@ impl AssumedUnits {
     }
 }
 
+impl FromStr for AssumedUnits {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        AssumedUnits::ALL
+            .into_iter()
+            .find(|u| u.name().eq_ignore_ascii_case(s))
+            .ok_or_else(|| {
+                let names: Vec<&str> = AssumedUnits::ALL.map(AssumedUnits::name).to_vec();
+                format!("unknown unit `{s}` (one of {})", names.join(", "))
+            })
+    }
+}
+
 /// An open cut path: it cannot be dilated and is left as drawn.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OpenPath {
@@ -47,6 +97,16 @@ pub struct OpenPath {
     pub start_mm: [f64; 2],
     /// Where it ends, mm.
     pub end_mm: [f64; 2],
+}
+
+impl fmt::Display for OpenPath {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} from ({:.3}, {:.3}) to ({:.3}, {:.3}) mm",
+            self.id, self.start_mm[0], self.start_mm[1], self.end_mm[0], self.end_mm[1]
+        )
+    }
 }
 
 /// What a dilation of one plan found and did.

@@ -29,7 +29,7 @@ use std::str::FromStr;
 
 use serde::Serialize;
 
-use crate::error::{Error, Result};
+use crate::error::{PlanError, Result};
 
 /// An sRGB colour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -46,7 +46,7 @@ impl Rgb {
     /// Parse any CSS colour (`red`, `#f00`, `#FF0000`, `rgb(255,0,0)`).
     pub fn parse(text: &str) -> Result<Rgb> {
         let c = svgtypes::Color::from_str(text.trim()).map_err(|e| {
-            Error::InvalidArgument(format!(
+            PlanError::InvalidArgument(format!(
                 "`{text}` is not a colour ({e}); use a name like red or a hex code like #FF0000"
             ))
         })?;
@@ -117,7 +117,7 @@ impl CutRules {
                 .collect::<Result<_>>()?;
         }
         if !(max_width_mm.is_finite() && max_width_mm >= 0.0) {
-            return Err(Error::InvalidArgument(format!(
+            return Err(PlanError::InvalidArgument(format!(
                 "--cut-max-width-mm must be a width ≥ 0 mm, got {max_width_mm}"
             )));
         }

@@ -54,7 +54,7 @@ use super::dilate::{self, Contour, KerfSource};
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, OpenPath, PlanSummary};
 use super::rules::{CutRules, Rgb, Verdict};
-use crate::error::{Error, Result};
+use crate::error::{PlanError, Result};
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
 const XLINK_NS: &str = "http://www.w3.org/1999/xlink";
@@ -107,8 +107,8 @@ struct Edit {
     text: String,
 }
 
-fn bad(message: impl Into<String>) -> Error {
-    Error::InvalidArgument(message.into())
+fn bad(message: impl Into<String>) -> PlanError {
+    PlanError::Svg(message.into())
 }
 
 /// Dilate the cuts of an SVG plan. Returns the edited document and what was done.
@@ -443,7 +443,7 @@ fn document_scale(
             // usvg converts absolute lengths at 96 px per inch.
             Ok(25.4 / 96.0)
         }
-        (Some(a), Some(b)) if absolute(&a) != absolute(&b) => Err(bad(format!(
+        (Some(a), Some(b)) if absolute(&a) != absolute(&b) => Err(PlanError::Units(format!(
             "unknown units: the root <svg> mixes width=\"{}\" and height=\"{}\"; give both in mm (or both in the same absolute unit)",
             w.unwrap_or(""),
             h.unwrap_or("")
@@ -457,7 +457,7 @@ fn document_scale(
                 ));
                 Ok(u.mm())
             }
-            None => Err(bad(format!(
+            None => Err(PlanError::Units(format!(
                 "unknown units: the root <svg> has width=\"{}\" height=\"{}\", not in absolute units (mm, cm, in, pt), so the size of a user unit is not known (96 or 72 px per inch depends on the program). Save with mm units, or say what one unit is with --units (px96 for Inkscape and browsers, px72 for old Illustrator files, mm)",
                 w.unwrap_or("(none)"),
                 h.unwrap_or("(none)")

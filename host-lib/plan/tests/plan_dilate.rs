@@ -1,16 +1,20 @@
-//! `kerfmeter dilate` on real plans (fixtures in `tests/fixtures/`): a box-generator SVG, an
-//! Inkscape SVG with layers, transforms and clones, a DXF as CAD programs write it — fingers get
-//! wider and slots narrower by exactly the kerf, labels and everything else stay as they were —
-//! and the ways it must refuse: broken files, unknown units, merging parts, open paths with
-//! `--strict`, an output that is the input.
+//! Dilating real plan files (fixtures in `tests/fixtures/`), as `kerfmeter dilate` does: a
+//! box-generator SVG, an Inkscape SVG with layers, transforms and clones, a DXF as CAD programs
+//! write it — fingers get wider and slots narrower by exactly the kerf, labels and everything else
+//! stay as they were — and the ways it must refuse: broken files, unknown units, merging parts,
+//! open paths when strict. (What only the command does — never writing over the input, the
+//! dry-run report — is tested with the `kerfmeter-cli` package.)
 //!
 //! Geometry is measured on the *output file*, parsed again (SVG with `usvg`, DXF with `dxf`), and
 //! compared with the input parsed the same way.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use kerfmeter::map::{Grid, KerfMap};
-use kerfmeter::plan::cli::{DilateArgs, run_dilate};
+use kerfmeter_plan::dilate::KerfSource;
+use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
+use kerfmeter_plan::rules::CutRules;
+use kerfmeter_plan::{DilateOptions, PlanError, dilate_file};
 
 /// 0.1 µm: coordinates pass through usvg in single precision.
 const TOL_MM: f64 = 1e-4;
@@ -27,6 +31,24 @@ fn copy(name: &str) -> (tempfile::TempDir, PathBuf) {
     let to = dir.path().join(name);
     std::fs::copy(fixture(name), &to).unwrap();
     (dir, to)
+}
+
+/// Dilate `input` by `kerf_um` with `options` and write the result to `output`.
+fn dilate_with(
+    input: &Path,
+    kerf_um: f64,
+    output: &Path,
+    options: &DilateOptions,
+) -> Result<PlanSummary, PlanError> {
+    let kerf = KerfSource::Uniform(KerfSource::check_kerf_um(kerf_um)?);
+    let (bytes, summary) = dilate_file(input, &kerf, options)?;
+    std::fs::write(output, bytes).unwrap();
+    Ok(summary)
+}
+
+/// Dilate `input` by `kerf_um` with the default rules and write the result to `output`.
+fn dilate(input: &Path, kerf_um: f64, output: &Path) -> Result<PlanSummary, PlanError> {
+    dilate_with(input, kerf_um, output, &DilateOptions::default())
 }
 
 type Poly = Vec<(f64, f64)>;
@@ -194,8 +216,7 @@ fn widths(xs: &[f64]) -> (Vec<f64>, Vec<f64>) {
 fn box_generator_plan_fingers_wider_slots_narrower_by_exactly_the_kerf() {
     let (dir, input) = copy("box_generator.svg");
     let output = dir.path().join("box-k200.svg");
-    let report = run_dilate(&DilateArgs::new(&input, 200.0, Some(output.clone()))).unwrap();
-    let s = &report.summary;
+    let s = &dilate(&input, 200.0, &output).unwrap();
     assert_eq!(
         (s.contours_dilated, s.parts, s.holes, s.islands),
         (4, 2, 2, 0)
@@ -259,16 +280,13 @@ fn box_generator_plan_fingers_wider_slots_narrower_by_exactly_the_kerf() {
     let ymin = outline.iter().map(|p| p.1).fold(f64::MAX, f64::min);
     let ymax = outline.iter().map(|p| p.1).fold(f64::MIN, f64::max);
     assert!((ymin - (17.0 - k / 2.0)).abs() < TOL_MM && (ymax - (60.0 + k / 2.0)).abs() < TOL_MM);
-    // No temporary files are left next to the output.
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
 }
 
 #[test]
 fn inkscape_plan_with_layers_transforms_and_clones() {
     let (dir, input) = copy("inkscape_layers.svg");
     let output = dir.path().join("out.svg");
-    let report = run_dilate(&DilateArgs::new(&input, 200.0, Some(output.clone()))).unwrap();
-    let s = &report.summary;
+    let s = &dilate(&input, 200.0, &output).unwrap();
     // plate (+ hole, slot), the skewed part, two clones; the hidden layer is not cut.
     assert_eq!((s.contours_dilated, s.parts, s.holes), (6, 4, 2));
     assert!(s.open_paths.is_empty());
@@ -360,8 +378,7 @@ fn cad_dxf_polylines_chains_circles_and_islands() {
     use dxf::entities::EntityType;
     let (dir, input) = copy("cad_plate.dxf");
     let output = dir.path().join("plate-k200.dxf");
-    let report = run_dilate(&DilateArgs::new(&input, 200.0, Some(output.clone()))).unwrap();
-    let s = &report.summary;
+    let s = &dilate(&input, 200.0, &output).unwrap();
     assert_eq!(
         (s.contours_dilated, s.parts, s.holes, s.islands),
         (6, 3, 3, 1)
@@ -525,16 +542,18 @@ fn cad_dxf_polylines_chains_circles_and_islands() {
 #[test]
 fn a_kerf_map_gives_each_part_its_own_kerf() {
     let (dir, input) = copy("box_generator.svg");
-    // Two cells, centres x = 50 and x = 150 mm: +100 µm on the right.
-    let grid = Grid::new(200.0, 100.0, 2, 1).unwrap();
-    let map = KerfMap::from_runs(grid, (0, 0), vec![vec![150.0], vec![250.0]]).unwrap();
-    let map_path = dir.path().join("map.json");
-    map.save(&map_path).unwrap();
+    // As a two-cell bed map (centres x = 50 and x = 150 mm) gives it: 150 µm up to the first
+    // centre, +100 µm at the second, linear between.
+    let field = |x_mm: f64, _y_mm: f64| 150.0 + 100.0 * ((x_mm - 50.0) / 100.0).clamp(0.0, 1.0);
     let output = dir.path().join("out.svg");
-    let mut args = DilateArgs::new(&input, 150.0, Some(output.clone()));
-    args.map = Some(map_path);
-    let report = run_dilate(&args).unwrap();
-    let [lo, hi] = report.summary.kerf_range_um.unwrap();
+    let (bytes, summary) = dilate_file(
+        &input,
+        &KerfSource::Map(Arc::new(field)),
+        &DilateOptions::default(),
+    )
+    .unwrap();
+    std::fs::write(&output, bytes).unwrap();
+    let [lo, hi] = summary.kerf_range_um.unwrap();
     assert!(
         (lo - 150.0).abs() < 1e-9,
         "side A lies left of the first centre: {lo}"
@@ -579,9 +598,7 @@ fn parts_that_would_merge_are_refused_and_nothing_is_written() {
 </svg>"#,
     );
     let output = dir.path().join("out.svg");
-    let e = run_dilate(&DilateArgs::new(&input, 200.0, Some(output.clone())))
-        .unwrap_err()
-        .to_string();
+    let e = dilate(&input, 200.0, &output).unwrap_err().to_string();
     assert!(
         e.contains("would merge") && e.contains("\"left\"") && e.contains("\"right\""),
         "{e}"
@@ -589,8 +606,8 @@ fn parts_that_would_merge_are_refused_and_nothing_is_written() {
     assert!(e.contains("close.svg"), "names the file: {e}");
     assert!(!output.exists());
     // 150 µm fits (the gap is exactly 150 µm: still touching, so refused), 100 µm does.
-    assert!(run_dilate(&DilateArgs::new(&input, 150.0, Some(output.clone()))).is_err());
-    assert!(run_dilate(&DilateArgs::new(&input, 100.0, Some(output.clone()))).is_ok());
+    assert!(dilate(&input, 150.0, &output).is_err());
+    assert!(dilate(&input, 100.0, &output).is_ok());
 }
 
 #[test]
@@ -639,9 +656,7 @@ fn broken_and_unitless_files_give_clear_errors() {
         ),
     ];
     for (input, output, expected) in cases {
-        let e = run_dilate(&DilateArgs::new(&input, 150.0, Some(output.clone())))
-            .unwrap_err()
-            .to_string();
+        let e = dilate(&input, 150.0, &output).unwrap_err().to_string();
         assert!(e.contains(expected), "{}: {e}", input.display());
         assert!(!output.exists());
     }
@@ -650,67 +665,28 @@ fn broken_and_unitless_files_give_clear_errors() {
     let unitless = text.replacen("$INSUNITS\r\n 70\r\n4", "$INSUNITS\r\n 70\r\n0", 1);
     assert_ne!(unitless, text);
     let input = plan(dir.path(), "unitless.dxf", &unitless);
-    let e = run_dilate(&DilateArgs::new(&input, 150.0, Some(out_dxf.clone())))
-        .unwrap_err()
-        .to_string();
+    let e = dilate(&input, 150.0, &out_dxf).unwrap_err().to_string();
     assert!(e.contains("unknown units"), "{e}");
-    let mut args = DilateArgs::new(&input, 150.0, Some(out_dxf.clone()));
-    args.units = Some(kerfmeter::plan::outcome::AssumedUnits::Mm);
-    assert!(run_dilate(&args).is_ok());
+    let in_mm = DilateOptions {
+        assume_units: Some(AssumedUnits::Mm),
+        ..DilateOptions::default()
+    };
+    assert!(dilate_with(&input, 150.0, &out_dxf, &in_mm).is_ok());
 }
 
 #[test]
-fn the_input_is_never_overwritten() {
-    let (dir, input) = copy("box_generator.svg");
-    let before = std::fs::read(&input).unwrap();
-    for output in [
-        input.clone(),
-        dir.path().join(".").join("box_generator.svg"),
-    ] {
-        let e = run_dilate(&DilateArgs::new(&input, 150.0, Some(output)))
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("inputs are never overwritten"), "{e}");
-    }
-    // Nor turned into another format.
-    let e = run_dilate(&DilateArgs::new(
-        &input,
-        150.0,
-        Some(dir.path().join("x.dxf")),
-    ))
-    .unwrap_err()
-    .to_string();
-    assert!(e.contains("format"), "{e}");
-    assert_eq!(std::fs::read(&input).unwrap(), before);
-}
-
-#[test]
-fn dry_run_reports_without_writing_and_strict_refuses_open_paths() {
+fn strict_refuses_open_paths() {
     let (dir, input) = copy("box_generator.svg");
     let output = dir.path().join("out.svg");
-    let mut args = DilateArgs::new(&input, 150.0, Some(output.clone()));
-    args.dry_run = true;
-    let report = run_dilate(&args).unwrap();
-    assert!(report.dry_run && report.output.is_none());
-    assert_eq!(report.summary.contours_dilated, 4);
-    assert!(!output.exists());
-    let text = report.to_string();
-    assert!(
-        text.contains("dry run") && text.contains("open cut path"),
-        "{text}"
-    );
-    assert!(
-        text.contains("<path> at line"),
-        "open paths are named: {text}"
-    );
-    let json = serde_json::to_value(&report).unwrap();
-    assert_eq!(json["contours_dilated"], 4);
-    assert_eq!(json["open_paths"].as_array().unwrap().len(), 1);
-
-    let mut args = DilateArgs::new(&input, 150.0, Some(output.clone()));
-    args.strict = true;
-    let e = run_dilate(&args).unwrap_err().to_string();
+    let strict = DilateOptions {
+        strict: true,
+        ..DilateOptions::default()
+    };
+    let e = dilate_with(&input, 150.0, &output, &strict)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("--strict") && e.contains("100.000"), "{e}");
+    assert!(e.contains("box_generator.svg"), "names the file: {e}");
     assert!(!output.exists());
 }
 
@@ -718,21 +694,19 @@ fn dry_run_reports_without_writing_and_strict_refuses_open_paths() {
 fn cut_rules_decide_what_is_dilated() {
     let (dir, input) = copy("box_generator.svg");
     let output = dir.path().join("out.svg");
+    let max_width_mm = CutRules::default().max_width_mm;
+    let rules = |colours: &[String], max_width_mm| DilateOptions {
+        rules: CutRules::new(colours, max_width_mm, &[]).unwrap(),
+        ..DilateOptions::default()
+    };
     // Only blue lines are cuts: the two inner cuts; the black outlines pass through.
-    let mut args = DilateArgs::new(&input, 150.0, Some(output.clone()));
-    args.cut_colors = vec!["blue".into()];
-    let report = run_dilate(&args).unwrap();
-    assert_eq!(report.summary.contours_dilated, 2);
-    assert!(report.summary.open_paths.is_empty());
-    assert!(
-        report
-            .summary
-            .passed_through
-            .keys()
-            .any(|k| k.contains("#000000"))
-    );
+    let blue = rules(&["blue".into()], max_width_mm);
+    let summary = dilate_with(&input, 150.0, &output, &blue).unwrap();
+    assert_eq!(summary.contours_dilated, 2);
+    assert!(summary.open_paths.is_empty());
+    assert!(summary.passed_through.keys().any(|k| k.contains("#000000")));
     // Hairlines only: nothing here is thinner than 0.05 mm.
-    args.cut_colors = Vec::new();
-    args.cut_max_width_mm = 0.05;
-    assert_eq!(run_dilate(&args).unwrap().summary.contours_dilated, 0);
+    let hairlines = rules(&[], 0.05);
+    let summary = dilate_with(&input, 150.0, &output, &hairlines).unwrap();
+    assert_eq!(summary.contours_dilated, 0);
 }

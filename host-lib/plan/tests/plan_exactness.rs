@@ -9,7 +9,7 @@ use std::f64::consts::TAU;
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
 use geo::algorithm::buffer::{Buffer, BufferStyle, LineJoin};
 use geo::{Area, LineString, MultiPolygon, Polygon};
-use kerfmeter::plan::dilate::{Contour, KerfSource, Role, dilate};
+use kerfmeter_plan::dilate::{Contour, KerfSource, Role, dilate};
 
 /// xorshift64*: a small deterministic generator.
 struct Rng(u64);

@@ -1,14 +1,32 @@
-//! The spiral gauge, parsed back from the files `kerfmeter gauge` writes — SVG with `usvg`, DXF
-//! with the `dxf` crate — and checked against r(φ) = a + c·φ, the radial step, the holes and the
+//! The spiral gauge, parsed back from the files the gauge drawer writes (as `kerfmeter gauge`
+//! does) — SVG with `usvg`, DXF with the `dxf` crate — and checked against r(φ) = a + c·φ, the radial step, the holes and the
 //! sense of the spiral, to within 1 µm. The geometry is evaluated here independently of the
 //! library (Bézier and bulge formulas written out).
 
 use std::f64::consts::{PI, TAU};
+use std::path::Path;
 
-use kerfmeter::plan::cli::{GaugeArgs, JamDirectionArg, run_gauge};
-use kerfmeter::protocol::GaugeGeometry;
+use kerfmeter_plan::gauge::{self, GaugeDrawing, GaugeOptions, TestPieceSpec};
+use kerfmeter_plan::{PlanError, PlanFormat};
+use kerfmeter_protocol::{GaugeGeometry, JamDirection};
 
 const UM: f64 = 1e-3;
+
+/// Draw the gauge and write it to `out`, SVG or DXF by the extension.
+fn write_gauge(
+    geometry: &GaugeGeometry,
+    options: &GaugeOptions,
+    out: &Path,
+) -> Result<GaugeDrawing, PlanError> {
+    let format = PlanFormat::of(out)?;
+    let drawing = gauge::build(geometry, options)?;
+    let bytes = match format {
+        PlanFormat::Svg => gauge::to_svg(&drawing).into_bytes(),
+        PlanFormat::Dxf => gauge::to_dxf(&drawing)?,
+    };
+    std::fs::write(out, bytes).unwrap();
+    Ok(drawing)
+}
 
 fn pitch_mm_per_rad(pitch_um_per_deg: f64) -> f64 {
     pitch_um_per_deg * 1e-3 * 180.0 / PI
@@ -123,13 +141,16 @@ fn check_spiral(points: &[(f64, f64)], centre: (f64, f64), a: f64, c: f64, sense
     assert!(first.0 > centre.0 && last.0 > centre.0);
 }
 
-fn svg_gauge_checks(jam: JamDirectionArg) {
+fn svg_gauge_checks(jam: JamDirection) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("gauge.svg");
-    let mut args = GaugeArgs::new(&out);
-    args.jam_direction = jam;
-    let report = run_gauge(&args).unwrap();
-    assert!(report.max_deviation_um < 0.1, "{}", report.max_deviation_um);
+    let geometry = GaugeGeometry {
+        jam_direction: jam,
+        ..GaugeGeometry::PAPER
+    };
+    let drawing = write_gauge(&geometry, &GaugeOptions::default(), &out).unwrap();
+    let max_deviation_um = drawing.max_deviation_mm * 1e3;
+    assert!(max_deviation_um < 0.1, "{max_deviation_um}");
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains(r#"width=""#) && text.contains("mm\""));
     assert!(text.contains("stroke=\"#FF0000\"") && text.contains("stroke-width=\"0.01\""));
@@ -138,7 +159,7 @@ fn svg_gauge_checks(jam: JamDirectionArg) {
     let tree = usvg::Tree::from_str(&text, &usvg::Options::default()).unwrap();
     let mm_per_px = 25.4 / 96.0;
     let page_h = f64::from(tree.size().height()) * mm_per_px;
-    assert!((page_h - report.page_mm[1]).abs() < 1e-3);
+    assert!((page_h - drawing.page_mm[1]).abs() < 1e-3);
     // To the y-up top view.
     let up = |pts: Vec<(f64, f64)>| {
         pts.into_iter()
@@ -168,8 +189,8 @@ fn svg_gauge_checks(jam: JamDirectionArg) {
     let c = pitch_mm_per_rad(f64::from(g.pitch_um_per_deg));
     let a = f64::from(g.radius_mm) - PI * c;
     let sense = match jam {
-        JamDirectionArg::Cw => 1.0,
-        JamDirectionArg::Ccw => -1.0,
+        JamDirection::Clockwise => 1.0,
+        JamDirection::CounterClockwise => -1.0,
     };
     check_spiral(&spiral, centre, a, c, sense);
     // The wrong sense must fail the same check (the check can tell the senses apart).
@@ -179,12 +200,12 @@ fn svg_gauge_checks(jam: JamDirectionArg) {
 
 #[test]
 fn svg_gauge_clockwise_parses_back_within_a_micron() {
-    svg_gauge_checks(JamDirectionArg::Cw);
+    svg_gauge_checks(JamDirection::Clockwise);
 }
 
 #[test]
 fn svg_gauge_counter_clockwise_is_mirrored() {
-    svg_gauge_checks(JamDirectionArg::Ccw);
+    svg_gauge_checks(JamDirection::CounterClockwise);
 }
 
 /// Points along a bulge polyline (closed), y-up.
@@ -221,9 +242,11 @@ fn bulge_points(v: &[(f64, f64, f64)]) -> Vec<(f64, f64)> {
 fn dxf_gauge_parses_back_within_a_micron() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("gauge.dxf");
-    let mut args = GaugeArgs::new(&out);
-    args.label = true;
-    run_gauge(&args).unwrap();
+    let options = GaugeOptions {
+        label: true,
+        ..GaugeOptions::default()
+    };
+    write_gauge(&GaugeGeometry::PAPER, &options, &out).unwrap();
     let drawing = dxf::Drawing::load_file(&out).unwrap();
     assert_eq!(
         drawing.header.default_drawing_units,
@@ -280,12 +303,15 @@ fn dxf_gauge_parses_back_within_a_micron() {
 fn the_test_piece_finger_and_slot_are_dilated_by_the_kerf() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("gauge.dxf");
-    let mut args = GaugeArgs::new(&out);
-    args.test_piece = true;
-    args.test_piece_kerf_um = Some(200.0);
-    args.finger_width_mm = 6.0;
-    args.thickness_mm = 3.0;
-    run_gauge(&args).unwrap();
+    let options = GaugeOptions {
+        test_piece: Some(TestPieceSpec {
+            thickness_mm: 3.0,
+            finger_width_mm: 6.0,
+            kerf_um: 200.0,
+        }),
+        label: false,
+    };
+    write_gauge(&GaugeGeometry::PAPER, &options, &out).unwrap();
     let drawing = dxf::Drawing::load_file(&out).unwrap();
     let polys: Vec<Vec<(f64, f64)>> = drawing
         .entities()
@@ -323,15 +349,30 @@ fn the_test_piece_finger_and_slot_are_dilated_by_the_kerf() {
 #[test]
 fn bad_gauge_arguments_are_refused_and_nothing_is_written() {
     let dir = tempfile::tempdir().unwrap();
+    let paper = GaugeGeometry::PAPER;
+    let none = GaugeOptions::default();
     let out = dir.path().join("gauge.pdf");
-    assert!(run_gauge(&GaugeArgs::new(&out)).is_err());
+    assert!(write_gauge(&paper, &none, &out).is_err());
     let out = dir.path().join("gauge.svg");
-    let mut args = GaugeArgs::new(&out);
-    args.hole_distance_mm = 9.0;
-    let e = run_gauge(&args).unwrap_err().to_string();
+    let holes_too_far = GaugeGeometry {
+        hole_distance_mm: 9.0,
+        ..paper
+    };
+    let e = write_gauge(&holes_too_far, &none, &out)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("hole"), "{e}");
-    args = GaugeArgs::new(&out);
-    args.test_piece = true;
-    assert!(run_gauge(&args).is_err());
+    let thin_test_piece = GaugeOptions {
+        test_piece: Some(TestPieceSpec {
+            thickness_mm: 0.1,
+            finger_width_mm: 6.3,
+            kerf_um: 150.0,
+        }),
+        label: false,
+    };
+    let e = write_gauge(&paper, &thin_test_piece, &out)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--thickness-mm"), "{e}");
     assert!(!out.exists());
 }
