@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::files::write_atomically;
+use crate::stats::median;
 
 /// Format version written into every map file.
 pub const MAP_FORMAT_VERSION: u32 = 1;
@@ -97,18 +98,6 @@ impl Grid {
             (col as f64 + 0.5) * self.bed_width_mm / self.cols as f64,
             (row as f64 + 0.5) * self.bed_depth_mm / self.rows as f64,
         )
-    }
-}
-
-/// Median of a non-empty slice.
-pub fn median(values: &[f64]) -> f64 {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
     }
 }
 

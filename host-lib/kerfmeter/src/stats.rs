@@ -1,4 +1,5 @@
-//! Repeated measurements: mean, standard deviation, 95 % confidence interval, outliers.
+//! Repeated measurements: mean, standard deviation, 95 % confidence interval, outliers, and the
+//! median (which the bed map also uses for each cell).
 //!
 //! A mean of n runs on separately cut gauges shrinks the cutter's own repeatability term by √n
 //! (the paper: ±15.5 µm for one gauge, ±8.9 µm for the mean of three). The confidence interval
@@ -7,8 +8,6 @@
 
 use serde::Serialize;
 use statrs::distribution::{ContinuousCDF, StudentsT};
-
-use crate::map::median;
 
 /// Modified z-score above which a run is flagged as an outlier.
 pub const OUTLIER_Z: f64 = 3.5;
@@ -30,6 +29,18 @@ pub struct Summary {
     pub max_um: f64,
     /// Indices of runs flagged as outliers.
     pub outliers: Vec<usize>,
+}
+
+/// Median of a non-empty slice.
+pub fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
 }
 
 /// Summarise `values` (at least one).
