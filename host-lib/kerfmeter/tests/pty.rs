@@ -1,11 +1,14 @@
 //! The client against the firmware's own link, through a real pseudo-terminal: handshake, lost
 //! responses, garbage on the line, a vanished port and a restarted device.
 
+mod common;
+
 use std::io::{self, Read, Write};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Duration;
 
+use common::{LineFaults, Server, fast_options};
 use kerfmeter::protocol::{ErrorCode, Request, Response, RunParams};
 use kerfmeter::{Error, Kerfmeter, Options};
 use kerfmeter_firmware::device::Device;
@@ -30,11 +33,10 @@ impl Handler for TestDevice {
     }
 }
 
-/// The master end of the terminal, with faults the tests switch on.
+/// The master end of the terminal, with the line's faults on every write.
 struct FaultyPort {
     inner: TTYPort,
-    drop_next_writes: Arc<AtomicU32>,
-    garbage_before_writes: Arc<AtomicBool>,
+    line: Arc<LineFaults>,
 }
 
 impl Read for FaultyPort {
@@ -45,72 +47,50 @@ impl Read for FaultyPort {
 
 impl Write for FaultyPort {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        if self.drop_next_writes.load(Ordering::SeqCst) > 0 {
-            self.drop_next_writes.fetch_sub(1, Ordering::SeqCst);
-            return Ok(buf.len());
-        }
-        if self.garbage_before_writes.load(Ordering::SeqCst) {
-            self.inner
-                .write_all(b"\x13\x11garbage\r\n\xff\xfe\x01\x02\x00junk")?;
-        }
-        self.inner.write(buf)
+        self.inner.write_all(&self.line.deliver(buf))?;
+        Ok(buf.len())
     }
     fn flush(&mut self) -> io::Result<()> {
         self.inner.flush()
     }
 }
 
+/// A test device served on a pseudo-terminal, with its counters and the line's faults.
 struct Bench {
     boot_id: Arc<AtomicU32>,
     runs: Arc<AtomicU32>,
-    drop_next_writes: Arc<AtomicU32>,
-    garbage: Arc<AtomicBool>,
-    stop: Arc<AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
-
-impl Drop for Bench {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        if let Some(t) = self.thread.take() {
-            t.join().unwrap();
-        }
-    }
+    line: Arc<LineFaults>,
+    _server: Server<()>,
 }
 
 fn bench() -> (Bench, Box<dyn SerialPort>) {
     let (mut master, slave) = TTYPort::pair().unwrap();
     master.set_timeout(Duration::from_millis(10)).unwrap();
-    let mut b = Bench {
-        boot_id: Arc::new(AtomicU32::new(0xB007_0001)),
-        runs: Arc::new(AtomicU32::new(0)),
-        drop_next_writes: Arc::new(AtomicU32::new(0)),
-        garbage: Arc::new(AtomicBool::new(false)),
-        stop: Arc::new(AtomicBool::new(false)),
-        thread: None,
-    };
+    let boot_id = Arc::new(AtomicU32::new(0xB007_0001));
+    let runs = Arc::new(AtomicU32::new(0));
+    let line = Arc::new(LineFaults::default());
     let mut port = FaultyPort {
         inner: master,
-        drop_next_writes: b.drop_next_writes.clone(),
-        garbage_before_writes: b.garbage.clone(),
+        line: line.clone(),
     };
     let mut device = TestDevice {
-        boot_id: b.boot_id.clone(),
-        runs: b.runs.clone(),
+        boot_id: boot_id.clone(),
+        runs: runs.clone(),
     };
-    let stop = b.stop.clone();
-    b.thread = Some(std::thread::spawn(move || {
+    let server = Server::spawn(move |stop| {
         kerfmeter_firmware::twin::serve(&mut port, &mut device, &stop).unwrap();
-    }));
-    (b, Box::new(slave))
+    });
+    let bench = Bench {
+        boot_id,
+        runs,
+        line,
+        _server: server,
+    };
+    (bench, Box::new(slave))
 }
 
 fn fast() -> Options {
-    Options {
-        timeout: Duration::from_millis(100),
-        retries: 3,
-        ..Options::default()
-    }
+    fast_options(100)
 }
 
 #[test]
@@ -126,7 +106,7 @@ fn handshake_reads_the_device_info() {
 fn a_lost_response_is_retried_and_the_run_is_not_executed_twice() {
     let (bench, port) = bench();
     let mut meter = Kerfmeter::from_port(port, fast()).unwrap();
-    bench.drop_next_writes.store(2, Ordering::SeqCst);
+    bench.line.drop_responses.store(2, Ordering::SeqCst);
     let response = meter.call(Request::Run(RunParams::DEFAULT)).unwrap();
     assert_eq!(response, Response::Ok);
     assert_eq!(
@@ -143,7 +123,7 @@ fn a_lost_response_is_retried_and_the_run_is_not_executed_twice() {
 fn too_many_lost_responses_time_out_with_a_clear_error() {
     let (bench, port) = bench();
     let mut meter = Kerfmeter::from_port(port, fast()).unwrap();
-    bench.drop_next_writes.store(100, Ordering::SeqCst);
+    bench.line.drop_responses.store(100, Ordering::SeqCst);
     let err = meter.call(Request::GetStatus).unwrap_err();
     assert!(matches!(err, Error::Timeout { attempts: 4, .. }), "{err:?}");
     assert!(err.to_string().contains("no answer"), "{err}");
@@ -152,7 +132,7 @@ fn too_many_lost_responses_time_out_with_a_clear_error() {
 #[test]
 fn garbage_on_the_line_is_skipped() {
     let (bench, port) = bench();
-    bench.garbage.store(true, Ordering::SeqCst);
+    bench.line.garbage.store(true, Ordering::SeqCst);
     let mut meter = Kerfmeter::from_port(port, fast()).unwrap();
     for _ in 0..20 {
         meter.info().unwrap();

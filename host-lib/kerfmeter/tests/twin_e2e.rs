@@ -2,12 +2,14 @@
 //! what a serial line does to them — garbage, lost responses, a device that restarts, a host or a
 //! port that vanishes mid-run.
 
+mod common;
+
 use std::io::{ErrorKind, Read, Write};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
-use std::thread::JoinHandle;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
+use common::{LineFaults, Server, fast_options};
 use kerfmeter::protocol::{DeviceConfig, Fault, GaugeGeometry, RunParams, RunState, TestOutcome};
 use kerfmeter::sim::{SimDevice, SimOptions};
 use kerfmeter::{Error, JointSpec, Kerfmeter, Options};
@@ -15,11 +17,7 @@ use kerfmeter_firmware::twin::{Twin, TwinOptions};
 use serialport::{SerialPort, TTYPort};
 
 fn options() -> Options {
-    Options {
-        timeout: Duration::from_millis(150),
-        retries: 3,
-        poll_interval: Duration::from_millis(5),
-    }
+    fast_options(150)
 }
 
 fn params() -> RunParams {
@@ -31,87 +29,58 @@ fn params() -> RunParams {
 /// Switches a test flips while the twin is served.
 #[derive(Default)]
 struct Controls {
-    stop: AtomicBool,
-    garbage: AtomicBool,
-    drop_responses: AtomicU32,
+    line: LineFaults,
     reboot: AtomicBool,
 }
 
 /// Serve `twin` on the master end like `serve_twin` (lock-step), with the test's faults on the
-/// wire. Returns the twin when the client hangs up or `stop` is set.
-fn serve(mut master: TTYPort, mut twin: Twin, controls: Arc<Controls>) -> JoinHandle<Twin> {
-    std::thread::spawn(move || {
-        master.set_timeout(Duration::from_millis(1)).unwrap();
-        let mut buf = [0u8; 256];
-        while !controls.stop.load(Ordering::SeqCst) {
-            if controls.reboot.swap(false, Ordering::SeqCst) {
-                twin.reboot();
-            }
-            match master.read(&mut buf) {
-                Ok(0) => break,
-                Ok(n) => {
-                    let mut out = Vec::new();
-                    twin.receive(&buf[..n], |f| out.extend_from_slice(f));
-                    if !out.is_empty() {
-                        if controls.drop_responses.load(Ordering::SeqCst) > 0 {
-                            controls.drop_responses.fetch_sub(1, Ordering::SeqCst);
-                            out.clear();
-                        }
-                        if controls.garbage.load(Ordering::SeqCst) {
-                            let mut noisy =
-                                b"\r\nESP-ROM:esp32c3\x13\x11\xff\x00\x07garbage".to_vec();
-                            noisy.extend(out);
-                            out = noisy;
-                        }
-                        if master.write_all(&out).is_err() {
-                            break;
-                        }
-                    }
-                }
-                Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {}
-                Err(_) => break, // the client closed its side
-            }
-            let lead = twin.lead_ticks().min(50);
-            twin.advance_ticks(lead);
+/// wire, until the client hangs up or `stop` is set; returns the twin.
+fn serve(mut master: TTYPort, mut twin: Twin, controls: &Controls, stop: &AtomicBool) -> Twin {
+    master.set_timeout(Duration::from_millis(1)).unwrap();
+    let mut buf = [0u8; 256];
+    while !stop.load(Ordering::SeqCst) {
+        if controls.reboot.swap(false, Ordering::SeqCst) {
+            twin.reboot();
         }
-        twin
-    })
+        match master.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => {
+                let mut out = Vec::new();
+                twin.receive(&buf[..n], |f| out.extend_from_slice(f));
+                if !out.is_empty() && master.write_all(&controls.line.deliver(&out)).is_err() {
+                    break;
+                }
+            }
+            Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {}
+            Err(_) => break, // the client closed its side
+        }
+        let lead = twin.lead_ticks().min(50);
+        twin.advance_ticks(lead);
+    }
+    twin
 }
 
+/// The twin served on a pseudo-terminal, with the switches the tests flip.
 struct Bench {
     controls: Arc<Controls>,
-    server: Option<JoinHandle<Twin>>,
+    server: Server<Twin>,
 }
 
 impl Bench {
     fn start(twin: TwinOptions) -> (Self, Kerfmeter) {
         let (master, slave) = TTYPort::pair().unwrap();
         let controls = Arc::new(Controls::default());
-        let server = serve(master, Twin::new(twin), controls.clone());
+        let served = controls.clone();
+        let twin = Twin::new(twin);
+        let server = Server::spawn(move |stop| serve(master, twin, &served, &stop));
         let meter =
             Kerfmeter::from_port(Box::new(slave) as Box<dyn SerialPort>, options()).unwrap();
-        (
-            Self {
-                controls,
-                server: Some(server),
-            },
-            meter,
-        )
+        (Self { controls, server }, meter)
     }
 
     /// Stop serving and get the twin back.
-    fn finish(mut self) -> Twin {
-        self.controls.stop.store(true, Ordering::SeqCst);
-        self.server.take().unwrap().join().unwrap()
-    }
-}
-
-impl Drop for Bench {
-    fn drop(&mut self) {
-        self.controls.stop.store(true, Ordering::SeqCst);
-        if let Some(s) = self.server.take() {
-            let _ = s.join();
-        }
+    fn finish(self) -> Twin {
+        self.server.finish()
     }
 }
 
@@ -197,7 +166,7 @@ fn a_fault_is_a_typed_error_latched_until_cleared_then_the_next_run_works() {
 #[test]
 fn garbage_on_the_line_is_skipped() {
     let (bench, mut meter) = Bench::start(TwinOptions::default());
-    bench.controls.garbage.store(true, Ordering::SeqCst);
+    bench.controls.line.garbage.store(true, Ordering::SeqCst);
     meter.reset_kerfmeter().unwrap();
     let result = meter.run_kerfmeter(&params(), |_| {}).unwrap();
     assert!((result.kerf_um - 152.0).abs() < 2.0);
@@ -208,7 +177,11 @@ fn a_retried_run_is_not_executed_twice() {
     let (bench, mut meter) = Bench::start(TwinOptions::default());
     meter.reset_kerfmeter().unwrap();
     // The device's answer to Run is lost twice; the client re-sends the same seq.
-    bench.controls.drop_responses.store(2, Ordering::SeqCst);
+    bench
+        .controls
+        .line
+        .drop_responses
+        .store(2, Ordering::SeqCst);
     let result = meter.run_kerfmeter(&params(), |_| {}).unwrap();
     assert_eq!(result.run_id, 1, "one run, not three");
     assert_eq!(meter.status().unwrap().run_id, 1);
@@ -225,8 +198,8 @@ fn a_rebooted_device_is_detected() {
     assert!(err.is_communication());
 }
 
-/// Start a long run and, at the `at_poll`-th status poll, `disturb` the wire; the run's error.
-fn run_disturbed(at_poll: u32, disturb: impl Fn(&Controls)) -> Error {
+/// Start a long run and, at the `at_poll`-th status poll, `disturb` the bench; the run's error.
+fn run_disturbed(at_poll: u32, disturb: impl Fn(&Bench)) -> Error {
     let (bench, mut meter) = Bench::start(TwinOptions {
         kerf_um: 400.0,
         ..TwinOptions::default()
@@ -237,7 +210,7 @@ fn run_disturbed(at_poll: u32, disturb: impl Fn(&Controls)) -> Error {
         .run_kerfmeter(&params(), |_| {
             polls += 1;
             if polls == at_poll {
-                disturb(&bench.controls);
+                disturb(&bench);
             }
         })
         .unwrap_err()
@@ -245,7 +218,7 @@ fn run_disturbed(at_poll: u32, disturb: impl Fn(&Controls)) -> Error {
 
 #[test]
 fn a_reboot_mid_run_ends_the_run_with_a_clear_error() {
-    let err = run_disturbed(5, |c| c.reboot.store(true, Ordering::SeqCst));
+    let err = run_disturbed(5, |b| b.controls.reboot.store(true, Ordering::SeqCst));
     assert!(matches!(err, Error::DeviceReset { .. }), "{err:?}");
 }
 
@@ -286,7 +259,7 @@ fn a_host_that_vanishes_mid_run_leaves_the_motor_safe_by_the_watchdog() {
 #[test]
 fn a_port_that_vanishes_mid_run_is_a_clear_error() {
     // The device side goes away (unplugged).
-    let err = run_disturbed(3, |c| c.stop.store(true, Ordering::SeqCst));
+    let err = run_disturbed(3, |b| b.server.stop.store(true, Ordering::SeqCst));
     assert!(err.is_communication(), "{err:?}");
     assert!(
         matches!(err, Error::PortVanished { .. } | Error::Timeout { .. }),
