@@ -10,7 +10,7 @@
 //! * [`svg`] and [`dxf_plan`] read plans in those formats, decide which lines are cuts by the
 //!   [`rules`] (colour and width conventions of laser software, documented there), and write the
 //!   dilated plan back — SVG by editing the original text, so everything else survives unchanged.
-//! * [`file`] reads a plan file and dilates it into bytes; [`PlanError`] says what went wrong,
+//! * [`file`](mod@file) reads a plan file and dilates it into bytes; [`PlanError`] says what went wrong,
 //!   by kind.
 //!
 //! This crate is not the command-line tool (`kerfmeter gauge` and `kerfmeter dilate` live in
