@@ -13,7 +13,9 @@ use super::{
 };
 use crate::build::CONTROL_RATE_HZ;
 use crate::jam::HoldWindow;
-use kerfmeter_protocol::spiral::{force_for_torque_n, kerf_from_angle, play_deg, torque_for_force_nm};
+use kerfmeter_protocol::spiral::{
+    force_for_torque_n, kerf_from_angle, play_deg, torque_for_force_nm,
+};
 
 /// One run's own state, from `Run` to the next `Run`.
 pub(super) struct Run {

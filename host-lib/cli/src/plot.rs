@@ -1,0 +1,174 @@
+//! The torque–angle curve of a run, as PNG or SVG (by the file's extension), with the jam point
+//! marked: what the device pushed, and where the inset stopped.
+
+use std::path::Path;
+
+use kerfmeter_protocol::KerfResult;
+use plotters::prelude::*;
+
+use kerfmeter::{Curve, Error, Result};
+
+/// Picture size, pixels.
+const SIZE: (u32, u32) = (1000, 650);
+
+/// The output formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlotFormat {
+    /// Raster.
+    Png,
+    /// Vector.
+    Svg,
+}
+
+impl PlotFormat {
+    /// The format for `path`'s extension.
+    pub fn for_path(path: &Path) -> Result<Self> {
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            Some("png") => Ok(Self::Png),
+            Some("svg") => Ok(Self::Svg),
+            _ => Err(Error::InvalidArgument(format!(
+                "plot file {} must end in .png or .svg",
+                path.display()
+            ))),
+        }
+    }
+}
+
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // DejaVu Sans, shipped by the `dejavu` crate: no system fonts needed.
+        let _ = plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            dejavu::sans::regular(),
+        );
+    });
+}
+
+/// Draw `curve` (and the jam of `result`) into `path`, written atomically.
+pub fn plot_curve(curve: &Curve, result: Option<&KerfResult>, path: &Path) -> Result<()> {
+    let format = PlotFormat::for_path(path)?;
+    if curve.samples.is_empty() {
+        return Err(Error::InvalidArgument(
+            "there is no curve to plot: run a measurement first".into(),
+        ));
+    }
+    register_font();
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let file_error = |message: String| Error::File {
+        path: path.to_owned(),
+        message,
+    };
+    let extension = if format == PlotFormat::Png {
+        ".png"
+    } else {
+        ".svg"
+    };
+    let tmp = tempfile::Builder::new()
+        .prefix(".kerfmeter-plot-")
+        .suffix(extension)
+        .tempfile_in(dir)
+        .map_err(|e| file_error(format!("cannot create a temporary file: {e}")))?;
+    let drawn = match format {
+        PlotFormat::Png => draw(
+            BitMapBackend::new(tmp.path(), SIZE).into_drawing_area(),
+            curve,
+            result,
+        ),
+        PlotFormat::Svg => draw(
+            SVGBackend::new(tmp.path(), SIZE).into_drawing_area(),
+            curve,
+            result,
+        ),
+    };
+    drawn.map_err(file_error)?;
+    tmp.persist(path)
+        .map_err(|e| file_error(format!("cannot write: {}", e.error)))?;
+    kerfmeter::files::make_readable(path)
+}
+
+fn draw<DB: DrawingBackend>(
+    area: DrawingArea<DB, plotters::coord::Shift>,
+    curve: &Curve,
+    result: Option<&KerfResult>,
+) -> std::result::Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
+    area.fill(&WHITE).map_err(e)?;
+    let max_angle = curve
+        .samples
+        .iter()
+        .map(|s| s.angle_deg)
+        .fold(1.0f32, f32::max)
+        * 1.05;
+    let max_torque = curve
+        .samples
+        .iter()
+        .map(|s| s.torque_nm)
+        .fold(0.05f32, f32::max)
+        * 1.1;
+    let title = match result {
+        Some(r) => format!(
+            "Run {}: kerf {:.1} µm at {:.1} N",
+            r.run_id, r.kerf_um, r.force_at_jam_n
+        ),
+        None => format!("Run {}", curve.run_id),
+    };
+    let mut chart = ChartBuilder::on(&area)
+        .caption(title, ("sans-serif", 28))
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0f32..max_angle, 0f32..max_torque)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("hub angle (°)")
+        .y_desc("commanded torque (N·m)")
+        .label_style(("sans-serif", 18))
+        .draw()
+        .map_err(e)?;
+    chart
+        .draw_series(LineSeries::new(
+            curve.samples.iter().map(|s| (s.angle_deg, s.torque_nm)),
+            BLUE.stroke_width(2),
+        ))
+        .map_err(e)?
+        .label("torque vs. angle")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    if let Some(r) = result {
+        chart
+            .draw_series(std::iter::once(Circle::new(
+                (r.angle_deg, r.torque_at_jam_nm),
+                7,
+                RED.filled(),
+            )))
+            .map_err(e)?
+            .label(format!(
+                "jam: {:.2}°, {:.3} N·m",
+                r.angle_deg, r.torque_at_jam_nm
+            ))
+            .legend(|(x, y)| Circle::new((x + 10, y), 6, RED.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 18))
+        .draw()
+        .map_err(e)?;
+    area.present().map_err(e)?;
+    Ok(())
+}

@@ -1,0 +1,239 @@
+//! The `kerfmeter` binary as a user or a script runs it: exit codes by the error's category, the
+//! `--json` output, and what only the `dilate` command does (never writing over the input, the
+//! dry-run report, the kerf map file, no temporary files left behind).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use kerfmeter::map::{Grid, KerfMap};
+
+/// Run `kerfmeter` with `args`.
+fn kerfmeter(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+        .args(args)
+        .env_remove("KERFMETER_PORT")
+        .output()
+        .expect("the kerfmeter binary runs")
+}
+
+fn code(out: &Output) -> i32 {
+    out.status.code().expect("exited, not killed")
+}
+
+fn stdout(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// The `box_generator.svg` plan of `kerfmeter-plan`'s fixtures, copied into a fresh folder.
+fn box_plan() -> (tempfile::TempDir, PathBuf) {
+    let fixture =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../plan/tests/fixtures/box_generator.svg");
+    let dir = tempfile::tempdir().unwrap();
+    let to = dir.path().join("box_generator.svg");
+    std::fs::copy(fixture, &to).unwrap();
+    (dir, to)
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().expect("temporary paths are UTF-8")
+}
+
+#[test]
+fn a_failed_self_test_exits_4_like_any_device_failure() {
+    let out = kerfmeter(&["--sim", "--sim-fault", "motor-disconnected", "self-test"]);
+    assert!(
+        stdout(&out).contains("self-test FAILED"),
+        "{}",
+        stdout(&out)
+    );
+    assert!(
+        stderr(&out).contains("the self-test failed"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(code(&out), 4);
+
+    let out = kerfmeter(&[
+        "--sim",
+        "--json",
+        "--sim-fault",
+        "motor-disconnected",
+        "self-test",
+    ]);
+    assert_eq!(code(&out), 4);
+    let text = stdout(&out);
+    let first: serde_json::Value =
+        serde_json::from_str(text.lines().next().unwrap()).expect("JSON");
+    assert_eq!(first["passed"], false, "{text}");
+
+    let out = kerfmeter(&["--sim", "self-test"]);
+    assert!(
+        stdout(&out).contains("self-test passed"),
+        "{}",
+        stdout(&out)
+    );
+    assert_eq!(code(&out), 0);
+}
+
+#[test]
+fn exit_codes_follow_the_error_category() {
+    // Bad arguments: 2, whether clap or the command finds them.
+    assert_eq!(code(&kerfmeter(&["run", "--samples", "0"])), 2);
+    assert_eq!(code(&kerfmeter(&["--sim-realtime", "info"])), 2);
+    let (dir, input) = box_plan();
+    let out = kerfmeter(&["dilate", path(&input), "--kerf-um", "9000", "--dry-run"]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    // A port that cannot be opened: 3.
+    let missing = dir.path().join("no-such-port");
+    assert_eq!(code(&kerfmeter(&["--port", path(&missing), "info"])), 3);
+    // A plan file that cannot be read: 4, and the message names it.
+    let broken = dir.path().join("broken.svg");
+    std::fs::write(&broken, "<svg").unwrap();
+    let out = kerfmeter(&["dilate", path(&broken), "--kerf-um", "150", "--dry-run"]);
+    assert_eq!(code(&out), 4);
+    assert!(stderr(&out).contains("broken.svg"), "{}", stderr(&out));
+    // A device fault: 4, and `--json` names it.
+    let out = kerfmeter(&["--sim", "--json", "--sim-fault", "driver-fault", "run"]);
+    assert_eq!(code(&out), 4);
+    let error: serde_json::Value = serde_json::from_str(stdout(&out).trim()).unwrap();
+    assert_eq!(error["fault"], "DriverFault", "{error}");
+}
+
+#[test]
+fn dilate_never_writes_over_its_input_nor_into_another_format() {
+    let (dir, input) = box_plan();
+    let before = std::fs::read(&input).unwrap();
+    let same = dir.path().join(".").join("box_generator.svg");
+    for output in [input.clone(), same] {
+        let out = kerfmeter(&[
+            "dilate",
+            path(&input),
+            "--kerf-um",
+            "150",
+            "-o",
+            path(&output),
+        ]);
+        assert!(
+            stderr(&out).contains("inputs are never overwritten"),
+            "{}",
+            stderr(&out)
+        );
+        assert_eq!(code(&out), 2);
+    }
+    let dxf = dir.path().join("x.dxf");
+    let out = kerfmeter(&["dilate", path(&input), "--kerf-um", "150", "-o", path(&dxf)]);
+    assert!(stderr(&out).contains("format"), "{}", stderr(&out));
+    assert_eq!(code(&out), 2);
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+}
+
+#[test]
+fn dilate_writes_the_output_atomically_and_reports_it() {
+    let (dir, input) = box_plan();
+    let output = dir.path().join("box-k200.svg");
+    let out = kerfmeter(&[
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "200",
+        "-o",
+        path(&output),
+    ]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("each cut moved 100 µm"),
+        "{}",
+        stdout(&out)
+    );
+    assert!(std::fs::read_to_string(&output).unwrap().contains("<svg"));
+    // The input and the output, no temporary file left next to them.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+}
+
+#[test]
+fn dry_run_reports_without_writing() {
+    let (dir, input) = box_plan();
+    let output = dir.path().join("out.svg");
+    let args = [
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "150",
+        "-o",
+        path(&output),
+        "--dry-run",
+    ];
+    let out = kerfmeter(&args);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let text = stdout(&out);
+    assert!(
+        text.contains("dry run") && text.contains("open cut path"),
+        "{text}"
+    );
+    assert!(
+        text.contains("<path> at line"),
+        "open paths are named: {text}"
+    );
+    let out = kerfmeter(&[&["--json"], &args[..]].concat());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["contours_dilated"], 4);
+    assert_eq!(json["dry_run"], true);
+    assert_eq!(json["open_paths"].as_array().unwrap().len(), 1);
+    assert!(!output.exists());
+}
+
+#[test]
+fn a_kerf_map_file_gives_each_part_its_own_kerf() {
+    let (dir, input) = box_plan();
+    // Two cells, centres x = 50 and x = 150 mm: +100 µm on the right.
+    let grid = Grid::new(200.0, 100.0, 2, 1).unwrap();
+    let map = KerfMap::from_runs(grid, (0, 0), vec![vec![150.0], vec![250.0]]).unwrap();
+    let map_path = dir.path().join("map.json");
+    map.save(&map_path).unwrap();
+    let output = dir.path().join("out.svg");
+    let out = kerfmeter(&[
+        "--json",
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "150",
+        "--map",
+        path(&map_path),
+        "-o",
+        path(&output),
+    ]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let range = json["kerf_range_um"].as_array().unwrap();
+    let (lo, hi) = (range[0].as_f64().unwrap(), range[1].as_f64().unwrap());
+    assert!(
+        (lo - 150.0).abs() < 1e-9,
+        "side A lies left of the first centre: {lo}"
+    );
+    assert!(
+        hi > 200.0 && hi < 230.0,
+        "side B's centroid is near x = 120: {hi}"
+    );
+}
+
+#[test]
+fn gauge_writes_the_paper_gauge_and_refuses_a_test_piece_without_its_kerf() {
+    let dir = tempfile::tempdir().unwrap();
+    let svg = dir.path().join("gauge.svg");
+    let out = kerfmeter(&["gauge", "-o", path(&svg)]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("cut the red hairlines"),
+        "{}",
+        stdout(&out)
+    );
+    assert!(svg.exists());
+    let dxf = dir.path().join("piece.dxf");
+    let out = kerfmeter(&["gauge", "-o", path(&dxf), "--test-piece"]);
+    assert_eq!(code(&out), 2);
+    assert!(!dxf.exists());
+}

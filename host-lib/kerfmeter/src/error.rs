@@ -1,0 +1,231 @@
+//! Host-side errors: every failure a caller can meet, each with a message that says what to do.
+
+use kerfmeter_protocol::{ErrorCode, Fault, ProtocolVersion};
+
+/// Result of every fallible call of this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What went wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The serial port could not be opened.
+    #[error(
+        "cannot open serial port {path}: {source}. Check the path and that no other program (a serial monitor?) holds the port"
+    )]
+    Open {
+        /// The port's path.
+        path: String,
+        /// Why.
+        source: serialport::Error,
+    },
+    /// The port disappeared while in use (device unplugged, twin stopped).
+    #[error("serial port {path} went away ({source}); is the device still plugged in?")]
+    PortVanished {
+        /// The port's path.
+        path: String,
+        /// The I/O error that revealed it.
+        source: std::io::Error,
+    },
+    /// Any other I/O error on the port.
+    #[error("I/O error on serial port {path}: {source}")]
+    Io {
+        /// The port's path.
+        path: String,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// The device did not answer in time, even after retries.
+    #[error(
+        "no answer from the device on {path} to {request} ({attempts} attempts, {timeout_ms} ms each). Check that it is powered and runs Kerfmeter firmware"
+    )]
+    Timeout {
+        /// The port's path.
+        path: String,
+        /// The request that went unanswered.
+        request: &'static str,
+        /// Attempts made.
+        attempts: u32,
+        /// Timeout of each attempt, ms.
+        timeout_ms: u64,
+    },
+    /// Host and device speak incompatible protocol versions.
+    #[error("the device speaks protocol {}.{}, this program speaks {}.{}: update the firmware (`cargo xtask flash`) or this program", device.major, device.minor, host.major, host.minor)]
+    ProtocolMismatch {
+        /// The device's version.
+        device: ProtocolVersion,
+        /// This crate's version.
+        host: ProtocolVersion,
+    },
+    /// The device refused the request.
+    #[error("the device refused {request}: {}", describe_error_code(*code))]
+    Device {
+        /// The refused request.
+        request: &'static str,
+        /// Its typed reason.
+        code: ErrorCode,
+    },
+    /// The device answered with a response that does not fit the request.
+    #[error(
+        "the device answered {request} with an unexpected {response}; is this Kerfmeter firmware?"
+    )]
+    UnexpectedResponse {
+        /// The request.
+        request: &'static str,
+        /// What came back.
+        response: &'static str,
+    },
+    /// The device restarted since it was opened.
+    #[error(
+        "the device restarted (boot id {old:08x} is now {new:08x}): any run in progress and its result are lost; check its power supply and start again"
+    )]
+    DeviceReset {
+        /// Boot id seen when the port was opened.
+        old: u32,
+        /// Boot id now.
+        new: u32,
+    },
+    /// The device stopped a run (or reset, or self-test) on a fault, and latched it.
+    #[error("the device stopped: {}. Fix the cause, then `kerfmeter clear-fault` and `kerfmeter reset`", describe_fault(*fault))]
+    Fault {
+        /// The latched fault.
+        fault: Fault,
+    },
+    /// The run ended without a result: aborted by another program, or the device was reset.
+    #[error(
+        "the run ended without a result (aborted from elsewhere, or the device was reset); start it again"
+    )]
+    RunInterrupted,
+    /// The device did not finish in time.
+    #[error("the device did not finish within {seconds} s; it was told to abort")]
+    RunTimeout {
+        /// The time allowed.
+        seconds: u64,
+    },
+    /// `discover` found no device, or more than one.
+    #[error("{0}")]
+    Discover(String),
+    /// The `--sim` twin could not be started.
+    #[error("cannot start the simulated device: {0}")]
+    Sim(String),
+    /// A bad argument or parameter; the message names it and its allowed range.
+    #[error("{0}")]
+    InvalidArgument(String),
+    /// A file could not be read, parsed or written.
+    #[error("{}: {message}", path.display())]
+    File {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+impl Error {
+    /// The device fault behind this error, if the device refused because of a latched fault.
+    pub fn fault(&self) -> Option<Fault> {
+        match self {
+            Error::Device {
+                code: ErrorCode::Faulted(f),
+                ..
+            }
+            | Error::Fault { fault: f } => Some(*f),
+            _ => None,
+        }
+    }
+
+    /// What kind of failure this is (the command-line tool's exit code follows from it).
+    pub fn category(&self) -> Category {
+        match self {
+            Error::Open { .. }
+            | Error::PortVanished { .. }
+            | Error::Io { .. }
+            | Error::Timeout { .. }
+            | Error::ProtocolMismatch { .. }
+            | Error::UnexpectedResponse { .. }
+            | Error::DeviceReset { .. }
+            | Error::Discover(_)
+            | Error::Sim(_) => Category::Communication,
+            Error::Device { .. }
+            | Error::Fault { .. }
+            | Error::RunInterrupted
+            | Error::RunTimeout { .. } => Category::Device,
+            Error::InvalidArgument(_) => Category::Usage,
+            Error::File { .. } => Category::File,
+        }
+    }
+
+    /// True for errors of the link itself (port, timeout, protocol), as opposed to the device
+    /// refusing or failing a request.
+    pub fn is_communication(&self) -> bool {
+        self.category() == Category::Communication
+    }
+}
+
+/// The kinds of failure, coarse enough for a script to act on (see [`Error::category`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Category {
+    /// A bad argument or parameter: change the command.
+    Usage,
+    /// The link to the device: the port, a timeout, the protocol, a restarted device.
+    Communication,
+    /// The device refused, faulted or could not finish.
+    Device,
+    /// A file could not be read, parsed or written.
+    File,
+}
+
+/// A sentence for a device error code, saying what to do about it.
+pub fn describe_error_code(code: ErrorCode) -> String {
+    match code {
+        ErrorCode::UnknownRequest => {
+            "its firmware does not know this request; update the firmware".into()
+        }
+        ErrorCode::Unsupported => "this firmware build does not implement it".into(),
+        ErrorCode::Busy => "it is busy with a run, reset or self-test; wait, or abort it".into(),
+        ErrorCode::Faulted(f) => format!(
+            "a fault is latched ({}); fix the cause, then `clear-fault` or `reset`",
+            describe_fault(f)
+        ),
+        ErrorCode::InvalidParam(field) => {
+            let (lo, hi) = field.range();
+            format!("{} is out of range (allowed {lo} to {hi})", field.name())
+        }
+        ErrorCode::NoSamples => "there are no (more) samples for that run".into(),
+        ErrorCode::Storage => {
+            "the configuration could not be saved to flash; the old one stays in use".into()
+        }
+        ErrorCode::NotAtZero => {
+            "the hub is not at its zero position (prongs centred in the gauge holes): run `reset` first".into()
+        }
+    }
+}
+
+/// A sentence for a latched device fault.
+pub fn describe_fault(fault: Fault) -> &'static str {
+    match fault {
+        Fault::MaxRunTime => "the run took longer than its time limit",
+        Fault::Overtravel => {
+            "the inset turned past the gauge's disengage angle without jamming: kerf too large for this gauge, or the inset is loose"
+        }
+        Fault::NoMotion => {
+            "torque but no motion: is a gauge inset under the prongs, and the motor connected?"
+        }
+        Fault::ReverseMotion => {
+            "the hub turned backwards: check the motor and encoder direction settings"
+        }
+        Fault::EncoderErrors => "too many encoder read errors: check the encoder wiring",
+        Fault::EncoderDiagnostics => {
+            "the encoder failed its diagnostics (stuck bus or no offset compensation): check the encoder wiring"
+        }
+        Fault::Magnet => {
+            "the encoder magnet is missing or out of range: check the magnet's distance to the chip"
+        }
+        Fault::OverCurrent => "motor over-current: is the hub blocked?",
+        Fault::DriverFault => {
+            "the motor driver reported a fault (over-temperature, short or under-voltage)"
+        }
+        Fault::HostSilent => "the host stopped talking during a run",
+        Fault::StepOverrun => "the control loop could not keep its rate",
+        Fault::ResetFailed => "the hub did not return to zero: is it blocked?",
+    }
+}

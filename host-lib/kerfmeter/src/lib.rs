@@ -1,0 +1,41 @@
+//! Drive a Kerfmeter from a PC.
+//!
+//! [`Kerfmeter`] is a blocking client over a serial port (the device's USB-Serial-JTAG port, or a
+//! pseudo-terminal served by the digital twin). It frames requests with the shared
+//! [`kerfmeter_protocol`], retries lost responses with the same sequence number (so the device
+//! answers from memory instead of acting twice), skips garbage on the line, and turns every
+//! device refusal into an [`Error`] whose message says what to do.
+//!
+//! Beside the client: the calls ([`Kerfmeter::run_kerfmeter`], [`Kerfmeter::get_kerf_value`],
+//! [`Kerfmeter::reset_kerfmeter`] and the rest), run parameters from a joint ([`params`]),
+//! statistics over repeated runs ([`stats`]), the bed map ([`map`]), safe output files
+//! ([`files`]) and, with the `sim` feature (on by default), the digital twin in-process ([`sim`]).
+//!
+//! This crate is not the command-line tool (that is `kerfmeter-cli`, which also draws the plots)
+//! and does not read or write cutting plans (that is `kerfmeter-plan`): it has no argument parser,
+//! no plotting and no SVG/DXF code.
+//!
+//! ```no_run
+//! let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
+//! let info = meter.info()?;
+//! println!("firmware {}.{}.{}", info.firmware.major, info.firmware.minor, info.firmware.patch);
+//! # Ok::<(), kerfmeter::Error>(())
+//! ```
+
+#![warn(missing_docs)]
+
+mod calls;
+mod client;
+mod error;
+pub mod files;
+pub mod map;
+pub mod params;
+#[cfg(feature = "sim")]
+pub mod sim;
+pub mod stats;
+
+pub use calls::{Curve, Measurement, Progress};
+pub use client::{Kerfmeter, Options};
+pub use error::{Category, Error, Result, describe_error_code, describe_fault};
+pub use kerfmeter_protocol as protocol;
+pub use params::JointSpec;

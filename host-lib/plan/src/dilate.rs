@@ -1,0 +1,613 @@
+//! Dilating closed cut contours by half the kerf: the core, independent of file formats.
+//!
+//! The laser removes a strip of width k centred on the line it follows, so a part cut along its
+//! nominal outline comes out k/2 too small all round. Cutting instead along the boundary of the
+//! part's **Minkowski sum with a disk of radius k/2** (the beam is round) gives back the nominal
+//! part exactly: every closed contour is offset by k/2 with *round joins* — outer contours grow,
+//! holes shrink, and a part lying inside another part's hole (an island) grows again.
+//!
+//! * **Nesting** decides the sign: a contour's *depth* is the number of contours enclosing it.
+//!   Even depth = the outer contour of a part, odd depth = a hole of the part it lies in directly.
+//!   The direction each contour is drawn in does not matter (it is normalised for the offset and
+//!   restored afterwards, so fill rules and cut order keep working).
+//! * **Offsets** come from `cavalier_contours` (`parallel_offset`): lines stay lines, arcs stay
+//!   arcs, convex corners get round joins (arcs of radius k/2), concave corners stay sharp. For a
+//!   part with holes the contours can be offset one by one: outer contours move outwards and holes
+//!   move into the hole, away from each other, so they never interact.
+//! * **Kerf per part**: each part (an outer contour with its holes) uses one kerf, the one given
+//!   at the part's area centroid (with a kerf map, interpolated there).
+//!
+//! Problems are collected, not stopped at, and reported together (each with the contours' labels
+//! and a position in mm): contours that cross themselves or each other, a hole narrower than the
+//! kerf (it would vanish or split), a part whose outline would close around a void, and two parts
+//! that would *merge* — closer than the kerf, so their dilated regions overlap (or share a cut
+//! line). A notch open to the outside and narrower than the kerf simply fills in: no kerf
+//! compensation can cut it.
+
+use cavalier_contours::polyline::{PlineSource, PlineSourceMut};
+use cavalier_contours::static_aabb2d_index::{StaticAABB2DIndex, StaticAABB2DIndexBuilder};
+use serde::Serialize;
+
+use std::fmt;
+use std::sync::Arc;
+
+use super::geom::{Pline, V2, area_and_centroid, v2};
+use crate::error::{PlanError, Result};
+
+/// Largest kerf accepted, µm (a sanity bound: real kerfs are 50–500 µm).
+pub const MAX_KERF_UM: f64 = 5000.0;
+
+/// A closed cut contour in document space, mm.
+#[derive(Debug, Clone)]
+pub struct Contour {
+    /// The contour (closed; either direction).
+    pub pline: Pline,
+    /// How to name it in messages, e.g. `path "side-a"` or `LWPOLYLINE 2F`.
+    pub label: String,
+}
+
+/// The kerf (µm) at a point of the bed (x, y in mm).
+pub type KerfField = dyn Fn(f64, f64) -> f64 + Send + Sync;
+
+/// Where the kerf comes from.
+#[derive(Clone)]
+pub enum KerfSource {
+    /// The same kerf everywhere, µm.
+    Uniform(f64),
+    /// A kerf that varies over the bed, e.g. a bed map's: each part uses the kerf at its
+    /// centroid.
+    Map(Arc<KerfField>),
+}
+
+impl fmt::Debug for KerfSource {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            KerfSource::Uniform(k) => f.debug_tuple("Uniform").field(k).finish(),
+            KerfSource::Map(_) => f.write_str("Map(..)"),
+        }
+    }
+}
+
+impl KerfSource {
+    /// The kerf at (`x_mm`, `y_mm`), µm.
+    pub fn kerf_at_um(&self, x_mm: f64, y_mm: f64) -> f64 {
+        match self {
+            KerfSource::Uniform(k) => *k,
+            KerfSource::Map(field) => field(x_mm, y_mm),
+        }
+    }
+
+    /// Check a kerf value given by the user, µm.
+    pub fn check_kerf_um(kerf_um: f64) -> Result<f64> {
+        if kerf_um.is_finite() && (0.0..=MAX_KERF_UM).contains(&kerf_um) {
+            Ok(kerf_um)
+        } else {
+            Err(PlanError::InvalidArgument(format!(
+                "the kerf must be between 0 and {MAX_KERF_UM} µm, got {kerf_um} µm"
+            )))
+        }
+    }
+}
+
+/// What a contour is within its part.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// The outline of a part (even nesting depth): grows.
+    Outer,
+    /// A hole of a part (odd nesting depth): shrinks.
+    Hole,
+}
+
+/// A part: an outer contour and its holes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Part {
+    /// Index of the outer contour.
+    pub outer: usize,
+    /// Indexes of its holes.
+    pub holes: Vec<usize>,
+    /// Nesting depth of the outer contour (0 = top level; 2, 4, … = an island in a hole).
+    pub depth: usize,
+    /// Area centroid of the part (outer minus holes), mm.
+    pub centroid_mm: [f64; 2],
+    /// Area of the part, mm².
+    pub area_mm2: f64,
+    /// The kerf used for this part, µm.
+    pub kerf_um: f64,
+}
+
+/// The result of [`dilate`].
+#[derive(Debug, Clone)]
+pub struct Dilation {
+    /// The dilated contours, one per input contour, drawn in the same direction as the input.
+    pub contours: Vec<Pline>,
+    /// Role of each input contour.
+    pub roles: Vec<Role>,
+    /// Part of each input contour (index into `parts`).
+    pub part_of: Vec<usize>,
+    /// The parts.
+    pub parts: Vec<Part>,
+}
+
+fn at(p: V2) -> String {
+    format!("({:.3}, {:.3}) mm", p.x, p.y)
+}
+
+fn first_point(p: &Pline) -> V2 {
+    let v = p.at(0);
+    v2(v.x, v.y)
+}
+
+/// A point where two polylines cross or touch, if they do.
+fn crossing(a: &Pline, b: &Pline) -> Option<V2> {
+    let found = a.find_intersects(b);
+    if let Some(i) = found.basic_intersects.first() {
+        return Some(i.point);
+    }
+    found.overlapping_intersects.first().map(|o| o.point1)
+}
+
+fn inside(p: &Pline, q: V2) -> bool {
+    p.winding_number(q) != 0
+}
+
+#[derive(Clone, Copy)]
+struct Bbox {
+    min: V2,
+    max: V2,
+}
+
+impl Bbox {
+    fn of(p: &Pline) -> Bbox {
+        let e = p.extents().expect("a contour has vertices");
+        Bbox {
+            min: v2(e.min_x, e.min_y),
+            max: v2(e.max_x, e.max_y),
+        }
+    }
+
+    fn contains(&self, o: &Bbox, eps: f64) -> bool {
+        self.min.x <= o.min.x + eps
+            && self.min.y <= o.min.y + eps
+            && self.max.x >= o.max.x - eps
+            && self.max.y >= o.max.y - eps
+    }
+}
+
+fn index_of(boxes: &[Bbox]) -> Option<StaticAABB2DIndex<f64>> {
+    if boxes.is_empty() {
+        return None;
+    }
+    let mut b = StaticAABB2DIndexBuilder::new(boxes.len());
+    for x in boxes {
+        b.add(x.min.x, x.min.y, x.max.x, x.max.y);
+    }
+    b.build().ok()
+}
+
+/// Collected problems, reported together.
+#[derive(Default)]
+struct Problems(Vec<String>);
+
+impl Problems {
+    fn push(&mut self, s: String) {
+        self.0.push(s);
+    }
+
+    fn into_result(self) -> Result<()> {
+        if self.0.is_empty() {
+            return Ok(());
+        }
+        const SHOWN: usize = 50;
+        let n = self.0.len();
+        let mut msg = format!(
+            "cannot dilate this plan ({n} problem{}; nothing was written):",
+            if n == 1 { "" } else { "s" }
+        );
+        for p in self.0.iter().take(SHOWN) {
+            msg.push_str("\n  - ");
+            msg.push_str(p);
+        }
+        if n > SHOWN {
+            msg.push_str(&format!("\n  … and {} more", n - SHOWN));
+        }
+        Err(PlanError::CannotDilate(msg))
+    }
+}
+
+/// Dilate closed contours (document space, mm) by half the kerf, with nesting, per-part kerf and
+/// the checks described in the module doc.
+pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
+    let n = contours.len();
+    let mut problems = Problems::default();
+
+    // 1. Each contour on its own: closed, with an area, not crossing itself.
+    let mut areas = vec![0.0; n];
+    let mut centroids = vec![v2(0.0, 0.0); n];
+    for (i, c) in contours.iter().enumerate() {
+        let (a, cen) = area_and_centroid(&c.pline);
+        areas[i] = a;
+        centroids[i] = cen;
+        if !c.pline.is_closed() || c.pline.vertex_count() < 2 || a.abs() < 1e-12 {
+            problems.push(format!(
+                "{} at {} encloses no area; remove it or draw it as an open line",
+                c.label,
+                at(first_point(&c.pline))
+            ));
+        } else if c.pline.scan_for_self_intersect() {
+            problems.push(format!(
+                "{} at {} crosses itself; fix the drawing (each cut must be a simple closed line)",
+                c.label,
+                at(first_point(&c.pline))
+            ));
+        }
+    }
+    problems.into_result()?;
+    let mut problems = Problems::default();
+
+    // 2. Nesting: who encloses whom.
+    let boxes: Vec<Bbox> = contours.iter().map(|c| Bbox::of(&c.pline)).collect();
+    let index = index_of(&boxes);
+    let mut depth = vec![0usize; n];
+    let mut parent: Vec<Option<usize>> = vec![None; n];
+    if let Some(index) = &index {
+        for i in 0..n {
+            let p = first_point(&contours[i].pline);
+            let mut best: Option<usize> = None;
+            for j in index.query(p.x, p.y, p.x, p.y) {
+                if j == i || !boxes[j].contains(&boxes[i], 1e-9) || areas[j].abs() <= areas[i].abs()
+                {
+                    continue;
+                }
+                // Each pair is looked at once: only the larger contour can enclose.
+                if let Some(x) = crossing(&contours[i].pline, &contours[j].pline) {
+                    problems.push(format!(
+                        "{} and {} cross or touch at {}; cut lines must not meet",
+                        contours[i].label,
+                        contours[j].label,
+                        at(x)
+                    ));
+                    continue;
+                }
+                if inside(&contours[j].pline, p) {
+                    depth[i] += 1;
+                    if best.is_none_or(|b| areas[j].abs() < areas[b].abs()) {
+                        best = Some(j);
+                    }
+                }
+            }
+            parent[i] = best;
+        }
+    }
+    problems.into_result()?;
+    let mut problems = Problems::default();
+
+    // 3. Parts.
+    let roles: Vec<Role> = depth
+        .iter()
+        .map(|d| if d % 2 == 0 { Role::Outer } else { Role::Hole })
+        .collect();
+    let mut part_index = vec![usize::MAX; n];
+    let mut parts: Vec<Part> = Vec::new();
+    for i in 0..n {
+        if roles[i] == Role::Outer {
+            part_index[i] = parts.len();
+            parts.push(Part {
+                outer: i,
+                holes: Vec::new(),
+                depth: depth[i],
+                centroid_mm: [0.0; 2],
+                area_mm2: 0.0,
+                kerf_um: 0.0,
+            });
+        }
+    }
+    for i in 0..n {
+        if roles[i] == Role::Hole {
+            let owner = parent[i].expect("a hole has an enclosing contour");
+            let p = part_index[owner];
+            part_index[i] = p;
+            parts[p].holes.push(i);
+        }
+    }
+    for part in &mut parts {
+        let mut area = areas[part.outer].abs();
+        let mut moment = centroids[part.outer].scale(area);
+        for &h in &part.holes {
+            area -= areas[h].abs();
+            moment = moment - centroids[h].scale(areas[h].abs());
+        }
+        let c = if area > 0.0 {
+            moment.scale(1.0 / area)
+        } else {
+            centroids[part.outer]
+        };
+        part.centroid_mm = [c.x, c.y];
+        part.area_mm2 = area;
+        part.kerf_um = kerf.kerf_at_um(c.x, c.y);
+        if !(part.kerf_um.is_finite() && part.kerf_um >= 0.0) {
+            problems.push(format!(
+                "the kerf map gives {:.1} µm for the part {} (centroid {}); a kerf must be ≥ 0",
+                part.kerf_um,
+                contours[part.outer].label,
+                at(c)
+            ));
+        }
+    }
+    problems.into_result()?;
+
+    // 4. Offsets, spread over the available cores.
+    let jobs: Vec<(usize, f64)> = (0..n)
+        .map(|i| (i, parts[part_index[i]].kerf_um / 2000.0))
+        .collect();
+    let threads = std::thread::available_parallelism()
+        .map(|t| t.get())
+        .unwrap_or(1)
+        .clamp(1, 8);
+    let chunk = n.div_ceil(threads).max(1);
+    let roles_ref = &roles;
+    let outcomes: Vec<Result<Pline, String>> = std::thread::scope(|s| {
+        let handles: Vec<_> = jobs
+            .chunks(chunk)
+            .map(|js| {
+                s.spawn(move || {
+                    js.iter()
+                        .map(|&(i, grow)| offset_one(&contours[i], roles_ref[i], grow))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("offset threads do not panic"))
+            .collect()
+    });
+    let mut problems = Problems::default();
+    let mut dilated = Vec::with_capacity(n);
+    for o in outcomes {
+        match o {
+            Ok(p) => dilated.push(p),
+            Err(e) => {
+                problems.push(e);
+                dilated.push(Pline::new_closed());
+            }
+        }
+    }
+    problems.into_result()?;
+
+    // 5. Parts that would merge.
+    let mut problems = Problems::default();
+    let part_boxes: Vec<Bbox> = parts.iter().map(|p| Bbox::of(&dilated[p.outer])).collect();
+    if let Some(index) = index_of(&part_boxes) {
+        for (a, pa) in parts.iter().enumerate() {
+            let b0 = part_boxes[a];
+            for b in index.query(b0.min.x, b0.min.y, b0.max.x, b0.max.y) {
+                if b <= a {
+                    continue;
+                }
+                if let Some(x) = parts_overlap(&parts[a], &parts[b], &dilated) {
+                    let pb = &parts[b];
+                    let need = if (pa.kerf_um - pb.kerf_um).abs() < 1e-9 {
+                        format!("{:.1} µm", pa.kerf_um)
+                    } else {
+                        format!("{:.1} µm", (pa.kerf_um + pb.kerf_um) / 2.0)
+                    };
+                    problems.push(format!(
+                        "the parts {} and {} would merge near {}: dilated they overlap; parts must be more than the kerf ({need}) apart and must not share cut lines",
+                        contours[pa.outer].label,
+                        contours[pb.outer].label,
+                        at(x)
+                    ));
+                }
+            }
+        }
+    }
+    problems.into_result()?;
+
+    Ok(Dilation {
+        contours: dilated,
+        roles,
+        part_of: part_index,
+        parts,
+    })
+}
+
+/// Offset one contour: `grow` > 0 moves it away from the part's material by that many mm
+/// (outwards for an outer contour, into the hole for a hole).
+fn offset_one(c: &Contour, role: Role, grow: f64) -> Result<Pline, String> {
+    if grow == 0.0 {
+        return Ok(c.pline.clone());
+    }
+    let ccw = c.pline.area() > 0.0;
+    let mut p = c.pline.clone();
+    if !ccw {
+        p.invert_direction_mut();
+    }
+    // For a counter-clockwise contour a positive offset goes left = inwards.
+    let offset = match role {
+        Role::Outer => -grow,
+        Role::Hole => grow,
+    };
+    let results = p.parallel_offset(offset);
+    let kerf_um = grow.abs() * 2000.0;
+    let total = results.len();
+    let mut keep: Vec<Pline> = results.into_iter().filter(|r| r.area() > 0.0).collect();
+    match (role, keep.len(), total) {
+        (_, 1, 1) => {
+            let mut r = keep.pop().expect("one result");
+            if !ccw {
+                r.invert_direction_mut();
+            }
+            Ok(r)
+        }
+        (Role::Hole, 0, _) => Err(format!(
+            "the hole {} at {} is narrower than the kerf ({kerf_um:.1} µm) and would vanish: it could not be cut at its size",
+            c.label,
+            at(first_point(&c.pline))
+        )),
+        (Role::Hole, _, _) => Err(format!(
+            "the hole {} at {} has a neck narrower than the kerf ({kerf_um:.1} µm): shrunk, it would split in two",
+            c.label,
+            at(first_point(&c.pline))
+        )),
+        (Role::Outer, _, _) => Err(format!(
+            "the part {} at {} has a gap narrower than the kerf ({kerf_um:.1} µm) that would close around a void",
+            c.label,
+            at(first_point(&c.pline))
+        )),
+    }
+}
+
+/// Whether two dilated parts overlap, and where.
+fn parts_overlap(a: &Part, b: &Part, dilated: &[Pline]) -> Option<V2> {
+    let (oa, ob) = (&dilated[a.outer], &dilated[b.outer]);
+    if let Some(x) = crossing(oa, ob) {
+        return Some(x);
+    }
+    for &h in &a.holes {
+        if let Some(x) = crossing(&dilated[h], ob) {
+            return Some(x);
+        }
+    }
+    for &h in &b.holes {
+        if let Some(x) = crossing(oa, &dilated[h]) {
+            return Some(x);
+        }
+    }
+    // No crossings: one part may still lie on the other's material.
+    let on_material = |p: &Part, q: V2| {
+        inside(&dilated[p.outer], q) && !p.holes.iter().any(|&h| inside(&dilated[h], q))
+    };
+    let qb = first_point(ob);
+    if on_material(a, qb) {
+        return Some(qb);
+    }
+    let qa = first_point(oa);
+    if on_material(b, qa) {
+        return Some(qa);
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cavalier_contours::polyline::PlineSource;
+
+    fn rect(x0: f64, y0: f64, x1: f64, y1: f64, ccw: bool) -> Pline {
+        let mut p = Pline::new_closed();
+        let pts = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)];
+        if ccw {
+            for (x, y) in pts {
+                p.add(x, y, 0.0);
+            }
+        } else {
+            for (x, y) in pts.iter().rev() {
+                p.add(*x, *y, 0.0);
+            }
+        }
+        p
+    }
+
+    fn c(p: Pline, label: &str) -> Contour {
+        Contour {
+            pline: p,
+            label: label.into(),
+        }
+    }
+
+    #[test]
+    fn outer_grows_hole_shrinks_island_grows_with_orientation_kept() {
+        let contours = vec![
+            c(rect(0.0, 0.0, 100.0, 100.0, false), "outer"),
+            c(rect(10.0, 10.0, 90.0, 90.0, true), "hole"),
+            c(rect(40.0, 40.0, 60.0, 60.0, false), "island"),
+        ];
+        let d = dilate(&contours, &KerfSource::Uniform(200.0)).unwrap();
+        assert_eq!(d.roles, vec![Role::Outer, Role::Hole, Role::Outer]);
+        assert_eq!(d.parts.len(), 2);
+        assert_eq!(d.parts[0].holes, vec![1]);
+        // Outer: 100.2 × 100.2 with four quarter-round corners of radius 0.1.
+        let r: f64 = 0.1;
+        let expected_outer = 100.0 * 100.0 + 4.0 * 100.0 * r + std::f64::consts::PI * r * r;
+        assert!((d.contours[0].area().abs() - expected_outer).abs() < 1e-9);
+        // Hole: 79.8 × 79.8, sharp corners.
+        assert!((d.contours[1].area().abs() - 79.8 * 79.8).abs() < 1e-9);
+        // Orientation kept.
+        assert!(
+            d.contours[0].area() < 0.0 && d.contours[1].area() > 0.0 && d.contours[2].area() < 0.0
+        );
+        // The part's centroid: the middle.
+        assert!((d.parts[0].centroid_mm[0] - 50.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn parts_closer_than_the_kerf_merge_and_are_reported() {
+        let contours = vec![
+            c(rect(0.0, 0.0, 10.0, 10.0, true), "a"),
+            c(rect(10.15, 0.0, 20.0, 10.0, true), "b"),
+        ];
+        let e = dilate(&contours, &KerfSource::Uniform(200.0))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("would merge") && e.contains("a") && e.contains("b"),
+            "{e}"
+        );
+        assert!(dilate(&contours, &KerfSource::Uniform(100.0)).is_ok());
+    }
+
+    #[test]
+    fn a_hole_narrower_than_the_kerf_is_an_error() {
+        let contours = vec![
+            c(rect(0.0, 0.0, 10.0, 10.0, true), "part"),
+            c(rect(2.0, 2.0, 2.15, 8.0, true), "slit"),
+        ];
+        let e = dilate(&contours, &KerfSource::Uniform(200.0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("slit") && e.contains("vanish"), "{e}");
+    }
+
+    #[test]
+    fn crossing_contours_are_an_error() {
+        let contours = vec![
+            c(rect(0.0, 0.0, 10.0, 10.0, true), "big"),
+            c(rect(5.0, 5.0, 10.0, 12.0, true), "sticks-out"),
+        ];
+        let e = dilate(&contours, &KerfSource::Uniform(100.0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("would merge"), "{e}");
+        // A square inside an L's bounding box, crossing the L.
+        let mut l = Pline::new_closed();
+        for (x, y) in [
+            (0.0, 0.0),
+            (10.0, 0.0),
+            (10.0, 5.0),
+            (5.0, 5.0),
+            (5.0, 10.0),
+            (0.0, 10.0),
+        ] {
+            l.add(x, y, 0.0);
+        }
+        let contours = vec![c(l, "L"), c(rect(3.0, 3.0, 7.0, 7.0, true), "square")];
+        let e = dilate(&contours, &KerfSource::Uniform(100.0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("square and L cross"), "{e}");
+    }
+
+    #[test]
+    fn a_map_gives_each_part_the_kerf_at_its_centroid() {
+        // 120 µm left of x = 100 mm, 160 µm right of it.
+        let field = |x_mm: f64, _y_mm: f64| if x_mm < 100.0 { 120.0 } else { 160.0 };
+        let contours = vec![
+            c(rect(40.0, 40.0, 60.0, 60.0, true), "left"),
+            c(rect(140.0, 40.0, 160.0, 60.0, true), "right"),
+        ];
+        let d = dilate(&contours, &KerfSource::Map(Arc::new(field))).unwrap();
+        assert!((d.parts[0].kerf_um - 120.0).abs() < 1e-9);
+        assert!((d.parts[1].kerf_um - 160.0).abs() < 1e-9);
+    }
+}

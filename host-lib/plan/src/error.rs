@@ -1,0 +1,66 @@
+//! What can go wrong with a cutting plan, by kind: a file that is not readable in its format, units
+//! that are not known, a plan that cannot be dilated as drawn, open paths where none are allowed,
+//! a bad argument, or the file itself (reading it). Every message says what to do.
+
+use std::path::{Path, PathBuf};
+
+/// Result of every fallible function of this crate.
+pub type Result<T, E = PlanError> = std::result::Result<T, E>;
+
+/// What went wrong with a plan.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    /// The SVG text cannot be read or used (not XML, not SVG, a cut that cannot be traced).
+    #[error("{0}")]
+    Svg(String),
+    /// The DXF data cannot be read or written.
+    #[error("{0}")]
+    Dxf(String),
+    /// The file does not say how long a drawing unit is (or says it inconsistently).
+    #[error("{0}")]
+    Units(String),
+    /// The plan cannot be dilated as drawn: parts would merge, a hole is narrower than the kerf,
+    /// or cuts cross. The message lists every problem found, with positions.
+    #[error("{0}")]
+    CannotDilate(String),
+    /// Open cut paths, which cannot be dilated, where the caller refuses them.
+    #[error("{0}")]
+    OpenPaths(String),
+    /// A bad argument: the kerf, a colour, a width, the gauge geometry, a file name's extension.
+    #[error("{0}")]
+    InvalidArgument(String),
+    /// A plan file could not be read.
+    #[error("{}: cannot read: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Any of the above, in a particular plan file.
+    #[error("{}: {source}", path.display())]
+    InFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        source: Box<PlanError>,
+    },
+}
+
+impl PlanError {
+    /// The same error, said of the plan file at `path`.
+    pub fn in_file(self, path: &Path) -> PlanError {
+        PlanError::InFile {
+            path: path.to_owned(),
+            source: Box::new(self),
+        }
+    }
+
+    /// The plan file this error is about, if it is about a file rather than the arguments.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            PlanError::Io { path, .. } | PlanError::InFile { path, .. } => Some(path),
+            _ => None,
+        }
+    }
+}

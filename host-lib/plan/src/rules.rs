@@ -1,0 +1,250 @@
+//! Which lines of a plan are *cuts*: rules by stroke colour and width (SVG), by colour or layer
+//! (DXF).
+//!
+//! Laser software has no single convention, so the defaults cover the common ones and every rule
+//! is configurable (`--cut-color`, `--cut-max-width-mm`, `--cut-layer`):
+//!
+//! | source | cut | not a cut |
+//! |---|---|---|
+//! | Epilog / Trotec / ULS drivers, university labs (Purdue BIDC) | red `#FF0000` hairline | black fill = raster engrave; thick lines engrave (ULS: ≥ 0.2 mm) |
+//! | boxes.py (`Color.OUTER_CUT` / `INNER_CUT`) | black `#000000` outer cuts, blue `#0000FF` inner cuts | red annotations, green etching, cyan deep etching |
+//! | Ponoko, Purdue ("blue/green for inner cuts first") | blue `#0000FF` | red = vector engrave at Ponoko |
+//! | Glowforge | any *outlined* (unfilled) vector | filled shapes and bitmaps = engrave |
+//! | LightBurn, xTool Creative Space | colour → layer, the user picks each layer's mode (LightBurn's palette starts black `00`, blue `01`, red `02`) | |
+//!
+//! **Defaults:** an element is a cut when it is rendered, *stroked* in red, blue or black, with a
+//! stroke no wider than 0.3 mm (Inkscape's default 1 px = 0.265 mm passes), and *not filled*.
+//! Everything else — green/cyan/other strokes (scores, etching), filled shapes (raster engrave),
+//! thick strokes, text, images — passes through untouched. Ponoko users, whose red lines are
+//! vector *engraves*, pass `--cut-color blue`; shops with "blue = score" pass
+//! `--cut-color red,black`.
+//!
+//! DXF has no fills: an entity is a cut when its colour (its own, or its layer's for BYLAYER;
+//! ACI 1 = red, 5 = blue, 7 = black/white) is a cut colour — or, when `--cut-layer` names are
+//! given, exactly when it lies on one of those layers. A positive DXF lineweight wider than the
+//! maximum width also makes it a non-cut.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::Serialize;
+
+use crate::error::{PlanError, Result};
+
+/// An sRGB colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+pub struct Rgb(pub u8, pub u8, pub u8);
+
+impl Rgb {
+    /// Pure red.
+    pub const RED: Rgb = Rgb(255, 0, 0);
+    /// Pure blue.
+    pub const BLUE: Rgb = Rgb(0, 0, 255);
+    /// Black.
+    pub const BLACK: Rgb = Rgb(0, 0, 0);
+
+    /// Parse any CSS colour (`red`, `#f00`, `#FF0000`, `rgb(255,0,0)`).
+    pub fn parse(text: &str) -> Result<Rgb> {
+        let c = svgtypes::Color::from_str(text.trim()).map_err(|e| {
+            PlanError::InvalidArgument(format!(
+                "`{text}` is not a colour ({e}); use a name like red or a hex code like #FF0000"
+            ))
+        })?;
+        Ok(Rgb(c.red, c.green, c.blue))
+    }
+
+    /// The colour of an AutoCAD colour index, for the indexes that have a fixed meaning (1–7;
+    /// 7 is "black or white, against the background", taken as black on a laser's white page).
+    pub fn from_aci(index: u8) -> Option<Rgb> {
+        Some(match index {
+            1 => Rgb(255, 0, 0),
+            2 => Rgb(255, 255, 0),
+            3 => Rgb(0, 255, 0),
+            4 => Rgb(0, 255, 255),
+            5 => Rgb(0, 0, 255),
+            6 => Rgb(255, 0, 255),
+            7 => Rgb(0, 0, 0),
+            _ => return None,
+        })
+    }
+}
+
+impl fmt::Display for Rgb {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "#{:02X}{:02X}{:02X}", self.0, self.1, self.2)
+    }
+}
+
+/// The rules that decide which lines are cuts (see the module doc for the defaults).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CutRules {
+    /// Stroke colours that mean "cut".
+    pub colors: Vec<Rgb>,
+    /// Widest stroke that is still a cut line, mm.
+    pub max_width_mm: f64,
+    /// DXF layers whose entities are cuts (case-insensitive); when non-empty, colours are not
+    /// used for DXF.
+    pub layers: Vec<String>,
+}
+
+impl Default for CutRules {
+    fn default() -> Self {
+        Self {
+            colors: vec![Rgb::RED, Rgb::BLUE, Rgb::BLACK],
+            max_width_mm: 0.3,
+            layers: Vec::new(),
+        }
+    }
+}
+
+/// What the rules say about one element.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Verdict {
+    /// A cut: dilate it.
+    Cut,
+    /// Not a cut, and why (a short phrase used to group the passed-through elements).
+    Keep(String),
+}
+
+impl CutRules {
+    /// Rules from option values: colours (CSS syntax), maximum width, DXF layers.
+    pub fn new(colors: &[String], max_width_mm: f64, layers: &[String]) -> Result<Self> {
+        let mut rules = Self::default();
+        if !colors.is_empty() {
+            rules.colors = colors
+                .iter()
+                .map(|c| Rgb::parse(c))
+                .collect::<Result<_>>()?;
+        }
+        if !(max_width_mm.is_finite() && max_width_mm >= 0.0) {
+            return Err(PlanError::InvalidArgument(format!(
+                "--cut-max-width-mm must be a width ≥ 0 mm, got {max_width_mm}"
+            )));
+        }
+        rules.max_width_mm = max_width_mm;
+        rules.layers = layers.to_vec();
+        Ok(rules)
+    }
+
+    /// Classify an SVG element from its resolved stroke (colour, width in mm) and whether it is
+    /// filled.
+    pub fn classify_svg(&self, stroke: Option<(Rgb, f64)>, filled: bool) -> Verdict {
+        let Some((color, width_mm)) = stroke else {
+            return Verdict::Keep(if filled {
+                "filled, no stroke (engrave)".into()
+            } else {
+                "no stroke".into()
+            });
+        };
+        if filled {
+            return Verdict::Keep("filled (engrave)".into());
+        }
+        if !self.colors.contains(&color) {
+            return Verdict::Keep(format!("stroke {color} (not a cut colour)"));
+        }
+        if width_mm > self.max_width_mm + 1e-9 {
+            return Verdict::Keep(format!(
+                "stroke wider than {} mm (engrave)",
+                self.max_width_mm
+            ));
+        }
+        Verdict::Cut
+    }
+
+    /// Classify a DXF entity from its resolved colour, layer and lineweight (mm, when set).
+    pub fn classify_dxf(
+        &self,
+        color: Option<Rgb>,
+        layer: &str,
+        lineweight_mm: Option<f64>,
+    ) -> Verdict {
+        if !self.layers.is_empty() {
+            return if self.layers.iter().any(|l| l.eq_ignore_ascii_case(layer)) {
+                Verdict::Cut
+            } else {
+                Verdict::Keep(format!("layer {layer} (not a cut layer)"))
+            };
+        }
+        let Some(color) = color else {
+            return Verdict::Keep("colour not red, blue or black by index".into());
+        };
+        if !self.colors.contains(&color) {
+            return Verdict::Keep(format!("colour {color} (not a cut colour)"));
+        }
+        if let Some(w) = lineweight_mm
+            && w > self.max_width_mm + 1e-9
+        {
+            return Verdict::Keep(format!(
+                "lineweight wider than {} mm (engrave)",
+                self.max_width_mm
+            ));
+        }
+        Verdict::Cut
+    }
+
+    /// One line describing the rules, for reports.
+    pub fn describe(&self) -> String {
+        let colors: Vec<String> = self.colors.iter().map(Rgb::to_string).collect();
+        let mut s = format!(
+            "unfilled lines in {} up to {} mm wide",
+            colors.join(", "),
+            self.max_width_mm
+        );
+        if !self.layers.is_empty() {
+            s.push_str(&format!("; DXF layers {}", self.layers.join(", ")));
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_follow_the_laser_conventions() {
+        let r = CutRules::default();
+        assert_eq!(r.classify_svg(Some((Rgb::RED, 0.01)), false), Verdict::Cut);
+        assert_eq!(r.classify_svg(Some((Rgb::BLUE, 0.1)), false), Verdict::Cut);
+        assert_eq!(
+            r.classify_svg(Some((Rgb::BLACK, 0.265)), false),
+            Verdict::Cut
+        );
+        assert!(matches!(
+            r.classify_svg(Some((Rgb(0, 255, 0), 0.01)), false),
+            Verdict::Keep(_)
+        ));
+        assert!(matches!(
+            r.classify_svg(Some((Rgb::RED, 0.5)), false),
+            Verdict::Keep(_)
+        ));
+        assert!(matches!(
+            r.classify_svg(Some((Rgb::BLACK, 0.1)), true),
+            Verdict::Keep(_)
+        ));
+        assert!(matches!(r.classify_svg(None, true), Verdict::Keep(_)));
+        assert_eq!(r.classify_dxf(Rgb::from_aci(1), "0", None), Verdict::Cut);
+        assert!(matches!(
+            r.classify_dxf(Rgb::from_aci(3), "0", None),
+            Verdict::Keep(_)
+        ));
+    }
+
+    #[test]
+    fn options_replace_the_defaults() {
+        let r = CutRules::new(&["#00f".into()], 0.1, &["CUT".into()]).unwrap();
+        assert_eq!(r.colors, vec![Rgb::BLUE]);
+        assert!(matches!(
+            r.classify_svg(Some((Rgb::RED, 0.01)), false),
+            Verdict::Keep(_)
+        ));
+        assert_eq!(r.classify_dxf(None, "cut", None), Verdict::Cut);
+        assert!(matches!(
+            r.classify_dxf(Rgb::from_aci(1), "ENGRAVE", None),
+            Verdict::Keep(_)
+        ));
+        assert!(CutRules::new(&["nonsense-colour".into()], 0.1, &[]).is_err());
+        assert!(CutRules::new(&[], -1.0, &[]).is_err());
+        assert_eq!(Rgb::parse("rgb(255, 0, 0)").unwrap().to_string(), "#FF0000");
+    }
+}

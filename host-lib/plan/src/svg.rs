@@ -1,0 +1,930 @@
+//! SVG plans: read with `usvg`, dilate the cuts, and write the result by *editing the original
+//! text*, so ids, layers, text, styles, comments and every non-cut element survive byte for byte.
+//!
+//! **Reading.** `usvg` resolves what a laser program would see: CSS and inherited styles,
+//! `transform`s, the `viewBox`, `<use>` clones, `<symbol>`s, nested `<svg>`s, shapes turned into
+//! paths. Each rendered path is tied back to its source element: before `usvg` parses the text, every
+//! shape element gets a private numeric tag (carried through `usvg`, clones included, in a style
+//! property that does not matter for cutting), and `<use>` elements without an id get a private
+//! id. Nothing of this reaches the output.
+//!
+//! **Units.** Offsets are in mm in *document space* (the page as printed, x right, y down, origin at
+//! the page's top-left corner — which is also where a kerf map is looked up). The root `<svg>`
+//! must give `width` and `height` in absolute units (`mm`, `cm`, `in`, `pt`, `pc`); user units
+//! follow from the `viewBox`. A file whose size is unitless or in `px` is refused ("unknown units":
+//! 96 or 72 px per inch depends on the program that wrote it) unless the caller says what one user
+//! unit is ([`AssumedUnits`], `--units`).
+//!
+//! **Geometry.** Every closed subpath of a cut element is a contour (a subpath closes with `Z` or
+//! when it ends within 0.1 µm of its start; on pages over about 200 mm, within a few steps of
+//! single precision). `usvg` turns arcs, circles and rounded corners into
+//! cubic Béziers; those are recognised and made exact arcs again, other curves become biarcs
+//! (see [`super::geom`]). `usvg` stores coordinates in single precision: about 0.01 µm per 100 mm
+//! of page.
+//!
+//! **Writing.** A dilated contour is transformed back into the element's *own* coordinate system
+//! (through the inverse of all its transforms, so a scaled or skewed group stays as it is; an arc
+//! becomes an elliptical `A` arc where the transform is not a similarity) and written as the
+//! element's new `d`:
+//!
+//! * `<path>`: only the `d` value changes. Inkscape's shape parameters (`sodipodi:*`,
+//!   `inkscape:original-d`, `inkscape:path-effect`) are removed, or Inkscape would redraw the old
+//!   shape on the next edit.
+//! * `<rect>`, `<circle>`, `<ellipse>`, `<polygon>`, closed `<polyline>`: the element becomes a
+//!   `<path>` with the same attributes (id, class, style, transform, …) minus its geometry
+//!   attributes.
+//! * A cut reached through `<use>`: the referenced element is copied, dilated for that instance
+//!   (its position, and so its kerf, and its transform are the instance's), into a `<defs>` right
+//!   after the original with ids suffixed `-kerfN`, and the `<use>` is pointed at the copy; the
+//!   original stays for other users of it. Clones of clones (a cut reached through two nested
+//!   `<use>`) are refused: unlink them first (Inkscape: Edit ▸ Clone ▸ Unlink Clone).
+//! * Open subpaths of a cut element are kept as drawn (re-emitted in the element's coordinates)
+//!   and reported.
+
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::fmt::Write as _;
+use std::ops::Range;
+use std::str::FromStr;
+
+use cavalier_contours::polyline::PlineSource;
+use roxmltree::{Document, Node, ParsingOptions};
+use usvg::tiny_skia_path::PathSegment;
+
+use super::dilate::{self, Contour, KerfSource};
+use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
+use super::outcome::{AssumedUnits, OpenPath, PlanSummary};
+use super::rules::{CutRules, Rgb, Verdict};
+use crate::error::{PlanError, Result};
+
+const SVG_NS: &str = "http://www.w3.org/2000/svg";
+const XLINK_NS: &str = "http://www.w3.org/1999/xlink";
+const SODIPODI_NS: &str = "http://sodipodi.sourceforge.net/DTD/sodipodi-0.dtd";
+const INKSCAPE_NS: &str = "http://www.inkscape.org/namespaces/inkscape";
+const SHAPES: [&str; 7] = [
+    "path", "rect", "circle", "ellipse", "line", "polyline", "polygon",
+];
+const GEOMETRY_ATTRIBUTES: [&str; 14] = [
+    "x", "y", "width", "height", "rx", "ry", "cx", "cy", "r", "x1", "y1", "x2", "y2", "points",
+];
+/// Prefix of the private ids given to `<use>` elements that have none (never written out).
+const USE_TAG: &str = "__kerfmeter_use_";
+
+/// How to read an SVG plan.
+#[derive(Debug, Clone, Default)]
+pub struct SvgOptions {
+    /// Which elements are cuts.
+    pub rules: CutRules,
+    /// What one user unit is when the root `<svg>` does not give absolute units.
+    pub assume_units: Option<AssumedUnits>,
+}
+
+/// One drawing command of a subpath, in the element's own coordinates.
+#[derive(Debug, Clone, Copy)]
+enum Seg {
+    M(V2),
+    L(V2),
+    Q(V2, V2),
+    C(V2, V2, V2),
+    Z,
+}
+
+/// One rendered occurrence of a cut element.
+struct Instance {
+    /// Index into the shape elements.
+    element: usize,
+    /// Index into the `<use>` elements, when reached through one.
+    via_use: Option<usize>,
+    /// Element coordinates → document mm.
+    to_doc: Affine,
+    /// The element's subpaths, as `usvg` resolved them.
+    subpaths: Vec<Vec<Seg>>,
+}
+
+/// A byte-range replacement in the source (an insertion when the range is empty).
+#[derive(Debug, Clone)]
+struct Edit {
+    range: Range<usize>,
+    text: String,
+}
+
+fn bad(message: impl Into<String>) -> PlanError {
+    PlanError::Svg(message.into())
+}
+
+/// Dilate the cuts of an SVG plan. Returns the edited document and what was done.
+pub fn dilate_svg(
+    text: &str,
+    kerf: &KerfSource,
+    opts: &SvgOptions,
+) -> Result<(String, PlanSummary)> {
+    let doc = Document::parse_with_options(
+        text,
+        ParsingOptions {
+            allow_dtd: true,
+            ..ParsingOptions::default()
+        },
+    )
+    .map_err(|e| bad(format!("not a readable SVG file (XML error: {e})")))?;
+    let root = doc.root_element();
+    if root.tag_name().name() != "svg" || root.tag_name().namespace() != Some(SVG_NS) {
+        return Err(bad(format!(
+            "not an SVG document: the root element is <{}>",
+            root.tag_name().name()
+        )));
+    }
+    let mut summary = PlanSummary {
+        format: "svg".into(),
+        ..PlanSummary::default()
+    };
+    let mm_per_px = document_scale(root, opts.assume_units, &mut summary)?;
+    summary.mm_per_unit = mm_per_px;
+
+    // Elements of interest.
+    let shapes: Vec<Node> = doc
+        .descendants()
+        .filter(|n| {
+            n.is_element()
+                && n.tag_name().namespace() == Some(SVG_NS)
+                && SHAPES.contains(&n.tag_name().name())
+        })
+        .collect();
+    let uses: Vec<Node> = doc
+        .descendants()
+        .filter(|n| n.is_element() && n.has_tag_name((SVG_NS, "use")))
+        .collect();
+    let mut ids: HashMap<&str, Node> = HashMap::new();
+    for n in doc.descendants().filter(|n| n.is_element()) {
+        if let Some(id) = n.attribute("id") {
+            ids.entry(id).or_insert(n);
+        }
+    }
+
+    // The tagged copy for usvg.
+    let mut tags: Vec<Edit> = Vec::new();
+    for (k, n) in shapes.iter().enumerate() {
+        let code = k + 1;
+        match n
+            .attributes()
+            .find(|a| a.name() == "style" && a.namespace().is_none())
+        {
+            Some(style) => tags.push(Edit {
+                range: style.range_value().end..style.range_value().end,
+                text: format!(";stroke-miterlimit:{code}"),
+            }),
+            None => {
+                let at = tag_name_range(text, *n).end;
+                tags.push(Edit {
+                    range: at..at,
+                    text: format!(" style=\"stroke-miterlimit:{code}\""),
+                });
+            }
+        }
+    }
+    let mut use_by_id: HashMap<String, usize> = HashMap::new();
+    for (k, u) in uses.iter().enumerate() {
+        match u.attribute("id") {
+            Some(id) => {
+                use_by_id.insert(id.to_string(), k);
+            }
+            None => {
+                let id = format!("{USE_TAG}{k}");
+                let at = tag_name_range(text, *u).end;
+                tags.push(Edit {
+                    range: at..at,
+                    text: format!(" id=\"{id}\""),
+                });
+                use_by_id.insert(id, k);
+            }
+        }
+    }
+    let tagged = apply_edits(text, tags)?;
+    let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
+        .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
+
+    // Walk what is rendered.
+    let mut walk = Walk {
+        rules: &opts.rules,
+        mm_per_px,
+        shapes_len: shapes.len(),
+        use_by_id: &use_by_id,
+        instances: Vec::new(),
+        seen: HashSet::new(),
+        summary: &mut summary,
+        unidentified: 0,
+    };
+    walk.group(tree.root(), &mut Vec::new());
+    let unidentified = walk.unidentified;
+    let instances = std::mem::take(&mut walk.instances);
+    if unidentified > 0 {
+        return Err(bad(format!(
+            "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
+        )));
+    }
+    let text_count = doc
+        .descendants()
+        .filter(|n| n.has_tag_name((SVG_NS, "text")))
+        .count();
+    for _ in 0..text_count {
+        summary.pass("text");
+    }
+
+    // Labels, and the checks that need the source.
+    let label = |inst: &Instance| {
+        let mut s = describe(&doc, shapes[inst.element]);
+        if let Some(u) = inst.via_use {
+            s.push_str(&format!(" via <use> {}", describe(&doc, uses[u])));
+        }
+        s
+    };
+    let mut problems = Vec::new();
+    for inst in &instances {
+        if let Some(u) = inst.via_use {
+            // `ancestors()` starts at the node itself: the target may be the shape.
+            let target = use_target(uses[u], &ids);
+            let inside = target.is_some_and(|t| shapes[inst.element].ancestors().any(|a| a == t));
+            if !inside {
+                problems.push(format!(
+                    "{} is reached through nested <use> clones; unlink the clones first (Inkscape: Edit ▸ Clone ▸ Unlink Clone)",
+                    label(inst)
+                ));
+            }
+        }
+    }
+    if !problems.is_empty() {
+        return Err(bad(problems.join("\n")));
+    }
+
+    // Contours.
+    summary.cut_elements = instances.len();
+    let mut contours: Vec<Contour> = Vec::new();
+    // (instance, subpath) → contour index.
+    let mut contour_of: HashMap<(usize, usize), usize> = HashMap::new();
+    for (ii, inst) in instances.iter().enumerate() {
+        let eps = coordinate_eps(inst);
+        let n_sub = inst.subpaths.len();
+        for (si, segs) in inst.subpaths.iter().enumerate() {
+            // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
+            let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
+            for s in segs {
+                match *s {
+                    Seg::M(p) => sink.move_to(inst.to_doc.apply(p)),
+                    Seg::L(p) => sink.line_to(inst.to_doc.apply(p)),
+                    Seg::Q(a, b) => sink.quad_to(inst.to_doc.apply(a), inst.to_doc.apply(b)),
+                    Seg::C(a, b, c) => sink.cubic_to(
+                        inst.to_doc.apply(a),
+                        inst.to_doc.apply(b),
+                        inst.to_doc.apply(c),
+                    ),
+                    Seg::Z => sink.close(),
+                }
+            }
+            let Some(sub) = sink.finish().into_iter().next() else {
+                continue;
+            };
+            let mut name = label(inst);
+            if n_sub > 1 {
+                name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
+            }
+            if sub.pline.is_closed() {
+                contour_of.insert((ii, si), contours.len());
+                contours.push(Contour {
+                    pline: sub.pline,
+                    label: name,
+                });
+            } else {
+                let first = sub.pline.at(0);
+                let last = sub.pline.at(sub.pline.vertex_count() - 1);
+                summary.open_paths.push(OpenPath {
+                    id: name,
+                    start_mm: [first.x, first.y],
+                    end_mm: [last.x, last.y],
+                });
+            }
+        }
+    }
+
+    let dilation = dilate::dilate(&contours, kerf)?;
+    summary.record_parts(&dilation);
+
+    // New geometry per instance, then the edits.
+    let mut main_edits: Vec<Edit> = Vec::new();
+    let mut clone_edits: BTreeMap<usize, Vec<Edit>> = BTreeMap::new();
+    for (ii, inst) in instances.iter().enumerate() {
+        if !(0..inst.subpaths.len()).any(|si| contour_of.contains_key(&(ii, si))) {
+            continue;
+        }
+        let Some(to_local) = inst.to_doc.inverse() else {
+            return Err(bad(format!(
+                "{} has a degenerate transform (zero scale)",
+                label(inst)
+            )));
+        };
+        let digits = digits_for(&inst.to_doc);
+        let mut d = String::new();
+        for (si, segs) in inst.subpaths.iter().enumerate() {
+            if !d.is_empty() {
+                d.push(' ');
+            }
+            match contour_of.get(&(ii, si)) {
+                Some(&ci) => write_pline(&dilation.contours[ci], &to_local, digits, &mut d),
+                None => write_segs(segs, digits, &mut d),
+            }
+        }
+        let edits = geometry_edits(text, shapes[inst.element], &d);
+        summary.changed_elements += 1;
+        match inst.via_use {
+            None => main_edits.extend(edits),
+            Some(u) => clone_edits.entry(u).or_default().extend(edits),
+        }
+    }
+
+    // Clones for cuts reached through <use>.
+    let mut taken: HashSet<String> = ids.keys().map(|s| s.to_string()).collect();
+    let mut inserts: BTreeMap<usize, (Node, String)> = BTreeMap::new();
+    let mut counter = 0usize;
+    for (u, edits) in clone_edits {
+        let node = uses[u];
+        let target = use_target(node, &ids).expect("checked above");
+        let suffix = loop {
+            counter += 1;
+            let s = format!("-kerf{counter}");
+            let root_id = format!("{}{s}", target.attribute("id").unwrap_or(""));
+            if !taken.contains(&root_id) {
+                break s;
+            }
+        };
+        let tr = target.range();
+        let mut local: Vec<Edit> = edits
+            .into_iter()
+            .map(|e| Edit {
+                range: e.range.start - tr.start..e.range.end - tr.start,
+                text: e.text,
+            })
+            .collect();
+        for n in target.descendants().filter(|n| n.is_element()) {
+            if let Some(a) = n
+                .attributes()
+                .find(|a| a.name() == "id" && a.namespace().is_none())
+            {
+                let new_id = format!("{}{suffix}", a.value());
+                taken.insert(new_id.clone());
+                let r = a.range_value();
+                local.push(Edit {
+                    range: r.start - tr.start..r.end - tr.start,
+                    text: new_id,
+                });
+            }
+        }
+        let clone = apply_edits(&text[tr.clone()], local)?;
+        let new_root = format!("{}{suffix}", target.attribute("id").unwrap_or(""));
+        for a in node.attributes() {
+            let is_href =
+                a.name() == "href" && (a.namespace().is_none() || a.namespace() == Some(XLINK_NS));
+            if is_href {
+                main_edits.push(Edit {
+                    range: a.range_value(),
+                    text: format!("#{new_root}"),
+                });
+            }
+        }
+        let entry = inserts
+            .entry(tr.end)
+            .or_insert_with(|| (target, String::new()));
+        entry.1.push('\n');
+        entry.1.push_str(&clone);
+    }
+    for (at, (target, clones)) in inserts {
+        let in_defs = target
+            .parent_element()
+            .is_some_and(|p| p.has_tag_name((SVG_NS, "defs")));
+        let text = if in_defs {
+            clones
+        } else {
+            format!("<defs>{clones}</defs>")
+        };
+        main_edits.push(Edit {
+            range: at..at,
+            text,
+        });
+        summary.notes.push(format!(
+            "cuts reached through <use> were dilated in copies of {} (ids suffixed -kerfN)",
+            describe(&doc, target)
+        ));
+    }
+
+    let output = apply_edits(text, main_edits)?;
+    Ok((output, summary))
+}
+
+/// mm per usvg pixel (user unit of the root), from the root's `width`/`height`.
+fn document_scale(
+    root: Node,
+    assume: Option<AssumedUnits>,
+    summary: &mut PlanSummary,
+) -> Result<f64> {
+    use svgtypes::{Length, LengthUnit};
+    let absolute = |l: &Length| {
+        matches!(
+            l.unit,
+            LengthUnit::Mm | LengthUnit::Cm | LengthUnit::In | LengthUnit::Pt | LengthUnit::Pc
+        )
+    };
+    let w = root.attribute("width");
+    let h = root.attribute("height");
+    let wl = w.and_then(|s| Length::from_str(s).ok());
+    let hl = h.and_then(|s| Length::from_str(s).ok());
+    match (wl, hl) {
+        (Some(a), Some(b)) if absolute(&a) && absolute(&b) => {
+            if assume.is_some() {
+                summary
+                    .notes
+                    .push("--units ignored: the file gives its size in absolute units".into());
+            }
+            // usvg converts absolute lengths at 96 px per inch.
+            Ok(25.4 / 96.0)
+        }
+        (Some(a), Some(b)) if absolute(&a) != absolute(&b) => Err(PlanError::Units(format!(
+            "unknown units: the root <svg> mixes width=\"{}\" and height=\"{}\"; give both in mm (or both in the same absolute unit)",
+            w.unwrap_or(""),
+            h.unwrap_or("")
+        ))),
+        _ => match assume {
+            Some(u) => {
+                summary.notes.push(format!(
+                    "the file does not say its units; one user unit taken as {:?} ({} mm) as asked",
+                    u,
+                    u.mm()
+                ));
+                Ok(u.mm())
+            }
+            None => Err(PlanError::Units(format!(
+                "unknown units: the root <svg> has width=\"{}\" height=\"{}\", not in absolute units (mm, cm, in, pt), so the size of a user unit is not known (96 or 72 px per inch depends on the program). Save with mm units, or say what one unit is with --units (px96 for Inkscape and browsers, px72 for old Illustrator files, mm)",
+                w.unwrap_or("(none)"),
+                h.unwrap_or("(none)")
+            ))),
+        },
+    }
+}
+
+struct Walk<'a> {
+    rules: &'a CutRules,
+    mm_per_px: f64,
+    shapes_len: usize,
+    use_by_id: &'a HashMap<String, usize>,
+    instances: Vec<Instance>,
+    seen: HashSet<(usize, Option<usize>)>,
+    summary: &'a mut PlanSummary,
+    unidentified: usize,
+}
+
+impl Walk<'_> {
+    fn group(&mut self, g: &usvg::Group, uses: &mut Vec<usize>) {
+        for child in g.children() {
+            match child {
+                usvg::Node::Group(c) => {
+                    let u = self.use_by_id.get(c.id()).copied();
+                    if let Some(u) = u {
+                        uses.push(u);
+                    }
+                    self.group(c, uses);
+                    if u.is_some() {
+                        uses.pop();
+                    }
+                }
+                usvg::Node::Path(p) => self.path(p, uses),
+                usvg::Node::Image(_) => self.summary.pass("image"),
+                #[allow(unreachable_patterns)]
+                _ => self.summary.pass("other"),
+            }
+        }
+    }
+
+    fn path(&mut self, p: &usvg::Path, uses: &[usize]) {
+        let to_doc = Affine::scale(self.mm_per_px).then_after(&affine(p.abs_transform()));
+        if !p.is_visible() {
+            self.summary.pass("hidden");
+            return;
+        }
+        let stroke = p.stroke().and_then(|s| match s.paint() {
+            usvg::Paint::Color(c) if s.opacity().get() > 0.0 => Some((
+                Rgb(c.red, c.green, c.blue),
+                f64::from(s.width().get()) * to_doc.mean_scale(),
+                s.miterlimit().get(),
+            )),
+            _ => None,
+        });
+        let filled = p.fill().is_some_and(|f| f.opacity().get() > 0.0);
+        match self
+            .rules
+            .classify_svg(stroke.map(|(c, w, _)| (c, w)), filled)
+        {
+            Verdict::Keep(reason) => self.summary.pass(reason),
+            Verdict::Cut => {
+                let code = stroke.map(|s| s.2).unwrap_or(0.0);
+                let element = code as usize;
+                if code.fract() != 0.0 || element == 0 || element > self.shapes_len {
+                    self.unidentified += 1;
+                    return;
+                }
+                // usvg drops ids inside clones, so only the outermost <use> is seen; a cut
+                // reached through nested clones is caught by the caller (it does not lie in
+                // that <use>'s target).
+                let via_use = uses.first().copied();
+                if !self.seen.insert((element - 1, via_use)) {
+                    // The same element drawn twice in one instance (paint-order with markers).
+                    return;
+                }
+                let mut subpaths: Vec<Vec<Seg>> = Vec::new();
+                let pt = |q: usvg::tiny_skia_path::Point| v2(f64::from(q.x), f64::from(q.y));
+                for seg in p.data().segments() {
+                    let s = match seg {
+                        PathSegment::MoveTo(a) => {
+                            subpaths.push(Vec::new());
+                            Seg::M(pt(a))
+                        }
+                        PathSegment::LineTo(a) => Seg::L(pt(a)),
+                        PathSegment::QuadTo(a, b) => Seg::Q(pt(a), pt(b)),
+                        PathSegment::CubicTo(a, b, c) => Seg::C(pt(a), pt(b), pt(c)),
+                        PathSegment::Close => Seg::Z,
+                    };
+                    if subpaths.is_empty() {
+                        subpaths.push(Vec::new());
+                    }
+                    subpaths.last_mut().expect("pushed").push(s);
+                }
+                self.instances.push(Instance {
+                    element: element - 1,
+                    via_use,
+                    to_doc,
+                    subpaths,
+                });
+            }
+        }
+    }
+}
+
+fn affine(t: usvg::Transform) -> Affine {
+    Affine {
+        a: f64::from(t.sx),
+        b: f64::from(t.ky),
+        c: f64::from(t.kx),
+        d: f64::from(t.sy),
+        e: f64::from(t.tx),
+        f: f64::from(t.ty),
+    }
+}
+
+/// Rounding uncertainty of an instance's coordinates in document mm (usvg keeps `f32`).
+fn coordinate_eps(inst: &Instance) -> f64 {
+    let mut local = 0.0f64;
+    let mut doc = 0.0f64;
+    for s in inst.subpaths.iter().flatten() {
+        let pts: &[V2] = match s {
+            Seg::M(a) | Seg::L(a) => std::slice::from_ref(a),
+            Seg::Q(a, _) => std::slice::from_ref(a),
+            Seg::C(a, _, _) => std::slice::from_ref(a),
+            Seg::Z => &[],
+        };
+        for p in pts {
+            local = local.max(p.x.abs()).max(p.y.abs());
+            let q = inst.to_doc.apply(*p);
+            doc = doc.max(q.x.abs()).max(q.y.abs());
+        }
+    }
+    4.0 * f64::from(f32::EPSILON) * (local * inst.to_doc.mean_scale() + doc + 1e-3)
+}
+
+/// Decimal places that keep 0.01 µm in the element's coordinates.
+fn digits_for(to_doc: &Affine) -> usize {
+    let local_per_mm = 1.0 / to_doc.mean_scale().max(1e-300);
+    let step = 1e-5 * local_per_mm;
+    (-step.log10()).ceil().clamp(0.0, 12.0) as usize
+}
+
+fn num(v: f64, digits: usize, out: &mut String) {
+    let mut s = format!("{v:.digits$}");
+    if s.contains('.') {
+        while s.ends_with('0') {
+            s.pop();
+        }
+        if s.ends_with('.') {
+            s.pop();
+        }
+    }
+    if s == "-0" {
+        s = "0".into();
+    }
+    out.push_str(&s);
+}
+
+fn point(p: V2, digits: usize, out: &mut String) {
+    num(p.x, digits, out);
+    out.push(' ');
+    num(p.y, digits, out);
+}
+
+/// Write a closed document-space polyline as path data in element coordinates.
+pub(crate) fn write_pline(p: &Pline, to_local: &Affine, digits: usize, out: &mut String) {
+    let n = p.vertex_count();
+    let mirror = to_local.det() < 0.0;
+    out.push('M');
+    let v0 = p.at(0);
+    point(to_local.apply(v2(v0.x, v0.y)), digits, out);
+    for i in 0..n {
+        let a = p.at(i);
+        let b = p.at((i + 1) % n);
+        let q = to_local.apply(v2(b.x, b.y));
+        match arc_geom(v2(a.x, a.y), v2(b.x, b.y), a.bulge) {
+            Some(g) => {
+                let (rx, ry, rot) = to_local.circle_image(g.radius);
+                let large = g.sweep.abs() > std::f64::consts::PI;
+                let sweep = (g.sweep > 0.0) != mirror;
+                out.push_str(" A");
+                num(rx, digits, out);
+                out.push(' ');
+                num(ry, digits, out);
+                out.push(' ');
+                num(rot.to_degrees(), 6, out);
+                let _ = write!(out, " {} {} ", u8::from(large), u8::from(sweep));
+                point(q, digits, out);
+            }
+            None if i + 1 < n => {
+                out.push_str(" L");
+                point(q, digits, out);
+            }
+            None => {}
+        }
+    }
+    out.push_str(" Z");
+}
+
+/// Write segments unchanged (element coordinates).
+fn write_segs(segs: &[Seg], digits: usize, out: &mut String) {
+    for (k, s) in segs.iter().enumerate() {
+        if k > 0 {
+            out.push(' ');
+        }
+        match *s {
+            Seg::M(a) => {
+                out.push('M');
+                point(a, digits, out);
+            }
+            Seg::L(a) => {
+                out.push('L');
+                point(a, digits, out);
+            }
+            Seg::Q(a, b) => {
+                out.push('Q');
+                point(a, digits, out);
+                out.push(' ');
+                point(b, digits, out);
+            }
+            Seg::C(a, b, c) => {
+                out.push('C');
+                point(a, digits, out);
+                out.push(' ');
+                point(b, digits, out);
+                out.push(' ');
+                point(c, digits, out);
+            }
+            Seg::Z => out.push('Z'),
+        }
+    }
+}
+
+/// `<tag` … the byte range of the tag's qualified name in a start tag.
+fn tag_name_range(src: &str, n: Node) -> Range<usize> {
+    let start = n.range().start + 1;
+    let end = src[start..]
+        .find(|c: char| c.is_whitespace() || c == '/' || c == '>')
+        .map_or(src.len(), |i| start + i);
+    start..end
+}
+
+/// The range of the local name within a qualified name range.
+fn local_name(src: &str, qname: Range<usize>) -> Range<usize> {
+    match src[qname.clone()].rfind(':') {
+        Some(i) => qname.start + i + 1..qname.end,
+        None => qname,
+    }
+}
+
+/// An attribute's range including the whitespace before it.
+fn attribute_with_space(src: &str, a: &roxmltree::Attribute) -> Range<usize> {
+    let r = a.range();
+    let mut start = r.start;
+    while start > 0 && src.as_bytes()[start - 1].is_ascii_whitespace() {
+        start -= 1;
+    }
+    start..r.end
+}
+
+/// Edits that give `node` the path data `d` (see the module doc).
+fn geometry_edits(src: &str, node: Node, d: &str) -> Vec<Edit> {
+    let mut edits = Vec::new();
+    let is_path = node.tag_name().name() == "path";
+    let dropped = |a: &roxmltree::Attribute| match a.namespace() {
+        Some(SODIPODI_NS) => true,
+        Some(INKSCAPE_NS) => matches!(a.name(), "original-d" | "path-effect"),
+        None => !is_path && GEOMETRY_ATTRIBUTES.contains(&a.name()),
+        _ => false,
+    };
+    let mut last_end = tag_name_range(src, node).end;
+    let mut has_d = false;
+    for a in node.attributes() {
+        last_end = last_end.max(a.range().end);
+        if is_path && a.name() == "d" && a.namespace().is_none() {
+            has_d = true;
+            edits.push(Edit {
+                range: a.range_value(),
+                text: d.to_string(),
+            });
+        } else if dropped(&a) {
+            edits.push(Edit {
+                range: attribute_with_space(src, &a),
+                text: String::new(),
+            });
+        }
+    }
+    if !has_d {
+        edits.push(Edit {
+            range: last_end..last_end,
+            text: format!(" d=\"{d}\""),
+        });
+    }
+    if !is_path {
+        edits.push(Edit {
+            range: local_name(src, tag_name_range(src, node)),
+            text: "path".into(),
+        });
+        let r = node.range();
+        if !src[..r.end].ends_with("/>")
+            && let Some(i) = src[r.clone()].rfind("</")
+        {
+            let start = r.start + i + 2;
+            let end = src[start..r.end]
+                .find(|c: char| c.is_whitespace() || c == '>')
+                .map_or(r.end, |k| start + k);
+            edits.push(Edit {
+                range: local_name(src, start..end),
+                text: "path".into(),
+            });
+        }
+    }
+    edits
+}
+
+/// Apply non-overlapping edits.
+fn apply_edits(src: &str, mut edits: Vec<Edit>) -> Result<String> {
+    edits.sort_by_key(|e| (e.range.start, e.range.end));
+    let mut out = String::with_capacity(src.len() + 64 * edits.len());
+    let mut pos = 0;
+    for e in edits {
+        if e.range.start < pos {
+            return Err(bad(
+                "internal error: overlapping edits of the SVG text (please report this file)",
+            ));
+        }
+        out.push_str(&src[pos..e.range.start]);
+        out.push_str(&e.text);
+        pos = e.range.end;
+    }
+    out.push_str(&src[pos..]);
+    Ok(out)
+}
+
+/// The element a `<use>` refers to.
+fn use_target<'a, 'i>(u: Node<'a, 'i>, ids: &HashMap<&str, Node<'a, 'i>>) -> Option<Node<'a, 'i>> {
+    let href = u
+        .attribute("href")
+        .or_else(|| u.attribute((XLINK_NS, "href")))?;
+    ids.get(href.strip_prefix('#')?).copied()
+}
+
+/// `path "id"` or `<rect> at line 12`.
+fn describe(doc: &Document, n: Node) -> String {
+    match n.attribute("id") {
+        Some(id) => format!("{} \"{id}\"", n.tag_name().name()),
+        None => format!(
+            "<{}> at line {}",
+            n.tag_name().name(),
+            doc.text_pos_at(n.range().start).row
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const HEAD: &str = r#"<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" width="100mm" height="100mm" viewBox="0 0 100 100">"#;
+
+    fn run(body: &str, kerf_um: f64) -> Result<(String, PlanSummary)> {
+        dilate_svg(
+            &format!("{HEAD}{body}</svg>"),
+            &KerfSource::Uniform(kerf_um),
+            &SvgOptions::default(),
+        )
+    }
+
+    #[test]
+    fn a_rect_becomes_a_dilated_path_with_its_attributes() {
+        let (out, s) = run(
+            r#"<rect id="r" class="c" x="10" y="10" width="20" height="10" fill="none" stroke="red" stroke-width="0.01"/>"#,
+            200.0,
+        )
+        .unwrap();
+        assert_eq!(s.contours_dilated, 1);
+        assert!(
+            out.contains(
+                r#"<path id="r" class="c" fill="none" stroke="red" stroke-width="0.01" d="M"#
+            ),
+            "{out}"
+        );
+        assert!(!out.contains("width=\"20\""));
+        // Corners are quarter arcs of radius 0.1 mm.
+        assert!(out.contains("A0.1 0.1 0 0 "), "{out}");
+    }
+
+    #[test]
+    fn non_cuts_and_the_rest_of_the_file_are_untouched() {
+        let body = r##"<!-- comment --><text x="1" y="5" fill="black">Label</text><path id="g" d="M 0 0 L 5 5" stroke="#00ff00" fill="none"/>"##;
+        let src = format!("{HEAD}{body}</svg>");
+        let (out, s) =
+            dilate_svg(&src, &KerfSource::Uniform(150.0), &SvgOptions::default()).unwrap();
+        assert_eq!(out, src);
+        assert_eq!(s.contours_dilated, 0);
+        assert_eq!(s.passed_through.get("text"), Some(&1));
+    }
+
+    #[test]
+    fn unitless_documents_need_assumed_units() {
+        let src = r#"<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100"><rect x="1" y="1" width="5" height="5" stroke="red" fill="none"/></svg>"#;
+        let e = dilate_svg(src, &KerfSource::Uniform(100.0), &SvgOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("unknown units"), "{e}");
+        let opts = SvgOptions {
+            assume_units: Some(AssumedUnits::Mm),
+            ..SvgOptions::default()
+        };
+        assert!(dilate_svg(src, &KerfSource::Uniform(100.0), &opts).is_ok());
+    }
+
+    #[test]
+    fn one_path_with_an_outline_and_a_hole_dilates_both_ways() {
+        let (out, s) = run(
+            r##"<path id="p" d="M 10 10 H 40 V 40 H 10 Z M 20 20 H 30 V 30 H 20 Z" fill="none" stroke="#000" stroke-width="0.1"/>"##,
+            200.0,
+        )
+        .unwrap();
+        assert_eq!((s.contours_dilated, s.parts, s.holes), (2, 1, 1));
+        // The hole shrinks to 9.8 × 9.8 with sharp corners.
+        assert!(
+            out.contains("M20.1 20.1 L29.9 20.1 L29.9 29.9 L20.1 29.9 Z"),
+            "{out}"
+        );
+    }
+
+    #[test]
+    fn polygons_and_clones_of_groups_are_dilated() {
+        let (out, s) = run(
+            r##"<defs><g id="t"><polygon id="tri" points="0,0 10,0 5,8" fill="none" stroke="red" stroke-width="0.05"/></g></defs>
+<use id="u" href="#t" x="20" y="20"/>"##,
+            100.0,
+        )
+        .unwrap();
+        assert_eq!(s.contours_dilated, 1);
+        assert!(
+            out.contains(r#"<g id="t-kerf1"><path id="tri-kerf1" fill="none""#),
+            "{out}"
+        );
+        assert!(out.contains(r##"href="#t-kerf1""##), "{out}");
+        // The original template is untouched.
+        assert!(out.contains(r#"<polygon id="tri" points="0,0 10,0 5,8""#));
+    }
+
+    #[test]
+    fn cuts_reached_through_nested_clones_are_refused() {
+        let e = run(
+            r##"<defs><rect id="r" width="5" height="5" fill="none" stroke="red" stroke-width="0.05"/><g id="g"><use href="#r"/></g></defs>
+<use id="outer" href="#g" x="10" y="10"/>"##,
+            100.0,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("nested <use>"), "{e}");
+    }
+
+    #[test]
+    fn broken_xml_is_a_clear_error() {
+        let e = dilate_svg(
+            "<svg><path",
+            &KerfSource::Uniform(100.0),
+            &SvgOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("not a readable SVG"), "{e}");
+    }
+}
