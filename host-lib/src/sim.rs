@@ -11,13 +11,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use kerfmeter_firmware::twin::{InjectedFault, Pace, Twin, TwinOptions};
+use kerfmeter_twin::{InjectedFault, Pace, Twin, TwinOptions};
 use serialport::{SerialPort, TTYPort};
 
 use crate::client::{Kerfmeter, Options};
 use crate::error::{Error, Result};
 
-pub use kerfmeter_firmware::twin::InjectedFault as SimFault;
+pub use kerfmeter_twin::InjectedFault as SimFault;
 
 /// How the simulated device is set up.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -106,8 +106,7 @@ impl SimDevice {
                     let mut twin = Twin::new(options.twin_options());
                     // The twin ends when the client closes its side; an I/O error there has no
                     // one to be reported to but the client, which sees the port vanish.
-                    let _ =
-                        kerfmeter_firmware::twin::serve_twin(&mut master, &mut twin, &stop, pace);
+                    let _ = kerfmeter_twin::serve_twin(&mut master, &mut twin, &stop, pace);
                 })
                 .map_err(|e| Error::Sim(e.to_string()))?
         };
@@ -132,8 +131,8 @@ impl SimDevice {
     /// What an ideal device reads on this twin's gauge (with no cutter spread) for a jam at
     /// `torque_nm`: the geometric kerf plus the spiral contact's compression at that torque.
     pub fn ideal_reading_um(&self, torque_nm: f32) -> f64 {
-        kerfmeter_firmware::twin::plant::Plant::new(
-            kerfmeter_firmware::twin::plant::PlantParams::default(),
+        kerfmeter_twin::plant::Plant::new(
+            kerfmeter_twin::plant::PlantParams::default(),
             kerfmeter_protocol::GaugeGeometry::PAPER,
             self.options.kerf_um,
         )

@@ -100,7 +100,7 @@ fn bench() -> (Bench, Box<dyn SerialPort>) {
     };
     let stop = b.stop.clone();
     b.thread = Some(std::thread::spawn(move || {
-        kerfmeter_firmware::twin::serve(&mut port, &mut device, &stop).unwrap();
+        kerfmeter_twin::serve(&mut port, &mut device, &stop).unwrap();
     }));
     (b, Box::new(slave))
 }

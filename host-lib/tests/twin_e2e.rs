@@ -11,7 +11,7 @@ use std::time::Duration;
 use kerfmeter::protocol::{DeviceConfig, Fault, GaugeGeometry, RunParams, RunState, TestOutcome};
 use kerfmeter::sim::{SimDevice, SimOptions};
 use kerfmeter::{Error, JointSpec, Kerfmeter, Options};
-use kerfmeter_firmware::twin::{Twin, TwinOptions};
+use kerfmeter_twin::{Twin, TwinOptions};
 use serialport::{SerialPort, TTYPort};
 
 fn options() -> Options {

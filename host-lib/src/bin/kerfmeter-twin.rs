@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use clap::Parser;
 use kerfmeter::sim::SimFault;
-use kerfmeter_firmware::twin::{Pace, Twin, TwinOptions, serve_twin};
+use kerfmeter_twin::{Pace, Twin, TwinOptions, serve_twin};
 use serialport::{SerialPort, TTYPort};
 
 #[derive(Parser)]

@@ -3,7 +3,7 @@
 //! lock-step with the [`Plant`], deterministic for a seed.
 //!
 //! Time is simulated: [`Twin::tick`] advances one 1 ms control period. Served on a serial port
-//! ([`super::serve_twin`]), simulated time runs ahead of the host by at most [`MAX_LEAD_MS`] past
+//! ([`crate::serve_twin`]), simulated time runs ahead of the host by at most [`MAX_LEAD_MS`] past
 //! its last request — much faster than real time, yet a host that keeps polling never looks
 //! silent to the device's watchdog — or follows the wall clock in real-time mode.
 
@@ -12,18 +12,18 @@ use core::str::FromStr;
 
 use kerfmeter_protocol::{DeviceConfig, GaugeGeometry, Request, Response, RunState};
 
-use super::as5048a::{FakeAs5048a, MisoFault};
-use super::flash::RamFlash;
-use super::pins::{FakeInput, FakeOutput, FakePwm};
-use super::plant::{Bridge, Plant, PlantParams};
-use super::rng::Rng;
-use crate::as5048a::{As5048a, EncoderSettings};
-use crate::config_store::FlashConfigStore;
-use crate::controller::PERIOD_US;
-use crate::device::Device;
-use crate::hardware::Hardware;
-use crate::link::{Handler, Link};
-use crate::motor::G2Motor;
+use crate::plant::{Bridge, Plant, PlantParams};
+use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
+use kerfmeter_firmware::config_store::FlashConfigStore;
+use kerfmeter_firmware::controller::PERIOD_US;
+use kerfmeter_firmware::device::Device;
+use kerfmeter_firmware::fakes::as5048a::{FakeAs5048a, MisoFault};
+use kerfmeter_firmware::fakes::flash::RamFlash;
+use kerfmeter_firmware::fakes::pins::{FakeInput, FakeOutput, FakePwm};
+use kerfmeter_firmware::fakes::rng::Rng;
+use kerfmeter_firmware::hardware::Hardware;
+use kerfmeter_firmware::link::{Handler, Link};
+use kerfmeter_firmware::motor::G2Motor;
 
 /// How far simulated time may run past the host's last request, ms.
 pub const MAX_LEAD_MS: u64 = 100;
@@ -199,7 +199,7 @@ impl Twin {
         let boot_id = rng.next_u64() as u32;
         // Safe state first: the driver's constructor drives the pins safe.
         let (pwm, dir, slp, flt) = (
-            FakePwm::new((1 << crate::build::PWM_BITS) - 1),
+            FakePwm::new((1 << kerfmeter_firmware::build::PWM_BITS) - 1),
             FakeOutput::new(false),
             FakeOutput::new(false),
             FakeInput::new(true),
@@ -246,7 +246,7 @@ impl Twin {
                 "twin",
                 0,
                 DeviceConfig::DEFAULT,
-                crate::config_store::ConfigSource::Missing,
+                kerfmeter_firmware::config_store::ConfigSource::Missing,
                 FlashConfigStore::new(
                     RamFlash::new(FLASH_PAGES),
                     0..FLASH_PAGES as u32 * RamFlash::PAGE,

@@ -25,7 +25,7 @@
 
 use kerfmeter_protocol::{GaugeGeometry, JamDirection, RunParams};
 
-use crate::kerf::{force_for_torque_n, play_deg};
+use kerfmeter_firmware::kerf::{force_for_torque_n, play_deg};
 
 /// Integration sub-steps per 1 ms control tick.
 pub const SUBSTEPS: u32 = 10;
@@ -242,8 +242,9 @@ impl Plant {
         let mut compression_m = 0.0;
         for _ in 0..20 {
             let inset_deg = ((self.kerf_um * 1e-6 + compression_m) / c).to_degrees() as f32;
-            let torque = crate::kerf::torque_for_force_nm(run, run.target_force_n, inset_deg)
-                .min(run.max_torque_nm);
+            let torque =
+                kerfmeter_firmware::kerf::torque_for_force_nm(run, run.target_force_n, inset_deg)
+                    .min(run.max_torque_nm);
             compression_m = f64::from(torque) / lever / k;
         }
         self.kerf_um + compression_m * 1e6

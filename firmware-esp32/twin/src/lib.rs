@@ -7,11 +7,7 @@
 //!   pseudo-terminal, whose slave end the host opens as an ordinary serial port.
 //! - [`serve`] serves just a link and handler (no physics), for protocol-level tests.
 
-pub mod as5048a;
-pub mod flash;
-pub mod pins;
 pub mod plant;
-pub mod rng;
 pub mod sim;
 
 pub use sim::{InjectedFault, Twin, TwinOptions, UnknownFault};
@@ -19,7 +15,7 @@ pub use sim::{InjectedFault, Twin, TwinOptions, UnknownFault};
 use std::io::{self, ErrorKind, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::link::{Handler, Link, LinkStats};
+use kerfmeter_firmware::link::{Handler, Link, LinkStats};
 
 /// Serve the protocol on `port` until `stop` is set or the other side hangs up.
 ///
@@ -119,7 +115,7 @@ pub fn serve_twin<P: Read + Write + ?Sized>(
             Pace::RealTime => {
                 let wall_us = started.elapsed().as_micros() as u64;
                 (sim_start_us + wall_us).saturating_sub(twin.now_us())
-                    / crate::controller::PERIOD_US
+                    / kerfmeter_firmware::controller::PERIOD_US
             }
         };
         twin.advance_ticks(ticks);
