@@ -94,13 +94,20 @@ fn bench() -> (Bench, Box<dyn SerialPort>) {
         drop_next_writes: b.drop_next_writes.clone(),
         garbage_before_writes: b.garbage.clone(),
     };
-    let mut device = TestDevice {
+    let device = TestDevice {
         boot_id: b.boot_id.clone(),
         runs: b.runs.clone(),
     };
     let stop = b.stop.clone();
     b.thread = Some(std::thread::spawn(move || {
-        kerfmeter_twin::serve(&mut port, &mut device, &stop).unwrap();
+        let mut server = kerfmeter_twin::LinkServer::new(device);
+        kerfmeter_twin::serve(
+            &mut port,
+            &mut server,
+            &stop,
+            kerfmeter_twin::Pace::LockStep,
+        )
+        .unwrap();
     }));
     (b, Box::new(slave))
 }

@@ -2,7 +2,6 @@
 //! what a serial line does to them — garbage, lost responses, a device that restarts, a host or a
 //! port that vanishes mid-run.
 
-use std::io::{ErrorKind, Read, Write};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::thread::JoinHandle;
@@ -11,7 +10,7 @@ use std::time::Duration;
 use kerfmeter::protocol::{DeviceConfig, Fault, GaugeGeometry, RunParams, RunState, TestOutcome};
 use kerfmeter::sim::{SimDevice, SimOptions};
 use kerfmeter::{Error, JointSpec, Kerfmeter, Options};
-use kerfmeter_twin::{Twin, TwinOptions};
+use kerfmeter_twin::{Pace, Served, Twin, TwinOptions};
 use serialport::{SerialPort, TTYPort};
 
 fn options() -> Options {
@@ -37,44 +36,56 @@ struct Controls {
     reboot: AtomicBool,
 }
 
-/// Serve `twin` on the master end like `serve_twin` (lock-step), with the test's faults on the
-/// wire. Returns the twin when the client hangs up or `stop` is set.
-fn serve(mut master: TTYPort, mut twin: Twin, controls: Arc<Controls>) -> JoinHandle<Twin> {
+/// The twin with the test's faults on the wire: responses dropped or preceded by garbage, and
+/// a reboot between reads.
+struct FaultyWire {
+    twin: Twin,
+    controls: Arc<Controls>,
+}
+
+impl Served for FaultyWire {
+    fn receive(&mut self, bytes: &[u8], transmit: &mut dyn FnMut(&[u8])) {
+        let mut out = Vec::new();
+        self.twin.receive(bytes, |f| out.extend_from_slice(f));
+        if out.is_empty() {
+            return;
+        }
+        if self.controls.drop_responses.load(Ordering::SeqCst) > 0 {
+            self.controls.drop_responses.fetch_sub(1, Ordering::SeqCst);
+            return;
+        }
+        if self.controls.garbage.load(Ordering::SeqCst) {
+            transmit(b"\r\nESP-ROM:esp32c3\x13\x11\xff\x00\x07garbage");
+        }
+        transmit(&out);
+    }
+
+    fn now_us(&self) -> u64 {
+        self.twin.now_us()
+    }
+
+    fn lead_ticks(&self) -> u64 {
+        self.twin.lead_ticks()
+    }
+
+    fn advance_ticks(&mut self, ticks: u64) {
+        if self.controls.reboot.swap(false, Ordering::SeqCst) {
+            self.twin.reboot();
+        }
+        self.twin.advance_ticks(ticks);
+    }
+}
+
+/// Serve `twin` on the master end in lock-step, with the test's faults on the wire. Returns the
+/// twin when the client hangs up or `stop` is set.
+fn serve(mut master: TTYPort, twin: Twin, controls: Arc<Controls>) -> JoinHandle<Twin> {
     std::thread::spawn(move || {
         master.set_timeout(Duration::from_millis(1)).unwrap();
-        let mut buf = [0u8; 256];
-        while !controls.stop.load(Ordering::SeqCst) {
-            if controls.reboot.swap(false, Ordering::SeqCst) {
-                twin.reboot();
-            }
-            match master.read(&mut buf) {
-                Ok(0) => break,
-                Ok(n) => {
-                    let mut out = Vec::new();
-                    twin.receive(&buf[..n], |f| out.extend_from_slice(f));
-                    if !out.is_empty() {
-                        if controls.drop_responses.load(Ordering::SeqCst) > 0 {
-                            controls.drop_responses.fetch_sub(1, Ordering::SeqCst);
-                            out.clear();
-                        }
-                        if controls.garbage.load(Ordering::SeqCst) {
-                            let mut noisy =
-                                b"\r\nESP-ROM:esp32c3\x13\x11\xff\x00\x07garbage".to_vec();
-                            noisy.extend(out);
-                            out = noisy;
-                        }
-                        if master.write_all(&out).is_err() {
-                            break;
-                        }
-                    }
-                }
-                Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {}
-                Err(_) => break, // the client closed its side
-            }
-            let lead = twin.lead_ticks().min(50);
-            twin.advance_ticks(lead);
-        }
-        twin
+        let stop = controls.clone();
+        let mut wire = FaultyWire { twin, controls };
+        // An I/O error ends serving like a hang-up: the client sees the port vanish.
+        let _ = kerfmeter_twin::serve(&mut master, &mut wire, &stop.stop, Pace::LockStep);
+        wire.twin
     })
 }
 

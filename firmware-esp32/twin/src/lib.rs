@@ -1,124 +1,53 @@
-//! The digital twin (feature `twin`, std): the device's firmware and a physics model of what it
-//! drives, on the host, for tests and for the host CLI's `--sim`.
+//! Kerfmeter's digital twin (std): the device's real firmware on the host, driving a physics
+//! model of what it drives, for tests, for the host's `--sim` and for the `kerfmeter-twin`
+//! binary.
 //!
-//! - [`sim`]: the [`Twin`] — the real link, device, controller and drivers on fake peripherals
-//!   ([`as5048a`], [`pins`], [`flash`]), lock-stepped with the [`plant`]; named fault injection.
-//! - [`serve_twin`] serves a twin on any `Read + Write` port — in practice the master end of a
-//!   pseudo-terminal, whose slave end the host opens as an ordinary serial port.
-//! - [`serve`] serves just a link and handler (no physics), for protocol-level tests.
+//! - [`sim`]: the [`Twin`] — the firmware's own link, request handler, controller, AS5048A and G2
+//!   drivers and control tick, wired to the firmware's fake peripherals (`kerfmeter_firmware::fakes`)
+//!   and lock-stepped with the [`plant`]; named fault injection.
+//! - [`options`]: [`TwinOptions`], the one description of a twin, validated here.
+//! - [`serve`](mod@serve): one serve loop for a twin or a bare link on any `Read + Write` port.
+//! - [`pty`]: [`PtyTwin`], a twin served on a pseudo-terminal by a thread, whose client side is an
+//!   ordinary serial port.
+//!
+//! # What the twin models
+//!
+//! A twin must be as unkind as hardware: one that hands the firmware a perfect world passes
+//! firmware a real board fails. So every physical parameter has a realistic default, with its
+//! source and plausible range ([`plant::PlantParams`]), and can be set from outside.
+//!
+//! - The motor and G2 bridge: back-EMF, winding resistance, the driver's current limit, braking
+//!   at duty 0, coasting asleep; gearbox ratio, efficiency and stick–slip (Karnopp) friction.
+//! - The gauge: the hole play, the inset's friction on the table, the spiral's gap and a linear
+//!   contact stiffness, self-locking; a prong slipping out of its hole.
+//! - The encoder: the AS5048A's SPI protocol (parity, error flag and register, pipelined
+//!   replies), 14-bit quantisation and a few LSB of noise.
+//! - The current sense: the motor current plus Gaussian noise.
+//! - The configuration flash: NOR rules (erase to 0xFF, writes only clear bits), kept across a
+//!   reboot.
+//! - The cutter: a gauge-to-gauge Gaussian spread of the kerf.
+//! - Faults, by name ([`InjectedFault`]): encoder parity errors, magnet lost, MISO stuck, no inset,
+//!   motor disconnected, driver FLT, over-current, host silent, prong slip.
+//!
+//! Time is simulated in 1 ms control ticks (the physics in [`plant::SUBSTEPS`] sub-steps each),
+//! deterministic for a seed; served, it runs ahead of the host in lock-step or follows the wall
+//! clock ([`Pace`]).
+//!
+//! # What it does not model
+//!
+//! The motor's inductance (its L/R is far below a tick); the G2's current-sense output existing
+//! only in the drive phase of each PWM period, and its current chopping; supply sag, under-voltage
+//! and winding heating; tick jitter and late ticks; flash erase and write times; the encoder's
+//! non-linearity, magnet eccentricity and register writes; the inset's inertia; a non-linear
+//! contact; holes displaced by the cutter's repeatability, off-centre prongs and kerf taper.
 
+pub mod options;
 pub mod plant;
+pub mod pty;
+pub mod serve;
 pub mod sim;
 
-pub use sim::{InjectedFault, Twin, TwinOptions, UnknownFault};
-
-use std::io::{self, ErrorKind, Read, Write};
-use std::sync::atomic::{AtomicBool, Ordering};
-
-use kerfmeter_firmware::link::{Handler, Link, LinkStats};
-
-/// Serve the protocol on `port` until `stop` is set or the other side hangs up.
-///
-/// `port` must return from `read` periodically (a read timeout) so that `stop` is noticed.
-/// A hang-up (end of file, or `EIO` on a pseudo-terminal master whose slave was closed) ends the
-/// loop normally; other I/O errors are returned.
-pub fn serve<P: Read + Write + ?Sized>(
-    port: &mut P,
-    handler: &mut impl Handler,
-    stop: &AtomicBool,
-) -> io::Result<LinkStats> {
-    let mut link = Link::new();
-    let mut buf = [0u8; 256];
-    let mut out = Vec::new();
-    while !stop.load(Ordering::Relaxed) {
-        let n = match port.read(&mut buf) {
-            Ok(0) => break,
-            Ok(n) => n,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
-                ) =>
-            {
-                continue;
-            }
-            Err(e) if is_hangup(&e) => break,
-            Err(e) => return Err(e),
-        };
-        out.clear();
-        link.receive(&buf[..n], handler, |frame| out.extend_from_slice(frame));
-        if !out.is_empty() {
-            match port.write_all(&out).and_then(|()| port.flush()) {
-                Ok(()) => {}
-                Err(e) if is_hangup(&e) => break,
-                Err(e) => return Err(e),
-            }
-        }
-    }
-    Ok(link.stats())
-}
-
-/// A pseudo-terminal master reports `EIO` once the slave side is closed.
-fn is_hangup(e: &io::Error) -> bool {
-    e.raw_os_error() == Some(5)
-        || matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::UnexpectedEof)
-}
-
-/// How simulated time relates to the wall clock when serving a twin.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Pace {
-    /// As fast as possible, but never more than [`sim::MAX_LEAD_MS`] past the host's last
-    /// request: a polling host never looks silent.
-    LockStep,
-    /// One simulated millisecond per real millisecond.
-    RealTime,
-}
-
-/// Serve `twin` on `port` until `stop` is set or the other side hangs up.
-///
-/// `port` must time out its reads after a few milliseconds so that the simulation keeps going.
-pub fn serve_twin<P: Read + Write + ?Sized>(
-    port: &mut P,
-    twin: &mut Twin,
-    stop: &AtomicBool,
-    pace: Pace,
-) -> io::Result<()> {
-    let mut buf = [0u8; 256];
-    let mut out = Vec::new();
-    let started = std::time::Instant::now();
-    let sim_start_us = twin.now_us();
-    while !stop.load(Ordering::Relaxed) {
-        match port.read(&mut buf) {
-            Ok(0) => break,
-            Ok(n) => {
-                out.clear();
-                twin.receive(&buf[..n], |frame| out.extend_from_slice(frame));
-                if !out.is_empty() {
-                    match port.write_all(&out).and_then(|()| port.flush()) {
-                        Ok(()) => {}
-                        Err(e) if is_hangup(&e) => break,
-                        Err(e) => return Err(e),
-                    }
-                }
-            }
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
-                ) => {}
-            Err(e) if is_hangup(&e) => break,
-            Err(e) => return Err(e),
-        }
-        let ticks = match pace {
-            // Keep each batch short so requests are answered promptly.
-            Pace::LockStep => twin.lead_ticks().min(50),
-            Pace::RealTime => {
-                let wall_us = started.elapsed().as_micros() as u64;
-                (sim_start_us + wall_us).saturating_sub(twin.now_us())
-                    / kerfmeter_firmware::controller::PERIOD_US
-            }
-        };
-        twin.advance_ticks(ticks);
-    }
-    Ok(())
-}
+pub use options::{InjectedFault, InvalidOptions, TwinOptions, UnknownFault};
+pub use pty::{PtyTwin, StartError};
+pub use serve::{LinkServer, Pace, Served, serve};
+pub use sim::Twin;
