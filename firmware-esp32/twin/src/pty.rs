@@ -97,3 +97,33 @@ impl Drop for PtyTwin {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::mpsc;
+
+    use super::*;
+
+    #[test]
+    fn out_of_range_options_are_refused_before_a_terminal_is_opened() {
+        let options = TwinOptions {
+            kerf_um: 5000.0,
+            ..TwinOptions::default()
+        };
+        assert!(matches!(
+            PtyTwin::start(options),
+            Err(StartError::Options(InvalidOptions::Kerf(_)))
+        ));
+    }
+
+    #[test]
+    fn the_twin_stops_serving_when_its_client_hangs_up() {
+        let (twin, client) = PtyTwin::start(TwinOptions::default()).unwrap();
+        assert!(twin.path().starts_with("/dev/"), "{}", twin.path());
+        drop(client);
+        let (done, result) = mpsc::channel();
+        std::thread::spawn(move || done.send(twin.wait().map_err(|e| e.to_string())));
+        let served = result.recv_timeout(Duration::from_secs(10));
+        assert_eq!(served, Ok(Ok(())));
+    }
+}
