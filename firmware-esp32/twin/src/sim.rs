@@ -3,7 +3,7 @@
 //! lock-step with the [`Plant`], deterministic for a seed.
 //!
 //! Time is simulated: [`Twin::tick`] advances one 1 ms control period. Served on a serial port
-//! ([`crate::serve`]), simulated time runs ahead of the host by at most [`MAX_LEAD_MS`] past
+//! ([`crate::serve()`]), simulated time runs ahead of the host by at most [`MAX_LEAD_MS`] past
 //! its last request — much faster than real time, yet a host that keeps polling never looks
 //! silent to the device's watchdog — or follows the wall clock in real-time mode.
 
