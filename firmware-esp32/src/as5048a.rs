@@ -432,7 +432,7 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::twin::as5048a::{FakeAs5048a, MisoFault};
+    use crate::fakes::as5048a::{FakeAs5048a, MisoFault};
 
     fn settings() -> EncoderSettings {
         EncoderSettings::from_config(&DeviceConfig::DEFAULT)

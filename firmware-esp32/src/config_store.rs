@@ -159,7 +159,7 @@ impl<F: NorFlash> ConfigPersist for FlashConfigStore<F> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::twin::flash::RamFlash;
+    use crate::fakes::flash::RamFlash;
 
     fn store() -> FlashConfigStore<RamFlash> {
         FlashConfigStore::new(RamFlash::new(4), 0..4 * RamFlash::PAGE)

@@ -17,9 +17,10 @@
 //! - [`jam`]: jam detection: windowed slope, hold median.
 //! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.
 //! - [`device`]: the request handler behind the link: the whole request table.
-//! - `twin` (feature `twin`, std): the device served over a host byte stream.
+//! - `fakes` (feature `fakes`, std): fake peripherals for the drivers' tests and the digital twin
+//!   (the `kerfmeter-twin` crate).
 
-#![cfg_attr(not(any(test, feature = "twin")), no_std)]
+#![cfg_attr(not(any(test, feature = "fakes")), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -28,10 +29,10 @@ pub mod build;
 pub mod config_store;
 pub mod controller;
 pub mod device;
+#[cfg(any(test, feature = "fakes"))]
+pub mod fakes;
 pub mod hardware;
 pub mod jam;
 pub mod link;
 pub mod motor;
 pub mod samples;
-#[cfg(any(test, feature = "twin"))]
-pub mod twin;

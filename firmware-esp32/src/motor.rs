@@ -141,7 +141,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::twin::pins::{FakeInput, FakeOutput, FakePwm};
+    use crate::fakes::pins::{FakeInput, FakeOutput, FakePwm};
 
     fn motor() -> (
         G2Motor<FakePwm, FakeOutput, FakeOutput, FakeInput>,

@@ -435,7 +435,7 @@ fn on_target_cargo() -> Command {
 
 /// Clippy (`-D warnings`) on the on-target driver tests, then build them for the C3 without
 /// running them (CI has no board). Only their own test target: the crate's other tests and its
-/// unit tests need std (the twin) and build on the host only.
+/// unit tests need std (the peripheral fakes) and build on the host only.
 pub fn build_on_target_tests() -> Result<()> {
     ensure_targets()?;
     let chip = ON_TARGET_CHIP;

@@ -307,6 +307,7 @@ fn sim_options(g: &Global, kerf_um: f64, seed: u64) -> kerfmeter::sim::SimOption
         seed,
         fault: g.sim_fault,
         realtime: g.sim_realtime,
+        ..kerfmeter::sim::SimOptions::default()
     }
 }
 

@@ -73,12 +73,19 @@ fn bench() -> (Bench, Box<dyn SerialPort>) {
         inner: master,
         line: line.clone(),
     };
-    let mut device = TestDevice {
+    let device = TestDevice {
         boot_id: boot_id.clone(),
         runs: runs.clone(),
     };
     let server = Server::spawn(move |stop| {
-        kerfmeter_firmware::twin::serve(&mut port, &mut device, &stop).unwrap();
+        let mut server = kerfmeter_twin::LinkServer::new(device);
+        kerfmeter_twin::serve(
+            &mut port,
+            &mut server,
+            &stop,
+            kerfmeter_twin::Pace::LockStep,
+        )
+        .unwrap();
     });
     let bench = Bench {
         boot_id,

@@ -4,7 +4,6 @@
 
 mod common;
 
-use std::io::{ErrorKind, Read, Write};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
@@ -13,7 +12,7 @@ use common::{LineFaults, Server, fast_options};
 use kerfmeter::protocol::{DeviceConfig, Fault, GaugeGeometry, RunParams, RunState, TestOutcome};
 use kerfmeter::sim::{SimDevice, SimOptions};
 use kerfmeter::{Error, JointSpec, Kerfmeter, Options};
-use kerfmeter_firmware::twin::{Twin, TwinOptions};
+use kerfmeter_twin::{Pace, Served, Twin, TwinOptions};
 use serialport::{SerialPort, TTYPort};
 
 fn options() -> Options {
@@ -33,31 +32,46 @@ struct Controls {
     reboot: AtomicBool,
 }
 
-/// Serve `twin` on the master end like `serve_twin` (lock-step), with the test's faults on the
-/// wire, until the client hangs up or `stop` is set; returns the twin.
-fn serve(mut master: TTYPort, mut twin: Twin, controls: &Controls, stop: &AtomicBool) -> Twin {
-    master.set_timeout(Duration::from_millis(1)).unwrap();
-    let mut buf = [0u8; 256];
-    while !stop.load(Ordering::SeqCst) {
-        if controls.reboot.swap(false, Ordering::SeqCst) {
-            twin.reboot();
+/// The twin with the test's faults on the wire (responses dropped or preceded by garbage) and a
+/// reboot between reads.
+struct FaultyWire<'a> {
+    twin: Twin,
+    controls: &'a Controls,
+}
+
+impl Served for FaultyWire<'_> {
+    fn receive(&mut self, bytes: &[u8], transmit: &mut dyn FnMut(&[u8])) {
+        let mut out = Vec::new();
+        self.twin.receive(bytes, |f| out.extend_from_slice(f));
+        if !out.is_empty() {
+            transmit(&self.controls.line.deliver(&out));
         }
-        match master.read(&mut buf) {
-            Ok(0) => break,
-            Ok(n) => {
-                let mut out = Vec::new();
-                twin.receive(&buf[..n], |f| out.extend_from_slice(f));
-                if !out.is_empty() && master.write_all(&controls.line.deliver(&out)).is_err() {
-                    break;
-                }
-            }
-            Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {}
-            Err(_) => break, // the client closed its side
-        }
-        let lead = twin.lead_ticks().min(50);
-        twin.advance_ticks(lead);
     }
-    twin
+
+    fn now_us(&self) -> u64 {
+        self.twin.now_us()
+    }
+
+    fn lead_ticks(&self) -> u64 {
+        self.twin.lead_ticks()
+    }
+
+    fn advance_ticks(&mut self, ticks: u64) {
+        if self.controls.reboot.swap(false, Ordering::SeqCst) {
+            self.twin.reboot();
+        }
+        self.twin.advance_ticks(ticks);
+    }
+}
+
+/// Serve `twin` on the master end in lock-step, with the test's faults on the wire, until the
+/// client hangs up or `stop` is set; returns the twin.
+fn serve(mut master: TTYPort, twin: Twin, controls: &Controls, stop: &AtomicBool) -> Twin {
+    master.set_timeout(Duration::from_millis(1)).unwrap();
+    let mut wire = FaultyWire { twin, controls };
+    // An I/O error ends serving like a hang-up: the client sees the port vanish.
+    let _ = kerfmeter_twin::serve(&mut master, &mut wire, stop, Pace::LockStep);
+    wire.twin
 }
 
 /// The twin served on a pseudo-terminal, with the switches the tests flip.

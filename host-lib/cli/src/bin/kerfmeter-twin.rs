@@ -3,13 +3,10 @@
 //! serial monitor). Prints the port's path, then serves until interrupted (Ctrl-C).
 
 use std::io::Write;
-use std::sync::atomic::AtomicBool;
-use std::time::Duration;
+use std::process::ExitCode;
 
 use clap::Parser;
-use kerfmeter::sim::SimFault;
-use kerfmeter_firmware::twin::{Pace, Twin, TwinOptions, serve_twin};
-use serialport::{SerialPort, TTYPort};
+use kerfmeter_twin::{InjectedFault, PtyTwin, StartError, TwinOptions};
 
 #[derive(Parser)]
 #[command(
@@ -30,40 +27,37 @@ struct Args {
     /// Inject a fault (parity, magnet-lost, miso-stuck, no-inset, motor-disconnected,
     /// driver-fault, over-current, host-silent, prong-slip).
     #[arg(long, value_name = "NAME")]
-    fault: Option<SimFault>,
+    fault: Option<InjectedFault>,
     /// Follow the wall clock (default: run ahead of the host in lock-step, much faster).
     #[arg(long)]
     realtime: bool,
 }
 
-fn main() -> std::process::ExitCode {
+fn main() -> ExitCode {
     let args = Args::parse();
-    let options = kerfmeter::sim::SimOptions {
+    let options = TwinOptions {
         kerf_um: args.kerf_um,
         kerf_sd_um: args.kerf_sd_um,
         seed: args.seed,
         fault: args.fault,
         realtime: args.realtime,
+        ..TwinOptions::default()
     };
-    if let Err(e) = options.validate() {
-        eprintln!("error: {e}");
-        return std::process::ExitCode::from(2);
-    }
-    let (mut master, slave) = match TTYPort::pair() {
-        Ok(pair) => pair,
-        Err(e) => {
-            eprintln!("error: cannot open a pseudo-terminal: {e}");
-            return std::process::ExitCode::from(3);
-        }
-    };
-    // This process keeps the slave end open (without locking it: `pair` takes no lock, and a
+    // This process keeps the client side open (without locking it: the pair takes no lock, and a
     // client opening the path takes its own) so that the terminal survives clients coming and
     // going.
-    if let Err(e) = master.set_timeout(Duration::from_millis(1)) {
-        eprintln!("error: cannot set up the pseudo-terminal: {e}");
-        return std::process::ExitCode::from(3);
-    }
-    let path = slave.name().unwrap_or_else(|| "<pty>".into());
+    let (twin, _client) = match PtyTwin::start(options) {
+        Ok(started) => started,
+        Err(e @ StartError::Options(_)) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(3);
+        }
+    };
+    let path = twin.path().to_owned();
     println!("{path}");
     eprintln!(
         "kerfmeter twin on {path}: kerf {} µm, seed {}{}{}. Try: kerfmeter --port {path} info   (Ctrl-C stops)",
@@ -75,24 +69,11 @@ fn main() -> std::process::ExitCode {
         if args.realtime { ", real time" } else { "" }
     );
     let _ = std::io::stdout().flush();
-    let mut twin = Twin::new(TwinOptions {
-        kerf_um: args.kerf_um,
-        kerf_sd_um: args.kerf_sd_um,
-        seed: args.seed,
-        fault: args.fault,
-        ..TwinOptions::default()
-    });
-    let pace = if args.realtime {
-        Pace::RealTime
-    } else {
-        Pace::LockStep
-    };
-    let stop = AtomicBool::new(false);
-    match serve_twin(&mut master, &mut twin, &stop, pace) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
+    match twin.wait() {
+        Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
-            std::process::ExitCode::from(3)
+            ExitCode::from(3)
         }
     }
 }

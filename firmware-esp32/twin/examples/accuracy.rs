@@ -11,9 +11,9 @@
 
 use std::time::Instant;
 
-use kerfmeter_firmware::twin::{Twin, TwinOptions};
 use kerfmeter_protocol::spiral::uncorrected_kerf_um;
 use kerfmeter_protocol::{GaugeGeometry, KerfResult, Request, Response, RunParams, RunState};
+use kerfmeter_twin::{Twin, TwinOptions};
 
 /// Target: |mean error| at every point, µm.
 const MAX_MEAN_ERROR_UM: f64 = 1.0;

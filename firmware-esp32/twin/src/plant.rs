@@ -1,6 +1,8 @@
 //! The physics the twin's firmware acts on: motor and gearbox, hole play, the gauge's inset and
-//! the spiral's contact (DESIGN.md §4). One degree of freedom (the hub) with the inset dragged
-//! through a backlash, integrated at [`SUBSTEPS`] sub-steps per 1 ms control tick.
+//! the spiral's contact. One degree of freedom (the hub) with the inset dragged through a
+//! backlash, integrated at [`SUBSTEPS`] sub-steps per 1 ms control tick. Every parameter has a
+//! realistic default with its source and plausible range ([`PlantParams`]): a plant kinder than
+//! hardware would pass firmware that a real board fails.
 //!
 //! - **Motor** (G2 driver, locked-antiphase-free sign/magnitude PWM): asleep → coasts (no
 //!   current); awake → i = clamp((D·Vs·dir − ke·N·ω)/R, ±I_max), output torque N·η·kt·i. At

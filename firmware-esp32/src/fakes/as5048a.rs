@@ -13,8 +13,8 @@ use core::convert::Infallible;
 
 use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
 
+use super::rng::Rng;
 use crate::as5048a::{COUNTS_PER_TURN, diag, err, parity_ok, reg, with_parity};
-use crate::twin::rng::Rng;
 
 /// A broken MISO line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

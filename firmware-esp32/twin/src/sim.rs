@@ -3,27 +3,25 @@
 //! lock-step with the [`Plant`], deterministic for a seed.
 //!
 //! Time is simulated: [`Twin::tick`] advances one 1 ms control period. Served on a serial port
-//! ([`super::serve_twin`]), simulated time runs ahead of the host by at most [`MAX_LEAD_MS`] past
+//! ([`crate::serve()`]), simulated time runs ahead of the host by at most [`MAX_LEAD_MS`] past
 //! its last request — much faster than real time, yet a host that keeps polling never looks
 //! silent to the device's watchdog — or follows the wall clock in real-time mode.
 
-use core::fmt;
-use core::str::FromStr;
+use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 
-use kerfmeter_protocol::{DeviceConfig, GaugeGeometry, Request, Response, RunState};
-
-use super::as5048a::{FakeAs5048a, MisoFault};
-use super::flash::RamFlash;
-use super::pins::{FakeInput, FakeOutput, FakePwm};
-use super::plant::{Bridge, Plant, PlantParams};
-use super::rng::Rng;
-use crate::as5048a::{As5048a, EncoderSettings};
-use crate::config_store::FlashConfigStore;
-use crate::controller::PERIOD_US;
-use crate::device::Device;
-use crate::hardware::Hardware;
-use crate::link::{Handler, Link};
-use crate::motor::G2Motor;
+use crate::options::{InjectedFault, TwinOptions};
+use crate::plant::{Bridge, Plant};
+use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
+use kerfmeter_firmware::config_store::FlashConfigStore;
+use kerfmeter_firmware::controller::PERIOD_US;
+use kerfmeter_firmware::device::Device;
+use kerfmeter_firmware::fakes::as5048a::{FakeAs5048a, MisoFault};
+use kerfmeter_firmware::fakes::flash::RamFlash;
+use kerfmeter_firmware::fakes::pins::{FakeInput, FakeOutput, FakePwm};
+use kerfmeter_firmware::fakes::rng::Rng;
+use kerfmeter_firmware::hardware::Hardware;
+use kerfmeter_firmware::link::{Handler, Link};
+use kerfmeter_firmware::motor::G2Motor;
 
 /// How far simulated time may run past the host's last request, ms.
 pub const MAX_LEAD_MS: u64 = 100;
@@ -34,137 +32,6 @@ pub const PARITY_ERROR_EVERY_FRAMES: u32 = 40;
 
 /// Flash reserved for the configuration store (four 4 KiB sectors).
 const FLASH_PAGES: usize = 4;
-
-/// A fault the twin can inject, by the name used everywhere (twin binary, CLI, tests).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum InjectedFault {
-    /// Parity and error-flag errors on the encoder bus, all run long: ridden through, counted.
-    Parity,
-    /// The encoder magnet falls off mid-run.
-    MagnetLost,
-    /// The encoder's MISO line sticks low mid-run (valid-looking zeros).
-    MisoStuck,
-    /// No inset under the prongs: they turn freely, nothing jams.
-    NoInset,
-    /// The motor leads are disconnected: no current, no motion.
-    MotorDisconnected,
-    /// The driver pulls FLT low mid-run.
-    DriverFault,
-    /// A short: the current sense reads far above the limit mid-run.
-    OverCurrent,
-    /// The host stops talking mid-run (the twin ignores it until the device has reacted).
-    HostSilent,
-    /// A prong slips out of its hole mid-run: the hub turns on without the inset.
-    ProngSlip,
-}
-
-impl InjectedFault {
-    /// Every fault, in a fixed order.
-    pub const ALL: [InjectedFault; 9] = [
-        InjectedFault::Parity,
-        InjectedFault::MagnetLost,
-        InjectedFault::MisoStuck,
-        InjectedFault::NoInset,
-        InjectedFault::MotorDisconnected,
-        InjectedFault::DriverFault,
-        InjectedFault::OverCurrent,
-        InjectedFault::HostSilent,
-        InjectedFault::ProngSlip,
-    ];
-
-    /// The fault's name.
-    pub const fn name(self) -> &'static str {
-        match self {
-            InjectedFault::Parity => "parity",
-            InjectedFault::MagnetLost => "magnet-lost",
-            InjectedFault::MisoStuck => "miso-stuck",
-            InjectedFault::NoInset => "no-inset",
-            InjectedFault::MotorDisconnected => "motor-disconnected",
-            InjectedFault::DriverFault => "driver-fault",
-            InjectedFault::OverCurrent => "over-current",
-            InjectedFault::HostSilent => "host-silent",
-            InjectedFault::ProngSlip => "prong-slip",
-        }
-    }
-
-    /// The typed device fault a run ends in, or `None` for a fault the device rides through.
-    pub const fn expected(self) -> Option<kerfmeter_protocol::Fault> {
-        use kerfmeter_protocol::Fault;
-        match self {
-            InjectedFault::Parity => None,
-            InjectedFault::MagnetLost => Some(Fault::Magnet),
-            InjectedFault::MisoStuck => Some(Fault::EncoderDiagnostics),
-            InjectedFault::NoInset => Some(Fault::Overtravel),
-            InjectedFault::MotorDisconnected => Some(Fault::NoMotion),
-            InjectedFault::DriverFault => Some(Fault::DriverFault),
-            InjectedFault::OverCurrent => Some(Fault::OverCurrent),
-            InjectedFault::HostSilent => Some(Fault::HostSilent),
-            InjectedFault::ProngSlip => Some(Fault::Overtravel),
-        }
-    }
-}
-
-impl fmt::Display for InjectedFault {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-/// An unknown fault name.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct UnknownFault(pub String);
-
-impl fmt::Display for UnknownFault {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "unknown fault `{}`; known faults:", self.0)?;
-        for fault in InjectedFault::ALL {
-            write!(f, " {fault}")?;
-        }
-        Ok(())
-    }
-}
-
-impl std::error::Error for UnknownFault {}
-
-impl FromStr for InjectedFault {
-    type Err = UnknownFault;
-    fn from_str(s: &str) -> Result<Self, UnknownFault> {
-        InjectedFault::ALL
-            .into_iter()
-            .find(|f| f.name() == s)
-            .ok_or_else(|| UnknownFault(s.to_owned()))
-    }
-}
-
-/// How a twin is set up.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TwinOptions {
-    /// True kerf of every gauge placed under the prongs, µm.
-    pub kerf_um: f64,
-    /// Standard deviation of the cutter's kerf from gauge to gauge, µm (0: every gauge the same).
-    pub kerf_sd_um: f64,
-    /// Seed of every random number (noise, boot id, kerf variation).
-    pub seed: u64,
-    /// The fault to inject, if any.
-    pub fault: Option<InjectedFault>,
-    /// The physics.
-    pub plant: PlantParams,
-    /// The gauge that is cut (its sense and pitch must match what the host sends for a reading).
-    pub gauge: GaugeGeometry,
-}
-
-impl Default for TwinOptions {
-    fn default() -> Self {
-        Self {
-            kerf_um: 150.0,
-            kerf_sd_um: 0.0,
-            seed: 1,
-            fault: None,
-            plant: PlantParams::default(),
-            gauge: GaugeGeometry::PAPER,
-        }
-    }
-}
 
 type TwinHardware = Hardware<FakeAs5048a, FakePwm, FakeOutput, FakeOutput, FakeInput>;
 
@@ -199,7 +66,7 @@ impl Twin {
         let boot_id = rng.next_u64() as u32;
         // Safe state first: the driver's constructor drives the pins safe.
         let (pwm, dir, slp, flt) = (
-            FakePwm::new((1 << crate::build::PWM_BITS) - 1),
+            FakePwm::new((1 << kerfmeter_firmware::build::PWM_BITS) - 1),
             FakeOutput::new(false),
             FakeOutput::new(false),
             FakeInput::new(true),
@@ -246,7 +113,7 @@ impl Twin {
                 "twin",
                 0,
                 DeviceConfig::DEFAULT,
-                crate::config_store::ConfigSource::Missing,
+                kerfmeter_firmware::config_store::ConfigSource::Missing,
                 FlashConfigStore::new(
                     RamFlash::new(FLASH_PAGES),
                     0..FLASH_PAGES as u32 * RamFlash::PAGE,
@@ -257,7 +124,7 @@ impl Twin {
         .release();
         let plant = self.plant.clone();
         let now = self.now_us;
-        *self = Self::boot(self.options.clone(), flash, self.boots + 1);
+        *self = Self::boot(self.options, flash, self.boots + 1);
         self.plant = plant;
         self.now_us = now;
         self.last_request_us = now;

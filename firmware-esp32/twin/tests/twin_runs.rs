@@ -1,8 +1,8 @@
 //! The firmware measuring on the digital twin, in-process: real drivers and controller, fake
 //! peripherals, physics.
 
-use kerfmeter_firmware::twin::{InjectedFault, Twin, TwinOptions};
 use kerfmeter_protocol::{Fault, KerfResult, QualityFlags, Request, Response, RunParams, RunState};
+use kerfmeter_twin::{InjectedFault, Twin, TwinOptions};
 
 /// Run one measurement, polling like a host every 10 ms; the run's end or its fault.
 fn measure(twin: &mut Twin, params: &RunParams) -> Result<KerfResult, Fault> {
