@@ -3,6 +3,8 @@
 //! The behaviour is sans-IO: nothing here touches a peripheral or awaits. The board binary
 //! (`src/bin/board`, features `esp32c3` / `esp32c6`) is glue that moves bytes and samples between
 //! the chip and these modules; the digital twin wires the same modules to simulated peripherals.
+//! The one exception is [`board`], whose chip part (behind those features) sets the chip's
+//! peripherals up for the binary and the on-target tests alike.
 //!
 //! - [`link`]: the protocol server. Bytes in, requests out to a [`link::Handler`], responses back
 //!   out as bytes; retried requests are answered from memory, never executed twice.
@@ -17,6 +19,8 @@
 //! - [`jam`]: jam detection: windowed slope, hold median.
 //! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.
 //! - [`device`]: the request handler behind the link: the whole request table.
+//! - [`board`]: board bring-up: pins, PWM, encoder SPI, current sense (chip features), and the
+//!   chip-independent current-sense scaling and configuration-partition policy.
 //! - `fakes` (feature `fakes`, std): fake peripherals for the drivers' tests and the digital twin
 //!   (the `kerfmeter-twin` crate).
 
@@ -25,6 +29,7 @@
 #![warn(missing_docs)]
 
 pub mod as5048a;
+pub mod board;
 pub mod build;
 pub mod config_store;
 pub mod controller;

@@ -8,7 +8,8 @@
 //!
 //! # Bench set-up
 //!
-//! The board wired as `src/bin/board/pins.rs` says (the pins come from that very module), the
+//! The board wired as the library's `board::pins` says (the set-up is the library's `board`
+//! module, the very code the board binary runs), the
 //! magnet over the AS5048A, the motor supply on, and **no gauge on the hub**: the motor tests turn
 //! the hub a few degrees each way. The direction test expects the mounting of the reference
 //! build, which `DeviceConfig::DEFAULT` describes: DIR high turns the hub clockwise seen from
@@ -27,44 +28,18 @@
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
-use embedded_hal_bus::spi::ExclusiveDevice;
-use esp_hal::{
-    Blocking,
-    clock::CpuClock,
-    delay::Delay,
-    gpio::{DriveMode, Input, InputConfig, Level, Output, OutputConfig, Pin, Pull},
-    ledc::{
-        LSGlobalClkSource, Ledc, LowSpeed,
-        channel::{self, ChannelIFace},
-        timer::{self, TimerIFace},
-    },
-    spi::{
-        Mode,
-        master::{Config as SpiConfig, Spi},
-    },
-    time::Rate,
-};
-use kerfmeter_firmware::as5048a::{As5048a, COUNTS_PER_TURN, EncoderSettings};
-use kerfmeter_firmware::motor::{G2Motor, MotorOutput};
+use esp_hal::{clock::CpuClock, delay::Delay, gpio::Pin};
+use kerfmeter_firmware::as5048a::COUNTS_PER_TURN;
+use kerfmeter_firmware::board::encoder::{BoardEncoder, encoder};
+use kerfmeter_firmware::board::motor::{BoardMotor, LineLevels, PWM_CHANNEL, motor_lines};
+use kerfmeter_firmware::motor::MotorOutput;
 use kerfmeter_protocol::DeviceConfig;
-use static_cell::StaticCell;
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
 #[cfg(not(feature = "esp32c3"))]
 compile_error!("the on-target tests are for the ESP32-C3: `--features esp32c3,on-target`");
 
-/// The board's pin assignment: the board binary's own module.
-#[allow(dead_code)] // The current-sense pin and its scaling are not used here.
-#[path = "../src/bin/board/pins.rs"]
-mod pins;
-
-/// Motor PWM frequency, as on the board.
-const PWM_FREQUENCY: Rate = Rate::from_khz(20);
-/// AS5048A SPI clock, as on the board.
-const ENCODER_SPI_FREQUENCY: Rate = Rate::from_mhz(10);
-/// The LEDC channel of the motor PWM (`channel::Number::Channel0`), as a register index.
-const PWM_LEDC_CHANNEL: usize = 0;
 /// Time for the LEDC duty read-back register to follow a change (one 20 kHz period is 50 µs).
 const DUTY_SETTLE_US: u32 = 200;
 /// Encoder sample period of the tests, ms (the control loop's).
@@ -76,15 +51,6 @@ const LSB_DEG: f32 = 360.0 / COUNTS_PER_TURN as f32;
 const NO_GPIO: u8 = u8::MAX;
 /// GPIO number of the G2's SLP line, once the board is set up: the panic handler drives it low.
 static SLEEP_GPIO: AtomicU8 = AtomicU8::new(NO_GPIO);
-
-/// The LEDC timer behind the PWM channel: a channel borrows its timer, which must outlive it.
-static PWM_TIMER: StaticCell<timer::Timer<'static, LowSpeed>> = StaticCell::new();
-
-/// The AS5048A on SPI2 with its chip select, as the board binary builds it.
-type Encoder = As5048a<ExclusiveDevice<Spi<'static, Blocking>, Output<'static>, Delay>>;
-/// The G2 on the LEDC channel, DIR, SLP and FLT, as the board binary builds it.
-type Motor =
-    G2Motor<channel::Channel<'static, LowSpeed>, Output<'static>, Output<'static>, Input<'static>>;
 
 /// Drive SLP low straight on the GPIO registers: the driver object may be out of reach.
 fn force_motor_asleep() {
@@ -123,24 +89,6 @@ impl MotorLines {
     }
 }
 
-/// How the motor lines are driven before the motor driver takes them (to check that it puts them
-/// safe). Each is harmless on its own: awake with duty 0 brakes, a duty while asleep is ignored.
-#[derive(Clone, Copy)]
-struct LinesBefore {
-    sleep_high: bool,
-    dir_high: bool,
-    duty_pct: u8,
-}
-
-impl LinesBefore {
-    /// What the board binary does: everything low.
-    const SAFE: Self = Self {
-        sleep_high: false,
-        dir_high: false,
-        duty_pct: 0,
-    };
-}
-
 /// What a motor pulse did.
 struct PulseOutcome {
     /// Hub motion from the start of the pulse to rest afterwards, degrees (clockwise-positive).
@@ -155,8 +103,8 @@ struct PulseOutcome {
 
 /// The parts under test.
 struct Board {
-    encoder: Encoder,
-    motor: Motor,
+    encoder: BoardEncoder,
+    motor: BoardMotor,
     delay: Delay,
     sleep_gpio: u8,
     dir_gpio: u8,
@@ -164,67 +112,24 @@ struct Board {
     before: MotorLines,
 }
 
-/// Set the chip up as the board binary does, with the motor lines at `lines` until the motor
-/// driver takes them.
-fn build(lines: LinesBefore) -> Board {
+/// Set the chip up as the board binary does (the same library code), with the motor lines at
+/// `levels` until the motor driver takes them.
+fn build(levels: LineLevels) -> Board {
     let p = esp_hal::init(esp_hal::Config::default().with_cpu_clock(CpuClock::max()));
-    let pins = pins::take!(p);
-    let sleep_gpio = pins.motor_sleep.number();
-    let dir_gpio = pins.motor_dir.number();
+    let pins = kerfmeter_firmware::take_pins!(p);
+    let sleep_gpio = pins.motor.sleep.number();
+    let dir_gpio = pins.motor.dir.number();
     SLEEP_GPIO.store(sleep_gpio, Ordering::Relaxed);
-    let level = |high| if high { Level::High } else { Level::Low };
 
-    let sleep = Output::new(
-        pins.motor_sleep,
-        level(lines.sleep_high),
-        OutputConfig::default(),
-    );
-    let dir = Output::new(
-        pins.motor_dir,
-        level(lines.dir_high),
-        OutputConfig::default(),
-    );
-    let pwm_pin = Output::new(pins.motor_pwm, Level::Low, OutputConfig::default());
-
-    let mut ledc = Ledc::new(p.LEDC);
-    ledc.set_global_slow_clock(LSGlobalClkSource::APBClk);
-    let pwm_timer = PWM_TIMER.init(ledc.timer::<LowSpeed>(timer::Number::Timer0));
-    pwm_timer
-        .configure(timer::config::Config {
-            duty: timer::config::Duty::Duty11Bit,
-            clock_source: timer::LSClockSource::APBClk,
-            frequency: PWM_FREQUENCY,
-        })
-        .expect("LEDC timer: 20 kHz with 11-bit duty");
-    let mut pwm = ledc.channel(channel::Number::Channel0, pwm_pin);
-    pwm.configure(channel::config::Config {
-        timer: &*pwm_timer,
-        duty_pct: lines.duty_pct,
-        drive_mode: DriveMode::PushPull,
-    })
-    .expect("LEDC channel");
-    let fault = Input::new(pins.motor_fault, InputConfig::default().with_pull(Pull::Up));
-
+    let lines = motor_lines(p.LEDC, pins.motor, levels);
     let delay = Delay::new();
     delay.delay_micros(DUTY_SETTLE_US);
     let before = read_lines(sleep_gpio, dir_gpio);
 
-    let (motor, safe) = G2Motor::new(pwm, dir, sleep, fault);
+    let (motor, safe) = lines.into_driver();
     safe.expect("motor driver: safe state at construction");
 
-    let spi = Spi::new(
-        p.SPI2,
-        SpiConfig::default()
-            .with_frequency(ENCODER_SPI_FREQUENCY)
-            .with_mode(Mode::_1),
-    )
-    .expect("SPI2 config")
-    .with_sck(pins.encoder_sclk)
-    .with_mosi(pins.encoder_mosi)
-    .with_miso(pins.encoder_miso);
-    let cs = Output::new(pins.encoder_cs, Level::High, OutputConfig::default());
-    let Ok(spi) = ExclusiveDevice::new(spi, cs, Delay::new());
-    let encoder = As5048a::new(spi, EncoderSettings::from_config(&DeviceConfig::DEFAULT));
+    let encoder = encoder(p.SPI2, pins.encoder, &DeviceConfig::DEFAULT);
 
     Board {
         encoder,
@@ -241,7 +146,7 @@ fn build(lines: LinesBefore) -> Board {
 fn read_lines(sleep_gpio: u8, dir_gpio: u8) -> MotorLines {
     let out = esp_hal::peripherals::GPIO::regs().out().read().bits();
     let duty_raw = esp_hal::peripherals::LEDC::regs()
-        .ch(PWM_LEDC_CHANNEL)
+        .ch(PWM_CHANNEL as usize)
         .duty_r()
         .read()
         .duty_r()
@@ -363,7 +268,9 @@ mod tests {
     use kerfmeter_firmware::motor::MotorOutput;
     use kerfmeter_protocol::DeviceConfig;
 
-    use super::{Board, LSB_DEG, LinesBefore, SAMPLE_PERIOD_MS, build};
+    use kerfmeter_firmware::board::motor::LineLevels;
+
+    use super::{Board, LSB_DEG, SAMPLE_PERIOD_MS, build};
 
     /// Consecutive raw angle reads that must all pass the parity (and error-flag) check.
     const PARITY_READS: u32 = 2000;
@@ -388,12 +295,12 @@ mod tests {
 
     #[init]
     fn init() -> Board {
-        build(LinesBefore::SAFE)
+        build(LineLevels::SAFE)
     }
 
     /// The driver awake (braking, no torque) and DIR high before the motor driver takes them.
     fn init_awake() -> Board {
-        build(LinesBefore {
+        build(LineLevels {
             sleep_high: true,
             dir_high: true,
             duty_pct: 0,
@@ -402,7 +309,7 @@ mod tests {
 
     /// A duty on the PWM channel while the driver sleeps (its outputs stay off).
     fn init_duty_asleep() -> Board {
-        build(LinesBefore {
+        build(LineLevels {
             sleep_high: false,
             dir_high: false,
             duty_pct: 25,

@@ -1,7 +1,8 @@
 //! Every pin assignment of the board, in one place.
 //!
-//! [`take!`] moves the board's pins out of esp-hal's `Peripherals`; nothing else in the binary
-//! names a GPIO number. Change a pin here and only here.
+//! [`take_pins!`](crate::take_pins) moves the board's pins out of esp-hal's `Peripherals`;
+//! nothing else in the firmware (board binary, on-target tests) names a GPIO number. Change a pin
+//! here and only here.
 //!
 //! # Wiring
 //!
@@ -28,92 +29,96 @@
 //!   GPIO24–30 belong to the SPI flash; GPIO16/17 are UART0.
 //!
 //! The SPI signals go through the GPIO matrix; at ≤ 10 MHz that is well within its limits.
+//!
+//! [`CURRENT_SENSE_MV_PER_A`]: super::current::CURRENT_SENSE_MV_PER_A
+//! [`CURRENT_SENSE_OFFSET_MV`]: super::current::CURRENT_SENSE_OFFSET_MV
 
 use esp_hal::gpio::AnyPin;
-
-#[cfg(not(any(feature = "esp32c3", feature = "esp32c6")))]
-compile_error!("the board binary needs a chip feature: `esp32c3` or `esp32c6`");
-
-#[cfg(all(feature = "esp32c3", feature = "esp32c6"))]
-compile_error!("features `esp32c3` and `esp32c6` are mutually exclusive");
 
 /// The pin wired to the G2's current-sense output (ADC1 channel 0 on both chips): a concrete
 /// type, because the ADC driver needs to know the ADC channel at compile time.
 pub type CurrentSensePin = esp_hal::peripherals::GPIO0<'static>;
 
-/// Current-sense gain of the Pololu G2 18v17 (the reference driver): its `CS` output rises by
-/// about 20 mV per amp of motor current. The gain depends on the G2 variant: look it up on
-/// Pololu's page for yours and adjust this (and [`CURRENT_SENSE_OFFSET_MV`]) for any other.
-pub const CURRENT_SENSE_MV_PER_A: f32 = 20.0;
-
-/// Current-sense offset of the Pololu G2 18v17: its `CS` output sits about 50 mV above ground
-/// at zero current. Depends on the G2 variant (and varies a little from board to board): adjust
-/// it for another driver.
-pub const CURRENT_SENSE_OFFSET_MV: f32 = 50.0;
-
-/// Motor current, A, from the G2's `CS` voltage in millivolts (never negative).
-pub fn motor_current_a(cs_mv: u16) -> f32 {
-    ((f32::from(cs_mv) - CURRENT_SENSE_OFFSET_MV) / CURRENT_SENSE_MV_PER_A).max(0.0)
-}
-
 /// The board's pins, named by what they are wired to (see the table in the module docs).
 pub struct Pins {
-    /// Pololu G2 `PWM`.
-    pub motor_pwm: AnyPin<'static>,
-    /// Pololu G2 `DIR`.
-    pub motor_dir: AnyPin<'static>,
-    /// Pololu G2 `SLP` (low = asleep).
-    pub motor_sleep: AnyPin<'static>,
-    /// Pololu G2 `FLT` (open-drain, low = fault).
-    pub motor_fault: AnyPin<'static>,
+    /// The Pololu G2's digital lines.
+    pub motor: MotorPins,
     /// Pololu G2 `CS` (analog).
     pub motor_current: CurrentSensePin,
+    /// The AS5048A's SPI lines.
+    pub encoder: EncoderPins,
+}
+
+/// The Pololu G2's digital lines.
+pub struct MotorPins {
+    /// Pololu G2 `PWM`.
+    pub pwm: AnyPin<'static>,
+    /// Pololu G2 `DIR`.
+    pub dir: AnyPin<'static>,
+    /// Pololu G2 `SLP` (low = asleep).
+    pub sleep: AnyPin<'static>,
+    /// Pololu G2 `FLT` (open-drain, low = fault).
+    pub fault: AnyPin<'static>,
+}
+
+/// The AS5048A's SPI lines.
+pub struct EncoderPins {
     /// AS5048A `CLK`.
-    pub encoder_sclk: AnyPin<'static>,
+    pub sclk: AnyPin<'static>,
     /// AS5048A `MOSI`.
-    pub encoder_mosi: AnyPin<'static>,
+    pub mosi: AnyPin<'static>,
     /// AS5048A `MISO`.
-    pub encoder_miso: AnyPin<'static>,
+    pub miso: AnyPin<'static>,
     /// AS5048A `CSn`.
-    pub encoder_cs: AnyPin<'static>,
+    pub cs: AnyPin<'static>,
 }
 
-/// Moves the board's [`Pins`] out of a `Peripherals` value named by `$p` (a local variable;
-/// the other peripherals stay usable).
+/// Moves the board's [`Pins`](crate::board::pins::Pins) out of a `Peripherals` value named by
+/// `$p` (a local variable; the other peripherals stay usable).
 #[cfg(feature = "esp32c3")]
-macro_rules! take {
+#[macro_export]
+macro_rules! take_pins {
     ($p:ident) => {
-        $crate::pins::Pins {
-            motor_pwm: $p.GPIO3.into(),
-            motor_dir: $p.GPIO4.into(),
-            motor_sleep: $p.GPIO1.into(),
-            motor_fault: $p.GPIO20.into(),
-            motor_current: $p.GPIO0,
-            encoder_sclk: $p.GPIO6.into(),
-            encoder_mosi: $p.GPIO7.into(),
-            encoder_miso: $p.GPIO5.into(),
-            encoder_cs: $p.GPIO10.into(),
-        }
+        $crate::__take_board_pins!($p;
+            pwm: GPIO3, dir: GPIO4, sleep: GPIO1, fault: GPIO20, current: GPIO0,
+            sclk: GPIO6, mosi: GPIO7, miso: GPIO5, cs: GPIO10)
     };
 }
 
-/// Moves the board's [`Pins`] out of a `Peripherals` value named by `$p` (a local variable;
-/// the other peripherals stay usable).
+/// Moves the board's [`Pins`](crate::board::pins::Pins) out of a `Peripherals` value named by
+/// `$p` (a local variable; the other peripherals stay usable).
 #[cfg(feature = "esp32c6")]
-macro_rules! take {
+#[macro_export]
+macro_rules! take_pins {
     ($p:ident) => {
-        $crate::pins::Pins {
-            motor_pwm: $p.GPIO3.into(),
-            motor_dir: $p.GPIO21.into(),
-            motor_sleep: $p.GPIO1.into(),
-            motor_fault: $p.GPIO20.into(),
-            motor_current: $p.GPIO0,
-            encoder_sclk: $p.GPIO6.into(),
-            encoder_mosi: $p.GPIO7.into(),
-            encoder_miso: $p.GPIO2.into(),
-            encoder_cs: $p.GPIO18.into(),
-        }
+        $crate::__take_board_pins!($p;
+            pwm: GPIO3, dir: GPIO21, sleep: GPIO1, fault: GPIO20, current: GPIO0,
+            sclk: GPIO6, mosi: GPIO7, miso: GPIO2, cs: GPIO18)
     };
 }
 
-pub(crate) use take;
+/// [`take_pins!`](crate::take_pins)'s body, given one chip's GPIOs.
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __take_board_pins {
+    ($p:ident;
+     pwm: $pwm:ident, dir: $dir:ident, sleep: $sleep:ident, fault: $fault:ident,
+     current: $current:ident,
+     sclk: $sclk:ident, mosi: $mosi:ident, miso: $miso:ident, cs: $cs:ident) => {
+        $crate::board::pins::Pins {
+            motor: $crate::board::pins::MotorPins {
+                pwm: $p.$pwm.into(),
+                dir: $p.$dir.into(),
+                sleep: $p.$sleep.into(),
+                fault: $p.$fault.into(),
+            },
+            motor_current: $p.$current,
+            encoder: $crate::board::pins::EncoderPins {
+                sclk: $p.$sclk.into(),
+                mosi: $p.$mosi.into(),
+                miso: $p.$miso.into(),
+                cs: $p.$cs.into(),
+            },
+        }
+    };
+}

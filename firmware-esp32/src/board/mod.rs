@@ -1,0 +1,66 @@
+//! Board bring-up: the chip's peripherals set up for the Kerfmeter board, shared by the board
+//! binary (`src/bin/board`) and the on-target tests (`tests/on_target.rs`), so that both run
+//! exactly the same set-up on the same pins.
+//!
+//! Chip code, behind the chip features (`esp32c3` or `esp32c6`, which enable `board`; so not
+//! linked from these docs when they are built for the host):
+//!
+//! - `pins`: every pin assignment, with the wiring table and the pins avoided, and why.
+//! - `motor`: the Pololu G2's `SLP`, `DIR`, `FLT` lines and its PWM on LEDC (20 kHz, 11-bit
+//!   duty), including the ESP32-C6 LEDC divider workaround; then the [`G2Motor`] driver. The
+//!   motor lines are driven low before anything else is set up.
+//! - `encoder`: the AS5048A on SPI2 (mode 1, 10 MHz, chip select as a GPIO); then the
+//!   [`As5048a`] driver.
+//! - `adc`: the G2's current-sense output on ADC1 (11 dB, eFuse-calibrated), read one
+//!   conversion behind so that the control tick never waits.
+//! - `flash`: the SPI flash and the partition table's `nvs` partition, which holds the
+//!   configuration.
+//!
+//! Chip-independent, and tested on the host:
+//!
+//! - [`current`]: the G2's current-sense scaling and when the current counts as unknown.
+//! - [`partition`]: what is done at boot with the configuration partition: use a valid record,
+//!   erase foreign data, or run without persistence.
+//!
+//! The watchdog, the USB-Serial-JTAG port and the tasks stay in the board binary: they are the
+//! binary's run-time structure, not set-up that the tests share.
+//!
+//! [`G2Motor`]: crate::motor::G2Motor
+//! [`As5048a`]: crate::as5048a::As5048a
+
+pub mod current;
+pub mod partition;
+
+#[cfg(feature = "board")]
+pub mod adc;
+#[cfg(feature = "board")]
+pub mod encoder;
+#[cfg(feature = "board")]
+pub mod flash;
+#[cfg(feature = "board")]
+pub mod motor;
+#[cfg(feature = "board")]
+pub mod pins;
+
+#[cfg(all(feature = "board", not(any(feature = "esp32c3", feature = "esp32c6"))))]
+compile_error!("the board needs a chip feature: `esp32c3` or `esp32c6`");
+
+#[cfg(all(feature = "esp32c3", feature = "esp32c6"))]
+compile_error!("features `esp32c3` and `esp32c6` are mutually exclusive");
+
+/// The chip's name, as `GetInfo` reports it.
+#[cfg(feature = "esp32c3")]
+pub const BOARD_NAME: &str = "esp32c3";
+/// The chip's name, as `GetInfo` reports it.
+#[cfg(feature = "esp32c6")]
+pub const BOARD_NAME: &str = "esp32c6";
+
+/// The encoder and motor drivers on the board, as the control tick uses them.
+#[cfg(feature = "board")]
+pub type BoardHardware = crate::hardware::Hardware<
+    encoder::EncoderSpi,
+    motor::MotorPwm,
+    esp_hal::gpio::Output<'static>,
+    esp_hal::gpio::Output<'static>,
+    esp_hal::gpio::Input<'static>,
+>;
