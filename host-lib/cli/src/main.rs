@@ -23,6 +23,8 @@ mod error;
 mod output;
 mod plot;
 mod progress;
+#[cfg(test)]
+mod tests;
 
 use commands::config::ConfigCommand;
 use commands::map::MapArgs;

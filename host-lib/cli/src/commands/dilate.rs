@@ -142,22 +142,7 @@ impl fmt::Display for DilateReport {
                 .collect();
             writeln!(f, "  passed through untouched: {}", list.join(", "))?;
         }
-        if !s.open_paths.is_empty() {
-            writeln!(
-                f,
-                "  warning: {} open cut path{} cannot be dilated and {} left as drawn:",
-                s.open_paths.len(),
-                plural(s.open_paths.len()),
-                if s.open_paths.len() == 1 {
-                    "was"
-                } else {
-                    "were"
-                }
-            )?;
-            for o in &s.open_paths {
-                writeln!(f, "    - {o}")?;
-            }
-        }
+        write_open_paths(f, s)?;
         for n in &s.notes {
             writeln!(f, "  note: {n}")?;
         }
@@ -165,6 +150,29 @@ impl fmt::Display for DilateReport {
     }
 }
 
+/// The warning about open cut paths, which stay as drawn (nothing when there are none).
+fn write_open_paths(f: &mut fmt::Formatter<'_>, s: &PlanSummary) -> fmt::Result {
+    if s.open_paths.is_empty() {
+        return Ok(());
+    }
+    writeln!(
+        f,
+        "  warning: {} open cut path{} cannot be dilated and {} left as drawn:",
+        s.open_paths.len(),
+        plural(s.open_paths.len()),
+        if s.open_paths.len() == 1 {
+            "was"
+        } else {
+            "were"
+        }
+    )?;
+    for o in &s.open_paths {
+        writeln!(f, "    - {o}")?;
+    }
+    Ok(())
+}
+
+/// "s" unless `n` is 1.
 fn plural(n: usize) -> &'static str {
     if n == 1 { "" } else { "s" }
 }
