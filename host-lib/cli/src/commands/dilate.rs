@@ -1,0 +1,233 @@
+//! `kerfmeter dilate`: dilate a cutting plan (SVG or DXF) by the measured kerf, uniformly or per
+//! part from a kerf map. The plan work is `kerfmeter_plan`'s; this module turns the arguments into
+//! its options and writes the output atomically, never over the input.
+
+use std::fmt;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use kerfmeter::files::{ensure_not_input, write_atomically};
+use kerfmeter::map::KerfMap;
+use kerfmeter_plan::dilate::KerfSource;
+use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
+use kerfmeter_plan::rules::CutRules;
+use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file};
+use serde::Serialize;
+
+use crate::error::CliError;
+use crate::output::{JsonLayout, Report};
+
+type Result<T, E = CliError> = std::result::Result<T, E>;
+
+/// `--units`: the names of [`AssumedUnits`], each with its description in `--help`.
+fn units_parser() -> impl TypedValueParser<Value = AssumedUnits> {
+    PossibleValuesParser::new(
+        AssumedUnits::ALL.map(|u| PossibleValue::new(u.name()).help(u.describe())),
+    )
+    .map(|name| name.parse().expect("clap only passes the names listed"))
+}
+
+/// `kerfmeter dilate`: offset every closed cut of a plan by half the kerf.
+#[derive(Debug, Clone, clap::Args)]
+pub struct DilateArgs {
+    /// The plan to dilate: an .svg or .dxf file.
+    #[arg(value_name = "IN")]
+    pub input: PathBuf,
+    /// Kerf (full cut width), µm; every cut moves by half of it. With --map: the kerf measured
+    /// at the map's reference cell.
+    #[arg(long)]
+    pub kerf_um: f64,
+    /// Kerf map (JSON from the map command): each part uses the kerf at its centroid.
+    #[arg(long, value_name = "MAP.json")]
+    pub map: Option<PathBuf>,
+    /// Output file, same format as the input (never the input itself).
+    #[arg(short, long, value_name = "OUT", required_unless_present = "dry_run")]
+    pub output: Option<PathBuf>,
+    /// Make open cut paths (which cannot be dilated) an error instead of a warning.
+    #[arg(long)]
+    pub strict: bool,
+    /// Report what would change; write nothing.
+    #[arg(long)]
+    pub dry_run: bool,
+    /// Colours that mean "cut" (CSS syntax; repeat or separate by commas) [default: red, blue,
+    /// black].
+    #[arg(long = "cut-color", value_name = "COLOR", value_delimiter = ',')]
+    pub cut_colors: Vec<String>,
+    /// Widest stroke (SVG) or lineweight (DXF) that is still a cut line, mm.
+    #[arg(long, default_value_t = 0.3)]
+    pub cut_max_width_mm: f64,
+    /// DXF: the entities on these layers are the cuts (instead of the colour rules).
+    #[arg(long = "cut-layer", value_name = "LAYER", value_delimiter = ',')]
+    pub cut_layers: Vec<String>,
+    /// What one drawing unit is, for files that do not say (unitless SVG, DXF without $INSUNITS).
+    #[arg(long, value_parser = units_parser())]
+    pub units: Option<AssumedUnits>,
+}
+
+/// What `dilate` did (or, with `--dry-run`, would do).
+#[derive(Debug, Clone, Serialize)]
+pub struct DilateReport {
+    /// The plan read.
+    pub input: PathBuf,
+    /// The file written (`None` on a dry run).
+    pub output: Option<PathBuf>,
+    /// True when nothing was written.
+    pub dry_run: bool,
+    /// The file format.
+    pub format: PlanFormat,
+    /// The kerf given, µm (with a map: at the reference cell).
+    pub kerf_um: f64,
+    /// The kerf map used.
+    pub map: Option<PathBuf>,
+    /// The cut rules, in words.
+    pub cut_rules: String,
+    /// What was found and done.
+    #[serde(flatten)]
+    pub summary: PlanSummary,
+}
+
+impl fmt::Display for DilateReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = &self.summary;
+        match (&self.output, self.dry_run) {
+            (Some(out), false) => writeln!(
+                f,
+                "dilated {} → {} ({}) by {} µm (each cut moved {} µm)",
+                self.input.display(),
+                out.display(),
+                self.format,
+                self.kerf_um,
+                self.kerf_um / 2.0
+            )?,
+            _ => writeln!(
+                f,
+                "dry run, nothing written: {} ({}) by {} µm",
+                self.input.display(),
+                self.format,
+                self.kerf_um
+            )?,
+        }
+        writeln!(
+            f,
+            "  {} closed contour{} in {} part{} ({} hole{}, {} island{}) from {} cut element{}; {} element{} rewritten",
+            s.contours_dilated,
+            plural(s.contours_dilated),
+            s.parts,
+            plural(s.parts),
+            s.holes,
+            plural(s.holes),
+            s.islands,
+            plural(s.islands),
+            s.cut_elements,
+            plural(s.cut_elements),
+            s.changed_elements,
+            plural(s.changed_elements)
+        )?;
+        if let (Some(map), Some([lo, hi])) = (&self.map, s.kerf_range_um) {
+            writeln!(
+                f,
+                "  kerf per part {lo:.1}–{hi:.1} µm from the map {}",
+                map.display()
+            )?;
+        }
+        writeln!(f, "  cut rules: {}", self.cut_rules)?;
+        if s.passed_through.is_empty() {
+            writeln!(f, "  passed through untouched: nothing")?;
+        } else {
+            let list: Vec<String> = s
+                .passed_through
+                .iter()
+                .map(|(reason, n)| format!("{n} × {reason}"))
+                .collect();
+            writeln!(f, "  passed through untouched: {}", list.join(", "))?;
+        }
+        write_open_paths(f, s)?;
+        for n in &s.notes {
+            writeln!(f, "  note: {n}")?;
+        }
+        Ok(())
+    }
+}
+
+/// The warning about open cut paths, which stay as drawn (nothing when there are none).
+fn write_open_paths(f: &mut fmt::Formatter<'_>, s: &PlanSummary) -> fmt::Result {
+    if s.open_paths.is_empty() {
+        return Ok(());
+    }
+    writeln!(
+        f,
+        "  warning: {} open cut path{} cannot be dilated and {} left as drawn:",
+        s.open_paths.len(),
+        plural(s.open_paths.len()),
+        if s.open_paths.len() == 1 {
+            "was"
+        } else {
+            "were"
+        }
+    )?;
+    for o in &s.open_paths {
+        writeln!(f, "    - {o}")?;
+    }
+    Ok(())
+}
+
+/// "s" unless `n` is 1.
+fn plural(n: usize) -> &'static str {
+    if n == 1 { "" } else { "s" }
+}
+
+/// Dilate the plan named by `args` (see [`DilateArgs`]).
+pub fn run(args: &DilateArgs) -> Result<DilateReport> {
+    let format = PlanFormat::of(&args.input)?;
+    if let Some(out) = &args.output {
+        let out_format = PlanFormat::of(out)?;
+        if out_format != format {
+            return Err(PlanError::InvalidArgument(format!(
+                "the output {} must have the input's format ({format})",
+                out.display()
+            ))
+            .into());
+        }
+        ensure_not_input(&args.input, out)?;
+    }
+    let kerf_um = KerfSource::check_kerf_um(args.kerf_um)?;
+    let kerf = match &args.map {
+        None => KerfSource::Uniform(kerf_um),
+        Some(path) => {
+            let map = KerfMap::load(path)?;
+            KerfSource::Map(Arc::new(move |x_mm, y_mm| {
+                map.kerf_at_um(kerf_um, x_mm, y_mm)
+            }))
+        }
+    };
+    let options = DilateOptions {
+        rules: CutRules::new(&args.cut_colors, args.cut_max_width_mm, &args.cut_layers)?,
+        assume_units: args.units,
+        strict: args.strict,
+    };
+    let (output, summary) = dilate_file(&args.input, &kerf, &options)?;
+    if !args.dry_run
+        && let Some(out) = &args.output
+    {
+        write_atomically(out, &output)?;
+    }
+    Ok(DilateReport {
+        input: args.input.clone(),
+        output: if args.dry_run {
+            None
+        } else {
+            args.output.clone()
+        },
+        dry_run: args.dry_run,
+        format,
+        kerf_um,
+        map: args.map.clone(),
+        cut_rules: options.rules.describe(),
+        summary,
+    })
+}
+
+impl Report for DilateReport {
+    const JSON: JsonLayout = JsonLayout::Pretty;
+}

@@ -1,0 +1,47 @@
+//! One module per `kerfmeter` command. Each takes its arguments and returns a typed report (see
+//! [`crate::output::Report`]); `main` prints it as text or JSON.
+
+pub mod abort;
+pub mod clear_fault;
+pub mod config;
+pub mod dilate;
+pub mod gauge;
+pub mod info;
+pub mod kerf;
+pub mod map;
+pub mod reset;
+pub mod run;
+pub mod self_test;
+
+use std::fmt;
+
+use serde::Serialize;
+
+use crate::output::{JsonLayout, Report};
+
+/// What a command that only acts reports: `{"ok":true}`, or a sentence saying what is done.
+#[derive(Serialize)]
+pub struct Done {
+    /// The sentence printed as text.
+    #[serde(skip)]
+    pub done: &'static str,
+    /// Always true: a failure is an error, not a report.
+    pub ok: bool,
+}
+
+impl Done {
+    /// The report of a command that did what `done` says.
+    pub fn new(done: &'static str) -> Self {
+        Done { done, ok: true }
+    }
+}
+
+impl fmt::Display for Done {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.done)
+    }
+}
+
+impl Report for Done {
+    const JSON: JsonLayout = JsonLayout::CompactSorted;
+}

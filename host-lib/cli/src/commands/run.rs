@@ -1,0 +1,243 @@
+//! `kerfmeter run`: measure the kerf (the hub is reset to zero first). With `--samples N`, N
+//! gauges are measured and the mean with its 95 % confidence interval is reported; `--plot` draws
+//! the last run's torque–angle curve and `--also-at-force-n` reads other forces off it.
+
+use std::fmt;
+use std::path::PathBuf;
+
+use clap::Args;
+use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
+use kerfmeter::stats::Summary;
+use kerfmeter::{Error, JointSpec, Measurement};
+use serde::Serialize;
+
+use crate::connection::{Global, Session};
+use crate::error::CliError;
+use crate::output::{JsonLayout, Report, ResultsTable};
+use crate::plot;
+use crate::progress::{ask, progress_bar, show};
+
+#[derive(Args)]
+pub struct RunArgs {
+    /// Sheet thickness, mm.
+    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_THICKNESS_MM)]
+    thickness_mm: f64,
+    /// Assembly force of the joint, N (default: 18.3 N per finger, the paper's fit-window centre).
+    #[arg(long)]
+    force_n: Option<f64>,
+    /// Fingers in the joint.
+    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_FINGERS)]
+    fingers: u32,
+    /// Length of each finger's pressed face, mm.
+    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_FINGER_LENGTH_MM)]
+    finger_length_mm: f64,
+    /// Gauges to measure (a fresh gauge for each).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=50))]
+    samples: u32,
+    /// Draw the last run's torque–angle curve into this .png or .svg file.
+    #[arg(long, value_name = "FILE")]
+    plot: Option<PathBuf>,
+    /// Do not ask before each gauge (hardware only; the simulator never asks).
+    #[arg(long, short = 'y')]
+    yes: bool,
+    /// Also read the kerf at these other assembly forces (N) off the last run's curve.
+    #[arg(long, value_name = "N", value_delimiter = ',')]
+    also_at_force_n: Vec<f32>,
+}
+
+/// The kerf at another force, read off the last run's curve.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct KerfAtForce {
+    /// The force, N.
+    pub force_n: f32,
+    /// The kerf there, µm (`None` beyond the force the run reached).
+    pub kerf_um: Option<f32>,
+}
+
+/// What the simulated device was told to cut (text only).
+#[derive(Debug, Clone, Copy)]
+pub struct SimNote {
+    /// The twin's true kerf, µm.
+    pub kerf_um: f64,
+    /// Its gauge-to-gauge spread, µm.
+    pub kerf_sd_um: f64,
+    /// What an ideal device reads at the last run's torque, µm.
+    pub ideal_reading_um: f64,
+}
+
+/// The measurement: every run, their summary and the readings at other forces.
+#[derive(Serialize)]
+pub struct RunReport {
+    /// The joint force the runs were made at, N.
+    pub force_n: f32,
+    /// Kerf at the other forces asked for.
+    pub kerf_at_force_um: Vec<KerfAtForce>,
+    /// The mean kerf, µm.
+    pub kerf_um: f64,
+    /// The curve's file, if drawn.
+    pub plot: Option<PathBuf>,
+    /// Every run, in order.
+    pub runs: Vec<KerfResult>,
+    /// True on the simulated device.
+    pub simulated: bool,
+    /// Mean, spread, confidence interval and outliers.
+    pub summary: Summary,
+    /// Sheet thickness, mm.
+    pub thickness_mm: f32,
+    /// The simulated device's truth, when simulated.
+    #[serde(skip)]
+    pub sim: Option<SimNote>,
+}
+
+/// Measure as `args` say.
+pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
+    let joint = JointSpec {
+        thickness_mm: args.thickness_mm,
+        fingers: args.fingers,
+        finger_length_mm: args.finger_length_mm,
+        force_n: args.force_n,
+    };
+    let params = joint.run_params(GaugeGeometry::PAPER)?;
+    if let Some(plot) = &args.plot {
+        plot::PlotFormat::for_path(plot)?;
+    }
+    let mut s = g.connect()?;
+    let Measurement { runs, summary } = measure(g, args, &mut s, &params)?;
+    let kerf_at_force_um = read_curve(&mut s, args, &params, runs.last())?;
+    let sim = match (&s.sim, runs.last()) {
+        (Some(sim), Some(last)) => Some(SimNote {
+            kerf_um: g.sim_kerf_um,
+            kerf_sd_um: g.sim_kerf_sd_um,
+            ideal_reading_um: sim.ideal_reading_um(last.torque_at_jam_nm),
+        }),
+        _ => None,
+    };
+    Ok(RunReport {
+        force_n: params.target_force_n,
+        kerf_at_force_um,
+        kerf_um: summary.mean_um,
+        plot: args.plot.clone(),
+        runs,
+        simulated: s.sim.is_some(),
+        summary,
+        thickness_mm: params.thickness_mm,
+        sim,
+    })
+}
+
+/// The `--samples` runs, each after its prompt, with a progress bar.
+fn measure(
+    g: &Global,
+    args: &RunArgs,
+    s: &mut Session,
+    params: &RunParams,
+) -> Result<Measurement, CliError> {
+    let sim = s.sim.is_some();
+    let samples = args.samples as usize;
+    let bar = progress_bar(g, "gauge 1");
+    let measured = s.meter.measure(
+        params,
+        samples,
+        |i| {
+            bar.suspend(|| {
+                ask(
+                    g,
+                    args.yes,
+                    sim,
+                    &format!("Place gauge {} of {samples} under the prongs", i + 1),
+                )
+            })
+            .map_err(|e| Error::InvalidArgument(e.to_string()))?;
+            bar.set_prefix(format!("gauge {}/{samples}", i + 1));
+            Ok(())
+        },
+        |_, p| show(&bar, p),
+    );
+    bar.finish_and_clear();
+    Ok(measured?)
+}
+
+/// Fetch the last run's curve if asked to plot it or read other forces off it; do both.
+fn read_curve(
+    s: &mut Session,
+    args: &RunArgs,
+    params: &RunParams,
+    last: Option<&KerfResult>,
+) -> Result<Vec<KerfAtForce>, CliError> {
+    if args.plot.is_none() && args.also_at_force_n.is_empty() {
+        return Ok(Vec::new());
+    }
+    let curve = s.meter.curve()?;
+    if let Some(path) = &args.plot {
+        plot::plot_curve(&curve, last, path)?;
+    }
+    Ok(args
+        .also_at_force_n
+        .iter()
+        .map(|&force_n| KerfAtForce {
+            force_n,
+            kerf_um: curve.kerf_at_force_um(params, force_n),
+        })
+        .collect())
+}
+
+impl fmt::Display for RunReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "{}\n", ResultsTable(&self.runs))?;
+        let s = &self.summary;
+        match s.ci95_um {
+            Some(ci) => write!(
+                f,
+                "kerf {:.1} µm ± {:.1} µm (95 % CI, n = {}, SD {:.1} µm) at {:.1} N",
+                s.mean_um, ci, s.n, s.sd_um, self.force_n
+            )?,
+            None => write!(f, "kerf {:.1} µm at {:.1} N", s.mean_um, self.force_n)?,
+        }
+        for KerfAtForce { force_n, kerf_um } in &self.kerf_at_force_um {
+            match kerf_um {
+                Some(k) => write!(
+                    f,
+                    "\n  at {force_n:.1} N (from the last run's curve): {k:.1} µm"
+                )?,
+                None => write!(
+                    f,
+                    "\n  at {force_n:.1} N: beyond the force the last run reached"
+                )?,
+            }
+        }
+        for &i in &s.outliers {
+            write!(
+                f,
+                "\nwarning: run {} ({:.1} µm) is an outlier; check that gauge",
+                i + 1,
+                self.runs[i].kerf_um
+            )?;
+        }
+        if let Some(path) = &self.plot {
+            write!(f, "\ncurve: {}", path.display())?;
+        }
+        if let Some(sim) = &self.sim {
+            write!(f, "\n{sim}")?;
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Display for SimNote {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let spread = if self.kerf_sd_um > 0.0 {
+            format!(" ± {:.1} µm SD", self.kerf_sd_um)
+        } else {
+            String::new()
+        };
+        write!(
+            f,
+            "(simulated device: gauges cut with {:.1} µm{spread}; at the applied force the spiral contact compresses, so an ideal device reads {:.1} µm)",
+            self.kerf_um, self.ideal_reading_um
+        )
+    }
+}
+
+impl Report for RunReport {
+    const JSON: JsonLayout = JsonLayout::PrettySorted;
+}

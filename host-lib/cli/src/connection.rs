@@ -1,0 +1,100 @@
+//! The global flags (port, simulated device, `--json`, timeout) and the connection they open: a
+//! real port, found by its USB ids or named, or the in-process digital twin.
+
+use std::time::Duration;
+
+use clap::Args;
+use kerfmeter::sim::{SimDevice, SimOptions};
+use kerfmeter::{Kerfmeter, Options};
+
+use crate::error::CliError;
+
+/// Flags every command takes.
+#[derive(Args)]
+pub struct Global {
+    /// Serial port of the device (e.g. /dev/ttyACM0). Also from KERFMETER_PORT.
+    #[arg(long, global = true, env = "KERFMETER_PORT", conflicts_with = "sim")]
+    pub port: Option<String>,
+    /// Use the simulated device (the digital twin) instead of hardware.
+    #[arg(long, global = true)]
+    pub sim: bool,
+    /// Simulated device: true kerf of the cut gauges, µm.
+    #[arg(long, global = true, default_value_t = 150.0, value_name = "UM")]
+    pub sim_kerf_um: f64,
+    /// Simulated device: gauge-to-gauge spread (SD) of the simulated cutter's kerf, µm.
+    #[arg(long, global = true, default_value_t = 0.0, value_name = "UM")]
+    pub sim_kerf_sd_um: f64,
+    /// Simulated device: seed of every random number (same seed, same result).
+    #[arg(long, global = true, default_value_t = 1)]
+    pub sim_seed: u64,
+    /// Simulated device: inject a fault (parity, magnet-lost, miso-stuck, no-inset,
+    /// motor-disconnected, driver-fault, over-current, host-silent, prong-slip).
+    #[arg(long, global = true, value_name = "NAME")]
+    pub sim_fault: Option<kerfmeter::sim::SimFault>,
+    /// Simulated device: run in real time instead of as fast as the host keeps up.
+    #[arg(long, global = true)]
+    pub sim_realtime: bool,
+    /// Print one JSON object instead of text.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// Per-attempt response timeout, ms.
+    #[arg(long, global = true, default_value_t = 300, value_parser = clap::value_parser!(u64).range(10..=60_000))]
+    pub timeout_ms: u64,
+}
+
+/// The connection: a real port, or the twin (kept alive as long as the client).
+pub struct Session {
+    /// The client.
+    pub meter: Kerfmeter,
+    /// The twin behind it, when simulated.
+    pub sim: Option<SimDevice>,
+}
+
+impl Global {
+    /// The client's options.
+    fn client_options(&self) -> Options {
+        Options {
+            timeout: Duration::from_millis(self.timeout_ms),
+            ..Options::default()
+        }
+    }
+
+    /// The twin's options, with its cutter's kerf and its seed.
+    fn sim_options(&self, kerf_um: f64, seed: u64) -> SimOptions {
+        SimOptions {
+            kerf_um,
+            kerf_sd_um: self.sim_kerf_sd_um,
+            seed,
+            fault: self.sim_fault,
+            realtime: self.sim_realtime,
+            ..SimOptions::default()
+        }
+    }
+
+    /// A fresh twin cutting `kerf_um` with `seed` (the other simulated flags as given).
+    pub fn connect_sim(&self, kerf_um: f64, seed: u64) -> Result<Session, CliError> {
+        let (sim, meter) =
+            SimDevice::connect(self.sim_options(kerf_um, seed), self.client_options())?;
+        Ok(Session {
+            meter,
+            sim: Some(sim),
+        })
+    }
+
+    /// Connect as the flags say: the twin with `--sim`, else `--port` or the discovered device.
+    pub fn connect(&self) -> Result<Session, CliError> {
+        if self.sim {
+            return self.connect_sim(self.sim_kerf_um, self.sim_seed);
+        }
+        if self.sim_fault.is_some() || self.sim_realtime {
+            return Err(CliError::Usage(
+                "--sim-fault and --sim-realtime need --sim".into(),
+            ));
+        }
+        let meter = match &self.port {
+            Some(path) => Kerfmeter::open_with(path, self.client_options())?,
+            None => Kerfmeter::discover(self.client_options())?,
+        };
+        Ok(Session { meter, sim: None })
+    }
+}

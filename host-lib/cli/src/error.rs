@@ -1,0 +1,62 @@
+//! Why a command failed, and the process's exit code for it. The code comes from the error's
+//! category and from nothing else: 0 success; 2 bad arguments; 3 communication error (port,
+//! timeout, protocol, device restarted); 4 the device refused, faulted, failed its self-test or
+//! could not finish, or a file could not be read or written.
+
+use kerfmeter::{Category, Error};
+use kerfmeter_plan::PlanError;
+
+/// Exit code for bad arguments (clap uses it too).
+const EXIT_USAGE: u8 = 2;
+/// Exit code for errors of the serial link.
+const EXIT_COMMUNICATION: u8 = 3;
+/// Exit code for device refusals and faults.
+const EXIT_DEVICE: u8 = 4;
+
+/// Why a command failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// The arguments do not fit together.
+    #[error("{0}")]
+    Usage(String),
+    /// The library (device, map, files) failed.
+    #[error(transparent)]
+    Meter(#[from] Error),
+    /// A cutting plan could not be drawn, read or dilated.
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+    /// The device ran its self-test and an item failed.
+    #[error("the self-test failed; see the items above")]
+    SelfTestFailed,
+}
+
+impl CliError {
+    /// What kind of failure this is.
+    pub fn category(&self) -> Category {
+        match self {
+            CliError::Usage(_) => Category::Usage,
+            CliError::Meter(e) => e.category(),
+            // A plan error about a file is the file's; any other is about the arguments.
+            CliError::Plan(e) if e.path().is_some() => Category::File,
+            CliError::Plan(_) => Category::Usage,
+            CliError::SelfTestFailed => Category::Device,
+        }
+    }
+
+    /// The device fault behind the error, if any (named as in the protocol).
+    pub fn fault(&self) -> Option<String> {
+        match self {
+            CliError::Meter(m) => m.fault().map(|f| format!("{f:?}")),
+            CliError::Usage(_) | CliError::Plan(_) | CliError::SelfTestFailed => None,
+        }
+    }
+}
+
+/// The process's exit code for an error: from its category, and from nothing else.
+pub fn exit_code(e: &CliError) -> u8 {
+    match e.category() {
+        Category::Usage => EXIT_USAGE,
+        Category::Communication => EXIT_COMMUNICATION,
+        Category::Device | Category::File => EXIT_DEVICE,
+    }
+}

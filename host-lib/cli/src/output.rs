@@ -1,0 +1,113 @@
+//! The one place a command's report reaches stdout: as its text (`Display`) or, with `--json`, as
+//! its `serde` form. Both come from the same typed value, so they cannot disagree. Writing stops
+//! the program quietly when stdout is closed (`kerfmeter … | head`).
+
+use std::fmt;
+use std::io::Write as _;
+
+use kerfmeter::protocol::{KerfResult, QualityFlags};
+use serde::Serialize;
+
+use crate::error::CliError;
+
+/// How a report is laid out as JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JsonLayout {
+    /// Indented, fields in the report's own order.
+    Pretty,
+    /// Indented, every object's keys sorted.
+    PrettySorted,
+    /// One line, every object's keys sorted.
+    CompactSorted,
+}
+
+/// What a command hands back: text via `Display`, `--json` via `Serialize`.
+pub trait Report: fmt::Display + Serialize {
+    /// The JSON layout scripts already read for this command.
+    const JSON: JsonLayout;
+
+    /// Whether the command succeeded, once its report is printed (the self-test can fail
+    /// after reporting every item).
+    fn verdict(&self) -> Result<(), CliError> {
+        Ok(())
+    }
+}
+
+/// Print `report` as JSON (`json`) or as its text, then give its verdict.
+pub fn emit<R: Report>(json: bool, report: &R) -> Result<(), CliError> {
+    if json {
+        print_line(&to_json(report, R::JSON));
+    } else {
+        print_line(&report.to_string());
+    }
+    report.verdict()
+}
+
+/// `value` as JSON in `layout`.
+pub fn to_json(value: &impl Serialize, layout: JsonLayout) -> String {
+    let text = match layout {
+        JsonLayout::Pretty => serde_json::to_string_pretty(value),
+        JsonLayout::PrettySorted => serde_json::to_value(value).and_then(|v| {
+            // A `serde_json::Value` keeps its objects' keys sorted.
+            serde_json::to_string_pretty(&v)
+        }),
+        JsonLayout::CompactSorted => {
+            serde_json::to_value(value).and_then(|v| serde_json::to_string(&v))
+        }
+    };
+    text.expect("reports serialize")
+}
+
+/// Print one line to stdout; end the program quietly if no one reads it any more.
+pub fn print_line(line: &str) {
+    if writeln!(std::io::stdout().lock(), "{line}").is_err() {
+        // The reader went away: there is no one left to tell anything.
+        std::process::exit(0);
+    }
+}
+
+/// A failed command with `--json`: its message and the device fault behind it, if any.
+#[derive(Serialize)]
+pub struct ErrorReport {
+    /// The error's message.
+    pub error: String,
+    /// The device fault, named as in the protocol.
+    pub fault: Option<String>,
+}
+
+/// The table of kerf results that `run` and `kerf` print.
+pub struct ResultsTable<'a>(pub &'a [KerfResult]);
+
+impl fmt::Display for ResultsTable<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{:>4} {:>10} {:>10} {:>9} {:>11} {:>9}  flags",
+            "run", "kerf µm", "angle °", "play °", "torque N·m", "force N"
+        )?;
+        for r in self.0 {
+            write!(
+                f,
+                "\n{:>4} {:>10.1} {:>10.2} {:>9.2} {:>11.3} {:>9.1}  {}",
+                r.run_id,
+                r.kerf_um,
+                r.angle_deg,
+                r.play_deg,
+                r.torque_at_jam_nm,
+                r.force_at_jam_n,
+                flags_text(r.flags)
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The quality flags in words, or "ok".
+fn flags_text(flags: QualityFlags) -> String {
+    let names: Vec<&str> = flags.names().collect();
+    if names.is_empty() {
+        "ok".into()
+    } else {
+        names.join(",")
+    }
+}
