@@ -42,6 +42,7 @@ pub mod file;
 pub mod gauge;
 pub mod geom;
 pub mod outcome;
+mod pipeline;
 pub mod rules;
 pub mod svg;
 
