@@ -34,9 +34,9 @@ use dxf::{Drawing, LwPolylineVertex, Point, Vector};
 use super::dilate::KerfSource;
 use super::geom::{PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, PlanSummary};
-use super::pipeline::{self, Format, Plan, Problems};
+use super::pipeline::{self, Format, Plan};
 use super::rules::{CutRules, Rgb, Verdict};
-use crate::error::{PlanError, Result};
+use crate::error::{PlanError, Problems, Result};
 
 /// Ends closer than this join (mm).
 const JOIN_MM: f64 = 1e-4;
@@ -331,7 +331,7 @@ impl DxfPlan<'_> {
                 Err(problem) => problems.push(problem),
             }
         }
-        problems.check(PlanError::Dxf)?;
+        problems.into_error(PlanError::Dxf)?;
         Ok(pieces)
     }
 

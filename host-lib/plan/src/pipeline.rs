@@ -9,7 +9,7 @@
 //! open cut paths, nesting and the kerf per part (in [`dilate`](crate::dilate)).
 
 use crate::dilate::{self, Contour, KerfSource};
-use crate::error::{PlanError, Result};
+use crate::error::Result;
 use crate::geom::{Pline, V2};
 use crate::outcome::{OpenPath, PlanSummary};
 
@@ -58,26 +58,6 @@ impl<O> Plan<O> {
             start_mm: [start.x, start.y],
             end_mm: [end.x, end.y],
         });
-    }
-}
-
-/// Problems found while reading a plan: collected, then reported together as one error.
-#[derive(Default)]
-pub(crate) struct Problems(Vec<String>);
-
-impl Problems {
-    /// Note one problem.
-    pub fn push(&mut self, problem: String) {
-        self.0.push(problem);
-    }
-
-    /// `Ok` when there were none; otherwise one error (made by `error`) listing them, one a line.
-    pub fn check(self, error: fn(String) -> PlanError) -> Result<()> {
-        if self.0.is_empty() {
-            Ok(())
-        } else {
-            Err(error(self.0.join("\n")))
-        }
     }
 }
 

@@ -53,9 +53,9 @@ use usvg::tiny_skia_path::PathSegment;
 use super::dilate::KerfSource;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, PlanSummary};
-use super::pipeline::{self, Format, Plan, Problems};
+use super::pipeline::{self, Format, Plan};
 use super::rules::{CutRules, Rgb, Verdict};
-use crate::error::{PlanError, Result};
+use crate::error::{PlanError, Problems, Result};
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
 const XLINK_NS: &str = "http://www.w3.org/1999/xlink";
@@ -107,6 +107,9 @@ struct Edit {
     range: Range<usize>,
     text: String,
 }
+
+/// Edits inside the targets of `<use>` elements, by `<use>` (index into the `<use>` elements).
+type CloneEdits = BTreeMap<usize, Vec<Edit>>;
 
 fn bad(message: impl Into<String>) -> PlanError {
     PlanError::Svg(message.into())
@@ -293,7 +296,7 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
                 }
             }
         }
-        problems.check(PlanError::Svg)
+        problems.into_error(PlanError::Svg)
     }
 
     /// Each instance's subpaths, in document mm: closed ones are cuts, the rest open paths.
@@ -341,9 +344,9 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         &self,
         contour_of: &HashMap<(usize, usize), &Pline>,
         summary: &mut PlanSummary,
-    ) -> Result<(Vec<Edit>, BTreeMap<usize, Vec<Edit>>)> {
+    ) -> Result<(Vec<Edit>, CloneEdits)> {
         let mut main_edits: Vec<Edit> = Vec::new();
-        let mut clone_edits: BTreeMap<usize, Vec<Edit>> = BTreeMap::new();
+        let mut clone_edits: CloneEdits = BTreeMap::new();
         for (ii, inst) in self.instances.iter().enumerate() {
             if !(0..inst.subpaths.len()).any(|si| contour_of.contains_key(&(ii, si))) {
                 continue;
@@ -379,7 +382,7 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
     /// each `<use>` pointed at its copy: edits to `main_edits`, one note per copied target.
     fn clone_uses(
         &self,
-        clone_edits: BTreeMap<usize, Vec<Edit>>,
+        clone_edits: CloneEdits,
         main_edits: &mut Vec<Edit>,
         summary: &mut PlanSummary,
     ) -> Result<()> {
