@@ -3,10 +3,12 @@
 //! geometry back into the original document.
 //!
 //! A format ([`Format`]) only knows its own file: how to find the cuts in it (with the
-//! [`rules`](crate::rules)), what each contour came from (an SVG element, a DXF entity or chain of
-//! entities), and how to put a dilated contour back in its place. Everything else happens here, once
-//! for every format: the summary and its counts, the problems collected and reported together, the
-//! open cut paths, nesting and the kerf per part (in [`dilate`](crate::dilate)).
+//! [`rules`](crate::rules)), what each contour came from (an SVG element, a DXF entity or chain
+//! of entities), and how to put a dilated contour back in its place. Everything else happens
+//! here, once for every format: the summary and its counts, the open cut paths, and the dilation
+//! itself (nesting, the kerf per part and the geometry checks, in [`dilate`]). A format collects
+//! the problems it finds while reading in one `Problems` list (in `error`) and reports them
+//! together; the `--strict` refusal of open paths is in [`file`](mod@crate::file).
 
 use crate::dilate::{self, Contour, KerfSource};
 use crate::error::Result;
