@@ -32,7 +32,7 @@ use std::fmt;
 use std::sync::Arc;
 
 use super::geom::{Pline, V2, area_and_centroid, v2};
-use crate::error::{PlanError, Result};
+use crate::error::{PlanError, Problems, Result};
 
 /// Largest kerf accepted, µm (a sanity bound: real kerfs are 50–500 µm).
 pub const MAX_KERF_UM: f64 = 5000.0;
@@ -185,43 +185,32 @@ fn index_of(boxes: &[Bbox]) -> Option<StaticAABB2DIndex<f64>> {
     b.build().ok()
 }
 
-/// Collected problems, reported together.
-#[derive(Default)]
-struct Problems(Vec<String>);
-
-impl Problems {
-    fn push(&mut self, s: String) {
-        self.0.push(s);
-    }
-
-    fn into_result(self) -> Result<()> {
-        if self.0.is_empty() {
-            return Ok(());
-        }
-        const SHOWN: usize = 50;
-        let n = self.0.len();
-        let mut msg = format!(
-            "cannot dilate this plan ({n} problem{}; nothing was written):",
-            if n == 1 { "" } else { "s" }
-        );
-        for p in self.0.iter().take(SHOWN) {
-            msg.push_str("\n  - ");
-            msg.push_str(p);
-        }
-        if n > SHOWN {
-            msg.push_str(&format!("\n  … and {} more", n - SHOWN));
-        }
-        Err(PlanError::CannotDilate(msg))
-    }
-}
-
 /// Dilate closed contours (document space, mm) by half the kerf, with nesting, per-part kerf and
 /// the checks described in the module doc.
 pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
+    let (areas, centroids) = check_each(contours)?;
+    let (depth, parent) = nest(contours, &areas)?;
+    let roles: Vec<Role> = depth
+        .iter()
+        .map(|d| if d % 2 == 0 { Role::Outer } else { Role::Hole })
+        .collect();
+    let (mut parts, part_index) = group_parts(&roles, &depth, &parent);
+    kerf_per_part(&mut parts, contours, &areas, &centroids, kerf)?;
+    let dilated = offset_all(contours, &roles, &parts, &part_index)?;
+    check_merges(contours, &parts, &dilated)?;
+    Ok(Dilation {
+        contours: dilated,
+        roles,
+        part_of: part_index,
+        parts,
+    })
+}
+
+/// Each contour on its own: closed, with an area, not crossing itself. Its signed area and
+/// centroid.
+fn check_each(contours: &[Contour]) -> Result<(Vec<f64>, Vec<V2>)> {
     let n = contours.len();
     let mut problems = Problems::default();
-
-    // 1. Each contour on its own: closed, with an area, not crossing itself.
     let mut areas = vec![0.0; n];
     let mut centroids = vec![v2(0.0, 0.0); n];
     for (i, c) in contours.iter().enumerate() {
@@ -242,15 +231,19 @@ pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
             ));
         }
     }
-    problems.into_result()?;
-    let mut problems = Problems::default();
+    problems.cannot_dilate()?;
+    Ok((areas, centroids))
+}
 
-    // 2. Nesting: who encloses whom.
+/// Nesting: who encloses whom. Each contour's depth (how many contours enclose it) and parent
+/// (the smallest one that does); contours that cross are problems.
+fn nest(contours: &[Contour], areas: &[f64]) -> Result<(Vec<usize>, Vec<Option<usize>>)> {
+    let n = contours.len();
+    let mut problems = Problems::default();
     let boxes: Vec<Bbox> = contours.iter().map(|c| Bbox::of(&c.pline)).collect();
-    let index = index_of(&boxes);
     let mut depth = vec![0usize; n];
     let mut parent: Vec<Option<usize>> = vec![None; n];
-    if let Some(index) = &index {
+    if let Some(index) = &index_of(&boxes) {
         for i in 0..n {
             let p = first_point(&contours[i].pline);
             let mut best: Option<usize> = None;
@@ -279,14 +272,18 @@ pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
             parent[i] = best;
         }
     }
-    problems.into_result()?;
-    let mut problems = Problems::default();
+    problems.cannot_dilate()?;
+    Ok((depth, parent))
+}
 
-    // 3. Parts.
-    let roles: Vec<Role> = depth
-        .iter()
-        .map(|d| if d % 2 == 0 { Role::Outer } else { Role::Hole })
-        .collect();
+/// Parts: one per outer contour, with the holes directly inside it. The parts, and each
+/// contour's part.
+fn group_parts(
+    roles: &[Role],
+    depth: &[usize],
+    parent: &[Option<usize>],
+) -> (Vec<Part>, Vec<usize>) {
+    let n = roles.len();
     let mut part_index = vec![usize::MAX; n];
     let mut parts: Vec<Part> = Vec::new();
     for i in 0..n {
@@ -310,7 +307,19 @@ pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
             parts[p].holes.push(i);
         }
     }
-    for part in &mut parts {
+    (parts, part_index)
+}
+
+/// Each part's area, centroid and kerf (the kerf at its centroid), which must be ≥ 0.
+fn kerf_per_part(
+    parts: &mut [Part],
+    contours: &[Contour],
+    areas: &[f64],
+    centroids: &[V2],
+    kerf: &KerfSource,
+) -> Result<()> {
+    let mut problems = Problems::default();
+    for part in parts {
         let mut area = areas[part.outer].abs();
         let mut moment = centroids[part.outer].scale(area);
         for &h in &part.holes {
@@ -334,9 +343,17 @@ pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
             ));
         }
     }
-    problems.into_result()?;
+    problems.cannot_dilate()
+}
 
-    // 4. Offsets, spread over the available cores.
+/// Offset every contour by half its part's kerf, spread over the available cores.
+fn offset_all(
+    contours: &[Contour],
+    roles: &[Role],
+    parts: &[Part],
+    part_index: &[usize],
+) -> Result<Vec<Pline>> {
+    let n = contours.len();
     let jobs: Vec<(usize, f64)> = (0..n)
         .map(|i| (i, parts[part_index[i]].kerf_um / 2000.0))
         .collect();
@@ -345,14 +362,13 @@ pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
         .unwrap_or(1)
         .clamp(1, 8);
     let chunk = n.div_ceil(threads).max(1);
-    let roles_ref = &roles;
     let outcomes: Vec<Result<Pline, String>> = std::thread::scope(|s| {
         let handles: Vec<_> = jobs
             .chunks(chunk)
             .map(|js| {
                 s.spawn(move || {
                     js.iter()
-                        .map(|&(i, grow)| offset_one(&contours[i], roles_ref[i], grow))
+                        .map(|&(i, grow)| offset_one(&contours[i], roles[i], grow))
                         .collect::<Vec<_>>()
                 })
             })
@@ -373,9 +389,12 @@ pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
             }
         }
     }
-    problems.into_result()?;
+    problems.cannot_dilate()?;
+    Ok(dilated)
+}
 
-    // 5. Parts that would merge.
+/// Parts that would merge: their dilated outlines overlap.
+fn check_merges(contours: &[Contour], parts: &[Part], dilated: &[Pline]) -> Result<()> {
     let mut problems = Problems::default();
     let part_boxes: Vec<Bbox> = parts.iter().map(|p| Bbox::of(&dilated[p.outer])).collect();
     if let Some(index) = index_of(&part_boxes) {
@@ -385,7 +404,7 @@ pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
                 if b <= a {
                     continue;
                 }
-                if let Some(x) = parts_overlap(&parts[a], &parts[b], &dilated) {
+                if let Some(x) = parts_overlap(&parts[a], &parts[b], dilated) {
                     let pb = &parts[b];
                     let need = if (pa.kerf_um - pb.kerf_um).abs() < 1e-9 {
                         format!("{:.1} µm", pa.kerf_um)
@@ -402,14 +421,7 @@ pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
             }
         }
     }
-    problems.into_result()?;
-
-    Ok(Dilation {
-        contours: dilated,
-        roles,
-        part_of: part_index,
-        parts,
-    })
+    problems.cannot_dilate()
 }
 
 /// Offset one contour: `grow` > 0 moves it away from the part's material by that many mm

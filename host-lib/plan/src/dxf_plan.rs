@@ -31,11 +31,12 @@ use dxf::entities::{Entity, EntityType, LwPolyline};
 use dxf::enums::{AcadVersion, Units};
 use dxf::{Drawing, LwPolylineVertex, Point, Vector};
 
-use super::dilate::{self, Contour, KerfSource};
+use super::dilate::KerfSource;
 use super::geom::{PathSink, Pline, V2, arc_geom, v2};
-use super::outcome::{AssumedUnits, OpenPath, PlanSummary};
+use super::outcome::{AssumedUnits, PlanSummary};
+use super::pipeline::{self, Format, Plan};
 use super::rules::{CutRules, Rgb, Verdict};
-use crate::error::{PlanError, Result};
+use crate::error::{PlanError, Problems, Result};
 
 /// Ends closer than this join (mm).
 const JOIN_MM: f64 = 1e-4;
@@ -213,286 +214,345 @@ fn label(e: &Entity) -> String {
 
 /// Dilate the cuts of a loaded drawing.
 pub fn dilate_drawing(
-    mut drawing: Drawing,
+    drawing: Drawing,
     kerf: &KerfSource,
     opts: &DxfOptions,
 ) -> Result<(Drawing, PlanSummary)> {
-    let mut summary = PlanSummary {
-        format: "dxf".into(),
-        ..PlanSummary::default()
-    };
-    let scale = units_mm(&drawing, opts.assume_units, &mut summary)?;
-    summary.mm_per_unit = scale;
-    let layer_colors: HashMap<String, dxf::Color> = drawing
-        .layers()
-        .map(|l| (l.name.to_uppercase(), l.color.clone()))
-        .collect();
+    pipeline::dilate_plan(
+        DxfPlan {
+            drawing,
+            opts,
+            scale: 1.0,
+            entities: Vec::new(),
+        },
+        kerf,
+    )
+}
 
-    let entities: Vec<Entity> = drawing.entities().cloned().collect();
-    let mut closed: Vec<(Pline, Origin, String)> = Vec::new();
-    let mut pieces: Vec<Piece> = Vec::new();
-    let mut problems: Vec<String> = Vec::new();
-    for (i, e) in entities.iter().enumerate() {
+/// A DXF drawing in the plan pipeline.
+struct DxfPlan<'o> {
+    drawing: Drawing,
+    opts: &'o DxfOptions,
+    /// mm per drawing unit (set by `read`).
+    scale: f64,
+    /// The entities as read, by index.
+    entities: Vec<Entity>,
+}
+
+/// What reading one cut entity gives.
+enum Read {
+    /// A closed contour.
+    Closed(Pline, Origin),
+    /// An open piece, to be joined with others.
+    Piece(Piece),
+    /// Nothing (a degenerate entity).
+    Nothing,
+}
+
+impl Format for DxfPlan<'_> {
+    type Origin = Origin;
+    type Output = Drawing;
+
+    fn read(&mut self) -> Result<Plan<Origin>> {
+        let mut plan = Plan::new("dxf");
+        self.scale = units_mm(&self.drawing, self.opts.assume_units, &mut plan.summary)?;
+        plan.summary.mm_per_unit = self.scale;
+        self.entities = self.drawing.entities().cloned().collect();
+        let pieces = self.read_entities(&mut plan)?;
+        self.close_chains(pieces, &mut plan);
+        Ok(plan)
+    }
+
+    fn write(mut self, plan: &mut Plan<Origin>, dilated: &[Pline]) -> Result<Drawing> {
+        let mut removed: Vec<usize> = Vec::new();
+        let mut added: Vec<Entity> = Vec::new();
+        for (cut, d) in plan.cuts.iter().zip(dilated) {
+            plan.summary.changed_elements += 1;
+            self.write_cut(&cut.origin, d, &mut removed, &mut added);
+        }
+        removed.sort_unstable();
+        removed.dedup();
+        for &i in removed.iter().rev() {
+            self.drawing.remove_entity(i);
+        }
+        for e in added {
+            self.drawing.add_entity(e);
+        }
+        if self.drawing.header.version < AcadVersion::R14 {
+            self.drawing.header.version = AcadVersion::R2000;
+            plan.summary
+                .notes
+                .push("the drawing was older than R14 (no LWPOLYLINE); written as R2000".into());
+        }
+        Ok(self.drawing)
+    }
+}
+
+impl DxfPlan<'_> {
+    /// Classify every entity; read the cuts into `plan` (closed ones) or the returned open pieces.
+    fn read_entities(&self, plan: &mut Plan<Origin>) -> Result<Vec<Piece>> {
+        let layer_colors: HashMap<String, dxf::Color> = self
+            .drawing
+            .layers()
+            .map(|l| (l.name.to_uppercase(), l.color.clone()))
+            .collect();
+        let mut pieces: Vec<Piece> = Vec::new();
+        let mut problems = Problems::default();
+        for (i, e) in self.entities.iter().enumerate() {
+            if !self.is_cut(e, &layer_colors, &mut plan.summary) {
+                continue;
+            }
+            let read = match &e.specific {
+                EntityType::Insert(_) => {
+                    plan.summary
+                        .pass("INSERT (block contents are not dilated: explode blocks first)");
+                    continue;
+                }
+                EntityType::LwPolyline(_)
+                | EntityType::Polyline(_)
+                | EntityType::Line(_)
+                | EntityType::Arc(_)
+                | EntityType::Circle(_)
+                | EntityType::Ellipse(_)
+                | EntityType::Spline(_) => {
+                    plan.summary.cut_elements += 1;
+                    self.read_cut(i, e)
+                }
+                other => {
+                    plan.summary
+                        .pass(format!("{} (not a cut geometry)", type_name(other)));
+                    continue;
+                }
+            };
+            match read {
+                Ok(Read::Closed(pl, origin)) => plan.cut(pl, label(e), origin),
+                Ok(Read::Piece(piece)) => pieces.push(piece),
+                Ok(Read::Nothing) => {}
+                Err(problem) => problems.push(problem),
+            }
+        }
+        problems.into_error(PlanError::Dxf)?;
+        Ok(pieces)
+    }
+
+    /// Whether an entity is a cut by the rules; counts it as passed through when not.
+    fn is_cut(
+        &self,
+        e: &Entity,
+        layer_colors: &HashMap<String, dxf::Color>,
+        summary: &mut PlanSummary,
+    ) -> bool {
         if e.common.is_in_paper_space {
             summary.pass("paper space");
-            continue;
+            return false;
         }
         if !e.common.is_visible {
             summary.pass("invisible");
-            continue;
+            return false;
         }
-        let color = resolve_color(e, &layer_colors);
+        let color = resolve_color(e, layer_colors);
         let lw = (e.common.lineweight_enum_value > 0)
             .then(|| f64::from(e.common.lineweight_enum_value) / 100.0);
-        let verdict = opts.rules.classify_dxf(color, &e.common.layer, lw);
-        if let Verdict::Keep(reason) = verdict {
+        if let Verdict::Keep(reason) = self.opts.rules.classify_dxf(color, &e.common.layer, lw) {
             summary.pass(format!("{} ({reason})", type_name(&e.specific)));
-            continue;
+            return false;
         }
-        let p = |x: f64, y: f64, m: bool| v2(if m { -x } else { x } * scale, y * scale);
-        let plane = |n: &Vector| {
-            mirrored(n).ok_or_else(|| {
-                format!(
-                    "{} is not drawn in the XY plane (extrusion direction {:?}); flatten the drawing",
-                    label(e),
-                    (n.x, n.y, n.z)
-                )
-            })
-        };
+        true
+    }
+
+    /// Read one cut entity (`i` in the entity list); a problem when it cannot be dilated.
+    fn read_cut(&self, i: usize, e: &Entity) -> Result<Read, String> {
         match &e.specific {
             EntityType::LwPolyline(lw) => {
-                summary.cut_elements += 1;
-                let m = match plane(&lw.extrusion_direction) {
-                    Ok(m) => m,
-                    Err(s) => {
-                        problems.push(s);
-                        continue;
-                    }
-                };
-                let verts = lw
-                    .vertices
-                    .iter()
-                    .map(|v| {
-                        let q = p(v.x, v.y, m);
-                        PlineVertex::new(q.x, q.y, if m { -v.bulge } else { v.bulge })
-                    })
-                    .collect();
-                add_polyline(
-                    verts,
-                    lw.is_closed(),
-                    Origin::LwPolyline(i),
-                    i,
-                    e,
-                    &mut closed,
-                    &mut pieces,
-                );
+                let m = plane(e, &lw.extrusion_direction)?;
+                let verts = lw.vertices.iter().map(|v| (v.x, v.y, v.bulge));
+                Ok(self.polyline(verts, m, lw.is_closed(), Origin::LwPolyline(i), i))
             }
             EntityType::Polyline(pl) => {
-                summary.cut_elements += 1;
                 if pl.is_3d_polyline() || pl.is_3d_polygon_mesh() || pl.is_polyface_mesh() {
-                    problems.push(format!(
+                    return Err(format!(
                         "{} is a 3-D polyline or mesh; a cut must be a 2-D polyline",
                         label(e)
                     ));
-                    continue;
                 }
-                let m = match plane(&pl.normal) {
-                    Ok(m) => m,
-                    Err(s) => {
-                        problems.push(s);
-                        continue;
-                    }
-                };
-                let verts = pl
-                    .vertices()
-                    .map(|v| {
-                        let q = p(v.location.x, v.location.y, m);
-                        PlineVertex::new(q.x, q.y, if m { -v.bulge } else { v.bulge })
-                    })
-                    .collect();
-                add_polyline(
-                    verts,
-                    pl.is_closed(),
-                    Origin::Replace(vec![i]),
-                    i,
-                    e,
-                    &mut closed,
-                    &mut pieces,
-                );
+                let m = plane(e, &pl.normal)?;
+                let verts = pl.vertices().map(|v| (v.location.x, v.location.y, v.bulge));
+                Ok(self.polyline(verts, m, pl.is_closed(), Origin::Replace(vec![i]), i))
             }
-            EntityType::Line(l) => {
-                summary.cut_elements += 1;
-                let (a, b) = (p(l.p1.x, l.p1.y, false), p(l.p2.x, l.p2.y, false));
-                if (a - b).length() > JOIN_MM {
-                    pieces.push(Piece {
-                        vertices: vec![
-                            PlineVertex::new(a.x, a.y, 0.0),
-                            PlineVertex::new(b.x, b.y, 0.0),
-                        ],
-                        entities: vec![i],
-                    });
-                }
-            }
-            EntityType::Arc(a) => {
-                summary.cut_elements += 1;
-                let m = match plane(&a.normal) {
-                    Ok(m) => m,
-                    Err(s) => {
-                        problems.push(s);
-                        continue;
-                    }
-                };
-                let (s, t) = (a.start_angle.to_radians(), a.end_angle.to_radians());
-                let mut sweep = (t - s).rem_euclid(std::f64::consts::TAU);
-                if sweep < 1e-12 {
-                    sweep = std::f64::consts::TAU;
-                }
-                let at = |ang: f64| {
-                    p(
-                        a.center.x + a.radius * ang.cos(),
-                        a.center.y + a.radius * ang.sin(),
-                        m,
-                    )
-                };
-                let (q0, q1) = (at(s), at(s + sweep));
-                let bulge = (sweep / 4.0).tan() * if m { -1.0 } else { 1.0 };
-                if sweep >= std::f64::consts::TAU - 1e-9 {
-                    // A full-circle arc: a circle.
-                    let qm = at(s + sweep / 2.0);
-                    let mut pl = Pline::new_closed();
-                    pl.add(q0.x, q0.y, bulge.signum());
-                    pl.add(qm.x, qm.y, bulge.signum());
-                    closed.push((pl, Origin::Replace(vec![i]), label(e)));
-                } else {
-                    pieces.push(Piece {
-                        vertices: vec![
-                            PlineVertex::new(q0.x, q0.y, bulge),
-                            PlineVertex::new(q1.x, q1.y, 0.0),
-                        ],
-                        entities: vec![i],
-                    });
-                }
-            }
-            EntityType::Circle(c) => {
-                summary.cut_elements += 1;
-                let m = match plane(&c.normal) {
-                    Ok(m) => m,
-                    Err(s) => {
-                        problems.push(s);
-                        continue;
-                    }
-                };
-                let q0 = p(c.center.x + c.radius, c.center.y, m);
-                let q1 = p(c.center.x - c.radius, c.center.y, m);
-                let mut pl = Pline::new_closed();
-                pl.add(q0.x, q0.y, 1.0);
-                pl.add(q1.x, q1.y, 1.0);
-                closed.push((pl, Origin::Circle(i), label(e)));
-            }
+            EntityType::Line(l) => Ok(self.line(l, i)),
+            EntityType::Arc(a) => Ok(self.arc(a, plane(e, &a.normal)?, i)),
+            EntityType::Circle(c) => Ok(self.circle(c, plane(e, &c.normal)?, i)),
             EntityType::Ellipse(el) => {
-                summary.cut_elements += 1;
-                if plane(&el.normal).is_err() {
-                    problems.push(format!("{} is not drawn in the XY plane", label(e)));
-                    continue;
+                if plane(e, &el.normal).is_err() {
+                    return Err(format!("{} is not drawn in the XY plane", label(e)));
                 }
-                let mj = v2(el.major_axis.x, el.major_axis.y);
-                // Minor axis = ratio · (normal × major).
-                let mn = v2(-mj.y, mj.x).scale(el.minor_axis_ratio * el.normal.z.signum());
-                let c = v2(el.center.x, el.center.y);
-                let (t0, mut t1) = (el.start_parameter, el.end_parameter);
-                if t1 <= t0 {
-                    t1 += std::f64::consts::TAU;
-                }
-                let full = (t1 - t0 - std::f64::consts::TAU).abs() < 1e-9;
-                let f = |u: f64| {
-                    let t = t0 + (t1 - t0) * u;
-                    let pos = c + mj.scale(t.cos()) + mn.scale(t.sin());
-                    let d = (mn.scale(t.cos()) - mj.scale(t.sin())).scale(t1 - t0);
-                    (pos.scale(scale), d.scale(scale))
-                };
-                let mut sink = PathSink::new(1e-9, 1e-12);
-                sink.move_to(f(0.0).0);
-                sink.curve(&f, f(1.0).0);
-                if full {
-                    sink.close();
-                }
-                if let Some(sub) = sink.finish().into_iter().next() {
-                    if sub.pline.is_closed() {
-                        closed.push((sub.pline, Origin::Replace(vec![i]), label(e)));
-                    } else {
-                        pieces.push(Piece {
-                            vertices: sub.pline.iter_vertexes().collect(),
-                            entities: vec![i],
-                        });
-                    }
-                }
+                Ok(self.ellipse(el, i))
             }
-            EntityType::Spline(_) => {
-                summary.cut_elements += 1;
-                problems.push(format!(
-                    "{} is a cut, but splines cannot be dilated here: convert it to a polyline in the CAD program, or put it on a layer or colour that is not a cut",
-                    label(e)
-                ));
-            }
-            EntityType::Insert(_) => {
-                summary.pass("INSERT (block contents are not dilated: explode blocks first)");
-            }
-            other => summary.pass(format!("{} (not a cut geometry)", type_name(other))),
+            EntityType::Spline(_) => Err(format!(
+                "{} is a cut, but splines cannot be dilated here: convert it to a polyline in the CAD program, or put it on a layer or colour that is not a cut",
+                label(e)
+            )),
+            _ => Ok(Read::Nothing),
         }
     }
-    if !problems.is_empty() {
-        return Err(bad(problems.join("\n")));
+
+    /// A drawing point in document mm, mirrored in x when the entity's OCS is.
+    fn point(&self, x: f64, y: f64, mirrored: bool) -> V2 {
+        v2(if mirrored { -x } else { x } * self.scale, y * self.scale)
     }
 
-    // Join open pieces into chains.
-    for chain in join_pieces(pieces) {
-        let first = &entities[chain.entities[0]];
-        let name = if chain.entities.len() == 1 {
-            label(first)
-        } else {
-            format!(
-                "chain of {} entities from {}",
-                chain.entities.len(),
-                label(first)
+    /// A `LWPOLYLINE` or 2-D `POLYLINE` from its vertices (x, y, bulge in drawing units).
+    fn polyline(
+        &self,
+        verts: impl Iterator<Item = (f64, f64, f64)>,
+        m: bool,
+        closed_flag: bool,
+        origin: Origin,
+        index: usize,
+    ) -> Read {
+        let verts = verts
+            .map(|(x, y, bulge)| {
+                let q = self.point(x, y, m);
+                PlineVertex::new(q.x, q.y, if m { -bulge } else { bulge })
+            })
+            .collect();
+        polyline_read(verts, closed_flag, origin, index)
+    }
+
+    fn line(&self, l: &dxf::entities::Line, i: usize) -> Read {
+        let (a, b) = (
+            self.point(l.p1.x, l.p1.y, false),
+            self.point(l.p2.x, l.p2.y, false),
+        );
+        if (a - b).length() <= JOIN_MM {
+            return Read::Nothing;
+        }
+        Read::Piece(Piece {
+            vertices: vec![
+                PlineVertex::new(a.x, a.y, 0.0),
+                PlineVertex::new(b.x, b.y, 0.0),
+            ],
+            entities: vec![i],
+        })
+    }
+
+    fn arc(&self, a: &dxf::entities::Arc, m: bool, i: usize) -> Read {
+        let (s, t) = (a.start_angle.to_radians(), a.end_angle.to_radians());
+        let mut sweep = (t - s).rem_euclid(std::f64::consts::TAU);
+        if sweep < 1e-12 {
+            sweep = std::f64::consts::TAU;
+        }
+        let at = |ang: f64| {
+            self.point(
+                a.center.x + a.radius * ang.cos(),
+                a.center.y + a.radius * ang.sin(),
+                m,
             )
         };
-        if (chain.start() - chain.end()).length() <= JOIN_MM && chain.vertices.len() > 2 {
+        let (q0, q1) = (at(s), at(s + sweep));
+        let bulge = (sweep / 4.0).tan() * if m { -1.0 } else { 1.0 };
+        if sweep >= std::f64::consts::TAU - 1e-9 {
+            // A full-circle arc: a circle.
+            let qm = at(s + sweep / 2.0);
             let mut pl = Pline::new_closed();
-            let n = chain.vertices.len();
-            for v in &chain.vertices[..n - 1] {
-                pl.add_vertex(*v);
-            }
-            closed.push((pl, Origin::Replace(chain.entities.clone()), name));
+            pl.add(q0.x, q0.y, bulge.signum());
+            pl.add(qm.x, qm.y, bulge.signum());
+            Read::Closed(pl, Origin::Replace(vec![i]))
         } else {
-            let (s, t) = (chain.start(), chain.end());
-            summary.open_paths.push(OpenPath {
-                id: name,
-                start_mm: [s.x, s.y],
-                end_mm: [t.x, t.y],
-            });
+            Read::Piece(Piece {
+                vertices: vec![
+                    PlineVertex::new(q0.x, q0.y, bulge),
+                    PlineVertex::new(q1.x, q1.y, 0.0),
+                ],
+                entities: vec![i],
+            })
         }
     }
 
-    let contours: Vec<Contour> = closed
-        .iter()
-        .map(|(pl, _, name)| Contour {
-            pline: pl.clone(),
-            label: name.clone(),
-        })
-        .collect();
-    let dilation = dilate::dilate(&contours, kerf)?;
-    summary.record_parts(&dilation);
+    fn circle(&self, c: &dxf::entities::Circle, m: bool, i: usize) -> Read {
+        let q0 = self.point(c.center.x + c.radius, c.center.y, m);
+        let q1 = self.point(c.center.x - c.radius, c.center.y, m);
+        let mut pl = Pline::new_closed();
+        pl.add(q0.x, q0.y, 1.0);
+        pl.add(q1.x, q1.y, 1.0);
+        Read::Closed(pl, Origin::Circle(i))
+    }
 
-    // Write back.
-    let to_units = |x: f64| x / scale;
-    let mut removed: Vec<usize> = Vec::new();
-    let mut added: Vec<Entity> = Vec::new();
-    for (k, (_, origin, _)) in closed.iter().enumerate() {
-        let d = &dilation.contours[k];
-        summary.changed_elements += 1;
+    /// An `ELLIPSE` (or elliptic arc), by biarcs.
+    fn ellipse(&self, el: &dxf::entities::Ellipse, i: usize) -> Read {
+        let scale = self.scale;
+        let mj = v2(el.major_axis.x, el.major_axis.y);
+        // Minor axis = ratio · (normal × major).
+        let mn = v2(-mj.y, mj.x).scale(el.minor_axis_ratio * el.normal.z.signum());
+        let c = v2(el.center.x, el.center.y);
+        let (t0, mut t1) = (el.start_parameter, el.end_parameter);
+        if t1 <= t0 {
+            t1 += std::f64::consts::TAU;
+        }
+        let full = (t1 - t0 - std::f64::consts::TAU).abs() < 1e-9;
+        let f = |u: f64| {
+            let t = t0 + (t1 - t0) * u;
+            let pos = c + mj.scale(t.cos()) + mn.scale(t.sin());
+            let d = (mn.scale(t.cos()) - mj.scale(t.sin())).scale(t1 - t0);
+            (pos.scale(scale), d.scale(scale))
+        };
+        let mut sink = PathSink::new(1e-9, 1e-12);
+        sink.move_to(f(0.0).0);
+        sink.curve(&f, f(1.0).0);
+        if full {
+            sink.close();
+        }
+        match sink.finish().into_iter().next() {
+            Some(sub) if sub.pline.is_closed() => Read::Closed(sub.pline, Origin::Replace(vec![i])),
+            Some(sub) => Read::Piece(Piece {
+                vertices: sub.pline.iter_vertexes().collect(),
+                entities: vec![i],
+            }),
+            None => Read::Nothing,
+        }
+    }
+
+    /// Join the open pieces into chains: the closed ones are cuts, the rest open paths.
+    fn close_chains(&self, pieces: Vec<Piece>, plan: &mut Plan<Origin>) {
+        for chain in join_pieces(pieces) {
+            let first = &self.entities[chain.entities[0]];
+            let name = if chain.entities.len() == 1 {
+                label(first)
+            } else {
+                format!(
+                    "chain of {} entities from {}",
+                    chain.entities.len(),
+                    label(first)
+                )
+            };
+            if (chain.start() - chain.end()).length() <= JOIN_MM && chain.vertices.len() > 2 {
+                let mut pl = Pline::new_closed();
+                let n = chain.vertices.len();
+                for v in &chain.vertices[..n - 1] {
+                    pl.add_vertex(*v);
+                }
+                plan.cut(pl, name, Origin::Replace(chain.entities.clone()));
+            } else {
+                plan.open_path(name, chain.start(), chain.end());
+            }
+        }
+    }
+
+    /// Put one dilated contour back: edit its entity in place, or note the entities it replaces
+    /// (`removed`) and the new `LWPOLYLINE` (`added`).
+    fn write_cut(
+        &mut self,
+        origin: &Origin,
+        d: &Pline,
+        removed: &mut Vec<usize>,
+        added: &mut Vec<Entity>,
+    ) {
+        let scale = self.scale;
+        let to_units = |x: f64| x / scale;
         match origin {
             Origin::Circle(i) => {
-                let entity = drawing
+                let entity = self
+                    .drawing
                     .entities_mut()
                     .nth(*i)
                     .expect("index from the same list");
@@ -506,12 +566,13 @@ pub fn dilate_drawing(
                     }
                     _ => {
                         removed.push(*i);
-                        added.push(new_lwpolyline(&entities[*i], d, scale));
+                        added.push(new_lwpolyline(&self.entities[*i], d, scale));
                     }
                 }
             }
             Origin::LwPolyline(i) => {
-                let entity = drawing
+                let entity = self
+                    .drawing
                     .entities_mut()
                     .nth(*i)
                     .expect("index from the same list");
@@ -523,25 +584,21 @@ pub fn dilate_drawing(
             }
             Origin::Replace(list) => {
                 removed.extend(list.iter().copied());
-                added.push(new_lwpolyline(&entities[list[0]], d, scale));
+                added.push(new_lwpolyline(&self.entities[list[0]], d, scale));
             }
         }
     }
-    removed.sort_unstable();
-    removed.dedup();
-    for &i in removed.iter().rev() {
-        drawing.remove_entity(i);
-    }
-    for e in added {
-        drawing.add_entity(e);
-    }
-    if drawing.header.version < AcadVersion::R14 {
-        drawing.header.version = AcadVersion::R2000;
-        summary
-            .notes
-            .push("the drawing was older than R14 (no LWPOLYLINE); written as R2000".into());
-    }
-    Ok((drawing, summary))
+}
+
+/// Whether an entity's OCS normal `n` is mirrored (−z) or not (+z); a problem when it is neither.
+fn plane(e: &Entity, n: &Vector) -> Result<bool, String> {
+    mirrored(n).ok_or_else(|| {
+        format!(
+            "{} is not drawn in the XY plane (extrusion direction {:?}); flatten the drawing",
+            label(e),
+            (n.x, n.y, n.z)
+        )
+    })
 }
 
 fn resolve_color(e: &Entity, layers: &HashMap<String, dxf::Color>) -> Option<Rgb> {
@@ -557,20 +614,18 @@ fn resolve_color(e: &Entity, layers: &HashMap<String, dxf::Color>) -> Option<Rgb
     Rgb::from_aci(c.index()?)
 }
 
-#[allow(clippy::too_many_arguments)]
-fn add_polyline(
+/// A polyline's vertices (mm) as a closed contour (closed by flag, or by ending where it starts)
+/// or an open piece.
+fn polyline_read(
     mut verts: Vec<PlineVertex<f64>>,
     closed_flag: bool,
     origin: Origin,
     index: usize,
-    e: &Entity,
-    closed: &mut Vec<(Pline, Origin, String)>,
-    pieces: &mut Vec<Piece>,
-) {
+) -> Read {
     // Drop repeated points.
     verts.dedup_by(|b, a| (v2(a.x, a.y) - v2(b.x, b.y)).length() <= JOIN_MM * 1e-3);
     if verts.len() < 2 {
-        return;
+        return Read::Nothing;
     }
     let n = verts.len();
     let ends_meet =
@@ -583,15 +638,15 @@ fn add_polyline(
         for v in verts {
             pl.add_vertex(v);
         }
-        closed.push((pl, origin, label(e)));
+        Read::Closed(pl, origin)
     } else {
         if let Some(last) = verts.last_mut() {
             last.bulge = 0.0;
         }
-        pieces.push(Piece {
+        Read::Piece(Piece {
             vertices: verts,
             entities: vec![index],
-        });
+        })
     }
 }
 

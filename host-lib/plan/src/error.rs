@@ -64,3 +64,46 @@ impl PlanError {
         }
     }
 }
+
+/// Problems found in a plan: collected, not stopped at, then reported together as one error.
+#[derive(Debug, Default)]
+pub(crate) struct Problems(Vec<String>);
+
+impl Problems {
+    /// Note one problem.
+    pub(crate) fn push(&mut self, problem: String) {
+        self.0.push(problem);
+    }
+
+    /// `Ok` when there were none; otherwise one error (made by `kind`, e.g. [`PlanError::Svg`])
+    /// listing them, one a line. For problems reading a file.
+    pub(crate) fn into_error(self, kind: fn(String) -> PlanError) -> Result<()> {
+        if self.0.is_empty() {
+            Ok(())
+        } else {
+            Err(kind(self.0.join("\n")))
+        }
+    }
+
+    /// `Ok` when there were none; otherwise [`PlanError::CannotDilate`] listing them (the first
+    /// 50) under a heading. For problems with the geometry.
+    pub(crate) fn cannot_dilate(self) -> Result<()> {
+        if self.0.is_empty() {
+            return Ok(());
+        }
+        const SHOWN: usize = 50;
+        let n = self.0.len();
+        let mut msg = format!(
+            "cannot dilate this plan ({n} problem{}; nothing was written):",
+            if n == 1 { "" } else { "s" }
+        );
+        for p in self.0.iter().take(SHOWN) {
+            msg.push_str("\n  - ");
+            msg.push_str(p);
+        }
+        if n > SHOWN {
+            msg.push_str(&format!("\n  … and {} more", n - SHOWN));
+        }
+        Err(PlanError::CannotDilate(msg))
+    }
+}

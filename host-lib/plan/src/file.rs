@@ -88,16 +88,23 @@ pub fn dilate_file(
         ),
     }
     .map_err(|e| e.in_file(input))?;
-    if options.strict && !summary.open_paths.is_empty() {
-        let list: Vec<String> = summary.open_paths.iter().map(|o| o.to_string()).collect();
-        return Err(PlanError::OpenPaths(format!(
-            "{} open cut path(s) cannot be dilated (--strict; nothing was written):\n  - {}",
-            list.len(),
-            list.join("\n  - ")
-        ))
-        .in_file(input));
+    if options.strict {
+        refuse_open_paths(&summary).map_err(|e| e.in_file(input))?;
     }
     Ok((output, summary))
+}
+
+/// The `--strict` policy: open cut paths cannot be dilated, so a plan with any is refused.
+fn refuse_open_paths(summary: &PlanSummary) -> Result<()> {
+    if summary.open_paths.is_empty() {
+        return Ok(());
+    }
+    let list: Vec<String> = summary.open_paths.iter().map(|o| o.to_string()).collect();
+    Err(PlanError::OpenPaths(format!(
+        "{} open cut path(s) cannot be dilated (--strict; nothing was written):\n  - {}",
+        list.len(),
+        list.join("\n  - ")
+    )))
 }
 
 /// An SVG file's bytes, dilated: refuses compressed SVG and text that is not UTF-8.

@@ -227,6 +227,71 @@ fn test_parts(spec: &TestPieceSpec, origin: V2) -> [(String, Pline); 2] {
     ]
 }
 
+/// The test piece's parts, checked and dilated by its kerf, with their lower-left corner at
+/// `origin`.
+fn dilated_test_piece(spec: &TestPieceSpec, origin: V2) -> Result<Vec<(String, Pline)>> {
+    for (name, v) in [
+        ("--thickness-mm", spec.thickness_mm),
+        ("--finger-width-mm", spec.finger_width_mm),
+    ] {
+        if !(v.is_finite() && (0.5..=50.0).contains(&v)) {
+            return Err(PlanError::InvalidArgument(format!(
+                "{name} must be between 0.5 and 50 mm, got {v}"
+            )));
+        }
+    }
+    KerfSource::check_kerf_um(spec.kerf_um)?;
+    let parts = test_parts(spec, origin);
+    let contours: Vec<Contour> = parts
+        .iter()
+        .map(|(name, p)| Contour {
+            pline: p.clone(),
+            label: name.clone(),
+        })
+        .collect();
+    let d = dilate::dilate(&contours, &KerfSource::Uniform(spec.kerf_um))?;
+    Ok(parts
+        .into_iter()
+        .map(|(name, _)| name)
+        .zip(d.contours)
+        .collect())
+}
+
+/// The engraved label's two lines (text, baseline start) and text height; widens the page to fit
+/// them.
+fn label_lines(
+    g: &GaugeGeometry,
+    opts: &GaugeOptions,
+    width: &mut f64,
+) -> (Vec<(String, V2)>, f64) {
+    let dir = match g.jam_direction {
+        JamDirection::Clockwise => "CW",
+        JamDirection::CounterClockwise => "CCW",
+    };
+    let first = format!(
+        "Kerfmeter gauge c={} um/deg r={} mm",
+        g.pitch_um_per_deg, g.radius_mm
+    );
+    let mut second = format!(
+        "holes {}@{} mm, jam {dir}, top face up",
+        g.hole_radius_mm, g.hole_distance_mm
+    );
+    if let Some(t) = &opts.test_piece {
+        let _ = write!(second, ", test k={} um", t.kerf_um);
+    }
+    let line = LABEL_TEXT_MM * 1.5;
+    // Sans-serif glyphs average about 0.6 of the text height: keep the page wide enough.
+    let longest = first.chars().count().max(second.chars().count()) as f64;
+    *width = width.max(2.0 * MARGIN_MM + 0.6 * LABEL_TEXT_MM * longest);
+    (
+        vec![
+            (first, v2(MARGIN_MM, MARGIN_MM + line)),
+            (second, v2(MARGIN_MM, MARGIN_MM)),
+        ],
+        LABEL_TEXT_MM,
+    )
+}
+
 /// Lay the gauge out (see [`GaugeDrawing`]).
 pub fn build(g: &GaugeGeometry, opts: &GaugeOptions) -> Result<GaugeDrawing> {
     check_geometry(g)?;
@@ -257,62 +322,13 @@ pub fn build(g: &GaugeGeometry, opts: &GaugeOptions) -> Result<GaugeDrawing> {
     let mut height = 2.0 * outer + 2.0 * MARGIN_MM + label_h;
     let mut test_piece = Vec::new();
     if let Some(spec) = &opts.test_piece {
-        for (name, v) in [
-            ("--thickness-mm", spec.thickness_mm),
-            ("--finger-width-mm", spec.finger_width_mm),
-        ] {
-            if !(v.is_finite() && (0.5..=50.0).contains(&v)) {
-                return Err(PlanError::InvalidArgument(format!(
-                    "{name} must be between 0.5 and 50 mm, got {v}"
-                )));
-            }
-        }
-        KerfSource::check_kerf_um(spec.kerf_um)?;
         let origin = v2(width - MARGIN_MM + GAP_MM, MARGIN_MM + label_h);
-        let parts = test_parts(spec, origin);
-        let contours: Vec<Contour> = parts
-            .iter()
-            .map(|(name, p)| Contour {
-                pline: p.clone(),
-                label: name.clone(),
-            })
-            .collect();
-        let d = dilate::dilate(&contours, &KerfSource::Uniform(spec.kerf_um))?;
-        for ((name, _), p) in parts.into_iter().zip(d.contours) {
-            test_piece.push((name, p));
-        }
+        test_piece = dilated_test_piece(spec, origin)?;
         let f = spec.finger_width_mm;
         width += GAP_MM + 6.0 * f + GAP_MM;
         height = height.max(2.0 * f + spec.thickness_mm + 2.0 * MARGIN_MM + label_h + 1.0);
     }
-    let label = opts.label.then(|| {
-        let dir = match g.jam_direction {
-            JamDirection::Clockwise => "CW",
-            JamDirection::CounterClockwise => "CCW",
-        };
-        let first = format!(
-            "Kerfmeter gauge c={} um/deg r={} mm",
-            g.pitch_um_per_deg, g.radius_mm
-        );
-        let mut second = format!(
-            "holes {}@{} mm, jam {dir}, top face up",
-            g.hole_radius_mm, g.hole_distance_mm
-        );
-        if let Some(t) = &opts.test_piece {
-            let _ = write!(second, ", test k={} um", t.kerf_um);
-        }
-        let line = LABEL_TEXT_MM * 1.5;
-        // Sans-serif glyphs average about 0.6 of the text height: keep the page wide enough.
-        let longest = first.chars().count().max(second.chars().count()) as f64;
-        width = width.max(2.0 * MARGIN_MM + 0.6 * LABEL_TEXT_MM * longest);
-        (
-            vec![
-                (first, v2(MARGIN_MM, MARGIN_MM + line)),
-                (second, v2(MARGIN_MM, MARGIN_MM)),
-            ],
-            LABEL_TEXT_MM,
-        )
-    });
+    let label = opts.label.then(|| label_lines(g, opts, &mut width));
     Ok(GaugeDrawing {
         geometry: *g,
         page_mm: [width, height],

@@ -10,6 +10,10 @@
 //! * [`svg`] and [`dxf_plan`] read plans in those formats, decide which lines are cuts by the
 //!   [`rules`] (colour and width conventions of laser software, documented there), and write the
 //!   dilated plan back — SVG by editing the original text, so everything else survives unchanged.
+//! * Both formats run one pipeline (the crate-private `pipeline` module): read the cuts into
+//!   closed contours, each with the element or entity it came from, and open paths; dilate them;
+//!   write the dilated contours back in place. Counting, the summary, the problems reported
+//!   together and the open paths are done there once, not per format.
 //! * [`file`](mod@file) reads a plan file and dilates it into bytes; [`PlanError`] says what went wrong,
 //!   by kind.
 //!
@@ -42,6 +46,7 @@ pub mod file;
 pub mod gauge;
 pub mod geom;
 pub mod outcome;
+mod pipeline;
 pub mod rules;
 pub mod svg;
 

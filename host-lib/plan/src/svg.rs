@@ -50,11 +50,12 @@ use cavalier_contours::polyline::PlineSource;
 use roxmltree::{Document, Node, ParsingOptions};
 use usvg::tiny_skia_path::PathSegment;
 
-use super::dilate::{self, Contour, KerfSource};
+use super::dilate::KerfSource;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
-use super::outcome::{AssumedUnits, OpenPath, PlanSummary};
+use super::outcome::{AssumedUnits, PlanSummary};
+use super::pipeline::{self, Format, Plan};
 use super::rules::{CutRules, Rgb, Verdict};
-use crate::error::{PlanError, Result};
+use crate::error::{PlanError, Problems, Result};
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
 const XLINK_NS: &str = "http://www.w3.org/1999/xlink";
@@ -107,6 +108,9 @@ struct Edit {
     text: String,
 }
 
+/// Edits inside the targets of `<use>` elements, by `<use>` (index into the `<use>` elements).
+type CloneEdits = BTreeMap<usize, Vec<Edit>>;
+
 fn bad(message: impl Into<String>) -> PlanError {
     PlanError::Svg(message.into())
 }
@@ -117,6 +121,12 @@ pub fn dilate_svg(
     kerf: &KerfSource,
     opts: &SvgOptions,
 ) -> Result<(String, PlanSummary)> {
+    let doc = parse(text)?;
+    pipeline::dilate_plan(SvgPlan::new(text, &doc, opts), kerf)
+}
+
+/// The source as XML, refused unless its root is an SVG `<svg>`.
+fn parse(text: &str) -> Result<Document<'_>> {
     let doc = Document::parse_with_options(
         text,
         ParsingOptions {
@@ -132,227 +142,311 @@ pub fn dilate_svg(
             root.tag_name().name()
         )));
     }
-    let mut summary = PlanSummary {
-        format: "svg".into(),
-        ..PlanSummary::default()
-    };
-    let mm_per_px = document_scale(root, opts.assume_units, &mut summary)?;
-    summary.mm_per_unit = mm_per_px;
+    Ok(doc)
+}
 
-    // Elements of interest.
-    let shapes: Vec<Node> = doc
-        .descendants()
-        .filter(|n| {
-            n.is_element()
-                && n.tag_name().namespace() == Some(SVG_NS)
-                && SHAPES.contains(&n.tag_name().name())
-        })
-        .collect();
-    let uses: Vec<Node> = doc
-        .descendants()
-        .filter(|n| n.is_element() && n.has_tag_name((SVG_NS, "use")))
-        .collect();
-    let mut ids: HashMap<&str, Node> = HashMap::new();
-    for n in doc.descendants().filter(|n| n.is_element()) {
-        if let Some(id) = n.attribute("id") {
-            ids.entry(id).or_insert(n);
-        }
-    }
+/// An SVG document in the plan pipeline: the source text, its XML tree, and the cut instances
+/// found by rendering it. A contour's origin is (instance, subpath).
+struct SvgPlan<'d, 'a> {
+    text: &'a str,
+    doc: &'d Document<'a>,
+    opts: &'d SvgOptions,
+    /// The shape elements, in document order (an instance's `element` indexes this).
+    shapes: Vec<Node<'d, 'a>>,
+    /// The `<use>` elements, in document order.
+    uses: Vec<Node<'d, 'a>>,
+    /// Elements by id (the first one with each id).
+    ids: HashMap<&'d str, Node<'d, 'a>>,
+    /// The rendered occurrences of cut elements (set by `read`).
+    instances: Vec<Instance>,
+}
 
-    // The tagged copy for usvg.
-    let mut tags: Vec<Edit> = Vec::new();
-    for (k, n) in shapes.iter().enumerate() {
-        let code = k + 1;
-        match n
-            .attributes()
-            .find(|a| a.name() == "style" && a.namespace().is_none())
-        {
-            Some(style) => tags.push(Edit {
-                range: style.range_value().end..style.range_value().end,
-                text: format!(";stroke-miterlimit:{code}"),
-            }),
-            None => {
-                let at = tag_name_range(text, *n).end;
-                tags.push(Edit {
-                    range: at..at,
-                    text: format!(" style=\"stroke-miterlimit:{code}\""),
-                });
+impl<'d, 'a> SvgPlan<'d, 'a> {
+    fn new(text: &'a str, doc: &'d Document<'a>, opts: &'d SvgOptions) -> Self {
+        let shapes = doc
+            .descendants()
+            .filter(|n| {
+                n.is_element()
+                    && n.tag_name().namespace() == Some(SVG_NS)
+                    && SHAPES.contains(&n.tag_name().name())
+            })
+            .collect();
+        let uses = doc
+            .descendants()
+            .filter(|n| n.is_element() && n.has_tag_name((SVG_NS, "use")))
+            .collect();
+        let mut ids: HashMap<&str, Node> = HashMap::new();
+        for n in doc.descendants().filter(|n| n.is_element()) {
+            if let Some(id) = n.attribute("id") {
+                ids.entry(id).or_insert(n);
             }
         }
-    }
-    let mut use_by_id: HashMap<String, usize> = HashMap::new();
-    for (k, u) in uses.iter().enumerate() {
-        match u.attribute("id") {
-            Some(id) => {
-                use_by_id.insert(id.to_string(), k);
-            }
-            None => {
-                let id = format!("{USE_TAG}{k}");
-                let at = tag_name_range(text, *u).end;
-                tags.push(Edit {
-                    range: at..at,
-                    text: format!(" id=\"{id}\""),
-                });
-                use_by_id.insert(id, k);
-            }
+        SvgPlan {
+            text,
+            doc,
+            opts,
+            shapes,
+            uses,
+            ids,
+            instances: Vec::new(),
         }
     }
-    let tagged = apply_edits(text, tags)?;
-    let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
-        .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
 
-    // Walk what is rendered.
-    let mut walk = Walk {
-        rules: &opts.rules,
-        mm_per_px,
-        shapes_len: shapes.len(),
-        use_by_id: &use_by_id,
-        instances: Vec::new(),
-        seen: HashSet::new(),
-        summary: &mut summary,
-        unidentified: 0,
-    };
-    walk.group(tree.root(), &mut Vec::new());
-    let unidentified = walk.unidentified;
-    let instances = std::mem::take(&mut walk.instances);
-    if unidentified > 0 {
-        return Err(bad(format!(
-            "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
-        )));
-    }
-    let text_count = doc
-        .descendants()
-        .filter(|n| n.has_tag_name((SVG_NS, "text")))
-        .count();
-    for _ in 0..text_count {
-        summary.pass("text");
-    }
-
-    // Labels, and the checks that need the source.
-    let label = |inst: &Instance| {
-        let mut s = describe(&doc, shapes[inst.element]);
-        if let Some(u) = inst.via_use {
-            s.push_str(&format!(" via <use> {}", describe(&doc, uses[u])));
-        }
-        s
-    };
-    let mut problems = Vec::new();
-    for inst in &instances {
-        if let Some(u) = inst.via_use {
-            // `ancestors()` starts at the node itself: the target may be the shape.
-            let target = use_target(uses[u], &ids);
-            let inside = target.is_some_and(|t| shapes[inst.element].ancestors().any(|a| a == t));
-            if !inside {
-                problems.push(format!(
-                    "{} is reached through nested <use> clones; unlink the clones first (Inkscape: Edit ▸ Clone ▸ Unlink Clone)",
-                    label(inst)
-                ));
-            }
-        }
-    }
-    if !problems.is_empty() {
-        return Err(bad(problems.join("\n")));
-    }
-
-    // Contours.
-    summary.cut_elements = instances.len();
-    let mut contours: Vec<Contour> = Vec::new();
-    // (instance, subpath) → contour index.
-    let mut contour_of: HashMap<(usize, usize), usize> = HashMap::new();
-    for (ii, inst) in instances.iter().enumerate() {
-        let eps = coordinate_eps(inst);
-        let n_sub = inst.subpaths.len();
-        for (si, segs) in inst.subpaths.iter().enumerate() {
-            // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
-            let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
-            for s in segs {
-                match *s {
-                    Seg::M(p) => sink.move_to(inst.to_doc.apply(p)),
-                    Seg::L(p) => sink.line_to(inst.to_doc.apply(p)),
-                    Seg::Q(a, b) => sink.quad_to(inst.to_doc.apply(a), inst.to_doc.apply(b)),
-                    Seg::C(a, b, c) => sink.cubic_to(
-                        inst.to_doc.apply(a),
-                        inst.to_doc.apply(b),
-                        inst.to_doc.apply(c),
-                    ),
-                    Seg::Z => sink.close(),
+    /// The source with every shape tagged by its number (`stroke-miterlimit`, which usvg keeps)
+    /// and every `<use>` given an id, so that what usvg renders can be traced back to its
+    /// element; and the `<use>` elements by id.
+    fn tagged(&self) -> Result<(String, HashMap<String, usize>)> {
+        let mut tags: Vec<Edit> = Vec::new();
+        for (k, n) in self.shapes.iter().enumerate() {
+            let code = k + 1;
+            match n
+                .attributes()
+                .find(|a| a.name() == "style" && a.namespace().is_none())
+            {
+                Some(style) => tags.push(Edit {
+                    range: style.range_value().end..style.range_value().end,
+                    text: format!(";stroke-miterlimit:{code}"),
+                }),
+                None => {
+                    let at = tag_name_range(self.text, *n).end;
+                    tags.push(Edit {
+                        range: at..at,
+                        text: format!(" style=\"stroke-miterlimit:{code}\""),
+                    });
                 }
             }
-            let Some(sub) = sink.finish().into_iter().next() else {
-                continue;
-            };
-            let mut name = label(inst);
-            if n_sub > 1 {
-                name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
-            }
-            if sub.pline.is_closed() {
-                contour_of.insert((ii, si), contours.len());
-                contours.push(Contour {
-                    pline: sub.pline,
-                    label: name,
-                });
-            } else {
-                let first = sub.pline.at(0);
-                let last = sub.pline.at(sub.pline.vertex_count() - 1);
-                summary.open_paths.push(OpenPath {
-                    id: name,
-                    start_mm: [first.x, first.y],
-                    end_mm: [last.x, last.y],
-                });
+        }
+        let mut use_by_id: HashMap<String, usize> = HashMap::new();
+        for (k, u) in self.uses.iter().enumerate() {
+            match u.attribute("id") {
+                Some(id) => {
+                    use_by_id.insert(id.to_string(), k);
+                }
+                None => {
+                    let id = format!("{USE_TAG}{k}");
+                    let at = tag_name_range(self.text, *u).end;
+                    tags.push(Edit {
+                        range: at..at,
+                        text: format!(" id=\"{id}\""),
+                    });
+                    use_by_id.insert(id, k);
+                }
             }
         }
+        Ok((apply_edits(self.text, tags)?, use_by_id))
     }
 
-    let dilation = dilate::dilate(&contours, kerf)?;
-    summary.record_parts(&dilation);
-
-    // New geometry per instance, then the edits.
-    let mut main_edits: Vec<Edit> = Vec::new();
-    let mut clone_edits: BTreeMap<usize, Vec<Edit>> = BTreeMap::new();
-    for (ii, inst) in instances.iter().enumerate() {
-        if !(0..inst.subpaths.len()).any(|si| contour_of.contains_key(&(ii, si))) {
-            continue;
-        }
-        let Some(to_local) = inst.to_doc.inverse() else {
+    /// Render the tagged copy with usvg and collect the cut instances; counts what passes.
+    fn walk(&mut self, mm_per_px: f64, summary: &mut PlanSummary) -> Result<()> {
+        let (tagged, use_by_id) = self.tagged()?;
+        let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
+            .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
+        let mut walk = Walk {
+            rules: &self.opts.rules,
+            mm_per_px,
+            shapes_len: self.shapes.len(),
+            use_by_id: &use_by_id,
+            instances: Vec::new(),
+            seen: HashSet::new(),
+            summary,
+            unidentified: 0,
+        };
+        walk.group(tree.root(), &mut Vec::new());
+        let unidentified = walk.unidentified;
+        self.instances = std::mem::take(&mut walk.instances);
+        if unidentified > 0 {
             return Err(bad(format!(
-                "{} has a degenerate transform (zero scale)",
-                label(inst)
+                "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
             )));
-        };
-        let digits = digits_for(&inst.to_doc);
-        let mut d = String::new();
-        for (si, segs) in inst.subpaths.iter().enumerate() {
-            if !d.is_empty() {
-                d.push(' ');
-            }
-            match contour_of.get(&(ii, si)) {
-                Some(&ci) => write_pline(&dilation.contours[ci], &to_local, digits, &mut d),
-                None => write_segs(segs, digits, &mut d),
+        }
+        let text_count = self
+            .doc
+            .descendants()
+            .filter(|n| n.has_tag_name((SVG_NS, "text")))
+            .count();
+        for _ in 0..text_count {
+            summary.pass("text");
+        }
+        Ok(())
+    }
+
+    /// How to name an instance in messages.
+    fn label(&self, inst: &Instance) -> String {
+        let mut s = describe(self.doc, self.shapes[inst.element]);
+        if let Some(u) = inst.via_use {
+            s.push_str(&format!(" via <use> {}", describe(self.doc, self.uses[u])));
+        }
+        s
+    }
+
+    /// Refuse cuts reached through nested `<use>` clones (they cannot be copied one by one).
+    fn check_uses(&self) -> Result<()> {
+        let mut problems = Problems::default();
+        for inst in &self.instances {
+            if let Some(u) = inst.via_use {
+                // `ancestors()` starts at the node itself: the target may be the shape.
+                let target = use_target(self.uses[u], &self.ids);
+                let inside =
+                    target.is_some_and(|t| self.shapes[inst.element].ancestors().any(|a| a == t));
+                if !inside {
+                    problems.push(format!(
+                        "{} is reached through nested <use> clones; unlink the clones first (Inkscape: Edit ▸ Clone ▸ Unlink Clone)",
+                        self.label(inst)
+                    ));
+                }
             }
         }
-        let edits = geometry_edits(text, shapes[inst.element], &d);
-        summary.changed_elements += 1;
-        match inst.via_use {
-            None => main_edits.extend(edits),
-            Some(u) => clone_edits.entry(u).or_default().extend(edits),
+        problems.into_error(PlanError::Svg)
+    }
+
+    /// Each instance's subpaths, in document mm: closed ones are cuts, the rest open paths.
+    fn contours(&self, plan: &mut Plan<(usize, usize)>) {
+        for (ii, inst) in self.instances.iter().enumerate() {
+            let eps = coordinate_eps(inst);
+            let n_sub = inst.subpaths.len();
+            for (si, segs) in inst.subpaths.iter().enumerate() {
+                // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
+                let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
+                for s in segs {
+                    match *s {
+                        Seg::M(p) => sink.move_to(inst.to_doc.apply(p)),
+                        Seg::L(p) => sink.line_to(inst.to_doc.apply(p)),
+                        Seg::Q(a, b) => sink.quad_to(inst.to_doc.apply(a), inst.to_doc.apply(b)),
+                        Seg::C(a, b, c) => sink.cubic_to(
+                            inst.to_doc.apply(a),
+                            inst.to_doc.apply(b),
+                            inst.to_doc.apply(c),
+                        ),
+                        Seg::Z => sink.close(),
+                    }
+                }
+                let Some(sub) = sink.finish().into_iter().next() else {
+                    continue;
+                };
+                let mut name = self.label(inst);
+                if n_sub > 1 {
+                    name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
+                }
+                if sub.pline.is_closed() {
+                    plan.cut(sub.pline, name, (ii, si));
+                } else {
+                    let first = sub.pline.at(0);
+                    let last = sub.pline.at(sub.pline.vertex_count() - 1);
+                    plan.open_path(name, v2(first.x, first.y), v2(last.x, last.y));
+                }
+            }
         }
     }
 
-    // Clones for cuts reached through <use>.
-    let mut taken: HashSet<String> = ids.keys().map(|s| s.to_string()).collect();
-    let mut inserts: BTreeMap<usize, (Node, String)> = BTreeMap::new();
-    let mut counter = 0usize;
-    for (u, edits) in clone_edits {
-        let node = uses[u];
-        let target = use_target(node, &ids).expect("checked above");
-        let suffix = loop {
-            counter += 1;
-            let s = format!("-kerf{counter}");
-            let root_id = format!("{}{s}", target.attribute("id").unwrap_or(""));
-            if !taken.contains(&root_id) {
-                break s;
+    /// The new geometry of every instance with a dilated subpath, as edits: those of elements
+    /// drawn directly, and those of elements reached through each `<use>` (by `<use>`).
+    fn geometry_edits(
+        &self,
+        contour_of: &HashMap<(usize, usize), &Pline>,
+        summary: &mut PlanSummary,
+    ) -> Result<(Vec<Edit>, CloneEdits)> {
+        let mut main_edits: Vec<Edit> = Vec::new();
+        let mut clone_edits: CloneEdits = BTreeMap::new();
+        for (ii, inst) in self.instances.iter().enumerate() {
+            if !(0..inst.subpaths.len()).any(|si| contour_of.contains_key(&(ii, si))) {
+                continue;
             }
-        };
+            let Some(to_local) = inst.to_doc.inverse() else {
+                return Err(bad(format!(
+                    "{} has a degenerate transform (zero scale)",
+                    self.label(inst)
+                )));
+            };
+            let digits = digits_for(&inst.to_doc);
+            let mut d = String::new();
+            for (si, segs) in inst.subpaths.iter().enumerate() {
+                if !d.is_empty() {
+                    d.push(' ');
+                }
+                match contour_of.get(&(ii, si)) {
+                    Some(pline) => write_pline(pline, &to_local, digits, &mut d),
+                    None => write_segs(segs, digits, &mut d),
+                }
+            }
+            let edits = geometry_edits(self.text, self.shapes[inst.element], &d);
+            summary.changed_elements += 1;
+            match inst.via_use {
+                None => main_edits.extend(edits),
+                Some(u) => clone_edits.entry(u).or_default().extend(edits),
+            }
+        }
+        Ok((main_edits, clone_edits))
+    }
+
+    /// Copies of the targets of `<use>` elements whose cuts were dilated (ids suffixed `-kerfN`),
+    /// each `<use>` pointed at its copy: edits to `main_edits`, one note per copied target.
+    fn clone_uses(
+        &self,
+        clone_edits: CloneEdits,
+        main_edits: &mut Vec<Edit>,
+        summary: &mut PlanSummary,
+    ) -> Result<()> {
+        let mut taken: HashSet<String> = self.ids.keys().map(|s| s.to_string()).collect();
+        let mut inserts: BTreeMap<usize, (Node, String)> = BTreeMap::new();
+        let mut counter = 0usize;
+        for (u, edits) in clone_edits {
+            let node = self.uses[u];
+            let target = use_target(node, &self.ids).expect("checked above");
+            let suffix = loop {
+                counter += 1;
+                let s = format!("-kerf{counter}");
+                let root_id = format!("{}{s}", target.attribute("id").unwrap_or(""));
+                if !taken.contains(&root_id) {
+                    break s;
+                }
+            };
+            let clone = self.clone_of(target, edits, &suffix, &mut taken)?;
+            let new_root = format!("{}{suffix}", target.attribute("id").unwrap_or(""));
+            for a in node.attributes() {
+                let is_href = a.name() == "href"
+                    && (a.namespace().is_none() || a.namespace() == Some(XLINK_NS));
+                if is_href {
+                    main_edits.push(Edit {
+                        range: a.range_value(),
+                        text: format!("#{new_root}"),
+                    });
+                }
+            }
+            let entry = inserts
+                .entry(target.range().end)
+                .or_insert_with(|| (target, String::new()));
+            entry.1.push('\n');
+            entry.1.push_str(&clone);
+        }
+        for (at, (target, clones)) in inserts {
+            let in_defs = target
+                .parent_element()
+                .is_some_and(|p| p.has_tag_name((SVG_NS, "defs")));
+            let text = if in_defs {
+                clones
+            } else {
+                format!("<defs>{clones}</defs>")
+            };
+            main_edits.push(Edit {
+                range: at..at,
+                text,
+            });
+            summary.notes.push(format!(
+                "cuts reached through <use> were dilated in copies of {} (ids suffixed -kerfN)",
+                describe(self.doc, target)
+            ));
+        }
+        Ok(())
+    }
+
+    /// The source of `target` with `edits` (source ranges) applied and every id suffixed.
+    fn clone_of(
+        &self,
+        target: Node,
+        edits: Vec<Edit>,
+        suffix: &str,
+        taken: &mut HashSet<String>,
+    ) -> Result<String> {
         let tr = target.range();
         let mut local: Vec<Edit> = edits
             .into_iter()
@@ -375,45 +469,40 @@ pub fn dilate_svg(
                 });
             }
         }
-        let clone = apply_edits(&text[tr.clone()], local)?;
-        let new_root = format!("{}{suffix}", target.attribute("id").unwrap_or(""));
-        for a in node.attributes() {
-            let is_href =
-                a.name() == "href" && (a.namespace().is_none() || a.namespace() == Some(XLINK_NS));
-            if is_href {
-                main_edits.push(Edit {
-                    range: a.range_value(),
-                    text: format!("#{new_root}"),
-                });
-            }
-        }
-        let entry = inserts
-            .entry(tr.end)
-            .or_insert_with(|| (target, String::new()));
-        entry.1.push('\n');
-        entry.1.push_str(&clone);
+        apply_edits(&self.text[tr], local)
     }
-    for (at, (target, clones)) in inserts {
-        let in_defs = target
-            .parent_element()
-            .is_some_and(|p| p.has_tag_name((SVG_NS, "defs")));
-        let text = if in_defs {
-            clones
-        } else {
-            format!("<defs>{clones}</defs>")
-        };
-        main_edits.push(Edit {
-            range: at..at,
-            text,
-        });
-        summary.notes.push(format!(
-            "cuts reached through <use> were dilated in copies of {} (ids suffixed -kerfN)",
-            describe(&doc, target)
-        ));
+}
+
+impl Format for SvgPlan<'_, '_> {
+    type Origin = (usize, usize);
+    type Output = String;
+
+    fn read(&mut self) -> Result<Plan<(usize, usize)>> {
+        let mut plan = Plan::new("svg");
+        let mm_per_px = document_scale(
+            self.doc.root_element(),
+            self.opts.assume_units,
+            &mut plan.summary,
+        )?;
+        plan.summary.mm_per_unit = mm_per_px;
+        self.walk(mm_per_px, &mut plan.summary)?;
+        self.check_uses()?;
+        plan.summary.cut_elements = self.instances.len();
+        self.contours(&mut plan);
+        Ok(plan)
     }
 
-    let output = apply_edits(text, main_edits)?;
-    Ok((output, summary))
+    fn write(self, plan: &mut Plan<(usize, usize)>, dilated: &[Pline]) -> Result<String> {
+        let contour_of: HashMap<(usize, usize), &Pline> = plan
+            .cuts
+            .iter()
+            .zip(dilated)
+            .map(|(cut, d)| (cut.origin, d))
+            .collect();
+        let (mut main_edits, clone_edits) = self.geometry_edits(&contour_of, &mut plan.summary)?;
+        self.clone_uses(clone_edits, &mut main_edits, &mut plan.summary)?;
+        apply_edits(self.text, main_edits)
+    }
 }
 
 /// mm per usvg pixel (user unit of the root), from the root's `width`/`height`.
