@@ -30,6 +30,11 @@ pub const FAULT_AT_MS: u64 = 200;
 /// Every this many encoder frames, one response is corrupted (`parity` fault).
 pub const PARITY_ERROR_EVERY_FRAMES: u32 = 40;
 
+/// Mixed into the seed of the random stream that draws each gauge's kerf, so that the gauges a
+/// seed gives do not depend on how many ticks (each drawing current noise from the main stream)
+/// passed before each run: host timing decides that, and must not decide the gauges.
+const GAUGE_STREAM: u64 = 0x6761_7567_6573_0000;
+
 /// Flash reserved for the configuration store (four 4 KiB sectors).
 const FLASH_PAGES: usize = 4;
 
@@ -39,6 +44,8 @@ type TwinHardware = Hardware<FakeAs5048a, FakePwm, FakeOutput, FakeOutput, FakeI
 pub struct Twin {
     options: TwinOptions,
     rng: Rng,
+    /// Draws each gauge's kerf (see [`GAUGE_STREAM`]).
+    gauge_rng: Rng,
     plant: Plant,
     hardware: TwinHardware,
     pwm: FakePwm,
@@ -85,6 +92,7 @@ impl Twin {
             _ => {}
         }
         Self {
+            gauge_rng: Rng::new(options.seed ^ GAUGE_STREAM ^ (u64::from(boots) << 32)),
             options,
             rng,
             plant,
@@ -186,7 +194,7 @@ impl Twin {
             &mut TwinHandler {
                 device: &mut self.device,
                 plant: &mut self.plant,
-                rng: &mut self.rng,
+                gauge_rng: &mut self.gauge_rng,
                 options: &self.options,
                 run_started: &mut self.run_started_us,
                 repair: &mut repair,
@@ -298,7 +306,7 @@ impl Twin {
 struct TwinHandler<'a> {
     device: &'a mut Device<FlashConfigStore<RamFlash>>,
     plant: &'a mut Plant,
-    rng: &'a mut Rng,
+    gauge_rng: &'a mut Rng,
     options: &'a TwinOptions,
     run_started: &'a mut Option<u64>,
     repair: &'a mut bool,
@@ -313,8 +321,8 @@ impl Handler for TwinHandler<'_> {
         }
         match request {
             Request::Run(_) => {
-                let kerf =
-                    self.options.kerf_um + f64::from(self.rng.normal()) * self.options.kerf_sd_um;
+                let kerf = self.options.kerf_um
+                    + f64::from(self.gauge_rng.normal()) * self.options.kerf_sd_um;
                 self.plant.place_gauge(kerf.max(0.0));
                 if self.options.fault == Some(InjectedFault::NoInset) {
                     self.plant.lift_prongs();

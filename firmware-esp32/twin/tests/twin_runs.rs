@@ -275,3 +275,31 @@ fn the_sweep_gives_the_kerf_at_other_forces() {
     // More force than the run applied: not in the sweep.
     assert_eq!(kerf_at_force_um(&params, samples, 90.0), None);
 }
+
+/// The gauges a seed gives are the same however long the host took between runs: only the
+/// seed decides them, not the wall-clock-driven number of ticks in between.
+#[test]
+fn the_gauges_a_seed_gives_do_not_depend_on_host_timing() {
+    let gauges_after_idle = |idle_ticks: u64| {
+        let mut t = Twin::new(TwinOptions {
+            kerf_sd_um: 8.0,
+            seed: 7,
+            ..TwinOptions::default()
+        });
+        (0..3)
+            .map(|_| {
+                t.advance_ticks(idle_ticks);
+                measure(&mut t, &RunParams::DEFAULT).unwrap();
+                let kerf_um = t.plant().kerf_um();
+                reset(&mut t);
+                kerf_um
+            })
+            .collect::<Vec<_>>()
+    };
+    let quick = gauges_after_idle(5);
+    assert_eq!(quick, gauges_after_idle(137));
+    assert!(
+        quick[0] != quick[1],
+        "the spread draws distinct gauges: {quick:?}"
+    );
+}
