@@ -8,9 +8,12 @@
 //! Geometry is measured on the *output file*, parsed again (SVG with `usvg`, DXF with `dxf`), and
 //! compared with the input parsed the same way.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use common::{MM_PER_CSS_PX, Poly, Sampling, all_paths, path_by_id, seg_dist, subpaths};
 use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
 use kerfmeter_plan::rules::CutRules;
@@ -51,8 +54,6 @@ fn dilate(input: &Path, kerf_um: f64, output: &Path) -> Result<PlanSummary, Plan
     dilate_with(input, kerf_um, output, &DilateOptions::default())
 }
 
-type Poly = Vec<(f64, f64)>;
-
 fn tree(path: &Path) -> usvg::Tree {
     let text = std::fs::read_to_string(path).unwrap();
     usvg::Tree::from_str(&text, &usvg::Options::default()).unwrap()
@@ -60,61 +61,12 @@ fn tree(path: &Path) -> usvg::Tree {
 
 /// The subpaths of a usvg path in document mm, curves sampled finely.
 fn polys(path: &usvg::Path) -> Vec<Poly> {
-    use usvg::tiny_skia_path::PathSegment;
-    let mm = 25.4 / 96.0;
-    let t = path.abs_transform();
-    let map = |p: usvg::tiny_skia_path::Point| {
-        let (x, y) = (f64::from(p.x), f64::from(p.y));
-        (
-            (f64::from(t.sx) * x + f64::from(t.kx) * y + f64::from(t.tx)) * mm,
-            (f64::from(t.ky) * x + f64::from(t.sy) * y + f64::from(t.ty)) * mm,
-        )
+    let sampling = Sampling {
+        mm_per_px: MM_PER_CSS_PX,
+        points_per_curve: 256,
+        close_rings: true,
     };
-    let mut out: Vec<Poly> = Vec::new();
-    let mut last = (0.0, 0.0);
-    for seg in path.data().segments() {
-        match seg {
-            PathSegment::MoveTo(p) => {
-                last = map(p);
-                out.push(vec![last]);
-            }
-            PathSegment::LineTo(p) => {
-                last = map(p);
-                out.last_mut().unwrap().push(last);
-            }
-            PathSegment::QuadTo(a, b) => {
-                let (p0, p1, p2) = (last, map(a), map(b));
-                for i in 1..=256 {
-                    let s = i as f64 / 256.0;
-                    let u = 1.0 - s;
-                    out.last_mut().unwrap().push((
-                        u * u * p0.0 + 2.0 * u * s * p1.0 + s * s * p2.0,
-                        u * u * p0.1 + 2.0 * u * s * p1.1 + s * s * p2.1,
-                    ));
-                }
-                last = p2;
-            }
-            PathSegment::CubicTo(a, b, c) => {
-                let (p0, p1, p2, p3) = (last, map(a), map(b), map(c));
-                for i in 1..=256 {
-                    let s = i as f64 / 256.0;
-                    let u = 1.0 - s;
-                    let w = [u * u * u, 3.0 * u * u * s, 3.0 * u * s * s, s * s * s];
-                    out.last_mut().unwrap().push((
-                        w[0] * p0.0 + w[1] * p1.0 + w[2] * p2.0 + w[3] * p3.0,
-                        w[0] * p0.1 + w[1] * p1.1 + w[2] * p2.1 + w[3] * p3.1,
-                    ));
-                }
-                last = p3;
-            }
-            PathSegment::Close => {
-                let first = out.last().unwrap()[0];
-                out.last_mut().unwrap().push(first);
-                last = first;
-            }
-        }
-    }
-    out
+    subpaths(path, &sampling)
 }
 
 fn group<'a>(g: &'a usvg::Group, id: &str) -> Option<&'a usvg::Group> {
@@ -129,25 +81,6 @@ fn group<'a>(g: &'a usvg::Group, id: &str) -> Option<&'a usvg::Group> {
         }
     }
     None
-}
-
-fn all_paths(g: &usvg::Group) -> Vec<&usvg::Path> {
-    let mut v = Vec::new();
-    for n in g.children() {
-        match n {
-            usvg::Node::Path(p) => v.push(p.as_ref()),
-            usvg::Node::Group(c) => v.extend(all_paths(c)),
-            _ => {}
-        }
-    }
-    v
-}
-
-fn path_by_id<'a>(g: &'a usvg::Group, id: &str) -> &'a usvg::Path {
-    all_paths(g)
-        .into_iter()
-        .find(|p| p.id() == id)
-        .unwrap_or_else(|| panic!("no path {id}"))
 }
 
 /// Sorted x where a closed polyline crosses the horizontal line at `y`.
@@ -168,17 +101,6 @@ fn area(poly: &Poly) -> f64 {
         .map(|w| w[0].0 * w[1].1 - w[1].0 * w[0].1)
         .sum::<f64>()
         / 2.0
-}
-
-fn seg_dist(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
-    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-    let l2 = dx * dx + dy * dy;
-    let t = if l2 == 0.0 {
-        0.0
-    } else {
-        (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / l2).clamp(0.0, 1.0)
-    };
-    (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
 }
 
 fn dist_to(p: (f64, f64), poly: &Poly) -> f64 {

@@ -4,9 +4,12 @@
 //! growth within 0.1 %. (The Hausdorff distance is measured here, exactly point-to-segment on
 //! finely sampled lines: `geo`'s own is vertex-to-vertex.)
 
+mod common;
+
 use std::f64::consts::TAU;
 
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
+use common::seg_dist;
 use geo::algorithm::buffer::{Buffer, BufferStyle, LineJoin};
 use geo::{Area, LineString, MultiPolygon, Polygon};
 use kerfmeter_plan::dilate::{Contour, KerfSource, Role, dilate};
@@ -81,17 +84,6 @@ fn flatten(p: &Polyline<f64>, tol: f64) -> Vec<(f64, f64)> {
         }
     }
     out
-}
-
-fn seg_dist(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
-    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-    let l2 = dx * dx + dy * dy;
-    let t = if l2 == 0.0 {
-        0.0
-    } else {
-        (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / l2).clamp(0.0, 1.0)
-    };
-    (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
 }
 
 /// A segment between two points.

@@ -3,9 +3,12 @@
 //! sense of the spiral, to within 1 µm. The geometry is evaluated here independently of the
 //! library (Bézier and bulge formulas written out).
 
+mod common;
+
 use std::f64::consts::{PI, TAU};
 use std::path::Path;
 
+use common::{Sampling, path_by_id, subpaths};
 use kerfmeter_plan::gauge::{self, GaugeDrawing, GaugeOptions, TestPieceSpec};
 use kerfmeter_plan::{PlanError, PlanFormat};
 use kerfmeter_protocol::{GaugeGeometry, JamDirection};
@@ -34,60 +37,12 @@ fn pitch_mm_per_rad(pitch_um_per_deg: f64) -> f64 {
 
 /// Points along an SVG path (y down, mm), per subpath, from usvg's data.
 fn usvg_points(path: &usvg::Path, mm_per_px: f64) -> Vec<Vec<(f64, f64)>> {
-    use usvg::tiny_skia_path::PathSegment;
-    let t = path.abs_transform();
-    let map = |p: usvg::tiny_skia_path::Point| {
-        let (x, y) = (f64::from(p.x), f64::from(p.y));
-        (
-            (f64::from(t.sx) * x + f64::from(t.kx) * y + f64::from(t.tx)) * mm_per_px,
-            (f64::from(t.ky) * x + f64::from(t.sy) * y + f64::from(t.ty)) * mm_per_px,
-        )
+    let sampling = Sampling {
+        mm_per_px,
+        points_per_curve: 24,
+        close_rings: false,
     };
-    let mut out: Vec<Vec<(f64, f64)>> = Vec::new();
-    let mut last = (0.0, 0.0);
-    for seg in path.data().segments() {
-        match seg {
-            PathSegment::MoveTo(p) => {
-                last = map(p);
-                out.push(vec![last]);
-            }
-            PathSegment::LineTo(p) => {
-                last = map(p);
-                out.last_mut().unwrap().push(last);
-            }
-            PathSegment::CubicTo(a, b, c) => {
-                let (p0, p1, p2, p3) = (last, map(a), map(b), map(c));
-                for i in 1..=24 {
-                    let s = i as f64 / 24.0;
-                    let u = 1.0 - s;
-                    let w = [u * u * u, 3.0 * u * u * s, 3.0 * u * s * s, s * s * s];
-                    out.last_mut().unwrap().push((
-                        w[0] * p0.0 + w[1] * p1.0 + w[2] * p2.0 + w[3] * p3.0,
-                        w[0] * p0.1 + w[1] * p1.1 + w[2] * p2.1 + w[3] * p3.1,
-                    ));
-                }
-                last = p3;
-            }
-            PathSegment::QuadTo(..) => panic!("the gauge has no quadratic curves"),
-            PathSegment::Close => {}
-        }
-    }
-    out
-}
-
-fn find_path<'a>(g: &'a usvg::Group, id: &str) -> Option<&'a usvg::Path> {
-    for n in g.children() {
-        match n {
-            usvg::Node::Path(p) if p.id() == id => return Some(p),
-            usvg::Node::Group(c) => {
-                if let Some(p) = find_path(c, id) {
-                    return Some(p);
-                }
-            }
-            _ => {}
-        }
-    }
-    None
+    subpaths(path, &sampling)
 }
 
 /// Centre and radius of a sampled circle, and the largest radial deviation.
@@ -166,8 +121,8 @@ fn svg_gauge_checks(jam: JamDirection) {
             .map(|(x, y)| (x, page_h - y))
             .collect::<Vec<_>>()
     };
-    let hole0 = up(usvg_points(find_path(tree.root(), "hole-0").unwrap(), mm_per_px).remove(0));
-    let hole1 = up(usvg_points(find_path(tree.root(), "hole-pi").unwrap(), mm_per_px).remove(0));
+    let hole0 = up(usvg_points(path_by_id(tree.root(), "hole-0"), mm_per_px).remove(0));
+    let hole1 = up(usvg_points(path_by_id(tree.root(), "hole-pi"), mm_per_px).remove(0));
     let g = GaugeGeometry::PAPER;
     let (c0, r0, d0) = circle_fit(&hole0[1..]);
     let (c1, r1, d1) = circle_fit(&hole1[1..]);
@@ -185,7 +140,7 @@ fn svg_gauge_checks(jam: JamDirection) {
     assert!((c0.1 - centre.1).abs() < 1.0 * UM && (c1.1 - centre.1).abs() < 1.0 * UM);
     assert!(c1.0 < centre.0);
 
-    let spiral = up(usvg_points(find_path(tree.root(), "spiral").unwrap(), mm_per_px).remove(0));
+    let spiral = up(usvg_points(path_by_id(tree.root(), "spiral"), mm_per_px).remove(0));
     let c = pitch_mm_per_rad(f64::from(g.pitch_um_per_deg));
     let a = f64::from(g.radius_mm) - PI * c;
     let sense = match jam {
