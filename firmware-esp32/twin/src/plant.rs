@@ -27,7 +27,9 @@
 
 use kerfmeter_protocol::{GaugeGeometry, JamDirection, RunParams};
 
-use kerfmeter_protocol::spiral::{force_for_torque_n, play_deg, torque_for_force_nm};
+use kerfmeter_protocol::spiral::{
+    force_for_torque_n, pitch_mm_per_rad, play_deg, torque_for_force_nm,
+};
 
 /// Integration sub-steps per 1 ms control tick.
 pub const SUBSTEPS: u32 = 10;
@@ -209,8 +211,9 @@ impl Plant {
         self.current_a
     }
 
+    /// The spiral's pitch c, m/rad: the gauge drawer's and the device's, from one place.
     fn pitch_m_per_rad(&self) -> f64 {
-        f64::from(self.gauge.pitch_um_per_deg) * 1e-6 * 180.0 / core::f64::consts::PI
+        pitch_mm_per_rad(&self.gauge) * 1e-3
     }
 
     fn play_rad(&self) -> f64 {
