@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use kerfmeter_firmware::controller::PERIOD_US;
-use kerfmeter_firmware::link::{Handler, Link, LinkStats};
+use kerfmeter_firmware::link::{Handler, Link};
 
 use crate::sim::Twin;
 
@@ -78,16 +78,6 @@ impl<H: Handler> LinkServer<H> {
             link: Link::new(),
             handler,
         }
-    }
-
-    /// The link's counters.
-    pub fn stats(&self) -> LinkStats {
-        self.link.stats()
-    }
-
-    /// The handler.
-    pub fn handler(&self) -> &H {
-        &self.handler
     }
 }
 
