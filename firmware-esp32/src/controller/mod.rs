@@ -251,6 +251,11 @@ impl Controller {
         !matches!(self.state, State::Idle | State::Done | State::Fault(_))
     }
 
+    /// The id of the last run started (0 before the first).
+    pub fn run_id(&self) -> u32 {
+        self.run_id
+    }
+
     /// The last result (`GetKerf`): `None` before the first run, during a run and after a reset.
     pub fn result(&self) -> Option<&KerfResult> {
         self.result.as_ref()

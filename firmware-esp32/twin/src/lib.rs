@@ -7,6 +7,7 @@
 //!   and lock-stepped with the [`plant`]; named fault injection.
 //! - [`options`]: [`TwinOptions`], the one description of a twin, validated here.
 //! - [`serve`](mod@serve): one serve loop for a twin or a bare link on any `Read + Write` port.
+//! - [`truth`]: [`TruthLog`], the truth of each run (what an ideal device reads on its gauge).
 //! - [`pty`]: [`PtyTwin`], a twin served on a pseudo-terminal by a thread, whose client side is an
 //!   ordinary serial port.
 //!
@@ -46,8 +47,10 @@ pub mod plant;
 pub mod pty;
 pub mod serve;
 pub mod sim;
+pub mod truth;
 
 pub use options::{InjectedFault, InvalidOptions, TwinOptions, UnknownFault};
 pub use pty::{PtyTwin, StartError};
 pub use serve::{LinkServer, Pace, Served, serve};
 pub use sim::Twin;
+pub use truth::TruthLog;

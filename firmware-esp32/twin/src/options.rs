@@ -8,7 +8,7 @@ use core::str::FromStr;
 
 use kerfmeter_protocol::GaugeGeometry;
 
-use crate::plant::PlantParams;
+use crate::plant::{PlantParamError, PlantParams};
 use crate::serve::Pace;
 
 /// A fault the twin can inject, by the name used everywhere (twin binary, CLI, tests).
@@ -154,7 +154,7 @@ impl Default for TwinOptions {
 
 impl TwinOptions {
     /// Check the options a user can set: the kerf within [`KERF_RANGE_UM`], its spread within
-    /// [`KERF_SD_RANGE_UM`].
+    /// [`KERF_SD_RANGE_UM`], every plant parameter within its range.
     pub fn validate(&self) -> Result<(), InvalidOptions> {
         if !KERF_RANGE_UM.contains(&self.kerf_um) {
             return Err(InvalidOptions::Kerf(self.kerf_um));
@@ -162,6 +162,7 @@ impl TwinOptions {
         if !KERF_SD_RANGE_UM.contains(&self.kerf_sd_um) {
             return Err(InvalidOptions::KerfSpread(self.kerf_sd_um));
         }
+        self.plant.validate()?;
         Ok(())
     }
 
@@ -176,7 +177,7 @@ impl TwinOptions {
 }
 
 /// Options a twin cannot be built with.
-#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum InvalidOptions {
     /// The kerf, µm, is outside [`KERF_RANGE_UM`].
     #[error("simulated kerf must be between 0 and 2000 µm, got {0}")]
@@ -184,6 +185,9 @@ pub enum InvalidOptions {
     /// The kerf spread, µm, is outside [`KERF_SD_RANGE_UM`].
     #[error("simulated kerf spread must be between 0 and 200 µm, got {0}")]
     KerfSpread(f64),
+    /// A plant parameter is out of its range or contradicts another.
+    #[error(transparent)]
+    Plant(#[from] PlantParamError),
 }
 
 #[cfg(test)]

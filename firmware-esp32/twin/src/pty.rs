@@ -13,6 +13,7 @@ use serialport::{SerialPort, TTYPort};
 use crate::options::{InvalidOptions, TwinOptions};
 use crate::serve::serve;
 use crate::sim::Twin;
+use crate::truth::TruthLog;
 
 /// How long a read of the terminal waits before simulated time moves on.
 const READ_TIMEOUT: Duration = Duration::from_millis(1);
@@ -36,6 +37,7 @@ pub struct PtyTwin {
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<io::Result<()>>>,
     path: String,
+    truths: TruthLog,
 }
 
 impl PtyTwin {
@@ -50,12 +52,14 @@ impl PtyTwin {
         master.set_timeout(READ_TIMEOUT)?;
         let path = client.name().unwrap_or_else(|| "<pty>".into());
         let stop = Arc::new(AtomicBool::new(false));
+        let truths = TruthLog::default();
         let thread = {
             let stop = stop.clone();
+            let truths = truths.clone();
             std::thread::Builder::new()
                 .name("kerfmeter-twin".into())
                 .spawn(move || {
-                    let mut twin = Twin::new(options);
+                    let mut twin = Twin::with_truth_log(options, truths);
                     serve(&mut master, &mut twin, &stop, options.pace())
                 })?
         };
@@ -63,6 +67,7 @@ impl PtyTwin {
             stop,
             thread: Some(thread),
             path,
+            truths,
         };
         Ok((twin, client))
     }
@@ -70,6 +75,11 @@ impl PtyTwin {
     /// Path of the terminal's client side.
     pub fn path(&self) -> &str {
         &self.path
+    }
+
+    /// The truth of each run the twin has started.
+    pub fn truths(&self) -> &TruthLog {
+        &self.truths
     }
 
     /// Ask the twin to stop serving (it does within a read timeout).

@@ -11,6 +11,7 @@ use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 
 use crate::options::{InjectedFault, TwinOptions};
 use crate::plant::{Bridge, Plant};
+use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
 use kerfmeter_firmware::config_store::FlashConfigStore;
 use kerfmeter_firmware::controller::PERIOD_US;
@@ -60,12 +61,21 @@ pub struct Twin {
     fault_struck: bool,
     over_current: bool,
     boots: u32,
+    truths: TruthLog,
 }
 
 impl Twin {
     /// Boot a twin.
     pub fn new(options: TwinOptions) -> Self {
         Self::boot(options, RamFlash::new(FLASH_PAGES), 0)
+    }
+
+    /// Boot a twin that records its runs' truths in `truths` (shared with the caller).
+    pub fn with_truth_log(options: TwinOptions, truths: TruthLog) -> Self {
+        Self {
+            truths,
+            ..Self::new(options)
+        }
     }
 
     fn boot(options: TwinOptions, flash: RamFlash, boots: u32) -> Self {
@@ -80,7 +90,7 @@ impl Twin {
         );
         let (motor, _) = G2Motor::new(pwm.clone(), dir.clone(), slp.clone(), flt.clone());
         let mut chip = FakeAs5048a::new(rng.next_u64());
-        chip.set_noise_lsb(options.plant.encoder_noise_lsb);
+        chip.set_noise_lsb(options.plant.encoder_noise_lsb as f32);
         let mut store = FlashConfigStore::new(flash, 0..FLASH_PAGES as u32 * RamFlash::PAGE);
         let (config, source) = embassy_futures::block_on(store.load());
         let encoder = As5048a::new(chip, EncoderSettings::from_config(&config));
@@ -109,6 +119,7 @@ impl Twin {
             fault_struck: false,
             over_current: false,
             boots,
+            truths: TruthLog::default(),
         }
     }
 
@@ -132,8 +143,11 @@ impl Twin {
         .release();
         let plant = self.plant.clone();
         let now = self.now_us;
+        let truths = self.truths.clone();
+        truths.clear();
         *self = Self::boot(self.options, flash, self.boots + 1);
         self.plant = plant;
+        self.truths = truths;
         self.now_us = now;
         self.last_request_us = now;
     }
@@ -151,6 +165,11 @@ impl Twin {
     /// The device (for checks).
     pub fn device(&self) -> &Device<FlashConfigStore<RamFlash>> {
         &self.device
+    }
+
+    /// The truth of each run started (shared: a clone follows this twin).
+    pub fn truths(&self) -> &TruthLog {
+        &self.truths
     }
 
     /// The options it was built with.
@@ -197,6 +216,7 @@ impl Twin {
                 gauge_rng: &mut self.gauge_rng,
                 options: &self.options,
                 run_started: &mut self.run_started_us,
+                truths: &self.truths,
                 repair: &mut repair,
                 now_us: self.now_us,
             },
@@ -309,6 +329,7 @@ struct TwinHandler<'a> {
     gauge_rng: &'a mut Rng,
     options: &'a TwinOptions,
     run_started: &'a mut Option<u64>,
+    truths: &'a TruthLog,
     repair: &'a mut bool,
     now_us: u64,
 }
@@ -320,10 +341,12 @@ impl Handler for TwinHandler<'_> {
             return response;
         }
         match request {
-            Request::Run(_) => {
+            Request::Run(params) => {
                 let kerf = self.options.kerf_um
                     + f64::from(self.gauge_rng.normal()) * self.options.kerf_sd_um;
                 self.plant.place_gauge(kerf.max(0.0));
+                let run_id = self.device.controller().run_id();
+                self.truths.record(run_id, self.plant.truth_um(params));
                 if self.options.fault == Some(InjectedFault::NoInset) {
                     self.plant.lift_prongs();
                 }

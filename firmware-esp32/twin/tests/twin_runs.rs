@@ -52,7 +52,7 @@ fn twin(kerf_um: f64, seed: u64) -> Twin {
 fn a_run_measures_the_effective_kerf() {
     let mut t = twin(150.0, 1);
     let k = measure(&mut t, &RunParams::DEFAULT).unwrap();
-    let truth = t.plant().effective_kerf_um(&RunParams::DEFAULT);
+    let truth = t.plant().truth_um(&RunParams::DEFAULT);
     assert!(
         (f64::from(k.kerf_um) - truth).abs() < 2.0,
         "measured {} vs {truth}",
@@ -204,7 +204,12 @@ fn every_injected_fault_ends_in_its_typed_error_with_the_motor_safe_and_recovers
         reset(&mut t);
         let k = measure(&mut t, &RunParams::DEFAULT)
             .unwrap_or_else(|f| panic!("{fault}: after recovery {f:?}"));
-        assert!((k.kerf_um - 200.0).abs() < 6.0, "{fault}: {}", k.kerf_um);
+        let truth = t.plant().truth_um(&RunParams::DEFAULT);
+        assert!(
+            (f64::from(k.kerf_um) - truth).abs() < 6.0,
+            "{fault}: {} against {truth}",
+            k.kerf_um
+        );
     }
 }
 

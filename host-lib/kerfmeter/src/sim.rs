@@ -49,6 +49,13 @@ impl SimDevice {
             .kerf_at_torque_um(f64::from(torque_nm))
     }
 
+    /// The truth of run `run_id`: what an ideal device reads on the gauge the twin placed for it,
+    /// at the force the run asked for, µm (computed from the twin's physics, not from the
+    /// device's report). `None` for a run this twin did not start since its last reboot.
+    pub fn truth_um(&self, run_id: u32) -> Option<f64> {
+        self.twin.truths().truth_um(run_id)
+    }
+
     /// Path of the pseudo-terminal's client side.
     pub fn path(&self) -> &str {
         self.twin.path()

@@ -12,7 +12,7 @@ use common::{LineFaults, Server, fast_options};
 use kerfmeter::protocol::{DeviceConfig, Fault, GaugeGeometry, RunParams, RunState, TestOutcome};
 use kerfmeter::sim::{SimDevice, SimOptions};
 use kerfmeter::{Error, JointSpec, Kerfmeter, Options};
-use kerfmeter_twin::{Pace, Served, Twin, TwinOptions};
+use kerfmeter_twin::{Pace, Served, TruthLog, Twin, TwinOptions};
 use serialport::{SerialPort, TTYPort};
 
 fn options() -> Options {
@@ -78,6 +78,7 @@ fn serve(mut master: TTYPort, twin: Twin, controls: &Controls, stop: &AtomicBool
 struct Bench {
     controls: Arc<Controls>,
     server: Server<Twin>,
+    truths: TruthLog,
 }
 
 impl Bench {
@@ -86,10 +87,25 @@ impl Bench {
         let controls = Arc::new(Controls::default());
         let served = controls.clone();
         let twin = Twin::new(twin);
+        let truths = twin.truths().clone();
         let server = Server::spawn(move |stop| serve(master, twin, &served, &stop));
         let meter =
             Kerfmeter::from_port(Box::new(slave) as Box<dyn SerialPort>, options()).unwrap();
-        (Self { controls, server }, meter)
+        (
+            Self {
+                controls,
+                server,
+                truths,
+            },
+            meter,
+        )
+    }
+
+    /// The truth of run `run_id`, µm.
+    fn truth_um(&self, run_id: u32) -> f64 {
+        self.truths
+            .truth_um(run_id)
+            .expect("a run the twin started")
     }
 
     /// Stop serving and get the twin back.
@@ -100,7 +116,7 @@ impl Bench {
 
 #[test]
 fn every_call_works_through_a_pty() {
-    let (_sim, mut meter) = SimDevice::connect(
+    let (sim, mut meter) = SimDevice::connect(
         SimOptions {
             kerf_um: 180.0,
             seed: 3,
@@ -118,7 +134,11 @@ fn every_call_works_through_a_pty() {
     let result = meter
         .run_kerfmeter(&params(), |p| states.push(p.state))
         .unwrap();
-    assert!((result.kerf_um - 182.0).abs() < 2.0, "{result:?}");
+    let truth = sim.truth_um(result.run_id).unwrap();
+    assert!(
+        (f64::from(result.kerf_um) - truth).abs() < 2.0,
+        "{result:?} against {truth}"
+    );
     assert!(states.contains(&RunState::Ramping), "{states:?}");
     assert_eq!(meter.get_kerf_value().unwrap(), Some(result));
 
@@ -154,7 +174,7 @@ fn every_call_works_through_a_pty() {
 
 #[test]
 fn a_fault_is_a_typed_error_latched_until_cleared_then_the_next_run_works() {
-    let (_sim, mut meter) = SimDevice::connect(
+    let (sim, mut meter) = SimDevice::connect(
         SimOptions {
             fault: Some(kerfmeter::sim::SimFault::DriverFault),
             ..SimOptions::default()
@@ -174,7 +194,11 @@ fn a_fault_is_a_typed_error_latched_until_cleared_then_the_next_run_works() {
     meter.clear_fault().unwrap();
     meter.reset_kerfmeter().unwrap();
     let result = meter.run_kerfmeter(&params(), |_| {}).unwrap();
-    assert!((result.kerf_um - 152.0).abs() < 2.0, "{result:?}");
+    let truth = sim.truth_um(result.run_id).unwrap();
+    assert!(
+        (f64::from(result.kerf_um) - truth).abs() < 2.0,
+        "{result:?} against {truth}"
+    );
 }
 
 #[test]
@@ -183,7 +207,11 @@ fn garbage_on_the_line_is_skipped() {
     bench.controls.line.garbage.store(true, Ordering::SeqCst);
     meter.reset_kerfmeter().unwrap();
     let result = meter.run_kerfmeter(&params(), |_| {}).unwrap();
-    assert!((result.kerf_um - 152.0).abs() < 2.0);
+    let truth = bench.truth_um(result.run_id);
+    assert!(
+        (f64::from(result.kerf_um) - truth).abs() < 2.0,
+        "{result:?} against {truth}"
+    );
 }
 
 #[test]

@@ -1,0 +1,306 @@
+//! The physics the twin's firmware acts on: one degree of freedom (the hub, through the gearbox)
+//! with the gauge's inset dragged through a backlash. Every parameter has a realistic default
+//! with its source and plausible range ([`PlantParams`], listed in [`PARAMS`]): a plant kinder
+//! than hardware would pass firmware that a real board fails.
+//!
+//! - [`motor`](self::motor): the G2 bridge and the motor, electrically; the torque they give.
+//! - [`gauge`](self::gauge): the hole play, the spiral's gap and contact, the truth.
+//! - Here: the hub's motion with Karnopp stick–slip friction on the gearbox and the inset (the
+//!   table, plus contact friction once the gap is closed): stuck while the net torque stays
+//!   within the static level, kinetic friction while moving. Integrated in sub-steps of at most
+//!   [`SUBSTEP_US`] over whatever time passes between two control ticks ([`Plant::run_us`]).
+//!
+//! Angles are in the jam frame (positive in the gauge's jam direction), radians, from the zero
+//! position with the prongs centred in their holes.
+
+mod gauge;
+mod motor;
+mod params;
+
+pub use params::{Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_table};
+
+use kerfmeter_protocol::spiral::force_for_torque_n;
+use kerfmeter_protocol::{GaugeGeometry, JamDirection, RunParams};
+
+use gauge::Gauge;
+use motor::Motor;
+
+/// Longest integration sub-step, µs.
+pub const SUBSTEP_US: u64 = 100;
+/// Below this hub speed (rad/s) the hub counts as stopped for friction.
+const STICK_SPEED: f64 = 1e-3;
+
+/// The motor bridge's inputs, as the fake pins hold them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bridge {
+    /// PWM duty, 0..=1.
+    pub duty: f64,
+    /// Hub torque direction in the jam frame: +1 or −1.
+    pub direction: f64,
+    /// SLP high.
+    pub awake: bool,
+}
+
+/// The plant's state.
+#[derive(Debug, Clone)]
+pub struct Plant {
+    params: PlantParams,
+    motor: Motor,
+    gauge: Gauge,
+    hub_rad: f64,
+    hub_rad_per_s: f64,
+}
+
+impl Plant {
+    /// A plant with a freshly cut gauge of `gauge` geometry and true kerf `kerf_um` under the
+    /// prongs, hub at zero.
+    pub fn new(params: PlantParams, gauge: GaugeGeometry, kerf_um: f64) -> Self {
+        Self {
+            params,
+            motor: Motor::new(),
+            gauge: Gauge::new(gauge, kerf_um),
+            hub_rad: 0.0,
+            hub_rad_per_s: 0.0,
+        }
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &PlantParams {
+        &self.params
+    }
+
+    /// A new gauge cut with `kerf_um` under the prongs: its holes are cut at the zero position,
+    /// wherever the hub stands within the play.
+    pub fn place_gauge(&mut self, kerf_um: f64) {
+        self.gauge = Gauge::new(self.gauge.geometry, kerf_um);
+    }
+
+    /// Lift the prongs out of the gauge (the head moves away after a measurement).
+    pub fn lift_prongs(&mut self) {
+        self.gauge.inset_present = false;
+    }
+
+    /// The true (geometric) kerf of the gauge in place.
+    pub fn kerf_um(&self) -> f64 {
+        self.gauge.kerf_um
+    }
+
+    /// Remove the inset (or put it back): the prongs then turn freely.
+    pub fn set_inset_present(&mut self, present: bool) {
+        self.gauge.inset_present = present;
+    }
+
+    /// A prong slips out of its hole: from now on the hub no longer drags the inset.
+    pub fn slip_prong(&mut self) {
+        self.gauge.coupled = false;
+    }
+
+    /// Disconnect (or reconnect) the motor leads.
+    pub fn set_motor_connected(&mut self, connected: bool) {
+        self.motor.connected = connected;
+    }
+
+    /// Hub angle in the jam frame, degrees.
+    pub fn hub_deg(&self) -> f64 {
+        self.hub_rad.to_degrees()
+    }
+
+    /// Hub angle clockwise-positive seen from above, degrees (what the encoder sees).
+    pub fn hub_cw_deg(&self) -> f64 {
+        match self.gauge.geometry.jam_direction {
+            JamDirection::Clockwise => self.hub_deg(),
+            JamDirection::CounterClockwise => -self.hub_deg(),
+        }
+    }
+
+    /// Hub speed, degrees per second (jam frame).
+    pub fn hub_deg_per_s(&self) -> f64 {
+        self.hub_rad_per_s.to_degrees()
+    }
+
+    /// Inset angle in the jam frame, degrees.
+    pub fn inset_deg(&self) -> f64 {
+        self.gauge.inset_rad.to_degrees()
+    }
+
+    /// Motor current of the last sub-step, A (signed).
+    pub fn current_a(&self) -> f64 {
+        self.motor.current_a
+    }
+
+    /// Normal force in the spiral contact, N.
+    pub fn contact_force_n(&self) -> f64 {
+        self.gauge.contact_force_n(&self.params)
+    }
+
+    /// The truth: the kerf an ideal device reads on the gauge in place at the force `run` asks
+    /// for, µm — the gap plus the contact's compression at that force. Computed from the plant
+    /// alone, never from anything the device reports.
+    pub fn truth_um(&self, run: &RunParams) -> f64 {
+        self.gauge.truth_um(&self.params, run)
+    }
+
+    /// The kerf this plant's gauge shows when jammed moving forward under `torque_nm` at the hub:
+    /// the geometric kerf plus the contact's compression. This is what an ideal device reports
+    /// for a jam at that torque.
+    pub fn kerf_at_torque_um(&self, torque_nm: f64) -> f64 {
+        self.gauge.kerf_at_torque_um(&self.params, torque_nm)
+    }
+
+    /// Joint force the device reports for `torque_nm` at the current inset angle (for checks).
+    pub fn equivalent_force_n(&self, run: &RunParams, torque_nm: f32) -> f32 {
+        force_for_torque_n(run, torque_nm, self.inset_deg() as f32)
+    }
+
+    /// Advance one 1 ms control tick with the bridge held at `bridge`.
+    pub fn tick(&mut self, bridge: &Bridge) {
+        self.run_us(bridge, 1000);
+    }
+
+    /// Advance `duration_us` with the bridge held at `bridge`, in sub-steps of at most
+    /// [`SUBSTEP_US`].
+    pub fn run_us(&mut self, bridge: &Bridge, duration_us: u64) {
+        let mut left_us = duration_us;
+        while left_us > 0 {
+            let step_us = left_us.min(SUBSTEP_US);
+            self.substep(bridge, step_us as f64 * 1e-6);
+            left_us -= step_us;
+        }
+    }
+
+    fn substep(&mut self, bridge: &Bridge, dt_s: f64) {
+        let p = self.params;
+        let motor_torque = self.motor.step(&p, bridge, self.hub_rad_per_s, dt_s);
+        let (fwd, back) = self.gauge.resistance(&p, self.hub_rad);
+        let inertia = p.rotor_inertia_kgm2 * p.gear_ratio * p.gear_ratio + p.hub_inertia_kgm2;
+
+        // Karnopp friction: stuck while the motor torque is within the static level of the
+        // direction it pushes; kinetic friction against the motion otherwise.
+        let omega = self.hub_rad_per_s;
+        let forward_nm = motor_torque - p.gear_kinetic_nm - fwd.kinetic_nm;
+        let backward_nm = motor_torque + p.gear_kinetic_nm + back.kinetic_nm;
+        let accel = if omega.abs() < STICK_SPEED {
+            if motor_torque > p.gear_static_nm + fwd.static_nm {
+                forward_nm / inertia
+            } else if motor_torque < -(p.gear_static_nm + back.static_nm) {
+                backward_nm / inertia
+            } else {
+                0.0
+            }
+        } else if omega > 0.0 {
+            forward_nm / inertia
+        } else {
+            backward_nm / inertia
+        };
+        let mut next = omega + accel * dt_s;
+        if omega.abs() >= STICK_SPEED && next.signum() != omega.signum() {
+            // Friction can stop the hub, never reverse it.
+            next = 0.0;
+        }
+        if omega.abs() < STICK_SPEED && accel == 0.0 {
+            next = 0.0;
+        }
+        self.hub_rad_per_s = next;
+        self.hub_rad += next * dt_s;
+        self.gauge.drag(self.hub_rad);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kerfmeter_protocol::spiral::play_deg;
+
+    fn plant(kerf_um: f64) -> Plant {
+        Plant::new(PlantParams::default(), GaugeGeometry::PAPER, kerf_um)
+    }
+
+    #[test]
+    fn stall_torque_at_full_duty_is_the_reference() {
+        let p = PlantParams::default();
+        let stall =
+            p.gear_ratio * p.gear_efficiency * p.kt_nm_per_a * p.supply_v / p.resistance_ohm;
+        assert!((stall - 0.88).abs() < 1e-9);
+    }
+
+    #[test]
+    fn below_breakaway_the_hub_does_not_move() {
+        let mut pl = plant(150.0);
+        let bridge = Bridge {
+            duty: 0.03,
+            direction: 1.0,
+            awake: true,
+        };
+        for _ in 0..500 {
+            pl.tick(&bridge);
+        }
+        assert_eq!(pl.hub_deg(), 0.0);
+    }
+
+    #[test]
+    fn the_hub_turns_freely_through_the_play_then_drags_the_inset_until_the_gap_closes() {
+        let mut pl = plant(150.0);
+        let bridge = Bridge {
+            duty: 0.3,
+            direction: 1.0,
+            awake: true,
+        };
+        let play = f64::from(play_deg(&GaugeGeometry::PAPER, 150.0));
+        let mut ticks = 0;
+        while pl.hub_deg_per_s().abs() > 0.0 || ticks < 10 {
+            pl.tick(&bridge);
+            ticks += 1;
+            if pl.hub_deg() < play {
+                assert_eq!(
+                    pl.inset_deg(),
+                    0.0,
+                    "the inset waits while the prong crosses the play"
+                );
+            }
+            assert!(ticks < 10_000, "never jammed");
+        }
+        // Jammed: the gap is closed (and a little compressed).
+        let closed_at = 150.0 / f64::from(GaugeGeometry::PAPER.pitch_um_per_deg);
+        assert!(
+            pl.inset_deg() > closed_at && pl.inset_deg() < closed_at + 8.0,
+            "{}",
+            pl.inset_deg()
+        );
+        assert!((pl.hub_deg() - pl.inset_deg() - play).abs() < 1e-6);
+    }
+
+    #[test]
+    fn without_an_inset_the_hub_never_jams() {
+        let mut pl = plant(150.0);
+        pl.set_inset_present(false);
+        let bridge = Bridge {
+            duty: 0.2,
+            direction: 1.0,
+            awake: true,
+        };
+        for _ in 0..2000 {
+            pl.tick(&bridge);
+        }
+        assert!(pl.hub_deg() > 360.0);
+    }
+
+    #[test]
+    fn a_disconnected_motor_draws_no_current_and_does_not_move() {
+        let mut pl = plant(150.0);
+        pl.set_motor_connected(false);
+        pl.tick(&Bridge {
+            duty: 1.0,
+            direction: 1.0,
+            awake: true,
+        });
+        assert_eq!(pl.current_a(), 0.0);
+        assert_eq!(pl.hub_deg(), 0.0);
+    }
+
+    #[test]
+    fn the_truth_adds_a_few_micrometres_of_compression() {
+        let pl = plant(150.0);
+        let k = pl.truth_um(&RunParams::DEFAULT);
+        assert!(k > 152.0 && k < 170.0, "{k}");
+    }
+}
