@@ -20,11 +20,12 @@
 //! | `KERFMETER_SOAK_RUNS` | `soak_runs` | runs of the soak case | 100 |
 //!
 //! On the twin the reference gauge is cut with [`TWIN_KERF_UM`] and the tolerance is
-//! [`TWIN_TOLERANCE_UM`] against what an ideal device reads at the applied force.
+//! [`TWIN_TOLERANCE_UM`] against each run's truth: what an ideal device reads on the gauge the
+//! twin placed for it, at the force asked for.
 
 use std::time::Duration;
 
-use kerfmeter::protocol::{GaugeGeometry, RunParams};
+use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
 use kerfmeter::sim::{SimDevice, SimOptions};
 use kerfmeter::{JointSpec, Kerfmeter, Options};
 use serialport::SerialPort;
@@ -193,11 +194,14 @@ impl Bench {
         })
     }
 
-    /// What the reference gauge should read for a jam at `torque_nm`: on the twin, its kerf plus
-    /// the spiral contact's compression at that torque; on a board, the documented kerf.
-    pub fn expected_kerf_um(&self, torque_nm: f32) -> f64 {
+    /// What the reference gauge should read for `result`: on the twin, the truth of that run (what
+    /// an ideal device reads on the gauge the twin placed for it, at the force asked for); on a
+    /// board, the documented kerf.
+    pub fn expected_kerf_um(&self, result: &KerfResult) -> f64 {
         match &self.target {
-            Target::Twin(sim) => sim.ideal_reading_um(torque_nm),
+            Target::Twin(sim) => sim
+                .truth_um(result.run_id)
+                .expect("the twin records the truth of every run it starts"),
             Target::Board(_) => self.kerf_um,
         }
     }

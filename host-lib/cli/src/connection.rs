@@ -1,10 +1,11 @@
-//! The global flags (port, simulated device, `--json`, timeout) and the connection they open: a
+//! The global flags (port, simulated device and its plant, `--json`, timeout) and the connection they open: a
 //! real port, found by its USB ids or named, or the in-process digital twin.
 
+use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
-use kerfmeter::sim::{SimDevice, SimOptions};
+use kerfmeter::sim::{PlantParams, SimDevice, SimMaterial, SimOptions};
 use kerfmeter::{Kerfmeter, Options};
 
 use crate::error::CliError;
@@ -34,6 +35,18 @@ pub struct Global {
     /// Simulated device: run in real time instead of as fast as the host keeps up.
     #[arg(long, global = true)]
     pub sim_realtime: bool,
+    /// Simulated device: the gauge's material (mdf, plywood, acrylic, cardboard), setting the
+    /// contact's stiffness and friction and their spread.
+    #[arg(long, global = true, value_name = "NAME")]
+    pub sim_material: Option<SimMaterial>,
+    /// Simulated device: plant parameters from a JSON object of numbers ({"supply_v": 24, ...}),
+    /// applied over the material.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub sim_plant_file: Option<PathBuf>,
+    /// Simulated device: set one plant parameter, applied last (repeatable), e.g. supply_v=24.
+    /// An unknown name lists every parameter with its range.
+    #[arg(long, global = true, value_name = "NAME=VALUE")]
+    pub sim_plant: Vec<String>,
     /// Print one JSON object instead of text.
     #[arg(long, global = true)]
     pub json: bool,
@@ -60,21 +73,37 @@ impl Global {
     }
 
     /// The twin's options, with its cutter's kerf and its seed.
-    fn sim_options(&self, kerf_um: f64, seed: u64) -> SimOptions {
-        SimOptions {
+    fn sim_options(&self, kerf_um: f64, seed: u64) -> Result<SimOptions, CliError> {
+        let plant = PlantParams::build(
+            self.sim_material,
+            self.sim_plant_file.as_deref(),
+            &self.sim_plant,
+        )
+        .map_err(|e| CliError::Usage(e.to_string()))?;
+        Ok(SimOptions {
             kerf_um,
             kerf_sd_um: self.sim_kerf_sd_um,
             seed,
             fault: self.sim_fault,
             realtime: self.sim_realtime,
+            plant,
             ..SimOptions::default()
-        }
+        })
+    }
+
+    /// True when a flag that only the simulated device understands was given.
+    fn sim_flags_given(&self) -> bool {
+        self.sim_fault.is_some()
+            || self.sim_realtime
+            || self.sim_material.is_some()
+            || self.sim_plant_file.is_some()
+            || !self.sim_plant.is_empty()
     }
 
     /// A fresh twin cutting `kerf_um` with `seed` (the other simulated flags as given).
     pub fn connect_sim(&self, kerf_um: f64, seed: u64) -> Result<Session, CliError> {
         let (sim, meter) =
-            SimDevice::connect(self.sim_options(kerf_um, seed), self.client_options())?;
+            SimDevice::connect(self.sim_options(kerf_um, seed)?, self.client_options())?;
         Ok(Session {
             meter,
             sim: Some(sim),
@@ -86,9 +115,11 @@ impl Global {
         if self.sim {
             return self.connect_sim(self.sim_kerf_um, self.sim_seed);
         }
-        if self.sim_fault.is_some() || self.sim_realtime {
+        if self.sim_flags_given() {
             return Err(CliError::Usage(
-                "--sim-fault and --sim-realtime need --sim".into(),
+                "--sim-fault, --sim-realtime, --sim-material, --sim-plant and --sim-plant-file \
+                 need --sim"
+                    .into(),
             ));
         }
         let meter = match &self.port {

@@ -237,3 +237,86 @@ fn gauge_writes_the_paper_gauge_and_refuses_a_test_piece_without_its_kerf() {
     assert_eq!(code(&out), 2);
     assert!(!dxf.exists());
 }
+
+#[test]
+fn the_simulated_plant_is_set_by_name_file_and_material_and_checked() {
+    // Out of range: a usage error naming the range.
+    let out = kerfmeter(&["--sim", "--sim-plant", "supply_v=40", "info"]);
+    assert_eq!(code(&out), 2);
+    assert!(
+        stderr(&out).contains("supply_v must be between 6 and 28 V, got 40"),
+        "{}",
+        stderr(&out)
+    );
+    // Unknown: every valid name is listed with its range.
+    let out = kerfmeter(&["--sim", "--sim-plant", "voltage=12", "info"]);
+    assert_eq!(code(&out), 2);
+    assert!(stderr(&out).contains("unknown plant parameter `voltage`"));
+    assert!(stderr(&out).contains("tick_jitter_us"), "{}", stderr(&out));
+    assert_eq!(
+        code(&kerfmeter(&["--sim", "--sim-material", "glass", "info"])),
+        2
+    );
+    // Without --sim, the flags are refused rather than ignored.
+    assert_eq!(code(&kerfmeter(&["--sim-material", "mdf", "info"])), 2);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("plant.json");
+    std::fs::write(&file, r#"{"supply_v": "high"}"#).unwrap();
+    let out = kerfmeter(&["--sim", "--sim-plant-file", path(&file), "info"]);
+    assert_eq!(code(&out), 2);
+    assert!(stderr(&out).contains("plant.json"), "{}", stderr(&out));
+
+    // Accepted: the run's JSON carries the truth beside the reading, and a stiffer material
+    // compresses less, so its truth is lower.
+    std::fs::write(&file, r#"{"supply_v": 12}"#).unwrap();
+    let truth = |material: &str| {
+        let out = kerfmeter(&[
+            "--sim",
+            "--json",
+            "--sim-material",
+            material,
+            "--sim-plant-file",
+            path(&file),
+            "--sim-plant",
+            "kerf_taper_um=20",
+            "run",
+        ]);
+        assert_eq!(code(&out), 0, "{}", stderr(&out));
+        let json: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+        let kerf_um = json["kerf_um"].as_f64().unwrap();
+        let truth_um = json["sim_truth_um"].as_f64().expect("sim_truth_um");
+        assert_eq!(json["sim_truths_um"].as_array().unwrap().len(), 1);
+        assert!(
+            (kerf_um - truth_um).abs() < 10.0,
+            "{kerf_um} against {truth_um}"
+        );
+        truth_um
+    };
+    assert!(truth("acrylic") < truth("cardboard"));
+}
+
+#[test]
+fn the_twin_binary_lists_and_checks_its_plant() {
+    let twin = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_kerfmeter-twin"))
+            .args(args)
+            .output()
+            .expect("the kerfmeter-twin binary runs")
+    };
+    let out = twin(&["--list-plant"]);
+    assert_eq!(code(&out), 0);
+    let table = stdout(&out);
+    for name in [
+        "supply_v",
+        "cs_filter_tau_us",
+        "kerf_taper_um",
+        "flash_erase_ms",
+    ] {
+        assert!(table.contains(name), "{name} missing from\n{table}");
+    }
+    let out = twin(&["--sim-plant", "supply_v=99"]);
+    assert_eq!(code(&out), 2);
+    assert!(stderr(&out).contains("supply_v must be between 6 and 28 V"));
+    let out = twin(&["--material", "felt"]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+}

@@ -6,7 +6,6 @@
 //! more than 100 ms ahead of the host's last request); [`SimOptions::realtime`] makes it follow
 //! the wall clock instead.
 
-use kerfmeter_twin::plant::Plant;
 use kerfmeter_twin::{PtyTwin, StartError};
 use serialport::SerialPort;
 
@@ -16,6 +15,8 @@ use crate::error::{Error, Result};
 pub use kerfmeter_twin::InjectedFault as SimFault;
 /// How the simulated device is set up: the twin's own options.
 pub use kerfmeter_twin::TwinOptions as SimOptions;
+/// The twin's physics: every parameter, its range and source ([`kerfmeter_twin::plant::PARAMS`]).
+pub use kerfmeter_twin::plant::{Material as SimMaterial, PlantParamError, PlantParams};
 
 /// A running simulated device. Dropping it stops the twin.
 pub struct SimDevice {
@@ -42,18 +43,16 @@ impl SimDevice {
         Ok((sim, meter))
     }
 
-    /// What an ideal device reads on this twin's gauge (with no cutter spread) for a jam at
-    /// `torque_nm`: the geometric kerf plus the spiral contact's compression at that torque.
-    pub fn ideal_reading_um(&self, torque_nm: f32) -> f64 {
-        Plant::new(self.options.plant, self.options.gauge, self.options.kerf_um)
-            .kerf_at_torque_um(f64::from(torque_nm))
-    }
-
     /// The truth of run `run_id`: what an ideal device reads on the gauge the twin placed for it,
     /// at the force the run asked for, µm (computed from the twin's physics, not from the
     /// device's report). `None` for a run this twin did not start since its last reboot.
     pub fn truth_um(&self, run_id: u32) -> Option<f64> {
         self.twin.truths().truth_um(run_id)
+    }
+
+    /// The options the twin was started with.
+    pub fn options(&self) -> &SimOptions {
+        &self.options
     }
 
     /// Path of the pseudo-terminal's client side.

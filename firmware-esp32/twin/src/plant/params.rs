@@ -361,6 +361,27 @@ impl PlantParams {
         Ok(())
     }
 
+    /// The parameters as a user gives them: the defaults, then a material's figures, then a
+    /// parameter file, then `NAME=VALUE` assignments (each later one wins); validated.
+    pub fn build(
+        material: Option<Material>,
+        file: Option<&std::path::Path>,
+        assignments: &[String],
+    ) -> Result<Self, PlantParamError> {
+        let mut params = Self::default();
+        if let Some(material) = material {
+            material.apply(&mut params);
+        }
+        if let Some(file) = file {
+            params.apply_file(file)?;
+        }
+        for assignment in assignments {
+            params.assign(assignment)?;
+        }
+        params.validate()?;
+        Ok(params)
+    }
+
     /// Apply one `NAME=VALUE` assignment.
     pub fn assign(&mut self, assignment: &str) -> Result<(), PlantParamError> {
         let malformed = || PlantParamError::Malformed(assignment.to_owned());
@@ -487,6 +508,26 @@ mod tests {
             Err(PlantParamError::Malformed(_))
         ));
         assert!(p.assign("supply_v=NaN").is_err());
+    }
+
+    #[test]
+    fn assignments_win_over_the_file_which_wins_over_the_material() {
+        let dir = std::env::temp_dir().join(format!("plant-build-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("plant.json");
+        std::fs::write(&path, r#"{"contact_mu": 0.2, "supply_v": 9}"#).unwrap();
+        let p = PlantParams::build(
+            Some(Material::Acrylic),
+            Some(&path),
+            &["supply_v=24".to_owned()],
+        )
+        .unwrap();
+        assert_eq!(p.contact_stiffness_n_per_um, 120.0, "from the material");
+        assert_eq!(p.contact_mu, 0.2, "the file over the material");
+        assert_eq!(p.supply_v, 24.0, "the assignment over the file");
+        let clash = PlantParams::build(None, None, &["gear_kinetic_nm=0.06".to_owned()]);
+        assert!(matches!(clash, Err(PlantParamError::Inconsistent(_))));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

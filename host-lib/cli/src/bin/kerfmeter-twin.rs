@@ -3,9 +3,11 @@
 //! serial monitor). Prints the port's path, then serves until interrupted (Ctrl-C).
 
 use std::io::Write;
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
+use kerfmeter_twin::plant::{Material, PlantParams, param_table};
 use kerfmeter_twin::{InjectedFault, PtyTwin, StartError, TwinOptions};
 
 #[derive(Parser)]
@@ -31,16 +33,41 @@ struct Args {
     /// Follow the wall clock (default: run ahead of the host in lock-step, much faster).
     #[arg(long)]
     realtime: bool,
+    /// The gauge's material (mdf, plywood, acrylic, cardboard): the contact's stiffness and
+    /// friction and their spread.
+    #[arg(long, visible_alias = "sim-material", value_name = "NAME")]
+    material: Option<Material>,
+    /// Plant parameters from a JSON object of numbers, applied over the material.
+    #[arg(long, visible_alias = "sim-plant-file", value_name = "FILE")]
+    plant_file: Option<PathBuf>,
+    /// Set one plant parameter, applied last (repeatable), e.g. supply_v=24.
+    #[arg(long, visible_alias = "sim-plant", value_name = "NAME=VALUE")]
+    plant: Vec<String>,
+    /// List every plant parameter with its range, default and meaning, and exit.
+    #[arg(long)]
+    list_plant: bool,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if args.list_plant {
+        print!("{}", param_table());
+        return ExitCode::SUCCESS;
+    }
+    let plant = match PlantParams::build(args.material, args.plant_file.as_deref(), &args.plant) {
+        Ok(plant) => plant,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
     let options = TwinOptions {
         kerf_um: args.kerf_um,
         kerf_sd_um: args.kerf_sd_um,
         seed: args.seed,
         fault: args.fault,
         realtime: args.realtime,
+        plant,
         ..TwinOptions::default()
     };
     // This process keeps the client side open (without locking it: the pair takes no lock, and a

@@ -61,7 +61,7 @@ pub struct SimNote {
     pub kerf_um: f64,
     /// Its gauge-to-gauge spread, µm.
     pub kerf_sd_um: f64,
-    /// What an ideal device reads at the last run's torque, µm.
+    /// What an ideal device reads on the gauges at the force asked for (the mean truth), µm.
     pub ideal_reading_um: f64,
 }
 
@@ -84,7 +84,14 @@ pub struct RunReport {
     pub summary: Summary,
     /// Sheet thickness, mm.
     pub thickness_mm: f32,
-    /// The simulated device's truth, when simulated.
+    /// On the simulated device, the truth beside `kerf_um`: the mean of what an ideal device
+    /// reads on each run's gauge at the force asked for, µm, from the twin's physics.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sim_truth_um: Option<f64>,
+    /// On the simulated device, each run's truth, µm, in the order of `runs`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sim_truths_um: Vec<f64>,
+    /// What the simulated device was told to cut, for the text output.
     #[serde(skip)]
     pub sim: Option<SimNote>,
 }
@@ -104,14 +111,17 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
     let mut s = g.connect()?;
     let Measurement { runs, summary } = measure(g, args, &mut s, &params)?;
     let kerf_at_force_um = read_curve(&mut s, args, &params, runs.last())?;
-    let sim = match (&s.sim, runs.last()) {
-        (Some(sim), Some(last)) => Some(SimNote {
-            kerf_um: g.sim_kerf_um,
-            kerf_sd_um: g.sim_kerf_sd_um,
-            ideal_reading_um: sim.ideal_reading_um(last.torque_at_jam_nm),
-        }),
-        _ => None,
+    let sim_truths_um: Vec<f64> = match &s.sim {
+        Some(sim) => runs.iter().filter_map(|r| sim.truth_um(r.run_id)).collect(),
+        None => Vec::new(),
     };
+    let sim_truth_um = (!sim_truths_um.is_empty())
+        .then(|| sim_truths_um.iter().sum::<f64>() / sim_truths_um.len() as f64);
+    let sim = sim_truth_um.map(|truth_um| SimNote {
+        kerf_um: g.sim_kerf_um,
+        kerf_sd_um: g.sim_kerf_sd_um,
+        ideal_reading_um: truth_um,
+    });
     Ok(RunReport {
         force_n: params.target_force_n,
         kerf_at_force_um,
@@ -121,6 +131,8 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
         simulated: s.sim.is_some(),
         summary,
         thickness_mm: params.thickness_mm,
+        sim_truth_um,
+        sim_truths_um,
         sim,
     })
 }
