@@ -30,7 +30,7 @@
 //! - Faults, by name ([`InjectedFault`]): encoder parity errors, magnet lost, MISO stuck, no inset,
 //!   motor disconnected, driver FLT, over-current, host silent, prong slip.
 //!
-//! Time is simulated in 1 ms control ticks (the physics in [`plant::SUBSTEPS`] sub-steps each),
+//! Time is simulated in 1 ms control ticks (the physics in sub-steps of [`plant::SUBSTEP_US`]),
 //! deterministic for a seed; served, it runs ahead of the host in lock-step or follows the wall
 //! clock ([`Pace`]).
 //!
