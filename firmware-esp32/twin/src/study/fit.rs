@@ -51,8 +51,8 @@
 //! r* (the twin's truth). The second spread is the cutter's (and the board's) alone; by
 //! additivity of variances the device adds √(SD² − SD_ideal²).
 
+use kerfmeter_protocol::RunParams;
 use kerfmeter_protocol::spiral::{force_for_torque_n, pitch_mm_per_rad};
-use kerfmeter_protocol::{GaugeGeometry, RunParams};
 
 use super::{Outcome, mean_sd, measure, stream};
 use crate::plant::{Material, PlantParams};
@@ -319,6 +319,7 @@ pub fn device_sd_n(with_device_sd_n: f64, ideal_sd_n: f64) -> f64 {
 mod tests {
     use super::*;
     use crate::plant::Plant;
+    use kerfmeter_protocol::GaugeGeometry;
 
     fn mdf() -> Contact {
         let p = Setup::default().plant;

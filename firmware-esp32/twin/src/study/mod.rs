@@ -18,7 +18,9 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use kerfmeter_firmware::fakes::rng::Rng;
-use kerfmeter_protocol::{ErrorCode, Fault, KerfResult, Request, Response, RunParams, RunState};
+use kerfmeter_protocol::{
+    DeviceConfig, ErrorCode, Fault, KerfResult, Request, Response, RunParams, RunState,
+};
 
 use crate::Twin;
 
@@ -33,6 +35,8 @@ pub const RUN_LIMIT_MS: u64 = 30_000;
 /// The part of a measurement an ending belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phase {
+    /// Setting the device's configuration.
+    Configure,
     /// Bringing the hub to zero before the run.
     Reset,
     /// The run itself.
@@ -43,6 +47,7 @@ impl Phase {
     /// Its name in reports.
     pub const fn name(self) -> &'static str {
         match self {
+            Phase::Configure => "configure",
             Phase::Reset => "reset",
             Phase::Run => "run",
         }
@@ -140,6 +145,19 @@ pub fn measure(twin: &mut Twin, params: &RunParams) -> Outcome {
     }
 }
 
+/// Give the device `config` (`SetConfig`), as its owner does once for a build.
+pub fn configure(twin: &mut Twin, config: &DeviceConfig) -> Result<(), Outcome> {
+    let phase = Phase::Configure;
+    match twin.request(&Request::SetConfig(*config)) {
+        Response::Config(_) => Ok(()),
+        Response::Error(code) => Err(Outcome::Refused { phase, code }),
+        other => Err(Outcome::Unexpected {
+            phase,
+            response: format!("{other:?}"),
+        }),
+    }
+}
+
 /// Send `request`; a refusal or an odd answer ends the measurement.
 fn start(twin: &mut Twin, phase: Phase, request: &Request) -> Result<(), Outcome> {
     match twin.request(request) {
@@ -155,7 +173,7 @@ fn start(twin: &mut Twin, phase: Phase, request: &Request) -> Result<(), Outcome
 /// Poll until the reset is back to `Idle` or the run is `Done`; a fault ends the measurement.
 fn wait(twin: &mut Twin, phase: Phase, limit_ms: u64) -> Result<(), Outcome> {
     let goal = match phase {
-        Phase::Reset => RunState::Idle,
+        Phase::Configure | Phase::Reset => RunState::Idle,
         Phase::Run => RunState::Done,
     };
     let mut state = RunState::Idle;

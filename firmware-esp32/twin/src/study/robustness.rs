@@ -20,6 +20,15 @@
 //!   draw's index and the parameter's name): the same seed gives the same draws whatever the
 //!   threads, and a parameter added later does not move the others.
 //!
+//! # How the device is set up
+//!
+//! Before its run each twin's device is given the configuration its owner would give that build
+//! from the motor's and gearbox's datasheets at the reference 12 V and 25 °C ([`device_config`]:
+//! gear ratio, torque per duty and per amp, breakaway duty, over-current threshold), as
+//! `kerfmeter config` does once per build. A 95:1 gearbox read as the reference 21:1 would only
+//! show a misconfigured device. What the configuration cannot know (the supply, the winding's
+//! temperature, timing, the encoder's errors, the gauge as cut) is what the sweep tests.
+//!
 //! # How an ending is classified ([`Class`])
 //!
 //! A reading is *correct* when its device-added error (reading − truth, the truth from the
@@ -34,9 +43,9 @@
 
 use std::collections::BTreeMap;
 
-use kerfmeter_protocol::{QualityFlags, RunParams};
+use kerfmeter_protocol::{DeviceConfig, ParamField, QualityFlags, RunParams};
 
-use super::{Outcome, mean_sd, measure, quantile, stream};
+use super::{Outcome, configure, mean_sd, measure, quantile, stream};
 use crate::plant::{PARAMS, ParamSpec, PlantParams};
 use crate::{Twin, TwinOptions};
 
@@ -171,6 +180,36 @@ fn draw_plant(seed: u64, index: u32) -> PlantParams {
     panic!("no consistent plant parameters in {MAX_ATTEMPTS} draws: check the ranges");
 }
 
+/// Supply voltage the datasheet figures of a build are given at, V.
+pub const REFERENCE_SUPPLY_V: f64 = 12.0;
+
+/// The configuration the owner of a build with `plant`'s motor and gearbox gives the device:
+/// their datasheet figures at [`REFERENCE_SUPPLY_V`] and 25 °C, each within the device's range.
+/// For the default plant this is the device's default configuration.
+pub fn device_config(plant: &PlantParams) -> DeviceConfig {
+    let per_amp_nm = plant.gear_ratio * plant.gear_efficiency * plant.kt_nm_per_a;
+    let stall_a = REFERENCE_SUPPLY_V / plant.resistance_ohm;
+    let per_duty_nm = per_amp_nm * stall_a;
+    let defaults = DeviceConfig::DEFAULT;
+    // The default threshold's margin over the reference motor's stall current.
+    let margin = f64::from(defaults.max_current_a) / 5.6;
+    let within = |value: f64, field: ParamField| {
+        let (lo, hi) = field.range();
+        (value as f32).clamp(lo, hi)
+    };
+    DeviceConfig {
+        torque_per_duty_nm: within(per_duty_nm, ParamField::TorquePerDutyNm),
+        breakaway_duty: within(
+            plant.gear_static_nm / per_duty_nm,
+            ParamField::BreakawayDuty,
+        ),
+        gear_ratio: within(plant.gear_ratio, ParamField::GearRatio),
+        max_current_a: within(stall_a * margin, ParamField::MaxCurrentA),
+        torque_per_amp_nm: within(per_amp_nm, ParamField::TorquePerAmpNm),
+        ..defaults
+    }
+}
+
 /// What a draw ended in.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DrawReport {
@@ -190,7 +229,10 @@ pub fn run_draw(draw: &Draw) -> DrawReport {
     let ran = std::panic::catch_unwind(move || {
         let mut twin = Twin::new(options);
         twin.advance_ticks(SETTLE_TICKS);
-        let outcome = measure(&mut twin, &RunParams::DEFAULT);
+        let outcome = match configure(&mut twin, &device_config(&options.plant)) {
+            Ok(()) => measure(&mut twin, &RunParams::DEFAULT),
+            Err(ending) => ending,
+        };
         (outcome, twin.motor_safe(), twin.now_us() / 1000)
     });
     let (outcome, motor_safe, sim_ms) = match ran {
@@ -473,6 +515,38 @@ mod tests {
             },
             truth_um,
         }
+    }
+
+    #[test]
+    fn the_default_build_is_configured_as_the_device_defaults() {
+        let config = device_config(&PlantParams::default());
+        let defaults = DeviceConfig::DEFAULT;
+        let close = |a: f32, b: f32| (a - b).abs() <= 0.002 * b.abs().max(1.0);
+        assert!(
+            close(config.torque_per_duty_nm, defaults.torque_per_duty_nm),
+            "{config:?}"
+        );
+        assert!(
+            close(config.breakaway_duty, defaults.breakaway_duty),
+            "{config:?}"
+        );
+        assert!(close(config.gear_ratio, defaults.gear_ratio), "{config:?}");
+        assert!(
+            close(config.max_current_a, defaults.max_current_a),
+            "{config:?}"
+        );
+        assert!(
+            close(config.torque_per_amp_nm, defaults.torque_per_amp_nm),
+            "{config:?}"
+        );
+        for index in 0..50 {
+            assert_eq!(device_config(&Draw::new(5, index).plant).validate(), Ok(()));
+        }
+        let geared = PlantParams {
+            gear_ratio: 42.0,
+            ..PlantParams::default()
+        };
+        assert!(close(device_config(&geared).torque_per_duty_nm, 1.76));
     }
 
     #[test]
