@@ -355,7 +355,7 @@ fn draw_json(args: &Args, report: &DrawReport) -> Value {
     let mut object = json!({
         "draw": draw.index,
         "seed": draw.seed,
-        "class": format!("{class:?}"),
+        "class": class.name(),
         "kerf_um": draw.kerf_um,
         "kerf_sd_um": draw.kerf_sd_um,
         "twin_seed": draw.twin_seed,
@@ -383,7 +383,7 @@ fn sweep_json(args: &Args, summary: &Summary, listed: &Listed) -> Value {
     let classes: serde_json::Map<String, Value> = summary
         .by_class
         .iter()
-        .map(|(class, draws)| (format!("{class:?}"), json!(draws.len())))
+        .map(|(class, draws)| (class.name().to_owned(), json!(draws.len())))
         .collect();
     let failures: serde_json::Map<String, Value> = summary
         .failures

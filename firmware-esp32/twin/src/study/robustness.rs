@@ -298,6 +298,20 @@ pub enum Class {
 }
 
 impl Class {
+    /// Its name in reports.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Class::Correct => "correct",
+            Class::Flagged => "flagged",
+            Class::UnflaggedWrong => "unflagged_wrong",
+            Class::Fault => "fault",
+            Class::Refused => "refused",
+            Class::NoEnd => "no_end",
+            Class::Unexpected => "unexpected",
+            Class::Panic => "panic",
+        }
+    }
+
     /// Whether this ending is allowed by the sweep's rules (a reading or a typed fault or
     /// refusal), leaving aside whether an unflagged reading is right.
     pub fn ends_properly(self) -> bool {
