@@ -13,16 +13,22 @@
 //!
 //! Exits 1 when a draw did not end in a reading or a typed fault or refusal, or left the motor
 //! unsafe; with `--strict` also when a reading was wrong with no flag. 2 for bad arguments.
+//!
+//! A draw that never returns (a loop that simulated time cannot bound) is caught by a watchdog:
+//! when no draw has finished for `--hang-s` seconds of wall time (default 600, far beyond any
+//! draw's few milliseconds), it names the draws in progress and exits 1.
 
+use std::collections::BTreeSet;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use kerfmeter_twin::plant::PARAMS;
 use kerfmeter_twin::study::robustness::{
     Class, Draw, DrawReport, ErrorStats, Summary, TOLERANCE_UM, classify, failure_name, run_draw,
-    sweep,
 };
-use kerfmeter_twin::study::{Outcome, available_threads};
+use kerfmeter_twin::study::{Outcome, available_threads, parallel_map};
 use serde_json::{Value, json};
 
 struct Args {
@@ -35,6 +41,7 @@ struct Args {
     worst: usize,
     out_dir: PathBuf,
     replay: Option<u32>,
+    hang_s: u64,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -48,6 +55,7 @@ fn parse_args() -> Result<Args, String> {
         worst: 5,
         out_dir: PathBuf::from("target/robustness"),
         replay: None,
+        hang_s: 600,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -62,6 +70,7 @@ fn parse_args() -> Result<Args, String> {
             "--worst" => args.worst = value().and_then(|v| v.parse().map_err(|_| bad(&v)))?,
             "--replay" => args.replay = Some(value().and_then(|v| v.parse().map_err(|_| bad(&v)))?),
             "--out-dir" => args.out_dir = PathBuf::from(value()?),
+            "--hang-s" => args.hang_s = value().and_then(|v| v.parse().map_err(|_| bad(&v)))?,
             "--tolerance-um" => {
                 args.tolerance_um = value().and_then(|v| v.parse().map_err(|_| bad(&v)))?;
             }
@@ -91,9 +100,18 @@ fn main() {
 /// The whole sweep; whether it passes.
 fn run_sweep(args: &Args) -> bool {
     let progress = Progress::new(args.draws);
-    let reports = sweep(args.seed, args.draws, args.threads, &|done| {
-        progress.show(done)
-    });
+    let watch = Watchdog::start(Duration::from_secs(args.hang_s));
+    let reports = parallel_map(
+        args.draws,
+        args.threads,
+        &|index| {
+            watch.begin(index);
+            let report = run_draw(&Draw::new(args.seed, index));
+            watch.end(index);
+            report
+        },
+        &|done| progress.show(done),
+    );
     progress.finish();
     let summary = Summary::of(&reports, args.tolerance_um);
     let listed = Listed::choose(&summary, &reports, args.worst);
@@ -132,6 +150,59 @@ fn replay(args: &Args, index: u32) -> bool {
         }
     }
     class.ends_properly() && report.motor_safe == Some(true)
+}
+
+/// Exits the process, naming the draws in progress, when none has finished for a while.
+struct Watchdog {
+    in_progress: Mutex<BTreeSet<u32>>,
+    last_end: Mutex<Instant>,
+}
+
+impl Watchdog {
+    /// A watchdog checking every second for `limit` without a finished draw.
+    fn start(limit: Duration) -> &'static Self {
+        let watch: &'static Self = Box::leak(Box::new(Self {
+            in_progress: Mutex::new(BTreeSet::new()),
+            last_end: Mutex::new(Instant::now()),
+        }));
+        std::thread::spawn(move || {
+            loop {
+                std::thread::sleep(Duration::from_secs(1));
+                let idle = watch
+                    .last_end
+                    .lock()
+                    .map_or(Duration::ZERO, |t| t.elapsed());
+                if idle > limit {
+                    let hung = watch
+                        .in_progress
+                        .lock()
+                        .map(|s| s.clone())
+                        .unwrap_or_default();
+                    eprintln!(
+                        "robustness: no draw finished in {} s; hung: draws {hung:?} (replay one with --replay)",
+                        limit.as_secs()
+                    );
+                    std::process::exit(1);
+                }
+            }
+        });
+        watch
+    }
+
+    fn begin(&self, index: u32) {
+        if let Ok(mut set) = self.in_progress.lock() {
+            set.insert(index);
+        }
+    }
+
+    fn end(&self, index: u32) {
+        if let Ok(mut set) = self.in_progress.lock() {
+            set.remove(&index);
+        }
+        if let Ok(mut last) = self.last_end.lock() {
+            *last = Instant::now();
+        }
+    }
 }
 
 /// A count of finished draws on a terminal's stderr.
