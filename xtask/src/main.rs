@@ -122,6 +122,12 @@ struct FitStudyArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
+    /// SD of each joint edge's position, µm (default 7.5: ±15 µm repeatability at 95 %).
+    #[arg(long)]
+    edge_sd_um: Option<f64>,
+    /// SD of the kerf from one cut to the next at one place, µm (default 3).
+    #[arg(long)]
+    kerf_sd_um: Option<f64>,
 }
 
 #[derive(clap::Args)]
@@ -304,6 +310,12 @@ fn fit_study(args: &FitStudyArgs) -> Result<()> {
     let mut cmd = twin_example("fit_study", true);
     cmd.args(["--trials", &args.trials.to_string()]);
     cmd.args(["--seed", &args.seed.to_string()]);
+    if let Some(sd) = args.edge_sd_um {
+        cmd.args(["--edge-sd-um", &sd.to_string()]);
+    }
+    if let Some(sd) = args.kerf_sd_um {
+        cmd.args(["--kerf-sd-um", &sd.to_string()]);
+    }
     if args.json {
         cmd.arg("--json");
     }
