@@ -26,7 +26,8 @@ use std::time::{Duration, Instant};
 
 use kerfmeter_twin::plant::PARAMS;
 use kerfmeter_twin::study::robustness::{
-    Class, Draw, DrawReport, ErrorStats, Summary, TOLERANCE_UM, classify, failure_name, run_draw,
+    Class, Draw, DrawReport, ErrorStats, Scale, Summary, TOLERANCE_UM, classify, failure_name,
+    run_draw, scale,
 };
 use kerfmeter_twin::study::{Outcome, available_threads, parallel_map};
 use serde_json::{Value, json};
@@ -141,11 +142,14 @@ fn replay(args: &Args, index: u32) -> bool {
         for spec in PARAMS {
             let value = spec.get(&report.draw.plant);
             println!(
-                "  {:<30} {:>12} {:<6} (default {})",
+                "  {:<30} {:>12} {:<6} (default {}, drawn {} in {}..={})",
                 spec.name,
                 number(value),
                 spec.unit,
-                number(spec.default_value())
+                number(spec.default_value()),
+                scale_name(spec),
+                spec.min,
+                spec.max
             );
         }
     }
@@ -326,6 +330,23 @@ fn describe(args: &Args, report: &DrawReport) -> String {
     )
 }
 
+/// How a parameter is drawn, in words.
+fn scale_name(spec: &kerfmeter_twin::plant::ParamSpec) -> &'static str {
+    match scale(spec) {
+        Scale::Uniform => "uniformly",
+        Scale::LogUniform => "log-uniformly",
+    }
+}
+
+/// The parameters drawn log-uniformly.
+fn log_uniform_names() -> Vec<&'static str> {
+    PARAMS
+        .iter()
+        .filter(|spec| scale(spec) == Scale::LogUniform)
+        .map(|spec| spec.name)
+        .collect()
+}
+
 /// A parameter's value, readable whatever its scale.
 fn number(value: f64) -> String {
     if value != 0.0 && value.abs() < 0.01 {
@@ -354,6 +375,10 @@ fn print_sweep(args: &Args, summary: &Summary, listed: &Listed) {
         args.seed,
         kerfmeter_twin::study::robustness::KERF_RANGE_UM.0,
         kerfmeter_twin::study::robustness::KERF_RANGE_UM.1
+    );
+    println!(
+        "drawn log-uniformly (range over 10×): {}; every other parameter uniformly",
+        log_uniform_names().join(", ")
     );
     println!(
         "success: {readings}/{} readings ({:.1} %): {} correct, {} flagged, {} unflagged wrong (|error| > {} µm, no flag)",
@@ -468,6 +493,7 @@ fn sweep_json(args: &Args, summary: &Summary, listed: &Listed) -> Value {
         "seed": args.seed,
         "draws": summary.draws,
         "tolerance_um": args.tolerance_um,
+        "log_uniform_params": log_uniform_names(),
         "readings": summary.readings(),
         "success_rate": summary.readings() as f64 / summary.draws.max(1) as f64,
         "classes": classes,
