@@ -285,8 +285,10 @@ fn write_plant_file(args: &Args, draw: &Draw) {
     }
 }
 
-/// The commands that replay a draw: exactly, and through the host's simulated device (same plant,
-/// gauge and seed; the noise differs, as the host polls at other instants).
+/// The commands that replay a draw: exactly, and through the host's simulated device. The host
+/// replays the same plant, gauge and seed, but its twin's device keeps the default configuration
+/// (each `kerfmeter --sim` starts a fresh twin) and the noise differs, as the host polls at other
+/// instants.
 fn replay_commands(args: &Args, draw: &Draw) -> (String, String) {
     let exact = format!(
         "cargo xtask robustness --seed {} --replay {}",
@@ -431,6 +433,9 @@ fn print_sweep(args: &Args, summary: &Summary, listed: &Listed) {
         );
     }
     println!("plant files: {}", args.out_dir.display());
+    println!(
+        "host replays run the same plant, gauge and seed, with the device's default configuration and other noise"
+    );
 }
 
 fn stats_json(stats: &ErrorStats) -> Value {
