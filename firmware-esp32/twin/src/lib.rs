@@ -10,6 +10,7 @@
 //! - [`truth`]: [`TruthLog`], the truth of each run (what an ideal device reads on its gauge).
 //! - [`pty`]: [`PtyTwin`], a twin served on a pseudo-terminal by a thread, whose client side is an
 //!   ordinary serial port.
+//! - [`study`]: many twins in-process: the robustness sweep and the paper's fit study.
 //!
 //! # What the twin models
 //!
@@ -47,6 +48,7 @@ pub mod plant;
 pub mod pty;
 pub mod serve;
 pub mod sim;
+pub mod study;
 pub mod truth;
 
 pub use options::{InjectedFault, InvalidOptions, TwinOptions, UnknownFault};
