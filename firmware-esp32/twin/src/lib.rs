@@ -47,6 +47,7 @@ pub mod plant;
 pub mod pty;
 pub mod serve;
 pub mod sim;
+pub mod timing;
 pub mod truth;
 
 pub use options::{InjectedFault, InvalidOptions, TwinOptions, UnknownFault};
