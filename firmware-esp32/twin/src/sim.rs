@@ -12,10 +12,10 @@
 //! the whole operation (`flash_erase_ms` a sector, `flash_write_ms` a page): no tick runs
 //! meanwhile, the plant keeps moving. A stall that reaches the watchdog timeout resets the chip
 //! in the middle of it, the flash operation under way left torn, and the twin reboots (flash
-//! kept, state lost); the host gets no answer. Another host sends bursts of status requests
-//! (`host_burst_frames` every `host_burst_period_ms`) through a link of their own, so their
-//! answers never reach the real client and its retry memory is not disturbed; they cost core
-//! time like any frame.
+//! kept, state lost); the host gets no answer. With its own frames, the host sends a burst of
+//! `host_burst_frames` status requests every `host_burst_period_ms`, through a link of their own,
+//! so that their answers never reach the real client and its retry memory is not disturbed; they
+//! cost core time like any frame.
 //!
 //! Served on a serial port ([`crate::serve()`]), simulated time runs ahead of the host by at most
 //! [`MAX_LEAD_MS`] past its last answer — much faster than real time, yet a host that keeps
@@ -275,6 +275,7 @@ impl Twin {
         if self.host_muted() {
             return;
         }
+        self.host_bursts();
         let mut out = Vec::new();
         let answered = self.serve_host(Sender::Client, |handler, link| {
             link.receive(bytes, handler, |frame| out.push(frame.to_vec()));
@@ -297,14 +298,14 @@ impl Twin {
     /// A request without framing; `None` when the device reset before answering (its watchdog
     /// fired during a flash stall) and rebooted.
     pub fn try_request(&mut self, request: &Request) -> Option<Response> {
+        self.host_bursts();
         self.serve_host(Sender::Client, |handler, _| handler.handle(request))
     }
 
-    /// The other host's bursts due by now, through their own link; answers discarded.
+    /// The host's burst due by now, if any, through a link of its own (its answers discarded,
+    /// the client's retry memory untouched), in the same pass of link work as the client's
+    /// frames it goes with.
     fn host_bursts(&mut self) {
-        if self.host_muted() {
-            return;
-        }
         let bytes = self.bursts.take_due(self.now_us);
         if !bytes.is_empty() {
             self.serve_host(Sender::Burst, |handler, link| {
@@ -392,8 +393,7 @@ impl Twin {
     }
 
     /// The next control tick, when the core gets to it: the plant runs until then, then
-    /// sensors → firmware tick (feeding the watchdog) → bridge; then the link work of the other
-    /// host's bursts that arrived meanwhile.
+    /// sensors → firmware tick (feeding the watchdog) → bridge.
     pub fn tick(&mut self) {
         let tick_us = self.ticks.start_tick(self.now_us);
         self.advance_to(tick_us);
@@ -411,7 +411,6 @@ impl Twin {
             .tick(self.now_us, Some(current.max(0.0) as f32), &mut self.device);
         debug_assert_eq!(out.is_safe(), self.motor_safe());
         self.bridge = self.bridge_inputs();
-        self.host_bursts();
     }
 
     /// The bridge's inputs as the pins hold them, in the jam frame.

@@ -107,8 +107,10 @@ impl TickClock {
     }
 }
 
-/// A host that sends `host_burst_frames` status requests every `host_burst_period_ms`, besides
-/// whatever the real client sends: another program polling the same port.
+/// A host that sends, along with its own traffic, a burst of `host_burst_frames` extra status
+/// requests every `host_burst_period_ms` (a GUI refreshing, a second tool polling): the burst
+/// due goes out with the host's next frames. A host that sends nothing sends no bursts either
+/// (a silent host stays silent), and bursts missed meanwhile are not sent late.
 #[derive(Debug, Clone)]
 pub struct HostBursts {
     frames: u32,
@@ -129,22 +131,24 @@ impl HostBursts {
         }
     }
 
-    /// The framed requests of every burst sent by `now_us` and not taken yet. Each request has
-    /// a new `seq`, so that the link hands every one to the device.
+    /// The framed requests of the burst due by `now_us`, if one is (empty otherwise). Each
+    /// request has a new `seq`, so that the link hands every one to the device.
     pub fn take_due(&mut self, now_us: u64) -> Vec<u8> {
         let mut bytes = Vec::new();
+        if self.next_us > now_us {
+            return bytes;
+        }
+        let missed = (now_us - self.next_us) / self.period_us;
+        self.next_us += (missed + 1) * self.period_us;
         let mut buf = [0u8; MAX_REQUEST_FRAME_LEN];
-        while self.next_us <= now_us {
-            self.next_us += self.period_us;
-            for _ in 0..self.frames {
-                self.seq = self.seq.wrapping_add(1);
-                let request = Envelope {
-                    seq: self.seq,
-                    body: Request::GetStatus,
-                };
-                let frame = encode_frame(&request, &mut buf).expect("a status request fits");
-                bytes.extend_from_slice(frame);
-            }
+        for _ in 0..self.frames {
+            self.seq = self.seq.wrapping_add(1);
+            let request = Envelope {
+                seq: self.seq,
+                body: Request::GetStatus,
+            };
+            let frame = encode_frame(&request, &mut buf).expect("a status request fits");
+            bytes.extend_from_slice(frame);
         }
         bytes
     }
@@ -266,6 +270,9 @@ mod tests {
         }
         assert_eq!(seqs, [1, 2, 3]);
         assert!(bursts.take_due(399_999).is_empty());
-        assert!(!bursts.take_due(400_000).is_empty());
+        // A host quiet from 400 to 1000 ms sends one burst at 1000 ms, not four.
+        assert_eq!(bursts.take_due(1_000_000).len(), bytes.len());
+        assert!(bursts.take_due(1_199_999).is_empty());
+        assert!(!bursts.take_due(1_200_000).is_empty());
     }
 }
