@@ -10,7 +10,8 @@
 //! last left it. Link work moves the core's clock on as the board's loop does: each frame from
 //! the host costs `frame_cost_us`, and a request that erases or writes flash stalls the core for
 //! the whole operation (`flash_erase_ms` a sector, `flash_write_ms` a page): no tick runs
-//! meanwhile, the plant keeps moving. A stall that reaches the watchdog timeout resets the chip
+//! meanwhile, the plant keeps moving. (The store erases a sector only when its pages are full:
+//! on the twin's four sectors, a fresh flash's 319th save is the first to erase.) A stall that reaches the watchdog timeout resets the chip
 //! in the middle of it, the flash operation under way left torn, and the twin reboots (flash
 //! kept, state lost); the host gets no answer. With its own frames, the host sends a burst of
 //! `host_burst_frames` status requests every `host_burst_period_ms`, through a link of their own,
