@@ -42,7 +42,7 @@ use kerfmeter_firmware::hardware::Hardware;
 use kerfmeter_firmware::link::{Handler, Link};
 use kerfmeter_firmware::motor::G2Motor;
 
-/// How far simulated time may run past the host's last request, ms.
+/// How far simulated time may run past the host's last answered request, ms.
 pub const MAX_LEAD_MS: u64 = 100;
 /// When a mid-run fault strikes, ms after the run started.
 pub const FAULT_AT_MS: u64 = 200;
