@@ -5,6 +5,7 @@
 use kerfmeter_firmware::build::WATCHDOG_TIMEOUT_MS;
 use kerfmeter_firmware::controller::PERIOD_US;
 use kerfmeter_protocol::{DeviceConfig, Fault, KerfResult, Request, Response, RunParams, RunState};
+use kerfmeter_twin::sim::MAX_LEAD_MS;
 use kerfmeter_twin::{Twin, TwinOptions};
 
 /// A twin with the plant parameters `set` (`NAME=VALUE`), a few ticks after boot.
@@ -306,4 +307,36 @@ fn a_save_on_a_slow_flash_is_answered_without_a_reset() {
         save.answer
     );
     assert_eq!(t.reboots(), 0);
+}
+
+#[test]
+fn in_lock_step_the_twin_leads_the_host_by_the_set_time_whatever_the_tick_times() {
+    // Large jitter and frequent late ticks: the serve loop runs batches of lead ticks, each
+    // counted again after the last, until the next tick would start past the lead.
+    let mut t = twin(&[
+        "tick_jitter_us=300",
+        "late_ticks_per_s=20",
+        "late_tick_ms=2",
+    ]);
+    for _ in 0..20 {
+        t.request(&Request::GetStatus);
+        let limit_us = t.now_us() + MAX_LEAD_MS * 1000;
+        let mut ran = 0;
+        loop {
+            let lead = t.lead_ticks().min(50);
+            if lead == 0 {
+                break;
+            }
+            t.advance_ticks(lead);
+            ran += lead;
+        }
+        assert!((95..=101).contains(&ran), "{ran} ticks");
+        assert!(t.next_tick_us() >= limit_us);
+        // The last tick started within a tick's spread of the limit.
+        assert!(
+            t.now_us() < limit_us + 2 * 1000,
+            "{} vs {limit_us}",
+            t.now_us()
+        );
+    }
 }
