@@ -30,7 +30,7 @@ use crate::plant::{Bridge, Plant};
 use crate::timing::{HostBursts, TickClock};
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
-use kerfmeter_firmware::board::partition::{ConfigStorage, open_config_partition};
+use kerfmeter_firmware::board::partition::{ConfigStorage, OpenedConfig, open_config_partition};
 use kerfmeter_firmware::config_store::ConfigSource;
 use kerfmeter_firmware::controller::PERIOD_US;
 use kerfmeter_firmware::device::Device;
@@ -142,10 +142,7 @@ impl Twin {
         let (motor, _) = G2Motor::new(pwm.clone(), dir.clone(), slp.clone(), flt.clone());
         let mut chip = FakeAs5048a::new(rng.next_u64());
         chip.set_noise_lsb(options.plant.encoder_noise_lsb as f32);
-        let flash_clock = flash.clock().clone();
-        flash_clock.power_on();
-        let opened = embassy_futures::block_on(open_config_partition(flash, FLASH_RANGE));
-        flash_clock.take_spent_us();
+        let (opened, flash_clock) = open_config(flash);
         let encoder = As5048a::new(chip, EncoderSettings::from_config(&opened.config));
         let device = Device::with_config(
             "twin",
@@ -484,6 +481,17 @@ impl Twin {
         self.options.fault = None;
         self.fault_struck = false;
     }
+}
+
+/// The configuration, opened on `flash` as the board opens it at boot, the flash powered on
+/// again; and the flash's clock. The time the flash takes here is not counted: boot time is not
+/// simulated, and the watchdog is not running yet.
+fn open_config(flash: RamFlash) -> (OpenedConfig<RamFlash>, FlashClock) {
+    let clock = flash.clock().clone();
+    clock.power_on();
+    let opened = embassy_futures::block_on(open_config_partition(flash, FLASH_RANGE));
+    clock.take_spent_us();
+    (opened, clock)
 }
 
 /// Who sends host traffic.
