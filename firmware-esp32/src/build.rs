@@ -1,4 +1,5 @@
-//! Facts about this firmware build, reported by `GetInfo`.
+//! Facts about this firmware build: those `GetInfo` reports, and the board's watchdog timeout,
+//! which the digital twin models too.
 
 use kerfmeter_protocol::{
     DeviceInfo, FirmwareVersion, HardwareInfo, MAX_REQUEST_FRAME_LEN, PROTOCOL_VERSION,
@@ -19,6 +20,10 @@ pub const ENCODER_BITS: u8 = 14;
 pub const PWM_BITS: u8 = 11;
 /// Capacity of the run's sample log.
 pub const MAX_SAMPLES: u16 = 2048;
+/// Hardware watchdog timeout of the board, ms: a control loop stalled this long resets the chip.
+/// It also bounds a configuration write: a flash sector erase stalls the core for tens of ms, and
+/// 300–400 ms at worst. The digital twin resets its device after the same time.
+pub const WATCHDOG_TIMEOUT_MS: u64 = 500;
 
 /// The `GetInfo` answer of a device named `board` (`"esp32c3"`, `"esp32c6"`, `"twin"`) that
 /// booted with `boot_id`.

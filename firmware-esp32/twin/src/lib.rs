@@ -7,6 +7,8 @@
 //!   and lock-stepped with the [`plant`]; named fault injection.
 //! - [`options`]: [`TwinOptions`], the one description of a twin, validated here.
 //! - [`serve`](mod@serve): one serve loop for a twin or a bare link on any `Read + Write` port.
+//! - [`timing`]: when the core runs its ticks (the board's ticker, jitter, late ticks), the
+//!   watchdog they feed, and the host's bursts of frames.
 //! - [`truth`]: [`TruthLog`], the truth of each run (what an ideal device reads on its gauge).
 //! - [`pty`]: [`PtyTwin`], a twin served on a pseudo-terminal by a thread, whose client side is an
 //!   ordinary serial port.
@@ -26,20 +28,30 @@
 //!   replies), 14-bit quantisation and a few LSB of noise.
 //! - The current sense: the motor current plus Gaussian noise.
 //! - The configuration flash: NOR rules (erase to 0xFF, writes only clear bits), kept across a
-//!   reboot.
+//!   reboot, opened at boot under the board's partition policy. Erases and writes take their
+//!   time (`flash_erase_ms`, `flash_write_ms`), stalling the core: no tick runs meanwhile.
+//! - The core's timing: ticks at the board's ticker schedule plus a jitter (`tick_jitter_us`)
+//!   and occasional late ticks (`late_ticks_per_s`, `late_tick_ms`); every frame's link work
+//!   costs core time (`frame_cost_us`) in the same loop as the tick; a host that sends bursts of
+//!   status requests with its own (`host_burst_frames`, `host_burst_period_ms`); the board's
+//!   watchdog, which resets the chip when a flash stall reaches it, the operation under way left
+//!   torn.
 //! - The cutter: a gauge-to-gauge Gaussian spread of the kerf.
 //! - Faults, by name ([`InjectedFault`]): encoder parity errors, magnet lost, MISO stuck, no inset,
 //!   motor disconnected, driver FLT, over-current, host silent, prong slip.
 //!
-//! Time is simulated in 1 ms control ticks (the physics in sub-steps of [`plant::SUBSTEP_US`]),
-//! deterministic for a seed; served, it runs ahead of the host in lock-step or follows the wall
-//! clock ([`Pace`]).
+//! Time is simulated on the core's clock, deterministic for a seed: a control tick about every
+//! 1 ms, when the core gets to it, and the plant integrated over whatever time passes between
+//! two ticks with the bridge held ([`plant::Plant::run_us`]); served, it runs ahead of the host
+//! in lock-step or follows the wall clock ([`Pace`]).
 //!
 //! # What it does not model
 //!
 //! The motor's inductance (its L/R is far below a tick); the G2's current-sense output existing
 //! only in the drive phase of each PWM period, and its current chopping; supply sag, under-voltage
-//! and winding heating; tick jitter and late ticks; flash erase and write times; the encoder's
+//! and winding heating; the control step's own execution time (a tick takes no core time, so
+//! the ticks that catch up after a late one come at once), the chip's boot time, and the USB
+//! link's own latency and flow control; the encoder's
 //! non-linearity, magnet eccentricity and register writes; the inset's inertia; a non-linear
 //! contact; holes displaced by the cutter's repeatability, off-centre prongs and kerf taper.
 
@@ -49,6 +61,7 @@ pub mod pty;
 pub mod serve;
 pub mod sim;
 pub mod study;
+pub mod timing;
 pub mod truth;
 
 pub use options::{InjectedFault, InvalidOptions, TwinOptions, UnknownFault};

@@ -36,6 +36,11 @@ pub trait Served {
         0
     }
 
+    /// When its next control tick starts, µs (at [`now_us`](Self::now_us) unless said).
+    fn next_tick_us(&self) -> u64 {
+        self.now_us()
+    }
+
     /// Control ticks it may run before it must wait for the host (none without a clock).
     fn lead_ticks(&self) -> u64 {
         0
@@ -54,6 +59,10 @@ impl Served for Twin {
 
     fn now_us(&self) -> u64 {
         Twin::now_us(self)
+    }
+
+    fn next_tick_us(&self) -> u64 {
+        Twin::next_tick_us(self)
     }
 
     fn lead_ticks(&self) -> u64 {
@@ -124,9 +133,14 @@ pub fn serve<P: Read + Write + ?Sized>(
         }
         let ticks = match pace {
             Pace::LockStep => served.lead_ticks().min(LOCK_STEP_BATCH_TICKS),
+            // Every tick that starts by the wall clock (ticks come about a period apart; a
+            // flash stall holds them back until the wall clock catches up).
             Pace::RealTime => {
                 let wall_us = started.elapsed().as_micros() as u64;
-                (sim_start_us + wall_us).saturating_sub(served.now_us()) / PERIOD_US
+                match (sim_start_us + wall_us).checked_sub(served.next_tick_us()) {
+                    Some(behind_us) => behind_us / PERIOD_US + 1,
+                    None => 0,
+                }
             }
         };
         served.advance_ticks(ticks);

@@ -1,30 +1,48 @@
 //! The twin itself: the real firmware (link, device, controller, AS5048A and G2 drivers, the
-//! shared control tick) wired to fake peripherals that speak the chips' protocols, stepped in
-//! lock-step with the [`Plant`], deterministic for a seed.
+//! shared control tick) wired to fake peripherals that speak the chips' protocols, in lock-step
+//! with the [`Plant`], deterministic for a seed.
 //!
-//! Time is simulated: [`Twin::tick`] advances one 1 ms control period. Served on a serial port
-//! ([`crate::serve()`]), simulated time runs ahead of the host by at most [`MAX_LEAD_MS`] past
-//! its last request — much faster than real time, yet a host that keeps polling never looks
-//! silent to the device's watchdog — or follows the wall clock in real-time mode.
+//! # Time
+//!
+//! Time is simulated, on the core's clock ([`Twin::now_us`]): [`Twin::tick`] runs the next
+//! control tick when the core gets to it ([`crate::timing`]: the board's ticker, jitter, late
+//! ticks), and the plant integrates the time in between with the bridge held as the firmware
+//! last left it. Link work moves the core's clock on as the board's loop does: each frame from
+//! the host costs `frame_cost_us`, and a request that erases or writes flash stalls the core for
+//! the whole operation (`flash_erase_ms` a sector, `flash_write_ms` a page): no tick runs
+//! meanwhile, the plant keeps moving. (The store erases a sector only when its pages are full:
+//! on the twin's four sectors, a fresh flash's 319th save is the first to erase.) A stall that reaches the watchdog timeout resets the chip
+//! in the middle of it, the flash operation under way left torn, and the twin reboots (flash
+//! kept, state lost); the host gets no answer. With its own frames, the host sends a burst of
+//! `host_burst_frames` status requests every `host_burst_period_ms`, through a link of their own,
+//! so that their answers never reach the real client and its retry memory is not disturbed; they
+//! cost core time like any frame.
+//!
+//! Served on a serial port ([`crate::serve()`]), simulated time runs ahead of the host by at most
+//! [`MAX_LEAD_MS`] past its last answer — much faster than real time, yet a host that keeps
+//! polling never looks silent to the device's watchdog — or follows the wall clock in real-time
+//! mode.
 
 use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 
 use crate::options::{InjectedFault, TwinOptions};
 use crate::plant::{Bridge, Plant};
+use crate::timing::{HostBursts, TickClock};
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
-use kerfmeter_firmware::config_store::FlashConfigStore;
+use kerfmeter_firmware::board::partition::{ConfigStorage, OpenedConfig, open_config_partition};
+use kerfmeter_firmware::config_store::ConfigSource;
 use kerfmeter_firmware::controller::PERIOD_US;
 use kerfmeter_firmware::device::Device;
 use kerfmeter_firmware::fakes::as5048a::{FakeAs5048a, MisoFault};
-use kerfmeter_firmware::fakes::flash::RamFlash;
+use kerfmeter_firmware::fakes::flash::{FlashClock, RamFlash};
 use kerfmeter_firmware::fakes::pins::{FakeInput, FakeOutput, FakePwm};
 use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_firmware::hardware::Hardware;
 use kerfmeter_firmware::link::{Handler, Link};
 use kerfmeter_firmware::motor::G2Motor;
 
-/// How far simulated time may run past the host's last request, ms.
+/// How far simulated time may run past the host's last answered request, ms.
 pub const MAX_LEAD_MS: u64 = 100;
 /// When a mid-run fault strikes, ms after the run started.
 pub const FAULT_AT_MS: u64 = 200;
@@ -35,11 +53,27 @@ pub const PARITY_ERROR_EVERY_FRAMES: u32 = 40;
 /// seed gives do not depend on how many ticks (each drawing current noise from the main stream)
 /// passed before each run: host timing decides that, and must not decide the gauges.
 const GAUGE_STREAM: u64 = 0x6761_7567_6573_0000;
+/// Mixed into the seed of the stream that draws tick jitter and late ticks (see
+/// [`GAUGE_STREAM`]).
+const TIMING_STREAM: u64 = 0x7469_6d69_6e67_0000;
+/// Mixed into the seed of the stream that draws a torn flash operation's bytes.
+const FLASH_STREAM: u64 = 0x666c_6173_6800_0000;
 
 /// Flash reserved for the configuration store (four 4 KiB sectors).
 const FLASH_PAGES: usize = 4;
+/// The configuration store's range of the flash.
+const FLASH_RANGE: core::ops::Range<u32> = 0..FLASH_PAGES as u32 * RamFlash::PAGE;
 
 type TwinHardware = Hardware<FakeAs5048a, FakePwm, FakeOutput, FakeOutput, FakeInput>;
+/// The device, with its configuration kept as the board keeps it.
+pub type TwinDevice = Device<ConfigStorage<RamFlash>>;
+
+/// The bridge at rest: what the driver's constructor leaves.
+const SAFE_BRIDGE: Bridge = Bridge {
+    duty: 0.0,
+    direction: 1.0,
+    awake: false,
+};
 
 /// The twin: firmware, fake peripherals and plant.
 pub struct Twin {
@@ -53,8 +87,16 @@ pub struct Twin {
     dir: FakeOutput,
     slp: FakeOutput,
     flt: FakeInput,
-    device: Device<FlashConfigStore<RamFlash>>,
+    device: TwinDevice,
     link: Link,
+    /// The link the bursts of the other host go through.
+    burst_link: Link,
+    bursts: HostBursts,
+    ticks: TickClock,
+    flash: FlashClock,
+    /// The bridge as the firmware last left it: the plant runs with it until the next tick.
+    bridge: Bridge,
+    /// The core's clock; the plant has run until it.
     now_us: u64,
     last_request_us: u64,
     run_started_us: Option<u64>,
@@ -67,7 +109,13 @@ pub struct Twin {
 impl Twin {
     /// Boot a twin.
     pub fn new(options: TwinOptions) -> Self {
-        Self::boot(options, RamFlash::new(FLASH_PAGES), 0)
+        let p = &options.plant;
+        let flash = RamFlash::new(FLASH_PAGES).with_clock(FlashClock::new(
+            (p.flash_erase_ms * 1000.0).round() as u64,
+            (p.flash_write_ms * 1000.0).round() as u64,
+            options.seed ^ FLASH_STREAM,
+        ));
+        Self::boot(options, flash, 0, 0)
     }
 
     /// Boot a twin that records its runs' truths in `truths` (shared with the caller).
@@ -78,8 +126,11 @@ impl Twin {
         }
     }
 
-    fn boot(options: TwinOptions, flash: RamFlash, boots: u32) -> Self {
-        let mut rng = Rng::new(options.seed ^ (u64::from(boots) << 32));
+    /// Boot the firmware at `now_us` on `flash` (its `boots`-th boot), as the board boots: the
+    /// configuration opened under the board's partition policy. Boot time is not simulated.
+    fn boot(options: TwinOptions, flash: RamFlash, boots: u32, now_us: u64) -> Self {
+        let stream = |mix: u64| options.seed ^ mix ^ (u64::from(boots) << 32);
+        let mut rng = Rng::new(stream(0));
         let boot_id = rng.next_u64() as u32;
         // Safe state first: the driver's constructor drives the pins safe.
         let (pwm, dir, slp, flt) = (
@@ -91,10 +142,15 @@ impl Twin {
         let (motor, _) = G2Motor::new(pwm.clone(), dir.clone(), slp.clone(), flt.clone());
         let mut chip = FakeAs5048a::new(rng.next_u64());
         chip.set_noise_lsb(options.plant.encoder_noise_lsb as f32);
-        let mut store = FlashConfigStore::new(flash, 0..FLASH_PAGES as u32 * RamFlash::PAGE);
-        let (config, source) = embassy_futures::block_on(store.load());
-        let encoder = As5048a::new(chip, EncoderSettings::from_config(&config));
-        let device = Device::with_config("twin", boot_id, config, source, store);
+        let (opened, flash_clock) = open_config(flash);
+        let encoder = As5048a::new(chip, EncoderSettings::from_config(&opened.config));
+        let device = Device::with_config(
+            "twin",
+            boot_id,
+            opened.config,
+            opened.source,
+            opened.storage,
+        );
         let mut plant = Plant::new(options.plant, options.gauge, options.kerf_um);
         match options.fault {
             Some(InjectedFault::NoInset) => plant.set_inset_present(false),
@@ -102,7 +158,9 @@ impl Twin {
             _ => {}
         }
         Self {
-            gauge_rng: Rng::new(options.seed ^ GAUGE_STREAM ^ (u64::from(boots) << 32)),
+            gauge_rng: Rng::new(stream(GAUGE_STREAM)),
+            ticks: TickClock::new(&options.plant, stream(TIMING_STREAM), now_us),
+            bursts: HostBursts::new(&options.plant, now_us),
             options,
             rng,
             plant,
@@ -113,8 +171,11 @@ impl Twin {
             flt,
             device,
             link: Link::new(),
-            now_us: 0,
-            last_request_us: 0,
+            burst_link: Link::new(),
+            flash: flash_clock,
+            bridge: SAFE_BRIDGE,
+            now_us,
+            last_request_us: now_us,
             run_started_us: None,
             fault_struck: false,
             over_current: false,
@@ -124,37 +185,54 @@ impl Twin {
     }
 
     /// Power-cycle the device: new boot id, state lost, flash (configuration) kept, hub where it
-    /// stands.
+    /// stands; the other host keeps its rhythm.
     pub fn reboot(&mut self) {
-        let flash = core::mem::replace(
+        let storage = core::mem::replace(
             &mut self.device,
             Device::with_config(
                 "twin",
                 0,
                 DeviceConfig::DEFAULT,
-                kerfmeter_firmware::config_store::ConfigSource::Missing,
-                FlashConfigStore::new(
-                    RamFlash::new(FLASH_PAGES),
-                    0..FLASH_PAGES as u32 * RamFlash::PAGE,
-                ),
+                ConfigSource::Missing,
+                ConfigStorage::RamOnly,
             ),
         )
-        .into_store()
-        .release();
+        .into_store();
+        let flash = match storage {
+            ConfigStorage::Flash(store) => store.release(),
+            // The RAM flash reads and erases at boot unless its power is cut, and it is on then:
+            // every twin keeps its flash.
+            ConfigStorage::RamOnly => unreachable!("the twin's flash always opens"),
+        };
         let plant = self.plant.clone();
-        let now = self.now_us;
+        let bursts = self.bursts.clone();
         let truths = self.truths.clone();
         truths.clear();
-        *self = Self::boot(self.options, flash, self.boots + 1);
+        *self = Self::boot(self.options, flash, self.boots + 1, self.now_us);
         self.plant = plant;
+        self.bursts = bursts;
         self.truths = truths;
-        self.now_us = now;
-        self.last_request_us = now;
     }
 
-    /// Simulated time, µs.
+    /// How many times the device rebooted ([`reboot`](Self::reboot) or its watchdog).
+    pub fn reboots(&self) -> u32 {
+        self.boots
+    }
+
+    /// The flash's clock: its erases and writes so far (for checks).
+    pub fn flash(&self) -> &FlashClock {
+        &self.flash
+    }
+
+    /// Simulated time on the core's clock, µs: the last tick, or the end of the link work
+    /// (frames, flash stalls) after it. The plant has run until it.
     pub fn now_us(&self) -> u64 {
         self.now_us
+    }
+
+    /// When the next control tick will run, µs (later if more link work comes first).
+    pub fn next_tick_us(&self) -> u64 {
+        self.ticks.next_tick_us(self.now_us)
     }
 
     /// The plant (for checks).
@@ -163,7 +241,7 @@ impl Twin {
     }
 
     /// The device (for checks).
-    pub fn device(&self) -> &Device<FlashConfigStore<RamFlash>> {
+    pub fn device(&self) -> &TwinDevice {
         &self.device
     }
 
@@ -189,25 +267,72 @@ impl Twin {
             && !matches!(self.device.controller().run_state(), RunState::Fault(_))
     }
 
-    /// Bytes from the host: handled by the firmware's link; responses go to `transmit`.
-    pub fn receive(&mut self, bytes: &[u8], transmit: impl FnMut(&[u8])) {
+    /// Bytes from the host: handled by the firmware's link; responses go to `transmit` — none if
+    /// the device reset before it could send them (its watchdog, during a flash stall).
+    pub fn receive(&mut self, bytes: &[u8], mut transmit: impl FnMut(&[u8])) {
         if self.host_muted() {
             return;
         }
-        self.with_handler(|handler, link| {
-            link.receive(bytes, handler, transmit);
+        self.host_bursts();
+        let mut out = Vec::new();
+        let answered = self.serve_host(Sender::Client, |handler, link| {
+            link.receive(bytes, handler, |frame| out.push(frame.to_vec()));
         });
+        if answered.is_some() {
+            out.iter().for_each(|frame| transmit(frame));
+        }
     }
 
-    /// A request without framing (in-process tests).
+    /// A request without framing (in-process tests), costing one frame's link work.
+    ///
+    /// # Panics
+    ///
+    /// If the device resets before answering (see [`try_request`](Self::try_request)).
     pub fn request(&mut self, request: &Request) -> Response {
-        self.with_handler(|handler, _| handler.handle(request))
+        self.try_request(request)
+            .expect("the device's watchdog reset it before it answered")
     }
 
-    /// Host traffic goes through the twin's handler (which acts out how the device is used);
-    /// a `ClearFault` among it repairs the injected fault afterwards.
-    fn with_handler<R>(&mut self, serve: impl FnOnce(&mut TwinHandler<'_>, &mut Link) -> R) -> R {
-        self.last_request_us = self.now_us;
+    /// A request without framing; `None` when the device reset before answering (its watchdog
+    /// fired during a flash stall) and rebooted.
+    pub fn try_request(&mut self, request: &Request) -> Option<Response> {
+        self.host_bursts();
+        self.serve_host(Sender::Client, |handler, _| handler.handle(request))
+    }
+
+    /// The host's burst due by now, if any, through a link of its own (its answers discarded,
+    /// the client's retry memory untouched), in the same pass of link work as the client's
+    /// frames it goes with.
+    fn host_bursts(&mut self) {
+        let bytes = self.bursts.take_due(self.now_us);
+        if !bytes.is_empty() {
+            self.serve_host(Sender::Burst, |handler, link| {
+                link.receive(&bytes, handler, |_| {});
+            });
+        }
+    }
+
+    /// Host traffic goes through the twin's handler (which acts out how the device is used) on
+    /// the sender's link, on the core's clock: each frame costs link work, flash operations
+    /// stall the core, and a stall that reaches the watchdog resets the device (`None`: no
+    /// answer). A `ClearFault` among it repairs the injected fault afterwards.
+    fn serve_host<R>(
+        &mut self,
+        sender: Sender,
+        serve: impl FnOnce(&mut TwinHandler<'_>, &mut Link) -> R,
+    ) -> Option<R> {
+        let link = match sender {
+            Sender::Client => &mut self.link,
+            Sender::Burst => &mut self.burst_link,
+        };
+        let frames_before = frames_seen(link);
+        let mut core = CoreWork {
+            now_us: self.now_us,
+            deadline_us: self.ticks.watchdog_deadline_us(),
+            frame_cost_us: self.options.plant.frame_cost_us.round() as u64,
+            handled: 0,
+            reset: false,
+        };
         let mut repair = false;
         let result = serve(
             &mut TwinHandler {
@@ -218,17 +343,32 @@ impl Twin {
                 run_started: &mut self.run_started_us,
                 truths: &self.truths,
                 repair: &mut repair,
-                now_us: self.now_us,
+                flash: &self.flash,
+                core: &mut core,
             },
-            &mut self.link,
+            link,
         );
+        // Frames that never reached the handler (retries answered from memory, broken frames)
+        // cost link work too.
+        let unhandled = (frames_seen(link) - frames_before).saturating_sub(core.handled);
+        core.now_us += u64::from(unhandled) * core.frame_cost_us;
+        if core.reset || core.now_us >= core.deadline_us {
+            self.advance_to(core.deadline_us);
+            self.reboot();
+            return None;
+        }
+        self.advance_to(core.now_us);
+        if sender == Sender::Client {
+            self.last_request_us = self.now_us;
+        }
         if repair {
             self.repair();
         }
-        result
+        Some(result)
     }
 
-    /// Ticks the twin may run before it must wait for the host (lock-step mode).
+    /// Ticks the twin may run before it must wait for the host (lock-step mode): those that
+    /// start before [`MAX_LEAD_MS`] past the host's last answer.
     pub fn lead_ticks(&self) -> u64 {
         let limit = self.last_request_us + MAX_LEAD_MS * 1000;
         let host_silent =
@@ -236,11 +376,25 @@ impl Twin {
         if host_silent {
             return u64::MAX;
         }
-        limit.saturating_sub(self.now_us) / PERIOD_US
+        match limit.checked_sub(self.next_tick_us()) {
+            Some(lead_us) if lead_us > 0 => (lead_us - 1) / PERIOD_US + 1,
+            _ => 0,
+        }
     }
 
-    /// One 1 ms control period: sensors → firmware tick → motor → physics.
+    /// Run the plant until `t_us` with the bridge held; the core's clock moves there.
+    fn advance_to(&mut self, t_us: u64) {
+        if t_us > self.now_us {
+            self.plant.run_us(&self.bridge, t_us - self.now_us);
+            self.now_us = t_us;
+        }
+    }
+
+    /// The next control tick, when the core gets to it: the plant runs until then, then
+    /// sensors → firmware tick (feeding the watchdog) → bridge.
     pub fn tick(&mut self) {
+        let tick_us = self.ticks.start_tick(self.now_us);
+        self.advance_to(tick_us);
         self.strike_faults();
         let cw = self.plant.hub_cw_deg();
         self.hardware.encoder.bus_mut().set_angle_deg(cw);
@@ -254,24 +408,33 @@ impl Twin {
             .hardware
             .tick(self.now_us, Some(current.max(0.0) as f32), &mut self.device);
         debug_assert_eq!(out.is_safe(), self.motor_safe());
-        let clockwise = self.dir.is_high();
-        let cw_sign = if clockwise { 1.0 } else { -1.0 };
+        self.bridge = self.bridge_inputs();
+    }
+
+    /// The bridge's inputs as the pins hold them, in the jam frame.
+    fn bridge_inputs(&self) -> Bridge {
+        let cw_sign = if self.dir.is_high() { 1.0 } else { -1.0 };
         let jam_sign = match self.options.gauge.jam_direction {
             kerfmeter_protocol::JamDirection::Clockwise => 1.0,
             kerfmeter_protocol::JamDirection::CounterClockwise => -1.0,
         };
-        let bridge = Bridge {
+        Bridge {
             duty: f64::from(self.pwm.duty()),
             direction: cw_sign * jam_sign,
             awake: self.slp.is_high(),
-        };
-        self.plant.tick(&bridge);
-        self.now_us += PERIOD_US;
+        }
     }
 
     /// Run `n` ticks.
     pub fn advance_ticks(&mut self, n: u64) {
         for _ in 0..n {
+            self.tick();
+        }
+    }
+
+    /// Run every tick that starts by `t_us` (real-time pacing).
+    pub fn advance_until(&mut self, t_us: u64) {
+        while self.next_tick_us() <= t_us {
             self.tick();
         }
     }
@@ -320,23 +483,85 @@ impl Twin {
     }
 }
 
+/// The configuration, opened on `flash` as the board opens it at boot, the flash powered on
+/// again; and the flash's clock. The time the flash takes here is not counted: boot time is not
+/// simulated, and the watchdog is not running yet.
+fn open_config(flash: RamFlash) -> (OpenedConfig<RamFlash>, FlashClock) {
+    let clock = flash.clock().clone();
+    clock.power_on();
+    let opened = embassy_futures::block_on(open_config_partition(flash, FLASH_RANGE));
+    clock.take_spent_us();
+    (opened, clock)
+}
+
+/// Who sends host traffic.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sender {
+    /// The real client (a test, or the host on the serial port).
+    Client,
+    /// The other host's bursts.
+    Burst,
+}
+
+/// Frames a link has taken so far, intact or not.
+fn frames_seen(link: &Link) -> u32 {
+    let frames = link.stats().frames;
+    frames.frames_ok + frames.frames_dropped
+}
+
+/// The core's clock during one pass of link work.
+struct CoreWork {
+    now_us: u64,
+    /// When the watchdog resets the chip.
+    deadline_us: u64,
+    frame_cost_us: u64,
+    /// Requests handed to the handler.
+    handled: u32,
+    /// The watchdog fired: nothing after it happens.
+    reset: bool,
+}
+
 /// The device as the link sees it inside the twin, acting out how the device is used: a freshly
 /// cut gauge is under the prongs when a run starts; the prongs are out of it (the head has moved
-/// on) for a reset or a self-test.
+/// on) for a reset or a self-test. Each request costs a frame's link work and stalls the core
+/// for the flash operations it does.
 struct TwinHandler<'a> {
-    device: &'a mut Device<FlashConfigStore<RamFlash>>,
+    device: &'a mut TwinDevice,
     plant: &'a mut Plant,
     gauge_rng: &'a mut Rng,
     options: &'a TwinOptions,
     run_started: &'a mut Option<u64>,
     truths: &'a TruthLog,
     repair: &'a mut bool,
-    now_us: u64,
+    flash: &'a FlashClock,
+    core: &'a mut CoreWork,
+}
+
+impl TwinHandler<'_> {
+    /// The device handles `request` on the core's clock; `None` if its watchdog reset it first.
+    fn timed(&mut self, request: &Request) -> Option<Response> {
+        let core = &mut *self.core;
+        if core.reset {
+            return None;
+        }
+        core.handled += 1;
+        core.now_us += core.frame_cost_us;
+        self.flash
+            .set_budget_us(Some(core.deadline_us.saturating_sub(core.now_us)));
+        let response = self.device.handle(request);
+        core.now_us += self.flash.take_spent_us();
+        self.flash.set_budget_us(None);
+        core.reset = self.flash.is_cut() || core.now_us >= core.deadline_us;
+        (!core.reset).then_some(response)
+    }
 }
 
 impl Handler for TwinHandler<'_> {
     fn handle(&mut self, request: &Request) -> Response {
-        let response = self.device.handle(request);
+        // After a watchdog reset the answer is never sent: any will do.
+        let Some(response) = self.timed(request) else {
+            return Response::Ok;
+        };
         if response != Response::Ok {
             return response;
         }
@@ -350,7 +575,7 @@ impl Handler for TwinHandler<'_> {
                 if self.options.fault == Some(InjectedFault::NoInset) {
                     self.plant.lift_prongs();
                 }
-                *self.run_started = Some(self.now_us);
+                *self.run_started = Some(self.core.now_us);
             }
             // The head has moved away from the last gauge: the prongs turn freely back to zero.
             Request::Reset | Request::SelfTest => self.plant.lift_prongs(),

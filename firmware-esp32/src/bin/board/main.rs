@@ -77,6 +77,7 @@ use kerfmeter_firmware::{
         motor::{LineLevels, motor_lines},
         partition::{OpenedConfig, open_config_partition},
     },
+    build::WATCHDOG_TIMEOUT_MS,
     config_store::ConfigSource,
     controller::PERIOD_US,
     device::Device,
@@ -87,9 +88,10 @@ use kerfmeter_protocol::{MAX_RESPONSE_FRAME_LEN, heapless};
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
-/// Hardware watchdog timeout: a control loop stalled this long resets the chip. It also bounds
-/// a configuration write (a flash sector erase takes tens of ms, a few hundred at worst).
-const WATCHDOG_TIMEOUT: esp_hal::time::Duration = esp_hal::time::Duration::from_millis(500);
+/// Hardware watchdog timeout ([`WATCHDOG_TIMEOUT_MS`], shared with the twin): a control loop
+/// stalled this long resets the chip.
+const WATCHDOG_TIMEOUT: esp_hal::time::Duration =
+    esp_hal::time::Duration::from_millis(WATCHDOG_TIMEOUT_MS);
 /// How long response bytes may wait for the host to read before they are dropped (the host
 /// retries, and the link answers the retry from memory).
 const LINK_WRITE_TIMEOUT: Duration = Duration::from_millis(100);

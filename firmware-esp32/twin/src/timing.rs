@@ -1,0 +1,278 @@
+//! When things happen on the twin's core: the control ticks as the board's ticker and interrupt
+//! latency place them, the watchdog they feed, and a host that sends bursts of frames.
+//!
+//! # The board's loop, as the twin times it
+//!
+//! The board's control task runs one loop: the control tick, feeding the watchdog, then the
+//! link's work on every frame received since (each frame costs `frame_cost_us` of core time;
+//! a `SetConfig` also erases and writes flash, stalling the core for the whole operation). Then
+//! it waits for its embassy `Ticker`:
+//!
+//! - the next tick is due one period after this one was due; a tick due in the past runs at
+//!   once (the ticker catches up);
+//! - but if this iteration (tick and link work) took longer than a period, the ticker restarts
+//!   from the end of the work (`ticker.reset()`): the next tick comes a full period later.
+//!
+//! Each tick then runs at its due time plus a jitter (Gaussian, SD `tick_jitter_us`) and, at a
+//! Poisson rate of `late_ticks_per_s`, `late_tick_ms` late; never before the core is free of the
+//! previous iteration's work, and never before the previous tick. These draws come from their
+//! own seeded stream, drawn once per tick, so that they shuffle no other draw and a host's
+//! timing does not change them.
+//!
+//! The watchdog ([`WATCHDOG_TIMEOUT_MS`], the board's) is fed by every tick, and from boot. Core
+//! work that reaches it (a flash erase of 600 ms) resets the chip at that instant.
+
+use kerfmeter_firmware::build::WATCHDOG_TIMEOUT_MS;
+use kerfmeter_firmware::controller::PERIOD_US;
+use kerfmeter_firmware::fakes::rng::Rng;
+use kerfmeter_protocol::{Envelope, MAX_REQUEST_FRAME_LEN, Request, encode_frame};
+
+use crate::plant::PlantParams;
+
+/// The control ticks' times and the watchdog of one boot of the core.
+#[derive(Debug, Clone)]
+pub struct TickClock {
+    rng: Rng,
+    jitter_sd_us: f64,
+    late_per_tick: f64,
+    late_us: u64,
+    boot_us: u64,
+    /// When the last tick was due and when it ran (none before the first).
+    last: Option<(u64, u64)>,
+    /// The next tick's offset from its due time (jitter plus lateness), drawn in advance.
+    offset_us: i64,
+}
+
+impl TickClock {
+    /// The clock of a core booted at `boot_us`, drawing from `seed`.
+    pub fn new(params: &PlantParams, seed: u64, boot_us: u64) -> Self {
+        let period_s = PERIOD_US as f64 * 1e-6;
+        let mut clock = Self {
+            rng: Rng::new(seed),
+            jitter_sd_us: params.tick_jitter_us,
+            // A Poisson process seen once per period.
+            late_per_tick: 1.0 - (-params.late_ticks_per_s * period_s).exp(),
+            late_us: (params.late_tick_ms * 1000.0).round() as u64,
+            boot_us,
+            last: None,
+            offset_us: 0,
+        };
+        clock.offset_us = clock.draw_offset_us();
+        clock
+    }
+
+    fn draw_offset_us(&mut self) -> i64 {
+        let jitter = f64::from(self.rng.normal()) * self.jitter_sd_us;
+        let late = if self.rng.uniform() < self.late_per_tick {
+            self.late_us
+        } else {
+            0
+        };
+        jitter.round() as i64 + late as i64
+    }
+
+    /// When the next tick is due by the ticker, the core having worked until `core_us`.
+    fn next_due_us(&self, core_us: u64) -> u64 {
+        match self.last {
+            None => self.boot_us,
+            Some((_, ran_us)) if core_us.saturating_sub(ran_us) > PERIOD_US => core_us + PERIOD_US,
+            Some((due_us, _)) => due_us + PERIOD_US,
+        }
+    }
+
+    /// When the next tick runs, the core having worked until `core_us`.
+    pub fn next_tick_us(&self, core_us: u64) -> u64 {
+        let due = self.next_due_us(core_us);
+        let earliest = match self.last {
+            None => core_us,
+            Some((_, ran_us)) => core_us.max(ran_us + 1),
+        };
+        due.saturating_add_signed(self.offset_us).max(earliest)
+    }
+
+    /// Run the next tick (the core having worked until `core_us`): its time. It feeds the
+    /// watchdog.
+    pub fn start_tick(&mut self, core_us: u64) -> u64 {
+        let due = self.next_due_us(core_us);
+        let ran = self.next_tick_us(core_us);
+        self.last = Some((due, ran));
+        self.offset_us = self.draw_offset_us();
+        ran
+    }
+
+    /// When the watchdog resets the chip unless a tick feeds it first.
+    pub fn watchdog_deadline_us(&self) -> u64 {
+        let fed_us = self.last.map_or(self.boot_us, |(_, ran_us)| ran_us);
+        fed_us + WATCHDOG_TIMEOUT_MS * 1000
+    }
+}
+
+/// A host that sends, along with its own traffic, a burst of `host_burst_frames` extra status
+/// requests every `host_burst_period_ms` (a GUI refreshing, a second tool polling): the burst
+/// due goes out with the host's next frames. A host that sends nothing sends no bursts either
+/// (a silent host stays silent), and bursts missed meanwhile are not sent late.
+#[derive(Debug, Clone)]
+pub struct HostBursts {
+    frames: u32,
+    period_us: u64,
+    next_us: u64,
+    seq: u16,
+}
+
+impl HostBursts {
+    /// Bursts as `params` set them, the first one period after `start_us`.
+    pub fn new(params: &PlantParams, start_us: u64) -> Self {
+        let period_us = (params.host_burst_period_ms * 1000.0).round().max(1.0) as u64;
+        Self {
+            frames: params.host_burst_frames.round() as u32,
+            period_us,
+            next_us: start_us + period_us,
+            seq: 0,
+        }
+    }
+
+    /// The framed requests of the burst due by `now_us`, if one is (empty otherwise). Each
+    /// request has a new `seq`, so that the link hands every one to the device.
+    pub fn take_due(&mut self, now_us: u64) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        if self.next_us > now_us {
+            return bytes;
+        }
+        let missed = (now_us - self.next_us) / self.period_us;
+        self.next_us += (missed + 1) * self.period_us;
+        let mut buf = [0u8; MAX_REQUEST_FRAME_LEN];
+        for _ in 0..self.frames {
+            self.seq = self.seq.wrapping_add(1);
+            let request = Envelope {
+                seq: self.seq,
+                body: Request::GetStatus,
+            };
+            let frame = encode_frame(&request, &mut buf).expect("a status request fits");
+            bytes.extend_from_slice(frame);
+        }
+        bytes
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params(set: &[&str]) -> PlantParams {
+        let mut p = PlantParams::default();
+        for s in set {
+            p.assign(s).unwrap();
+        }
+        p
+    }
+
+    /// Tick times of an idle core (no link work).
+    fn tick_times(p: &PlantParams, n: usize) -> Vec<u64> {
+        let mut clock = TickClock::new(p, 3, 0);
+        let mut core_us = 0;
+        (0..n)
+            .map(|_| {
+                core_us = clock.start_tick(core_us);
+                core_us
+            })
+            .collect()
+    }
+
+    #[test]
+    fn without_jitter_or_late_ticks_ticks_come_every_period() {
+        let p = params(&["tick_jitter_us=0", "late_ticks_per_s=0"]);
+        let times = tick_times(&p, 100);
+        assert!(
+            times
+                .iter()
+                .enumerate()
+                .all(|(i, &t)| t == i as u64 * PERIOD_US)
+        );
+    }
+
+    #[test]
+    fn ticks_jitter_around_their_due_time_with_the_set_spread() {
+        let p = params(&["tick_jitter_us=40", "late_ticks_per_s=0"]);
+        let times = tick_times(&p, 20_000);
+        let offsets: Vec<f64> = times
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| t as f64 - (i as u64 * PERIOD_US) as f64)
+            .collect();
+        let n = offsets.len() as f64;
+        let mean = offsets.iter().sum::<f64>() / n;
+        let sd = (offsets.iter().map(|o| (o - mean).powi(2)).sum::<f64>() / n).sqrt();
+        assert!(mean.abs() < 2.0, "mean offset {mean} µs");
+        assert!((sd - 40.0).abs() < 2.0, "SD {sd} µs");
+        assert!(
+            times.windows(2).all(|w| w[1] > w[0]),
+            "never before the last"
+        );
+    }
+
+    #[test]
+    fn late_ticks_come_at_the_set_rate_and_lateness() {
+        let p = params(&["tick_jitter_us=0", "late_ticks_per_s=20", "late_tick_ms=5"]);
+        let times = tick_times(&p, 100_000);
+        // A late tick shows as a gap of a period plus the lateness; the ticker then catches up.
+        let late = times
+            .windows(2)
+            .filter(|w| w[1] - w[0] == PERIOD_US + 5000)
+            .count();
+        // 100 s at 20 per second: 2000 (Poisson SD 45).
+        assert!((1800..2200).contains(&late), "{late} late ticks");
+        let last = *times.last().unwrap();
+        assert!(last <= 99_999 * PERIOD_US + 5000, "caught up: {last}");
+    }
+
+    #[test]
+    fn link_work_longer_than_a_period_restarts_the_ticker_after_it() {
+        let p = params(&["tick_jitter_us=0", "late_ticks_per_s=0"]);
+        let mut clock = TickClock::new(&p, 3, 0);
+        let t0 = clock.start_tick(0);
+        // 400 µs of work: the next tick keeps its schedule.
+        assert_eq!(clock.next_tick_us(t0 + 400), t0 + PERIOD_US);
+        // 1.5 ms of work: the tick that was due waits for the core...
+        // ...and the ticker restarts a period after the work.
+        assert_eq!(clock.next_tick_us(t0 + 1500), t0 + 1500 + PERIOD_US);
+        assert_eq!(clock.start_tick(t0 + 1500), t0 + 2500);
+        assert_eq!(clock.start_tick(t0 + 2500), t0 + 3500);
+    }
+
+    #[test]
+    fn the_watchdog_is_fed_by_each_tick() {
+        let p = params(&[]);
+        let mut clock = TickClock::new(&p, 3, 7_000);
+        assert_eq!(
+            clock.watchdog_deadline_us(),
+            7_000 + WATCHDOG_TIMEOUT_MS * 1000
+        );
+        let t = clock.start_tick(7_000);
+        assert_eq!(clock.watchdog_deadline_us(), t + WATCHDOG_TIMEOUT_MS * 1000);
+    }
+
+    #[test]
+    fn bursts_come_every_period_as_framed_status_requests() {
+        let p = params(&["host_burst_frames=3", "host_burst_period_ms=200"]);
+        let mut bursts = HostBursts::new(&p, 0);
+        assert!(bursts.take_due(199_999).is_empty());
+        let bytes = bursts.take_due(200_000);
+        let mut deframer = kerfmeter_protocol::Deframer::<MAX_REQUEST_FRAME_LEN>::new();
+        let mut input = &bytes[..];
+        let mut seqs = Vec::new();
+        while let kerfmeter_protocol::Feed::Frame { result, rest } =
+            deframer.feed::<Envelope<Request>>(input)
+        {
+            let request = result.unwrap();
+            assert_eq!(request.body, Request::GetStatus);
+            seqs.push(request.seq);
+            input = rest;
+        }
+        assert_eq!(seqs, [1, 2, 3]);
+        assert!(bursts.take_due(399_999).is_empty());
+        // A host quiet from 400 to 1000 ms sends one burst at 1000 ms, not four.
+        assert_eq!(bursts.take_due(1_000_000).len(), bytes.len());
+        assert!(bursts.take_due(1_199_999).is_empty());
+        assert!(!bursts.take_due(1_200_000).is_empty());
+    }
+}

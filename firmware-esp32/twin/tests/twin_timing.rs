@@ -1,0 +1,342 @@
+//! The twin's timing against the real firmware: jittered and late ticks, link work per frame,
+//! another host's bursts, flash operations that stall the core, and the watchdog that resets it
+//! mid-erase.
+
+use kerfmeter_firmware::build::WATCHDOG_TIMEOUT_MS;
+use kerfmeter_firmware::controller::PERIOD_US;
+use kerfmeter_protocol::{DeviceConfig, Fault, KerfResult, Request, Response, RunParams, RunState};
+use kerfmeter_twin::sim::MAX_LEAD_MS;
+use kerfmeter_twin::{Twin, TwinOptions};
+
+/// A twin with the plant parameters `set` (`NAME=VALUE`), a few ticks after boot.
+fn twin(set: &[&str]) -> Twin {
+    let mut options = TwinOptions {
+        kerf_um: 150.0,
+        seed: 11,
+        ..TwinOptions::default()
+    };
+    for assignment in set {
+        options.plant.assign(assignment).unwrap();
+    }
+    let mut t = Twin::new(options);
+    t.advance_ticks(5);
+    t
+}
+
+/// The times of the next `n` ticks.
+fn tick_times(t: &mut Twin, n: usize) -> Vec<u64> {
+    (0..n)
+        .map(|_| {
+            let at = t.next_tick_us();
+            t.tick();
+            at
+        })
+        .collect()
+}
+
+/// Run one measurement, polling like a host every 10 ms; the run's end or its fault.
+fn measure(t: &mut Twin) -> Result<KerfResult, Fault> {
+    assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+    for _ in 0..3000 {
+        t.advance_ticks(10);
+        let Response::Status(s) = t.request(&Request::GetStatus) else {
+            panic!("no status");
+        };
+        match s.state {
+            RunState::Done => match t.request(&Request::GetKerf) {
+                Response::Kerf(Some(k)) => return Ok(k),
+                other => panic!("no result after Done: {other:?}"),
+            },
+            RunState::Fault(f) => return Err(f),
+            _ => {}
+        }
+    }
+    panic!("the run neither finished nor faulted in 30 s");
+}
+
+/// A configuration told apart by `n`.
+fn config(n: u32) -> DeviceConfig {
+    DeviceConfig {
+        encoder_zero_raw: (n % 10_000) as u16 + 1,
+        ..DeviceConfig::DEFAULT
+    }
+}
+
+/// What saving configurations one after the other (two ticks apart) came to, at the first
+/// save that erased a flash sector.
+struct EraseSave {
+    /// The last configuration saved and answered before it.
+    stored: DeviceConfig,
+    /// The configuration it was saving.
+    saving: DeviceConfig,
+    /// Its answer (none: the watchdog reset the device).
+    answer: Option<Response>,
+    started_us: u64,
+    ended_us: u64,
+}
+
+/// Save configurations until one erases a sector (the store fills its pages first).
+fn save_until_an_erase(t: &mut Twin) -> EraseSave {
+    let mut stored = DeviceConfig::DEFAULT;
+    for n in 0..1000 {
+        let saving = config(n);
+        let (started_us, erases) = (t.now_us(), t.flash().erases());
+        let answer = t.try_request(&Request::SetConfig(saving));
+        if t.flash().erases() > erases || answer.is_none() {
+            return EraseSave {
+                stored,
+                saving,
+                answer,
+                started_us,
+                ended_us: t.now_us(),
+            };
+        }
+        assert!(matches!(answer, Some(Response::Config(_))), "{answer:?}");
+        stored = saving;
+        t.advance_ticks(2);
+    }
+    panic!("1000 saves and no erase");
+}
+
+fn stored_config(t: &mut Twin) -> (DeviceConfig, bool) {
+    match t.request(&Request::GetConfig) {
+        Response::Config(report) => (report.config, report.defaults_in_use),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn ticks_arrive_with_the_configured_jitter() {
+    let mut t = twin(&[
+        "tick_jitter_us=60",
+        "late_ticks_per_s=0",
+        "host_burst_frames=0",
+    ]);
+    let times = tick_times(&mut t, 5000);
+    // Ticks are due on the period's grid from boot.
+    let first_due = (times[0] + PERIOD_US / 2) / PERIOD_US * PERIOD_US;
+    let offsets: Vec<f64> = (0..times.len())
+        .map(|i| times[i] as f64 - (first_due + i as u64 * PERIOD_US) as f64)
+        .collect();
+    let n = offsets.len() as f64;
+    let mean = offsets.iter().sum::<f64>() / n;
+    let sd = (offsets.iter().map(|o| (o - mean).powi(2)).sum::<f64>() / n).sqrt();
+    assert!(mean.abs() < 5.0, "mean {mean:.1} µs");
+    assert!((sd - 60.0).abs() < 4.0, "SD {sd:.1} µs");
+    assert!(times.windows(2).all(|w| w[1] > w[0]));
+    assert_eq!(
+        t.now_us(),
+        *times.last().unwrap(),
+        "the core sits at the last tick"
+    );
+}
+
+#[test]
+fn a_late_tick_over_three_periods_faults_a_run_with_the_motor_safe() {
+    // 5 ms late: 6 ms between two steps, over the firmware's 3 periods. At 20 per second one
+    // comes within the first few hundred ms of the run.
+    let mut t = twin(&["late_ticks_per_s=20", "late_tick_ms=5"]);
+    assert_eq!(measure(&mut t), Err(Fault::StepOverrun));
+    assert!(t.motor_safe());
+    // 1.5 ms late (the default lateness) stays within 3 periods: the same rate does no harm.
+    let mut t = twin(&["late_ticks_per_s=20", "late_tick_ms=1.5"]);
+    measure(&mut t).unwrap();
+}
+
+#[test]
+fn frames_cost_core_time_and_a_burst_delays_the_next_tick() {
+    let quiet = ["tick_jitter_us=0", "late_ticks_per_s=0"];
+    // The client's own frames: each one costs its link work.
+    let mut t = twin(&[
+        quiet[0],
+        quiet[1],
+        "host_burst_frames=0",
+        "frame_cost_us=80",
+    ]);
+    let before = t.now_us();
+    t.request(&Request::GetStatus);
+    assert_eq!(t.now_us() - before, 80);
+
+    // A host polling after every tick, with a burst of 10 more frames every 200 ms: the one
+    // after the tick at 200 ms is 11 frames of 150 µs, longer than a period, so the board's
+    // ticker restarts a period after the work.
+    let heavy = [
+        quiet[0],
+        quiet[1],
+        "host_burst_frames=10",
+        "frame_cost_us=150",
+    ];
+    let gaps = |t: &mut Twin| -> Vec<(u64, u64)> {
+        let times: Vec<u64> = (0..300)
+            .map(|_| {
+                let at = t.next_tick_us();
+                t.tick();
+                t.request(&Request::GetStatus);
+                at
+            })
+            .collect();
+        times
+            .windows(2)
+            .filter(|w| w[1] - w[0] != PERIOD_US)
+            .map(|w| (w[0], w[1] - w[0]))
+            .collect()
+    };
+    assert_eq!(gaps(&mut twin(&heavy)), [(200_000, 11 * 150 + PERIOD_US)]);
+    // The default burst (6 × 60 µs, plus the poll) fits within the period: no tick moves.
+    assert_eq!(gaps(&mut twin(&quiet)), []);
+}
+
+#[test]
+#[ignore = "known failure, issue 12: link work per tick is unbounded, a burst of frames (3 ms of link work) overruns the step"]
+fn a_burst_of_host_frames_does_not_fault_a_run() {
+    let mut t = twin(&[
+        "host_burst_frames=30",
+        "frame_cost_us=100",
+        "host_burst_period_ms=100",
+    ]);
+    measure(&mut t).unwrap();
+}
+
+#[test]
+fn a_flash_erase_stalls_the_core_and_the_status_is_answered_late() {
+    let mut t = twin(&[]);
+    let save = save_until_an_erase(&mut t);
+    assert!(
+        matches!(save.answer, Some(Response::Config(_))),
+        "a 400 ms erase fits the watchdog: {:?}",
+        save.answer
+    );
+    let stall_us = save.ended_us - save.started_us;
+    assert!(
+        (400_000..WATCHDOG_TIMEOUT_MS * 1000).contains(&stall_us),
+        "stalled {stall_us} µs"
+    );
+    // The poll that follows is answered after the stall; no tick ran meanwhile, and the next
+    // one comes a period after the stall (the board's ticker restarts).
+    assert!(matches!(
+        t.request(&Request::GetStatus),
+        Response::Status(_)
+    ));
+    assert!(t.now_us() >= save.started_us + 400_000);
+    assert!(t.next_tick_us() >= save.ended_us + PERIOD_US - 200);
+    // The lock-step lead counts from the answer, not from before the stall.
+    assert!(t.lead_ticks() >= 98, "{}", t.lead_ticks());
+    assert_eq!(stored_config(&mut t), (save.saving, false));
+    assert_eq!(t.reboots(), 0);
+}
+
+#[test]
+fn the_plant_keeps_moving_through_a_flash_stall() {
+    // Slow page writes: a save stalls the core for tens of ms.
+    let mut t = twin(&["flash_write_ms=10"]);
+    assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+    t.advance_ticks(150);
+    assert!(t.plant().hub_deg_per_s().abs() > 1.0, "the hub turns");
+    // Abort and save in the same pass of link work, before a tick puts the bridge safe.
+    assert_eq!(t.request(&Request::Abort), Response::Ok);
+    let (hub_deg, started_us) = (t.plant().hub_deg(), t.now_us());
+    assert!(matches!(
+        t.request(&Request::SetConfig(config(1))),
+        Response::Config(_)
+    ));
+    let stall_us = t.now_us() - started_us;
+    assert!(stall_us >= 10_000, "stalled {stall_us} µs");
+    let moved_deg = t.plant().hub_deg() - hub_deg;
+    // About 80 °/s for 30 ms: the hub went on turning with the bridge held.
+    assert!(
+        moved_deg.abs() > 0.5,
+        "the hub moved {moved_deg}° during the stall"
+    );
+    assert!(
+        t.next_tick_us() > t.now_us(),
+        "no tick ran during the stall"
+    );
+}
+
+#[test]
+#[ignore = "known failure, issue 12: a save right after Abort stalls the core before any tick puts the bridge safe, so the motor is driven through the flash stall"]
+fn a_save_right_after_abort_does_not_drive_the_motor_through_the_stall() {
+    let mut t = twin(&[]);
+    assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+    t.advance_ticks(150);
+    assert_eq!(t.request(&Request::Abort), Response::Ok);
+    t.request(&Request::SetConfig(config(1)));
+    assert!(t.motor_safe(), "driven through the save's stall");
+}
+
+#[test]
+fn a_watchdog_reset_mid_erase_keeps_the_stored_calibration() {
+    // An erase longer than the watchdog: the device resets in the middle of it, the sector torn.
+    let mut t = twin(&["flash_erase_ms=600"]);
+    let boot_id = |t: &mut Twin| match t.request(&Request::GetInfo) {
+        Response::Info(info) => info.boot_id,
+        other => panic!("{other:?}"),
+    };
+    let first_boot = boot_id(&mut t);
+    let save = save_until_an_erase(&mut t);
+    assert_eq!(save.answer, None, "no answer: the device reset");
+    assert_eq!(t.reboots(), 1);
+    assert_ne!(boot_id(&mut t), first_boot);
+    // Reset at the watchdog timeout, counted from the tick just before (less the link work
+    // done since that tick).
+    let stall_us = save.ended_us - save.started_us;
+    assert!(
+        (WATCHDOG_TIMEOUT_MS * 1000 - 1000..=WATCHDOG_TIMEOUT_MS * 1000).contains(&stall_us),
+        "reset after {stall_us} µs"
+    );
+    t.advance_ticks(5);
+    // "Never lose a stored calibration": the last configuration saved is still in use.
+    assert_eq!(stored_config(&mut t), (save.stored, false));
+    // And the flash works again: a new save (its repair done at boot) persists.
+    assert!(matches!(
+        t.request(&Request::SetConfig(save.saving)),
+        Response::Config(_)
+    ));
+    t.reboot();
+    assert_eq!(stored_config(&mut t), (save.saving, false));
+}
+
+#[test]
+#[ignore = "known failure, issue 12: the 500 ms watchdog is neither fed nor lengthened around a flash erase, so a slow erase resets the device mid-save"]
+fn a_save_on_a_slow_flash_is_answered_without_a_reset() {
+    let mut t = twin(&["flash_erase_ms=600"]);
+    let save = save_until_an_erase(&mut t);
+    assert!(
+        matches!(save.answer, Some(Response::Config(_))),
+        "{:?}",
+        save.answer
+    );
+    assert_eq!(t.reboots(), 0);
+}
+
+#[test]
+fn in_lock_step_the_twin_leads_the_host_by_the_set_time_whatever_the_tick_times() {
+    // Large jitter and frequent late ticks: the serve loop runs batches of lead ticks, each
+    // counted again after the last, until the next tick would start past the lead.
+    let mut t = twin(&[
+        "tick_jitter_us=300",
+        "late_ticks_per_s=20",
+        "late_tick_ms=2",
+    ]);
+    for _ in 0..20 {
+        t.request(&Request::GetStatus);
+        let limit_us = t.now_us() + MAX_LEAD_MS * 1000;
+        let mut ran = 0;
+        loop {
+            let lead = t.lead_ticks().min(50);
+            if lead == 0 {
+                break;
+            }
+            t.advance_ticks(lead);
+            ran += lead;
+        }
+        assert!((95..=101).contains(&ran), "{ran} ticks");
+        assert!(t.next_tick_us() >= limit_us);
+        // The last tick started within a tick's spread of the limit.
+        assert!(
+            t.now_us() < limit_us + 2 * 1000,
+            "{} vs {limit_us}",
+            t.now_us()
+        );
+    }
+}
