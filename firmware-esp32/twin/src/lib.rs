@@ -42,6 +42,7 @@
 //! non-linearity, magnet eccentricity and register writes; the inset's inertia; a non-linear
 //! contact; holes displaced by the cutter's repeatability, off-centre prongs and kerf taper.
 
+pub mod encoder;
 pub mod options;
 pub mod plant;
 pub mod pty;

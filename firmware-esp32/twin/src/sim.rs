@@ -9,8 +9,9 @@
 
 use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 
+use crate::encoder::EncoderErrors;
 use crate::options::{InjectedFault, TwinOptions};
-use crate::plant::{Bridge, Plant};
+use crate::plant::{Bridge, Cutter, Plant};
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
 use kerfmeter_firmware::config_store::FlashConfigStore;
@@ -31,7 +32,7 @@ pub const FAULT_AT_MS: u64 = 200;
 /// Every this many encoder frames, one response is corrupted (`parity` fault).
 pub const PARITY_ERROR_EVERY_FRAMES: u32 = 40;
 
-/// Mixed into the seed of the random stream that draws each gauge's kerf, so that the gauges a
+/// Mixed into the seed of the random stream that draws each gauge's cut, so that the gauges a
 /// seed gives do not depend on how many ticks (each drawing current noise from the main stream)
 /// passed before each run: host timing decides that, and must not decide the gauges.
 const GAUGE_STREAM: u64 = 0x6761_7567_6573_0000;
@@ -45,8 +46,12 @@ type TwinHardware = Hardware<FakeAs5048a, FakePwm, FakeOutput, FakeOutput, FakeI
 pub struct Twin {
     options: TwinOptions,
     rng: Rng,
-    /// Draws each gauge's kerf (see [`GAUGE_STREAM`]).
+    /// Draws each gauge's cut (see [`GAUGE_STREAM`]).
     gauge_rng: Rng,
+    /// Cuts each gauge, at this twin's place on the bed.
+    cutter: Cutter,
+    /// This twin's encoder chip's and magnet's angle errors.
+    encoder_errors: EncoderErrors,
     plant: Plant,
     hardware: TwinHardware,
     pwm: FakePwm,
@@ -103,6 +108,13 @@ impl Twin {
         }
         Self {
             gauge_rng: Rng::new(options.seed ^ GAUGE_STREAM ^ (u64::from(boots) << 32)),
+            cutter: Cutter::for_twin(
+                options.plant,
+                options.kerf_um,
+                options.kerf_sd_um,
+                options.seed,
+            ),
+            encoder_errors: EncoderErrors::for_twin(&options.plant, options.seed),
             options,
             rng,
             plant,
@@ -214,6 +226,7 @@ impl Twin {
                 device: &mut self.device,
                 plant: &mut self.plant,
                 gauge_rng: &mut self.gauge_rng,
+                cutter: &self.cutter,
                 options: &self.options,
                 run_started: &mut self.run_started_us,
                 truths: &self.truths,
@@ -242,7 +255,7 @@ impl Twin {
     /// One 1 ms control period: sensors → firmware tick → motor → physics.
     pub fn tick(&mut self) {
         self.strike_faults();
-        let cw = self.plant.hub_cw_deg();
+        let cw = self.encoder_errors.measured_deg(self.plant.hub_cw_deg());
         self.hardware.encoder.bus_mut().set_angle_deg(cw);
         let current = if self.over_current {
             30.0
@@ -327,6 +340,7 @@ struct TwinHandler<'a> {
     device: &'a mut Device<FlashConfigStore<RamFlash>>,
     plant: &'a mut Plant,
     gauge_rng: &'a mut Rng,
+    cutter: &'a Cutter,
     options: &'a TwinOptions,
     run_started: &'a mut Option<u64>,
     truths: &'a TruthLog,
@@ -342,9 +356,7 @@ impl Handler for TwinHandler<'_> {
         }
         match request {
             Request::Run(params) => {
-                let kerf = self.options.kerf_um
-                    + f64::from(self.gauge_rng.normal()) * self.options.kerf_sd_um;
-                self.plant.place_gauge(kerf.max(0.0));
+                self.plant.place_gauge(self.cutter.cut(self.gauge_rng));
                 let run_id = self.device.controller().run_id();
                 self.truths.record(run_id, self.plant.truth_um(params));
                 if self.options.fault == Some(InjectedFault::NoInset) {
