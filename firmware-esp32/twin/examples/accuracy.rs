@@ -1,10 +1,13 @@
 //! The twin's accuracy table (`cargo xtask accuracy`): the real firmware measuring simulated
 //! gauges across kerf 50–430 µm and stock 3–6 mm, many seeds per point, default noise.
 //!
-//! For every run the truth is the kerf an ideal device reports for a jam at the torque this one
-//! reported: the gauge's geometric kerf plus the contact's compression at that force
-//! (`Plant::kerf_at_torque_um`). Beside the corrected error, the table shows the error of the
-//! uncorrected reading c·θm, which ignores the hole play.
+//! Every run is a new twin (seed): its own encoder errors, cutter location bias and gauge cut
+//! (displaced holes, off-centre prongs, taper, drawn stiffness and μ), at the plant's defaults.
+//! For every run the truth is the one the twin recorded when it placed the gauge
+//! (`Plant::truth_um`): the kerf an ideal device reads on that gauge at the force the run asked
+//! for, so the error is what the device adds. Beside it, the table shows the error of the
+//! uncorrected reading c·θm, which ignores the hole play, and the compression (truth minus the
+//! mid-sheet kerf).
 //!
 //! Usage: `accuracy [--seeds N] [--quick]` (prints a table; exits non-zero if a point misses the
 //! targets |mean error| ≤ 1 µm and SD ≤ 2 µm, or if any run failed).
@@ -55,10 +58,12 @@ fn measure(kerf_um: f64, thickness_mm: f32, seed: u64) -> Result<Run, String> {
                 let Response::Kerf(Some(result)) = twin.request(&Request::GetKerf) else {
                     return Err("Done without a result".into());
                 };
+                let truth_um = twin
+                    .truths()
+                    .truth_um(result.run_id)
+                    .ok_or("no truth recorded for the run")?;
                 return Ok(Run {
-                    truth_um: twin
-                        .plant()
-                        .kerf_at_torque_um(f64::from(result.torque_at_jam_nm)),
+                    truth_um,
                     geometric_um: twin.plant().kerf_um(),
                     sim_ms: (twin.now_us() - start) / 1000,
                     result,

@@ -66,6 +66,9 @@
 //! from this gauge alone; the hole displacements and prong offsets (errors the device's play
 //! correction makes) and the encoder's errors are not part of it.
 
+use core::cell::Cell;
+use core::f64::consts::PI;
+
 use kerfmeter_protocol::spiral::{pitch_mm_per_rad, torque_for_force_nm};
 use kerfmeter_protocol::{GaugeGeometry, RunParams};
 
@@ -74,8 +77,6 @@ use super::cut::GaugeCut;
 
 /// Slack in the prong–hole coupling test, rad.
 const COUPLING_EPS: f64 = 1e-9;
-/// Most iterations of the drag's fixed point (each shrinks the error by |d|/R, under 0.01).
-const DRAG_ITERATIONS: usize = 6;
 /// Iterations of the truth's fixed point (the target torque's weak dependence on the angle).
 const TRUTH_ITERATIONS: usize = 20;
 
@@ -94,6 +95,9 @@ pub(super) struct Gauge {
     pub(super) inset_present: bool,
     pub(super) coupled: bool,
     pub(super) inset_rad: f64,
+    /// The last play computed each way (forward, backward), and the inset's angle it was
+    /// computed at.
+    play_cache: Cell<[Option<(f64, f64)>; 2]>,
 }
 
 impl Gauge {
@@ -105,6 +109,7 @@ impl Gauge {
             inset_present: true,
             coupled: true,
             inset_rad: 0.0,
+            play_cache: Cell::new([None; 2]),
         }
     }
 
@@ -132,7 +137,7 @@ impl Gauge {
     /// Prong `i`'s offset from its hole's centre with the hub in line with the inset, m:
     /// (radial, tangential) in the hole's frame at the inset's current angle.
     fn prong_offset_m(&self, i: usize) -> (f64, f64) {
-        let hole_at = core::f64::consts::PI * i as f64 + self.inset_rad;
+        let hole_at = PI * i as f64 + self.inset_rad;
         let [dx, dy] = self.cut.hub_offset_um;
         let [delta_r, delta_t] = self.cut.hole_offset_um[i];
         let (sin, cos) = hole_at.sin_cos();
@@ -152,16 +157,59 @@ impl Gauge {
         let psi = a.atan2(b);
         let s = ((c - a) / a.hypot(b)).clamp(-1.0, 1.0).asin();
         let forward = psi + s;
-        let backward = core::f64::consts::PI - psi + s;
+        let backward = PI - psi + s;
         (forward, backward)
     }
 
-    /// The hub's play beyond the inset, (forward, backward), rad: the first prong to touch its
-    /// hole's face either way decides.
+    /// The hub's play beyond the inset, (forward, backward), rad.
     pub(super) fn play_rad(&self) -> (f64, f64) {
-        let (f0, b0) = self.prong_play_rad(0);
-        let (f1, b1) = self.prong_play_rad(1);
-        (f0.min(f1), b0.min(b1))
+        (self.side_play_rad(true), self.side_play_rad(false))
+    }
+
+    /// The hub's play beyond the inset forward or backward, rad: the first prong to touch its
+    /// hole's face that way decides. Kept for the inset's angle it was computed at: the plant
+    /// asks for it several times per sub-step, and the inset stands still for most of them.
+    fn side_play_rad(&self, forward: bool) -> f64 {
+        let side = usize::from(!forward);
+        let mut cache = self.play_cache.get();
+        if let Some((at_rad, play)) = cache[side]
+            && at_rad == self.inset_rad
+        {
+            return play;
+        }
+        let pick = |(f, b): (f64, f64)| if forward { f } else { b };
+        let play = pick(self.prong_play_rad(0)).min(pick(self.prong_play_rad(1)));
+        cache[side] = Some((self.inset_rad, play));
+        self.play_cache.set(cache);
+        play
+    }
+
+    /// The inset's angle at which prong `i`, with the hub at `hub_rad`, touches its hole's
+    /// forward face (`forward`) or its backward one, rad. On the table, the hole's centre turns
+    /// with the inset on a circle of radius R' about the gauge's centre, and the prong's centre p
+    /// is fixed by the hub: |p − R'·u(β + θs)| = ρ gives cos(β + θs − ∠p) = (|p|² + R'² − ρ²) /
+    /// (2·R'·|p|), the hole behind the prong when it pushes forward, ahead of it backward.
+    fn inset_touching_rad(&self, i: usize, hub_rad: f64, forward: bool) -> f64 {
+        let radius = f64::from(self.geometry.hole_distance_mm) * 1e-3;
+        let rho = self.hole_clearance_m();
+        let prong_at = PI * i as f64;
+        let [delta_r, delta_t] = self.cut.hole_offset_um[i];
+        let (hole_r, hole_t) = (radius + delta_r * 1e-6, delta_t * 1e-6);
+        let hole_radius = (hole_r * hole_r + hole_t * hole_t).sqrt();
+        let hole_at = prong_at + hole_t.atan2(hole_r);
+        let [dx, dy] = self.cut.hub_offset_um;
+        let (sin, cos) = (prong_at + hub_rad).sin_cos();
+        let (px, py) = (dx * 1e-6 + radius * cos, dy * 1e-6 + radius * sin);
+        let prong_radius = (px * px + py * py).sqrt();
+        let q = (prong_radius * prong_radius + hole_radius * hole_radius - rho * rho)
+            / (2.0 * hole_radius * prong_radius);
+        let centre_rad = wrap_pi(py.atan2(px) - hole_at - hub_rad) + hub_rad;
+        let apart_rad = q.clamp(-1.0, 1.0).acos();
+        if forward {
+            centre_rad - apart_rad
+        } else {
+            centre_rad + apart_rad
+        }
     }
 
     /// μ·r of the spiral contact, m.
@@ -210,15 +258,17 @@ impl Gauge {
     }
 
     /// Whether a prong presses the inset forward (jam direction) and backward with the hub at
-    /// `hub_rad`.
+    /// `hub_rad` (only the side the hub stands on can be pressed).
     fn pressing(&self, hub_rad: f64) -> (bool, bool) {
-        let (forward, backward) = self.play_rad();
+        if !(self.inset_present && self.coupled) {
+            return (false, false);
+        }
         let rel = hub_rad - self.inset_rad;
-        let dragging = self.inset_present && self.coupled;
-        (
-            dragging && rel >= forward - COUPLING_EPS,
-            dragging && rel <= -backward + COUPLING_EPS,
-        )
+        if rel >= 0.0 {
+            (rel >= self.side_play_rad(true) - COUPLING_EPS, false)
+        } else {
+            (false, rel <= -self.side_play_rad(false) + COUPLING_EPS)
+        }
     }
 
     /// The inset's resistance seen at the hub at `hub_rad`, forward and backward. The spiral is
@@ -246,36 +296,30 @@ impl Gauge {
     }
 
     /// The hub has moved to `hub_rad`: a prong at a side of its hole drags the inset along, to
-    /// where the prong touches its face. The play there depends (weakly, by |d|/R per radian)
-    /// on that very angle when the hub stands off the gauge's centre: solved by a fixed point,
-    /// each step shrinking the error by that factor, so that the prong is left exactly at its
-    /// face and keeps pressing.
+    /// where the prong touches its face (the first prong to touch decides: pushed forward, the
+    /// inset ends up as far as the further-ahead of the two places; pulled back, the other way).
     pub(super) fn drag(&mut self, hub_rad: f64) {
         if !(self.inset_present && self.coupled) {
             return;
         }
-        let (forward, backward) = self.play_rad();
         let rel = hub_rad - self.inset_rad;
-        let forward_side = if rel > forward {
-            true
-        } else if rel < -backward {
-            false
-        } else {
+        let forward = rel >= 0.0;
+        if rel.abs() <= self.side_play_rad(forward) {
             return;
-        };
-        for _ in 0..DRAG_ITERATIONS {
-            let (forward, backward) = self.play_rad();
-            let next = if forward_side {
-                hub_rad - forward
-            } else {
-                hub_rad + backward
-            };
-            let step = (next - self.inset_rad).abs();
-            self.inset_rad = next;
-            if step < COUPLING_EPS / 10.0 {
-                return;
-            }
         }
+        let (at_0, at_1) = (
+            self.inset_touching_rad(0, hub_rad, forward),
+            self.inset_touching_rad(1, hub_rad, forward),
+        );
+        self.inset_rad = if forward {
+            at_0.max(at_1)
+        } else {
+            at_0.min(at_1)
+        };
+        // The prong that decided now touches its face: that side's play is known.
+        let mut cache = self.play_cache.get();
+        cache[usize::from(!forward)] = Some((self.inset_rad, (hub_rad - self.inset_rad).abs()));
+        self.play_cache.set(cache);
     }
 
     /// The closure c·θs, m, at which the inset holds still under `torque_nm` pressing forward at
@@ -304,6 +348,11 @@ impl Gauge {
     pub(super) fn kerf_at_torque_um(&self, torque_nm: f64) -> f64 {
         self.closure_at_torque_m(torque_nm) * 1e6
     }
+}
+
+/// `angle_rad` brought into (−π, π].
+fn wrap_pi(angle_rad: f64) -> f64 {
+    PI - (PI - angle_rad).rem_euclid(2.0 * PI)
 }
 
 #[cfg(test)]
@@ -381,6 +430,26 @@ mod tests {
         // That is 4 µm tangentially, less a little: the 6.9 µm now radial tilts the chord.
         let shift_um = (nominal.0 - forward) * R_M * 1e6;
         assert!(shift_um > 3.5 && shift_um < 4.0, "{shift_um}");
+    }
+
+    #[test]
+    fn a_dragged_inset_is_left_with_the_prong_at_its_face_either_way() {
+        let mut cut = straight(150.0);
+        cut.hole_offset_um = [[6.0, -9.0], [-4.0, 3.0]];
+        cut.hub_offset_um = [7.0, -5.0];
+        let mut g = gauge(cut);
+        for hub_deg in [10.0f64, 20.0, 47.5, 90.0, 140.0] {
+            g.drag(hub_deg.to_radians());
+            let rel = hub_deg.to_radians() - g.inset_rad;
+            assert!((rel - g.play_rad().0).abs() < 1e-12, "{hub_deg}°: {rel}");
+            assert!(g.pressing(hub_deg.to_radians()).0);
+        }
+        for hub_deg in [120.0f64, 60.0, 0.0] {
+            g.drag(hub_deg.to_radians());
+            let rel = hub_deg.to_radians() - g.inset_rad;
+            assert!((rel + g.play_rad().1).abs() < 1e-12, "{hub_deg}°: {rel}");
+            assert!(g.pressing(hub_deg.to_radians()).1);
+        }
     }
 
     #[test]
