@@ -59,7 +59,7 @@ fn the_reference_gauge_reads_its_kerf_and_the_curve_is_physical() {
         .meter
         .run_kerfmeter(&b.params, |p| progress.push(*p))
         .unwrap();
-    let expected = b.expected_kerf_um(result.torque_at_jam_nm);
+    let expected = b.expected_kerf_um(&result);
     let error = f64::from(result.kerf_um) - expected;
     eprintln!(
         "reference gauge: {:.2} µm, expected {expected:.2} µm, error {error:+.2} µm",
@@ -132,10 +132,7 @@ fn abort_mid_ramp_stops_the_motor_and_the_next_run_works() {
     assert_eq!(status.torque_nm, 0.0);
     b.meter.reset_kerfmeter().unwrap();
     let result = b.meter.run_kerfmeter(&b.params, |_| {}).unwrap();
-    assert!(
-        (f64::from(result.kerf_um) - b.expected_kerf_um(result.torque_at_jam_nm)).abs()
-            <= b.tolerance_um
-    );
+    assert!((f64::from(result.kerf_um) - b.expected_kerf_um(&result)).abs() <= b.tolerance_um);
 }
 
 #[test]
@@ -191,10 +188,7 @@ fn every_injectable_fault_is_typed_safe_and_recoverable() {
             .meter
             .run_kerfmeter(&b.params, |_| {})
             .unwrap_or_else(|e| panic!("{fault}: no recovery: {e}"));
-        assert!(
-            (f64::from(result.kerf_um) - b.expected_kerf_um(result.torque_at_jam_nm)).abs()
-                <= b.tolerance_um
-        );
+        assert!((f64::from(result.kerf_um) - b.expected_kerf_um(&result)).abs() <= b.tolerance_um);
         eprintln!("HIL fault-{fault} twin ran");
     }
 }
@@ -322,7 +316,7 @@ fn soak_runs_do_not_drift() {
             .meter
             .run_kerfmeter(&b.params, |_| {})
             .unwrap_or_else(|e| panic!("run {i}: {e}"));
-        errors.push(f64::from(r.kerf_um) - b.expected_kerf_um(r.torque_at_jam_nm));
+        errors.push(f64::from(r.kerf_um) - b.expected_kerf_um(&r));
     }
     let window = (runs / 10).max(1);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
