@@ -9,13 +9,16 @@
 //! uncorrected reading c·θm, which ignores the hole play, and the compression (truth minus the
 //! mid-sheet kerf).
 //!
-//! Usage: `accuracy [--seeds N] [--quick]` (prints a table; exits non-zero if a point misses the
-//! targets |mean error| ≤ 1 µm and SD ≤ 2 µm, or if any run failed).
+//! Usage: `accuracy [--seeds N] [--quick] [--plant NAME=VALUE]...` (prints a table; exits
+//! non-zero if a point misses the targets |mean error| ≤ 1 µm and SD ≤ 2 µm, or if any run
+//! failed). `--plant` sets a plant parameter for every run (e.g. `--plant kerf_taper_um=0` to
+//! see what the taper alone costs).
 
 use std::time::Instant;
 
 use kerfmeter_protocol::spiral::uncorrected_kerf_um;
 use kerfmeter_protocol::{GaugeGeometry, KerfResult, Request, Response, RunParams, RunState};
+use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{Twin, TwinOptions};
 
 /// Target: |mean error| at every point, µm.
@@ -30,10 +33,11 @@ struct Run {
     sim_ms: u64,
 }
 
-fn measure(kerf_um: f64, thickness_mm: f32, seed: u64) -> Result<Run, String> {
+fn measure(plant: PlantParams, kerf_um: f64, thickness_mm: f32, seed: u64) -> Result<Run, String> {
     let mut twin = Twin::new(TwinOptions {
         kerf_um,
         seed,
+        plant,
         ..TwinOptions::default()
     });
     twin.advance_ticks(5);
@@ -103,9 +107,29 @@ fn main() {
         &[3.0, 4.0, 5.0, 6.0]
     };
     let gauge = GaugeGeometry::PAPER;
+    let mut plant = PlantParams::default();
+    for (i, arg) in args.iter().enumerate() {
+        if arg == "--plant" {
+            let assignment = args.get(i + 1).map_or("", String::as_str);
+            if let Err(e) = plant.assign(assignment) {
+                eprintln!("--plant: {e}");
+                std::process::exit(2);
+            }
+        }
+    }
 
+    let changed: Vec<String> = kerfmeter_twin::plant::PARAMS
+        .iter()
+        .filter(|p| p.get(&plant) != p.default_value())
+        .map(|p| format!("{}={}", p.name, p.get(&plant)))
+        .collect();
     println!(
-        "Kerfmeter twin accuracy: {seeds} seeds per point, default noise, paper gauge, 55 N over 3 fingers"
+        "Kerfmeter twin accuracy: {seeds} seeds per point, {}, paper gauge, 55 N over 3 fingers",
+        if changed.is_empty() {
+            "default plant".to_owned()
+        } else {
+            format!("plant defaults but {}", changed.join(", "))
+        }
     );
     println!(
         "{:>7} {:>6} | {:>9} {:>8} {:>7} | {:>10} {:>9} | {:>11} | {:>7} {:>7} | flags",
@@ -139,7 +163,7 @@ fn main() {
             let mut wall_ms = 0.0;
             for seed in 0..seeds {
                 let t0 = Instant::now();
-                let outcome = measure(kerf, thickness, 1000 + seed);
+                let outcome = measure(plant, kerf, thickness, 1000 + seed);
                 let wall = t0.elapsed().as_secs_f64() * 1000.0;
                 wall_ms += wall / seeds as f64;
                 worst_wall_ms = worst_wall_ms.max(wall);
