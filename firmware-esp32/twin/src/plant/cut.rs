@@ -241,6 +241,17 @@ mod tests {
     }
 
     #[test]
+    fn a_cut_is_logged_with_every_draw() {
+        let cut = cutter(3).cut(&mut Rng::new(4));
+        let json = cut.to_json();
+        assert_eq!(json["kerf_um"], cut.kerf_um);
+        assert_eq!(json["hole_offset_um"][1][0], cut.hole_offset_um[1][0]);
+        assert_eq!(json["hub_offset_um"][1], cut.hub_offset_um[1]);
+        assert_eq!(json["mu"], cut.mu);
+        assert_eq!(json.as_object().map(|o| o.len()), Some(6));
+    }
+
+    #[test]
     fn no_spread_means_a_nominal_gauge() {
         let p = PlantParams {
             kerf_location_sd_um: 0.0,

@@ -4,8 +4,8 @@
 //! than hardware would pass firmware that a real board fails.
 //!
 //! - [`motor`](self::motor): the G2 bridge and the motor, electrically; the torque they give.
-//! - [`gauge`](self::gauge): the hole play, the spiral's gap and contact, the truth.
-//! - [`cut`](self::cut): a gauge as a real cutter cuts it ([`GaugeCut`], drawn by a [`Cutter`]):
+//! - `gauge`: the hole play, the spiral's gap and contact, the truth.
+//! - [`cut`]: a gauge as a real cutter cuts it ([`GaugeCut`], drawn by a [`Cutter`]):
 //!   the kerf's location bias and spread, its taper, displaced holes, off-centre prongs and the
 //!   contact's spread.
 //! - Here: the hub's motion with Karnopp stick–slip friction on the gearbox and the inset (the
