@@ -19,9 +19,9 @@
 //! | `KERFMETER_BENCH_THICKNESS_MM` | `thickness_mm` | the reference gauge's stock, mm | 4 |
 //! | `KERFMETER_SOAK_RUNS` | `soak_runs` | runs of the soak case | 100 |
 //!
-//! On the twin the reference gauge is cut with [`TWIN_KERF_UM`] and the tolerance is
-//! [`TWIN_TOLERANCE_UM`] against each run's truth: what an ideal device reads on the gauge the
-//! twin placed for it, at the force asked for.
+//! On the twin the reference gauge is cut with a nominal kerf of [`TWIN_KERF_UM`] (each run's
+//! gauge cut afresh, as a real cutter cuts it) and the tolerance is [`TWIN_TOLERANCE_UM`] against
+//! the run's truth: what an ideal device reads on that gauge at the force the run asked for.
 
 use std::time::Duration;
 
@@ -34,8 +34,13 @@ use serialport::SerialPort;
 pub const PORT_ENV: &str = "KERFMETER_PORT";
 /// Kerf of the twin's reference gauge, µm.
 pub const TWIN_KERF_UM: f64 = 180.0;
-/// Accepted error on the twin, µm.
-pub const TWIN_TOLERANCE_UM: f64 = 1.0;
+/// Accepted error on the twin, µm. Not 1 µm as on an ideal gauge: the twin cuts its gauges as a
+/// real cutter does, and the device cannot see what that does to its hole-play correction (the
+/// taper narrows the holes at the bottom of the sheet, displaced holes and off-centre prongs
+/// shorten the play) nor the encoder's non-linearity and magnet eccentricity. At the defaults
+/// these add 0.3–0.7 µm low on average, with an SD of about 0.4 µm and rare runs near 1.4 µm
+/// (`cargo xtask accuracy`); 2 µm keeps a soak of 100 runs meaningful without failing on them.
+pub const TWIN_TOLERANCE_UM: f64 = 2.0;
 
 /// What the cases run against.
 pub enum Target {
@@ -80,7 +85,7 @@ pub struct Bench {
     pub target: Target,
     /// The client.
     pub meter: Kerfmeter,
-    /// Kerf the reference gauge should read, µm (on the twin: its geometric kerf; see
+    /// Kerf the reference gauge should read, µm (on the twin: its nominal kerf; see
     /// [`Bench::expected_kerf_um`]).
     pub kerf_um: f64,
     /// Accepted error, µm.
@@ -194,8 +199,8 @@ impl Bench {
         })
     }
 
-    /// What the reference gauge should read for `result`: on the twin, the truth of that run (what
-    /// an ideal device reads on the gauge the twin placed for it, at the force asked for); on a
+    /// What the reference gauge should read for `result`: on the twin, that run's truth (what an
+    /// ideal device reads on the gauge the twin cut for it, at the force the run asked for); on a
     /// board, the documented kerf.
     pub fn expected_kerf_um(&self, result: &KerfResult) -> f64 {
         match &self.target {

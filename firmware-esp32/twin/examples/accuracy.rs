@@ -1,18 +1,24 @@
 //! The twin's accuracy table (`cargo xtask accuracy`): the real firmware measuring simulated
 //! gauges across kerf 50–430 µm and stock 3–6 mm, many seeds per point, default noise.
 //!
-//! For every run the truth is the kerf an ideal device reports for a jam at the torque this one
-//! reported: the gauge's geometric kerf plus the contact's compression at that force
-//! (`Plant::kerf_at_torque_um`). Beside the corrected error, the table shows the error of the
-//! uncorrected reading c·θm, which ignores the hole play.
+//! Every run is a new twin (seed): its own encoder errors, cutter location bias and gauge cut
+//! (displaced holes, off-centre prongs, taper, drawn stiffness and μ), at the plant's defaults.
+//! For every run the truth is the one the twin recorded when it placed the gauge
+//! (`Plant::truth_um`): the kerf an ideal device reads on that gauge at the force the run asked
+//! for, so the error is what the device adds. Beside it, the table shows the error of the
+//! uncorrected reading c·θm, which ignores the hole play, and the compression (truth minus the
+//! mid-sheet kerf).
 //!
-//! Usage: `accuracy [--seeds N] [--quick]` (prints a table; exits non-zero if a point misses the
-//! targets |mean error| ≤ 1 µm and SD ≤ 2 µm, or if any run failed).
+//! Usage: `accuracy [--seeds N] [--quick] [--plant NAME=VALUE]...` (prints a table; exits
+//! non-zero if a point misses the targets |mean error| ≤ 1 µm and SD ≤ 2 µm, or if any run
+//! failed). `--plant` sets a plant parameter for every run (e.g. `--plant kerf_taper_um=0` to
+//! see what the taper alone costs).
 
 use std::time::Instant;
 
 use kerfmeter_protocol::spiral::uncorrected_kerf_um;
 use kerfmeter_protocol::{GaugeGeometry, KerfResult, Request, Response, RunParams, RunState};
+use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{Twin, TwinOptions};
 
 /// Target: |mean error| at every point, µm.
@@ -27,10 +33,11 @@ struct Run {
     sim_ms: u64,
 }
 
-fn measure(kerf_um: f64, thickness_mm: f32, seed: u64) -> Result<Run, String> {
+fn measure(plant: PlantParams, kerf_um: f64, thickness_mm: f32, seed: u64) -> Result<Run, String> {
     let mut twin = Twin::new(TwinOptions {
         kerf_um,
         seed,
+        plant,
         ..TwinOptions::default()
     });
     twin.advance_ticks(5);
@@ -55,10 +62,12 @@ fn measure(kerf_um: f64, thickness_mm: f32, seed: u64) -> Result<Run, String> {
                 let Response::Kerf(Some(result)) = twin.request(&Request::GetKerf) else {
                     return Err("Done without a result".into());
                 };
+                let truth_um = twin
+                    .truths()
+                    .truth_um(result.run_id)
+                    .ok_or("no truth recorded for the run")?;
                 return Ok(Run {
-                    truth_um: twin
-                        .plant()
-                        .kerf_at_torque_um(f64::from(result.torque_at_jam_nm)),
+                    truth_um,
                     geometric_um: twin.plant().kerf_um(),
                     sim_ms: (twin.now_us() - start) / 1000,
                     result,
@@ -98,9 +107,29 @@ fn main() {
         &[3.0, 4.0, 5.0, 6.0]
     };
     let gauge = GaugeGeometry::PAPER;
+    let mut plant = PlantParams::default();
+    for (i, arg) in args.iter().enumerate() {
+        if arg == "--plant" {
+            let assignment = args.get(i + 1).map_or("", String::as_str);
+            if let Err(e) = plant.assign(assignment) {
+                eprintln!("--plant: {e}");
+                std::process::exit(2);
+            }
+        }
+    }
 
+    let changed: Vec<String> = kerfmeter_twin::plant::PARAMS
+        .iter()
+        .filter(|p| p.get(&plant) != p.default_value())
+        .map(|p| format!("{}={}", p.name, p.get(&plant)))
+        .collect();
     println!(
-        "Kerfmeter twin accuracy: {seeds} seeds per point, default noise, paper gauge, 55 N over 3 fingers"
+        "Kerfmeter twin accuracy: {seeds} seeds per point, {}, paper gauge, 55 N over 3 fingers",
+        if changed.is_empty() {
+            "default plant".to_owned()
+        } else {
+            format!("plant defaults but {}", changed.join(", "))
+        }
     );
     println!(
         "{:>7} {:>6} | {:>9} {:>8} {:>7} | {:>10} {:>9} | {:>11} | {:>7} {:>7} | flags",
@@ -134,7 +163,7 @@ fn main() {
             let mut wall_ms = 0.0;
             for seed in 0..seeds {
                 let t0 = Instant::now();
-                let outcome = measure(kerf, thickness, 1000 + seed);
+                let outcome = measure(plant, kerf, thickness, 1000 + seed);
                 let wall = t0.elapsed().as_secs_f64() * 1000.0;
                 wall_ms += wall / seeds as f64;
                 worst_wall_ms = worst_wall_ms.max(wall);

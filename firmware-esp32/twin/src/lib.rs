@@ -10,6 +10,8 @@
 //! - [`timing`]: when the core runs its ticks (the board's ticker, jitter, late ticks), the
 //!   watchdog they feed, and the host's bursts of frames.
 //! - [`truth`]: [`TruthLog`], the truth of each run (what an ideal device reads on its gauge).
+//! - [`encoder`]: [`encoder::EncoderErrors`], the AS5048A's non-linearity and the magnet's
+//!   eccentricity, added to the hub's angle before the fake chip reads it.
 //! - [`pty`]: [`PtyTwin`], a twin served on a pseudo-terminal by a thread, whose client side is an
 //!   ordinary serial port.
 //! - [`study`]: many twins in-process: the robustness sweep and the paper's fit study.
@@ -22,10 +24,17 @@
 //!
 //! - The motor and G2 bridge: back-EMF, winding resistance, the driver's current limit, braking
 //!   at duty 0, coasting asleep; gearbox ratio, efficiency and stick–slip (Karnopp) friction.
-//! - The gauge: the hole play, the inset's friction on the table, the spiral's gap and a linear
-//!   contact stiffness, self-locking; a prong slipping out of its hole.
+//! - The gauge as a real cutter cuts it ([`plant::GaugeCut`], drawn per gauge from the seed): the
+//!   hole play with each hole's centre displaced by the cutter's repeatability and the hub's axis
+//!   off the gauge's centre (the head returning over it), the first prong to touch its face
+//!   dragging the inset; the inset's friction on the table; the spiral's gap with a kerf tapered
+//!   through the sheet, so that the contact spreads down the face (quadratic, then linear at the
+//!   face's stiffness), self-locking; the contact's stiffness and μ spread gauge to gauge; a
+//!   prong slipping out of its hole.
 //! - The encoder: the AS5048A's SPI protocol (parity, error flag and register, pipelined
-//!   replies), 14-bit quantisation and a few LSB of noise.
+//!   replies), its integral non-linearity (1st–3rd harmonics) and a magnet's eccentricity (a
+//!   once-per-turn error), drawn once per twin, relative to the zero the user set; 14-bit
+//!   quantisation and a few LSB of noise.
 //! - The current sense: the motor current plus Gaussian noise.
 //! - The configuration flash: NOR rules (erase to 0xFF, writes only clear bits), kept across a
 //!   reboot, opened at boot under the board's partition policy. Erases and writes take their
@@ -36,7 +45,11 @@
 //!   status requests with its own (`host_burst_frames`, `host_burst_period_ms`); the board's
 //!   watchdog, which resets the chip when a flash stall reaches it, the operation under way left
 //!   torn.
-//! - The cutter: a gauge-to-gauge Gaussian spread of the kerf.
+//! - The cutter: a bias of the kerf where this twin's gauges are cut (drawn once per twin) and a
+//!   gauge-to-gauge Gaussian spread of the kerf.
+//! - The truth of a run ([`plant::Plant::truth_um`]): the closure of the spiral at which this
+//!   gauge's contact carries the run's target torque; the holes', prongs' and encoder's errors
+//!   are the device's to correct, not part of it.
 //! - Faults, by name ([`InjectedFault`]): encoder parity errors, magnet lost, MISO stuck, no inset,
 //!   motor disconnected, driver FLT, over-current, host silent, prong slip.
 //!
@@ -51,10 +64,13 @@
 //! only in the drive phase of each PWM period, and its current chopping; supply sag, under-voltage
 //! and winding heating; the control step's own execution time (a tick takes no core time, so
 //! the ticks that catch up after a late one come at once), the chip's boot time, and the USB
-//! link's own latency and flow control; the encoder's
-//! non-linearity, magnet eccentricity and register writes; the inset's inertia; a non-linear
-//! contact; holes displaced by the cutter's repeatability, off-centre prongs and kerf taper.
+//! link's own latency and flow control; the encoder's register writes and a magnet tilted or at
+//! the wrong air gap; the inset's inertia, and its sliding within the spiral's gap before the gap
+//! closes (it turns about the gauge's centre); a hub axis tilted against the sheet; a hole out of
+//! round, or a kerf that varies around the spiral rather than through the sheet; the zero the
+//! user sets being quantised to one LSB.
 
+pub mod encoder;
 pub mod options;
 pub mod plant;
 pub mod pty;

@@ -120,7 +120,9 @@ pub const KERF_SD_RANGE_UM: RangeInclusive<f64> = 0.0..=200.0;
 /// How a twin is set up.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwinOptions {
-    /// True kerf of every gauge placed under the prongs, µm.
+    /// Nominal kerf of the gauges placed under the prongs, at mid-sheet, µm. Each gauge's true
+    /// kerf is this plus the bias of the place where this twin's gauges are cut (drawn once,
+    /// `kerf_location_sd_um`) and its own spread ([`TwinOptions::kerf_sd_um`]).
     pub kerf_um: f64,
     /// Standard deviation of the cutter's kerf from gauge to gauge, µm (0: every gauge the same).
     pub kerf_sd_um: f64,

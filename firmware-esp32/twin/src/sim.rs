@@ -25,8 +25,9 @@
 
 use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 
+use crate::encoder::EncoderErrors;
 use crate::options::{InjectedFault, TwinOptions};
-use crate::plant::{Bridge, Plant};
+use crate::plant::{Bridge, Cutter, Plant};
 use crate::timing::{HostBursts, TickClock};
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
@@ -49,7 +50,7 @@ pub const FAULT_AT_MS: u64 = 200;
 /// Every this many encoder frames, one response is corrupted (`parity` fault).
 pub const PARITY_ERROR_EVERY_FRAMES: u32 = 40;
 
-/// Mixed into the seed of the random stream that draws each gauge's kerf, so that the gauges a
+/// Mixed into the seed of the random stream that draws each gauge's cut, so that the gauges a
 /// seed gives do not depend on how many ticks (each drawing current noise from the main stream)
 /// passed before each run: host timing decides that, and must not decide the gauges.
 const GAUGE_STREAM: u64 = 0x6761_7567_6573_0000;
@@ -79,8 +80,12 @@ const SAFE_BRIDGE: Bridge = Bridge {
 pub struct Twin {
     options: TwinOptions,
     rng: Rng,
-    /// Draws each gauge's kerf (see [`GAUGE_STREAM`]).
+    /// Draws each gauge's cut (see [`GAUGE_STREAM`]).
     gauge_rng: Rng,
+    /// Cuts each gauge, at this twin's place on the bed.
+    cutter: Cutter,
+    /// This twin's encoder chip's and magnet's angle errors.
+    encoder_errors: EncoderErrors,
     plant: Plant,
     hardware: TwinHardware,
     pwm: FakePwm,
@@ -161,6 +166,13 @@ impl Twin {
             gauge_rng: Rng::new(stream(GAUGE_STREAM)),
             ticks: TickClock::new(&options.plant, stream(TIMING_STREAM), now_us),
             bursts: HostBursts::new(&options.plant, now_us),
+            cutter: Cutter::for_twin(
+                options.plant,
+                options.kerf_um,
+                options.kerf_sd_um,
+                options.seed,
+            ),
+            encoder_errors: EncoderErrors::for_twin(&options.plant, options.seed),
             options,
             rng,
             plant,
@@ -339,6 +351,7 @@ impl Twin {
                 device: &mut self.device,
                 plant: &mut self.plant,
                 gauge_rng: &mut self.gauge_rng,
+                cutter: &self.cutter,
                 options: &self.options,
                 run_started: &mut self.run_started_us,
                 truths: &self.truths,
@@ -396,7 +409,7 @@ impl Twin {
         let tick_us = self.ticks.start_tick(self.now_us);
         self.advance_to(tick_us);
         self.strike_faults();
-        let cw = self.plant.hub_cw_deg();
+        let cw = self.encoder_errors.measured_deg(self.plant.hub_cw_deg());
         self.hardware.encoder.bus_mut().set_angle_deg(cw);
         let current = if self.over_current {
             30.0
@@ -529,6 +542,7 @@ struct TwinHandler<'a> {
     device: &'a mut TwinDevice,
     plant: &'a mut Plant,
     gauge_rng: &'a mut Rng,
+    cutter: &'a Cutter,
     options: &'a TwinOptions,
     run_started: &'a mut Option<u64>,
     truths: &'a TruthLog,
@@ -567,9 +581,7 @@ impl Handler for TwinHandler<'_> {
         }
         match request {
             Request::Run(params) => {
-                let kerf = self.options.kerf_um
-                    + f64::from(self.gauge_rng.normal()) * self.options.kerf_sd_um;
-                self.plant.place_gauge(kerf.max(0.0));
+                self.plant.place_gauge(self.cutter.cut(self.gauge_rng));
                 let run_id = self.device.controller().run_id();
                 self.truths.record(run_id, self.plant.truth_um(params));
                 if self.options.fault == Some(InjectedFault::NoInset) {

@@ -2,6 +2,8 @@
 //! peripherals, physics.
 
 use kerfmeter_protocol::{Fault, KerfResult, QualityFlags, Request, Response, RunParams, RunState};
+use kerfmeter_twin::encoder::EncoderErrors;
+use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{InjectedFault, Twin, TwinOptions};
 
 /// Run one measurement, polling like a host every 10 ms; the run's end or its fault.
@@ -295,16 +297,48 @@ fn the_gauges_a_seed_gives_do_not_depend_on_host_timing() {
             .map(|_| {
                 t.advance_ticks(idle_ticks);
                 measure(&mut t, &RunParams::DEFAULT).unwrap();
-                let kerf_um = t.plant().kerf_um();
+                let cut = *t.plant().cut();
                 reset(&mut t);
-                kerf_um
+                cut
             })
             .collect::<Vec<_>>()
     };
     let quick = gauges_after_idle(5);
     assert_eq!(quick, gauges_after_idle(137));
     assert!(
-        quick[0] != quick[1],
+        quick[0].kerf_um != quick[1].kerf_um && quick[0].hole_offset_um != quick[1].hole_offset_um,
         "the spread draws distinct gauges: {quick:?}"
+    );
+}
+
+/// The device reads the hub through the encoder's non-linearity and the magnet's eccentricity,
+/// relative to the zero it was set at: at the jam its angle is off by e(θ) − e(0).
+#[test]
+fn the_device_reads_the_hub_through_the_encoders_errors() {
+    let plant = PlantParams {
+        encoder_inl_deg: 0.5,
+        magnet_offset_mm: 0.5,
+        encoder_noise_lsb: 0.0,
+        ..PlantParams::default()
+    };
+    let mut t = Twin::new(TwinOptions {
+        kerf_um: 250.0,
+        seed: 9,
+        plant,
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    let k = measure(&mut t, &RunParams::DEFAULT).unwrap();
+    let hub_deg = t.plant().hub_cw_deg();
+    let read_deg = EncoderErrors::for_twin(&plant, 9).measured_deg(hub_deg);
+    let lsb_deg = 360.0 / 16384.0;
+    assert!(
+        (read_deg - hub_deg).abs() > 5.0 * lsb_deg,
+        "the errors show at this angle: {read_deg} vs {hub_deg}"
+    );
+    assert!(
+        (f64::from(k.angle_deg) - read_deg).abs() < lsb_deg,
+        "device {} vs {read_deg} (hub at {hub_deg})",
+        k.angle_deg
     );
 }

@@ -5,18 +5,25 @@
 //!
 //! - `motor`: the G2 bridge and the motor, electrically; the torque they give.
 //! - `gauge`: the hole play, the spiral's gap and contact, the truth.
+//! - [`cut`]: a gauge as a real cutter cuts it ([`GaugeCut`], drawn by a [`Cutter`]):
+//!   the kerf's location bias and spread, its taper, displaced holes, off-centre prongs and the
+//!   contact's spread.
 //! - Here: the hub's motion with Karnopp stick–slip friction on the gearbox and the inset (the
 //!   table, plus contact friction once the gap is closed): stuck while the net torque stays
 //!   within the static level, kinetic friction while moving. Integrated in sub-steps of at most
 //!   [`SUBSTEP_US`] over whatever time passes between two control ticks ([`Plant::run_us`]).
 //!
 //! Angles are in the jam frame (positive in the gauge's jam direction), radians, from the zero
-//! position with the prongs centred in their holes.
+//! position: the hub where the device's zero is, the inset as the gauge was cut (with a perfect
+//! cut, the prongs centred in their holes).
 
+pub mod cut;
 mod gauge;
 mod motor;
 mod params;
 
+pub use cut::{Cutter, GaugeCut};
+pub use gauge::tapered_contact_force_n;
 pub use params::{Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_table};
 
 use kerfmeter_protocol::spiral::force_for_torque_n;
@@ -52,13 +59,19 @@ pub struct Plant {
 }
 
 impl Plant {
-    /// A plant with a freshly cut gauge of `gauge` geometry and true kerf `kerf_um` under the
+    /// A plant with a freshly cut nominal gauge ([`GaugeCut::nominal`]: as drawn, with the
+    /// plant's taper and mean contact) of `gauge` geometry and mid-sheet kerf `kerf_um` under the
     /// prongs, hub at zero.
     pub fn new(params: PlantParams, gauge: GaugeGeometry, kerf_um: f64) -> Self {
+        Self::with_cut(params, gauge, GaugeCut::nominal(&params, kerf_um))
+    }
+
+    /// A plant with the gauge `cut` of `gauge` geometry under the prongs, hub at zero.
+    pub fn with_cut(params: PlantParams, gauge: GaugeGeometry, cut: GaugeCut) -> Self {
         Self {
             params,
             motor: Motor::new(),
-            gauge: Gauge::new(gauge, kerf_um),
+            gauge: Gauge::new(gauge, cut),
             hub_rad: 0.0,
             hub_rad_per_s: 0.0,
         }
@@ -69,10 +82,21 @@ impl Plant {
         &self.params
     }
 
-    /// A new gauge cut with `kerf_um` under the prongs: its holes are cut at the zero position,
-    /// wherever the hub stands within the play.
-    pub fn place_gauge(&mut self, kerf_um: f64) {
-        self.gauge = Gauge::new(self.gauge.geometry, kerf_um);
+    /// A new gauge, cut as `cut` says, under the prongs: its holes are cut at the zero position
+    /// (displaced as the cut says), wherever the hub stands within the play.
+    pub fn place_gauge(&mut self, cut: GaugeCut) {
+        self.gauge = Gauge::new(self.gauge.geometry, cut);
+    }
+
+    /// How the gauge in place was cut.
+    pub fn cut(&self) -> &GaugeCut {
+        &self.gauge.cut
+    }
+
+    /// The hub's free play beyond the inset at its current angle, degrees: (forward, backward).
+    pub fn play_deg(&self) -> (f64, f64) {
+        let (forward, backward) = self.gauge.play_rad();
+        (forward.to_degrees(), backward.to_degrees())
     }
 
     /// Lift the prongs out of the gauge (the head moves away after a measurement).
@@ -80,9 +104,9 @@ impl Plant {
         self.gauge.inset_present = false;
     }
 
-    /// The true (geometric) kerf of the gauge in place.
+    /// The true (geometric) kerf of the gauge in place, at mid-sheet, µm.
     pub fn kerf_um(&self) -> f64 {
-        self.gauge.kerf_um
+        self.gauge.cut.kerf_um
     }
 
     /// Remove the inset (or put it back): the prongs then turn freely.
@@ -130,21 +154,23 @@ impl Plant {
 
     /// Normal force in the spiral contact, N.
     pub fn contact_force_n(&self) -> f64 {
-        self.gauge.contact_force_n(&self.params)
+        self.gauge.contact_force_n()
     }
 
     /// The truth: the kerf an ideal device reads on the gauge in place at the force `run` asks
-    /// for, µm — the gap plus the contact's compression at that force. Computed from the plant
-    /// alone, never from anything the device reports.
+    /// for, µm — the closure c·θs at which this gauge's contact (its taper, stiffness and μ)
+    /// carries the ramp's target torque for that force. Computed from the plant alone, never
+    /// from anything the device reports; the holes' and prongs' misplacement and the encoder's
+    /// errors are errors of the device, not part of the truth.
     pub fn truth_um(&self, run: &RunParams) -> f64 {
-        self.gauge.truth_um(&self.params, run)
+        self.gauge.truth_um(run)
     }
 
     /// The kerf this plant's gauge shows when jammed moving forward under `torque_nm` at the hub:
-    /// the geometric kerf plus the contact's compression. This is what an ideal device reports
-    /// for a jam at that torque.
+    /// the closure c·θs at which its contact carries that torque. This is what an ideal device
+    /// reports for a jam at that torque ([`Plant::truth_um`] is this at the run's target).
     pub fn kerf_at_torque_um(&self, torque_nm: f64) -> f64 {
-        self.gauge.kerf_at_torque_um(&self.params, torque_nm)
+        self.gauge.kerf_at_torque_um(torque_nm)
     }
 
     /// Joint force the device reports for `torque_nm` at the current inset angle (for checks).
@@ -209,7 +235,6 @@ impl Plant {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use kerfmeter_protocol::spiral::play_deg;
 
     fn plant(kerf_um: f64) -> Plant {
         Plant::new(PlantParams::default(), GaugeGeometry::PAPER, kerf_um)
@@ -237,6 +262,22 @@ mod tests {
         assert_eq!(pl.hub_deg(), 0.0);
     }
 
+    /// Drive the hub forward at a constant duty until it stands still.
+    fn jam(mut pl: Plant) -> Plant {
+        let bridge = Bridge {
+            duty: 0.3,
+            direction: 1.0,
+            awake: true,
+        };
+        let mut ticks = 0;
+        while pl.hub_deg_per_s().abs() > 0.0 || ticks < 10 {
+            pl.tick(&bridge);
+            ticks += 1;
+            assert!(ticks < 10_000, "never jammed");
+        }
+        pl
+    }
+
     #[test]
     fn the_hub_turns_freely_through_the_play_then_drags_the_inset_until_the_gap_closes() {
         let mut pl = plant(150.0);
@@ -245,11 +286,9 @@ mod tests {
             direction: 1.0,
             awake: true,
         };
-        let play = f64::from(play_deg(&GaugeGeometry::PAPER, 150.0));
-        let mut ticks = 0;
-        while pl.hub_deg_per_s().abs() > 0.0 || ticks < 10 {
+        let (play, _) = pl.play_deg();
+        for _ in 0..10_000 {
             pl.tick(&bridge);
-            ticks += 1;
             if pl.hub_deg() < play {
                 assert_eq!(
                     pl.inset_deg(),
@@ -257,16 +296,65 @@ mod tests {
                     "the inset waits while the prong crosses the play"
                 );
             }
-            assert!(ticks < 10_000, "never jammed");
         }
-        // Jammed: the gap is closed (and a little compressed).
-        let closed_at = 150.0 / f64::from(GaugeGeometry::PAPER.pitch_um_per_deg);
+        // Jammed: the gap is closed at the bottom of the sheet, where the tapered kerf is
+        // narrowest, and compressed by a few tens of µm (at duty 0.3 the motor presses far
+        // harder than a run does).
+        let taper = PlantParams::default().kerf_taper_um;
+        let closed_at = (150.0 - taper / 2.0) / f64::from(GaugeGeometry::PAPER.pitch_um_per_deg);
         assert!(
-            pl.inset_deg() > closed_at && pl.inset_deg() < closed_at + 8.0,
+            pl.inset_deg() > closed_at && pl.inset_deg() < closed_at + 12.0,
             "{}",
             pl.inset_deg()
         );
-        assert!((pl.hub_deg() - pl.inset_deg() - play).abs() < 1e-6);
+        assert!(
+            (pl.hub_deg() - pl.inset_deg() - pl.play_deg().0).abs() < 1e-6,
+            "{} {} {:?}",
+            pl.hub_deg(),
+            pl.inset_deg(),
+            pl.play_deg()
+        );
+    }
+
+    #[test]
+    fn a_prong_offset_shifts_the_jam_angle_by_its_tangential_share_at_the_jam() {
+        let p = PlantParams::default();
+        let centred = GaugeCut::nominal(&p, 150.0);
+        let offset = GaugeCut {
+            hub_offset_um: [0.0, 10.0],
+            ..centred
+        };
+        let a = jam(Plant::with_cut(p, GaugeGeometry::PAPER, centred));
+        let b = jam(Plant::with_cut(p, GaugeGeometry::PAPER, offset));
+        // The contact stops the inset at the same angle either way (to within 0.01 µm of
+        // closure: the hub comes in a little faster through the other play) ...
+        assert!(
+            (a.inset_deg() - b.inset_deg()).abs() < 0.01,
+            "{} vs {}",
+            a.inset_deg(),
+            b.inset_deg()
+        );
+        // ... and the hub earlier: the 10 µm offset on the table is 10·cos θs tangential and
+        // 10·sin θs radial at the holes, forward for prong 0 and backward for prong 1, which
+        // touches first (first order: (w_r·tan(θplay/2) − w_t)/R for each prong).
+        let theta_s = b.inset_deg().to_radians();
+        let (w_r, w_t) = (10e-6 * theta_s.sin(), 10e-6 * theta_s.cos());
+        let tan_half = (a.play_deg().0.to_radians() / 2.0).tan();
+        let r = f64::from(GaugeGeometry::PAPER.hole_distance_mm) * 1e-3;
+        let predicted_deg = ((w_r * tan_half - w_t) / r)
+            .min((-w_r * tan_half + w_t) / r)
+            .to_degrees();
+        assert!(predicted_deg < -0.05, "{predicted_deg}");
+        let play_shift_deg = (b.hub_deg() - b.inset_deg()) - (a.hub_deg() - a.inset_deg());
+        assert!(
+            (play_shift_deg - predicted_deg).abs() < 0.03 * predicted_deg.abs(),
+            "play shifted {play_shift_deg}°, predicted {predicted_deg}°"
+        );
+        let shift_deg = b.hub_deg() - a.hub_deg();
+        assert!(
+            (shift_deg - predicted_deg).abs() < 0.15 * predicted_deg.abs(),
+            "jam shifted {shift_deg}°, predicted {predicted_deg}°"
+        );
     }
 
     #[test]

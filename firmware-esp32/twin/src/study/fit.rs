@@ -37,8 +37,12 @@
 //! overlap by δ takes the force whose gauge-equivalent compression is δ:
 //!
 //! ```text
-//! F(δ) = force_for_torque(K·δ·(c + μ·r), θs),   θs = (k_joint + δ) / c,   F = 0 for δ ≤ 0
+//! F(δ) = force_for_torque(F_n(δ + τ/2)·(c + μ·r), θs),   θs = (k_joint + δ) / c,   F = 0 for δ ≤ 0
 //! ```
+//!
+//! where F_n is the tapered face's contact law shared with the gauge
+//! ([`crate::plant::tapered_contact_force_n`]: the faces, cut with a kerf tapered by τ through the
+//! sheet, first touch at the narrowest kerf, half the taper inside the mid-sheet one).
 //!
 //! ([`assembly_force_n`]). A joint dilated by the ideal reading r* of a gauge cut exactly like it
 //! therefore takes the device's target force: δ = r* − k = δ*(18.3 N), F = 18.3 N. The joint's
@@ -55,7 +59,7 @@ use kerfmeter_protocol::RunParams;
 use kerfmeter_protocol::spiral::{force_for_torque_n, pitch_mm_per_rad};
 
 use super::{Outcome, mean_sd, measure, stream};
-use crate::plant::{Material, PlantParams};
+use crate::plant::{Material, PlantParams, tapered_contact_force_n};
 use crate::{Twin, TwinOptions};
 
 /// The fit window per finger, N: the least force that held, the most a user assembled.
@@ -151,6 +155,9 @@ pub struct Contact {
     pub stiffness_n_per_um: f64,
     /// Friction coefficient.
     pub mu: f64,
+    /// Kerf at the top of the sheet minus at the bottom, µm: the faces are tapered like the
+    /// gauge's.
+    pub taper_um: f64,
 }
 
 /// The force to assemble a joint whose faces overlap by `interference_um`, N: the force whose
@@ -167,7 +174,15 @@ pub fn assembly_force_n(
     let gauge = &run.gauge;
     let c_m_per_rad = pitch_mm_per_rad(gauge) * 1e-3;
     let lever_m = c_m_per_rad + contact.mu * f64::from(gauge.radius_mm) * 1e-3;
-    let torque_nm = contact.stiffness_n_per_um * interference_um * lever_m;
+    // The interference is counted from the mid-sheet kerf; the tapered faces first touch where
+    // the kerf is narrowest, half the taper further in.
+    let taper_um = contact.taper_um.clamp(0.0, 2.0 * kerf_um);
+    let normal_n = tapered_contact_force_n(
+        contact.stiffness_n_per_um,
+        taper_um,
+        interference_um + taper_um / 2.0,
+    );
+    let torque_nm = normal_n * lever_m;
     let inset_deg = ((kerf_um + interference_um) * 1e-6 / c_m_per_rad).to_degrees();
     f64::from(force_for_torque_n(run, torque_nm as f32, inset_deg as f32))
 }
@@ -253,6 +268,7 @@ pub fn run_trial(setup: &Setup, index: u32) -> Trial {
             stiffness_n_per_um: p.contact_stiffness_n_per_um
                 * (1.0 + normal("joint_k", p.contact_stiffness_sd_frac)).max(0.1),
             mu: (p.contact_mu + normal("joint_mu", p.contact_mu_sd)).max(0.01),
+            taper_um: p.kerf_taper_um,
         },
     };
     Trial {
@@ -326,6 +342,7 @@ mod tests {
         Contact {
             stiffness_n_per_um: p.contact_stiffness_n_per_um,
             mu: p.contact_mu,
+            taper_um: p.kerf_taper_um,
         }
     }
 
