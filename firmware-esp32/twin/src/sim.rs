@@ -285,9 +285,8 @@ impl Twin {
         if self.host_muted() {
             return;
         }
-        self.host_bursts();
         let mut out = Vec::new();
-        let answered = self.serve_host(Sender::Client, |handler, link| {
+        let answered = self.link_pass(|handler, link| {
             link.receive(bytes, handler, |frame| out.push(frame.to_vec()));
         });
         if answered.is_some() {
@@ -308,8 +307,26 @@ impl Twin {
     /// A request without framing; `None` when the device reset before answering (its watchdog
     /// fired during a flash stall) and rebooted.
     pub fn try_request(&mut self, request: &Request) -> Option<Response> {
+        self.link_pass(|handler, _| handler.handle(request))
+    }
+
+    /// One pass of the board's control loop with host traffic in it: the host's burst due and
+    /// the client's frames, one after the other on the core, then — if that work ran past the
+    /// tick the pass belongs to — the pass's step at once. On the board the link works inside
+    /// the control loop and its answers leave only after that step, so the host cannot send
+    /// anything else before it.
+    fn link_pass<R>(
+        &mut self,
+        serve: impl FnOnce(&mut TwinHandler<'_>, &mut Link) -> R,
+    ) -> Option<R> {
+        let due_us = self.ticks.next_tick_us(self.now_us);
         self.host_bursts();
-        self.serve_host(Sender::Client, |handler, _| handler.handle(request))
+        let result = self.serve_host(Sender::Client, serve)?;
+        if due_us <= self.now_us {
+            let tick_us = self.ticks.start_overdue_tick(self.now_us);
+            self.step_at(tick_us);
+        }
+        Some(result)
     }
 
     /// The host's burst due by now, if any, through a link of its own (its answers discarded,
@@ -407,6 +424,12 @@ impl Twin {
     /// sensors → firmware tick (feeding the watchdog) → bridge.
     pub fn tick(&mut self) {
         let tick_us = self.ticks.start_tick(self.now_us);
+        self.step_at(tick_us);
+    }
+
+    /// The control step of a pass, at `tick_us`: the plant runs until then, then sensors →
+    /// firmware tick (feeding the watchdog) → bridge.
+    fn step_at(&mut self, tick_us: u64) {
         self.advance_to(tick_us);
         self.strike_faults();
         let cw = self.encoder_errors.measured_deg(self.plant.hub_cw_deg());
