@@ -11,6 +11,7 @@ use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 
 use crate::options::{InjectedFault, TwinOptions};
 use crate::plant::{Bridge, Plant};
+use crate::sense::Sense;
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
 use kerfmeter_firmware::config_store::FlashConfigStore;
@@ -53,6 +54,10 @@ pub struct Twin {
     dir: FakeOutput,
     slp: FakeOutput,
     flt: FakeInput,
+    /// The injected `driver-fault` holds FLT low (besides the driver's own under-voltage).
+    flt_injected: bool,
+    /// The ADC's current-sense and supply-sense channels.
+    sense: Sense,
     device: Device<FlashConfigStore<RamFlash>>,
     link: Link,
     now_us: u64,
@@ -103,6 +108,8 @@ impl Twin {
         }
         Self {
             gauge_rng: Rng::new(options.seed ^ GAUGE_STREAM ^ (u64::from(boots) << 32)),
+            sense: Sense::new(&options.plant, options.seed ^ (u64::from(boots) << 32)),
+            flt_injected: false,
             options,
             rng,
             plant,
@@ -244,15 +251,20 @@ impl Twin {
         self.strike_faults();
         let cw = self.plant.hub_cw_deg();
         self.hardware.encoder.bus_mut().set_angle_deg(cw);
-        let current = if self.over_current {
-            30.0
-        } else {
-            self.plant.current_a().abs()
-                + f64::from(self.rng.normal()) * self.options.plant.current_noise_a
-        };
-        let out = self
-            .hardware
-            .tick(self.now_us, Some(current.max(0.0) as f32), &mut self.device);
+        let sensed = self.sense.sample(
+            &self.plant.electrical(),
+            self.now_us,
+            self.over_current,
+            &mut self.rng,
+        );
+        self.flt
+            .set_high(!self.flt_injected && !self.plant.driver_fault());
+        let out = self.hardware.tick(
+            self.now_us,
+            Some(sensed.current_a),
+            Some(sensed.supply_v),
+            &mut self.device,
+        );
         debug_assert_eq!(out.is_safe(), self.motor_safe());
         let clockwise = self.dir.is_high();
         let cw_sign = if clockwise { 1.0 } else { -1.0 };
@@ -295,7 +307,7 @@ impl Twin {
         match fault {
             InjectedFault::MagnetLost => chip.set_magnet_lost(true),
             InjectedFault::MisoStuck => chip.set_miso_fault(Some(MisoFault::StuckLow)),
-            InjectedFault::DriverFault => self.flt.set_high(false),
+            InjectedFault::DriverFault => self.flt_injected = true,
             InjectedFault::OverCurrent => self.over_current = true,
             InjectedFault::ProngSlip => self.plant.slip_prong(),
             InjectedFault::HostSilent
@@ -311,7 +323,7 @@ impl Twin {
         let chip = self.hardware.encoder.bus_mut();
         chip.set_magnet_lost(false);
         chip.set_miso_fault(None);
-        self.flt.set_high(true);
+        self.flt_injected = false;
         self.over_current = false;
         self.plant.set_inset_present(true);
         self.plant.set_motor_connected(true);

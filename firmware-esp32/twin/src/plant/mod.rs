@@ -3,7 +3,8 @@
 //! with its source and plausible range ([`PlantParams`], listed in [`PARAMS`]): a plant kinder
 //! than hardware would pass firmware that a real board fails.
 //!
-//! - [`motor`](self::motor): the G2 bridge and the motor, electrically; the torque they give.
+//! - [`motor`](self::motor): the supply, the G2 bridge and the motor, electrically (bus sag,
+//!   under-voltage lockout, current limiting, winding temperature); the torque they give.
 //! - [`gauge`](self::gauge): the hole play, the spiral's gap and contact, the truth.
 //! - Here: the hub's motion with Karnopp stick–slip friction on the gearbox and the inset (the
 //!   table, plus contact friction once the gap is closed): stuck while the net torque stays
@@ -17,6 +18,7 @@ mod gauge;
 mod motor;
 mod params;
 
+pub use motor::{COPPER_TEMPCO_PER_C, Electrical, UVLO_HYSTERESIS_V};
 pub use params::{Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_table};
 
 use kerfmeter_protocol::spiral::force_for_torque_n;
@@ -56,8 +58,8 @@ impl Plant {
     /// prongs, hub at zero.
     pub fn new(params: PlantParams, gauge: GaugeGeometry, kerf_um: f64) -> Self {
         Self {
+            motor: Motor::new(&params),
             params,
-            motor: Motor::new(),
             gauge: Gauge::new(gauge, kerf_um),
             hub_rad: 0.0,
             hub_rad_per_s: 0.0,
@@ -125,7 +127,19 @@ impl Plant {
 
     /// Motor current of the last sub-step, A (signed).
     pub fn current_a(&self) -> f64 {
-        self.motor.current_a
+        self.motor.state.current_a
+    }
+
+    /// The supply, bridge and winding after the last sub-step: bus voltage, drive fraction,
+    /// what the current sense reads in the drive phase, chopping, under-voltage lockout, winding
+    /// temperature.
+    pub fn electrical(&self) -> Electrical {
+        self.motor.state
+    }
+
+    /// The driver pulls FLT low: locked out by under-voltage.
+    pub fn driver_fault(&self) -> bool {
+        self.motor.state.under_voltage
     }
 
     /// Normal force in the spiral contact, N.
