@@ -43,9 +43,9 @@
 //! - Faults, by name ([`InjectedFault`]): encoder parity errors, magnet lost, MISO stuck, no inset,
 //!   motor disconnected, driver FLT, over-current, host silent, prong slip.
 //!
-//! Time is simulated in 1 ms control ticks (the physics in [`plant::SUBSTEPS`] sub-steps each),
-//! deterministic for a seed; served, it runs ahead of the host in lock-step or follows the wall
-//! clock ([`Pace`]).
+//! Time is simulated in 1 ms control ticks (the physics in sub-steps of at most
+//! [`plant::SUBSTEP_US`] µs), deterministic for a seed; served, it runs ahead of the host in
+//! lock-step or follows the wall clock ([`Pace`]).
 //!
 //! # What it does not model
 //!

@@ -3,9 +3,9 @@
 //! with its source and plausible range ([`PlantParams`], listed in [`PARAMS`]): a plant kinder
 //! than hardware would pass firmware that a real board fails.
 //!
-//! - [`motor`](self::motor): the supply, the G2 bridge and the motor, electrically (bus sag,
+//! - `motor`: the supply, the G2 bridge and the motor, electrically (bus sag,
 //!   under-voltage lockout, current limiting, winding temperature); the torque they give.
-//! - [`gauge`](self::gauge): the hole play, the spiral's gap and contact, the truth.
+//! - `gauge`: the hole play, the spiral's gap and contact, the truth.
 //! - Here: the hub's motion with Karnopp stick–slip friction on the gearbox and the inset (the
 //!   table, plus contact friction once the gap is closed): stuck while the net torque stays
 //!   within the static level, kinetic friction while moving. Integrated in sub-steps of at most
