@@ -236,7 +236,7 @@ mod tests {
     }
 
     #[test]
-    fn a_winding_thirty_percent_warmer_draws_one_thirtieth_less_at_stall() {
+    fn a_winding_thirty_percent_more_resistive_when_warm_draws_1_over_1_3_of_the_current() {
         let cold = PlantParams {
             supply_source_ohm: 0.0,
             ..PlantParams::default()
