@@ -16,7 +16,11 @@ pub const FIRMWARE_VERSION: FirmwareVersion = FirmwareVersion {
 pub const CONTROL_RATE_HZ: u16 = 1000;
 /// AS5048A resolution, bits per turn.
 pub const ENCODER_BITS: u8 = 14;
-/// LEDC duty resolution at 20 kHz from the 80 MHz APB clock (the maximum there).
+/// Motor PWM frequency, Hz: above hearing, within the G2's 100 kHz limit. The board's LEDC timer
+/// runs at it; the digital twin's current sense, which is valid only in the drive phase of each
+/// PWM period, uses it too.
+pub const PWM_FREQUENCY_HZ: u32 = 20_000;
+/// LEDC duty resolution at [`PWM_FREQUENCY_HZ`] from the 80 MHz APB clock (the maximum there).
 pub const PWM_BITS: u8 = 11;
 /// Capacity of the run's sample log.
 pub const MAX_SAMPLES: u16 = 2048;

@@ -203,6 +203,7 @@ mod tests {
                 diagnostics: None,
                 current_a: Some(0.5),
                 driver_fault: false,
+                supply_v: None,
             };
             d.step(PERIOD_US, &inputs);
             assert_eq!(d.handle(&Request::Run(RunParams::DEFAULT)), Response::Ok);

@@ -5,7 +5,8 @@
 //! 2. read its diagnostics every [`DIAGNOSTICS_PERIOD_TICKS`] ticks, and at once after any read
 //!    error (so that a lost magnet is reported as such, not as a run of bad reads);
 //! 3. read the driver's FLT line (an unreadable FLT counts as a fault);
-//! 4. step the [`Device`] with these inputs and the motor current (or that it is unknown);
+//! 4. step the [`Device`] with these inputs, the motor current (or that it is unknown) and the
+//!    motor supply (when it is measured);
 //! 5. apply its output to the motor driver (a failed apply forces the motor safe and is reported
 //!    as a driver fault on the next tick).
 //!
@@ -63,11 +64,13 @@ where
     }
 
     /// One control tick at `now_us`, with the motor current measured for it, A (`None` when the
-    /// current sense has no fresh reading: the controller then faults with `OverCurrent`).
+    /// current sense has no fresh reading: the controller then faults with `OverCurrent`), and
+    /// the motor supply measured for it, V (`None` where the board does not measure it).
     pub fn tick<S: ConfigPersist>(
         &mut self,
         now_us: u64,
         current_a: Option<f32>,
+        supply_v: Option<f32>,
         device: &mut Device<S>,
     ) -> MotorOutput {
         let config = *device.controller().config();
@@ -103,6 +106,7 @@ where
             diagnostics,
             current_a,
             driver_fault,
+            supply_v,
         };
         let out = device.step(now_us, &inputs);
         self.motor_error = self.motor.apply(&out).is_err();

@@ -298,6 +298,7 @@ impl StepBench {
             diagnostics,
             current_a: Some(0.5),
             driver_fault: false,
+            supply_v: None,
         };
         let before = self.controller.run_state();
         let Some(index) = state_index(before) else {

@@ -19,6 +19,7 @@
 //! Chip-independent, and tested on the host:
 //!
 //! - [`current`]: the G2's current-sense scaling and when the current counts as unknown.
+//! - [`supply`]: the motor supply's sense divider and its scaling (not wired on the board yet).
 //! - [`partition`]: what is done at boot with the configuration partition: use a valid record,
 //!   erase foreign data, or run without persistence.
 //!
@@ -30,6 +31,7 @@
 
 pub mod current;
 pub mod partition;
+pub mod supply;
 
 #[cfg(feature = "board")]
 pub mod adc;

@@ -19,10 +19,11 @@ use esp_hal::{
 use static_cell::StaticCell;
 
 use super::pins::MotorPins;
+use crate::build::PWM_FREQUENCY_HZ;
 use crate::motor::{G2Motor, MotorError};
 
-/// Motor PWM frequency: above hearing, within the G2's limit.
-pub const PWM_FREQUENCY: Rate = Rate::from_khz(20);
+/// Motor PWM frequency ([`PWM_FREQUENCY_HZ`], shared with the digital twin).
+pub const PWM_FREQUENCY: Rate = Rate::from_hz(PWM_FREQUENCY_HZ);
 /// The LEDC channel of the motor PWM.
 pub const PWM_CHANNEL: channel::Number = channel::Number::Channel0;
 

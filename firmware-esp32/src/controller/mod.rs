@@ -10,7 +10,8 @@
 //! ```
 //!
 //! [`Controller::step`] takes this tick's [`Inputs`] (hub angle from the encoder driver, encoder
-//! diagnostics when they were read, motor current or that it is unknown, the driver's FLT line)
+//! diagnostics when they were read, motor current or that it is unknown, the driver's FLT line,
+//! the motor supply when it is measured)
 //! and returns the [`MotorOutput`] to apply. The device's request handler calls the typed
 //! methods between steps: [`Controller::start_run`], [`Controller::start_reset`],
 //! [`Controller::start_self_test`], [`Controller::abort`], [`Controller::clear_fault`] act;
@@ -126,6 +127,10 @@ pub struct Inputs {
     pub current_a: Option<f32>,
     /// The driver's FLT line is low.
     pub driver_fault: bool,
+    /// Motor supply (the G2's `VIN`), volts, as the supply-sense divider and ADC measure it
+    /// (`board::supply`); `None` where it is not measured. Not used by the controller yet: the
+    /// board binary does not wire the ADC channel so far, and the digital twin measures it.
+    pub supply_v: Option<f32>,
 }
 
 /// Internal states, with their working data.

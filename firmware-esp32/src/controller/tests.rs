@@ -30,6 +30,7 @@ impl Script {
             diagnostics: None,
             current_a: Some(0.5),
             driver_fault: false,
+            supply_v: None,
         }
     }
 

@@ -12,6 +12,8 @@
 //! - [`truth`]: [`TruthLog`], the truth of each run (what an ideal device reads on its gauge).
 //! - [`encoder`]: [`encoder::EncoderErrors`], the AS5048A's non-linearity and the magnet's
 //!   eccentricity, added to the hub's angle before the fake chip reads it.
+//! - [`sense`]: what the firmware's ADC channels read: the G2's current sense as the chip produces
+//!   it, and the motor supply through its divider.
 //! - [`pty`]: [`PtyTwin`], a twin served on a pseudo-terminal by a thread, whose client side is an
 //!   ordinary serial port.
 //! - [`study`]: many twins in-process: the robustness sweep and the paper's fit study.
@@ -22,8 +24,14 @@
 //! firmware a real board fails. So every physical parameter has a realistic default, with its
 //! source and plausible range ([`plant::PlantParams`]), and can be set from outside.
 //!
-//! - The motor and G2 bridge: back-EMF, winding resistance, the driver's current limit, braking
-//!   at duty 0, coasting asleep; gearbox ratio, efficiency and stick–slip (Karnopp) friction.
+//! - The supply: its source resistance, so the bus sags by the average supply current (the duty
+//!   times the motor current); the G2's under-voltage lockout (outputs off, FLT low, released
+//!   0.3 V above the threshold), which the firmware sees as `DriverFault`.
+//! - The motor and G2 bridge: back-EMF, winding resistance, braking at duty 0, coasting asleep;
+//!   the driver's current limiting (chopping: the current held at the limit, a shorter drive
+//!   phase); gearbox ratio, efficiency and stick–slip (Karnopp) friction.
+//! - The winding's temperature: I²R heating against a thermal resistance to ambient, and the
+//!   copper's resistance rising 0.39 %/°C with it (less current, so less torque, per duty).
 //! - The gauge as a real cutter cuts it ([`plant::GaugeCut`], drawn per gauge from the seed): the
 //!   hole play with each hole's centre displaced by the cutter's repeatability and the hub's axis
 //!   off the gauge's centre (the head returning over it), the first prong to touch its face
@@ -35,7 +43,12 @@
 //!   replies), its integral non-linearity (1st–3rd harmonics) and a magnet's eccentricity (a
 //!   once-per-turn error), drawn once per twin, relative to the zero the user set; 14-bit
 //!   quantisation and a few LSB of noise.
-//! - The current sense: the motor current plus Gaussian noise.
+//! - The current sense as the G2 produces it: the current only in the drive phase of each 20 kHz
+//!   PWM period (about zero while braking or chopping), sampled once per tick at an instant that
+//!   drifts through the period; an optional RC filter on the pin; gain error, noise, the 1 mV
+//!   steps of the calibrated ADC and the firmware's own mV→A conversion.
+//! - The supply sense: the bus through a divider into the ADC, with gain error, noise and 1 mV
+//!   steps (handed to the firmware, which does not use it yet).
 //! - The configuration flash: NOR rules (erase to 0xFF, writes only clear bits), kept across a
 //!   reboot, opened at boot under the board's partition policy. Erases and writes take their
 //!   time (`flash_erase_ms`, `flash_write_ms`), stalling the core: no tick runs meanwhile.
@@ -60,20 +73,24 @@
 //!
 //! # What it does not model
 //!
-//! The motor's inductance (its L/R is far below a tick); the G2's current-sense output existing
-//! only in the drive phase of each PWM period, and its current chopping; supply sag, under-voltage
-//! and winding heating; the control step's own execution time (a tick takes no core time, so
-//! the ticks that catch up after a late one come at once), the chip's boot time, and the USB
-//! link's own latency and flow control; the encoder's register writes and a magnet tilted or at
-//! the wrong air gap; the inset's inertia, and its sliding within the spiral's gap before the gap
-//! closes (it turns about the gauge's centre); a hub axis tilted against the sheet; a hole out of
-//! round, or a kerf that varies around the spiral rather than through the sheet; the zero the
-//! user sets being quantised to one LSB.
+//! The motor's inductance (its L/R is far below a tick, though above a PWM period: the current is
+//! taken as continuous, with no ripple); the bus capacitance (the bus follows the load at once, so
+//! a supply that sags into the lockout stays locked while the load is asked for, rather than
+//! hiccuping); the current-sense waveform between two samples (the bridge's state at the end of
+//! the last tick stands for the whole tick); the CS offset's spread and the G2's other faults
+//! (short circuit, over-temperature); the control step's own execution time (a tick takes no
+//! core time, so the ticks that catch up after a late one come at once), the chip's boot time,
+//! and the USB link's own latency and flow control; the encoder's register writes and a magnet
+//! tilted or at the wrong air gap; the inset's inertia, and its sliding within the spiral's gap
+//! before the gap closes (it turns about the gauge's centre); a hub axis tilted against the
+//! sheet; a hole out of round, or a kerf that varies around the spiral rather than through the
+//! sheet; the zero the user sets being quantised to one LSB.
 
 pub mod encoder;
 pub mod options;
 pub mod plant;
 pub mod pty;
+pub mod sense;
 pub mod serve;
 pub mod sim;
 pub mod study;

