@@ -228,7 +228,10 @@ fn hil(args: &HilArgs) -> Result<()> {
         }
     }
     if let Some(runs) = args.soak {
-        cmd.env("KERFMETER_SOAK_RUNS", runs.to_string());
+        // The soak is a known failure until issue 12 (the winding warms run after run); asked
+        // for by name, it runs anyway.
+        cmd.env("KERFMETER_SOAK_RUNS", runs.to_string())
+            .arg("--include-ignored");
     }
     eprintln!("$ {}", show(&cmd));
     let mut child = cmd

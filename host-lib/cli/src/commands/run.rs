@@ -244,7 +244,7 @@ impl fmt::Display for SimNote {
         };
         write!(
             f,
-            "(simulated device: gauges cut with {:.1} µm{spread}; at the applied force the spiral contact compresses, so an ideal device reads {:.1} µm)",
+            "(simulated device: gauges cut with a nominal {:.1} µm{spread}, as a real cutter cuts them; an ideal device reads {:.1} µm on them at the force asked for, the spiral contact compressing under it)",
             self.kerf_um, self.ideal_reading_um
         )
     }
