@@ -7,11 +7,13 @@
 //! methods, while `GetInfo` and the configuration are answered here. A new configuration is
 //! validated, refused while the motor runs, stored through [`ConfigPersist`] *before* it is
 //! applied and acknowledged, and a failed store leaves the old configuration in force
-//! (`ErrorCode::Storage`).
+//! (`ErrorCode::Storage`). A store may apply a configuration without saving it (no flash
+//! partition, or one that holds a newer firmware's record): [`Device::config_saved`] then says
+//! so.
 
 use kerfmeter_protocol::{ConfigReport, DeviceConfig, DeviceInfo, ErrorCode, Request, Response};
 
-use crate::config_store::{ConfigPersist, ConfigSource};
+use crate::config_store::{ConfigPersist, ConfigSource, Persisted};
 use crate::controller::{Controller, Inputs};
 use crate::link::Handler;
 use crate::motor::MotorOutput;
@@ -21,6 +23,8 @@ pub struct Device<S: ConfigPersist = ()> {
     info: DeviceInfo,
     controller: Controller,
     source: ConfigSource,
+    /// The configuration in force is the one in flash.
+    saved: bool,
     store: S,
     now_us: u64,
 }
@@ -52,6 +56,7 @@ impl<S: ConfigPersist> Device<S> {
             info: crate::build::device_info(board, boot_id),
             controller: Controller::new(config),
             source,
+            saved: !source.defaults_in_use(),
             store,
             now_us: 0,
         }
@@ -65,6 +70,14 @@ impl<S: ConfigPersist> Device<S> {
     /// Give back the configuration store (a simulated reboot keeps its flash).
     pub fn into_store(self) -> S {
         self.store
+    }
+
+    /// True when the configuration in force is the one in flash: loaded from it, or saved by
+    /// the last `SetConfig`. False when it was applied but not saved (it lasts until reboot).
+    // Issue 12, protocol revision: `ConfigReport` carries this as `saved`, so that `SetConfig`
+    // says "applied but not saved".
+    pub fn config_saved(&self) -> bool {
+        self.saved
     }
 
     /// The controller (for inspection).
@@ -95,12 +108,13 @@ impl<S: ConfigPersist> Device<S> {
         if self.controller.is_active() {
             return Response::Error(ErrorCode::Busy);
         }
-        if self.store.save(config).is_err() {
+        let Ok(persisted) = self.store.save(config) else {
             return Response::Error(ErrorCode::Storage);
-        }
+        };
         match self.controller.set_config(*config) {
             Ok(()) => {
                 self.source = ConfigSource::Stored;
+                self.saved = persisted == Persisted::Yes;
                 self.config_report()
             }
             Err(e) => Response::Error(e),
@@ -229,8 +243,12 @@ mod tests {
     fn config_is_validated_stored_and_reported() {
         struct Failing(bool);
         impl ConfigPersist for Failing {
-            fn save(&mut self, _: &DeviceConfig) -> Result<(), StoreError> {
-                if self.0 { Err(StoreError) } else { Ok(()) }
+            fn save(&mut self, _: &DeviceConfig) -> Result<Persisted, StoreError> {
+                if self.0 {
+                    Err(StoreError)
+                } else {
+                    Ok(Persisted::Yes)
+                }
             }
         }
         let mut d = Device::with_config(
@@ -265,6 +283,7 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
+        assert!(d.config_saved());
         let bad = DeviceConfig {
             gear_ratio: 0.0,
             ..DeviceConfig::DEFAULT
@@ -273,5 +292,25 @@ mod tests {
             d.handle(&Request::SetConfig(bad)),
             Response::Error(ErrorCode::InvalidParam(ParamField::GearRatio))
         );
+    }
+
+    #[test]
+    fn a_config_applied_without_persistence_is_not_claimed_saved() {
+        let mut d =
+            Device::with_config("twin", 1, DeviceConfig::DEFAULT, ConfigSource::Missing, ());
+        assert!(!d.config_saved());
+        let new = DeviceConfig {
+            gear_ratio: 30.0,
+            ..DeviceConfig::DEFAULT
+        };
+        match d.handle(&Request::SetConfig(new)) {
+            Response::Config(r) => assert_eq!(r.config, new),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(d.controller().config().gear_ratio, 30.0, "applied");
+        assert!(!d.config_saved(), "but not saved");
+        // A configuration loaded from flash is the saved one.
+        let d = Device::with_config("twin", 1, new, ConfigSource::Stored, ());
+        assert!(d.config_saved());
     }
 }

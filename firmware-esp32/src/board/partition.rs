@@ -8,20 +8,34 @@
 //!
 //! # Policy
 //!
+//! The rule is: **a stored calibration is never erased or saved over by the firmware on its
+//! own; only data that is not this firmware's is erased.**
+//!
 //! 1. **No usable partition**: none in the table, the table unreadable, the partition read-only
 //!    or encrypted, or not at least two whole erase sectors (the least a `sequential-storage` map
-//!    needs). The device runs on the defaults without persistence: a new configuration lasts
-//!    until reboot. Nothing is written.
-//! 2. **A valid record**: it is used, and the partition is not touched. Our own valid
-//!    configuration is never erased.
-//! 3. **No valid record** (none, a record of another layout version, a failed CRC, values that
-//!    fail validation, or a map the store cannot read): the defaults are used, and
-//!    - a blank partition (all 0xFF) is left as it is;
-//!    - any other content is erased, the whole partition. It is data this firmware cannot use:
-//!      typically ESP-IDF NVS pages left by a board's factory firmware, which the store would
-//!      take for free space; or a record of ours that is corrupt, which is lost either way. After the erase the next `SetConfig`
-//!      persists.
-//! 4. **The partition cannot be read or erased** while doing so: defaults, no persistence.
+//!    needs). The device runs on the defaults without persistence: a new configuration is
+//!    applied but not saved ([`Persisted::No`]) and lasts until reboot. Nothing is written.
+//! 2. **A valid record** of this firmware's version, or of an older one (migrated on reading,
+//!    see [`crate::config_store`]): it is used, and the partition is not touched.
+//! 3. **A record of a newer version** (a firmware downgrade): not understood, so the defaults
+//!    are used and reported, and the record is kept. New configurations are applied but not
+//!    saved ([`ConfigStorage::Protected`]): a `SetConfig` alone never replaces it. The newer
+//!    firmware reads it again; to give it up and store this version's, erase the partition
+//!    explicitly (`espflash erase-parts --partition-table <table> nvs`, or `erase-region` over
+//!    its range).
+//! 4. **No usable record** (none, a damaged one, or a map the store cannot read): the defaults
+//!    are used, and what is in the partition decides:
+//!    - **ours**: at least one sector starts with `sequential-storage`'s page marker, a first
+//!      word with at least half of its 32 bits cleared (the map clears the whole word when it
+//!      starts writing a page). It is left as it is: the map repairs torn pages itself and skips
+//!      damaged items, and the next `SetConfig` appends a new record. A record this firmware
+//!      cannot read is never a reason to erase.
+//!    - **blank** (all 0xFF): left as it is.
+//!    - **anything else is not ours** and is erased, the whole partition: typically ESP-IDF NVS
+//!      pages left by a board's factory firmware (their page-state words 0xFFFF_FFFE/FC/F8/F0
+//!      clear at most 4 bits), which the store would take for free space. The next `SetConfig`
+//!      then persists.
+//! 5. **The partition cannot be read or erased** while doing so: defaults, no persistence.
 //!
 //! The store's source ([`ConfigSource`]) is reported unchanged in every case, so that the host
 //! sees `defaults_in_use` whenever the defaults are in use.
@@ -32,7 +46,7 @@ use core::ops::Range;
 use embedded_storage_async::nor_flash::NorFlash;
 use kerfmeter_protocol::DeviceConfig;
 
-use crate::config_store::{ConfigPersist, ConfigSource, FlashConfigStore, StoreError};
+use crate::config_store::{ConfigPersist, ConfigSource, FlashConfigStore, Persisted, StoreError};
 
 /// Why no flash partition can hold the configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -96,17 +110,35 @@ impl PartitionEntry {
 pub enum ConfigStorage<F: NorFlash> {
     /// In the flash partition.
     Flash(FlashConfigStore<F>),
+    /// Nowhere: the partition holds a newer firmware's record, kept unchanged (policy step 3).
+    /// The configuration lasts until reboot.
+    Protected(FlashConfigStore<F>),
     /// Nowhere: the configuration lasts until reboot.
     RamOnly,
 }
 
+impl<F: NorFlash> ConfigStorage<F> {
+    /// True when a new configuration is saved to flash.
+    pub fn persists(&self) -> bool {
+        matches!(self, ConfigStorage::Flash(_))
+    }
+
+    /// Give the flash back, if there is one (a simulated reboot keeps it).
+    pub fn into_flash(self) -> Option<F> {
+        match self {
+            ConfigStorage::Flash(store) | ConfigStorage::Protected(store) => Some(store.release()),
+            ConfigStorage::RamOnly => None,
+        }
+    }
+}
+
 impl<F: NorFlash> ConfigPersist for ConfigStorage<F> {
-    fn save(&mut self, config: &DeviceConfig) -> Result<(), StoreError> {
+    fn save(&mut self, config: &DeviceConfig) -> Result<Persisted, StoreError> {
         match self {
             // `FlashConfigStore`'s synchronous `save` needs a flash that completes every
             // operation at once (the board's blocking flash behind an async adapter).
             ConfigStorage::Flash(store) => ConfigPersist::save(store, config),
-            ConfigStorage::RamOnly => ConfigPersist::save(&mut (), config),
+            ConfigStorage::Protected(_) | ConfigStorage::RamOnly => Ok(Persisted::No),
         }
     }
 }
@@ -116,13 +148,18 @@ impl<F: NorFlash> ConfigPersist for ConfigStorage<F> {
 pub enum PartitionOutcome {
     /// No usable partition (policy step 1).
     Unusable(PartitionError),
-    /// A valid record was found; the partition was not touched (step 2).
+    /// A valid record (maybe of an older version) was found; the partition was not touched
+    /// (step 2).
     RecordKept,
-    /// No valid record, and the partition is blank (step 3).
+    /// A newer firmware's record was found; it is kept and not saved over (step 3).
+    NewerRecordKept,
+    /// No usable record in a map of ours; it is kept as it is (step 4).
+    MapKept,
+    /// No record, and the partition is blank (step 4).
     Blank,
-    /// No valid record, and the partition's content was erased (step 3).
+    /// The partition held data that is not ours; it was erased (step 4).
     Erased,
-    /// The partition could not be read or erased; no persistence (step 4).
+    /// The partition could not be read or erased; no persistence (step 5).
     Failed,
 }
 
@@ -134,8 +171,13 @@ impl fmt::Display for PartitionOutcome {
                 write!(f, "{why}; configuration lasts until reboot")
             }
             PartitionOutcome::RecordKept => f.write_str("valid record"),
+            PartitionOutcome::NewerRecordKept => f.write_str(
+                "record of a newer firmware, kept; configuration lasts until reboot \
+                 (erase the partition to replace it)",
+            ),
+            PartitionOutcome::MapKept => f.write_str("no usable record; map kept"),
             PartitionOutcome::Blank => f.write_str("no record, blank"),
-            PartitionOutcome::Erased => f.write_str("no valid record, foreign data erased"),
+            PartitionOutcome::Erased => f.write_str("foreign data erased"),
             PartitionOutcome::Failed => {
                 f.write_str("unreadable or not erasable; configuration lasts until reboot")
             }
@@ -177,13 +219,26 @@ pub async fn open_config_partition<F: NorFlash>(flash: F, range: Range<u32>) -> 
         storage,
         outcome,
     };
-    if !source.defaults_in_use() {
-        return opened(ConfigStorage::Flash(store), PartitionOutcome::RecordKept);
+    match source {
+        ConfigSource::Stored | ConfigSource::Migrated { .. } => {
+            return opened(ConfigStorage::Flash(store), PartitionOutcome::RecordKept);
+        }
+        ConfigSource::Newer { .. } => {
+            return opened(
+                ConfigStorage::Protected(store),
+                PartitionOutcome::NewerRecordKept,
+            );
+        }
+        ConfigSource::Missing | ConfigSource::Corrupt => {}
     }
     let mut flash = store.release();
-    let outcome = match erase_if_not_blank(&mut flash, range.clone()).await {
-        Ok(false) => PartitionOutcome::Blank,
-        Ok(true) => PartitionOutcome::Erased,
+    let outcome = match classify(&mut flash, range.clone()).await {
+        Ok(Content::Ours) => PartitionOutcome::MapKept,
+        Ok(Content::Blank) => PartitionOutcome::Blank,
+        Ok(Content::Foreign) => match flash.erase(range.start, range.end).await {
+            Ok(()) => PartitionOutcome::Erased,
+            Err(_) => return opened(ConfigStorage::RamOnly, PartitionOutcome::Failed),
+        },
         Err(()) => return opened(ConfigStorage::RamOnly, PartitionOutcome::Failed),
     };
     opened(
@@ -192,25 +247,44 @@ pub async fn open_config_partition<F: NorFlash>(flash: F, range: Range<u32>) -> 
     )
 }
 
-/// Erase `range` unless it is blank (all 0xFF). True when it was erased.
-async fn erase_if_not_blank<F: NorFlash>(flash: &mut F, range: Range<u32>) -> Result<bool, ()> {
+/// Whose data a partition without a usable record holds (policy step 4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Content {
+    /// A `sequential-storage` map: some sector starts with its page marker.
+    Ours,
+    /// All 0xFF.
+    Blank,
+    /// Neither.
+    Foreign,
+}
+
+/// Classify `range` of `flash`, one erase sector at a time.
+async fn classify<F: NorFlash>(flash: &mut F, range: Range<u32>) -> Result<Content, ()> {
     /// Word-aligned, so that the ESP32's flash driver reads straight into it.
     #[repr(align(4))]
     struct Block([u8; 256]);
     let mut block = Block([0; 256]);
     let mut blank = true;
-    for offset in range.clone().step_by(block.0.len()) {
-        flash.read(offset, &mut block.0).await.map_err(|_| ())?;
-        if block.0.iter().any(|&b| b != 0xFF) {
-            blank = false;
-            break;
+    for sector in range.clone().step_by(F::ERASE_SIZE) {
+        for offset in (sector..sector + F::ERASE_SIZE as u32).step_by(block.0.len()) {
+            flash.read(offset, &mut block.0).await.map_err(|_| ())?;
+            if offset == sector && is_page_marker(&block.0[..4]) {
+                return Ok(Content::Ours);
+            }
+            blank &= block.0.iter().all(|&b| b == 0xFF);
         }
     }
-    if blank {
-        return Ok(false);
-    }
-    flash.erase(range.start, range.end).await.map_err(|_| ())?;
-    Ok(true)
+    Ok(if blank {
+        Content::Blank
+    } else {
+        Content::Foreign
+    })
+}
+
+/// True for a sector's first word as `sequential-storage` marks a page it writes (all bits
+/// cleared), allowing for up to half of them lost.
+fn is_page_marker(word: &[u8]) -> bool {
+    word.iter().map(|b| b.count_zeros()).sum::<u32>() >= 16
 }
 
 #[cfg(test)]
@@ -219,7 +293,9 @@ mod tests {
     use embedded_storage_async::nor_flash::{ErrorType, ReadNorFlash};
 
     use super::*;
-    use crate::fakes::flash::RamFlash;
+    use crate::config_store::tests::{FIXTURE_CONFIG, FIXTURE_RECORD_V1, fixture_flash};
+    use crate::config_store::{MAX_RECORD_LEN, encode_record};
+    use crate::fakes::flash::{FlashClock, RamFlash};
 
     const PAGE: u32 = RamFlash::PAGE;
     /// The partition: pages 1..4 of a 6-page flash, with a page of other data on each side.
@@ -252,10 +328,7 @@ mod tests {
     }
 
     fn storage_flash(opened: OpenedConfig<RamFlash>) -> RamFlash {
-        match opened.storage {
-            ConfigStorage::Flash(store) => store.release(),
-            ConfigStorage::RamOnly => panic!("no persistence"),
-        }
+        opened.storage.into_flash().expect("no flash")
     }
 
     /// Save a configuration through what `opened` offers, then boot again: it must be stored.
@@ -341,15 +414,247 @@ mod tests {
     }
 
     #[test]
-    fn a_corrupt_record_gives_the_defaults_and_is_erased() {
+    fn a_corrupt_record_gives_the_defaults_and_is_kept() {
         let mut flash = with_config(50.0);
         // Corrupt every byte that holds the stored gear ratio (50.0f32 little-endian).
         assert!(flash.corrupt_pattern(&50.0f32.to_le_bytes()) > 0);
+        let before = bytes(&mut flash, 0..6 * PAGE);
         let opened = block_on(open_config_partition(flash, RANGE));
         assert_eq!(opened.config, DeviceConfig::DEFAULT);
         assert!(opened.source.defaults_in_use());
+        assert_eq!(opened.outcome, PartitionOutcome::MapKept);
+        assert!(opened.storage.persists());
+        let mut flash = storage_flash(opened);
+        assert_eq!(bytes(&mut flash, 0..6 * PAGE), before, "nothing erased");
+        assert_next_save_persists(block_on(open_config_partition(flash, RANGE)));
+    }
+
+    #[test]
+    fn a_record_that_fails_its_own_crc_is_kept() {
+        // An item the map reads, whose record is damaged: ours, so not erased.
+        let mut store = FlashConfigStore::new(flash(), RANGE);
+        let mut buf = [0u8; MAX_RECORD_LEN];
+        let mut record = encode_record(&DeviceConfig::DEFAULT, &mut buf).to_vec();
+        *record.last_mut().unwrap() ^= 1;
+        block_on(store.store_record(&record)).unwrap();
+        let mut flash = store.release();
+        let before = bytes(&mut flash, 0..6 * PAGE);
+        let opened = block_on(open_config_partition(flash, RANGE));
+        assert_eq!(opened.source, ConfigSource::Corrupt);
+        assert_eq!(opened.outcome, PartitionOutcome::MapKept);
+        let mut flash = storage_flash(opened);
+        assert_eq!(bytes(&mut flash, 0..6 * PAGE), before);
+    }
+
+    #[test]
+    fn the_old_firmwares_partition_loads_untouched() {
+        let mut flash = fixture_flash(6, PAGE);
+        let before = bytes(&mut flash, 0..6 * PAGE);
+        let opened = block_on(open_config_partition(flash, RANGE));
+        assert_eq!(opened.config, FIXTURE_CONFIG);
+        assert_eq!(opened.source, ConfigSource::Stored);
+        assert_eq!(opened.outcome, PartitionOutcome::RecordKept);
+        let mut flash = storage_flash(opened);
+        assert_eq!(bytes(&mut flash, 0..6 * PAGE), before);
+    }
+
+    /// A partition holding a record of version 9 (a newer firmware's).
+    fn newer_flash() -> RamFlash {
+        let mut record = FIXTURE_RECORD_V1.to_vec();
+        record[0] = 9;
+        let n = record.len();
+        let crc = kerfmeter_protocol::CRC16
+            .checksum(&record[..n - 2])
+            .to_le_bytes();
+        record[n - 2..].copy_from_slice(&crc);
+        let mut store = FlashConfigStore::new(flash(), RANGE);
+        block_on(store.store_record(&record)).unwrap();
+        store.release()
+    }
+
+    #[test]
+    fn a_newer_firmwares_record_is_kept_and_not_saved_over() {
+        let mut flash = newer_flash();
+        let before = bytes(&mut flash, 0..6 * PAGE);
+        let opened = block_on(open_config_partition(flash, RANGE));
+        assert_eq!(opened.config, DeviceConfig::DEFAULT);
+        assert_eq!(opened.source, ConfigSource::Newer { version: Some(9) });
+        assert!(opened.source.defaults_in_use());
+        assert_eq!(opened.outcome, PartitionOutcome::NewerRecordKept);
+        assert!(!opened.storage.persists());
+        // A new configuration is applied but not saved.
+        let mut storage = opened.storage;
+        let config = DeviceConfig {
+            gear_ratio: 40.0,
+            ..DeviceConfig::DEFAULT
+        };
+        assert_eq!(
+            ConfigPersist::save(&mut storage, &config),
+            Ok(Persisted::No)
+        );
+        let mut flash = storage.into_flash().unwrap();
+        assert_eq!(bytes(&mut flash, 0..6 * PAGE), before, "not written");
+        let reopened = block_on(open_config_partition(flash, RANGE));
+        assert_eq!(reopened.source, ConfigSource::Newer { version: Some(9) });
+    }
+
+    #[test]
+    fn random_bytes_without_a_page_marker_are_not_ours_and_are_erased() {
+        let mut flash = flash();
+        let mut rng = crate::fakes::rng::Rng::new(5);
+        block_on(async {
+            for offset in RANGE.step_by(4) {
+                // Bytes with few bits cleared, as in a foreign format's headers and free space.
+                let word = (rng.next_u64() as u32) | 0xFEFE_FEFE;
+                flash.write(offset, &word.to_le_bytes()).await.unwrap();
+            }
+        });
+        let opened = block_on(open_config_partition(flash, RANGE));
         assert_eq!(opened.outcome, PartitionOutcome::Erased);
+        let mut flash = storage_flash(opened);
+        assert!(bytes(&mut flash, RANGE).iter().all(|&b| b == 0xFF));
+    }
+
+    #[test]
+    fn the_page_marker_rule() {
+        assert!(is_page_marker(&[0, 0, 0, 0]));
+        // Up to half the bits lost.
+        assert!(is_page_marker(&[0xFF, 0xFF, 0, 0]));
+        assert!(!is_page_marker(&[0xFF, 0xFF, 0xFF, 0x7F]));
+        // ESP-IDF NVS page states: active, full, freeing, corrupt.
+        for state in [0xFFFF_FFFEu32, 0xFFFF_FFFC, 0xFFFF_FFF8, 0xFFFF_FFF0] {
+            assert!(!is_page_marker(&state.to_le_bytes()), "{state:#x}");
+        }
+    }
+
+    /// A sector erase and a program page take as long as on the ESP32-C3's flash, µs.
+    const ERASE_US: u64 = 400_000;
+    const WRITE_PAGE_US: u64 = 3_000;
+
+    /// What saving configurations one after the other on a timed flash came to, at the first
+    /// save that `erases` (or not) a sector, counted from save `skip` on.
+    struct Before {
+        /// The flash just before that save.
+        flash: RamFlash,
+        /// The configuration saved before it.
+        stored: DeviceConfig,
+        /// The configuration it saves.
+        saving: DeviceConfig,
+        /// How long it takes, µs.
+        takes_us: u64,
+    }
+
+    fn numbered(n: u16) -> DeviceConfig {
+        DeviceConfig {
+            encoder_zero_raw: n + 1,
+            ..DeviceConfig::DEFAULT
+        }
+    }
+
+    fn before_a_save(skip: u16, erases: bool) -> Before {
+        let clock = FlashClock::new(ERASE_US, WRITE_PAGE_US, 1);
+        let mut store = FlashConfigStore::new(flash().with_clock(clock.clone()), RANGE);
+        for n in 0..2000 {
+            let flash = store.release();
+            let snapshot = flash.clone().with_clock(FlashClock::default());
+            store = FlashConfigStore::new(flash, RANGE);
+            let (erased, _) = (clock.erases(), clock.take_spent_us());
+            ConfigPersist::save(&mut store, &numbered(n)).unwrap();
+            if n >= skip && (clock.erases() > erased) == erases {
+                return Before {
+                    flash: snapshot,
+                    stored: numbered(n - 1),
+                    saving: numbered(n),
+                    takes_us: clock.take_spent_us(),
+                };
+            }
+        }
+        panic!("no such save");
+    }
+
+    /// Cut the power `budget_us` into `before`'s save, then boot: the configuration must be
+    /// the one stored before, or the new one, and the next save must persist. Whether the save
+    /// was cut, and whether the new configuration loaded.
+    fn assert_a_cut_save_loses_nothing(before: &Before, budget_us: u64, seed: u64) -> (bool, bool) {
+        let clock = FlashClock::new(ERASE_US, WRITE_PAGE_US, seed);
+        clock.set_budget_us(Some(budget_us));
+        let mut store =
+            FlashConfigStore::new(before.flash.clone().with_clock(clock.clone()), RANGE);
+        let saved = ConfigPersist::save(&mut store, &before.saving).is_ok();
+        assert!(saved || clock.is_cut(), "cut at {budget_us} µs");
+        clock.power_on();
+        let opened = block_on(open_config_partition(store.release(), RANGE));
+        assert_eq!(opened.source, ConfigSource::Stored, "cut at {budget_us} µs");
+        assert!(
+            opened.config == before.stored || opened.config == before.saving,
+            "cut at {budget_us} µs: {:?}",
+            opened.config
+        );
+        if saved {
+            assert_eq!(opened.config, before.saving);
+        }
+        let outcome = (!saved, opened.config == before.saving);
         assert_next_save_persists(opened);
+        outcome
+    }
+
+    /// Run `cuts` ((budget, seed) pairs) on `before`: some must tear the save, and both the
+    /// old and the new configuration must come out of some.
+    fn assert_cuts_lose_nothing(before: &Before, cuts: impl Iterator<Item = (u64, u64)>) {
+        let outcomes: Vec<_> = cuts
+            .map(|(budget_us, seed)| assert_a_cut_save_loses_nothing(before, budget_us, seed))
+            .collect();
+        let torn = outcomes.iter().filter(|o| o.0).count();
+        assert!(
+            torn >= outcomes.len() / 2,
+            "{torn} of {} torn",
+            outcomes.len()
+        );
+        assert!(
+            outcomes.iter().any(|o| o.0 && !o.1),
+            "some keep the old one"
+        );
+        assert!(outcomes.iter().any(|o| o.1), "some load the new one");
+    }
+
+    #[test]
+    fn a_save_torn_anywhere_in_its_erase_leaves_the_last_good_record() {
+        let before = before_a_save(1, true);
+        assert!(before.takes_us >= ERASE_US, "{} µs", before.takes_us);
+        // Early and late in the first erase (its start is where a torn sector looks least like
+        // the map's), then across the whole save.
+        let budgets = [
+            0,
+            1,
+            50,
+            200,
+            1_000,
+            5_000,
+            ERASE_US - 1,
+            ERASE_US,
+            ERASE_US + 1,
+        ];
+        let sweep = (0..=64).map(|i| before.takes_us * i / 64);
+        let cuts = budgets.into_iter().chain(sweep).zip(0..);
+        assert_cuts_lose_nothing(&before, cuts);
+    }
+
+    #[test]
+    fn a_save_torn_anywhere_in_its_write_leaves_the_last_good_record() {
+        let before = before_a_save(5, false);
+        assert!(before.takes_us > 0);
+        let cuts = (0..=before.takes_us).step_by(50).map(|b| (b, b));
+        assert_cuts_lose_nothing(&before, cuts);
+    }
+
+    #[test]
+    fn without_a_partition_a_save_is_not_claimed_persisted() {
+        let mut storage = ConfigStorage::<RamFlash>::RamOnly;
+        assert!(!storage.persists());
+        assert_eq!(
+            ConfigPersist::save(&mut storage, &DeviceConfig::DEFAULT),
+            Ok(Persisted::No)
+        );
     }
 
     /// A flash that reads and writes, but fails every erase.
@@ -391,7 +696,7 @@ mod tests {
         let mut storage = opened.storage;
         assert_eq!(
             ConfigPersist::save(&mut storage, &DeviceConfig::DEFAULT),
-            Ok(())
+            Ok(Persisted::No)
         );
     }
 

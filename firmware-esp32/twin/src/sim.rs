@@ -217,12 +217,9 @@ impl Twin {
             ),
         )
         .into_store();
-        let flash = match storage {
-            ConfigStorage::Flash(store) => store.release(),
-            // The RAM flash reads and erases at boot unless its power is cut, and it is on then:
-            // every twin keeps its flash.
-            ConfigStorage::RamOnly => unreachable!("the twin's flash always opens"),
-        };
+        // The RAM flash reads and erases at boot unless its power is cut, and it is on then:
+        // every twin keeps its flash.
+        let flash = storage.into_flash().expect("the twin's flash always opens");
         let plant = self.plant.clone();
         let bursts = self.bursts.clone();
         let truths = self.truths.clone();

@@ -147,7 +147,9 @@ async fn main(spawner: Spawner) {
         "configuration: {}",
         match opened.source {
             ConfigSource::Stored => "stored",
+            ConfigSource::Migrated { .. } => "stored (older record version, migrated)",
             ConfigSource::Missing => "defaults (none stored)",
+            ConfigSource::Newer { .. } => "defaults (record of a newer firmware, kept)",
             ConfigSource::Corrupt => "defaults (stored record unusable)",
         }
     );
