@@ -12,7 +12,7 @@
 //! - [`build`]: what this build is (firmware version, board name, hardware constants) for
 //!   `GetInfo`.
 //! - [`motor`]: the Pololu G2 motor driver; safe state on construction, on drop, on request.
-//! - [`config_store`]: the device configuration in flash, versioned and CRC-checked.
+//! - [`config_store`]: the device configuration in flash, versioned, CRC-checked and migrated.
 //! - [`controller`]: the measuring state machine, stepped at 1 kHz: ramp, jam, kerf, faults. Its
 //!   kerf and torque math is the gauge's model in `kerfmeter_protocol::spiral`, shared with the host.
 //! - [`hardware`]: one control tick on the real drivers (shared by the board and the twin).

@@ -21,8 +21,9 @@
 //!    are used and reported, and the record is kept. New configurations are applied but not
 //!    saved ([`ConfigStorage::Protected`]): a `SetConfig` alone never replaces it. The newer
 //!    firmware reads it again; to give it up and store this version's, erase the partition
-//!    explicitly (`espflash erase-parts --partition-table <table> nvs`, or `erase-region` over
-//!    its range).
+//!    explicitly (`espflash erase-region 0x9000 0x6000` for the default table's `nvs`). The
+//!    protocol has no request for it: an erase is a deliberate act at the bench, not something
+//!    a host tool does by accident with a `SetConfig` built from the defaults it was shown.
 //! 4. **No usable record** (none, a damaged one, or a map the store cannot read): the defaults
 //!    are used, and what is in the partition decides:
 //!    - **ours**: at least one sector starts with `sequential-storage`'s page marker, a first
@@ -34,7 +35,8 @@
 //!    - **anything else is not ours** and is erased, the whole partition: typically ESP-IDF NVS
 //!      pages left by a board's factory firmware (their page-state words 0xFFFF_FFFE/FC/F8/F0
 //!      clear at most 4 bits), which the store would take for free space. The next `SetConfig`
-//!      then persists.
+//!      then persists. Its blind spot: a page that ESP-IDF marked invalid (state word zero)
+//!      passes for ours; the map skips what it cannot read there, and saves still persist.
 //! 5. **The partition cannot be read or erased** while doing so: defaults, no persistence.
 //!
 //! The store's source ([`ConfigSource`]) is reported unchanged in every case, so that the host
@@ -496,6 +498,25 @@ mod tests {
         assert_eq!(bytes(&mut flash, 0..6 * PAGE), before, "not written");
         let reopened = block_on(open_config_partition(flash, RANGE));
         assert_eq!(reopened.source, ConfigSource::Newer { version: Some(9) });
+    }
+
+    #[test]
+    fn nvs_pages_marked_invalid_pass_for_ours_and_saves_still_persist() {
+        // The rule's blind spot: ESP-IDF marks a page it gave up on with a zero state word,
+        // which reads as the map's page marker. The map then skips what it cannot read.
+        let mut flash = flash();
+        block_on(async {
+            for page in RANGE.step_by(PAGE as usize) {
+                flash.write(page, &[0; 4]).await.unwrap();
+                flash
+                    .write(page + 64, b"phy_init\0\0\0\0wifi.cfg")
+                    .await
+                    .unwrap();
+            }
+        });
+        let opened = block_on(open_config_partition(flash, RANGE));
+        assert_eq!(opened.outcome, PartitionOutcome::MapKept);
+        assert_next_save_persists(opened);
     }
 
     #[test]
