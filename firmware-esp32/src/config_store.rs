@@ -48,8 +48,9 @@ use sequential_storage::map::{MapConfig, MapStorage};
 pub const CONFIG_RECORD_VERSION: u8 = CurrentLayout::VERSION;
 /// Map key of the configuration record (every version).
 pub const CONFIG_KEY: u8 = 1;
-/// Longest record of any version, frame included. A future layout must stay within it, so that
-/// this firmware can still read the version of its records.
+/// Longest record of any version, frame included. A future layout should stay within it, so that
+/// this firmware can read the version of its records (a longer record is still taken for a newer
+/// firmware's and kept, with its version unknown).
 pub const MAX_RECORD_LEN: usize = 128;
 /// Working buffer for the map: key + value, rounded up to the flash word.
 const BUFFER_LEN: usize = (1 + MAX_RECORD_LEN).next_multiple_of(32);
