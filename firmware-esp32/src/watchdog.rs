@@ -22,6 +22,16 @@ use embedded_storage_async::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 
 pub use crate::build::{FLASH_WATCHDOG_TIMEOUT_MS, WATCHDOG_TIMEOUT_MS};
 
+// The timeouts' reasons, checked at compile time: the normal one at least ten times the
+// controller's own overrun limit (3 periods) yet at most 100 ms; the flash window at least four
+// times the slowest sector erase of a C3 module's flash (400 ms).
+const _: () = {
+    use crate::controller::{OVERRUN_PERIODS, PERIOD_US};
+    assert!(WATCHDOG_TIMEOUT_MS * 1000 >= 10 * OVERRUN_PERIODS * PERIOD_US);
+    assert!(WATCHDOG_TIMEOUT_MS <= 100);
+    assert!(FLASH_WATCHDOG_TIMEOUT_MS >= 4 * 400);
+};
+
 /// A hardware watchdog.
 pub trait Watchdog {
     /// Restart the countdown: the chip resets unless fed again within `timeout_ms`.
@@ -183,15 +193,5 @@ mod tests {
             log.0.borrow().last(),
             Some(&Event::Fed(WATCHDOG_TIMEOUT_MS))
         );
-    }
-
-    #[test]
-    fn the_normal_timeout_fits_the_tick_and_the_flash_window_the_slowest_erase() {
-        let period_ms = crate::controller::PERIOD_US / 1000;
-        let overrun_ms = crate::controller::OVERRUN_PERIODS * period_ms;
-        assert!(WATCHDOG_TIMEOUT_MS >= 10 * overrun_ms);
-        assert!(WATCHDOG_TIMEOUT_MS <= 100);
-        // The slowest sector erase of a C3 module's flash is 400 ms.
-        assert!(FLASH_WATCHDOG_TIMEOUT_MS >= 4 * 400);
     }
 }
