@@ -16,9 +16,11 @@
 //!
 //! The board records its lines ([`ArmedBridge::arm`]) as soon as it has set them up; before
 //! that the pins are still in their reset state, inputs, and the pull-down on `SLP` (a wiring
-//! requirement) holds the driver asleep. [`on_panic`] is the one panic path: the board's
-//! pre-backtrace hook and the on-target tests' panic handler both call it, with the chip's
-//! registers (`board::emergency`); the host tests call it with fake ones.
+//! requirement) holds the driver asleep. [`on_panic`] is the panic path's order: the bridge
+//! safe, then the report. The on-target tests' panic handler calls it with the chip's registers
+//! (`board::emergency`), the host tests with fake ones; in the board binary esp-backtrace's
+//! handler is the report, and its pre-backtrace hook does the first half
+//! ([`ArmedBridge::force_safe`] on the same registers) before it prints anything.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
