@@ -1,4 +1,4 @@
-//! Facts about this firmware build: those `GetInfo` reports, and the board's watchdog timeout,
+//! Facts about this firmware build: those `GetInfo` reports, and the board's watchdog timeouts,
 //! which the digital twin models too.
 
 use kerfmeter_protocol::{
@@ -24,10 +24,20 @@ pub const PWM_FREQUENCY_HZ: u32 = 20_000;
 pub const PWM_BITS: u8 = 11;
 /// Capacity of the run's sample log.
 pub const MAX_SAMPLES: u16 = 2048;
-/// Hardware watchdog timeout of the board, ms: a control loop stalled this long resets the chip.
-/// It also bounds a configuration write: a flash sector erase stalls the core for tens of ms, and
-/// 300–400 ms at worst. The digital twin resets its device after the same time.
-pub const WATCHDOG_TIMEOUT_MS: u64 = 500;
+/// Hardware watchdog timeout of the board in normal running, ms: a control loop stalled this long
+/// resets the chip. Only the control tick feeds it (see [`crate::watchdog`]).
+///
+/// Why 50 ms: the tick comes every 1 ms; the worst step costs 37.3k instructions (0.23 ms at
+/// 160 MHz), link work a few ms at most, and a late tick 1–5 ms. The controller itself faults a
+/// run (`StepOverrun`) once 3 ms pass between steps, so nothing healthy comes near 50 ms — ten
+/// times the latest tick the twin draws — while a hung loop with the motor driven is reset within
+/// 50 ms rather than half a second. The digital twin resets its device after the same time.
+pub const WATCHDOG_TIMEOUT_MS: u64 = 50;
+/// Hardware watchdog timeout around each flash erase or write, ms (see [`crate::watchdog`]): a
+/// 4 KiB sector erase stalls the core for 45 ms typically and 300–400 ms at worst on a C3
+/// module's flash (the twin's range goes to 1000 ms). 2 s is five times the datasheet worst
+/// case. It costs nothing in safety: flash is written only with the motor asleep.
+pub const FLASH_WATCHDOG_TIMEOUT_MS: u64 = 2000;
 
 /// The `GetInfo` answer of a device named `board` (`"esp32c3"`, `"esp32c6"`, `"twin"`) that
 /// booted with `boot_id`.

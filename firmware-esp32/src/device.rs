@@ -10,13 +10,24 @@
 //! (`ErrorCode::Storage`). A store may apply a configuration without saving it (no flash
 //! partition, or one that holds a newer firmware's record): [`Device::config_saved`] then says
 //! so.
+//!
+//! # Flash only with the motor asleep
+//!
+//! A save stalls the core for up to hundreds of milliseconds, and no tick runs meanwhile: the
+//! bridge holds whatever the last tick applied. So the device saves only when the last tick left
+//! the driver asleep. Between ticks the controller may already be at rest while the bridge is
+//! still driven (an `Abort` just before the `SetConfig`, in the same pass of link work): the
+//! board and the twin hand requests to the device through [`WithMotor`], which then puts the
+//! bridge safe itself — the step's worth of output the next tick would apply — before the
+//! device saves. Without the motor at hand (a bare [`Device`] as the handler), such a
+//! `SetConfig` is refused with `Busy` until a tick has put the driver to sleep.
 
 use kerfmeter_protocol::{ConfigReport, DeviceConfig, DeviceInfo, ErrorCode, Request, Response};
 
 use crate::config_store::{ConfigPersist, ConfigSource, Persisted};
 use crate::controller::{Controller, Inputs};
 use crate::link::Handler;
-use crate::motor::MotorOutput;
+use crate::motor::{G2Motor, MotorError, MotorOutput};
 
 /// The device's state and request handler, generic over how the configuration is persisted.
 pub struct Device<S: ConfigPersist = ()> {
@@ -27,6 +38,8 @@ pub struct Device<S: ConfigPersist = ()> {
     saved: bool,
     store: S,
     now_us: u64,
+    /// The last tick left the driver asleep (or nothing has driven it since boot).
+    motor_asleep: bool,
 }
 
 impl Device<()> {
@@ -59,6 +72,7 @@ impl<S: ConfigPersist> Device<S> {
             saved: !source.defaults_in_use(),
             store,
             now_us: 0,
+            motor_asleep: true,
         }
     }
 
@@ -88,7 +102,9 @@ impl<S: ConfigPersist> Device<S> {
     /// One control tick at `now_us`.
     pub fn step(&mut self, now_us: u64, inputs: &Inputs) -> MotorOutput {
         self.now_us = now_us;
-        self.controller.step(now_us, inputs)
+        let out = self.controller.step(now_us, inputs);
+        self.motor_asleep = !out.awake;
+        out
     }
 
     fn config_report(&self) -> Response {
@@ -105,7 +121,8 @@ impl<S: ConfigPersist> Device<S> {
         if let Some(f) = self.controller.fault() {
             return Response::Error(ErrorCode::Faulted(f));
         }
-        if self.controller.is_active() {
+        // At rest, but the last tick's output may still drive the bridge (see the module docs).
+        if self.controller.is_active() || !self.motor_asleep {
             return Response::Error(ErrorCode::Busy);
         }
         let Ok(persisted) = self.store.save(config) else {
@@ -149,6 +166,49 @@ impl<S: ConfigPersist> Handler for Device<S> {
             Request::SetConfig(config) => self.set_config(config),
             Request::GetSelfTest => Response::SelfTest(controller.self_test_report().copied()),
         }
+    }
+}
+
+/// The motor driver as the device needs it between ticks: put in its safe state at once.
+pub trait MotorSafe {
+    /// Duty 0, driver asleep.
+    fn safe(&mut self) -> Result<(), MotorError>;
+}
+
+impl<PWM, DIR, SLP, FLT> MotorSafe for G2Motor<PWM, DIR, SLP, FLT>
+where
+    PWM: embedded_hal::pwm::SetDutyCycle,
+    DIR: embedded_hal::digital::OutputPin,
+    SLP: embedded_hal::digital::OutputPin,
+    FLT: embedded_hal::digital::InputPin,
+{
+    fn safe(&mut self) -> Result<(), MotorError> {
+        G2Motor::safe(self)
+    }
+}
+
+/// The device with the motor driver at hand, as the link sees it between ticks: a `SetConfig`
+/// that the device would carry out puts the bridge safe first, so that its flash operations
+/// never run with the motor driven (see the module docs).
+pub struct WithMotor<'a, S: ConfigPersist, M: MotorSafe> {
+    /// The device.
+    pub device: &'a mut Device<S>,
+    /// The motor driver the last tick applied its output to.
+    pub motor: &'a mut M,
+}
+
+impl<S: ConfigPersist, M: MotorSafe> Handler for WithMotor<'_, S, M> {
+    fn handle(&mut self, request: &Request) -> Response {
+        let device = &mut *self.device;
+        // At rest, the next tick's output is the safe state anyway: apply it now. A driver that
+        // fails to go safe leaves the flag down, and the device refuses the save.
+        if matches!(request, Request::SetConfig(_))
+            && !device.controller.is_active()
+            && !device.motor_asleep
+        {
+            device.motor_asleep = self.motor.safe().is_ok();
+        }
+        device.handle(request)
     }
 }
 
@@ -292,6 +352,160 @@ mod tests {
             d.handle(&Request::SetConfig(bad)),
             Response::Error(ErrorCode::InvalidParam(ParamField::GearRatio))
         );
+    }
+
+    /// Inputs of a still hub at zero.
+    fn still() -> Inputs {
+        Inputs {
+            angle_deg: Ok(0.0),
+            diagnostics: None,
+            current_a: Some(0.2),
+            driver_fault: false,
+            supply_v: None,
+        }
+    }
+
+    /// A store that records, at each save, whether the fake bridge was safe then.
+    struct Watching {
+        slp: crate::fakes::pins::FakeOutput,
+        saves: Vec<bool>,
+    }
+
+    impl ConfigPersist for Watching {
+        fn save(&mut self, _: &DeviceConfig) -> Result<Persisted, StoreError> {
+            self.saves.push(!self.slp.is_high());
+            Ok(Persisted::Yes)
+        }
+    }
+
+    type FakeMotor = G2Motor<
+        crate::fakes::pins::FakePwm,
+        crate::fakes::pins::FakeOutput,
+        crate::fakes::pins::FakeOutput,
+        crate::fakes::pins::FakeInput,
+    >;
+
+    /// A device whose run drives a fake motor, just aborted: the controller at rest, the bridge
+    /// still driven by the last tick.
+    fn aborted_mid_run() -> (Device<Watching>, FakeMotor, crate::fakes::pins::FakeOutput) {
+        use crate::fakes::pins::{FakeInput, FakeOutput, FakePwm};
+        let slp = FakeOutput::new(false);
+        let (mut motor, _) = G2Motor::new(
+            FakePwm::new(2047),
+            FakeOutput::new(false),
+            slp.clone(),
+            FakeInput::new(true),
+        );
+        let store = Watching {
+            slp: slp.clone(),
+            saves: Vec::new(),
+        };
+        let mut d = Device::with_config(
+            "twin",
+            1,
+            DeviceConfig::DEFAULT,
+            ConfigSource::Stored,
+            store,
+        );
+        let mut now_us = PERIOD_US;
+        d.step(now_us, &still());
+        assert_eq!(d.handle(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+        for _ in 0..50 {
+            now_us += PERIOD_US;
+            motor.apply(&d.step(now_us, &still())).unwrap();
+        }
+        assert!(slp.is_high(), "the run drives the motor");
+        assert_eq!(d.handle(&Request::Abort), Response::Ok);
+        (d, motor, slp)
+    }
+
+    use crate::controller::PERIOD_US;
+    use kerfmeter_protocol::RunParams;
+
+    #[test]
+    fn set_config_is_refused_while_a_run_a_reset_or_a_self_test_is_active() {
+        let starts = [
+            Request::Run(RunParams::DEFAULT),
+            Request::Reset,
+            Request::SelfTest,
+        ];
+        for start in starts {
+            let mut d = Device::new("twin", 1);
+            d.step(PERIOD_US, &still());
+            assert_eq!(d.handle(&start), Response::Ok, "{start:?}");
+            assert_eq!(
+                d.handle(&Request::SetConfig(DeviceConfig::DEFAULT)),
+                Response::Error(ErrorCode::Busy),
+                "{start:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_save_right_after_abort_waits_for_a_tick_that_puts_the_motor_to_sleep() {
+        let (mut d, mut motor, slp) = aborted_mid_run();
+        let new = DeviceConfig {
+            gear_ratio: 30.0,
+            ..DeviceConfig::DEFAULT
+        };
+        assert_eq!(
+            d.handle(&Request::SetConfig(new)),
+            Response::Error(ErrorCode::Busy)
+        );
+        assert!(
+            d.store.saves.is_empty(),
+            "nothing written with the motor driven"
+        );
+        motor.apply(&d.step(100 * PERIOD_US, &still())).unwrap();
+        assert!(!slp.is_high());
+        assert!(matches!(
+            d.handle(&Request::SetConfig(new)),
+            Response::Config(_)
+        ));
+        assert_eq!(d.store.saves, [true]);
+    }
+
+    #[test]
+    fn with_the_motor_at_hand_a_save_right_after_abort_puts_the_bridge_safe_first() {
+        let (mut d, mut motor, slp) = aborted_mid_run();
+        let mut handler = WithMotor {
+            device: &mut d,
+            motor: &mut motor,
+        };
+        assert!(matches!(
+            handler.handle(&Request::SetConfig(DeviceConfig::DEFAULT)),
+            Response::Config(_)
+        ));
+        assert!(!slp.is_high());
+        assert_eq!(
+            d.store.saves,
+            [true],
+            "the bridge was safe when the flash was written"
+        );
+    }
+
+    #[test]
+    fn with_the_motor_at_hand_a_run_is_still_not_interrupted_by_a_save() {
+        let (mut d, mut motor, slp) = aborted_mid_run();
+        // A new run, driving the motor again.
+        let mut now_us = 200 * PERIOD_US;
+        motor.apply(&d.step(now_us, &still())).unwrap();
+        assert_eq!(d.handle(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+        for _ in 0..50 {
+            now_us += PERIOD_US;
+            motor.apply(&d.step(now_us, &still())).unwrap();
+        }
+        assert!(slp.is_high());
+        let mut handler = WithMotor {
+            device: &mut d,
+            motor: &mut motor,
+        };
+        assert_eq!(
+            handler.handle(&Request::SetConfig(DeviceConfig::DEFAULT)),
+            Response::Error(ErrorCode::Busy)
+        );
+        assert!(slp.is_high(), "the run's output is left alone");
+        assert!(d.store.saves.is_empty());
     }
 
     #[test]

@@ -19,13 +19,16 @@
 //! - [`jam`]: jam detection: windowed slope, hold median.
 //! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.
 //! - [`device`]: the request handler behind the link: the whole request table.
+//! - [`watchdog`]: the hardware watchdog's timeouts, and the flash operations that lengthen it.
+//! - [`emergency`]: the motor bridge put safe on the registers from a panic, before any print.
 //! - [`board`]: board bring-up: pins, PWM, encoder SPI, current sense (chip features), and the
 //!   chip-independent current-sense scaling and configuration-partition policy.
 //! - `fakes` (feature `fakes`, std): fake peripherals for the drivers' tests and the digital twin
 //!   (the `kerfmeter-twin` crate).
 
 #![cfg_attr(not(any(test, feature = "fakes")), no_std)]
-#![forbid(unsafe_code)]
+// Unsafe code only in `board::emergency` (the panic path's register writes), which allows it.
+#![deny(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod as5048a;
@@ -34,6 +37,7 @@ pub mod build;
 pub mod config_store;
 pub mod controller;
 pub mod device;
+pub mod emergency;
 #[cfg(any(test, feature = "fakes"))]
 pub mod fakes;
 pub mod hardware;
@@ -41,3 +45,4 @@ pub mod jam;
 pub mod link;
 pub mod motor;
 pub mod samples;
+pub mod watchdog;

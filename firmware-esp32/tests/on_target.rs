@@ -19,20 +19,40 @@
 //!
 //! Every test starts with the motor in its safe state and ends by putting it there again, both
 //! checked on the chip's registers (SLP driven low, DIR low, LEDC duty 0). The motor is driven
-//! only inside [`Board::pulse`], which puts it back to sleep before any check can fail; and the
-//! panic handler drives SLP low before it reports anything, so a failing test never leaves the
-//! motor running.
+//! only inside [`Board::pulse`], which puts it back to sleep before any check can fail, and in
+//! the panic-path test, which puts it safe through that path itself. The panic handler is the
+//! board binary's panic path (`emergency::on_panic` over `board::emergency`'s registers): the
+//! bridge safe on the registers, then the report, so a failing test never leaves the motor
+//! running.
+//!
+//! # The watchdog and the flash
+//!
+//! One test saves the stored configuration again and again (the same configuration: the bench
+//! board's calibration is kept; with none stored, the defaults end up stored) until the store
+//! erases a sector, with the board's watchdog running and its normal timeout cut to
+//! [`SHORT_WATCHDOG_MS`]: the erase outlasts it, and the chip survives only because the flash
+//! runs each operation in its own window.
 
 #![no_std]
 #![no_main]
 
-use core::sync::atomic::{AtomicU8, Ordering};
+use core::sync::atomic::{AtomicU32, Ordering};
 
-use esp_hal::{clock::CpuClock, delay::Delay, gpio::Pin};
+use esp_hal::{
+    clock::CpuClock,
+    delay::Delay,
+    gpio::Pin,
+    peripherals::{FLASH, TIMG1},
+    time::Instant,
+};
 use kerfmeter_firmware::as5048a::COUNTS_PER_TURN;
+use kerfmeter_firmware::board::emergency::{ARMED, ChipRegisters};
 use kerfmeter_firmware::board::encoder::{BoardEncoder, encoder};
 use kerfmeter_firmware::board::motor::{BoardMotor, LineLevels, PWM_CHANNEL, motor_lines};
+use kerfmeter_firmware::board::watchdog::BoardWatchdog;
+use kerfmeter_firmware::emergency::{BridgeRegisters, on_panic};
 use kerfmeter_firmware::motor::MotorOutput;
+use kerfmeter_firmware::watchdog::{WATCHDOG_TIMEOUT_MS, Watchdog};
 use kerfmeter_protocol::DeviceConfig;
 
 esp_bootloader_esp_idf::esp_app_desc!();
@@ -47,28 +67,23 @@ const SAMPLE_PERIOD_MS: u32 = 1;
 /// One encoder count, degrees of hub angle (encoder on the output shaft).
 const LSB_DEG: f32 = 360.0 / COUNTS_PER_TURN as f32;
 
-/// "No pin known yet" for [`SLEEP_GPIO`].
-const NO_GPIO: u8 = u8::MAX;
-/// GPIO number of the G2's SLP line, once the board is set up: the panic handler drives it low.
-static SLEEP_GPIO: AtomicU8 = AtomicU8::new(NO_GPIO);
+/// The watchdog's normal timeout during the flash test, ms: shorter than any sector erase.
+const SHORT_WATCHDOG_MS: u64 = 15;
 
-/// Drive SLP low straight on the GPIO registers: the driver object may be out of reach.
-fn force_motor_asleep() {
-    let gpio = SLEEP_GPIO.load(Ordering::Relaxed);
-    if gpio < 32 {
-        // SAFETY: a write-1-to-clear of one output bit; no other bit changes.
-        esp_hal::peripherals::GPIO::regs()
-            .out_w1tc()
-            .write(|w| unsafe { w.bits(1 << gpio) });
-    }
-}
-
-/// Motor asleep first, then the report, then the failure to the runner.
+/// The board binary's panic path: the bridge safe on the registers, then the report; then the
+/// failure to the runner.
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
-    force_motor_asleep();
-    defmt::error!("{}", defmt::Display2Format(info));
+    on_panic(&ARMED, &mut ChipRegisters, || {
+        defmt::error!("{}", defmt::Display2Format(info))
+    });
     semihosting::process::abort()
+}
+
+/// Drive SLP low straight on the GPIO registers (the panic path's own write), without touching
+/// the PWM routing: the motor driver can still drive afterwards.
+fn force_motor_asleep(sleep_gpio: u8) {
+    ChipRegisters.drive_gpio_low(sleep_gpio);
 }
 
 /// The motor lines' state, read back from the registers.
@@ -108,8 +123,13 @@ struct Board {
     delay: Delay,
     sleep_gpio: u8,
     dir_gpio: u8,
+    pwm_gpio: u8,
     /// The motor lines just before the motor driver was constructed.
     before: MotorLines,
+    /// The SPI flash (the configuration partition).
+    flash: Option<FLASH<'static>>,
+    /// The timer group whose MWDT is the board's watchdog.
+    timg1: Option<TIMG1<'static>>,
 }
 
 /// Set the chip up as the board binary does (the same library code), with the motor lines at
@@ -119,7 +139,7 @@ fn build(levels: LineLevels) -> Board {
     let pins = kerfmeter_firmware::take_pins!(p);
     let sleep_gpio = pins.motor.sleep.number();
     let dir_gpio = pins.motor.dir.number();
-    SLEEP_GPIO.store(sleep_gpio, Ordering::Relaxed);
+    let pwm_gpio = pins.motor.pwm.number();
 
     let lines = motor_lines(p.LEDC, pins.motor, levels);
     let delay = Delay::new();
@@ -137,7 +157,10 @@ fn build(levels: LineLevels) -> Board {
         delay,
         sleep_gpio,
         dir_gpio,
+        pwm_gpio,
         before,
+        flash: Some(p.FLASH),
+        timg1: Some(p.TIMG1),
     }
 }
 
@@ -158,7 +181,78 @@ fn read_lines(sleep_gpio: u8, dir_gpio: u8) -> MotorLines {
     }
 }
 
+/// The bridge's lines as the panic path must leave them, read back from the registers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct PanicLines {
+    /// SLP driven high (driver awake).
+    sleep_high: bool,
+    /// DIR driven high.
+    dir_high: bool,
+    /// The PWM pin taken from LEDC to the GPIO output register, and driven low there.
+    pwm_pin_forced_low: bool,
+    /// The LEDC channel's output enabled.
+    pwm_output_enabled: bool,
+}
+
+impl PanicLines {
+    fn is_safe(&self) -> bool {
+        !self.sleep_high && !self.dir_high && self.pwm_pin_forced_low && !self.pwm_output_enabled
+    }
+}
+
+/// Longest flash operation seen by [`ShortWatchdog`], µs.
+static LONGEST_FLASH_OP_US: AtomicU32 = AtomicU32::new(0);
+
+/// The board's watchdog with its normal timeout cut to [`SHORT_WATCHDOG_MS`], timing each flash
+/// operation: from its window's opening to the normal timeout's return.
+struct ShortWatchdog {
+    dog: BoardWatchdog,
+    window_from: Option<Instant>,
+}
+
+impl Watchdog for ShortWatchdog {
+    fn feed_ms(&mut self, timeout_ms: u64) {
+        if timeout_ms == WATCHDOG_TIMEOUT_MS {
+            self.dog.feed_ms(SHORT_WATCHDOG_MS);
+            if let Some(from) = self.window_from.take() {
+                let us = from.elapsed().as_micros().min(u64::from(u32::MAX)) as u32;
+                // Load and store: the C3 has no atomic read-modify-write (one core, no interrupt
+                // touches it).
+                let longest = LONGEST_FLASH_OP_US.load(Ordering::Relaxed);
+                LONGEST_FLASH_OP_US.store(longest.max(us), Ordering::Relaxed);
+            }
+        } else {
+            self.window_from = Some(Instant::now());
+            self.dog.feed_ms(timeout_ms);
+        }
+    }
+}
+
 impl Board {
+    /// The bridge's lines as the panic path leaves them, read at once.
+    fn panic_lines(&self) -> PanicLines {
+        let gpio = esp_hal::peripherals::GPIO::regs();
+        let out = gpio.out().read().bits();
+        let pwm_routed_to_gpio = gpio
+            .func_out_sel_cfg(usize::from(self.pwm_gpio))
+            .read()
+            .out_sel()
+            .bits()
+            == esp_hal::gpio::OutputSignal::GPIO as u8;
+        let pwm_output_enabled = esp_hal::peripherals::LEDC::regs()
+            .ch(PWM_CHANNEL as usize)
+            .conf0()
+            .read()
+            .sig_out_en()
+            .bit();
+        PanicLines {
+            sleep_high: out & (1 << self.sleep_gpio) != 0,
+            dir_high: out & (1 << self.dir_gpio) != 0,
+            pwm_pin_forced_low: pwm_routed_to_gpio && out & (1 << self.pwm_gpio) == 0,
+            pwm_output_enabled,
+        }
+    }
+
     /// The motor lines now.
     fn lines(&self) -> MotorLines {
         self.delay.delay_micros(DUTY_SETTLE_US);
@@ -231,7 +325,7 @@ impl Board {
             }
         }
         let _ = self.motor.safe();
-        force_motor_asleep();
+        force_motor_asleep(self.sleep_gpio);
         // Keep sampling while the hub coasts, so that the driver's unwrap follows it.
         for _ in 0..settle_ms {
             self.delay.delay_millis(SAMPLE_PERIOD_MS);
@@ -268,9 +362,20 @@ mod tests {
     use kerfmeter_firmware::motor::MotorOutput;
     use kerfmeter_protocol::DeviceConfig;
 
+    use kerfmeter_firmware::board::emergency::{ARMED, ChipRegisters};
+    use kerfmeter_firmware::board::flash::config_partition;
     use kerfmeter_firmware::board::motor::LineLevels;
+    use kerfmeter_firmware::board::partition::{ConfigStorage, open_config_partition};
+    use kerfmeter_firmware::board::watchdog::BoardWatchdog;
+    use kerfmeter_firmware::config_store::ConfigPersist;
+    use kerfmeter_firmware::emergency::on_panic;
+    use kerfmeter_firmware::watchdog::{Watchdog, WatchdogFlash};
 
-    use super::{Board, LSB_DEG, SAMPLE_PERIOD_MS, build};
+    use super::{
+        Board, LONGEST_FLASH_OP_US, LSB_DEG, SAMPLE_PERIOD_MS, SHORT_WATCHDOG_MS, ShortWatchdog,
+        build,
+    };
+    use core::sync::atomic::Ordering;
 
     /// Consecutive raw angle reads that must all pass the parity (and error-flag) check.
     const PARITY_READS: u32 = 2000;
@@ -292,6 +397,11 @@ mod tests {
     const FLT_READS: u32 = 100;
     /// Time for the G2 to wake up before FLT is read, ms.
     const WAKE_MS: u32 = 10;
+    /// Saves of the flash test before it gives up waiting for an erase (the `nvs` partition's
+    /// six sectors hold a few hundred records before the store erases one).
+    const MAX_SAVES: u32 = 3000;
+    /// What the watchdog is left at after the flash test, ms: time for the runner to hear back.
+    const AFTER_TEST_WATCHDOG_MS: u64 = 60_000;
 
     #[init]
     fn init() -> Board {
@@ -546,6 +656,99 @@ mod tests {
                 }
             );
         }
+        board.finish();
+    }
+
+    #[test]
+    #[timeout(10)]
+    fn the_panic_path_puts_a_driven_bridge_safe_before_it_reports(mut board: Board) {
+        board.assert_safe("at the start");
+        // Awake at a low duty (no gauge on the hub: it may turn a little).
+        let driven = board.motor.apply(&MotorOutput {
+            duty: PULSE_DUTY,
+            dir_high: true,
+            awake: true,
+        });
+        board.delay.delay_millis(WAKE_MS);
+        let before = board.lines();
+        // The panic handler's own path, with the report reading the registers back.
+        let mut at_report = None;
+        on_panic(&ARMED, &mut ChipRegisters, || {
+            at_report = Some(board.panic_lines())
+        });
+        let _ = board.motor.safe();
+        assert!(driven.is_ok(), "driving the motor failed: {:?}", driven);
+        assert!(
+            before.sleep_high && before.dir_high && before.duty_raw > 0,
+            "set-up: the bridge should have been driven: {:?}",
+            before
+        );
+        let at_report = at_report.expect("the report ran");
+        info!("at the report: {}", defmt::Debug2Format(&at_report));
+        assert!(
+            at_report.is_safe(),
+            "the bridge was not safe when the panic was reported: {:?}",
+            at_report
+        );
+        // The LEDC channel is stopped for good now: no `finish` (its duty check reads LEDC).
+        assert!(board.panic_lines().is_safe(), "safe at the end");
+    }
+
+    #[test]
+    #[timeout(60)]
+    fn a_flash_erase_runs_in_its_own_watchdog_window(mut board: Board) {
+        board.assert_safe("at the start");
+        let flash = board.flash.take().expect("the flash");
+        let (flash, range) = match config_partition(flash) {
+            Ok(found) => found,
+            Err(e) => panic!("no usable nvs partition: {}", defmt::Display2Format(&e)),
+        };
+        let guarded = WatchdogFlash::new(
+            flash.into_inner(),
+            ShortWatchdog {
+                dog: BoardWatchdog,
+                window_from: None,
+            },
+        );
+        // Opened before the watchdog runs, as the board binary does.
+        let opened = embassy_futures::block_on(open_config_partition(guarded, range));
+        let config = opened.config;
+        let mut storage = opened.storage;
+        if let ConfigStorage::RamOnly = storage {
+            panic!(
+                "the nvs partition is unusable: {}",
+                defmt::Display2Format(&opened.outcome)
+            );
+        }
+        let mut dog = BoardWatchdog::start(board.timg1.take().expect("TIMG1"));
+        dog.feed_ms(SHORT_WATCHDOG_MS);
+        let mut saves = 0;
+        while LONGEST_FLASH_OP_US.load(Ordering::Relaxed) <= SHORT_WATCHDOG_MS as u32 * 1000
+            && saves < MAX_SAVES
+        {
+            let saved = ConfigPersist::save(&mut storage, &config);
+            dog.feed_ms(SHORT_WATCHDOG_MS);
+            saves += 1;
+            if saved.is_err() {
+                dog.feed_ms(AFTER_TEST_WATCHDOG_MS);
+                panic!("save {} failed", saves);
+            }
+        }
+        // Time for the runner to hear back.
+        dog.feed_ms(AFTER_TEST_WATCHDOG_MS);
+        let longest_us = LONGEST_FLASH_OP_US.load(Ordering::Relaxed);
+        info!(
+            "{} saves; longest flash operation {} us, with the watchdog at {} ms",
+            saves, longest_us, SHORT_WATCHDOG_MS
+        );
+        assert!(
+            longest_us > SHORT_WATCHDOG_MS as u32 * 1000,
+            "no flash operation outlasted the {} ms watchdog in {} saves (longest {} us): the \
+             test proves nothing on this flash",
+            SHORT_WATCHDOG_MS,
+            saves,
+            longest_us
+        );
         board.finish();
     }
 }

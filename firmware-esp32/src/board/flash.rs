@@ -1,6 +1,10 @@
 //! The configuration's flash on the chip: the SPI flash through esp-storage, and the `nvs` data
 //! partition found in the partition table. What is then done with the partition is the
 //! chip-independent policy in [`super::partition`].
+//!
+//! Every erase and write runs in its own watchdog window ([`WatchdogFlash`] over the board's
+//! MWDT): esp-storage runs them with interrupts off and the core stalled, a sector erase for up
+//! to 400 ms, far past the 50 ms the watchdog allows the control loop.
 
 use core::ops::Range;
 
@@ -10,10 +14,13 @@ use esp_hal::peripherals::FLASH;
 use esp_storage::FlashStorage;
 
 use super::partition::{PartitionEntry, PartitionError};
+use super::watchdog::BoardWatchdog;
+use crate::watchdog::WatchdogFlash;
 
 /// The flash behind the configuration store: blocking, behind an async adapter, so that every
-/// operation completes at once (as `FlashConfigStore`'s synchronous save requires).
-pub type ConfigFlash = BlockingAsync<FlashStorage<'static>>;
+/// operation completes at once (as `FlashConfigStore`'s synchronous save requires), each erase
+/// and write in its own watchdog window.
+pub type ConfigFlash = WatchdogFlash<BlockingAsync<FlashStorage<'static>>, BoardWatchdog>;
 
 /// The flash, and the range of its `nvs` partition that the configuration store may use.
 pub fn config_partition(
@@ -21,7 +28,10 @@ pub fn config_partition(
 ) -> Result<(ConfigFlash, Range<u32>), PartitionError> {
     let mut flash = FlashStorage::new(flash);
     let range = nvs_partition(&mut flash)?.config_range(FlashStorage::SECTOR_SIZE)?;
-    Ok((BlockingAsync::new(flash), range))
+    Ok((
+        WatchdogFlash::new(BlockingAsync::new(flash), BoardWatchdog),
+        range,
+    ))
 }
 
 /// The partition table's `nvs` data partition.

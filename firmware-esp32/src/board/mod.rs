@@ -14,7 +14,10 @@
 //! - `adc`: the G2's current-sense output on ADC1 (11 dB, eFuse-calibrated), read one
 //!   conversion behind so that the control tick never waits.
 //! - `flash`: the SPI flash and the partition table's `nvs` partition, which holds the
-//!   configuration.
+//!   configuration, its erases and writes guarded by the watchdog.
+//! - `watchdog`: TIMG1's MWDT, fed by the control tick and lengthened around flash operations.
+//! - `emergency`: the panic path's register writes (GPIO, LEDC) that put the bridge safe before
+//!   anything is printed; the motor set-up arms it with the bridge's lines.
 //!
 //! Chip-independent, and tested on the host:
 //!
@@ -23,8 +26,8 @@
 //! - [`partition`]: what is done at boot with the configuration partition: use a valid record,
 //!   erase foreign data, or run without persistence.
 //!
-//! The watchdog, the USB-Serial-JTAG port and the tasks stay in the board binary: they are the
-//! binary's run-time structure, not set-up that the tests share.
+//! The USB-Serial-JTAG port and the tasks stay in the board binary: they are the binary's
+//! run-time structure, not set-up that the tests share.
 //!
 //! [`G2Motor`]: crate::motor::G2Motor
 //! [`As5048a`]: crate::as5048a::As5048a
@@ -36,6 +39,8 @@ pub mod supply;
 #[cfg(feature = "board")]
 pub mod adc;
 #[cfg(feature = "board")]
+pub mod emergency;
+#[cfg(feature = "board")]
 pub mod encoder;
 #[cfg(feature = "board")]
 pub mod flash;
@@ -43,6 +48,8 @@ pub mod flash;
 pub mod motor;
 #[cfg(feature = "board")]
 pub mod pins;
+#[cfg(feature = "board")]
+pub mod watchdog;
 
 #[cfg(all(feature = "board", not(any(feature = "esp32c3", feature = "esp32c6"))))]
 compile_error!("the board needs a chip feature: `esp32c3` or `esp32c6`");

@@ -7,7 +7,7 @@
 //! safe whatever state they were left in.
 
 use esp_hal::{
-    gpio::{DriveMode, Input, InputConfig, Level, Output, OutputConfig, Pull},
+    gpio::{DriveMode, Input, InputConfig, Level, Output, OutputConfig, Pin, Pull},
     ledc::{
         LSGlobalClkSource, Ledc, LowSpeed,
         channel::{self, ChannelIFace},
@@ -20,6 +20,7 @@ use static_cell::StaticCell;
 
 use super::pins::MotorPins;
 use crate::build::PWM_FREQUENCY_HZ;
+use crate::emergency::BridgeLines;
 use crate::motor::{G2Motor, MotorError};
 
 /// Motor PWM frequency ([`PWM_FREQUENCY_HZ`], shared with the digital twin).
@@ -89,12 +90,19 @@ impl MotorLines {
 }
 
 /// Set the G2's lines up at `levels`: `SLP`, `DIR` and the PWM pin as outputs first, then the
-/// LEDC timer and channel. Call once per boot (the timer lives in a static).
+/// LEDC timer and channel. Call once per boot (the timer lives in a static). From then on a
+/// panic puts these lines safe on the registers (`board::emergency`).
 ///
 /// Panics if LEDC refuses the timer or channel configuration (a build for a chip whose clock
 /// tree this module does not know).
 pub fn motor_lines(ledc: LEDC<'static>, pins: MotorPins, levels: LineLevels) -> MotorLines {
     let level = |high| if high { Level::High } else { Level::Low };
+    let lines = BridgeLines {
+        sleep_gpio: pins.sleep.number(),
+        dir_gpio: pins.dir.number(),
+        pwm_gpio: pins.pwm.number(),
+        pwm_channel: PWM_CHANNEL as u8,
+    };
     let sleep = Output::new(
         pins.sleep,
         level(levels.sleep_high),
@@ -102,6 +110,9 @@ pub fn motor_lines(ledc: LEDC<'static>, pins: MotorPins, levels: LineLevels) -> 
     );
     let dir = Output::new(pins.dir, level(levels.dir_high), OutputConfig::default());
     let pwm_pin = Output::new(pins.pwm, Level::Low, OutputConfig::default());
+    // The lines are outputs now: a panic from here on (the LEDC set-up below included) drives
+    // them safe on the registers.
+    super::emergency::arm(lines);
 
     let mut ledc = Ledc::new(ledc);
     ledc.set_global_slow_clock(LSGlobalClkSource::APBClk);

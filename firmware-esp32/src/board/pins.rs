@@ -8,9 +8,9 @@
 //!
 //! | signal                  | part / pin          | dir | ESP32-C3 | ESP32-C6 | notes |
 //! |-------------------------|---------------------|-----|----------|----------|-------|
-//! | motor PWM               | Pololu G2 `PWM`     | out | GPIO3    | GPIO3    | LEDC, 20 kHz, 11-bit duty; duty 0 = no drive |
+//! | motor PWM               | Pololu G2 `PWM`     | out | GPIO3    | GPIO3    | LEDC, 20 kHz, 11-bit duty; duty 0 = no drive. A panic takes the pin off LEDC and drives it low |
 //! | motor direction         | Pololu G2 `DIR`     | out | GPIO4    | GPIO21   | |
-//! | motor sleep             | Pololu G2 `SLP`     | out | GPIO1    | GPIO1    | active-low sleep: low = asleep. **Board requirement:** a pull-down resistor (≈10 kΩ to GND) on this net, so the driver sleeps while the MCU is in reset, booting, halted after a panic, or unpowered |
+//! | motor sleep             | Pololu G2 `SLP`     | out | GPIO1    | GPIO1    | active-low sleep: low = asleep. **Board requirement:** a pull-down resistor (≈10 kΩ to GND) on this net, so the driver sleeps while the MCU is in reset, booting or unpowered (its pins are inputs then). A panic drives it low on the GPIO registers before anything is printed (`board::emergency`) |
 //! | motor fault             | Pololu G2 `FLT`     | in  | GPIO20   | GPIO20   | open-drain, active low; internal pull-up enabled (an external ≈10 kΩ pull-up to 3V3 is recommended) |
 //! | motor current           | Pololu G2 `CS`      | ain | GPIO0    | GPIO0    | ADC1 channel 0, 11 dB attenuation, calibrated to millivolts; ≈20 mV/A + ≈50 mV on the G2 18v17 ([`CURRENT_SENSE_MV_PER_A`], [`CURRENT_SENSE_OFFSET_MV`]); the voltage must stay below the ADC's 11 dB range (≈2.5 V) |
 //! | motor supply            | G2 `VIN` via a 100k/8.2k divider | ain | — | — | **not wired yet** (issue 12): ADC1's channels on the C3 (GPIO0–4) are all taken; the divider and its scaling are in `board::supply` |

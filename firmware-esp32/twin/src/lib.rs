@@ -56,7 +56,8 @@
 //!   and occasional late ticks (`late_ticks_per_s`, `late_tick_ms`); every frame's link work
 //!   costs core time (`frame_cost_us`) in the same loop as the tick; a host that sends bursts of
 //!   status requests with its own (`host_burst_frames`, `host_burst_period_ms`); the board's
-//!   watchdog, which resets the chip when a flash stall reaches it, the operation under way left
+//!   watchdog, fed by each tick and lengthened by the firmware around each flash operation as on
+//!   the board, which resets the chip when a stall reaches it, the operation under way left
 //!   torn.
 //! - The cutter: a bias of the kerf where this twin's gauges are cut (drawn once per twin) and a
 //!   gauge-to-gauge Gaussian spread of the kerf.

@@ -11,9 +11,13 @@
 //! the host costs `frame_cost_us`, and a request that erases or writes flash stalls the core for
 //! the whole operation (`flash_erase_ms` a sector, `flash_write_ms` a page): no tick runs
 //! meanwhile, the plant keeps moving. (The store erases a sector only when its pages are full:
-//! on the twin's four sectors, a fresh flash's 319th save is the first to erase.) A stall that reaches the watchdog timeout resets the chip
-//! in the middle of it, the flash operation under way left torn, and the twin reboots (flash
-//! kept, state lost); the host gets no answer. With its own frames, the host sends a burst of
+//! on the twin's four sectors, a fresh flash's 319th save is the first to erase.) The device
+//! puts the bridge safe before it writes flash (`device::WithMotor`, as on the board), so the
+//! plant coasts through a stall rather than being driven. The watchdog ([`SimWatchdog`]) is the
+//! firmware's: fed by each tick, given a longer window by the firmware around each flash
+//! operation. A stall that reaches its deadline resets the chip in the middle of it, the flash
+//! operation under way left torn, and the twin reboots (flash kept, state lost); the host gets no
+//! answer. With its own frames, the host sends a burst of
 //! `host_burst_frames` status requests every `host_burst_period_ms`, through a link of their own,
 //! so that their answers never reach the real client and its retry memory is not disturbed; they
 //! cost core time like any frame.
@@ -29,13 +33,13 @@ use crate::encoder::EncoderErrors;
 use crate::options::{InjectedFault, TwinOptions};
 use crate::plant::{Bridge, Cutter, Plant};
 use crate::sense::Sense;
-use crate::timing::{HostBursts, TickClock};
+use crate::timing::{HostBursts, SimWatchdog, TickClock};
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
 use kerfmeter_firmware::board::partition::{ConfigStorage, OpenedConfig, open_config_partition};
 use kerfmeter_firmware::config_store::ConfigSource;
 use kerfmeter_firmware::controller::PERIOD_US;
-use kerfmeter_firmware::device::Device;
+use kerfmeter_firmware::device::{Device, WithMotor};
 use kerfmeter_firmware::fakes::as5048a::{FakeAs5048a, MisoFault};
 use kerfmeter_firmware::fakes::flash::{FlashClock, RamFlash};
 use kerfmeter_firmware::fakes::pins::{FakeInput, FakeOutput, FakePwm};
@@ -43,6 +47,7 @@ use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_firmware::hardware::Hardware;
 use kerfmeter_firmware::link::{Handler, Link};
 use kerfmeter_firmware::motor::G2Motor;
+use kerfmeter_firmware::watchdog::{WATCHDOG_TIMEOUT_MS, Watchdog, WatchdogFlash};
 
 /// How far simulated time may run past the host's last answered request, ms.
 pub const MAX_LEAD_MS: u64 = 100;
@@ -67,8 +72,11 @@ const FLASH_PAGES: usize = 4;
 const FLASH_RANGE: core::ops::Range<u32> = 0..FLASH_PAGES as u32 * RamFlash::PAGE;
 
 type TwinHardware = Hardware<FakeAs5048a, FakePwm, FakeOutput, FakeOutput, FakeInput>;
+type TwinMotor = G2Motor<FakePwm, FakeOutput, FakeOutput, FakeInput>;
+/// The configuration's flash, its operations guarded by the watchdog as on the board.
+pub type TwinFlash = WatchdogFlash<RamFlash, SimWatchdog>;
 /// The device, with its configuration kept as the board keeps it.
-pub type TwinDevice = Device<ConfigStorage<RamFlash>>;
+pub type TwinDevice = Device<ConfigStorage<TwinFlash>>;
 
 /// The bridge at rest: what the driver's constructor leaves.
 const SAFE_BRIDGE: Bridge = Bridge {
@@ -103,6 +111,8 @@ pub struct Twin {
     burst_link: Link,
     bursts: HostBursts,
     ticks: TickClock,
+    /// The board's watchdog, fed by each tick and by the firmware around flash operations.
+    watchdog: SimWatchdog,
     flash: FlashClock,
     /// The bridge as the firmware last left it: the plant runs with it until the next tick.
     bridge: Bridge,
@@ -152,7 +162,10 @@ impl Twin {
         let (motor, _) = G2Motor::new(pwm.clone(), dir.clone(), slp.clone(), flt.clone());
         let mut chip = FakeAs5048a::new(rng.next_u64());
         chip.set_noise_lsb(options.plant.encoder_noise_lsb as f32);
-        let (opened, flash_clock) = open_config(flash);
+        let watchdog = SimWatchdog::new(flash.clock().clone());
+        let (opened, flash_clock) = open_config(WatchdogFlash::new(flash, watchdog.clone()));
+        // The board starts its watchdog once booted.
+        watchdog.start(now_us);
         let encoder = As5048a::new(chip, EncoderSettings::from_config(&opened.config));
         let device = Device::with_config(
             "twin",
@@ -170,6 +183,7 @@ impl Twin {
         Self {
             gauge_rng: Rng::new(stream(GAUGE_STREAM)),
             ticks: TickClock::new(&options.plant, stream(TIMING_STREAM), now_us),
+            watchdog,
             bursts: HostBursts::new(&options.plant, now_us),
             cutter: Cutter::for_twin(
                 options.plant,
@@ -219,7 +233,10 @@ impl Twin {
         .into_store();
         // The RAM flash reads and erases at boot unless its power is cut, and it is on then:
         // every twin keeps its flash.
-        let flash = storage.into_flash().expect("the twin's flash always opens");
+        let flash = storage
+            .into_flash()
+            .expect("the twin's flash always opens")
+            .into_inner();
         let plant = self.plant.clone();
         let bursts = self.bursts.clone();
         let truths = self.truths.clone();
@@ -361,15 +378,19 @@ impl Twin {
         let frames_before = frames_seen(link);
         let mut core = CoreWork {
             now_us: self.now_us,
-            deadline_us: self.ticks.watchdog_deadline_us(),
             frame_cost_us: self.options.plant.frame_cost_us.round() as u64,
             handled: 0,
             reset: false,
+            bridge_safe_at_us: None,
         };
         let mut repair = false;
         let result = serve(
             &mut TwinHandler {
                 device: &mut self.device,
+                motor: &mut self.hardware.motor,
+                pwm: &self.pwm,
+                slp: &self.slp,
+                watchdog: &self.watchdog,
                 plant: &mut self.plant,
                 gauge_rng: &mut self.gauge_rng,
                 cutter: &self.cutter,
@@ -386,8 +407,15 @@ impl Twin {
         // cost link work too.
         let unhandled = (frames_seen(link) - frames_before).saturating_sub(core.handled);
         core.now_us += u64::from(unhandled) * core.frame_cost_us;
-        if core.reset || core.now_us >= core.deadline_us {
-            self.advance_to(core.deadline_us);
+        let deadline_us = self.watchdog.deadline_us();
+        // The device put the bridge safe before a flash operation: from then on the plant runs
+        // with it so.
+        if let Some(at_us) = core.bridge_safe_at_us {
+            self.advance_to(at_us.min(deadline_us));
+            self.bridge = self.bridge_inputs();
+        }
+        if core.reset || core.now_us >= deadline_us {
+            self.advance_to(deadline_us);
             self.reboot();
             return None;
         }
@@ -452,6 +480,10 @@ impl Twin {
             Some(sensed.supply_v),
             &mut self.device,
         );
+        // The control tick, and only it, feeds the watchdog at the normal timeout.
+        self.watchdog.begin(self.now_us);
+        self.watchdog.feed_ms(WATCHDOG_TIMEOUT_MS);
+        self.watchdog.end();
         debug_assert_eq!(out.is_safe(), self.motor_safe());
         self.bridge = self.bridge_inputs();
     }
@@ -531,8 +563,8 @@ impl Twin {
 /// The configuration, opened on `flash` as the board opens it at boot, the flash powered on
 /// again; and the flash's clock. The time the flash takes here is not counted: boot time is not
 /// simulated, and the watchdog is not running yet.
-fn open_config(flash: RamFlash) -> (OpenedConfig<RamFlash>, FlashClock) {
-    let clock = flash.clock().clone();
+fn open_config(flash: TwinFlash) -> (OpenedConfig<TwinFlash>, FlashClock) {
+    let clock = flash.inner().clock().clone();
     clock.power_on();
     let opened = embassy_futures::block_on(open_config_partition(flash, FLASH_RANGE));
     clock.take_spent_us();
@@ -557,13 +589,13 @@ fn frames_seen(link: &Link) -> u32 {
 /// The core's clock during one pass of link work.
 struct CoreWork {
     now_us: u64,
-    /// When the watchdog resets the chip.
-    deadline_us: u64,
     frame_cost_us: u64,
     /// Requests handed to the handler.
     handled: u32,
     /// The watchdog fired: nothing after it happens.
     reset: bool,
+    /// When the device first put a driven bridge safe in this pass (before a flash operation).
+    bridge_safe_at_us: Option<u64>,
 }
 
 /// The device as the link sees it inside the twin, acting out how the device is used: a freshly
@@ -572,6 +604,11 @@ struct CoreWork {
 /// for the flash operations it does.
 struct TwinHandler<'a> {
     device: &'a mut TwinDevice,
+    /// The motor driver, which the device puts safe before writing flash.
+    motor: &'a mut TwinMotor,
+    pwm: &'a FakePwm,
+    slp: &'a FakeOutput,
+    watchdog: &'a SimWatchdog,
     plant: &'a mut Plant,
     gauge_rng: &'a mut Rng,
     cutter: &'a Cutter,
@@ -592,12 +629,20 @@ impl TwinHandler<'_> {
         }
         core.handled += 1;
         core.now_us += core.frame_cost_us;
-        self.flash
-            .set_budget_us(Some(core.deadline_us.saturating_sub(core.now_us)));
-        let response = self.device.handle(request);
-        core.now_us += self.flash.take_spent_us();
-        self.flash.set_budget_us(None);
-        core.reset = self.flash.is_cut() || core.now_us >= core.deadline_us;
+        let driven = self.pwm.duty() > 0.0 && self.slp.is_high();
+        self.watchdog.begin(core.now_us);
+        let response = WithMotor {
+            device: &mut *self.device,
+            motor: &mut *self.motor,
+        }
+        .handle(request);
+        let handled_at_us = core.now_us;
+        core.now_us = self.watchdog.end();
+        if driven && !(self.pwm.duty() > 0.0 && self.slp.is_high()) {
+            // Before any flash operation of this request.
+            core.bridge_safe_at_us.get_or_insert(handled_at_us);
+        }
+        core.reset = self.flash.is_cut() || core.now_us >= self.watchdog.deadline_us();
         (!core.reset).then_some(response)
     }
 }

@@ -19,17 +19,30 @@
 //! own seeded stream, drawn once per tick, so that they shuffle no other draw and a host's
 //! timing does not change them.
 //!
-//! The watchdog ([`WATCHDOG_TIMEOUT_MS`], the board's) is fed by every tick, and from boot. Core
-//! work that reaches it (a flash erase of 600 ms) resets the chip at that instant.
+//! # The watchdog
+//!
+//! [`SimWatchdog`] is the board's hardware watchdog: the firmware's own
+//! [`Watchdog`](kerfmeter_firmware::watchdog::Watchdog) implementation for the twin. It runs from
+//! boot at [`WATCHDOG_TIMEOUT_MS`], is fed by every control tick, and honours what the firmware
+//! asks around flash operations (a [`FLASH_WATCHDOG_TIMEOUT_MS`] window for each erase and write,
+//! the normal timeout after it), on the core's clock: flash operations move that clock on as
+//! they stall the core. Core work that reaches the deadline (a flash erase longer than its
+//! window) resets the chip at that instant: the flash's power is cut there, the operation under
+//! way left torn.
+//!
+//! [`FLASH_WATCHDOG_TIMEOUT_MS`]: kerfmeter_firmware::watchdog::FLASH_WATCHDOG_TIMEOUT_MS
 
-use kerfmeter_firmware::build::WATCHDOG_TIMEOUT_MS;
+use std::sync::{Arc, Mutex, MutexGuard};
+
 use kerfmeter_firmware::controller::PERIOD_US;
+use kerfmeter_firmware::fakes::flash::FlashClock;
 use kerfmeter_firmware::fakes::rng::Rng;
+use kerfmeter_firmware::watchdog::{WATCHDOG_TIMEOUT_MS, Watchdog};
 use kerfmeter_protocol::{Envelope, MAX_REQUEST_FRAME_LEN, Request, encode_frame};
 
 use crate::plant::PlantParams;
 
-/// The control ticks' times and the watchdog of one boot of the core.
+/// The control ticks' times of one boot of the core.
 #[derive(Debug, Clone)]
 pub struct TickClock {
     rng: Rng,
@@ -90,8 +103,7 @@ impl TickClock {
         due.saturating_add_signed(self.offset_us).max(earliest)
     }
 
-    /// Run the next tick (the core having worked until `core_us`): its time. It feeds the
-    /// watchdog.
+    /// Run the next tick (the core having worked until `core_us`): its time.
     pub fn start_tick(&mut self, core_us: u64) -> u64 {
         let due = self.next_due_us(core_us);
         let ran = self.next_tick_us(core_us);
@@ -107,11 +119,108 @@ impl TickClock {
         self.offset_us = self.draw_offset_us();
         core_us
     }
+}
 
-    /// When the watchdog resets the chip unless a tick feeds it first.
-    pub fn watchdog_deadline_us(&self) -> u64 {
-        let fed_us = self.last.map_or(self.boot_us, |(_, ran_us)| ran_us);
-        fed_us + WATCHDOG_TIMEOUT_MS * 1000
+/// The board's hardware watchdog on the core's clock (see the module docs). A cheap shared
+/// handle: the firmware's guarded flash holds one, the twin another.
+#[derive(Debug, Clone)]
+pub struct SimWatchdog(Arc<Mutex<WatchdogState>>);
+
+#[derive(Debug)]
+struct WatchdogState {
+    /// The flash whose operations stall the core (and whose power the reset cuts).
+    flash: FlashClock,
+    /// Started (the board starts it once booted; feeds before are no-ops).
+    running: bool,
+    /// Inside [`SimWatchdog::begin`]..[`SimWatchdog::end`]: the firmware has the core.
+    working: bool,
+    /// The core's clock, as far as the watchdog has seen it.
+    now_us: u64,
+    fed_us: u64,
+    timeout_us: u64,
+}
+
+impl WatchdogState {
+    /// The core's clock, moved on by the flash time spent since it was last read.
+    fn now_us(&mut self) -> u64 {
+        self.now_us += self.flash.take_spent_us();
+        self.now_us
+    }
+
+    fn deadline_us(&self) -> u64 {
+        self.fed_us + self.timeout_us
+    }
+
+    /// Flash time left before the reset, while the firmware has the core.
+    fn arm_flash(&self) {
+        if self.working && self.running {
+            let left = self.deadline_us().saturating_sub(self.now_us);
+            self.flash.set_budget_us(Some(left));
+        }
+    }
+}
+
+impl SimWatchdog {
+    /// The watchdog of a core whose flash is timed by `flash`; not running yet.
+    pub fn new(flash: FlashClock) -> Self {
+        Self(Arc::new(Mutex::new(WatchdogState {
+            flash,
+            running: false,
+            working: false,
+            now_us: 0,
+            fed_us: 0,
+            timeout_us: WATCHDOG_TIMEOUT_MS * 1000,
+        })))
+    }
+
+    fn state(&self) -> MutexGuard<'_, WatchdogState> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Start it at `now_us` with the normal timeout, as the board does once booted.
+    pub fn start(&self, now_us: u64) {
+        let mut s = self.state();
+        s.flash.take_spent_us();
+        s.running = true;
+        s.now_us = now_us;
+        s.fed_us = now_us;
+        s.timeout_us = WATCHDOG_TIMEOUT_MS * 1000;
+    }
+
+    /// The firmware gets the core at `now_us`: from here flash operations move the core's clock
+    /// on, and the flash's power is cut when the watchdog fires.
+    pub fn begin(&self, now_us: u64) {
+        let mut s = self.state();
+        s.flash.take_spent_us();
+        s.now_us = now_us;
+        s.working = true;
+        s.arm_flash();
+    }
+
+    /// The firmware is done: the core's clock then.
+    pub fn end(&self) -> u64 {
+        let mut s = self.state();
+        s.working = false;
+        s.flash.set_budget_us(None);
+        s.now_us()
+    }
+
+    /// When the chip resets unless fed first (`u64::MAX` before it starts).
+    pub fn deadline_us(&self) -> u64 {
+        let s = self.state();
+        if s.running { s.deadline_us() } else { u64::MAX }
+    }
+}
+
+impl Watchdog for SimWatchdog {
+    fn feed_ms(&mut self, timeout_ms: u64) {
+        let mut s = self.state();
+        if !s.running {
+            return;
+        }
+        s.fed_us = s.now_us();
+        s.timeout_us = timeout_ms * 1000;
+        s.arm_flash();
     }
 }
 
@@ -248,15 +357,41 @@ mod tests {
     }
 
     #[test]
-    fn the_watchdog_is_fed_by_each_tick() {
-        let p = params(&[]);
-        let mut clock = TickClock::new(&p, 3, 7_000);
-        assert_eq!(
-            clock.watchdog_deadline_us(),
-            7_000 + WATCHDOG_TIMEOUT_MS * 1000
-        );
-        let t = clock.start_tick(7_000);
-        assert_eq!(clock.watchdog_deadline_us(), t + WATCHDOG_TIMEOUT_MS * 1000);
+    fn the_watchdog_runs_from_its_start_and_a_feed_restarts_it_at_the_timeout_given() {
+        let clock = FlashClock::new(400_000, 0, 1);
+        let mut dog = SimWatchdog::new(clock.clone());
+        assert_eq!(dog.deadline_us(), u64::MAX, "not started");
+        dog.start(7_000);
+        assert_eq!(dog.deadline_us(), 7_000 + WATCHDOG_TIMEOUT_MS * 1000);
+        dog.begin(9_000);
+        dog.feed_ms(WATCHDOG_TIMEOUT_MS);
+        assert_eq!(dog.end(), 9_000);
+        assert_eq!(dog.deadline_us(), 9_000 + WATCHDOG_TIMEOUT_MS * 1000);
+    }
+
+    #[test]
+    fn flash_time_moves_the_clock_and_the_flash_is_cut_at_the_deadline() {
+        use embedded_storage_async::nor_flash::NorFlash;
+        use kerfmeter_firmware::fakes::flash::RamFlash;
+        let clock = FlashClock::new(400_000, 0, 1);
+        let mut flash = RamFlash::new(2).with_clock(clock.clone());
+        let mut dog = SimWatchdog::new(clock.clone());
+        dog.start(0);
+        // An erase with no longer window: cut at the 50 ms deadline.
+        dog.begin(1_000);
+        assert!(embassy_futures::block_on(flash.erase(0, RamFlash::PAGE)).is_err());
+        assert!(clock.is_cut());
+        assert_eq!(dog.end(), WATCHDOG_TIMEOUT_MS * 1000);
+        // After a reboot, with the window the firmware asks for: the erase completes.
+        clock.power_on();
+        dog.start(0);
+        dog.begin(1_000);
+        dog.feed_ms(1_000);
+        embassy_futures::block_on(flash.erase(0, RamFlash::PAGE)).unwrap();
+        dog.feed_ms(WATCHDOG_TIMEOUT_MS);
+        assert!(!clock.is_cut());
+        assert_eq!(dog.end(), 401_000);
+        assert_eq!(dog.deadline_us(), 401_000 + WATCHDOG_TIMEOUT_MS * 1000);
     }
 
     #[test]

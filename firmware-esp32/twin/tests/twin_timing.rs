@@ -2,7 +2,7 @@
 //! another host's bursts, flash operations that stall the core, and the watchdog that resets it
 //! mid-erase.
 
-use kerfmeter_firmware::build::WATCHDOG_TIMEOUT_MS;
+use kerfmeter_firmware::build::FLASH_WATCHDOG_TIMEOUT_MS;
 use kerfmeter_firmware::controller::PERIOD_US;
 use kerfmeter_protocol::{DeviceConfig, Fault, KerfResult, Request, Response, RunParams, RunState};
 use kerfmeter_twin::sim::MAX_LEAD_MS;
@@ -203,12 +203,12 @@ fn a_flash_erase_stalls_the_core_and_the_status_is_answered_late() {
     let save = save_until_an_erase(&mut t);
     assert!(
         matches!(save.answer, Some(Response::Config(_))),
-        "a 400 ms erase fits the watchdog: {:?}",
+        "a 400 ms erase fits the flash operation's watchdog window: {:?}",
         save.answer
     );
     let stall_us = save.ended_us - save.started_us;
     assert!(
-        (400_000..WATCHDOG_TIMEOUT_MS * 1000).contains(&stall_us),
+        (400_000..FLASH_WATCHDOG_TIMEOUT_MS * 1000).contains(&stall_us),
         "stalled {stall_us} µs"
     );
     // The poll that follows is answered after the stall; no tick ran meanwhile, and the next
@@ -232,7 +232,8 @@ fn the_plant_keeps_moving_through_a_flash_stall() {
     assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
     t.advance_ticks(150);
     assert!(t.plant().hub_deg_per_s().abs() > 1.0, "the hub turns");
-    // Abort and save in the same pass of link work, before a tick puts the bridge safe.
+    // Abort and save in the same pass of link work, before a tick puts the bridge safe: the
+    // device puts it safe itself before writing flash.
     assert_eq!(t.request(&Request::Abort), Response::Ok);
     let (hub_deg, started_us) = (t.plant().hub_deg(), t.now_us());
     assert!(matches!(
@@ -241,12 +242,14 @@ fn the_plant_keeps_moving_through_a_flash_stall() {
     ));
     let stall_us = t.now_us() - started_us;
     assert!(stall_us >= 10_000, "stalled {stall_us} µs");
+    // The plant ran through the stall: the hub coasted on from about 80 °/s (a few tenths of a
+    // degree), and came to rest, since nothing drove it.
     let moved_deg = t.plant().hub_deg() - hub_deg;
-    // About 80 °/s for 30 ms: the hub went on turning with the bridge held.
     assert!(
-        moved_deg.abs() > 0.5,
+        moved_deg.abs() > 0.1,
         "the hub moved {moved_deg}° during the stall"
     );
+    assert_eq!(t.plant().hub_deg_per_s(), 0.0, "at rest after the stall");
     assert!(
         t.next_tick_us() > t.now_us(),
         "no tick ran during the stall"
@@ -254,7 +257,6 @@ fn the_plant_keeps_moving_through_a_flash_stall() {
 }
 
 #[test]
-#[ignore = "known failure, issue 12: a save right after Abort stalls the core before any tick puts the bridge safe, so the motor is driven through the flash stall"]
 fn a_save_right_after_abort_does_not_drive_the_motor_through_the_stall() {
     let mut t = twin(&[]);
     assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
@@ -266,8 +268,16 @@ fn a_save_right_after_abort_does_not_drive_the_motor_through_the_stall() {
 
 #[test]
 fn a_watchdog_reset_mid_erase_keeps_the_stored_calibration() {
-    // An erase longer than the watchdog: the device resets in the middle of it, the sector torn.
-    let mut t = twin(&["flash_erase_ms=600"]);
+    // An erase longer than even the flash operation's watchdog window (a failing part, beyond
+    // the parameter's range): the device resets in the middle of it, the sector torn.
+    let mut options = TwinOptions {
+        kerf_um: 150.0,
+        seed: 11,
+        ..TwinOptions::default()
+    };
+    options.plant.flash_erase_ms = 1.25 * FLASH_WATCHDOG_TIMEOUT_MS as f64;
+    let mut t = Twin::new(options);
+    t.advance_ticks(5);
     let boot_id = |t: &mut Twin| match t.request(&Request::GetInfo) {
         Response::Info(info) => info.boot_id,
         other => panic!("{other:?}"),
@@ -277,11 +287,13 @@ fn a_watchdog_reset_mid_erase_keeps_the_stored_calibration() {
     assert_eq!(save.answer, None, "no answer: the device reset");
     assert_eq!(t.reboots(), 1);
     assert_ne!(boot_id(&mut t), first_boot);
-    // Reset at the watchdog timeout, counted from the tick just before (less the link work
-    // done since that tick).
+    // Reset at the end of the erase's window, which the firmware opened just before it: after
+    // the request's link work and the save's page writes before the erase (3 ms each, about 20
+    // on this flash: the store moves its live items on before it erases).
     let stall_us = save.ended_us - save.started_us;
+    let window_us = FLASH_WATCHDOG_TIMEOUT_MS * 1000;
     assert!(
-        (WATCHDOG_TIMEOUT_MS * 1000 - 1000..=WATCHDOG_TIMEOUT_MS * 1000).contains(&stall_us),
+        (window_us..=window_us + 100_000).contains(&stall_us),
         "reset after {stall_us} µs"
     );
     t.advance_ticks(5);
@@ -297,9 +309,9 @@ fn a_watchdog_reset_mid_erase_keeps_the_stored_calibration() {
 }
 
 #[test]
-#[ignore = "known failure, issue 12: the 500 ms watchdog is neither fed nor lengthened around a flash erase, so a slow erase resets the device mid-save"]
 fn a_save_on_a_slow_flash_is_answered_without_a_reset() {
-    let mut t = twin(&["flash_erase_ms=600"]);
+    // The slowest erase of the parameter's range.
+    let mut t = twin(&["flash_erase_ms=1000"]);
     let save = save_until_an_erase(&mut t);
     assert!(
         matches!(save.answer, Some(Response::Config(_))),

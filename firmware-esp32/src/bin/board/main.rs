@@ -2,8 +2,8 @@
 //!
 //! Glue only: this file takes the chip's peripherals, puts the motor in its safe state, sets up
 //! the PWM, encoder SPI, current-sense ADC and configuration flash through the library's
-//! [`board`] module (the same set-up the on-target tests use), starts the watchdog, and starts
-//! three embassy tasks. All behaviour lives in the `kerfmeter_firmware` library, which is tested
+//! [`board`] module (the same set-up the on-target tests use), starts the watchdog
+//! ([`BoardWatchdog`]), and starts three embassy tasks. All behaviour lives in the `kerfmeter_firmware` library, which is tested
 //! on the host; the per-tick sequence is the library's [`Hardware::tick`], the same one the
 //! digital twin runs.
 //!
@@ -29,7 +29,8 @@
 //!   bytes are taken with `try_receive`, responses are queued with `try_write`, and a response
 //!   that does not fit the queue is dropped (the host retries the same `seq`, and the link
 //!   answers the retry from memory without carrying the request out twice). It is the only
-//!   feeder of the hardware watchdog, so a stalled control loop resets the chip.
+//!   feeder of the hardware watchdog ([`WATCHDOG_TIMEOUT_MS`], 50 ms), so a stalled control loop
+//!   resets the chip; the configuration flash lengthens it around each of its operations.
 //! - [`usb_rx_task`]: USB-Serial-JTAG bytes in, forwarded in chunks of up to [`CHUNK_LEN`] bytes.
 //!   It may wait for room in the queue (that only slows the host down).
 //! - [`usb_tx_task`]: response bytes out. The device only answers, so nothing else writes to
@@ -41,18 +42,26 @@
 //! The device configuration is kept in the `nvs` data partition of the partition table, found at
 //! boot; the library's `board::partition` says what is done with it (use a valid record, erase
 //! foreign data, or run without persistence) and is tested on the host. A `SetConfig` writes it
-//! synchronously from the control task (the device refuses it while the motor runs), stalling
-//! the ticks for the duration of the write; the ticker then restarts instead of bursting through
-//! the missed ticks.
+//! synchronously from the control task, stalling the ticks for the duration of the write; the
+//! ticker then restarts instead of bursting through the missed ticks. The device refuses it while
+//! the motor runs, and the link hands requests to it with the motor driver at hand
+//! ([`WithMotor`]), so that the bridge is put to sleep before the first flash operation even when
+//! the last tick left it driven (an `Abort` in the same pass). Each erase and write runs in its
+//! own [`FLASH_WATCHDOG_TIMEOUT_MS`](kerfmeter_firmware::watchdog::FLASH_WATCHDOG_TIMEOUT_MS)
+//! watchdog window (the library's `WatchdogFlash`), and the
+//! 50 ms timeout is back as soon as it returns.
 //!
 //! Logs and panic messages go to UART0 (esp-println's `uart` feature), never to the protocol
 //! port. The control loop itself does not log (a UART write would stall the tick).
 //!
-//! Panic path: esp-backtrace prints the backtrace to UART0, then spins with interrupts off.
-//! Nobody feeds the watchdog any more, so it resets the chip within [`WATCHDOG_TIMEOUT`]. From
-//! reset on, the pins are high-impedance inputs and the board's pull-down resistor on the G2's
-//! `SLP` input (a wiring requirement, see `board::pins`) puts the driver to sleep: the motor is
-//! safe without any help from software.
+//! Panic path: esp-backtrace's handler first calls [`custom_pre_backtrace`], which puts the
+//! bridge in its safe state on the GPIO and LEDC registers (`SLP` low, the PWM pin low and its
+//! LEDC channel stopped, `DIR` low: `board::emergency`), without the motor driver, which the
+//! panic may have struck mid-use. Only then does it print the message and backtrace to UART0
+//! (milliseconds at 115200 baud) and spin with interrupts off. Nobody feeds the watchdog any
+//! more, so it resets the chip within [`WATCHDOG_TIMEOUT_MS`]. From reset on, the pins are
+//! high-impedance inputs and the board's pull-down resistor on the G2's `SLP` input (a wiring
+//! requirement, see `board::pins`) keeps the driver asleep.
 
 #![no_std]
 #![no_main]
@@ -64,9 +73,8 @@ use esp_backtrace as _;
 use esp_hal::{
     Async,
     clock::CpuClock,
-    peripherals::TIMG1,
     rng::{Rng, Trng, TrngSource},
-    timer::timg::{MwdtStage, TimerGroup, Wdt},
+    timer::timg::TimerGroup,
     usb::usb_serial_jtag::{UsbSerialJtag, UsbSerialJtagRx, UsbSerialJtagTx},
 };
 use kerfmeter_firmware::{
@@ -76,22 +84,25 @@ use kerfmeter_firmware::{
         flash::{ConfigFlash, config_partition},
         motor::{LineLevels, motor_lines},
         partition::{OpenedConfig, open_config_partition},
+        watchdog::BoardWatchdog,
     },
-    build::WATCHDOG_TIMEOUT_MS,
     config_store::ConfigSource,
     controller::PERIOD_US,
-    device::Device,
+    device::{Device, WithMotor},
     hardware::Hardware,
     link::Link,
+    watchdog::{WATCHDOG_TIMEOUT_MS, Watchdog},
 };
 use kerfmeter_protocol::{MAX_RESPONSE_FRAME_LEN, heapless};
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
-/// Hardware watchdog timeout ([`WATCHDOG_TIMEOUT_MS`], shared with the twin): a control loop
-/// stalled this long resets the chip.
-const WATCHDOG_TIMEOUT: esp_hal::time::Duration =
-    esp_hal::time::Duration::from_millis(WATCHDOG_TIMEOUT_MS);
+/// esp-backtrace's pre-backtrace hook (its `custom-pre-backtrace` feature), the first thing its
+/// panic handler does: the motor bridge safe on the registers before anything is printed.
+#[unsafe(no_mangle)]
+pub fn custom_pre_backtrace() {
+    board::emergency::force_safe();
+}
 /// How long response bytes may wait for the host to read before they are dropped (the host
 /// retries, and the link answers the retry from memory).
 const LINK_WRITE_TIMEOUT: Duration = Duration::from_millis(100);
@@ -160,9 +171,7 @@ async fn main(spawner: Spawner) {
     esp_rtos::start(TimerGroup::new(p.TIMG0).timer0, p.FROM_CPU_INTR0);
 
     // Hardware watchdog: TIMG1's MWDT resets the whole system unless `control_task` feeds it.
-    let mut watchdog = TimerGroup::new(p.TIMG1).wdt;
-    watchdog.set_timeout(MwdtStage::Stage0, WATCHDOG_TIMEOUT);
-    watchdog.enable();
+    let watchdog = BoardWatchdog::start(p.TIMG1);
 
     let (usb_rx, usb_tx) = UsbSerialJtag::new(p.USB_DEVICE).into_async().split();
 
@@ -200,7 +209,7 @@ fn open_config(flash: esp_hal::peripherals::FLASH<'static>) -> OpenedConfig<Conf
 async fn control_task(
     mut hardware: BoardHardware,
     mut current: CurrentSense,
-    mut watchdog: Wdt<TIMG1<'static>>,
+    mut watchdog: BoardWatchdog,
     boot_id: u32,
     opened: OpenedConfig<ConfigFlash>,
 ) {
@@ -220,11 +229,15 @@ async fn control_task(
         // (`board::supply`) needs an ADC channel that issue 12 wires.
         hardware.tick(started.as_micros(), current.read_a(), None, &mut device);
         current.start_next();
-        watchdog.feed();
+        watchdog.feed_ms(WATCHDOG_TIMEOUT_MS);
 
-        // Requests, answered at the state of this tick.
+        // Requests, answered at the state of this tick; a save puts the motor safe first.
         while let Ok(chunk) = REQUEST_CHUNKS.try_receive() {
-            link.receive(&chunk, &mut device, |frame| {
+            let mut handler = WithMotor {
+                device: &mut device,
+                motor: &mut hardware.motor,
+            };
+            link.receive(&chunk, &mut handler, |frame| {
                 // Whole frames only; one that does not fit is dropped, and the host's retry of
                 // the same seq is answered from the link's memory.
                 if RESPONSE_BYTES.free_capacity() >= frame.len() {
