@@ -78,6 +78,11 @@ impl<S: ConfigPersist> Device<S> {
         self.controller.step(now_us, inputs)
     }
 
+    /// The last control tick's work ended at `end_us` (see [`Controller::step_finished`]).
+    pub fn step_finished(&mut self, end_us: u64) {
+        self.controller.step_finished(end_us);
+    }
+
     fn config_report(&self) -> Response {
         Response::Config(ConfigReport {
             config: *self.controller.config(),

@@ -199,13 +199,13 @@ impl HoldWindow {
         let (lower, middle, upper) = angles[..n].select_nth_unstable_by(n / 2, f32::total_cmp);
         let middle = *middle;
         // `total_cmp` is integer work on the bits: no soft-float comparison per angle.
-        let min = lower.iter().copied().fold(middle, |a, b| least(a, b));
-        let max = upper.iter().copied().fold(middle, |a, b| greatest(a, b));
+        let min = lower.iter().copied().fold(middle, least);
+        let max = upper.iter().copied().fold(middle, greatest);
         let median = if n % 2 == 1 {
             middle
         } else {
             // The lower middle is the largest of the lower half.
-            let below = lower.iter().copied().fold(min, |a, b| greatest(a, b));
+            let below = lower.iter().copied().fold(min, greatest);
             (below + middle) / 2.0
         };
         Some((median, max - min))

@@ -84,10 +84,12 @@ mod run;
 mod self_test;
 #[cfg(test)]
 mod tests;
+mod timing;
 mod tuning;
 
 use run::Run;
 use self_test::SelfTestPhase;
+pub use timing::TickTiming;
 pub use tuning::*;
 
 /// Why an encoder read failed (the driver's error, without the bus type).
@@ -188,6 +190,8 @@ pub struct Controller {
     run: Run,
     run_id: u32,
     last_step_us: Option<u64>,
+    /// The longest step and gap between steps since boot.
+    timing: TickTiming,
     last_host_us: u64,
     /// Commanded torque, N·m, jam frame.
     torque_nm: f32,
@@ -214,6 +218,7 @@ impl Controller {
             run: Run::new(RunParams::DEFAULT, 0.0),
             run_id: 0,
             last_step_us: None,
+            timing: TickTiming::new(),
             last_host_us: 0,
             torque_nm: 0.0,
             angle_deg: 0.0,
@@ -313,6 +318,18 @@ impl Controller {
         }
     }
 
+    /// The longest step and the longest gap between steps since boot.
+    pub fn tick_timing(&self) -> &TickTiming {
+        &self.timing
+    }
+
+    /// The step that started last (the `now_us` of the last [`Controller::step`]) ended at
+    /// `end_us`: its caller reads the clock once the tick's work is done, so that the longest
+    /// step counts the whole tick, drivers included.
+    pub fn step_finished(&mut self, end_us: u64) {
+        self.timing.finished(end_us);
+    }
+
     /// A request from the host arrived at `now_us`. Every request, whatever it asks, counts as
     /// host activity for the communication watchdog: the device calls this for each one.
     pub fn host_activity(&mut self, now_us: u64) {
@@ -365,6 +382,7 @@ impl Controller {
             .last_step_us
             .is_some_and(|last| now_us.saturating_sub(last) > OVERRUN_PERIODS * PERIOD_US);
         self.last_step_us = Some(now_us);
+        self.timing.started(now_us);
 
         let fresh = self.read_angle(inputs);
         if let Some(fault) = self.check_faults(now_us, inputs, overrun) {

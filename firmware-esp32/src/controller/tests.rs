@@ -418,3 +418,22 @@ fn the_motor_is_driven_in_the_gauges_sense() {
         assert_eq!(out.dir_high, expect_dir_high, "{jam_direction:?}");
     }
 }
+
+#[test]
+fn the_controller_keeps_the_longest_gap_and_step_since_boot() {
+    let mut s = Script::new();
+    s.c.step_finished(s.now_us + 120);
+    for _ in 0..5 {
+        s.tick();
+        s.c.step_finished(s.now_us + 80);
+    }
+    // A late tick while idle (no fault then) still counts.
+    s.now_us += 4 * PERIOD_US;
+    s.tick();
+    s.c.step_finished(s.now_us + 300);
+    s.tick();
+    let timing = s.c.tick_timing();
+    assert_eq!(timing.longest_gap_us(), 5 * PERIOD_US);
+    assert_eq!(timing.longest_step_us(), 300);
+    assert_eq!(s.state(), RunState::Idle);
+}
