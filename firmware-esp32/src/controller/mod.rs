@@ -59,6 +59,32 @@
 //!   [`JAM_SLIP_DEG`] meanwhile, the ramp resumes.
 //! - **Releasing** ramps the torque down; **Done** holds the result for `GetKerf`.
 //!
+//! # Cost per tick
+//!
+//! The ESP32-C3 has no FPU: every `f32` operation is a soft-float call of tens of instructions.
+//! So nothing on the hot path loops over a window or calls a transcendental function it can do
+//! without (`cargo xtask bench-step` counts the instructions, see the README):
+//!
+//! - the hub's slope (speed loop and stillness test) is a least-squares fit kept in integer
+//!   running sums, O(1) a tick ([`SlopeWindow`]);
+//! - the hole plays that are fixed for a run (θplay(0), where engaging ends, and the overtravel
+//!   limit) are computed once, when the run starts;
+//! - the ramp's inset angle takes one fixed-point step of the kerf solve a tick (one `asinf`,
+//!   about 1.6k instructions), from the last tick's kerf, instead of a full solve (8k);
+//! - the full solve and the hold's median (a selection, not a sort) run once, on the tick the
+//!   hold ends.
+//!
+//! The worst ticks left are that one (about 15k instructions) and the sample log's halving when
+//! it fills (a 2048-sample move, about 9.5k on top of a ramping step); should both fall on the
+//! same tick, about 25k.
+//!
+//! The step is not placed in RAM (esp-hal's `#[ram]`): its code and the soft-float and `libm`
+//! routines it calls are some 12 KB, which stay in the C3's 16 KB instruction cache from one tick
+//! to the next unless other work evicts them; `#[ram]` on the step alone would leave its callees
+//! in flash, and no cache effect can be measured here (qemu has no cache model, and no board is
+//! at hand). [`Controller::tick_timing`] keeps the longest step and gap since boot, which is how
+//! a board shows whether it pays.
+//!
 //! # Faults
 //!
 //! Checked every tick; the first one found is latched as `Fault(reason)` and the output of that
