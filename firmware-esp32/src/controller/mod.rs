@@ -72,11 +72,9 @@
 //! - the ramp's inset angle takes one fixed-point step of the kerf solve a tick (one `asinf`,
 //!   about 1.6k instructions), from the last tick's kerf, instead of a full solve (8k);
 //! - the full solve and the hold's median (a selection, not a sort) run once, on the tick the
-//!   hold ends.
-//!
-//! The worst ticks left are that one (about 15k instructions) and the sample log's halving when
-//! it fills (a 2048-sample move, about 9.5k on top of a ramping step); should both fall on the
-//! same tick, about 25k.
+//!   hold ends: the worst tick, about 15k instructions;
+//! - the sample log halves itself over eight ticks when it fills, not in one (a 1024-sample move
+//!   would add some 9.5k instructions to a tick, see [`SampleLog`]).
 //!
 //! The step is not placed in RAM (esp-hal's `#[ram]`): its code and the soft-float and `libm`
 //! routines it calls are some 12 KB, which stay in the C3's 16 KB instruction cache from one tick
@@ -297,7 +295,9 @@ impl Controller {
         self.result.as_ref()
     }
 
-    /// The run's sample log.
+    /// The run's sample log: whole from the first step after the run ended (Done, a fault or an
+    /// abort; mid-run, while the log halves itself, its first part: see
+    /// [`SampleLog::as_slice`]). `GetSamples` ([`Controller::sample_chunk`]) is exact throughout.
     pub fn samples(&self) -> &[Sample] {
         self.log.as_slice()
     }
@@ -431,6 +431,11 @@ impl Controller {
         }
         if self.state.is_run() {
             self.record_sample();
+        } else {
+            // No run (any more): finish a halving of the log under way (nothing otherwise), so
+            // that `samples()` is the whole run. Not in the tick a fault latches: that tick only
+            // makes the motor safe.
+            self.log.settle();
         }
         self.output()
     }

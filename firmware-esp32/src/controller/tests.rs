@@ -437,3 +437,38 @@ fn the_controller_keeps_the_longest_gap_and_step_since_boot() {
     assert_eq!(timing.longest_step_us(), 300);
     assert_eq!(s.state(), RunState::Idle);
 }
+
+#[test]
+fn a_run_that_ends_while_its_log_halves_itself_keeps_every_sample() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    // A slow hub: the log fills (2048 ticks) long before any jam.
+    while s.c.log.ticks_per_sample() == 1 {
+        if s.c.torque_nm > 0.0 {
+            s.angle_deg += 0.02;
+        }
+        s.tick();
+        assert!(
+            matches!(s.state(), RunState::Engaging | RunState::Ramping),
+            "{:?}",
+            s.state()
+        );
+    }
+    s.angle_deg += 0.02;
+    s.tick();
+    assert!(
+        s.c.samples().len() < s.c.log.len(),
+        "the halving is under way"
+    );
+    s.host().abort();
+    s.tick();
+    let samples = s.c.samples();
+    assert_eq!(samples.len(), s.c.log.len());
+    assert!(samples.len() > 1000);
+    for w in samples.windows(2) {
+        assert_eq!(w[1].t_ms - w[0].t_ms, 2);
+    }
+    // GetSamples agrees with it.
+    let chunk = s.c.sample_chunk(0).unwrap();
+    assert_eq!(&samples[..chunk.samples.len()], chunk.samples.as_slice());
+}
