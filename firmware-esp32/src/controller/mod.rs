@@ -418,9 +418,9 @@ impl Controller {
         if let Some(angle) = fresh {
             self.motion.slope.push(angle);
         }
-        // One least-squares fit per tick (it is the step's most expensive part in soft float):
-        // the speed loop and the stillness test both use it, and only while the motor may be
-        // driven; at rest nothing reads it.
+        // The least-squares slope, read once per tick from the window's running sums: the speed
+        // loop and the stillness test both use it, and only while the motor may be driven; at
+        // rest nothing reads it.
         if self.is_active() {
             self.motion.slope_deg_per_tick = self.motion.slope.slope_deg_per_tick();
         }
