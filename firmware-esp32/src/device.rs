@@ -107,6 +107,11 @@ impl<S: ConfigPersist> Device<S> {
         out
     }
 
+    /// The last control tick's work ended at `end_us` (see [`Controller::step_finished`]).
+    pub fn step_finished(&mut self, end_us: u64) {
+        self.controller.step_finished(end_us);
+    }
+
     fn config_report(&self) -> Response {
         Response::Config(ConfigReport {
             config: *self.controller.config(),

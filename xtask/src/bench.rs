@@ -15,6 +15,16 @@
 //! cache miss costs tens of cycles more, so the real figure can be higher than the table's upper
 //! bound. qemu's `mcycle` is only its instruction count again (it has no pipeline model).
 //!
+//! With `--json` it prints only the figures the firmware's targets are set on, as one JSON object
+//! on stdout (everything else goes to stderr):
+//!
+//! ```text
+//! {"step_mean_instructions": …, "step_worst_instructions": …, "kerf_solve_instructions": …}
+//! ```
+//!
+//! the mean Ramping step (the busiest state), the worst step in any state, and the mean kerf
+//! solve over all angles; instructions, rounded to whole ones.
+//!
 //! This is a benchmark, not a test: `cargo xtask test` does not run it.
 
 use std::collections::BTreeMap;
@@ -58,9 +68,14 @@ pub struct BenchArgs {
     /// Control rate, Hz (the firmware steps at 1 kHz).
     #[arg(long, default_value_t = 1000.0)]
     pub rate_hz: f64,
-    /// Also print the benchmark program's raw output.
+    /// Also print the benchmark program's raw output (to stderr with `--json`).
     #[arg(long)]
     pub raw: bool,
+    /// Print only the target figures as one JSON object on stdout: `step_mean_instructions`
+    /// (mean Ramping step), `step_worst_instructions` (worst step in any state) and
+    /// `kerf_solve_instructions` (mean kerf solve).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `cargo xtask bench-step`.
@@ -71,10 +86,19 @@ pub fn step(args: &BenchArgs) -> Result<()> {
     let float = check_soft_float(&elf)?;
     ensure_qemu()?;
     let output = run_qemu(&elf)?;
+    let report = Report::parse(&output)?;
+    if args.json {
+        if args.raw {
+            eprintln!("{output}");
+        }
+        eprintln!("{float}");
+        eprint!("{}", report.table(args.clock_mhz, args.rate_hz));
+        println!("{}", report.summary()?);
+        return Ok(());
+    }
     if args.raw {
         println!("{output}");
     }
-    let report = Report::parse(&output)?;
     println!("{float}");
     print!("{}", report.table(args.clock_mhz, args.rate_hz));
     Ok(())
@@ -467,6 +491,25 @@ impl Report {
             .find(|s| s.group == group && s.name == name)
     }
 
+    /// The target figures (`--json`): mean Ramping step, worst step in any state, mean kerf
+    /// solve, in whole instructions; one JSON object, its keys in that order.
+    fn summary(&self) -> Result<String> {
+        let get = |group: &str, name: &str| {
+            self.find(group, name)
+                .with_context(|| format!("no `STAT {group} {name}` in the benchmark's output"))
+        };
+        let ramping = get("step", "ramping")?;
+        let all_steps = get("step", "all")?;
+        let kerf = get("kerf", "all")?;
+        Ok(format!(
+            "{{\"step_mean_instructions\": {}, \"step_worst_instructions\": {}, \
+             \"kerf_solve_instructions\": {}}}",
+            ramping.mean().round() as u64,
+            all_steps.max,
+            kerf.mean().round() as u64,
+        ))
+    }
+
     /// The table, with CPU shares at `rate_hz` steps per second on a `clock_mhz` core.
     fn table(&self, clock_mhz: f64, rate_hz: f64) -> String {
         use std::fmt::Write;
@@ -569,6 +612,7 @@ STAT kerf angle=45 calls=100 sum=787100 min=7871 max=7871 cycles_sum=787100 cycl
 STAT kerf all calls=100 sum=787100 min=7871 max=7871 cycles_sum=787100 cycles_min=7871 cycles_max=7871
 RUN hold_deg=45 kerf_um=110.57214 flags=0x0000 ticks=1548
 STAT step ramping calls=4 sum=120000 min=24000 max=40000 cycles_sum=120000 cycles_min=24000 cycles_max=40000
+STAT step all calls=6 sum=120400 min=150 max=40000 cycles_sum=120400 cycles_min=150 cycles_max=40000
 DONE
 ";
 
@@ -577,11 +621,27 @@ DONE
         let r = Report::parse(OUTPUT).unwrap();
         assert_eq!(r.overhead, 5);
         assert_eq!(r.calibration, (2001, 2001));
-        assert_eq!(r.stats.len(), 3);
+        assert_eq!(r.stats.len(), 4);
         let ramping = r.find("step", "ramping").unwrap();
         assert_eq!((ramping.calls, ramping.min, ramping.max), (4, 24000, 40000));
         assert_eq!(ramping.mean(), 30000.0);
         assert_eq!(r.runs.len(), 1);
+    }
+
+    #[test]
+    fn the_json_summary_has_the_target_figures() {
+        let r = Report::parse(OUTPUT).unwrap();
+        let summary = r.summary().unwrap();
+        assert_eq!(
+            summary,
+            r#"{"step_mean_instructions": 30000, "step_worst_instructions": 40000, "kerf_solve_instructions": 7871}"#
+        );
+        let parsed: serde_json::Value = serde_json::from_str(&summary).unwrap();
+        assert_eq!(parsed["step_worst_instructions"], 40000);
+        // Without a Ramping step there is no mean step to report.
+        let no_ramp =
+            Report::parse(&OUTPUT.replace("STAT step ramping", "STAT step jammed")).unwrap();
+        assert!(no_ramp.summary().is_err());
     }
 
     #[test]

@@ -45,7 +45,8 @@ enum Cmd {
     /// reading of a gauge cut beside it; their assembly force against the paper's figures.
     FitStudy(FitStudyArgs),
     /// Instructions per control step and per kerf solve on RV32IMC (qemu), and the CPU share at
-    /// 1 kHz on a 160 MHz ESP32-C3. A benchmark: not part of `test`.
+    /// 1 kHz on a 160 MHz ESP32-C3 (`--json`: the target figures alone). A benchmark: not part
+    /// of `test`.
     BenchStep(bench::BenchArgs),
     /// The on-target driver tests (encoder, PWM) on a real ESP32-C3 board through probe-rs
     /// (needs --probe; see firmware-esp32/tests/on_target.rs for the bench set-up).

@@ -12,10 +12,11 @@
 //!    Jammed, Releasing, Done, Resetting), driven by synthetic encoder angles through complete runs
 //!    to several jam angles, with the encoder diagnostics supplied every
 //!    [`DIAGNOSTICS_PERIOD_TICKS`] ticks as on the board;
-//! 3. the parts a Ramping step is made of, to show where its instructions go: the hole play
-//!    [`play_deg`] (one `asinf`), [`torque_for_force_nm`], the least-squares slope over a full
-//!    [`SlopeWindow`] (the speed loop and the stillness test each fit one), and the hold's median
-//!    over a full [`HoldWindow`] (once per run, when the hold ends).
+//! 3. the parts a Ramping step is made of, to show where its instructions go: [`kerf_step`] (one
+//!    step of the kerf solve, the ramp's inset angle each tick: one `asinf` in [`play_deg`]),
+//!    [`torque_for_force_nm`], adding an angle to a full [`SlopeWindow`] and reading its
+//!    least-squares slope (running integer sums: both O(1)), and the hold's median over a full
+//!    [`HoldWindow`] (once per run, when the hold ends, with the kerf solve).
 //!
 //! The bracket's own cost (measured with nothing inside it) is subtracted. Under `-icount
 //! shift=0` qemu counts retired instructions exactly; its `mcycle` is the same instruction count
@@ -48,7 +49,7 @@ use core::panic::PanicInfo;
 use kerfmeter_firmware::controller::{Controller, DiagnosticsReading, Inputs, PERIOD_US};
 use kerfmeter_firmware::hardware::DIAGNOSTICS_PERIOD_TICKS;
 use kerfmeter_firmware::jam::{HOLD_TICKS, HoldWindow, JAM_WINDOW_TICKS, SlopeWindow};
-use kerfmeter_protocol::spiral::{kerf_from_angle, play_deg, torque_for_force_nm};
+use kerfmeter_protocol::spiral::{kerf_from_angle, kerf_step, play_deg, torque_for_force_nm};
 use kerfmeter_protocol::{DeviceConfig, GaugeGeometry, RunParams, RunState};
 
 /// qemu virt's NS16550A UART: transmit holding register.
@@ -491,6 +492,15 @@ fn measure_parts(overhead: Counters) {
 
     let mut stat = Stat::EMPTY;
     for _ in 0..PART_CALLS {
+        let (_, spent) = measure(40.0f32, |angle_deg| {
+            kerf_step(&params.gauge, angle_deg, 97.0)
+        });
+        stat.add(spent.less(overhead));
+    }
+    stat.print("part", "kerf_step");
+
+    let mut stat = Stat::EMPTY;
+    for _ in 0..PART_CALLS {
         let (_, spent) = measure(40.0f32, |inset_deg| {
             torque_for_force_nm(&params, params.target_force_n, inset_deg)
         });
@@ -503,6 +513,14 @@ fn measure_parts(overhead: Counters) {
     for tick in 0..JAM_WINDOW_TICKS as u32 {
         slope.push(encoder_deg(30.0 + RAMP_DEG_PER_TICK * tick as f32, tick));
     }
+    let mut stat = Stat::EMPTY;
+    for tick in 0..PART_CALLS {
+        let angle_deg = encoder_deg(31.0 + RAMP_DEG_PER_TICK * tick as f32, tick);
+        let (_, spent) = measure(angle_deg, |angle_deg| slope.push(angle_deg));
+        stat.add(spent.less(overhead));
+    }
+    stat.print("part", "slope_push");
+
     let mut stat = Stat::EMPTY;
     for _ in 0..PART_CALLS {
         let (_, spent) = measure(&slope, |window| window.slope_deg_per_tick());

@@ -10,11 +10,10 @@ use kerfmeter_protocol::{Fault, QualityFlags};
 
 use super::{
     Controller, DEFAULT_HOST_TIMEOUT_MS, Inputs, MAX_CONSECUTIVE_ENCODER_ERRORS, NO_MOTION_DEG,
-    NO_MOTION_TICKS, OVERTRAVEL_MARGIN_DEG, REVERSE_TOLERANCE_DEG, State,
+    NO_MOTION_TICKS, REVERSE_TOLERANCE_DEG, State,
 };
 use crate::as5048a::DiagnosticFault;
 use crate::build::CONTROL_RATE_HZ;
-use kerfmeter_protocol::spiral::play_deg;
 
 impl Controller {
     /// Faults that stand regardless of what the controller does this tick.
@@ -78,10 +77,7 @@ impl Controller {
         if elapsed_ms > run.params.max_time_ms {
             return Some(Fault::MaxRunTime);
         }
-        let gauge = &run.params.gauge;
-        if self.angle_deg - play_deg(gauge, gauge.max_kerf_um())
-            > gauge.disengage_deg + OVERTRAVEL_MARGIN_DEG
-        {
+        if self.angle_deg > run.overtravel_limit_deg {
             return Some(Fault::Overtravel);
         }
         run.max_deg = run.max_deg.max(self.angle_deg);

@@ -59,6 +59,30 @@
 //!   [`JAM_SLIP_DEG`] meanwhile, the ramp resumes.
 //! - **Releasing** ramps the torque down; **Done** holds the result for `GetKerf`.
 //!
+//! # Cost per tick
+//!
+//! The ESP32-C3 has no FPU: every `f32` operation is a soft-float call of tens of instructions.
+//! So nothing on the hot path loops over a window or calls a transcendental function it can do
+//! without (`cargo xtask bench-step` counts the instructions, see the README):
+//!
+//! - the hub's slope (speed loop and stillness test) is a least-squares fit kept in integer
+//!   running sums, O(1) a tick ([`SlopeWindow`]);
+//! - the hole plays that are fixed for a run (θplay(0), where engaging ends, and the overtravel
+//!   limit) are computed once, when the run starts;
+//! - the ramp's inset angle takes one fixed-point step of the kerf solve a tick (one `asinf`,
+//!   about 1.6k instructions), from the last tick's kerf, instead of a full solve (8k);
+//! - the full solve and the hold's median (a selection, not a sort) run once, on the tick the
+//!   hold ends: the worst tick, about 15k instructions;
+//! - the sample log halves itself over eight ticks when it fills, not in one (a 1024-sample move
+//!   would add some 9.5k instructions to a tick, see [`SampleLog`]).
+//!
+//! The step is not placed in RAM (esp-hal's `#[ram]`): its code and the soft-float and `libm`
+//! routines it calls are some 12 KB, which stay in the C3's 16 KB instruction cache from one tick
+//! to the next unless other work evicts them; `#[ram]` on the step alone would leave its callees
+//! in flash, and no cache effect can be measured here (qemu has no cache model, and no board is
+//! at hand). [`Controller::tick_timing`] keeps the longest step and gap since boot, which is how
+//! a board shows whether it pays.
+//!
 //! # Faults
 //!
 //! Checked every tick; the first one found is latched as `Fault(reason)` and the output of that
@@ -84,10 +108,12 @@ mod run;
 mod self_test;
 #[cfg(test)]
 mod tests;
+mod timing;
 mod tuning;
 
 use run::Run;
 use self_test::SelfTestPhase;
+pub use timing::TickTiming;
 pub use tuning::*;
 
 /// Why an encoder read failed (the driver's error, without the bus type).
@@ -188,6 +214,8 @@ pub struct Controller {
     run: Run,
     run_id: u32,
     last_step_us: Option<u64>,
+    /// The longest step and gap between steps since boot.
+    timing: TickTiming,
     last_host_us: u64,
     /// Commanded torque, N·m, jam frame.
     torque_nm: f32,
@@ -214,6 +242,7 @@ impl Controller {
             run: Run::new(RunParams::DEFAULT, 0.0),
             run_id: 0,
             last_step_us: None,
+            timing: TickTiming::new(),
             last_host_us: 0,
             torque_nm: 0.0,
             angle_deg: 0.0,
@@ -266,7 +295,9 @@ impl Controller {
         self.result.as_ref()
     }
 
-    /// The run's sample log.
+    /// The run's sample log: whole from the first step after the run ended (Done, a fault or an
+    /// abort; mid-run, while the log halves itself, its first part: see
+    /// [`SampleLog::as_slice`]). `GetSamples` ([`Controller::sample_chunk`]) is exact throughout.
     pub fn samples(&self) -> &[Sample] {
         self.log.as_slice()
     }
@@ -311,6 +342,18 @@ impl Controller {
             samples: self.log.len() as u16,
             encoder_errors: self.run.encoder_errors,
         }
+    }
+
+    /// The longest step and the longest gap between steps since boot.
+    pub fn tick_timing(&self) -> &TickTiming {
+        &self.timing
+    }
+
+    /// The step that started last (the `now_us` of the last [`Controller::step`]) ended at
+    /// `end_us`: its caller reads the clock once the tick's work is done, so that the longest
+    /// step counts the whole tick, drivers included.
+    pub fn step_finished(&mut self, end_us: u64) {
+        self.timing.finished(end_us);
     }
 
     /// A request from the host arrived at `now_us`. Every request, whatever it asks, counts as
@@ -365,6 +408,7 @@ impl Controller {
             .last_step_us
             .is_some_and(|last| now_us.saturating_sub(last) > OVERRUN_PERIODS * PERIOD_US);
         self.last_step_us = Some(now_us);
+        self.timing.started(now_us);
 
         let fresh = self.read_angle(inputs);
         if let Some(fault) = self.check_faults(now_us, inputs, overrun) {
@@ -374,9 +418,9 @@ impl Controller {
         if let Some(angle) = fresh {
             self.motion.slope.push(angle);
         }
-        // One least-squares fit per tick (it is the step's most expensive part in soft float):
-        // the speed loop and the stillness test both use it, and only while the motor may be
-        // driven; at rest nothing reads it.
+        // The least-squares slope, read once per tick from the window's running sums: the speed
+        // loop and the stillness test both use it, and only while the motor may be driven; at
+        // rest nothing reads it.
         if self.is_active() {
             self.motion.slope_deg_per_tick = self.motion.slope.slope_deg_per_tick();
         }
@@ -387,6 +431,11 @@ impl Controller {
         }
         if self.state.is_run() {
             self.record_sample();
+        } else {
+            // No run (any more): finish a halving of the log under way (nothing otherwise), so
+            // that `samples()` is the whole run. Not in the tick a fault latches: that tick only
+            // makes the motor safe.
+            self.log.settle();
         }
         self.output()
     }

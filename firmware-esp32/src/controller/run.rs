@@ -9,12 +9,13 @@ use kerfmeter_protocol::{
 use super::{
     Controller, DT_S, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, JAM_MIN_INSET_DEG,
     JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_TURN_SPEED_DEG_PER_S,
-    Motion, NEAR_DISENGAGE_FRACTION, NOISY_HOLD_LSB, RELEASE_RATE_NM_PER_S, State,
+    Motion, NEAR_DISENGAGE_FRACTION, NOISY_HOLD_LSB, OVERTRAVEL_MARGIN_DEG, RELEASE_RATE_NM_PER_S,
+    State,
 };
 use crate::build::CONTROL_RATE_HZ;
 use crate::jam::HoldWindow;
 use kerfmeter_protocol::spiral::{
-    force_for_torque_n, kerf_from_angle, play_deg, torque_for_force_nm,
+    force_for_torque_n, kerf_from_angle, kerf_step, play_deg, torque_for_force_nm,
 };
 
 /// One run's own state, from `Run` to the next `Run`.
@@ -38,11 +39,24 @@ pub(super) struct Run {
     pub(super) still_ticks: u32,
     /// Angles collected while a jam is held.
     pub(super) hold: HoldWindow,
+    /// The hole play of a zero kerf, θplay(0), degrees: where engaging ends and the inset
+    /// starts to turn. Fixed for the run (an `asinf`: computed here, not every tick).
+    pub(super) zero_kerf_play_deg: f32,
+    /// The furthest hub angle before `Overtravel`, degrees, jam frame: the disengage angle past
+    /// the play of the gauge's largest kerf, plus [`OVERTRAVEL_MARGIN_DEG`]. Fixed for the run.
+    pub(super) overtravel_limit_deg: f32,
+    /// The ramp's running kerf estimate, µm: one fixed-point step of the kerf solve per ramping
+    /// tick, from the last tick's (see [`kerf_step`]), for the inset angle of the torque ceiling.
+    pub(super) ramp_kerf_um: f32,
 }
 
 impl Run {
     /// A run with `params`, starting with the hub at `start_deg` (jam frame).
     pub(super) fn new(params: RunParams, start_deg: f32) -> Self {
+        let gauge = &params.gauge;
+        let zero_kerf_play_deg = play_deg(gauge, 0.0);
+        let overtravel_limit_deg =
+            play_deg(gauge, gauge.max_kerf_um()) + gauge.disengage_deg + OVERTRAVEL_MARGIN_DEG;
         Self {
             params,
             flags: QualityFlags::empty(),
@@ -53,6 +67,9 @@ impl Run {
             no_motion_ticks: 0,
             still_ticks: 0,
             hold: HoldWindow::new(),
+            zero_kerf_play_deg,
+            overtravel_limit_deg,
+            ramp_kerf_um: 0.0,
         }
     }
 
@@ -115,19 +132,25 @@ impl Controller {
         self.torque_nm = self
             .speed_loop(ENGAGE_SPEED_DEG_PER_S, ENGAGE_MAX_TORQUE_NM)
             .max(0.0);
-        let gauge = &self.run.params.gauge;
         // No kerf has less play than a zero kerf: the prongs cannot drag the inset before this.
-        if self.angle_deg >= play_deg(gauge, 0.0) - JAM_SLIP_DEG {
+        if self.angle_deg >= self.run.zero_kerf_play_deg - JAM_SLIP_DEG {
             self.state = State::Ramping;
         }
     }
 
-    /// The ramp's ceiling at the current angle, and whether `max_torque_nm` capped it.
-    fn ramp_target_nm(&self) -> (f32, bool) {
+    /// The ramp's ceiling at the current angle, and whether `max_torque_nm` capped it. The
+    /// inset angle comes from one step of the kerf solve a tick, from the last tick's kerf: a
+    /// full solve is four or five `asinf`s, and the hub moves at most 0.09° a tick, which the
+    /// step follows to within 0.002° of the solved inset (an error of 2e-5 in the target torque).
+    fn ramp_target_nm(&mut self) -> (f32, bool) {
+        let step = kerf_step(
+            &self.run.params.gauge,
+            self.angle_deg,
+            self.run.ramp_kerf_um,
+        );
+        self.run.ramp_kerf_um = step.kerf_um;
         let params = &self.run.params;
-        let inset = kerf_from_angle(&params.gauge, self.angle_deg)
-            .inset_deg
-            .max(0.0);
+        let inset = step.inset_deg.max(0.0);
         let target = torque_for_force_nm(params, params.target_force_n, inset);
         if target > params.max_torque_nm {
             (params.max_torque_nm, true)
@@ -145,7 +168,7 @@ impl Controller {
         let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * DT_S;
         self.torque_nm = ramped.min(speed_capped).clamp(0.0, target);
         let at_target = self.torque_nm >= target * 0.999 && target > self.breakaway_torque_nm();
-        let inset = self.angle_deg - play_deg(&self.run.params.gauge, 0.0);
+        let inset = self.angle_deg - self.run.zero_kerf_play_deg;
         if at_target && self.is_still() && inset >= JAM_MIN_INSET_DEG {
             self.run.still_ticks += 1;
         } else {

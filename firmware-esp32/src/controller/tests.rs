@@ -418,3 +418,57 @@ fn the_motor_is_driven_in_the_gauges_sense() {
         assert_eq!(out.dir_high, expect_dir_high, "{jam_direction:?}");
     }
 }
+
+#[test]
+fn the_controller_keeps_the_longest_gap_and_step_since_boot() {
+    let mut s = Script::new();
+    s.c.step_finished(s.now_us + 120);
+    for _ in 0..5 {
+        s.tick();
+        s.c.step_finished(s.now_us + 80);
+    }
+    // A late tick while idle (no fault then) still counts.
+    s.now_us += 4 * PERIOD_US;
+    s.tick();
+    s.c.step_finished(s.now_us + 300);
+    s.tick();
+    let timing = s.c.tick_timing();
+    assert_eq!(timing.longest_gap_us(), 5 * PERIOD_US);
+    assert_eq!(timing.longest_step_us(), 300);
+    assert_eq!(s.state(), RunState::Idle);
+}
+
+#[test]
+fn a_run_that_ends_while_its_log_halves_itself_keeps_every_sample() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    // A slow hub: the log fills (2048 ticks) long before any jam.
+    while s.c.log.ticks_per_sample() == 1 {
+        if s.c.torque_nm > 0.0 {
+            s.angle_deg += 0.02;
+        }
+        s.tick();
+        assert!(
+            matches!(s.state(), RunState::Engaging | RunState::Ramping),
+            "{:?}",
+            s.state()
+        );
+    }
+    s.angle_deg += 0.02;
+    s.tick();
+    assert!(
+        s.c.samples().len() < s.c.log.len(),
+        "the halving is under way"
+    );
+    s.host().abort();
+    s.tick();
+    let samples = s.c.samples();
+    assert_eq!(samples.len(), s.c.log.len());
+    assert!(samples.len() > 1000);
+    for w in samples.windows(2) {
+        assert_eq!(w[1].t_ms - w[0].t_ms, 2);
+    }
+    // GetSamples agrees with it.
+    let chunk = s.c.sample_chunk(0).unwrap();
+    assert_eq!(&samples[..chunk.samples.len()], chunk.samples.as_slice());
+}
