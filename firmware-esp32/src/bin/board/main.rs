@@ -228,6 +228,8 @@ async fn control_task(
         // `OverCurrent` rather than drive blind. The supply is not measured yet: its divider
         // (`board::supply`) needs an ADC channel that issue 12 wires.
         hardware.tick(started.as_micros(), current.read_a(), None, &mut device);
+        // The longest step since boot, for the bench and (after the protocol revision) `Status`.
+        device.step_finished(Instant::now().as_micros());
         current.start_next();
         watchdog.feed_ms(WATCHDOG_TIMEOUT_MS);
 
