@@ -95,6 +95,10 @@ impl<S: ConfigPersist> Device<S> {
         if self.controller.is_active() {
             return Response::Error(ErrorCode::Busy);
         }
+        // Before saving: a refused configuration must not be the one found at the next boot.
+        if let Err(e) = self.controller.check_config_change(config) {
+            return Response::Error(e);
+        }
         if self.store.save(config).is_err() {
             return Response::Error(ErrorCode::Storage);
         }

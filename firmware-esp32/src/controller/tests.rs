@@ -418,3 +418,92 @@ fn the_motor_is_driven_in_the_gauges_sense() {
         assert_eq!(out.dir_high, expect_dir_high, "{jam_direction:?}");
     }
 }
+
+#[test]
+fn a_reset_settles_at_its_tolerance_edge_despite_encoder_noise() {
+    let mut s = Script::new();
+    s.angle_deg = 0.29;
+    s.tick();
+    assert_eq!(s.host().start_reset(), Ok(()));
+    // The hub stands just inside the tolerance; noise carries every third reading just out of it.
+    for i in 0..RESET_TIMEOUT_TICKS {
+        s.angle_deg = if i % 3 == 0 { 0.32 } else { 0.28 };
+        s.tick();
+        if s.state() != RunState::Resetting {
+            break;
+        }
+    }
+    assert_eq!(s.state(), RunState::Idle);
+}
+
+#[test]
+fn a_settled_reset_drives_again_once_the_hub_leaves_the_wider_band() {
+    let mut s = Script::new();
+    s.angle_deg = 0.2;
+    s.tick();
+    assert_eq!(s.host().start_reset(), Ok(()));
+    for _ in 0..RESET_SETTLE_TICKS / 2 {
+        s.tick();
+        assert_eq!(s.c.torque_nm, 0.0, "settled: braking");
+    }
+    // Within the release band: still settled.
+    s.angle_deg = RESET_RELEASE_DEG - 0.05;
+    s.tick();
+    assert_eq!(s.c.torque_nm, 0.0);
+    // Beyond it: driven back towards zero, and the settle count starts again.
+    s.angle_deg = RESET_RELEASE_DEG + 0.2;
+    for _ in 0..RESET_SETTLE_TICKS {
+        s.tick();
+        assert!(s.c.torque_nm < 0.0, "{}", s.c.torque_nm);
+    }
+    assert_eq!(s.state(), RunState::Resetting);
+}
+
+#[test]
+fn a_motor_shaft_encoder_setting_changes_only_at_zero() {
+    use kerfmeter_protocol::EncoderPlacement;
+    let motor_shaft = DeviceConfig {
+        encoder_placement: EncoderPlacement::MotorShaft,
+        ..DeviceConfig::DEFAULT
+    };
+    let mut s = Script::new();
+    s.angle_deg = 150.0;
+    s.tick();
+    // Away from zero: unrelated fields change; an output-shaft encoder's settings too.
+    let limits = DeviceConfig {
+        max_current_a: 5.0,
+        ..DeviceConfig::DEFAULT
+    };
+    assert_eq!(s.host().set_config(limits), Ok(()));
+    let zero = DeviceConfig {
+        encoder_zero_raw: 100,
+        ..DeviceConfig::DEFAULT
+    };
+    assert_eq!(s.host().set_config(zero), Ok(()));
+    // A motor-shaft encoder's settings: refused away from zero, taken at zero.
+    assert_eq!(s.host().set_config(motor_shaft), Err(ErrorCode::NotAtZero));
+    s.angle_deg = 0.5;
+    s.tick();
+    assert_eq!(s.host().set_config(motor_shaft), Ok(()));
+    // Once on the motor shaft: unrelated fields change anywhere, its settings only at zero.
+    s.angle_deg = 150.0;
+    s.tick();
+    let warmer = DeviceConfig {
+        max_current_a: 5.0,
+        ..motor_shaft
+    };
+    assert_eq!(s.host().set_config(warmer), Ok(()));
+    let rezeroed = DeviceConfig {
+        encoder_zero_raw: 100,
+        ..warmer
+    };
+    assert_eq!(s.host().set_config(rezeroed), Err(ErrorCode::NotAtZero));
+    assert_eq!(s.c.config(), &warmer);
+    // With the encoder failing, "at zero" cannot be shown.
+    s.angle_deg = 0.0;
+    s.tick();
+    let mut inputs = s.inputs();
+    inputs.angle_deg = Err(EncoderFault::Bus);
+    s.tick_with(&inputs);
+    assert_eq!(s.host().set_config(rezeroed), Err(ErrorCode::NotAtZero));
+}
