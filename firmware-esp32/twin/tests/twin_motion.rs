@@ -188,3 +188,15 @@ fn resets_between_gauges_succeed_on_a_9_v_supply() {
         );
     }
 }
+
+#[test]
+fn resets_between_gauges_succeed_with_a_hot_winding_on_a_9_v_supply() {
+    three_gauges(
+        PlantParams {
+            supply_v: 9.0,
+            winding_temp_c: 110.0,
+            ..PlantParams::default()
+        },
+        55,
+    );
+}
