@@ -497,6 +497,9 @@ mod tests {
         let frames = enc.spi.frames();
         enc.read_hub_deg().unwrap();
         assert_eq!(enc.spi.frames(), frames + 1);
+        // Every frame met the chip-select setup and hold times.
+        enc.diagnostics().unwrap();
+        assert_eq!(enc.spi.timing_violations(), 0);
     }
 
     #[test]
