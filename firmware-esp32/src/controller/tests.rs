@@ -507,3 +507,31 @@ fn a_motor_shaft_encoder_setting_changes_only_at_zero() {
     s.tick_with(&inputs);
     assert_eq!(s.host().set_config(rezeroed), Err(ErrorCode::NotAtZero));
 }
+
+#[test]
+fn a_reset_keeps_what_its_speed_loop_learnt_across_the_settle_band() {
+    let mut s = Script::new();
+    s.angle_deg = 0.6;
+    s.tick();
+    assert_eq!(s.host().start_reset(), Ok(()));
+    // Stuck outside the tolerance (a weak motor at breakaway): the integral builds up.
+    for _ in 0..1000 {
+        s.tick();
+    }
+    let stuck_nm = s.c.torque_nm;
+    assert!(stuck_nm < -0.02, "{stuck_nm}");
+    // A lurch into the band (brake), then out beyond the release band again: the drive resumes
+    // with what it needed to move the hub, not from nothing.
+    s.angle_deg = 0.25;
+    for _ in 0..RESET_SETTLE_TICKS - 10 {
+        s.tick();
+        assert_eq!(s.c.torque_nm, 0.0);
+    }
+    s.angle_deg = 0.6;
+    s.tick();
+    assert!(
+        s.c.torque_nm < stuck_nm * 0.6,
+        "{} vs {stuck_nm}",
+        s.c.torque_nm
+    );
+}
