@@ -440,6 +440,9 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
                 // First reading: the turn that puts the hub nearest its zero. (On the motor
                 // shaft that assumes the hub boots within ±180°/gear ratio of zero: a motor-shaft
                 // encoder cannot tell hub positions a motor turn apart.)
+                // Issue 12, protocol revision: after a boot, a motor-shaft zero is this
+                // assumption; a status condition ("zero not confirmed") and a request to confirm
+                // it would let the host ask the user, who can see the prongs.
                 let offset = raw_counts - i32::from(self.settings.zero_raw);
                 self.turns = if offset > half {
                     -1
