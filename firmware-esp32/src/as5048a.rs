@@ -1,7 +1,16 @@
 //! AS5048A magnetic angle encoder over SPI (`embedded_hal::spi::SpiDevice<u8>`), checked the way
 //! the datasheet asks.
 //!
-//! Bus: SPI mode 1 (CPOL 0, CPHA 1), at most 10 MHz, one 16-bit frame per chip-select, MSB first.
+//! Bus: SPI mode 1 (CPOL 0, CPHA 1), one 16-bit frame per chip-select, MSB first, at
+//! [`SPI_FREQUENCY_HZ`] (the part allows 10 MHz; 2 MHz leaves margin for the GPIO matrix and
+//! the long, noisy wires of a laser head, and a frame still takes only 8 µs).
+//!
+//! - **Chip-select timing** (datasheet, SPI timing): t_L ≥ 350 ns from CSn falling to the first
+//!   clock edge, t_H ≥ half a clock period from the last clock edge to CSn rising, and
+//!   t_CSn ≥ 350 ns of CSn high between two frames. Every frame is one transaction that carries
+//!   the first two as `Operation::DelayNs` ([`CS_SETUP_NS`], [`CS_HOLD_NS`]), so any
+//!   `SpiDevice` that honours its operations meets them; t_CSn lies between transactions, so the
+//!   bus's `SpiDevice` keeps CSn high for [`CS_HIGH_NS`] after each one (the board's does).
 //!
 //! ```text
 //!   command  │ 15: even parity │ 14: 1 = read, 0 = write │ 13..0: address │
@@ -22,9 +31,28 @@
 //!   samples) are rejected, not unwrapped.
 //! - **Multi-turn unwrap**, gear ratio and placement (motor or output shaft), counting sense and
 //!   zero come from [`EncoderSettings`]; the driver reports the *hub* angle.
+//! - **Turn counting** starts at the first reading (boot) and restarts only when the settings
+//!   change ([`As5048a::set_settings`]; the control tick calls it only when
+//!   [`EncoderSettings::from_config`] differs, never for other configuration fields). On the
+//!   output shaft the first reading is the hub angle itself. On the motor shaft it fixes the hub
+//!   only modulo one motor turn (360°/gear ratio of hub angle): the count takes the motor turn
+//!   nearest the zero, so a motor-shaft encoder must (re)start with the hub at zero. At boot
+//!   that is the user's part (the hub is left at zero by the last `Reset`, or turned there by
+//!   hand); for a configuration change the controller enforces it (`NotAtZero` away from zero).
 
-use embedded_hal::spi::SpiDevice;
+use embedded_hal::spi::{Operation, SpiDevice};
 use kerfmeter_protocol::{DeviceConfig, EncoderPlacement};
+
+/// SPI clock, Hz (see the module docs for the choice).
+pub const SPI_FREQUENCY_HZ: u32 = 2_000_000;
+/// t_L: CSn falling edge to the first clock edge, at least, ns (datasheet: 350 ns).
+pub const CS_SETUP_NS: u32 = 350;
+/// t_H: last clock edge to CSn rising edge, at least, ns (datasheet: half a clock period; this
+/// covers any clock from 1 MHz up).
+pub const CS_HOLD_NS: u32 = 500;
+/// t_CSn: CSn high between two frames, at least, ns (datasheet: 350 ns). Kept by the bus's
+/// `SpiDevice` after each transaction, not by the driver.
+pub const CS_HIGH_NS: u32 = 350;
 
 /// Counts per turn (14 bit).
 pub const COUNTS_PER_TURN: u16 = 1 << 14;
@@ -284,7 +312,9 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
         self.stats
     }
 
-    /// Change the mounting settings (after a configuration change). Restarts the unwrap.
+    /// Change the mounting settings (after a change of them in the configuration). Restarts the
+    /// unwrap: the next reading is taken as a first one (see the module docs for what that means
+    /// on the motor shaft).
     pub fn set_settings(&mut self, settings: EncoderSettings) {
         self.settings = settings;
         self.last_raw = None;
@@ -304,12 +334,7 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
     /// One 16-bit frame: send `command`, return what the chip shifted out (the answer to the
     /// previous command), parity- and EF-checked.
     fn frame(&mut self, command: u16) -> Result<u16, EncoderError<SPI::Error>> {
-        let mut bytes = command.to_be_bytes();
-        self.spi
-            .transfer_in_place(&mut bytes)
-            .map_err(EncoderError::Bus)?;
-        self.pending = command & 0x3FFF;
-        let word = u16::from_be_bytes(bytes);
+        let word = self.clock_frame(command)?;
         if !parity_ok(word) {
             self.stats.parity_errors += 1;
             return Err(EncoderError::Parity);
@@ -324,12 +349,7 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
     /// Read and clear the error register (two frames); returns its bits.
     fn read_error_register(&mut self) -> Result<u16, EncoderError<SPI::Error>> {
         for command in [read_command(reg::CLEAR_ERROR_FLAG), read_command(reg::NOP)] {
-            let mut bytes = command.to_be_bytes();
-            self.spi
-                .transfer_in_place(&mut bytes)
-                .map_err(EncoderError::Bus)?;
-            self.pending = command & 0x3FFF;
-            let word = u16::from_be_bytes(bytes);
+            let word = self.clock_frame(command)?;
             if command == read_command(reg::NOP) {
                 if !parity_ok(word) {
                     self.stats.parity_errors += 1;
@@ -339,6 +359,21 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
             }
         }
         unreachable!("the loop returns on its second frame")
+    }
+
+    /// Clock one 16-bit frame out and in, in one transaction with the chip-select setup and hold
+    /// times; returns the raw response (unchecked).
+    fn clock_frame(&mut self, command: u16) -> Result<u16, EncoderError<SPI::Error>> {
+        let mut bytes = command.to_be_bytes();
+        self.spi
+            .transaction(&mut [
+                Operation::DelayNs(CS_SETUP_NS),
+                Operation::TransferInPlace(&mut bytes),
+                Operation::DelayNs(CS_HOLD_NS),
+            ])
+            .map_err(EncoderError::Bus)?;
+        self.pending = command & 0x3FFF;
+        Ok(u16::from_be_bytes(bytes))
     }
 
     /// Read a register (two frames unless its read is already pending).
@@ -405,6 +440,9 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
                 // First reading: the turn that puts the hub nearest its zero. (On the motor
                 // shaft that assumes the hub boots within ±180°/gear ratio of zero: a motor-shaft
                 // encoder cannot tell hub positions a motor turn apart.)
+                // Issue 12, protocol revision: after a boot, a motor-shaft zero is this
+                // assumption; a status condition ("zero not confirmed") and a request to confirm
+                // it would let the host ask the user, who can see the prongs.
                 let offset = raw_counts - i32::from(self.settings.zero_raw);
                 self.turns = if offset > half {
                     -1
@@ -462,6 +500,9 @@ mod tests {
         let frames = enc.spi.frames();
         enc.read_hub_deg().unwrap();
         assert_eq!(enc.spi.frames(), frames + 1);
+        // Every frame met the chip-select setup and hold times.
+        enc.diagnostics().unwrap();
+        assert_eq!(enc.spi.timing_violations(), 0);
     }
 
     #[test]

@@ -130,6 +130,10 @@ impl<S: ConfigPersist> Device<S> {
         if self.controller.is_active() || !self.motor_asleep {
             return Response::Error(ErrorCode::Busy);
         }
+        // Before saving: a refused configuration must not be the one found at the next boot.
+        if let Err(e) = self.controller.check_config_change(config) {
+            return Response::Error(e);
+        }
         let Ok(persisted) = self.store.save(config) else {
             return Response::Error(ErrorCode::Storage);
         };

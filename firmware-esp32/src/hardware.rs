@@ -10,12 +10,16 @@
 //! 5. apply its output to the motor driver (a failed apply forces the motor safe and is reported
 //!    as a driver fault on the next tick).
 //!
-//! Configuration changes (encoder zero, placement, sense) reach the encoder driver here.
+//! Changes of the encoder's own settings ([`EncoderSettings`]: zero, placement, gear ratio,
+//! sense) reach the encoder driver here, and only those restart its turn counting: any other
+//! configuration change (current limit, torque constant, ...) leaves the count alone, so that a
+//! hub standing away from zero (in `Done`) keeps its true angle. The controller accepts a change of
+//! a motor-shaft encoder's settings only with the hub at zero (see `Controller::set_config`),
+//! where the restarted count picks the right motor turn.
 
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal::pwm::SetDutyCycle;
 use embedded_hal::spi::SpiDevice;
-use kerfmeter_protocol::DeviceConfig;
 
 use crate::as5048a::{As5048a, DiagnosticsError, EncoderError, EncoderSettings};
 use crate::config_store::ConfigPersist;
@@ -41,7 +45,8 @@ where
     pub motor: G2Motor<PWM, DIR, SLP, FLT>,
     diagnostics_countdown: u32,
     motor_error: bool,
-    applied: Option<DeviceConfig>,
+    /// The encoder settings last given to the driver.
+    applied: Option<EncoderSettings>,
 }
 
 impl<SPI, PWM, DIR, SLP, FLT> Hardware<SPI, PWM, DIR, SLP, FLT>
@@ -73,11 +78,10 @@ where
         supply_v: Option<f32>,
         device: &mut Device<S>,
     ) -> MotorOutput {
-        let config = *device.controller().config();
-        if self.applied != Some(config) {
-            self.encoder
-                .set_settings(EncoderSettings::from_config(&config));
-            self.applied = Some(config);
+        let settings = EncoderSettings::from_config(device.controller().config());
+        if self.applied != Some(settings) {
+            self.encoder.set_settings(settings);
+            self.applied = Some(settings);
         }
         let angle_deg = self.encoder.read_hub_deg().map_err(|e| match e {
             EncoderError::Bus(_) => EncoderFault::Bus,

@@ -305,8 +305,9 @@ fn protocol_abuse_never_hangs_the_device_nor_moves_the_motor() {
 }
 
 #[test]
-#[ignore = "known failure, issue 12: torque from duty assumes a cold winding; back-to-back runs \
-            warm it, readings drift low and a Reset stalls at its tolerance's edge (ResetFailed)"]
+#[ignore = "known failure, issue 12: torque from duty assumes a cold winding and a 12 V supply; \
+            back-to-back runs warm the winding and readings drift low (on the twin: drift -1.5 µm \
+            over 100 runs, worst error 3.8 µm at run 88; every Reset now settles)"]
 fn soak_runs_do_not_drift() {
     let mut b = bench("soak", 18);
     let runs = b.soak_runs as usize;
@@ -323,9 +324,21 @@ fn soak_runs_do_not_drift() {
     let window = (runs / 10).max(1);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     let drift = mean(&errors[runs - window..]) - mean(&errors[..window]);
-    let worst = errors.iter().fold(0.0f64, |m, e| m.max(e.abs()));
-    eprintln!("soak: {runs} runs, drift {drift:+.3} µm, worst error {worst:.3} µm");
-    assert!(worst <= b.tolerance_um, "worst error {worst:.3} µm");
+    let (worst_run, worst) = errors
+        .iter()
+        .enumerate()
+        .fold((0, 0.0f64), |(wi, w), (i, e)| {
+            if e.abs() > w { (i, e.abs()) } else { (wi, w) }
+        });
+    eprintln!(
+        "soak: {runs} runs, drift {drift:+.3} µm, worst error {worst:.3} µm (run {worst_run}); \
+         mean error of the first {window} runs {:+.3} µm",
+        mean(&errors[..window])
+    );
+    assert!(
+        worst <= b.tolerance_um,
+        "worst error {worst:.3} µm (run {worst_run})"
+    );
     assert!(drift.abs() <= b.tolerance_um / 2.0, "drift {drift:+.3} µm");
     if let (Some(before), Some(after)) = (rss_before, resident_kib()) {
         eprintln!("soak: resident memory {before} KiB → {after} KiB");

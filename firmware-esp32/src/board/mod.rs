@@ -9,7 +9,7 @@
 //! - `motor`: the Pololu G2's `SLP`, `DIR`, `FLT` lines and its PWM on LEDC (20 kHz, 11-bit
 //!   duty), including the ESP32-C6 LEDC divider workaround; then the [`G2Motor`] driver. The
 //!   motor lines are driven low before anything else is set up.
-//! - `encoder`: the AS5048A on SPI2 (mode 1, 10 MHz, chip select as a GPIO); then the
+//! - `encoder`: the AS5048A on SPI2 (mode 1, 2 MHz, chip select as a GPIO, its timing kept); then the
 //!   [`As5048a`] driver.
 //! - `adc`: the G2's current-sense output on ADC1 (11 dB, eFuse-calibrated), read one
 //!   conversion behind so that the control tick never waits.

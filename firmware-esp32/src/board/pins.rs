@@ -14,7 +14,7 @@
 //! | motor fault             | Pololu G2 `FLT`     | in  | GPIO20   | GPIO20   | open-drain, active low; internal pull-up enabled (an external ≈10 kΩ pull-up to 3V3 is recommended) |
 //! | motor current           | Pololu G2 `CS`      | ain | GPIO0    | GPIO0    | ADC1 channel 0, 11 dB attenuation, calibrated to millivolts; ≈20 mV/A + ≈50 mV on the G2 18v17 ([`CURRENT_SENSE_MV_PER_A`], [`CURRENT_SENSE_OFFSET_MV`]); the voltage must stay below the ADC's 11 dB range (≈2.5 V) |
 //! | motor supply            | G2 `VIN` via a 100k/8.2k divider | ain | — | — | **not wired yet** (issue 12): ADC1's channels on the C3 (GPIO0–4) are all taken; the divider and its scaling are in `board::supply` |
-//! | encoder clock           | AS5048A `CLK`       | out | GPIO6    | GPIO6    | SPI2 `SCLK`, mode 1, ≤ 10 MHz |
+//! | encoder clock           | AS5048A `CLK`       | out | GPIO6    | GPIO6    | SPI2 `SCLK`, mode 1, 2 MHz |
 //! | encoder data in         | AS5048A `MOSI`      | out | GPIO7    | GPIO7    | SPI2 `MOSI` |
 //! | encoder data out        | AS5048A `MISO`      | in  | GPIO5    | GPIO2    | SPI2 `MISO` |
 //! | encoder chip select     | AS5048A `CSn`       | out | GPIO10   | GPIO18   | plain GPIO, active low, idles high |
@@ -29,7 +29,8 @@
 //! - ESP32-C6: GPIO4, GPIO5, GPIO8, GPIO9, GPIO15 are strapping pins; GPIO12/13 are the USB pins;
 //!   GPIO24–30 belong to the SPI flash; GPIO16/17 are UART0.
 //!
-//! The SPI signals go through the GPIO matrix; at ≤ 10 MHz that is well within its limits.
+//! The SPI signals go through the GPIO matrix; at 2 MHz (the AS5048A allows 10) that is far within
+//! its limits.
 //!
 //! [`CURRENT_SENSE_MV_PER_A`]: super::current::CURRENT_SENSE_MV_PER_A
 //! [`CURRENT_SENSE_OFFSET_MV`]: super::current::CURRENT_SENSE_OFFSET_MV

@@ -262,12 +262,14 @@ impl Controller {
         &self.config
     }
 
-    /// Replace the configuration; only while the motor is at rest.
+    /// Replace the configuration; only while the motor is at rest, and a motor-shaft encoder's
+    /// settings only at zero ([`Controller::check_config_change`]).
     pub fn set_config(&mut self, config: DeviceConfig) -> Result<(), ErrorCode> {
         config.validate().map_err(ErrorCode::InvalidParam)?;
         if self.is_active() {
             return Err(ErrorCode::Busy);
         }
+        self.check_config_change(&config)?;
         self.config = config;
         Ok(())
     }

@@ -1,14 +1,45 @@
 //! Reset: drive the hub back to its zero position (prongs aligned for the next gauge), clearing
 //! the last result and any latched fault; `ResetFailed` when the hub does not get there in time.
+//! Also the rule that keeps the zero true across configuration changes (a motor-shaft encoder's
+//! settings change only at zero).
 
-use kerfmeter_protocol::{ErrorCode, Fault};
+use kerfmeter_protocol::{DeviceConfig, EncoderPlacement, ErrorCode, Fault, START_TOLERANCE_DEG};
+
+use crate::as5048a::EncoderSettings;
 
 use super::{
-    Controller, Motion, RESET_MAX_SPEED_DEG_PER_S, RESET_MAX_TORQUE_NM, RESET_SETTLE_TICKS,
-    RESET_SPEED_PER_DEG, RESET_TIMEOUT_TICKS, RESET_TOLERANCE_DEG, State,
+    Controller, Motion, RESET_MAX_SPEED_DEG_PER_S, RESET_MAX_TORQUE_NM, RESET_RELEASE_DEG,
+    RESET_SETTLE_TICKS, RESET_SPEED_PER_DEG, RESET_TIMEOUT_TICKS, RESET_TOLERANCE_DEG, State,
 };
 
 impl Controller {
+    /// Whether `config` may replace the configuration in use with the hub where it stands.
+    ///
+    /// A change of the encoder's own settings restarts its turn counting (`hardware.rs`). An
+    /// output-shaft encoder is absolute over the hub's turn, so that is harmless anywhere. A
+    /// motor-shaft encoder sees the hub only modulo one motor turn (360°/gear ratio of hub angle):
+    /// the restarted count takes the motor turn nearest the (new) zero, which is the true one
+    /// only with the hub at zero. Such a change is therefore refused with `NotAtZero` unless the
+    /// hub stands within the run's start tolerance of zero on a good encoder reading (send
+    /// `Reset`, then the configuration). Changes that leave the encoder settings alone are never
+    /// refused here.
+    pub fn check_config_change(&self, config: &DeviceConfig) -> Result<(), ErrorCode> {
+        let new = EncoderSettings::from_config(config);
+        if new == EncoderSettings::from_config(&self.config)
+            || new.placement == EncoderPlacement::OutputShaft
+        {
+            return Ok(());
+        }
+        let at_zero = self.have_angle
+            && self.consecutive_encoder_errors == 0
+            && self.angle_deg.abs() <= START_TOLERANCE_DEG;
+        if at_zero {
+            Ok(())
+        } else {
+            Err(ErrorCode::NotAtZero)
+        }
+    }
+
     /// Start driving the hub back to zero (`Reset`): clears the last result and leaves a latched
     /// fault. Refused (`Busy`) while a run, reset or self-test is in progress.
     pub fn start_reset(&mut self) -> Result<(), ErrorCode> {
@@ -28,19 +59,31 @@ impl Controller {
         }
     }
 
-    /// One tick of the reset, `ticks` into it, the hub within tolerance for the last `settled`.
+    /// One tick of the reset, `ticks` into it, the hub within the settle band for the last
+    /// `settled`.
+    ///
+    /// The settle test has hysteresis: the hub enters the band within [`RESET_TOLERANCE_DEG`] of
+    /// zero and leaves it only beyond [`RESET_RELEASE_DEG`], so that encoder noise around the
+    /// tolerance's edge cannot restart the count. Inside the band the motor brakes; outside it
+    /// the speed loop drives towards zero. The loop keeps its integral across the band: what it
+    /// has learnt beyond `breakaway_duty` (a warm winding or a low supply gives less torque per
+    /// duty, and the default calibration leaves little margin over the gearbox's friction) still
+    /// holds the next time it must move the hub, instead of being rebuilt from nothing.
     pub(super) fn reset_step(&mut self, ticks: u32, settled: u32) {
         if ticks >= RESET_TIMEOUT_TICKS {
             self.latch(Fault::ResetFailed);
             return;
         }
-        // Within tolerance: brake and check that the hub stays there; outside, drive towards
-        // zero at a speed that falls with the distance left.
-        let settled = if self.angle_deg.abs() <= RESET_TOLERANCE_DEG {
+        let band_deg = if settled > 0 {
+            RESET_RELEASE_DEG
+        } else {
+            RESET_TOLERANCE_DEG
+        };
+        let settled = if self.angle_deg.abs() <= band_deg {
             self.torque_nm = 0.0;
-            self.motion.speed_integral_nm = 0.0;
             settled + 1
         } else {
+            // Towards zero, at a speed that falls with the distance left.
             let target = (-RESET_SPEED_PER_DEG * self.angle_deg)
                 .clamp(-RESET_MAX_SPEED_DEG_PER_S, RESET_MAX_SPEED_DEG_PER_S);
             self.torque_nm = self.speed_loop(target, RESET_MAX_TORQUE_NM);

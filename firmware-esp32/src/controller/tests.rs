@@ -472,3 +472,120 @@ fn a_run_that_ends_while_its_log_halves_itself_keeps_every_sample() {
     let chunk = s.c.sample_chunk(0).unwrap();
     assert_eq!(&samples[..chunk.samples.len()], chunk.samples.as_slice());
 }
+
+#[test]
+fn a_reset_settles_at_its_tolerance_edge_despite_encoder_noise() {
+    let mut s = Script::new();
+    s.angle_deg = 0.29;
+    s.tick();
+    assert_eq!(s.host().start_reset(), Ok(()));
+    // The hub stands just inside the tolerance; noise carries every third reading just out of it.
+    for i in 0..RESET_TIMEOUT_TICKS {
+        s.angle_deg = if i % 3 == 0 { 0.32 } else { 0.28 };
+        s.tick();
+        if s.state() != RunState::Resetting {
+            break;
+        }
+    }
+    assert_eq!(s.state(), RunState::Idle);
+}
+
+#[test]
+fn a_settled_reset_drives_again_once_the_hub_leaves_the_wider_band() {
+    let mut s = Script::new();
+    s.angle_deg = 0.2;
+    s.tick();
+    assert_eq!(s.host().start_reset(), Ok(()));
+    for _ in 0..RESET_SETTLE_TICKS / 2 {
+        s.tick();
+        assert_eq!(s.c.torque_nm, 0.0, "settled: braking");
+    }
+    // Within the release band: still settled.
+    s.angle_deg = RESET_RELEASE_DEG - 0.05;
+    s.tick();
+    assert_eq!(s.c.torque_nm, 0.0);
+    // Beyond it: driven back towards zero, and the settle count starts again.
+    s.angle_deg = RESET_RELEASE_DEG + 0.2;
+    for _ in 0..RESET_SETTLE_TICKS {
+        s.tick();
+        assert!(s.c.torque_nm < 0.0, "{}", s.c.torque_nm);
+    }
+    assert_eq!(s.state(), RunState::Resetting);
+}
+
+#[test]
+fn a_motor_shaft_encoder_setting_changes_only_at_zero() {
+    use kerfmeter_protocol::EncoderPlacement;
+    let motor_shaft = DeviceConfig {
+        encoder_placement: EncoderPlacement::MotorShaft,
+        ..DeviceConfig::DEFAULT
+    };
+    let mut s = Script::new();
+    s.angle_deg = 150.0;
+    s.tick();
+    // Away from zero: unrelated fields change; an output-shaft encoder's settings too.
+    let limits = DeviceConfig {
+        max_current_a: 5.0,
+        ..DeviceConfig::DEFAULT
+    };
+    assert_eq!(s.host().set_config(limits), Ok(()));
+    let zero = DeviceConfig {
+        encoder_zero_raw: 100,
+        ..DeviceConfig::DEFAULT
+    };
+    assert_eq!(s.host().set_config(zero), Ok(()));
+    // A motor-shaft encoder's settings: refused away from zero, taken at zero.
+    assert_eq!(s.host().set_config(motor_shaft), Err(ErrorCode::NotAtZero));
+    s.angle_deg = 0.5;
+    s.tick();
+    assert_eq!(s.host().set_config(motor_shaft), Ok(()));
+    // Once on the motor shaft: unrelated fields change anywhere, its settings only at zero.
+    s.angle_deg = 150.0;
+    s.tick();
+    let warmer = DeviceConfig {
+        max_current_a: 5.0,
+        ..motor_shaft
+    };
+    assert_eq!(s.host().set_config(warmer), Ok(()));
+    let rezeroed = DeviceConfig {
+        encoder_zero_raw: 100,
+        ..warmer
+    };
+    assert_eq!(s.host().set_config(rezeroed), Err(ErrorCode::NotAtZero));
+    assert_eq!(s.c.config(), &warmer);
+    // With the encoder failing, "at zero" cannot be shown.
+    s.angle_deg = 0.0;
+    s.tick();
+    let mut inputs = s.inputs();
+    inputs.angle_deg = Err(EncoderFault::Bus);
+    s.tick_with(&inputs);
+    assert_eq!(s.host().set_config(rezeroed), Err(ErrorCode::NotAtZero));
+}
+
+#[test]
+fn a_reset_keeps_what_its_speed_loop_learnt_across_the_settle_band() {
+    let mut s = Script::new();
+    s.angle_deg = 0.6;
+    s.tick();
+    assert_eq!(s.host().start_reset(), Ok(()));
+    // Stuck outside the tolerance (a weak motor at breakaway): the integral builds up.
+    for _ in 0..1000 {
+        s.tick();
+    }
+    let stuck_nm = s.c.torque_nm;
+    assert!(stuck_nm < -0.02, "{stuck_nm}");
+    // A lurch into the band (brake), then out beyond the release band again: the drive resumes
+    // with what it needed to move the hub, not from nothing.
+    s.angle_deg = 0.25;
+    for _ in 0..RESET_SETTLE_TICKS - 10 {
+        s.tick();
+        assert_eq!(s.c.torque_nm, 0.0);
+    }
+    s.angle_deg = 0.6;
+    s.tick();
+    assert!(
+        s.c.torque_nm < stuck_nm * 0.6,
+        "{} vs {stuck_nm}",
+        s.c.torque_nm
+    );
+}

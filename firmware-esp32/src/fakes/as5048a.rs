@@ -6,15 +6,30 @@
 //! error flag and the error register cleared by reading `CLEAR ERROR FLAG`, the diagnostics / AGC
 //! and magnitude registers, 14-bit quantisation with a few LSB of noise. Faults to inject:
 //! corrupted responses (parity errors), corrupted commands (the chip flags them), a lost magnet,
-//! MISO stuck low or high. Not modelled: writes (the driver never writes; the zero position lives
-//! in the device configuration, not in the chip's OTP), timing, the PWM output.
+//! MISO stuck low or high.
+//!
+//! Chip-select timing, as far as a transaction carries it: the time from CSn falling to the first
+//! clock (t_L, at least 350 ns) and from the last clock to CSn rising (t_H, at least half
+//! a period of [`SPI_FREQUENCY_HZ`]) are the `Operation::DelayNs` before the first and after the
+//! last data operation. A frame that falls short is not taken: the chip flags a framing error
+//! (counted in [`FakeAs5048a::timing_violations`]), so a driver that drops them fails its reads.
+//! The CSn high time between frames (t_CSn) lies outside any transaction and is not checked.
+//!
+//! Not modelled: writes (the driver never writes; the zero position lives in the device
+//! configuration, not in the chip's OTP), clock-level timing, the PWM output.
 
 use core::convert::Infallible;
 
 use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
 
 use super::rng::Rng;
-use crate::as5048a::{COUNTS_PER_TURN, diag, err, parity_ok, reg, with_parity};
+use crate::as5048a::{COUNTS_PER_TURN, SPI_FREQUENCY_HZ, diag, err, parity_ok, reg, with_parity};
+
+/// t_L, the datasheet's minimum, ns (the chip's own figure, not the driver's constant, so that a
+/// driver that shortens it is caught).
+const MIN_SETUP_NS: u32 = 350;
+/// t_H at the bus clock: half a clock period, ns.
+const MIN_HOLD_NS: u32 = 1_000_000_000_u32.div_ceil(2 * SPI_FREQUENCY_HZ);
 
 /// A broken MISO line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -38,6 +53,7 @@ pub struct FakeAs5048a {
     /// Data the next frame shifts out.
     out: u16,
     frames: u32,
+    timing_violations: u32,
     corrupt_responses: u32,
     corrupt_commands: u32,
     miso_fault: Option<MisoFault>,
@@ -57,6 +73,7 @@ impl FakeAs5048a {
             error_flag: false,
             out: 0,
             frames: 0,
+            timing_violations: 0,
             corrupt_responses: 0,
             corrupt_commands: 0,
             miso_fault: None,
@@ -103,6 +120,11 @@ impl FakeAs5048a {
         self.frames
     }
 
+    /// Frames whose chip-select setup or hold time was too short (see the module docs).
+    pub fn timing_violations(&self) -> u32 {
+        self.timing_violations
+    }
+
     fn diag_agc(&self) -> u16 {
         if self.magnet_lost {
             diag::OCF | diag::COMP_HIGH | 0xFF
@@ -122,8 +144,9 @@ impl FakeAs5048a {
         raw.rem_euclid(counts) as u16
     }
 
-    /// Clock one frame: returns what MISO carried, and takes `command` from MOSI.
-    fn clock(&mut self, command: u16, bytes: usize) -> u16 {
+    /// Clock one frame: returns what MISO carried, and takes `command` from MOSI (`timed`: the
+    /// chip-select setup and hold times were met).
+    fn clock(&mut self, command: u16, bytes: usize, timed: bool) -> u16 {
         self.frames += 1;
         let mut response = with_parity(self.out | if self.error_flag { 0x4000 } else { 0 });
         match self.miso_fault {
@@ -141,7 +164,10 @@ impl FakeAs5048a {
             self.corrupt_commands -= 1;
             command ^= 0x0100;
         }
-        if bytes != 2 {
+        if !timed {
+            self.timing_violations += 1;
+            self.flag(err::FRAMING);
+        } else if bytes != 2 {
             self.flag(err::FRAMING);
         } else if !parity_ok(command) {
             self.flag(err::PARITY);
@@ -207,7 +233,9 @@ impl SpiDevice<u8> for FakeAs5048a {
             }
         }
         let command = u16::from_be_bytes([mosi[0], mosi[1]]);
-        let miso = self.clock(command, n).to_be_bytes();
+        let miso = self
+            .clock(command, n, cs_timing_met(operations))
+            .to_be_bytes();
         let mut i = 0;
         for op in operations.iter_mut() {
             let buf: &mut [u8] = match op {
@@ -222,5 +250,66 @@ impl SpiDevice<u8> for FakeAs5048a {
             }
         }
         Ok(())
+    }
+}
+
+/// True when the delays before the first and after the last data operation of a transaction meet
+/// the chip-select setup (t_L) and hold (t_H) times.
+fn cs_timing_met(operations: &[Operation<'_, u8>]) -> bool {
+    let is_data = |op: &Operation<'_, u8>| !matches!(op, Operation::DelayNs(_));
+    let delay_ns = |ops: &[Operation<'_, u8>]| -> u32 {
+        ops.iter()
+            .map(|op| match op {
+                Operation::DelayNs(ns) => *ns,
+                _ => 0,
+            })
+            .sum()
+    };
+    let (Some(first), Some(last)) = (
+        operations.iter().position(is_data),
+        operations.iter().rposition(is_data),
+    ) else {
+        return true; // no clock at all
+    };
+    delay_ns(&operations[..first]) >= MIN_SETUP_NS
+        && delay_ns(&operations[last + 1..]) >= MIN_HOLD_NS
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::as5048a::read_command;
+
+    /// One angle-read frame with `lead_ns` of chip-select setup and `trail_ns` of hold; the
+    /// response word.
+    fn frame(chip: &mut FakeAs5048a, lead_ns: u32, trail_ns: u32) -> u16 {
+        let mut bytes = read_command(reg::ANGLE).to_be_bytes();
+        chip.transaction(&mut [
+            Operation::DelayNs(lead_ns),
+            Operation::TransferInPlace(&mut bytes),
+            Operation::DelayNs(trail_ns),
+        ])
+        .unwrap();
+        u16::from_be_bytes(bytes)
+    }
+
+    #[test]
+    fn frames_without_the_chip_select_setup_or_hold_time_are_flagged() {
+        let mut chip = FakeAs5048a::new(1);
+        frame(&mut chip, MIN_SETUP_NS, MIN_HOLD_NS);
+        assert!(frame(&mut chip, MIN_SETUP_NS, MIN_HOLD_NS) & 0x4000 == 0);
+        assert_eq!(chip.timing_violations(), 0);
+        // Too short a setup: the command is not taken and the next response carries EF.
+        frame(&mut chip, MIN_SETUP_NS - 1, MIN_HOLD_NS);
+        assert!(frame(&mut chip, MIN_SETUP_NS, MIN_HOLD_NS) & 0x4000 != 0);
+        // Too short a hold, likewise.
+        let mut chip = FakeAs5048a::new(2);
+        frame(&mut chip, MIN_SETUP_NS, MIN_HOLD_NS - 1);
+        assert!(frame(&mut chip, MIN_SETUP_NS, MIN_HOLD_NS) & 0x4000 != 0);
+        assert_eq!(chip.timing_violations(), 1);
+        // A bare transfer (no delays at all) is a violation too.
+        let mut bytes = read_command(reg::ANGLE).to_be_bytes();
+        chip.transfer_in_place(&mut bytes).unwrap();
+        assert_eq!(chip.timing_violations(), 2);
     }
 }

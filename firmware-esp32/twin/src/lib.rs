@@ -42,7 +42,9 @@
 //! - The encoder: the AS5048A's SPI protocol (parity, error flag and register, pipelined
 //!   replies), its integral non-linearity (1st–3rd harmonics) and a magnet's eccentricity (a
 //!   once-per-turn error), drawn once per twin, relative to the zero the user set; 14-bit
-//!   quantisation and a few LSB of noise.
+//!   quantisation and a few LSB of noise; the chip-select setup and hold times each frame
+//!   carries. The magnet sits on the output shaft, or on the motor shaft
+//!   (`Twin::set_magnet_on_motor_shaft`, turning `gear_ratio` times per hub turn).
 //! - The current sense as the G2 produces it: the current only in the drive phase of each 20 kHz
 //!   PWM period (about zero while braking or chopping), sampled once per tick at an instant that
 //!   drifts through the period; an optional RC filter on the pin; gain error, noise, the 1 mV

@@ -95,6 +95,9 @@ pub struct Twin {
     cutter: Cutter,
     /// This twin's encoder chip's and magnet's angle errors.
     encoder_errors: EncoderErrors,
+    /// The magnet sits on the motor shaft (it turns `gear_ratio` times per hub turn) instead of
+    /// the output shaft.
+    magnet_on_motor_shaft: bool,
     plant: Plant,
     hardware: TwinHardware,
     pwm: FakePwm,
@@ -192,6 +195,7 @@ impl Twin {
                 options.seed,
             ),
             encoder_errors: EncoderErrors::for_twin(&options.plant, options.seed),
+            magnet_on_motor_shaft: false,
             sense: Sense::new(&options.plant, stream(0)),
             flt_injected: false,
             options,
@@ -241,7 +245,9 @@ impl Twin {
         let bursts = self.bursts.clone();
         let truths = self.truths.clone();
         truths.clear();
+        let magnet_on_motor_shaft = self.magnet_on_motor_shaft;
         *self = Self::boot(self.options, flash, self.boots + 1, self.now_us);
+        self.magnet_on_motor_shaft = magnet_on_motor_shaft;
         self.plant = plant;
         self.bursts = bursts;
         self.truths = truths;
@@ -286,6 +292,13 @@ impl Twin {
     /// The options it was built with.
     pub fn options(&self) -> &TwinOptions {
         &self.options
+    }
+
+    /// Move the encoder's magnet to the motor shaft (`true`: it turns `gear_ratio` times per hub
+    /// turn) or back to the output shaft. The device's configuration must say so too
+    /// (`encoder_placement`): this is the mechanics, not the firmware.
+    pub fn set_magnet_on_motor_shaft(&mut self, on_motor: bool) {
+        self.magnet_on_motor_shaft = on_motor;
     }
 
     /// True when the motor bridge is in its safe state (duty 0 or driver asleep).
@@ -464,7 +477,13 @@ impl Twin {
     fn step_at(&mut self, tick_us: u64) {
         self.advance_to(tick_us);
         self.strike_faults();
-        let cw = self.encoder_errors.measured_deg(self.plant.hub_cw_deg());
+        let hub_cw_deg = self.plant.hub_cw_deg();
+        let magnet_cw_deg = if self.magnet_on_motor_shaft {
+            hub_cw_deg * self.plant.params().gear_ratio
+        } else {
+            hub_cw_deg
+        };
+        let cw = self.encoder_errors.measured_deg(magnet_cw_deg);
         self.hardware.encoder.bus_mut().set_angle_deg(cw);
         let sensed = self.sense.sample(
             &self.plant.electrical(),

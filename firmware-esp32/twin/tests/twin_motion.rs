@@ -1,0 +1,202 @@
+//! The hub's zero on the digital twin, in-process: the encoder's turn counting across
+//! configuration changes (output and motor shaft), and `Reset` between gauges when the motor is
+//! weaker than its calibration says (a hot winding, a low supply).
+
+use kerfmeter_protocol::{
+    DeviceConfig, EncoderPlacement, ErrorCode, Fault, KerfResult, Request, Response, RunParams,
+    RunState, Status,
+};
+use kerfmeter_twin::plant::PlantParams;
+use kerfmeter_twin::{Twin, TwinOptions};
+
+/// Run one measurement, polling like a host every 10 ms; the run's end or its fault.
+fn measure(twin: &mut Twin, params: &RunParams) -> Result<KerfResult, Fault> {
+    assert_eq!(twin.request(&Request::Run(*params)), Response::Ok);
+    for _ in 0..3000 {
+        twin.advance_ticks(10);
+        match status(twin).state {
+            RunState::Done => match twin.request(&Request::GetKerf) {
+                Response::Kerf(Some(k)) => return Ok(k),
+                other => panic!("no result after Done: {other:?}"),
+            },
+            RunState::Fault(f) => return Err(f),
+            _ => {}
+        }
+    }
+    panic!("the run neither finished nor faulted in 30 s");
+}
+
+/// Reset, polling every 10 ms; `Ok` in `Idle`, or the fault it ended in.
+fn reset(twin: &mut Twin) -> Result<(), Fault> {
+    assert_eq!(twin.request(&Request::Reset), Response::Ok);
+    for _ in 0..1000 {
+        twin.advance_ticks(10);
+        match status(twin).state {
+            RunState::Idle => return Ok(()),
+            RunState::Fault(f) => return Err(f),
+            _ => {}
+        }
+    }
+    panic!("reset did not finish in 10 s");
+}
+
+fn status(twin: &mut Twin) -> Status {
+    match twin.request(&Request::GetStatus) {
+        Response::Status(s) => s,
+        other => panic!("{other:?}"),
+    }
+}
+
+fn set_config(twin: &mut Twin, config: DeviceConfig) -> Result<(), ErrorCode> {
+    let answer = match twin.request(&Request::SetConfig(config)) {
+        Response::Config(report) => {
+            assert_eq!(report.config, config);
+            Ok(())
+        }
+        Response::Error(e) => Err(e),
+        other => panic!("{other:?}"),
+    };
+    twin.advance_ticks(20);
+    answer
+}
+
+fn twin(plant: PlantParams, seed: u64) -> Twin {
+    let mut t = Twin::new(TwinOptions {
+        kerf_um: 150.0,
+        seed,
+        plant,
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    t
+}
+
+const MOTOR_SHAFT: DeviceConfig = DeviceConfig {
+    encoder_placement: EncoderPlacement::MotorShaft,
+    ..DeviceConfig::DEFAULT
+};
+
+/// A twin with its magnet on the motor shaft, configured so at boot (the hub at zero).
+fn motor_shaft_twin(seed: u64) -> Twin {
+    let mut t = twin(PlantParams::default(), seed);
+    t.set_magnet_on_motor_shaft(true);
+    assert_eq!(set_config(&mut t, MOTOR_SHAFT), Ok(()));
+    assert!(status(&mut t).angle_deg.abs() < 0.5);
+    t
+}
+
+/// Measure and check the reading against the gauge's truth.
+fn measure_right(t: &mut Twin) -> KerfResult {
+    let k = measure(t, &RunParams::DEFAULT).expect("a result");
+    let truth = t.plant().truth_um(&RunParams::DEFAULT);
+    assert!(
+        (f64::from(k.kerf_um) - truth).abs() < 3.0,
+        "measured {} µm, truth {truth} µm",
+        k.kerf_um
+    );
+    k
+}
+
+#[test]
+fn a_set_config_in_done_keeps_a_motor_shaft_encoders_zero() {
+    let mut t = motor_shaft_twin(31);
+    measure_right(&mut t);
+    let done_deg = status(&mut t).angle_deg;
+    assert!(done_deg > 30.0, "{done_deg}");
+    // A field that is not the encoder's: the hub keeps its angle (no re-lock to a false zero)...
+    let limits = DeviceConfig {
+        max_current_a: 6.0,
+        ..MOTOR_SHAFT
+    };
+    assert_eq!(set_config(&mut t, limits), Ok(()));
+    let after_deg = status(&mut t).angle_deg;
+    assert!(
+        (after_deg - done_deg).abs() < 0.2,
+        "{done_deg} → {after_deg}"
+    );
+    // ...the reset finds the true zero, and the next gauge reads right.
+    reset(&mut t).unwrap();
+    assert!(
+        t.plant().hub_cw_deg().abs() < 0.5,
+        "{}",
+        t.plant().hub_cw_deg()
+    );
+    measure_right(&mut t);
+}
+
+#[test]
+fn a_motor_shaft_encoders_settings_change_only_at_zero() {
+    let mut t = motor_shaft_twin(32);
+    measure_right(&mut t);
+    // Away from zero a new encoder zero is refused (the restarted turn count would be a motor
+    // turn out)...
+    let rezeroed = DeviceConfig {
+        encoder_zero_raw: 200,
+        ..MOTOR_SHAFT
+    };
+    assert_eq!(set_config(&mut t, rezeroed), Err(ErrorCode::NotAtZero));
+    match t.request(&Request::GetConfig) {
+        Response::Config(report) => assert_eq!(report.config, MOTOR_SHAFT),
+        other => panic!("{other:?}"),
+    }
+    // ...and taken at zero: the count restarts on the new zero, 200 counts of the motor shaft
+    // (200/16384 × 360°/21 of hub angle) away, with the hub where it stands.
+    reset(&mut t).unwrap();
+    let before_deg = status(&mut t).angle_deg;
+    assert_eq!(set_config(&mut t, rezeroed), Ok(()));
+    let shift_deg = 200.0 / 16384.0 * 360.0 / 21.0;
+    let after_deg = status(&mut t).angle_deg;
+    assert!(
+        (after_deg - (before_deg - shift_deg)).abs() < 0.05,
+        "{before_deg} → {after_deg}, expected a shift of {shift_deg}"
+    );
+}
+
+/// `kerfmeter run --samples 3` on a weak motor: reset, run, three times; every reset must end at
+/// zero (not `ResetFailed`) and every run in a result.
+fn three_gauges(plant: PlantParams, seed: u64) {
+    let mut t = twin(plant, seed);
+    for gauge in 0..3 {
+        reset(&mut t).unwrap_or_else(|f| panic!("reset before gauge {gauge}: {f:?}"));
+        measure(&mut t, &RunParams::DEFAULT).unwrap_or_else(|f| panic!("gauge {gauge}: {f:?}"));
+    }
+    reset(&mut t).unwrap_or_else(|f| panic!("last reset: {f:?}"));
+}
+
+#[test]
+fn resets_between_gauges_succeed_with_a_hot_winding() {
+    for seed in 41..44 {
+        three_gauges(
+            PlantParams {
+                winding_temp_c: 102.0,
+                ..PlantParams::default()
+            },
+            seed,
+        );
+    }
+}
+
+#[test]
+fn resets_between_gauges_succeed_on_a_9_v_supply() {
+    for seed in 51..54 {
+        three_gauges(
+            PlantParams {
+                supply_v: 9.0,
+                ..PlantParams::default()
+            },
+            seed,
+        );
+    }
+}
+
+#[test]
+fn resets_between_gauges_succeed_with_a_hot_winding_on_a_9_v_supply() {
+    three_gauges(
+        PlantParams {
+            supply_v: 9.0,
+            winding_temp_c: 110.0,
+            ..PlantParams::default()
+        },
+        55,
+    );
+}
