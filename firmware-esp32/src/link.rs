@@ -13,11 +13,55 @@
 //!   times out and retries. An *intact* frame with an unknown request (a newer host) is answered
 //!   with [`ErrorCode::UnknownRequest`] so the host can tell "old firmware" from "no device".
 //! - Every received request counts as host activity, for the run's communication watchdog.
+//!
+//! # Bounded work per control tick
+//!
+//! The board's control loop steps the device, then serves the link in the same pass, every
+//! [`PERIOD_US`](crate::controller::PERIOD_US). Unbounded link work (a burst of small frames)
+//! would push the next step past the controller's overrun limit and fault a run with
+//! `StepOverrun`. So a pass hands the link at most [`FRAMES_PER_TICK`] frames
+//! ([`Link::receive_frames`] stops between two frames and says how many bytes it took); the
+//! bytes after them stay queued for the next pass ([`Inbox`]). The budget counts every frame,
+//! answered or dropped, since each one costs decoding; empty frames (resync delimiters) and
+//! garbage between frames cost only a byte scan.
+//!
+//! Why a budget in frames, and not the control tick on a higher-priority interrupt executor:
+//! the budget keeps one owner of the device (no critical-section mutex around it, no request
+//! handled in the middle of a step), it is deterministic, so the digital twin runs exactly the
+//! board's rule, and a frame's work is bounded — decoding a request no longer than
+//! `MAX_REQUEST_FRAME_LEN`, the handler, encoding a response — except a configuration write to
+//! flash, which the device refuses while the motor runs. Why frames and not a time budget on the
+//! clock: the same bound then holds whatever a frame costs on the core, and a budget measured in
+//! time could still be overrun by the one frame that started just before it ran out.
+//!
+//! A host that sends faster than [`FRAMES_PER_TICK`] frames a period is throttled by
+//! back-pressure, never by dropped frames: the board's receive queue fills, its USB task stops
+//! reading, and the USB-Serial-JTAG FIFO stops accepting the host's bytes. An answer that comes
+//! late because of the queue is harmless: the host discards answers whose `seq` it is not
+//! waiting for, a retry it sent meanwhile is answered from memory, and the queue (at most a few
+//! hundred bytes, tens of frames) drains within tens of milliseconds, well inside the host's
+//! timeout.
 
 use kerfmeter_protocol::{
     Deframer, DeframerStats, Envelope, ErrorCode, Feed, FrameError, MAX_REQUEST_FRAME_LEN,
-    MAX_RESPONSE_FRAME_LEN, Request, Response, encode_frame,
+    MAX_RESPONSE_FRAME_LEN, Request, Response, encode_frame, heapless,
 };
+
+/// Frames the link takes per control pass. Two: the host's poll and one more (its retry, or a
+/// second client's request). At two frames a pass of 300 µs each (a pessimistic frame cost), the
+/// link work still fits in a period, so no step moves because of the host.
+pub const FRAMES_PER_TICK: u32 = 2;
+
+/// What one call of [`Link::receive_frames`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Received {
+    /// Input bytes taken (the rest is for a later call).
+    pub consumed: usize,
+    /// Frames that ended in them, intact or not (each one counts against the budget).
+    pub frames: u32,
+    /// Requests answered (retries included).
+    pub answered: usize,
+}
 
 /// What answers requests: the device behind the link.
 pub trait Handler {
@@ -82,16 +126,38 @@ impl Link {
 
     /// Take received `bytes`; for each complete request, call `handler` and pass the framed
     /// response to `transmit`. Returns the number of requests answered (retries included).
+    /// Unbounded: for a bounded pass, see [`receive_frames`](Self::receive_frames).
     pub fn receive(
         &mut self,
         bytes: &[u8],
         handler: &mut impl Handler,
-        mut transmit: impl FnMut(&[u8]),
+        transmit: impl FnMut(&[u8]),
     ) -> usize {
-        let mut answered = 0;
+        self.receive_frames(bytes, u32::MAX, handler, transmit)
+            .answered
+    }
+
+    /// Like [`receive`](Self::receive), but stop right after the `max_frames`-th frame that
+    /// ends in `bytes`: the bytes after it are not taken ([`Received::consumed`] says how many
+    /// were); give them again later. A frame cut by the stop cannot happen: the link stops only
+    /// between frames, and a frame's beginning already taken is kept until its end comes.
+    pub fn receive_frames(
+        &mut self,
+        bytes: &[u8],
+        max_frames: u32,
+        handler: &mut impl Handler,
+        mut transmit: impl FnMut(&[u8]),
+    ) -> Received {
+        let mut done = Received::default();
         let mut input = bytes;
-        while let Feed::Frame { result, rest } = self.deframer.feed::<Envelope<Request>>(input) {
+        while done.frames < max_frames {
+            let Feed::Frame { result, rest } = self.deframer.feed::<Envelope<Request>>(input)
+            else {
+                input = &[];
+                break;
+            };
             input = rest;
+            done.frames += 1;
             let reply = match result {
                 Ok(request) => Some(self.answer(request, handler)),
                 Err(FrameError::Decode(e)) => e.seq.map(|seq| {
@@ -107,11 +173,12 @@ impl Link {
                 // Every response fits: the buffer is sized by the compile-time bound.
                 if let Ok(frame) = encode_frame(&reply, &mut self.out) {
                     transmit(frame);
-                    answered += 1;
+                    done.answered += 1;
                 }
             }
         }
-        answered
+        done.consumed = bytes.len() - input.len();
+        done
     }
 
     fn answer(
@@ -136,11 +203,69 @@ impl Link {
     }
 }
 
+/// The received bytes a pass has not handed to the link yet: the rest of the chunk the last
+/// pass stopped in (see [the module docs](self)). Chunks come from the board's receive queue,
+/// `N` bytes at most each.
+pub struct Inbox<const N: usize> {
+    chunk: heapless::Vec<u8, N>,
+    taken: usize,
+}
+
+impl<const N: usize> Default for Inbox<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> Inbox<N> {
+    /// Nothing pending.
+    pub const fn new() -> Self {
+        Self {
+            chunk: heapless::Vec::new(),
+            taken: 0,
+        }
+    }
+
+    /// Bytes pending from the last chunk.
+    pub fn pending(&self) -> &[u8] {
+        &self.chunk[self.taken..]
+    }
+
+    /// One pass's link work: the pending bytes, then chunks from `next_chunk` while it has
+    /// some, handed to `link` until [`FRAMES_PER_TICK`] frames ended. Whatever follows the last
+    /// of them stays pending, and unread chunks stay in their queue. Returns the frames taken.
+    pub fn serve(
+        &mut self,
+        link: &mut Link,
+        mut next_chunk: impl FnMut() -> Option<heapless::Vec<u8, N>>,
+        handler: &mut impl Handler,
+        mut transmit: impl FnMut(&[u8]),
+    ) -> u32 {
+        let mut frames = 0;
+        while frames < FRAMES_PER_TICK {
+            if self.pending().is_empty() {
+                let Some(chunk) = next_chunk() else { break };
+                self.chunk = chunk;
+                self.taken = 0;
+            }
+            let done = link.receive_frames(
+                &self.chunk[self.taken..],
+                FRAMES_PER_TICK - frames,
+                handler,
+                &mut transmit,
+            );
+            self.taken += done.consumed;
+            frames += done.frames;
+        }
+        frames
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use kerfmeter_protocol::{MAX_RESPONSE_FRAME_LEN, RunParams};
-    use std::vec::Vec;
+    use std::{vec, vec::Vec};
 
     /// Counts what it executes; answers `Ok` to everything but `GetKerf`.
     #[derive(Default)]
@@ -249,5 +374,89 @@ mod tests {
             all.extend(responses(&mut link, &mut h, core::slice::from_ref(b)));
         }
         assert_eq!(all.len(), 1);
+    }
+    #[test]
+    fn a_bounded_receive_stops_between_frames_and_keeps_the_rest() {
+        let mut link = Link::new();
+        let mut h = Counter::default();
+        let mut stream = Vec::new();
+        for seq in 0..3 {
+            stream.extend(request_frame(seq, Request::GetStatus));
+        }
+        let mut wire = Vec::new();
+        let first = link.receive_frames(&stream, 2, &mut h, |f| wire.push(f.to_vec()));
+        assert_eq!((first.frames, first.answered), (2, 2));
+        assert_eq!(h.handled, 2);
+        assert!(first.consumed < stream.len());
+        let rest = &stream[first.consumed..];
+        let r = responses(&mut link, &mut h, rest);
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].seq, 2);
+    }
+
+    /// Chunks of `len` bytes of `stream`, as the board's receive queue holds them.
+    fn chunks(stream: &[u8], len: usize) -> std::collections::VecDeque<heapless::Vec<u8, 64>> {
+        stream
+            .chunks(len)
+            .map(|c| heapless::Vec::from_slice(c).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn an_inbox_serves_a_burst_a_few_frames_a_pass_in_order() {
+        let mut link = Link::new();
+        let mut h = Counter::default();
+        let mut stream = b"\0\0noise\0".to_vec();
+        for seq in 10..17 {
+            stream.extend(request_frame(seq, Request::GetStatus));
+        }
+        // Chunks that cut frames anywhere.
+        let mut queue = chunks(&stream, 5);
+        let mut inbox = Inbox::<64>::new();
+        let mut passes = Vec::new();
+        while !(queue.is_empty() && inbox.pending().is_empty()) {
+            let mut seqs = Vec::new();
+            let frames = inbox.serve(
+                &mut link,
+                || queue.pop_front(),
+                &mut h,
+                |f| {
+                    seqs.push(decode_response(f).seq);
+                },
+            );
+            passes.push((frames, seqs));
+        }
+        // The garbage frame in front counts as one.
+        let expected = [
+            (2, vec![10]),
+            (2, vec![11, 12]),
+            (2, vec![13, 14]),
+            (2, vec![15, 16]),
+        ];
+        assert_eq!(passes, expected);
+        assert_eq!(h.handled, 7);
+    }
+
+    #[test]
+    fn an_inbox_takes_no_chunk_it_has_no_budget_for() {
+        let mut link = Link::new();
+        let mut h = Counter::default();
+        let mut queue = std::collections::VecDeque::new();
+        for seq in 0..4 {
+            queue.extend(chunks(&request_frame(seq, Request::GetKerf), 64));
+        }
+        let mut inbox = Inbox::<64>::new();
+        let frames = inbox.serve(&mut link, || queue.pop_front(), &mut h, |_| {});
+        assert_eq!(frames, FRAMES_PER_TICK);
+        assert_eq!(queue.len(), 4 - FRAMES_PER_TICK as usize);
+        assert!(inbox.pending().is_empty());
+    }
+
+    fn decode_response(frame: &[u8]) -> Envelope<Response> {
+        let mut d = Deframer::<MAX_RESPONSE_FRAME_LEN>::new();
+        match d.feed::<Envelope<Response>>(frame) {
+            Feed::Frame { result, .. } => result.unwrap(),
+            Feed::Consumed => panic!("no whole frame"),
+        }
     }
 }

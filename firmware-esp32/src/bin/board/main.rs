@@ -14,7 +14,8 @@
 //!                                      (Channel)        ▼
 //!                                     control_task, every 1 ms: ADC ─▶ Hardware::tick(Device)
 //!                                                                     ─▶ feed the watchdog
-//!                                                                     ─▶ Link ─▶ Device
+//!                                                                     ─▶ Inbox ─▶ Link ─▶ Device
+//!                                                                      (FRAMES_PER_TICK at most)
 //!                                      (Pipe)           │ try_write
 //!  USB-Serial-JTAG tx ◀─ usb_tx_task ◀─ RESPONSE_BYTES ◀┘
 //! ```
@@ -24,15 +25,20 @@
 //!   drivers), the current-sense ADC and the watchdog. Each tick it reads the motor current (the
 //!   conversion started at the end of the previous tick, so the ADC never holds the tick up), runs
 //!   [`Hardware::tick`] (encoder, diagnostics, FLT, controller step, motor output), feeds the
-//!   watchdog, then hands the bytes received since the last tick to the link, which answers each
-//!   complete request from the same `Device`. It never awaits anything but its ticker: received
-//!   bytes are taken with `try_receive`, responses are queued with `try_write`, and a response
-//!   that does not fit the queue is dropped (the host retries the same `seq`, and the link
+//!   watchdog, then hands received bytes to the link, which answers each complete request from
+//!   the same `Device`: at most
+//!   [`FRAMES_PER_TICK`](kerfmeter_firmware::link::FRAMES_PER_TICK) frames a pass, so that no
+//!   burst from the host can delay the next step (the link's module docs say why a budget and
+//!   not an interrupt executor). The bytes after the last frame taken wait in the [`Inbox`], and
+//!   the chunks not taken in [`REQUEST_CHUNKS`], for the next pass. It never awaits anything but
+//!   its ticker: received bytes are taken with `try_receive`, responses are queued with
+//!   `try_write`, and a response that does not fit the queue is dropped (the host retries the same `seq`, and the link
 //!   answers the retry from memory without carrying the request out twice). It is the only
 //!   feeder of the hardware watchdog ([`WATCHDOG_TIMEOUT_MS`], 50 ms), so a stalled control loop
 //!   resets the chip; the configuration flash lengthens it around each of its operations.
 //! - [`usb_rx_task`]: USB-Serial-JTAG bytes in, forwarded in chunks of up to [`CHUNK_LEN`] bytes.
-//!   It may wait for room in the queue (that only slows the host down).
+//!   It waits for room in the queue when the host sends faster than the control task takes
+//!   frames; the USB FIFO then fills and the host's writes wait: back-pressure, nothing dropped.
 //! - [`usb_tx_task`]: response bytes out. The device only answers, so nothing else writes to
 //!   that port. A host that stops reading makes a write time out after [`LINK_WRITE_TIMEOUT`];
 //!   the pending responses are then dropped.
@@ -90,7 +96,7 @@ use kerfmeter_firmware::{
     controller::PERIOD_US,
     device::{Device, WithMotor},
     hardware::Hardware,
-    link::Link,
+    link::{Inbox, Link},
     watchdog::{WATCHDOG_TIMEOUT_MS, Watchdog},
 };
 use kerfmeter_protocol::{MAX_RESPONSE_FRAME_LEN, heapless};
@@ -221,6 +227,7 @@ async fn control_task(
         opened.storage,
     );
     let mut link = Link::new();
+    let mut inbox = Inbox::<CHUNK_LEN>::new();
     let mut ticker = Ticker::every(CONTROL_PERIOD);
     loop {
         let started = Instant::now();
@@ -233,20 +240,24 @@ async fn control_task(
         current.start_next();
         watchdog.feed_ms(WATCHDOG_TIMEOUT_MS);
 
-        // Requests, answered at the state of this tick; a save puts the motor safe first.
-        while let Ok(chunk) = REQUEST_CHUNKS.try_receive() {
-            let mut handler = WithMotor {
+        // Requests, answered at the state of this tick; a save puts the motor safe first. At
+        // most `FRAMES_PER_TICK` frames a pass: the rest waits in the inbox and the queue, and
+        // a host that keeps sending is held back by the full queue (`usb_rx_task` waits).
+        inbox.serve(
+            &mut link,
+            || REQUEST_CHUNKS.try_receive().ok(),
+            &mut WithMotor {
                 device: &mut device,
                 motor: &mut hardware.motor,
-            };
-            link.receive(&chunk, &mut handler, |frame| {
+            },
+            |frame| {
                 // Whole frames only; one that does not fit is dropped, and the host's retry of
                 // the same seq is answered from the link's memory.
                 if RESPONSE_BYTES.free_capacity() >= frame.len() {
                     let _ = RESPONSE_BYTES.try_write(frame);
                 }
-            });
-        }
+            },
+        );
 
         // A tick that overran (a configuration written to flash) restarts the ticker rather than
         // bursting through the missed ticks; the controller sees the gap.
