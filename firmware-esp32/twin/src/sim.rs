@@ -10,7 +10,11 @@
 //! last left it. Link work moves the core's clock on as the board's loop does: each frame from
 //! the host costs `frame_cost_us`, and a request that erases or writes flash stalls the core for
 //! the whole operation (`flash_erase_ms` a sector, `flash_write_ms` a page): no tick runs
-//! meanwhile, the plant keeps moving. (The store erases a sector only when its pages are full:
+//! meanwhile, the plant keeps moving. As on the board, the link takes at most
+//! [`FRAMES_PER_TICK`] frames a pass (the firmware's rule, see its `link` module): each pass is
+//! a tick's step, then link work on the frames queued before it, within that budget; the frames
+//! after them wait for the next passes, in the order they came (the other host's burst, then the
+//! client's frames), and an answer comes only once its frame's turn has come. (The store erases a sector only when its pages are full:
 //! on the twin's four sectors, a fresh flash's 319th save is the first to erase.) The device
 //! puts the bridge safe before it writes flash (`device::WithMotor`, as on the board), so the
 //! plant coasts through a stall rather than being driven. The watchdog ([`SimWatchdog`]) is the
@@ -20,7 +24,8 @@
 //! answer. With its own frames, the host sends a burst of
 //! `host_burst_frames` status requests every `host_burst_period_ms`, through a link of their own,
 //! so that their answers never reach the real client and its retry memory is not disturbed; they
-//! cost core time like any frame.
+//! cost core time and budget like any frame. While a burst still waits in the board's queue, the
+//! host sends no new one (the full queue holds its writes back).
 //!
 //! Served on a serial port ([`crate::serve()`]), simulated time runs ahead of the host by at most
 //! [`MAX_LEAD_MS`] past its last answer — much faster than real time, yet a host that keeps
@@ -45,7 +50,7 @@ use kerfmeter_firmware::fakes::flash::{FlashClock, RamFlash};
 use kerfmeter_firmware::fakes::pins::{FakeInput, FakeOutput, FakePwm};
 use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_firmware::hardware::Hardware;
-use kerfmeter_firmware::link::{Handler, Link};
+use kerfmeter_firmware::link::{FRAMES_PER_TICK, Handler, Link};
 use kerfmeter_firmware::motor::G2Motor;
 use kerfmeter_firmware::watchdog::{WATCHDOG_TIMEOUT_MS, Watchdog, WatchdogFlash};
 
@@ -112,6 +117,10 @@ pub struct Twin {
     link: Link,
     /// The link the bursts of the other host go through.
     burst_link: Link,
+    /// The other host's bytes the link has not taken yet (the board's receive queue).
+    burst_backlog: Vec<u8>,
+    /// Frames the links took in this pass, since the last step.
+    pass_frames: u32,
     bursts: HostBursts,
     ticks: TickClock,
     /// The board's watchdog, fed by each tick and by the firmware around flash operations.
@@ -209,6 +218,8 @@ impl Twin {
             device,
             link: Link::new(),
             burst_link: Link::new(),
+            burst_backlog: Vec::new(),
+            pass_frames: 0,
             flash: flash_clock,
             bridge: SAFE_BRIDGE,
             now_us,
@@ -313,18 +324,28 @@ impl Twin {
             && !matches!(self.device.controller().run_state(), RunState::Fault(_))
     }
 
-    /// Bytes from the host: handled by the firmware's link; responses go to `transmit` — none if
-    /// the device reset before it could send them (its watchdog, during a flash stall).
+    /// Bytes from the host: handled by the firmware's link, [`FRAMES_PER_TICK`] frames a pass
+    /// (the twin runs the ticks until the last frame's turn comes); responses go to `transmit` —
+    /// none if the device reset before it could send them (its watchdog, during a flash stall).
     pub fn receive(&mut self, bytes: &[u8], mut transmit: impl FnMut(&[u8])) {
         if self.host_muted() {
             return;
         }
-        let mut out = Vec::new();
-        let answered = self.link_pass(|handler, link| {
-            link.receive(bytes, handler, |frame| out.push(frame.to_vec()));
-        });
-        if answered.is_some() {
+        let mut rest = bytes;
+        loop {
+            let budget = self.client_turn();
+            let mut out = Vec::new();
+            let Some(done) = self.serve_host(Sender::Client, |handler, link| {
+                link.receive_frames(rest, budget, handler, |frame| out.push(frame.to_vec()))
+            }) else {
+                return;
+            };
+            self.pass_frames += done.frames;
             out.iter().for_each(|frame| transmit(frame));
+            rest = &rest[done.consumed..];
+            if rest.is_empty() {
+                return;
+            }
         }
     }
 
@@ -338,40 +359,52 @@ impl Twin {
             .expect("the device's watchdog reset it before it answered")
     }
 
-    /// A request without framing; `None` when the device reset before answering (its watchdog
-    /// fired during a flash stall) and rebooted.
+    /// A request without framing, handled when its turn comes (a frame of the pass's budget);
+    /// `None` when the device reset before answering (its watchdog fired during a flash stall)
+    /// and rebooted.
     pub fn try_request(&mut self, request: &Request) -> Option<Response> {
-        self.link_pass(|handler, _| handler.handle(request))
+        self.client_turn();
+        let response = self.serve_host(Sender::Client, |handler, _| handler.handle(request))?;
+        self.pass_frames += 1;
+        Some(response)
     }
 
-    /// One pass of the board's control loop with host traffic in it: the host's burst due and
-    /// the client's frames, one after the other on the core, then — if that work ran past the
-    /// tick the pass belongs to — the pass's step at once. On the board the link works inside
-    /// the control loop and its answers leave only after that step, so the host cannot send
-    /// anything else before it.
-    fn link_pass<R>(
-        &mut self,
-        serve: impl FnOnce(&mut TwinHandler<'_>, &mut Link) -> R,
-    ) -> Option<R> {
-        let due_us = self.ticks.next_tick_us(self.now_us);
-        self.host_bursts();
-        let result = self.serve_host(Sender::Client, serve)?;
-        if due_us <= self.now_us {
-            let tick_us = self.ticks.start_overdue_tick(self.now_us);
-            self.step_at(tick_us);
+    /// The client's frames arrive: with them the other host's burst due, if its last one is
+    /// gone, queued in front of them. Runs passes (ticks, each serving the queue) until the
+    /// queue is through and a pass has budget left for the client; that budget.
+    ///
+    /// A pass whose link work ran longer than a period (a flash stall) takes no more frames:
+    /// on the board its answers leave only once it has ended, and the board's ticker then
+    /// restarts, so whatever the host sends on hearing them is served after the next pass's
+    /// step, a period later (a run started then does not take the stall for an overrun of its
+    /// own steps).
+    fn client_turn(&mut self) -> u32 {
+        if self.burst_backlog.is_empty() {
+            self.burst_backlog = self.bursts.take_due(self.now_us);
+            self.serve_backlog();
         }
-        Some(result)
+        while !self.burst_backlog.is_empty()
+            || self.pass_frames >= FRAMES_PER_TICK
+            || self.ticks.overran(self.now_us)
+        {
+            self.tick();
+        }
+        FRAMES_PER_TICK - self.pass_frames
     }
 
-    /// The host's burst due by now, if any, through a link of its own (its answers discarded,
-    /// the client's retry memory untouched), in the same pass of link work as the client's
-    /// frames it goes with.
-    fn host_bursts(&mut self) {
-        let bytes = self.bursts.take_due(self.now_us);
-        if !bytes.is_empty() {
-            self.serve_host(Sender::Burst, |handler, link| {
-                link.receive(&bytes, handler, |_| {});
-            });
+    /// The other host's queued frames, within what is left of this pass's budget.
+    fn serve_backlog(&mut self) {
+        if self.burst_backlog.is_empty() || self.pass_frames >= FRAMES_PER_TICK {
+            return;
+        }
+        let budget = FRAMES_PER_TICK - self.pass_frames;
+        let bytes = core::mem::take(&mut self.burst_backlog);
+        // `None`: the device reset (and rebooted, its queue lost).
+        if let Some(done) = self.serve_host(Sender::Burst, |handler, link| {
+            link.receive_frames(&bytes, budget, handler, |_| {})
+        }) {
+            self.pass_frames += done.frames;
+            self.burst_backlog = bytes[done.consumed..].to_vec();
         }
     }
 
@@ -465,11 +498,15 @@ impl Twin {
         }
     }
 
-    /// The next control tick, when the core gets to it: the plant runs until then, then
-    /// sensors → firmware tick (feeding the watchdog) → bridge.
+    /// The next pass of the board's control loop, when the core gets to it: the plant runs
+    /// until then, then sensors → firmware tick (feeding the watchdog) → bridge, then the link's
+    /// work on the other host's queued frames, within the pass's budget. (The client's frames
+    /// are served when it sends them: [`receive`](Self::receive).)
     pub fn tick(&mut self) {
         let tick_us = self.ticks.start_tick(self.now_us);
         self.step_at(tick_us);
+        self.pass_frames = 0;
+        self.serve_backlog();
     }
 
     /// The control step of a pass, at `tick_us`: the plant runs until then, then sensors →

@@ -4,7 +4,8 @@
 //! # The board's loop, as the twin times it
 //!
 //! The board's control task runs one loop: the control tick, feeding the watchdog, then the
-//! link's work on every frame received since (each frame costs `frame_cost_us` of core time;
+//! link's work on the frames received, at most the firmware's `link::FRAMES_PER_TICK` of them,
+//! the rest left queued for the next passes (each frame costs `frame_cost_us` of core time;
 //! a `SetConfig` also erases and writes flash, stalling the core for the whole operation). Then
 //! it waits for its embassy `Ticker`:
 //!
@@ -93,6 +94,13 @@ impl TickClock {
         }
     }
 
+    /// True when the last tick's pass, its link work having run until `core_us`, took longer
+    /// than a period: the board has restarted its ticker, and anything the host sends on
+    /// hearing from this pass waits for the next one.
+    pub fn overran(&self, core_us: u64) -> bool {
+        matches!(self.last, Some((_, ran_us)) if core_us.saturating_sub(ran_us) > PERIOD_US)
+    }
+
     /// When the next tick runs, the core having worked until `core_us`.
     pub fn next_tick_us(&self, core_us: u64) -> u64 {
         let due = self.next_due_us(core_us);
@@ -110,14 +118,6 @@ impl TickClock {
         self.last = Some((due, ran));
         self.offset_us = self.draw_offset_us();
         ran
-    }
-
-    /// Run, at `core_us`, a tick whose pass's link work ran past the time it was due: the board
-    /// steps straight after the work, then resets its ticker a period on. Its time.
-    pub fn start_overdue_tick(&mut self, core_us: u64) -> u64 {
-        self.last = Some((core_us, core_us));
-        self.offset_us = self.draw_offset_us();
-        core_us
     }
 }
 
@@ -226,8 +226,9 @@ impl Watchdog for SimWatchdog {
 
 /// A host that sends, along with its own traffic, a burst of `host_burst_frames` extra status
 /// requests every `host_burst_period_ms` (a GUI refreshing, a second tool polling): the burst
-/// due goes out with the host's next frames. A host that sends nothing sends no bursts either
-/// (a silent host stays silent), and bursts missed meanwhile are not sent late.
+/// due goes out with the host's next frames, queued in front of them. A host that sends nothing
+/// sends no bursts either (a silent host stays silent), nor while its last burst still waits in
+/// the board's queue (back-pressure), and bursts missed meanwhile are not sent late.
 #[derive(Debug, Clone)]
 pub struct HostBursts {
     frames: u32,
