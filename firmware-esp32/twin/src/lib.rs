@@ -56,7 +56,8 @@
 //!   time (`flash_erase_ms`, `flash_write_ms`), stalling the core: no tick runs meanwhile.
 //! - The core's timing: ticks at the board's ticker schedule plus a jitter (`tick_jitter_us`)
 //!   and occasional late ticks (`late_ticks_per_s`, `late_tick_ms`); every frame's link work
-//!   costs core time (`frame_cost_us`) in the same loop as the tick; a host that sends bursts of
+//!   costs core time (`frame_cost_us`) in the same loop as the tick, at most the firmware's
+//!   `link::FRAMES_PER_TICK` frames a pass, the rest queued; a host that sends bursts of
 //!   status requests with its own (`host_burst_frames`, `host_burst_period_ms`); the board's
 //!   watchdog, fed by each tick and lengthened by the firmware around each flash operation as on
 //!   the board, which resets the chip when a stall reaches it, the operation under way left

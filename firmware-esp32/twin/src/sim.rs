@@ -14,8 +14,9 @@
 //! [`FRAMES_PER_TICK`] frames a pass (the firmware's rule, see its `link` module): each pass is
 //! a tick's step, then link work on the frames queued before it, within that budget; the frames
 //! after them wait for the next passes, in the order they came (the other host's burst, then the
-//! client's frames), and an answer comes only once its frame's turn has come. (The store erases a sector only when its pages are full:
-//! on the twin's four sectors, a fresh flash's 319th save is the first to erase.) The device
+//! client's frames), and an answer comes only once its frame's turn has come. (The store erases
+//! a sector only when its pages are full: on the twin's four sectors, a fresh flash's 319th save
+//! is the first to erase.) The device
 //! puts the bridge safe before it writes flash (`device::WithMotor`, as on the board), so the
 //! plant coasts through a stall rather than being driven. The watchdog ([`SimWatchdog`]) is the
 //! firmware's: fed by each tick, given a longer window by the firmware around each flash
@@ -331,6 +332,7 @@ impl Twin {
         if self.host_muted() {
             return;
         }
+        self.queue_burst();
         let mut rest = bytes;
         loop {
             let budget = self.client_turn();
@@ -363,6 +365,7 @@ impl Twin {
     /// `None` when the device reset before answering (its watchdog fired during a flash stall)
     /// and rebooted.
     pub fn try_request(&mut self, request: &Request) -> Option<Response> {
+        self.queue_burst();
         self.client_turn();
         let response = self.serve_host(Sender::Client, |handler, _| handler.handle(request))?;
         self.pass_frames += 1;
@@ -370,8 +373,16 @@ impl Twin {
     }
 
     /// The client's frames arrive: with them the other host's burst due, if its last one is
-    /// gone, queued in front of them. Runs passes (ticks, each serving the queue) until the
-    /// queue is through and a pass has budget left for the client; that budget.
+    /// gone, queued in front of them (and served at once if this pass has budget left).
+    fn queue_burst(&mut self) {
+        if self.burst_backlog.is_empty() {
+            self.burst_backlog = self.bursts.take_due(self.now_us);
+            self.serve_backlog();
+        }
+    }
+
+    /// Runs passes (ticks, each serving the queue) until the other host's queued frames are
+    /// through and a pass has budget left for the client's next frames; that budget.
     ///
     /// A pass whose link work ran longer than a period (a flash stall) takes no more frames:
     /// on the board its answers leave only once it has ended, and the board's ticker then
@@ -379,10 +390,6 @@ impl Twin {
     /// step, a period later (a run started then does not take the stall for an overrun of its
     /// own steps).
     fn client_turn(&mut self) -> u32 {
-        if self.burst_backlog.is_empty() {
-            self.burst_backlog = self.bursts.take_due(self.now_us);
-            self.serve_backlog();
-        }
         while !self.burst_backlog.is_empty()
             || self.pass_frames >= FRAMES_PER_TICK
             || self.ticks.overran(self.now_us)

@@ -4,7 +4,11 @@
 
 use kerfmeter_firmware::build::FLASH_WATCHDOG_TIMEOUT_MS;
 use kerfmeter_firmware::controller::PERIOD_US;
-use kerfmeter_protocol::{DeviceConfig, Fault, KerfResult, Request, Response, RunParams, RunState};
+use kerfmeter_firmware::link::FRAMES_PER_TICK;
+use kerfmeter_protocol::{
+    Deframer, DeviceConfig, Envelope, Fault, Feed, KerfResult, MAX_REQUEST_FRAME_LEN,
+    MAX_RESPONSE_FRAME_LEN, Request, Response, RunParams, RunState, encode_frame,
+};
 use kerfmeter_twin::sim::MAX_LEAD_MS;
 use kerfmeter_twin::{Twin, TwinOptions};
 
@@ -179,6 +183,38 @@ fn frames_cost_core_time_and_a_burst_is_spread_over_passes() {
         }
     }
     assert_eq!(late_answers, [(200_000, 205_000 + 150)]);
+}
+
+#[test]
+fn frames_sent_at_once_are_answered_in_order_a_few_a_pass() {
+    let mut t = twin(&[
+        "tick_jitter_us=0",
+        "late_ticks_per_s=0",
+        "host_burst_frames=0",
+    ]);
+    let mut bytes = Vec::new();
+    let mut buf = [0u8; MAX_REQUEST_FRAME_LEN];
+    for seq in 1..=7 {
+        let request = Envelope {
+            seq,
+            body: Request::GetStatus,
+        };
+        bytes.extend_from_slice(encode_frame(&request, &mut buf).unwrap());
+    }
+    let first_tick_us = t.now_us();
+    let mut wire = Vec::new();
+    t.receive(&bytes, |frame| wire.extend_from_slice(frame));
+    let mut deframer = Deframer::<MAX_RESPONSE_FRAME_LEN>::new();
+    let mut input = &wire[..];
+    let mut seqs = Vec::new();
+    while let Feed::Frame { result, rest } = deframer.feed::<Envelope<Response>>(input) {
+        seqs.push(result.unwrap().seq);
+        input = rest;
+    }
+    assert_eq!(seqs, [1, 2, 3, 4, 5, 6, 7]);
+    // Seven frames, two a pass: the last one is answered in the fourth pass from here.
+    assert_eq!(FRAMES_PER_TICK, 2);
+    assert_eq!(t.now_us() / PERIOD_US, first_tick_us / PERIOD_US + 3);
 }
 
 #[test]
