@@ -518,6 +518,30 @@ mod tests {
     }
 
     #[test]
+    fn set_config_is_accepted_and_saved_with_a_fault_latched_once_the_motor_sleeps() {
+        let (mut d, mut motor, slp) = aborted_mid_run();
+        // A new run that faults on the driver's FLT: the controller latches, safe that tick.
+        let mut now_us = 200 * PERIOD_US;
+        motor.apply(&d.step(now_us, &still())).unwrap();
+        assert_eq!(d.handle(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+        now_us += PERIOD_US;
+        motor.apply(&d.step(now_us, &still())).unwrap();
+        let flt = Inputs {
+            driver_fault: true,
+            ..still()
+        };
+        now_us += PERIOD_US;
+        motor.apply(&d.step(now_us, &flt)).unwrap();
+        assert!(d.controller().fault().is_some());
+        assert!(!slp.is_high());
+        match d.handle(&Request::SetConfig(DeviceConfig::DEFAULT)) {
+            Response::Config(r) => assert!(r.saved, "{r:?}"),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(d.store.saves, [true], "saved with the driver asleep");
+    }
+
+    #[test]
     fn a_config_applied_without_persistence_is_not_claimed_saved() {
         let mut d =
             Device::with_config("twin", 1, DeviceConfig::DEFAULT, ConfigSource::Missing, ());
@@ -527,7 +551,10 @@ mod tests {
             ..DeviceConfig::DEFAULT
         };
         match d.handle(&Request::SetConfig(new)) {
-            Response::Config(r) => assert_eq!(r.config, new),
+            Response::Config(r) => {
+                assert_eq!(r.config, new);
+                assert!(!r.saved, "the report says it was not saved");
+            }
             other => panic!("{other:?}"),
         }
         assert_eq!(d.controller().config().gear_ratio, 30.0, "applied");
