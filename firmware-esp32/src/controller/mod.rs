@@ -404,11 +404,21 @@ impl Controller {
         self.torque_nm = 0.0;
     }
 
-    /// Leave a latched fault (the motor stays safe); nothing happens without one.
+    /// Leave a latched fault (the motor stays safe); nothing happens without one. The encoder's
+    /// conditions are forgotten too, as a fault's cause is meant to be fixed by now: they stand
+    /// again at the next failed read or diagnostics reading (within the diagnostics period), and
+    /// a run started meanwhile latches the typed fault then. Driver FLT is read every tick and
+    /// stays.
     pub fn clear_fault(&mut self) {
         if let State::Fault(_) = self.state {
             self.state = State::Idle;
             self.consecutive_encoder_errors = 0;
+            self.conditions.set(
+                Conditions::NO_MAGNET
+                    .union(Conditions::ENCODER_DIAGNOSTICS)
+                    .union(Conditions::ENCODER_UNREADABLE),
+                false,
+            );
         }
     }
 

@@ -686,3 +686,31 @@ fn a_reset_keeps_what_its_speed_loop_learnt_across_the_settle_band() {
         s.c.torque_nm
     );
 }
+
+/// After a magnet fault is cleared the stale reading does not block the reset that follows; a
+/// new failing reading blocks again.
+#[test]
+fn clear_fault_forgets_the_encoders_stale_conditions() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    s.tick();
+    let mut lost = s.inputs();
+    lost.diagnostics = Some(Err(DiagnosticFault::Magnet));
+    s.tick_with(&lost);
+    assert_eq!(s.state(), RunState::Fault(Fault::Magnet));
+    assert_eq!(s.c.conditions(), Conditions::NO_MAGNET);
+    s.host().clear_fault();
+    assert_eq!(s.c.conditions(), Conditions::empty());
+    s.tick();
+    assert_eq!(
+        s.c.conditions(),
+        Conditions::empty(),
+        "until the next reading"
+    );
+    s.tick_with(&lost);
+    assert_eq!(s.state(), RunState::Idle);
+    assert_eq!(
+        s.host().start_reset(),
+        Err(ErrorCode::Blocked(Conditions::NO_MAGNET))
+    );
+}
