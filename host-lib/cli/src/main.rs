@@ -89,6 +89,7 @@ fn main() -> ExitCode {
                 let report = ErrorReport {
                     error: e.to_string(),
                     fault: e.fault(),
+                    conditions: e.conditions(),
                 };
                 print_line(&to_json(&report, JsonLayout::CompactSorted));
             } else {

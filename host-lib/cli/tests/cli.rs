@@ -383,6 +383,7 @@ fn a_supply_below_the_driver_lockout_blocks_a_run_but_not_the_configuration() {
     assert_eq!(code(&out), 4);
     let error: serde_json::Value = serde_json::from_str(stdout(&out).trim()).unwrap();
     assert_eq!(error["fault"], serde_json::Value::Null, "{error}");
+    assert_eq!(error["conditions"], serde_json::json!(["driver-fault"]));
 
     let out = with(&["config", "set", "--max-current-a", "4"]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));

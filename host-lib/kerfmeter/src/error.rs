@@ -133,6 +133,17 @@ impl Error {
         }
     }
 
+    /// The idle conditions that refused the request (`ErrorCode::Blocked`); empty otherwise.
+    pub fn blocking_conditions(&self) -> Conditions {
+        match self {
+            Error::Device {
+                code: ErrorCode::Blocked(c),
+                ..
+            } => *c,
+            _ => Conditions::empty(),
+        }
+    }
+
     /// What kind of failure this is (the command-line tool's exit code follows from it).
     pub fn category(&self) -> Category {
         match self {
