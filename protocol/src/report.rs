@@ -113,9 +113,26 @@ pub struct Status {
 /// [`Conditions::BLOCKING`] one refuses `Run`, `Reset` and `SelfTest` with
 /// `ErrorCode::Blocked(conditions)`. During a run, reset or self-test the same inputs latch the
 /// typed [`Fault`] instead (the motor is made safe that tick).
-#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Serialize, Deserialize, MaxSize, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Conditions(pub u16);
+
+/// `Conditions(no-magnet|driver-fault)`: the names, and any unknown bits in hex.
+impl core::fmt::Debug for Conditions {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("Conditions(")?;
+        let mut sep = "";
+        for name in self.names() {
+            write!(f, "{sep}{name}")?;
+            sep = "|";
+        }
+        let unknown = self.0 & !Self::BLOCKING.0;
+        if unknown != 0 {
+            write!(f, "{sep}{unknown:#x}")?;
+        }
+        f.write_str(")")
+    }
+}
 
 impl Conditions {
     /// The encoder reports its magnet field out of band: no magnet, or one too far from or too
@@ -345,5 +362,15 @@ mod tests {
         }
         let past_the_end = [Fault::ALL.len() as u8];
         assert!(postcard::from_bytes::<Fault>(&past_the_end).is_err());
+    }
+
+    #[test]
+    fn conditions_debug_names_them() {
+        extern crate std;
+        use std::format;
+        let c = Conditions::NO_MAGNET.union(Conditions::DRIVER_FAULT);
+        assert_eq!(format!("{c:?}"), "Conditions(no-magnet|driver-fault)");
+        assert_eq!(format!("{:?}", Conditions::empty()), "Conditions()");
+        assert_eq!(format!("{:?}", Conditions(0x30)), "Conditions(0x30)");
     }
 }
