@@ -5,7 +5,9 @@
 //! request: every request first counts as host activity for the [`Controller`]'s communication
 //! watchdog, then runs, resets, self-tests and their reports go to the controller's typed
 //! methods, while `GetInfo` and the configuration are answered here. A new configuration is
-//! validated, refused while the motor runs, stored through [`ConfigPersist`] *before* it is
+//! validated, refused while the motor runs (accepted while a fault is latched or an idle
+//! condition stands: the motor is at rest then, and a fault may well be cured by the new
+//! configuration), stored through [`ConfigPersist`] *before* it is
 //! applied and acknowledged, and a failed store leaves the old configuration in force
 //! (`ErrorCode::Storage`). A store may apply a configuration without saving it (no flash
 //! partition, or one that holds a newer firmware's record): [`Device::config_saved`] then says
@@ -88,8 +90,7 @@ impl<S: ConfigPersist> Device<S> {
 
     /// True when the configuration in force is the one in flash: loaded from it, or saved by
     /// the last `SetConfig`. False when it was applied but not saved (it lasts until reboot).
-    // Issue 12, protocol revision: `ConfigReport` carries this as `saved`, so that `SetConfig`
-    // says "applied but not saved".
+    /// `ConfigReport::saved` reports it, so that `SetConfig` can say "applied but not saved".
     pub fn config_saved(&self) -> bool {
         self.saved
     }
@@ -116,6 +117,7 @@ impl<S: ConfigPersist> Device<S> {
         Response::Config(ConfigReport {
             config: *self.controller.config(),
             defaults_in_use: self.source.defaults_in_use(),
+            saved: self.saved,
         })
     }
 
@@ -123,10 +125,8 @@ impl<S: ConfigPersist> Device<S> {
         if let Err(field) = config.validate() {
             return Response::Error(ErrorCode::InvalidParam(field));
         }
-        if let Some(f) = self.controller.fault() {
-            return Response::Error(ErrorCode::Faulted(f));
-        }
-        // At rest, but the last tick's output may still drive the bridge (see the module docs).
+        // A latched fault does not refuse it: the motor is safe then, and asleep by the rule
+        // below. At rest, but the last tick's output may still drive the bridge (see the module docs).
         if self.controller.is_active() || !self.motor_asleep {
             return Response::Error(ErrorCode::Busy);
         }
@@ -518,6 +518,30 @@ mod tests {
     }
 
     #[test]
+    fn set_config_is_accepted_and_saved_with_a_fault_latched_once_the_motor_sleeps() {
+        let (mut d, mut motor, slp) = aborted_mid_run();
+        // A new run that faults on the driver's FLT: the controller latches, safe that tick.
+        let mut now_us = 200 * PERIOD_US;
+        motor.apply(&d.step(now_us, &still())).unwrap();
+        assert_eq!(d.handle(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+        now_us += PERIOD_US;
+        motor.apply(&d.step(now_us, &still())).unwrap();
+        let flt = Inputs {
+            driver_fault: true,
+            ..still()
+        };
+        now_us += PERIOD_US;
+        motor.apply(&d.step(now_us, &flt)).unwrap();
+        assert!(d.controller().fault().is_some());
+        assert!(!slp.is_high());
+        match d.handle(&Request::SetConfig(DeviceConfig::DEFAULT)) {
+            Response::Config(r) => assert!(r.saved, "{r:?}"),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(d.store.saves, [true], "saved with the driver asleep");
+    }
+
+    #[test]
     fn a_config_applied_without_persistence_is_not_claimed_saved() {
         let mut d =
             Device::with_config("twin", 1, DeviceConfig::DEFAULT, ConfigSource::Missing, ());
@@ -527,7 +551,10 @@ mod tests {
             ..DeviceConfig::DEFAULT
         };
         match d.handle(&Request::SetConfig(new)) {
-            Response::Config(r) => assert_eq!(r.config, new),
+            Response::Config(r) => {
+                assert_eq!(r.config, new);
+                assert!(!r.saved, "the report says it was not saved");
+            }
             other => panic!("{other:?}"),
         }
         assert_eq!(d.controller().config().gear_ratio, 30.0, "applied");

@@ -6,7 +6,7 @@ use std::io::Write;
 use std::time::Duration;
 
 use kerfmeter::protocol::{
-    Envelope, ErrorCode, Fault, MAX_REQUEST_FRAME_LEN, Request, RunState, encode_frame,
+    Conditions, Envelope, ErrorCode, Fault, MAX_REQUEST_FRAME_LEN, Request, RunState, encode_frame,
 };
 use kerfmeter::sim::{SimFault, SimOptions};
 use kerfmeter::{Error, Kerfmeter, Progress};
@@ -48,6 +48,19 @@ fn handshake_and_info_fields_are_sane() {
     }
     // Stable while the device runs.
     assert_eq!(b.meter.info().expect("GetInfo").boot_id, info.boot_id);
+    // A healthy bench at rest: no idle condition and a step gap reported; on the twin, the
+    // control rate held so far and a measured 12 V supply (a board reports no supply until its
+    // ADC is wired, and its gaps include flash writes at rest).
+    let status = b.meter.status().expect("GetStatus");
+    assert_eq!(status.conditions, Conditions::empty(), "{status:?}");
+    assert!(status.longest_gap_us >= 1, "{status:?}");
+    if b.target.is_twin() {
+        assert!((1_000..=3_000).contains(&status.longest_gap_us));
+        assert!(
+            status.supply_v.is_some_and(|v| (11.0..13.5).contains(&v)),
+            "{status:?}"
+        );
+    }
 }
 
 #[test]

@@ -74,12 +74,19 @@ pub use messages::{
 };
 pub use params::{DeviceConfig, EncoderPlacement, GaugeGeometry, JamDirection, RunParams};
 pub use report::{
-    Fault, KerfResult, QualityFlags, RunState, SAMPLES_PER_CHUNK, Sample, SampleChunk,
+    Conditions, Fault, KerfResult, QualityFlags, RunState, SAMPLES_PER_CHUNK, Sample, SampleChunk,
     SelfTestItem, SelfTestReport, Status, TestOutcome,
 };
 
 /// The protocol this crate speaks. See the compatibility rules in the crate docs.
-pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 1, minor: 0 };
+///
+/// History:
+/// - 1.0: the first.
+/// - 2.0 (major: fields added to existing structs change their postcard encoding):
+///   [`Status`] reports the motor supply, the longest step and gap since boot and the idle
+///   [`Conditions`]; [`ConfigReport`] says whether the configuration was `saved`;
+///   [`ErrorCode::Blocked`] refuses a run, reset or self-test while a blocking condition stands.
+pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 0 };
 
 /// USB vendor id of the ESP32-C3/C6 USB-Serial-JTAG port (Espressif).
 pub const USB_VID_ESPRESSIF: u16 = 0x303A;

@@ -6,7 +6,7 @@ use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
 use crate::params::{DeviceConfig, RunParams};
-use crate::report::{Fault, KerfResult, SampleChunk, SelfTestReport, Status};
+use crate::report::{Conditions, Fault, KerfResult, SampleChunk, SelfTestReport, Status};
 
 /// One message with its sequence number. The device echoes the request's `seq` in its response.
 #[derive(Serialize, Deserialize, MaxSize, Debug, Clone, PartialEq)]
@@ -86,6 +86,10 @@ pub struct ConfigReport {
     /// True when no valid record was found in flash (none, corrupt, or from an incompatible
     /// version) and the defaults are in use.
     pub defaults_in_use: bool,
+    /// True when the configuration in use is the one in flash (loaded from it, or saved by this
+    /// `SetConfig`); false when it was applied but not saved and lasts until the next boot (no
+    /// configuration partition, or one holding a newer firmware's record).
+    pub saved: bool,
 }
 
 /// A protocol version; see the compatibility rules in the crate docs.
@@ -148,7 +152,9 @@ impl MaxSize for HardwareInfo {
         + u16::POSTCARD_MAX_SIZE;
 }
 
-/// The answer to [`Request::GetInfo`]; frozen forever.
+/// The answer to [`Request::GetInfo`]; frozen forever, so it reports only what never changes
+/// while the device runs. The motor supply, a measurement, is in [`Status::supply_v`](crate::Status)
+/// instead.
 #[derive(Serialize, Deserialize, MaxSize, Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DeviceInfo {
@@ -183,6 +189,10 @@ pub enum ErrorCode {
     /// A run must start with the hub at its zero position (prongs centred in the gauge's holes),
     /// within [`START_TOLERANCE_DEG`]: send `Reset` first.
     NotAtZero,
+    /// `Run`, `Reset` or `SelfTest` refused: these blocking idle conditions stand (no magnet,
+    /// driver FLT low with the motor supply off, ...). Nothing is latched: fix the cause and
+    /// retry; `GetStatus` shows when they are gone.
+    Blocked(Conditions),
 }
 
 /// How far from its zero position, degrees either way, the hub may stand when a run starts.

@@ -96,6 +96,104 @@ pub struct Status {
     pub samples: u16,
     /// Encoder read errors ridden through since the run started (reported, not hidden).
     pub encoder_errors: u16,
+    /// Motor supply (the driver's `VIN`), volts, as the controller last saw it; `None` where the
+    /// board does not measure it.
+    pub supply_v: Option<f32>,
+    /// The longest control step since boot, µs (a tick's whole work, drivers included).
+    pub longest_step_us: u32,
+    /// The longest time between the starts of two control steps since boot, µs (the control
+    /// period is 1000 µs at 1 kHz).
+    pub longest_gap_us: u32,
+    /// The idle conditions that stand now (see [`Conditions`]).
+    pub conditions: Conditions,
+}
+
+/// Idle conditions: what the inputs say is wrong while the motor is at rest, updated every tick
+/// and cleared when it goes away. A condition latches no fault and blocks no configuration; a
+/// [`Conditions::BLOCKING`] one refuses `Run`, `Reset` and `SelfTest` with
+/// `ErrorCode::Blocked(conditions)`. During a run, reset or self-test the same inputs latch the
+/// typed [`Fault`] instead (the motor is made safe that tick).
+#[derive(Serialize, Deserialize, MaxSize, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Conditions(pub u16);
+
+/// `Conditions(no-magnet|driver-fault)`: the names, and any unknown bits in hex.
+impl core::fmt::Debug for Conditions {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("Conditions(")?;
+        let mut sep = "";
+        for name in self.names() {
+            write!(f, "{sep}{name}")?;
+            sep = "|";
+        }
+        let unknown = self.0 & !Self::BLOCKING.0;
+        if unknown != 0 {
+            write!(f, "{sep}{unknown:#x}")?;
+        }
+        f.write_str(")")
+    }
+}
+
+impl Conditions {
+    /// The encoder reports its magnet field out of band: no magnet, or one too far from or too
+    /// close to the chip (as [`Fault::Magnet`] during a run).
+    pub const NO_MAGNET: Self = Self(1 << 0);
+    /// The encoder's own diagnostics fail: offset compensation not finished, or a stuck bus (as
+    /// [`Fault::EncoderDiagnostics`]).
+    pub const ENCODER_DIAGNOSTICS: Self = Self(1 << 1);
+    /// The encoder cannot be read: every read of the last ticks failed (as
+    /// [`Fault::EncoderErrors`]).
+    pub const ENCODER_UNREADABLE: Self = Self(1 << 2);
+    /// The motor driver holds its FLT line low: most often its motor supply is off or below the
+    /// driver's under-voltage lockout; also over-temperature or a short (as
+    /// [`Fault::DriverFault`]).
+    pub const DRIVER_FAULT: Self = Self(1 << 3);
+    /// Every condition above blocks a run, a reset and a self-test.
+    pub const BLOCKING: Self = Self(0b1111);
+
+    /// Names of the conditions, for messages and JSON.
+    pub const NAMES: [(Self, &'static str); 4] = [
+        (Self::NO_MAGNET, "no-magnet"),
+        (Self::ENCODER_DIAGNOSTICS, "encoder-diagnostics"),
+        (Self::ENCODER_UNREADABLE, "encoder-unreadable"),
+        (Self::DRIVER_FAULT, "driver-fault"),
+    ];
+
+    /// No condition.
+    pub const fn empty() -> Self {
+        Self(0)
+    }
+    /// True when every condition of `other` stands.
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+    /// The conditions of both.
+    pub const fn union(self, other: Self) -> Self {
+        Self(self.0 | other.0)
+    }
+    /// The conditions of `self` that are also in `other`.
+    pub const fn intersection(self, other: Self) -> Self {
+        Self(self.0 & other.0)
+    }
+    /// Set (`on`) or clear the conditions of `other`.
+    pub fn set(&mut self, other: Self, on: bool) {
+        if on {
+            self.0 |= other.0;
+        } else {
+            self.0 &= !other.0;
+        }
+    }
+    /// True when no condition stands.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+    /// The names of the conditions that stand.
+    pub fn names(self) -> impl Iterator<Item = &'static str> {
+        Self::NAMES
+            .into_iter()
+            .filter(move |(c, _)| self.contains(*c))
+            .map(|(_, name)| name)
+    }
 }
 
 /// Quality flags of a [`KerfResult`]: a set bit is a reason to distrust the number.
@@ -264,5 +362,15 @@ mod tests {
         }
         let past_the_end = [Fault::ALL.len() as u8];
         assert!(postcard::from_bytes::<Fault>(&past_the_end).is_err());
+    }
+
+    #[test]
+    fn conditions_debug_names_them() {
+        extern crate std;
+        use std::format;
+        let c = Conditions::NO_MAGNET.union(Conditions::DRIVER_FAULT);
+        assert_eq!(format!("{c:?}"), "Conditions(no-magnet|driver-fault)");
+        assert_eq!(format!("{:?}", Conditions::empty()), "Conditions()");
+        assert_eq!(format!("{:?}", Conditions(0x30)), "Conditions(0x30)");
     }
 }

@@ -1,6 +1,8 @@
 //! Golden frames: the exact bytes of representative messages. Any change to the wire format fails
 //! here first; when it is intended, bump `PROTOCOL_VERSION` (see the compatibility rules) and
-//! update the bytes. Each golden frame is also mutated byte by byte: no mutation may be accepted.
+//! update the bytes (the failure message prints the new ones: check that only the intended
+//! messages changed). Protocol 2.0 changed `Status` (supply, longest step and gap, conditions)
+//! and `ConfigReport` (`saved`), and added `ErrorCode::Blocked`; `DeviceInfo`'s bytes stand. Each golden frame is also mutated byte by byte: no mutation may be accepted.
 
 mod common;
 use common::*;
@@ -101,7 +103,27 @@ fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
             },
         ),
         (
-            "000705030207d2090103803e01082a42d209020a4d00",
+            "000708020809bfff00",
+            Envelope {
+                seq: 8,
+                body: Response::Error(ErrorCode::Blocked(
+                    Conditions::NO_MAGNET.union(Conditions::DRIVER_FAULT),
+                )),
+            },
+        ),
+        (
+            "000b0907ae47613f0ad7233d01010103a84101010108d0409cc4203e010390b400",
+            Envelope {
+                seq: 9,
+                body: Response::Config(ConfigReport {
+                    config: DeviceConfig::DEFAULT,
+                    defaults_in_use: true,
+                    saved: false,
+                }),
+            },
+        ),
+        (
+            "000705030207d2090103803e01072a42d2090201010a4041b401aa0b08172f00",
             Envelope {
                 seq: 5,
                 body: Response::Status(Status {
@@ -112,6 +134,10 @@ fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
                     angle_deg: 42.5,
                     samples: 1234,
                     encoder_errors: 2,
+                    supply_v: Some(12.0),
+                    longest_step_us: 180,
+                    longest_gap_us: 1_450,
+                    conditions: Conditions::DRIVER_FAULT,
                 }),
             },
         ),

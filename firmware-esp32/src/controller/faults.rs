@@ -5,8 +5,13 @@
 //! themselves: driver FLT, current, encoder errors and diagnostics, a late step, host silence),
 //! and [`Controller::check_run_limits`] after it (the run's motion: time, overtravel, reverse
 //! motion, no motion).
+//!
+//! Before both, [`Controller::update_conditions`] keeps the idle conditions: driver FLT, an
+//! unreadable encoder and failing encoder diagnostics are conditions in every state, and only
+//! while the motor may be driven does `check_faults` latch them as faults. At rest they latch
+//! nothing (see the controller's docs, "Idle conditions").
 
-use kerfmeter_protocol::{Fault, QualityFlags};
+use kerfmeter_protocol::{Conditions, Fault, QualityFlags};
 
 use super::{
     Controller, DEFAULT_HOST_TIMEOUT_MS, Inputs, MAX_CONSECUTIVE_ENCODER_ERRORS, NO_MOTION_DEG,
@@ -16,7 +21,26 @@ use crate::as5048a::DiagnosticFault;
 use crate::build::CONTROL_RATE_HZ;
 
 impl Controller {
-    /// Faults that stand regardless of what the controller does this tick.
+    /// The idle conditions from this tick's inputs. FLT and the encoder's readability are known
+    /// every tick; the diagnostics only on the ticks they are read, so their conditions stand
+    /// until the next reading.
+    pub(super) fn update_conditions(&mut self, inputs: &Inputs) {
+        let c = &mut self.conditions;
+        c.set(Conditions::DRIVER_FAULT, inputs.driver_fault);
+        c.set(
+            Conditions::ENCODER_UNREADABLE,
+            self.consecutive_encoder_errors >= MAX_CONSECUTIVE_ENCODER_ERRORS,
+        );
+        if let Some(diagnostics) = inputs.diagnostics {
+            let chip = matches!(diagnostics, Err(DiagnosticFault::Chip));
+            let magnet = matches!(diagnostics, Err(DiagnosticFault::Magnet));
+            c.set(Conditions::ENCODER_DIAGNOSTICS, chip);
+            c.set(Conditions::NO_MAGNET, magnet);
+        }
+    }
+
+    /// Faults that stand regardless of what the controller does this tick. The idle conditions
+    /// latch only while the motor may be driven.
     pub(super) fn check_faults(
         &mut self,
         now_us: u64,
@@ -26,7 +50,8 @@ impl Controller {
         if let State::Fault(_) = self.state {
             return None;
         }
-        if inputs.driver_fault {
+        let active = self.is_active();
+        if active && inputs.driver_fault {
             return Some(Fault::DriverFault);
         }
         // An unknown current cannot be shown to be within the limit.
@@ -36,19 +61,19 @@ impl Controller {
         {
             return Some(Fault::OverCurrent);
         }
-        if self.consecutive_encoder_errors >= MAX_CONSECUTIVE_ENCODER_ERRORS {
+        if active && self.consecutive_encoder_errors >= MAX_CONSECUTIVE_ENCODER_ERRORS {
             return Some(Fault::EncoderErrors);
         }
         match inputs.diagnostics {
-            Some(Err(DiagnosticFault::Chip)) => return Some(Fault::EncoderDiagnostics),
-            Some(Err(DiagnosticFault::Magnet)) => return Some(Fault::Magnet),
+            Some(Err(DiagnosticFault::Chip)) if active => return Some(Fault::EncoderDiagnostics),
+            Some(Err(DiagnosticFault::Magnet)) if active => return Some(Fault::Magnet),
             Some(Ok(d)) => {
                 self.last_diagnostics = Some(d);
-                if d.marginal && self.is_active() {
+                if d.marginal && active {
                     self.run.flags.insert(QualityFlags::WEAK_MAGNET);
                 }
             }
-            None => {}
+            _ => {}
         }
         if !self.is_active() {
             return None;

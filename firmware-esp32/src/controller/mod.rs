@@ -90,10 +90,19 @@
 //! torque above breakaway, reverse motion, [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a
 //! row, failed encoder diagnostics (chip or magnet), over-current (or a current that is unknown),
 //! driver FLT, host silence (communication watchdog) and a late control step.
+//!
+//! # Idle conditions
+//!
+//! The encoder's and the driver's faults (no magnet, failing diagnostics, an unreadable encoder,
+//! driver FLT low, as when the motor supply is off) latch only while the motor may be driven. At
+//! rest they are *conditions* ([`Controller::conditions`], reported in `Status`), updated every
+//! tick and cleared when they go away: they latch nothing, so the device stays configurable
+//! and `ClearFault` does not re-latch at once, but they refuse `Run`, `Reset` and `SelfTest`
+//! with `ErrorCode::Blocked` (a latched fault is reported first, as `Faulted`).
 
 use kerfmeter_protocol::{
-    DeviceConfig, ErrorCode, Fault, JamDirection, KerfResult, RunParams, RunState, Sample,
-    SampleChunk, SelfTestReport, Status,
+    Conditions, DeviceConfig, ErrorCode, Fault, JamDirection, KerfResult, RunParams, RunState,
+    Sample, SampleChunk, SelfTestReport, Status,
 };
 
 use crate::as5048a::{COUNTS_PER_TURN, DiagnosticFault};
@@ -154,9 +163,14 @@ pub struct Inputs {
     /// The driver's FLT line is low.
     pub driver_fault: bool,
     /// Motor supply (the G2's `VIN`), volts, as the supply-sense divider and ADC measure it
-    /// (`board::supply`); `None` where it is not measured. Not used by the controller yet: the
+    /// (`board::supply`); `None` where it is not measured. Reported in `Status` as last seen: the
     /// board binary does not wire the ADC channel so far, and the digital twin measures it.
     pub supply_v: Option<f32>,
+}
+
+/// `us` as a `u32`, saturated (a figure in `Status`).
+fn saturate_u32(us: u64) -> u32 {
+    u32::try_from(us).unwrap_or(u32::MAX)
 }
 
 /// Internal states, with their working data.
@@ -225,6 +239,10 @@ pub struct Controller {
     motion: Motion,
     consecutive_encoder_errors: u16,
     last_diagnostics: Option<DiagnosticsReading>,
+    /// The idle conditions as of the last tick (see [`Controller::conditions`]).
+    conditions: Conditions,
+    /// The motor supply the last tick saw, volts.
+    supply_v: Option<f32>,
     /// The last run's samples (kept outside [`Run`]: 24 KiB are cleared, not rebuilt).
     log: SampleLog<{ MAX_SAMPLES as usize }>,
     result: Option<KerfResult>,
@@ -250,6 +268,8 @@ impl Controller {
             motion: Motion::new(),
             consecutive_encoder_errors: 0,
             last_diagnostics: None,
+            conditions: Conditions::empty(),
+            supply_v: None,
             log: SampleLog::new(),
             result: None,
             self_test: None,
@@ -343,7 +363,18 @@ impl Controller {
             angle_deg: self.angle_deg,
             samples: self.log.len() as u16,
             encoder_errors: self.run.encoder_errors,
+            supply_v: self.supply_v,
+            longest_step_us: saturate_u32(self.timing.longest_step_us()),
+            longest_gap_us: saturate_u32(self.timing.longest_gap_us()),
+            conditions: self.conditions,
         }
+    }
+
+    /// The idle conditions as of the last tick, in every state: what the inputs say is wrong
+    /// (see `faults.rs`). While idle they only block a run, reset or self-test; during one the
+    /// same inputs latch a fault.
+    pub fn conditions(&self) -> Conditions {
+        self.conditions
     }
 
     /// The longest step and the longest gap between steps since boot.
@@ -373,20 +404,41 @@ impl Controller {
         self.torque_nm = 0.0;
     }
 
-    /// Leave a latched fault (the motor stays safe); nothing happens without one.
+    /// Leave a latched fault (the motor stays safe); nothing happens without one. The encoder's
+    /// conditions are forgotten too, as a fault's cause is meant to be fixed by now: they stand
+    /// again at the next failed read or diagnostics reading (within the diagnostics period), and
+    /// a run started meanwhile latches the typed fault then. Driver FLT is read every tick and
+    /// stays.
     pub fn clear_fault(&mut self) {
         if let State::Fault(_) = self.state {
             self.state = State::Idle;
             self.consecutive_encoder_errors = 0;
+            self.conditions.set(
+                Conditions::NO_MAGNET
+                    .union(Conditions::ENCODER_DIAGNOSTICS)
+                    .union(Conditions::ENCODER_UNREADABLE),
+                false,
+            );
         }
     }
 
-    /// Refuses with `Faulted` or `Busy` unless the motor is at rest with no fault latched.
+    /// Refuses with `Faulted` or `Busy` unless the motor is at rest with no fault latched, and
+    /// with `Blocked` while a blocking idle condition stands.
     fn refuse_unless_ready(&self) -> Result<(), ErrorCode> {
         match self.state {
             State::Fault(f) => Err(ErrorCode::Faulted(f)),
-            State::Idle | State::Done => Ok(()),
+            State::Idle | State::Done => self.refuse_if_blocked(),
             _ => Err(ErrorCode::Busy),
+        }
+    }
+
+    /// Refuses with `Blocked` while a blocking idle condition stands.
+    fn refuse_if_blocked(&self) -> Result<(), ErrorCode> {
+        let blocking = self.conditions.intersection(Conditions::BLOCKING);
+        if blocking.is_empty() {
+            Ok(())
+        } else {
+            Err(ErrorCode::Blocked(blocking))
         }
     }
 
@@ -413,6 +465,8 @@ impl Controller {
         self.timing.started(now_us);
 
         let fresh = self.read_angle(inputs);
+        self.supply_v = inputs.supply_v;
+        self.update_conditions(inputs);
         if let Some(fault) = self.check_faults(now_us, inputs, overrun) {
             self.latch(fault);
             return MotorOutput::SAFE;

@@ -41,10 +41,12 @@ impl Controller {
     }
 
     /// Start driving the hub back to zero (`Reset`): clears the last result and leaves a latched
-    /// fault. Refused (`Busy`) while a run, reset or self-test is in progress.
+    /// fault. Refused (`Busy`) while a run, reset or self-test is in progress, and (`Blocked`)
+    /// while a blocking idle condition stands.
     pub fn start_reset(&mut self) -> Result<(), ErrorCode> {
         match self.state {
             State::Idle | State::Done | State::Fault(_) => {
+                self.refuse_if_blocked()?;
                 self.result = None;
                 self.consecutive_encoder_errors = 0;
                 self.torque_nm = 0.0;

@@ -82,7 +82,8 @@ impl Run {
 
 impl Controller {
     /// Start a measurement with `params` (`Run`). Refused while a run, reset or self-test is in
-    /// progress (`Busy`), with a fault latched (`Faulted`), with an invalid parameter
+    /// progress (`Busy`), with a fault latched (`Faulted`), while a blocking idle condition
+    /// stands (`Blocked`), with an invalid parameter
     /// (`InvalidParam`), and unless the hub stands within [`START_TOLERANCE_DEG`] of zero
     /// (`NotAtZero`). A refused run leaves the last result and samples as they were; one refused
     /// as not at zero has already switched the jam frame to the new gauge's sense.

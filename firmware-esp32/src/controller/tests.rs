@@ -1,7 +1,7 @@
 //! Every state transition and every fault, with scripted inputs (the twin covers them with
 //! physics in `tests/twin_runs.rs`).
 
-use kerfmeter_protocol::{DeviceConfig, ErrorCode, Fault, RunParams, RunState};
+use kerfmeter_protocol::{Conditions, DeviceConfig, ErrorCode, Fault, RunParams, RunState};
 
 use super::*;
 use kerfmeter_protocol::spiral::kerf_from_angle;
@@ -213,17 +213,95 @@ fn consecutive_encoder_errors_fault_but_a_few_are_ridden_through() {
 }
 
 #[test]
-fn diagnostics_faults_are_typed() {
+fn diagnostics_faults_are_typed_during_a_run() {
     for (diag, fault) in [
         (DiagnosticFault::Chip, Fault::EncoderDiagnostics),
         (DiagnosticFault::Magnet, Fault::Magnet),
     ] {
         let mut s = Script::new();
+        s.start(RunParams::DEFAULT);
+        s.tick();
         let mut inputs = s.inputs();
         inputs.diagnostics = Some(Err(diag));
-        s.tick_with(&inputs);
+        let out = s.tick_with(&inputs);
         assert_eq!(s.state(), RunState::Fault(fault));
+        assert_eq!(out, MotorOutput::SAFE, "safe the tick it latches");
     }
+}
+
+const GOOD_DIAGNOSTICS: DiagnosticsReading = DiagnosticsReading {
+    magnitude: 4000,
+    marginal: false,
+};
+
+/// Every blocking idle condition, from its input, refuses a run, a reset and a self-test with
+/// `Blocked` naming it, latches nothing, and clears when the input goes away.
+#[test]
+fn idle_conditions_block_without_latching_and_clear() {
+    type Cause = fn(&mut Inputs);
+    let cases: [(Cause, Cause, Conditions); 4] = [
+        (
+            |i| i.diagnostics = Some(Err(DiagnosticFault::Magnet)),
+            |i| i.diagnostics = Some(Ok(GOOD_DIAGNOSTICS)),
+            Conditions::NO_MAGNET,
+        ),
+        (
+            |i| i.diagnostics = Some(Err(DiagnosticFault::Chip)),
+            |i| i.diagnostics = Some(Ok(GOOD_DIAGNOSTICS)),
+            Conditions::ENCODER_DIAGNOSTICS,
+        ),
+        (
+            |i| i.angle_deg = Err(EncoderFault::Parity),
+            |_| {},
+            Conditions::ENCODER_UNREADABLE,
+        ),
+        (|i| i.driver_fault = true, |_| {}, Conditions::DRIVER_FAULT),
+    ];
+    for (cause, cure, condition) in cases {
+        let mut s = Script::new();
+        let mut bad = s.inputs();
+        cause(&mut bad);
+        for _ in 0..MAX_CONSECUTIVE_ENCODER_ERRORS + 1 {
+            assert_eq!(s.tick_with(&bad), MotorOutput::SAFE);
+        }
+        assert_eq!(s.state(), RunState::Idle, "{condition:?} latched nothing");
+        assert_eq!(s.c.status().conditions, condition);
+        let blocked = Err(ErrorCode::Blocked(condition));
+        assert_eq!(s.host().start_run(&RunParams::DEFAULT), blocked);
+        assert_eq!(s.host().start_reset(), blocked);
+        assert_eq!(s.host().start_self_test(), blocked);
+        assert_eq!(s.host().set_config(DeviceConfig::DEFAULT), Ok(()));
+        // Diagnostics stand until the next reading; the others go with their input.
+        let mut good = s.inputs();
+        cure(&mut good);
+        s.tick_with(&good);
+        assert_eq!(
+            s.c.status().conditions,
+            Conditions::empty(),
+            "{condition:?}"
+        );
+        s.start(RunParams::DEFAULT);
+    }
+}
+
+#[test]
+fn status_reports_the_supply_and_the_tick_timing() {
+    let mut s = Script::new();
+    let mut inputs = s.inputs();
+    inputs.supply_v = Some(11.5);
+    s.now_us += 2 * PERIOD_US;
+    s.tick_with(&inputs);
+    s.c.step_finished(s.now_us + 230);
+    let status = s.c.status();
+    assert_eq!(status.supply_v, Some(11.5));
+    assert_eq!(status.longest_gap_us, 3 * PERIOD_US as u32);
+    assert_eq!(status.longest_step_us, 230);
+    s.tick();
+    assert_eq!(
+        s.c.status().supply_v,
+        None,
+        "the last tick's, not a stale one"
+    );
 }
 
 #[test]
@@ -321,9 +399,11 @@ fn a_blocked_reset_fails_with_a_typed_fault() {
 #[test]
 fn faults_latch_until_cleared_and_refuse_runs_meanwhile() {
     let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    s.tick();
     let mut inputs = s.inputs();
     inputs.driver_fault = true;
-    s.tick_with(&inputs);
+    assert_eq!(s.tick_with(&inputs), MotorOutput::SAFE);
     assert_eq!(s.state(), RunState::Fault(Fault::DriverFault));
     // Latched: the cause going away changes nothing.
     s.tick();
@@ -336,16 +416,33 @@ fn faults_latch_until_cleared_and_refuse_runs_meanwhile() {
         s.host().start_self_test(),
         Err(ErrorCode::Faulted(Fault::DriverFault))
     );
+    assert_eq!(
+        s.host().set_config(DeviceConfig::DEFAULT),
+        Ok(()),
+        "configurable while faulted"
+    );
     s.host().abort();
     assert_eq!(
         s.state(),
         RunState::Fault(Fault::DriverFault),
         "Abort does not clear a fault"
     );
+    // The cause is back: cleared, the fault does not latch again at rest; it blocks instead.
+    s.tick_with(&inputs);
     s.host().clear_fault();
     assert_eq!(s.state(), RunState::Idle);
-    // Reset also leaves a fault (and drives to zero).
     s.tick_with(&inputs);
+    assert_eq!(s.state(), RunState::Idle, "no re-latch at rest");
+    assert_eq!(
+        s.host().start_reset(),
+        Err(ErrorCode::Blocked(Conditions::DRIVER_FAULT))
+    );
+    // Reset also leaves a fault (and drives to zero).
+    s.tick();
+    s.start(RunParams::DEFAULT);
+    s.tick_with(&inputs);
+    assert_eq!(s.state(), RunState::Fault(Fault::DriverFault));
+    s.tick();
     assert_eq!(s.host().start_reset(), Ok(()));
     assert_eq!(s.state(), RunState::Resetting);
 }
@@ -587,5 +684,33 @@ fn a_reset_keeps_what_its_speed_loop_learnt_across_the_settle_band() {
         s.c.torque_nm < stuck_nm * 0.6,
         "{} vs {stuck_nm}",
         s.c.torque_nm
+    );
+}
+
+/// After a magnet fault is cleared the stale reading does not block the reset that follows; a
+/// new failing reading blocks again.
+#[test]
+fn clear_fault_forgets_the_encoders_stale_conditions() {
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    s.tick();
+    let mut lost = s.inputs();
+    lost.diagnostics = Some(Err(DiagnosticFault::Magnet));
+    s.tick_with(&lost);
+    assert_eq!(s.state(), RunState::Fault(Fault::Magnet));
+    assert_eq!(s.c.conditions(), Conditions::NO_MAGNET);
+    s.host().clear_fault();
+    assert_eq!(s.c.conditions(), Conditions::empty());
+    s.tick();
+    assert_eq!(
+        s.c.conditions(),
+        Conditions::empty(),
+        "until the next reading"
+    );
+    s.tick_with(&lost);
+    assert_eq!(s.state(), RunState::Idle);
+    assert_eq!(
+        s.host().start_reset(),
+        Err(ErrorCode::Blocked(Conditions::NO_MAGNET))
     );
 }

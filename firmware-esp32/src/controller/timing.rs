@@ -6,7 +6,6 @@
 //! once the tick's work is done and reports it with
 //! [`Controller::step_finished`](super::Controller::step_finished). Plain integer work, no
 //! allocation: the board's loop and the twin call it the same way.
-// Issue 12, protocol revision: `Status` reports `longest_step_us` and `longest_gap_us` from here.
 
 /// The longest step and gap seen since boot.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

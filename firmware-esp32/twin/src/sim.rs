@@ -547,6 +547,10 @@ impl Twin {
         self.watchdog.begin(self.now_us);
         self.watchdog.feed_ms(WATCHDOG_TIMEOUT_MS);
         self.watchdog.end();
+        // The board reports when each step's work ended; the twin does not model the step's own
+        // execution time (crate docs), so its steps end as they start and `Status` shows a
+        // longest step of 0 µs here.
+        self.device.step_finished(self.now_us);
         debug_assert_eq!(out.is_safe(), self.motor_safe());
         self.bridge = self.bridge_inputs();
     }

@@ -2,7 +2,9 @@
 //! that sags into the G2's under-voltage lockout, and FLT shared by the lockout and the injected
 //! `driver-fault`.
 
-use kerfmeter_protocol::{Fault, Request, Response, RunParams, RunState};
+use kerfmeter_protocol::{
+    Conditions, DeviceConfig, ErrorCode, Fault, Request, Response, RunParams, RunState,
+};
 use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{InjectedFault, Twin, TwinOptions};
 
@@ -62,10 +64,24 @@ fn a_supply_below_the_release_level_holds_flt_low_from_power_up() {
     });
     t.advance_ticks(5);
     assert!(t.plant().driver_fault());
+    // An idle condition, not a latched fault: reported, blocking a run, not the configuration.
+    let Response::Status(status) = t.request(&Request::GetStatus) else {
+        panic!("a status")
+    };
+    assert_eq!(status.state, RunState::Idle);
+    assert_eq!(status.conditions, Conditions::DRIVER_FAULT);
+    assert!(status.supply_v.is_some_and(|v| v < 6.1), "{status:?}");
     assert_eq!(
-        t.device().controller().run_state(),
-        RunState::Fault(Fault::DriverFault)
+        t.request(&Request::Run(RunParams::DEFAULT)),
+        Response::Error(ErrorCode::Blocked(Conditions::DRIVER_FAULT))
     );
+    assert!(matches!(
+        t.request(&Request::SetConfig(DeviceConfig::DEFAULT)),
+        Response::Config(_)
+    ));
+    t.advance_ticks(100);
+    assert!(t.motor_safe());
+    assert_eq!(t.device().controller().run_state(), RunState::Idle);
 }
 
 #[test]
@@ -83,8 +99,8 @@ fn repairing_the_injected_driver_fault_does_not_release_a_locked_out_driver() {
     assert_eq!(t.request(&Request::ClearFault), Response::Ok);
     t.advance_ticks(5);
     assert_eq!(t.options().fault, None, "the injection is repaired");
-    assert_eq!(
-        t.device().controller().run_state(),
-        RunState::Fault(Fault::DriverFault)
-    );
+    assert!(t.plant().driver_fault(), "still locked out");
+    let controller = t.device().controller();
+    assert_eq!(controller.run_state(), RunState::Idle, "nothing re-latched");
+    assert_eq!(controller.conditions(), Conditions::DRIVER_FAULT);
 }

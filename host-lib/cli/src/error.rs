@@ -50,6 +50,14 @@ impl CliError {
             CliError::Usage(_) | CliError::Plan(_) | CliError::SelfTestFailed => None,
         }
     }
+
+    /// The idle conditions that refused the request, by name (empty for any other error).
+    pub fn conditions(&self) -> Vec<&'static str> {
+        match self {
+            CliError::Meter(m) => m.blocking_conditions().names().collect(),
+            CliError::Usage(_) | CliError::Plan(_) | CliError::SelfTestFailed => Vec::new(),
+        }
+    }
 }
 
 /// The process's exit code for an error: from its category, and from nothing else.

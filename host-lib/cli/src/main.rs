@@ -52,6 +52,9 @@ struct Cli {
 enum Command {
     /// Print the device's protocol and firmware versions, boot id and hardware constants.
     Info,
+    /// Print what the device is doing: state, latched fault, idle conditions (no magnet, driver
+    /// FLT, ...), motor supply, and the longest control step and gap since boot.
+    Status,
     /// Measure the kerf (resets the hub to zero first). With --samples N, N gauges are measured
     /// and the mean with its 95 % confidence interval is reported.
     Run(RunArgs),
@@ -86,6 +89,7 @@ fn main() -> ExitCode {
                 let report = ErrorReport {
                     error: e.to_string(),
                     fault: e.fault(),
+                    conditions: e.conditions(),
                 };
                 print_line(&to_json(&report, JsonLayout::CompactSorted));
             } else {
@@ -103,6 +107,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
     let json = g.json;
     match &cli.command {
         Command::Info => emit(json, &info::run(g)?),
+        Command::Status => emit(json, &status::run(g)?),
         Command::Run(args) => emit(json, &run::run(g, args)?),
         Command::Kerf => emit(json, &kerf::run(g)?),
         Command::Reset => emit(json, &reset::run(g)?),

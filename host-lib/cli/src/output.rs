@@ -66,13 +66,17 @@ pub fn print_line(line: &str) {
     }
 }
 
-/// A failed command with `--json`: its message and the device fault behind it, if any.
+/// A failed command with `--json`: its message and the device fault or idle conditions behind
+/// it, if any.
 #[derive(Serialize)]
 pub struct ErrorReport {
     /// The error's message.
     pub error: String,
     /// The device fault, named as in the protocol.
     pub fault: Option<String>,
+    /// The idle conditions that refused the request (`no-magnet`, `driver-fault`, ...); empty
+    /// when none did.
+    pub conditions: Vec<&'static str>,
 }
 
 /// The table of kerf results that `run` and `kerf` print.

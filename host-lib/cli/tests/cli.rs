@@ -323,3 +323,68 @@ fn the_twin_binary_lists_and_checks_its_plant() {
     let out = twin(&["--material", "felt"]);
     assert_eq!(code(&out), 2, "{}", stderr(&out));
 }
+
+#[test]
+fn status_reports_state_conditions_supply_and_timing_as_text_and_json() {
+    let out = kerfmeter(&["--sim", "status"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let text = stdout(&out);
+    for line in [
+        "state:        idle",
+        "conditions:   none",
+        "supply:",
+        "longest gap:",
+    ] {
+        assert!(text.contains(line), "{line:?} missing from\n{text}");
+    }
+
+    let out = kerfmeter(&["--sim", "--json", "status"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let status: serde_json::Value = serde_json::from_str(&stdout(&out)).expect("JSON");
+    assert_eq!(status["state"], "idle", "{status}");
+    assert_eq!(status["fault"], serde_json::Value::Null, "{status}");
+    assert_eq!(status["conditions"], serde_json::json!([]), "{status}");
+    let supply_v = status["supply_v"].as_f64().expect("the twin measures it");
+    assert!((11.0..13.5).contains(&supply_v), "{status}");
+    assert!(
+        status["longest_gap_us"].as_u64().unwrap() >= 1000,
+        "{status}"
+    );
+    assert!(status["longest_step_us"].is_u64(), "{status}");
+}
+
+/// A motor supply under the driver's under-voltage lockout holds FLT low from boot: an idle
+/// condition, shown by `status`, that refuses a run with a typed error (exit 4) and latches
+/// nothing, so the device stays configurable.
+#[test]
+fn a_supply_below_the_driver_lockout_blocks_a_run_but_not_the_configuration() {
+    let low = [
+        "--sim",
+        "--sim-plant",
+        "supply_v=6",
+        "--sim-plant",
+        "driver_uvlo_v=6.5",
+    ];
+    let with = |args: &[&str]| kerfmeter(&[&low[..], args].concat());
+
+    let out = with(&["--json", "status"]);
+    let status: serde_json::Value = serde_json::from_str(&stdout(&out)).expect("JSON");
+    assert_eq!(status["state"], "idle", "{status}");
+    assert_eq!(status["conditions"], serde_json::json!(["driver-fault"]));
+
+    let out = with(&["run"]);
+    assert_eq!(code(&out), 4);
+    let message = stderr(&out);
+    assert!(message.contains("refused Run"), "{message}");
+    assert!(message.contains("motor supply"), "{message}");
+    assert!(message.contains("Nothing is latched"), "{message}");
+
+    let out = with(&["--json", "run"]);
+    assert_eq!(code(&out), 4);
+    let error: serde_json::Value = serde_json::from_str(stdout(&out).trim()).unwrap();
+    assert_eq!(error["fault"], serde_json::Value::Null, "{error}");
+    assert_eq!(error["conditions"], serde_json::json!(["driver-fault"]));
+
+    let out = with(&["config", "set", "--max-current-a", "4"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+}

@@ -16,8 +16,8 @@ use std::time::{Duration, Instant};
 use kerfmeter_protocol::START_TOLERANCE_DEG;
 
 use kerfmeter_protocol::{
-    ConfigReport, DeviceConfig, ErrorCode, KerfResult, Request, Response, RunParams, RunState,
-    Sample, SelfTestReport, Status,
+    Conditions, ConfigReport, DeviceConfig, ErrorCode, KerfResult, Request, Response, RunParams,
+    RunState, Sample, SelfTestReport, Status,
 };
 use serde::Serialize;
 
@@ -165,6 +165,14 @@ impl Kerfmeter {
         let status = self.status()?;
         if let RunState::Fault(fault) = status.state {
             return Err(Error::Fault { fault });
+        }
+        let blocking = status.conditions.intersection(Conditions::BLOCKING);
+        if !blocking.is_empty() {
+            // The reset (and the run) would be refused: say so before trying either.
+            return Err(Error::Device {
+                request: "Run",
+                code: ErrorCode::Blocked(blocking),
+            });
         }
         if status.angle_deg.abs() > START_TOLERANCE_DEG || status.state != RunState::Idle {
             self.reset_kerfmeter()?;

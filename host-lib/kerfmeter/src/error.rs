@@ -1,6 +1,6 @@
 //! Host-side errors: every failure a caller can meet, each with a message that says what to do.
 
-use kerfmeter_protocol::{ErrorCode, Fault, ProtocolVersion};
+use kerfmeter_protocol::{Conditions, ErrorCode, Fault, ProtocolVersion};
 
 /// Result of every fallible call of this crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -133,6 +133,17 @@ impl Error {
         }
     }
 
+    /// The idle conditions that refused the request (`ErrorCode::Blocked`); empty otherwise.
+    pub fn blocking_conditions(&self) -> Conditions {
+        match self {
+            Error::Device {
+                code: ErrorCode::Blocked(c),
+                ..
+            } => *c,
+            _ => Conditions::empty(),
+        }
+    }
+
     /// What kind of failure this is (the command-line tool's exit code follows from it).
     pub fn category(&self) -> Category {
         match self {
@@ -197,6 +208,41 @@ pub fn describe_error_code(code: ErrorCode) -> String {
         ErrorCode::NotAtZero => {
             "the hub is not at its zero position (prongs centred in the gauge holes): run `reset` first".into()
         }
+        ErrorCode::Blocked(conditions) => format!(
+            "{}. Nothing is latched: fix it and try again (`kerfmeter status` shows the conditions)",
+            describe_conditions(conditions)
+        ),
+    }
+}
+
+/// A sentence for the idle conditions that stand, each with what to do about it.
+pub fn describe_conditions(conditions: Conditions) -> String {
+    let sentences: Vec<&str> = Conditions::NAMES
+        .iter()
+        .filter(|(c, _)| conditions.contains(*c))
+        .map(|(c, _)| describe_condition(*c))
+        .collect();
+    if sentences.is_empty() {
+        "no condition stands".into()
+    } else {
+        sentences.join("; ")
+    }
+}
+
+/// A sentence for one idle condition.
+fn describe_condition(condition: Conditions) -> &'static str {
+    match condition {
+        Conditions::NO_MAGNET => {
+            "no magnet: the encoder sees no magnet in range; check the magnet's distance to the chip"
+        }
+        Conditions::ENCODER_DIAGNOSTICS => {
+            "the encoder fails its diagnostics (stuck bus or no offset compensation); check the encoder wiring"
+        }
+        Conditions::ENCODER_UNREADABLE => "the encoder cannot be read; check the encoder wiring",
+        Conditions::DRIVER_FAULT => {
+            "the motor driver reports a fault (FLT low): check that the motor supply is on and above the driver's under-voltage lockout"
+        }
+        _ => "an unknown condition (a newer firmware?)",
     }
 }
 

@@ -36,6 +36,8 @@ pub mod stats;
 
 pub use calls::{Curve, Measurement, Progress};
 pub use client::{Kerfmeter, Options};
-pub use error::{Category, Error, Result, describe_error_code, describe_fault};
+pub use error::{
+    Category, Error, Result, describe_conditions, describe_error_code, describe_fault,
+};
 pub use kerfmeter_protocol as protocol;
 pub use params::JointSpec;

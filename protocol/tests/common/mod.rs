@@ -108,6 +108,7 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         Just(ErrorCode::NoSamples),
         Just(ErrorCode::Storage),
         Just(ErrorCode::NotAtZero),
+        any::<u16>().prop_map(|c| ErrorCode::Blocked(Conditions(c))),
     ]
 }
 
@@ -193,19 +194,34 @@ pub fn response() -> impl Strategy<Value = Response> {
         info().prop_map(Response::Info),
         Just(Response::Ok),
         error_code().prop_map(Response::Error),
-        (run_state(), any::<(u32, u32, u16, u16)>(), f(), f()).prop_map(
-            |(state, (run_id, elapsed_ms, samples, encoder_errors), torque_nm, angle_deg)| {
-                Response::Status(Status {
+        (
+            run_state(),
+            any::<(u32, u32, u16, u16)>(),
+            (f(), f(), proptest::option::of(f())),
+            any::<(u32, u32, u16)>()
+        )
+            .prop_map(
+                |(
                     state,
-                    run_id,
-                    elapsed_ms,
-                    torque_nm,
-                    angle_deg,
-                    samples,
-                    encoder_errors,
-                })
-            }
-        ),
+                    (run_id, elapsed_ms, samples, encoder_errors),
+                    (torque_nm, angle_deg, supply_v),
+                    (longest_step_us, longest_gap_us, conditions),
+                )| {
+                    Response::Status(Status {
+                        state,
+                        run_id,
+                        elapsed_ms,
+                        torque_nm,
+                        angle_deg,
+                        samples,
+                        encoder_errors,
+                        supply_v,
+                        longest_step_us,
+                        longest_gap_us,
+                        conditions: Conditions(conditions),
+                    })
+                }
+            ),
         (
             any::<(u32, u16, u16, u16)>(),
             proptest::collection::vec(sample(), 0..=SAMPLES_PER_CHUNK)
@@ -235,12 +251,13 @@ pub fn response() -> impl Strategy<Value = Response> {
                 }))
             }),
         Just(Response::SelfTest(None)),
-        (config(), any::<bool>()).prop_map(|(config, defaults_in_use)| Response::Config(
-            ConfigReport {
+        (config(), any::<(bool, bool)>()).prop_map(|(config, (defaults_in_use, saved))| {
+            Response::Config(ConfigReport {
                 config,
-                defaults_in_use
-            }
-        )),
+                defaults_in_use,
+                saved,
+            })
+        }),
     ]
 }
 

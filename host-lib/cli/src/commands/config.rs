@@ -117,6 +117,12 @@ impl fmt::Display for ConfigOutcome {
                 "\n(defaults: no valid configuration is stored on the device)"
             )?;
         }
+        if !self.0.saved && !self.0.defaults_in_use {
+            write!(
+                f,
+                "\n(applied but not saved: it lasts until the device restarts)"
+            )?;
+        }
         Ok(())
     }
 }

@@ -12,6 +12,7 @@ pub mod map;
 pub mod reset;
 pub mod run;
 pub mod self_test;
+pub mod status;
 
 use std::fmt;
 
