@@ -23,7 +23,7 @@
 //! # The watchdog
 //!
 //! [`SimWatchdog`] is the board's hardware watchdog: the firmware's own
-//! [`Watchdog`](kerfmeter_firmware::watchdog::Watchdog) implementation for the twin. It runs from
+//! [`Watchdog`] implementation for the twin. It runs from
 //! boot at [`WATCHDOG_TIMEOUT_MS`], is fed by every control tick, and honours what the firmware
 //! asks around flash operations (a [`FLASH_WATCHDOG_TIMEOUT_MS`] window for each erase and write,
 //! the normal timeout after it), on the core's clock: flash operations move that clock on as
