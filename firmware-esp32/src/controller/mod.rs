@@ -124,8 +124,8 @@ mod tuning;
 
 use run::Run;
 use self_test::SelfTestPhase;
+use timing::Pacing;
 pub use timing::TickTiming;
-use timing::{Pace, Pacing};
 pub use tuning::*;
 
 /// Why an encoder read failed (the driver's error, without the bus type).
@@ -232,7 +232,7 @@ pub struct Controller {
     run_id: u32,
     /// The late-tick rules, and this step's integration time.
     pacing: Pacing,
-    /// The time this step integrates, seconds (see [`Pace`]).
+    /// The time this step integrates, seconds (see [`Pace`](timing::Pace)).
     dt_s: f32,
     /// The longest step and gap between steps since boot.
     timing: TickTiming,
