@@ -62,6 +62,15 @@ impl TickTiming {
     }
 }
 
+// The rules' figures in µs, as `u32`: the step's arithmetic stays in 32 bits (a `u64` division
+// is a library call on the C3's RV32 core). All are a few ms.
+const PERIOD: u32 = PERIOD_US as u32;
+const LATE_GAP: u32 = (LATE_GAP_PERIODS * PERIOD_US) as u32;
+const MAX_GAP: u32 = (MAX_GAP_PERIODS * PERIOD_US) as u32;
+const MAX_STEP_DT: u32 = MAX_STEP_DT_US as u32;
+const BUDGET: u32 = LATE_BUDGET_US as u32;
+const REPAY_DIVISOR: u32 = LATE_REPAY_DIVISOR as u32;
+
 /// What the gap before a step means for it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Pace {
@@ -80,7 +89,7 @@ pub(super) struct Pacing {
     /// When the last step started, µs (none before the first).
     last_start_us: Option<u64>,
     /// Late time not yet repaid, µs.
-    debt_us: u64,
+    debt_us: u32,
 }
 
 impl Pacing {
@@ -95,7 +104,10 @@ impl Pacing {
     /// A step starts at `now_us`; `counted` while the motor may be driven (at rest the debt is
     /// forgiven: a gap there leaves no stale output behind, and a flash write makes long ones).
     pub(super) fn step(&mut self, now_us: u64, counted: bool) -> Pace {
-        let gap_us = self.last_start_us.map(|last| now_us.saturating_sub(last));
+        // In u32 (saturated past an hour): a u64 division is a library call on the C3.
+        let gap_us = self
+            .last_start_us
+            .map(|last| u32::try_from(now_us.saturating_sub(last)).unwrap_or(u32::MAX));
         self.last_start_us = Some(now_us);
         let Some(gap_us) = gap_us else {
             return Pace {
@@ -103,7 +115,7 @@ impl Pacing {
                 overrun: false,
             };
         };
-        let dt_s = gap_us.min(MAX_STEP_DT_US) as f32 * 1e-6;
+        let dt_s = gap_us.min(MAX_STEP_DT) as f32 * 1e-6;
         if !counted {
             self.debt_us = 0;
             return Pace {
@@ -111,13 +123,13 @@ impl Pacing {
                 overrun: false,
             };
         }
-        self.debt_us = self.debt_us.saturating_sub(gap_us / LATE_REPAY_DIVISOR);
-        if gap_us > LATE_GAP_PERIODS * PERIOD_US {
-            self.debt_us = self.debt_us.saturating_add(gap_us - PERIOD_US);
+        self.debt_us = self.debt_us.saturating_sub(gap_us / REPAY_DIVISOR);
+        if gap_us > LATE_GAP {
+            self.debt_us = self.debt_us.saturating_add(gap_us - PERIOD);
         }
         Pace {
             dt_s,
-            overrun: gap_us > MAX_GAP_PERIODS * PERIOD_US || self.debt_us > LATE_BUDGET_US,
+            overrun: gap_us > MAX_GAP || self.debt_us > BUDGET,
         }
     }
 }
