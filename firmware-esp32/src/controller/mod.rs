@@ -232,8 +232,8 @@ pub struct Controller {
     run_id: u32,
     /// The late-tick rules, and this step's integration time.
     pacing: Pacing,
-    /// The time this step integrates, seconds (see [`Pace`](timing::Pace)).
-    dt_s: f32,
+    /// The time this step integrates, µs (see [`Pace`](timing::Pace)).
+    dt_us: u32,
     /// The longest step and gap between steps since boot.
     timing: TickTiming,
     last_host_us: u64,
@@ -266,7 +266,7 @@ impl Controller {
             run: Run::new(RunParams::DEFAULT, 0.0),
             run_id: 0,
             pacing: Pacing::new(),
-            dt_s: DT_S,
+            dt_us: PERIOD_US as u32,
             timing: TickTiming::new(),
             last_host_us: 0,
             torque_nm: 0.0,
@@ -466,7 +466,7 @@ impl Controller {
     /// One control step at `now_us`: read the inputs, advance the state, return the motor output.
     pub fn step(&mut self, now_us: u64, inputs: &Inputs) -> MotorOutput {
         let pace = self.pacing.step(now_us, self.is_active());
-        self.dt_s = pace.dt_s;
+        self.dt_us = pace.dt_us;
         self.timing.started(now_us);
 
         let fresh = self.read_angle(inputs);
@@ -547,16 +547,24 @@ impl Controller {
         360.0 / f32::from(COUNTS_PER_TURN) / turns_per_hub_turn
     }
 
+    /// The time this step integrates, seconds: the gap since the last step, at most
+    /// [`MAX_STEP_DT_US`] (see the tuning's docs, "Late ticks").
+    fn dt_s(&self) -> f32 {
+        self.dt_us as f32 * 1e-6
+    }
+
     fn speed_deg_per_s(&self) -> f32 {
         self.motion.slope_deg_per_tick * f32::from(CONTROL_RATE_HZ)
     }
 
     /// The speed loop (PI): the torque, within ±`cap_nm`, that holds the hub at `target`
     /// degrees per second. The integrator is clamped to the same bounds (no wind-up).
-    fn speed_loop(&mut self, target_deg_per_s: f32, cap_nm: f32) -> f32 {
+    /// `dt_s` is this step's [`Controller::dt_s`] (its caller may need it too: one soft-float
+    /// conversion a step).
+    fn speed_loop(&mut self, target_deg_per_s: f32, cap_nm: f32, dt_s: f32) -> f32 {
         let error = target_deg_per_s - self.speed_deg_per_s();
         let integral = &mut self.motion.speed_integral_nm;
-        *integral = (*integral + SPEED_KI * error * self.dt_s).clamp(-cap_nm, cap_nm);
+        *integral = (*integral + SPEED_KI * error * dt_s).clamp(-cap_nm, cap_nm);
         (SPEED_KP * error + *integral).clamp(-cap_nm, cap_nm)
     }
 

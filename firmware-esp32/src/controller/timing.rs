@@ -10,7 +10,7 @@
 //! allocation: the board's loop and the twin call it the same way.
 
 use super::{
-    DT_S, LATE_BUDGET_US, LATE_GAP_PERIODS, LATE_REPAY_DIVISOR, MAX_GAP_PERIODS, MAX_STEP_DT_US,
+    LATE_BUDGET_US, LATE_GAP_PERIODS, LATE_REPAY_DIVISOR, MAX_GAP_PERIODS, MAX_STEP_DT_US,
     PERIOD_US,
 };
 
@@ -74,9 +74,10 @@ const REPAY_DIVISOR: u32 = LATE_REPAY_DIVISOR as u32;
 /// What the gap before a step means for it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Pace {
-    /// The time the step integrates (ramp, release, speed-loop integral), seconds: the gap,
-    /// clamped to [`MAX_STEP_DT_US`]; one period for the first step.
-    pub(super) dt_s: f32,
+    /// The time the step integrates (ramp, release, speed-loop integral), µs: the gap, clamped
+    /// to [`MAX_STEP_DT_US`]; one period for the first step. (In µs: the conversion to seconds,
+    /// soft-float on the C3, is left to the steps that integrate.)
+    pub(super) dt_us: u32,
     /// The gap is too long, or late steps too frequent: `StepOverrun` while the motor may be
     /// driven.
     pub(super) overrun: bool,
@@ -111,15 +112,15 @@ impl Pacing {
         self.last_start_us = Some(now_us);
         let Some(gap_us) = gap_us else {
             return Pace {
-                dt_s: DT_S,
+                dt_us: PERIOD,
                 overrun: false,
             };
         };
-        let dt_s = gap_us.min(MAX_STEP_DT) as f32 * 1e-6;
+        let dt_us = gap_us.min(MAX_STEP_DT);
         if !counted {
             self.debt_us = 0;
             return Pace {
-                dt_s,
+                dt_us,
                 overrun: false,
             };
         }
@@ -128,7 +129,7 @@ impl Pacing {
             self.debt_us = self.debt_us.saturating_add(gap_us - PERIOD);
         }
         Pace {
-            dt_s,
+            dt_us,
             overrun: gap_us > MAX_GAP || self.debt_us > BUDGET,
         }
     }
@@ -159,7 +160,7 @@ mod tests {
     fn an_isolated_late_step_up_to_the_limit_is_ridden_through() {
         let mut p = Pacing::new();
         let mut now = 0;
-        assert_eq!(p.step(0, true).dt_s, DT_S, "the first step: one period");
+        assert_eq!(p.step(0, true).dt_us, 1000, "the first step: one period");
         let mut gaps = on_time(100);
         gaps.push(MAX_GAP_PERIODS as f64);
         // The ticks it delayed come at once (the ticker catches up), then on time again.
@@ -207,17 +208,11 @@ mod tests {
     fn a_step_integrates_its_gap_up_to_two_periods() {
         let mut p = Pacing::new();
         p.step(10_000, true);
-        let dt = |p: &mut Pacing, now| p.step(now, true).dt_s;
-        assert!(
-            (dt(&mut p, 11_200) - 1.2e-3).abs() < 1e-9,
-            "jitter: the time"
-        );
-        assert!((dt(&mut p, 12_000) - 0.8e-3).abs() < 1e-9);
-        assert!(
-            (dt(&mut p, 18_000) - 2e-3).abs() < 1e-9,
-            "late: two periods"
-        );
-        assert!((dt(&mut p, 18_030) - 30e-6).abs() < 1e-9, "catching up");
+        let dt = |p: &mut Pacing, now| p.step(now, true).dt_us;
+        assert_eq!(dt(&mut p, 11_200), 1_200, "jitter: the time");
+        assert_eq!(dt(&mut p, 12_000), 800);
+        assert_eq!(dt(&mut p, 18_000), 2_000, "late: two periods");
+        assert_eq!(dt(&mut p, 18_030), 30, "catching up");
     }
 
     #[test]

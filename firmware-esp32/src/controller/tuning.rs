@@ -44,8 +44,6 @@ use crate::build::CONTROL_RATE_HZ;
 
 /// Control period, µs: one tick at [`CONTROL_RATE_HZ`].
 pub const PERIOD_US: u64 = 1_000_000 / CONTROL_RATE_HZ as u64;
-/// Control period, seconds: a step's integration time when it comes on time.
-pub(super) const DT_S: f32 = 1.0 / CONTROL_RATE_HZ as f32;
 
 // ---- Late ticks --------------------------------------------------------------------------------
 //
