@@ -29,8 +29,8 @@ pub const MAX_SAMPLES: u16 = 2048;
 ///
 /// Why 50 ms: the tick comes every 1 ms; the worst step costs 37.3k instructions (0.23 ms at
 /// 160 MHz), link work a few ms at most, and a late tick 1–5 ms. The controller itself faults a
-/// run (`StepOverrun`) once 3 ms pass between steps, so nothing healthy comes near 50 ms — ten
-/// times the latest tick the twin draws — while a hung loop with the motor driven is reset within
+/// run (`StepOverrun`) once 8 ms pass between steps (or late steps come often), so nothing
+/// healthy comes near 50 ms — ten times the latest tick the twin draws — while a hung loop with the motor driven is reset within
 /// 50 ms rather than half a second. The digital twin resets its device after the same time.
 pub const WATCHDOG_TIMEOUT_MS: u64 = 50;
 /// Hardware watchdog timeout around each flash erase or write, ms (see [`crate::watchdog`]): a

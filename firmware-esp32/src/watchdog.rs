@@ -22,12 +22,12 @@ use embedded_storage_async::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 
 pub use crate::build::{FLASH_WATCHDOG_TIMEOUT_MS, WATCHDOG_TIMEOUT_MS};
 
-// The timeouts' reasons, checked at compile time: the normal one at least ten times the
-// controller's own overrun limit (3 periods) yet at most 100 ms; the flash window at least four
+// The timeouts' reasons, checked at compile time: the normal one at least five times the
+// longest gap the controller rides through (8 periods) yet at most 100 ms; the flash window at least four
 // times the slowest sector erase of a C3 module's flash (400 ms).
 const _: () = {
-    use crate::controller::{OVERRUN_PERIODS, PERIOD_US};
-    assert!(WATCHDOG_TIMEOUT_MS * 1000 >= 10 * OVERRUN_PERIODS * PERIOD_US);
+    use crate::controller::{MAX_GAP_PERIODS, PERIOD_US};
+    assert!(WATCHDOG_TIMEOUT_MS * 1000 >= 5 * MAX_GAP_PERIODS * PERIOD_US);
     assert!(WATCHDOG_TIMEOUT_MS <= 100);
     assert!(FLASH_WATCHDOG_TIMEOUT_MS >= 4 * 400);
 };

@@ -32,6 +32,17 @@
 //! erases a sector, with the board's watchdog running and its normal timeout cut to
 //! [`SHORT_WATCHDOG_MS`]: the erase outlasts it, and the chip survives only because the flash
 //! runs each operation in its own window.
+//!
+//! # Tick timing
+//!
+//! One test runs the board binary's control timing for [`TIMING_TICKS`] ticks: an embassy
+//! `Ticker` every [`PERIOD_US`] µs on esp-rtos's time driver (as the board's `control_task`), and
+//! in each tick an encoder read on the real SPI bus and a controller step through a scripted run
+//! (engage, ramp, jam, hold, release: every kind of step, the hold's last one the costliest),
+//! whose output is not applied: the motor stays asleep. It checks the ticker's period and jitter
+//! and that no gap comes near the controller's late-tick limit, and the step's cost, as the
+//! controller's own tick timing measures it, against [`STEP_MEAN_BUDGET_US`] and
+//! [`STEP_WORST_BUDGET_US`].
 
 #![no_std]
 #![no_main]
@@ -42,7 +53,7 @@ use esp_hal::{
     clock::CpuClock,
     delay::Delay,
     gpio::Pin,
-    peripherals::{FLASH, TIMG1},
+    peripherals::{FLASH, FROM_CPU_INTR0, TIMG0, TIMG1},
     time::Instant,
 };
 use kerfmeter_firmware::as5048a::COUNTS_PER_TURN;
@@ -50,10 +61,12 @@ use kerfmeter_firmware::board::emergency::{ARMED, ChipRegisters};
 use kerfmeter_firmware::board::encoder::{BoardEncoder, encoder};
 use kerfmeter_firmware::board::motor::{BoardMotor, LineLevels, PWM_CHANNEL, motor_lines};
 use kerfmeter_firmware::board::watchdog::BoardWatchdog;
+use kerfmeter_firmware::controller::{Controller, Inputs, PERIOD_US};
 use kerfmeter_firmware::emergency::{BridgeRegisters, on_panic};
 use kerfmeter_firmware::motor::MotorOutput;
 use kerfmeter_firmware::watchdog::{WATCHDOG_TIMEOUT_MS, Watchdog};
 use kerfmeter_protocol::DeviceConfig;
+use kerfmeter_protocol::{RunParams, RunState};
 
 esp_bootloader_esp_idf::esp_app_desc!();
 
@@ -69,6 +82,23 @@ const LSB_DEG: f32 = 360.0 / COUNTS_PER_TURN as f32;
 
 /// The watchdog's normal timeout during the flash test, ms: shorter than any sector erase.
 const SHORT_WATCHDOG_MS: u64 = 15;
+
+/// Ticks of the tick-timing test: three seconds of control, two scripted runs or more.
+const TIMING_TICKS: u32 = 3000;
+/// Where the scripted hub jams, degrees.
+const SCRIPTED_JAM_DEG: f32 = 30.0;
+/// The most a tick may start from its due time (its place on the period's grid), µs: interrupt
+/// latency and the time driver's alarm on a quiet core are a few µs; the digital twin's default
+/// jitter is 25 µs (SD).
+const TICK_JITTER_BOUND_US: u64 = 100;
+/// The mean step's budget, µs: 10 % of the period. Issue 12's target is 8,000 instructions on
+/// average (`cargo xtask bench-step`), 50 µs at one instruction a cycle at 160 MHz; a C3 takes
+/// more than a cycle for loads, branches and flash cache misses, and the step here includes the
+/// encoder's SPI frame.
+const STEP_MEAN_BUDGET_US: u64 = 100;
+/// The worst step's budget, µs: a quarter of the period (issue 12's target: 16,000 instructions,
+/// 100 µs at one a cycle), leaving the rest of the period to the link's two frames a pass.
+const STEP_WORST_BUDGET_US: u64 = 250;
 
 /// The board binary's panic path: the bridge safe on the registers, then the report; then the
 /// failure to the runner.
@@ -130,6 +160,8 @@ struct Board {
     flash: Option<FLASH<'static>>,
     /// The timer group whose MWDT is the board's watchdog.
     timg1: Option<TIMG1<'static>>,
+    /// The timer group and software interrupt that esp-rtos runs on (the tick-timing test).
+    rtos: Option<(TIMG0<'static>, FROM_CPU_INTR0<'static>)>,
 }
 
 /// Set the chip up as the board binary does (the same library code), with the motor lines at
@@ -161,6 +193,7 @@ fn build(levels: LineLevels) -> Board {
         before,
         flash: Some(p.FLASH),
         timg1: Some(p.TIMG1),
+        rtos: Some((p.TIMG0, p.FROM_CPU_INTR0)),
     }
 }
 
@@ -343,6 +376,94 @@ impl Board {
     }
 }
 
+/// A measuring run the controller goes through with scripted inputs (the hub turns 0.06° a tick
+/// once driven, until it jams at [`SCRIPTED_JAM_DEG`]; then a new run), while the real motor
+/// stays asleep.
+struct ScriptedRuns {
+    controller: Controller,
+    angle_deg: f32,
+    runs: u32,
+}
+
+impl ScriptedRuns {
+    fn new() -> Self {
+        Self {
+            controller: Controller::new(DeviceConfig::DEFAULT),
+            angle_deg: 0.0,
+            runs: 0,
+        }
+    }
+
+    /// One control step at `now_us` (its output is not applied).
+    fn step(&mut self, now_us: u64) {
+        let state = self.controller.run_state();
+        if matches!(state, RunState::Idle | RunState::Done) {
+            self.angle_deg = 0.0;
+        }
+        if self.angle_deg < SCRIPTED_JAM_DEG && self.controller.status().torque_nm > 0.0 {
+            self.angle_deg += 0.06;
+        }
+        let inputs = Inputs {
+            angle_deg: Ok(self.angle_deg),
+            diagnostics: None,
+            current_a: Some(0.5),
+            driver_fault: false,
+            supply_v: None,
+        };
+        self.controller.host_activity(now_us);
+        let _output = self.controller.step(now_us, &inputs);
+        if matches!(state, RunState::Idle | RunState::Done)
+            && self.controller.start_run(&RunParams::DEFAULT).is_ok()
+        {
+            self.runs += 1;
+        }
+    }
+}
+
+/// What the tick-timing test saw.
+#[derive(Debug, Default)]
+struct TickFigures {
+    ticks: u64,
+    first_us: u64,
+    last_us: u64,
+    /// The furthest a tick started from its due time, µs (either way).
+    worst_offset_us: u64,
+    /// Shortest and longest gap between two tick starts, µs.
+    shortest_gap_us: u64,
+    longest_gap_us: u64,
+    /// The steps' total time, µs.
+    step_sum_us: u64,
+    encoder_errors: u32,
+}
+
+impl TickFigures {
+    /// A tick started at `started_us`, its step took `step_us`.
+    fn tick(&mut self, started_us: u64, step_us: u64) {
+        if self.ticks == 0 {
+            self.first_us = started_us;
+            self.shortest_gap_us = u64::MAX;
+        } else {
+            let gap = started_us - self.last_us;
+            self.shortest_gap_us = self.shortest_gap_us.min(gap);
+            self.longest_gap_us = self.longest_gap_us.max(gap);
+        }
+        let due_us = self.first_us + self.ticks * PERIOD_US;
+        self.worst_offset_us = self.worst_offset_us.max(started_us.abs_diff(due_us));
+        self.last_us = started_us;
+        self.step_sum_us += step_us;
+        self.ticks += 1;
+    }
+
+    /// The mean period, ns (over the whole stretch: the ticker's own rate).
+    fn mean_period_ns(&self) -> u64 {
+        (self.last_us - self.first_us) * 1000 / (self.ticks - 1)
+    }
+
+    fn mean_step_us(&self) -> u64 {
+        self.step_sum_us / self.ticks
+    }
+}
+
 /// Defmt over RTT, before any test runs (embedded-test logs through it too).
 #[embedded_test::setup]
 fn setup_log() {
@@ -372,10 +493,14 @@ mod tests {
     use kerfmeter_firmware::watchdog::{Watchdog, WatchdogFlash};
 
     use super::{
-        Board, LONGEST_FLASH_OP_US, LSB_DEG, SAMPLE_PERIOD_MS, SHORT_WATCHDOG_MS, ShortWatchdog,
-        build,
+        Board, LONGEST_FLASH_OP_US, LSB_DEG, PERIOD_US, SAMPLE_PERIOD_MS, SHORT_WATCHDOG_MS,
+        STEP_MEAN_BUDGET_US, STEP_WORST_BUDGET_US, ScriptedRuns, ShortWatchdog,
+        TICK_JITTER_BOUND_US, TIMING_TICKS, TickFigures, build,
     };
     use core::sync::atomic::Ordering;
+    use embassy_time::{Duration, Instant as EmbassyInstant, Ticker};
+    use esp_hal::timer::timg::TimerGroup;
+    use kerfmeter_firmware::controller::LATE_GAP_PERIODS;
 
     /// Consecutive raw angle reads that must all pass the parity (and error-flag) check.
     const PARITY_READS: u32 = 2000;
@@ -750,5 +875,77 @@ mod tests {
             longest_us
         );
         board.finish();
+    }
+
+    #[test]
+    #[timeout(20)]
+    fn the_control_ticker_keeps_its_period_and_the_step_its_budget(mut board: Board) {
+        board.assert_safe("at the start");
+        let (timg0, int0) = board.rtos.take().expect("TIMG0 and FROM_CPU_INTR0");
+        esp_rtos::start(TimerGroup::new(timg0).timer0, int0);
+        let mut runs = ScriptedRuns::new();
+        let mut figures = TickFigures::default();
+        let mut ticker = Ticker::every(Duration::from_micros(PERIOD_US));
+        for _ in 0..TIMING_TICKS {
+            embassy_futures::block_on(ticker.next());
+            let started_us = EmbassyInstant::now().as_micros();
+            // The tick's work: the encoder frame on the real bus, then the step.
+            if board.encoder.read_hub_deg().is_err() {
+                figures.encoder_errors += 1;
+            }
+            runs.step(started_us);
+            let ended_us = EmbassyInstant::now().as_micros();
+            runs.controller.step_finished(ended_us);
+            figures.tick(started_us, ended_us - started_us);
+        }
+        let timing = *runs.controller.tick_timing();
+        info!(
+            "{} ticks, {} runs: mean period {} ns, gaps {}..{} us, worst offset {} us; step mean \
+             {} us, longest {} us; {} encoder errors",
+            figures.ticks,
+            runs.runs,
+            figures.mean_period_ns(),
+            figures.shortest_gap_us,
+            figures.longest_gap_us,
+            figures.worst_offset_us,
+            figures.mean_step_us(),
+            timing.longest_step_us(),
+            figures.encoder_errors
+        );
+        board.finish();
+        assert!(runs.runs >= 2, "no scripted run finished");
+        assert_eq!(
+            timing.longest_gap_us(),
+            figures.longest_gap_us,
+            "the controller's longest gap"
+        );
+        assert!(
+            figures.mean_period_ns().abs_diff(PERIOD_US * 1000) <= 1000,
+            "mean period {} ns",
+            figures.mean_period_ns()
+        );
+        assert!(
+            figures.worst_offset_us <= TICK_JITTER_BOUND_US,
+            "a tick started {} us from its due time (bound {} us)",
+            figures.worst_offset_us,
+            TICK_JITTER_BOUND_US
+        );
+        assert!(
+            figures.longest_gap_us < LATE_GAP_PERIODS * PERIOD_US,
+            "a late tick on a quiet core: {} us",
+            figures.longest_gap_us
+        );
+        assert!(
+            figures.mean_step_us() <= STEP_MEAN_BUDGET_US,
+            "mean step {} us (budget {} us)",
+            figures.mean_step_us(),
+            STEP_MEAN_BUDGET_US
+        );
+        assert!(
+            timing.longest_step_us() <= STEP_WORST_BUDGET_US,
+            "longest step {} us (budget {} us)",
+            timing.longest_step_us(),
+            STEP_WORST_BUDGET_US
+        );
     }
 }

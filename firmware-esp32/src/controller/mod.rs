@@ -89,7 +89,9 @@
 //! very tick is the safe state: max run time, overtravel past the disengage angle, no motion with
 //! torque above breakaway, reverse motion, [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a
 //! row, failed encoder diagnostics (chip or magnet), over-current (or a current that is unknown),
-//! driver FLT, host silence (communication watchdog) and a late control step.
+//! driver FLT, host silence (communication watchdog) and a late control step: a gap of more
+//! than [`MAX_GAP_PERIODS`] since the last step, or late steps too frequent. An isolated late
+//! step is ridden through (the tuning's docs, "Late ticks", say when and why).
 //!
 //! # Idle conditions
 //!
@@ -122,6 +124,7 @@ mod tuning;
 
 use run::Run;
 use self_test::SelfTestPhase;
+use timing::Pacing;
 pub use timing::TickTiming;
 pub use tuning::*;
 
@@ -227,7 +230,10 @@ pub struct Controller {
     /// The current (or last) run's own state.
     run: Run,
     run_id: u32,
-    last_step_us: Option<u64>,
+    /// The late-tick rules, and this step's integration time.
+    pacing: Pacing,
+    /// The time this step integrates, µs (see [`Pace`](timing::Pace)).
+    dt_us: u32,
     /// The longest step and gap between steps since boot.
     timing: TickTiming,
     last_host_us: u64,
@@ -259,7 +265,8 @@ impl Controller {
             jam_direction: RunParams::DEFAULT.gauge.jam_direction,
             run: Run::new(RunParams::DEFAULT, 0.0),
             run_id: 0,
-            last_step_us: None,
+            pacing: Pacing::new(),
+            dt_us: PERIOD_US as u32,
             timing: TickTiming::new(),
             last_host_us: 0,
             torque_nm: 0.0,
@@ -458,16 +465,14 @@ impl Controller {
 
     /// One control step at `now_us`: read the inputs, advance the state, return the motor output.
     pub fn step(&mut self, now_us: u64, inputs: &Inputs) -> MotorOutput {
-        let overrun = self
-            .last_step_us
-            .is_some_and(|last| now_us.saturating_sub(last) > OVERRUN_PERIODS * PERIOD_US);
-        self.last_step_us = Some(now_us);
+        let pace = self.pacing.step(now_us, self.is_active());
+        self.dt_us = pace.dt_us;
         self.timing.started(now_us);
 
         let fresh = self.read_angle(inputs);
         self.supply_v = inputs.supply_v;
         self.update_conditions(inputs);
-        if let Some(fault) = self.check_faults(now_us, inputs, overrun) {
+        if let Some(fault) = self.check_faults(now_us, inputs, pace.overrun) {
             self.latch(fault);
             return MotorOutput::SAFE;
         }
@@ -542,16 +547,24 @@ impl Controller {
         360.0 / f32::from(COUNTS_PER_TURN) / turns_per_hub_turn
     }
 
+    /// The time this step integrates, seconds: the gap since the last step, at most
+    /// [`MAX_STEP_DT_US`] (see the tuning's docs, "Late ticks").
+    fn dt_s(&self) -> f32 {
+        self.dt_us as f32 * 1e-6
+    }
+
     fn speed_deg_per_s(&self) -> f32 {
         self.motion.slope_deg_per_tick * f32::from(CONTROL_RATE_HZ)
     }
 
     /// The speed loop (PI): the torque, within ±`cap_nm`, that holds the hub at `target`
     /// degrees per second. The integrator is clamped to the same bounds (no wind-up).
-    fn speed_loop(&mut self, target_deg_per_s: f32, cap_nm: f32) -> f32 {
+    /// `dt_s` is this step's [`Controller::dt_s`] (its caller may need it too: one soft-float
+    /// conversion a step).
+    fn speed_loop(&mut self, target_deg_per_s: f32, cap_nm: f32, dt_s: f32) -> f32 {
         let error = target_deg_per_s - self.speed_deg_per_s();
         let integral = &mut self.motion.speed_integral_nm;
-        *integral = (*integral + SPEED_KI * error * DT_S).clamp(-cap_nm, cap_nm);
+        *integral = (*integral + SPEED_KI * error * dt_s).clamp(-cap_nm, cap_nm);
         (SPEED_KP * error + *integral).clamp(-cap_nm, cap_nm)
     }
 

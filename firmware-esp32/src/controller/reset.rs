@@ -88,7 +88,7 @@ impl Controller {
             // Towards zero, at a speed that falls with the distance left.
             let target = (-RESET_SPEED_PER_DEG * self.angle_deg)
                 .clamp(-RESET_MAX_SPEED_DEG_PER_S, RESET_MAX_SPEED_DEG_PER_S);
-            self.torque_nm = self.speed_loop(target, RESET_MAX_TORQUE_NM);
+            self.torque_nm = self.speed_loop(target, RESET_MAX_TORQUE_NM, self.dt_s());
             0
         };
         if settled >= RESET_SETTLE_TICKS {

@@ -7,10 +7,9 @@ use kerfmeter_protocol::{
 };
 
 use super::{
-    Controller, DT_S, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, JAM_MIN_INSET_DEG,
-    JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_TURN_SPEED_DEG_PER_S,
-    Motion, NEAR_DISENGAGE_FRACTION, NOISY_HOLD_LSB, OVERTRAVEL_MARGIN_DEG, RELEASE_RATE_NM_PER_S,
-    State,
+    Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS,
+    JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_TURN_SPEED_DEG_PER_S, Motion,
+    NEAR_DISENGAGE_FRACTION, NOISY_HOLD_LSB, OVERTRAVEL_MARGIN_DEG, RELEASE_RATE_NM_PER_S, State,
 };
 use crate::build::CONTROL_RATE_HZ;
 use crate::jam::HoldWindow;
@@ -131,7 +130,7 @@ impl Controller {
     /// Engaging: turn slowly through the hole play.
     pub(super) fn engage(&mut self) {
         self.torque_nm = self
-            .speed_loop(ENGAGE_SPEED_DEG_PER_S, ENGAGE_MAX_TORQUE_NM)
+            .speed_loop(ENGAGE_SPEED_DEG_PER_S, ENGAGE_MAX_TORQUE_NM, self.dt_s())
             .max(0.0);
         // No kerf has less play than a zero kerf: the prongs cannot drag the inset before this.
         if self.angle_deg >= self.run.zero_kerf_play_deg - JAM_SLIP_DEG {
@@ -165,8 +164,9 @@ impl Controller {
         let (target, limited) = self.ramp_target_nm();
         // The torque rises at the ramp rate, never above the speed loop's (so the inset turns at
         // most at the speed limit) nor above the target for the current angle.
-        let speed_capped = self.speed_loop(MAX_TURN_SPEED_DEG_PER_S, target);
-        let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * DT_S;
+        let dt_s = self.dt_s();
+        let speed_capped = self.speed_loop(MAX_TURN_SPEED_DEG_PER_S, target, dt_s);
+        let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * dt_s;
         self.torque_nm = ramped.min(speed_capped).clamp(0.0, target);
         let at_target = self.torque_nm >= target * 0.999 && target > self.breakaway_torque_nm();
         let inset = self.angle_deg - self.run.zero_kerf_play_deg;
@@ -242,7 +242,7 @@ impl Controller {
 
     /// Releasing: ramp the torque down, then `Done`.
     pub(super) fn release(&mut self) {
-        self.torque_nm = (self.torque_nm - RELEASE_RATE_NM_PER_S * DT_S).max(0.0);
+        self.torque_nm = (self.torque_nm - RELEASE_RATE_NM_PER_S * self.dt_s()).max(0.0);
         if self.torque_nm == 0.0 {
             self.state = State::Done;
         }

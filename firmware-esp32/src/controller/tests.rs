@@ -40,7 +40,12 @@ impl Script {
     }
 
     fn tick_with(&mut self, inputs: &Inputs) -> MotorOutput {
-        self.now_us += PERIOD_US;
+        self.tick_after(PERIOD_US, inputs)
+    }
+
+    /// A step `gap_us` after the last one.
+    fn tick_after(&mut self, gap_us: u64, inputs: &Inputs) -> MotorOutput {
+        self.now_us += gap_us;
         let out = self.c.step(self.now_us, inputs);
         // A host that polls every 10 ms.
         if (self.now_us / PERIOD_US).is_multiple_of(10) {
@@ -369,18 +374,135 @@ fn host_silence_during_a_run() {
     assert_eq!(f, Some(Fault::HostSilent));
 }
 
+/// A step `late_us` late, then the steps it delayed, which the ticker runs at once (20 µs
+/// apart), as embassy's `Ticker` does; the hub keeps turning by `deg_per_tick` a period.
+fn late_tick(s: &mut Script, late_us: u64, deg_per_tick: f32) {
+    s.angle_deg += deg_per_tick * (late_us / PERIOD_US) as f32;
+    let inputs = s.inputs();
+    s.tick_after(PERIOD_US + late_us, &inputs);
+    for _ in 0..late_us / PERIOD_US {
+        s.tick_after(20, &inputs);
+    }
+}
+
+/// A scripted run: the hub turns 0.06° a period until it jams at 60°; `late` may put in a late
+/// tick (it gets the script and the tick count). The run's end: its result or its fault.
+fn scripted_run(s: &mut Script, mut late: impl FnMut(&mut Script, u32)) -> Result<f32, Fault> {
+    s.start(RunParams::DEFAULT);
+    for tick in 0..5000 {
+        let deg_per_tick = if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
+            0.06
+        } else {
+            0.0
+        };
+        s.angle_deg += deg_per_tick;
+        s.tick();
+        late(s, tick);
+        match s.state() {
+            RunState::Done => return Ok(s.c.result().unwrap().kerf_um),
+            RunState::Fault(f) => return Err(f),
+            _ => {}
+        }
+    }
+    panic!("the run did not end");
+}
+
 #[test]
-fn a_late_step_is_an_overrun_while_active_only() {
+fn a_late_step_in_idle_is_harmless() {
     let mut s = Script::new();
     // Idle: a late step is harmless (the board writes flash while idle).
     s.now_us += 50 * PERIOD_US;
     s.tick();
     assert_eq!(s.state(), RunState::Idle);
-    s.start(RunParams::DEFAULT);
+    let inputs = s.inputs();
+    s.tick_after(500 * PERIOD_US, &inputs);
+    assert_eq!(s.state(), RunState::Idle);
+}
+
+#[test]
+fn a_single_late_step_is_ridden_through_without_a_kick() {
+    let mut s = Script::new();
+    let on_time = scripted_run(&mut s, |_, _| {}).unwrap();
+    let mut s = Script::new();
+    let mut seen = None;
+    let late = scripted_run(&mut s, |s, tick| {
+        if tick == 300 {
+            assert_eq!(s.state(), RunState::Ramping);
+            let before_nm = s.c.torque_nm;
+            // The hub barely moves meanwhile (the speed loop does not hold the torque back).
+            let late_us = (MAX_GAP_PERIODS - 1) * PERIOD_US;
+            let inputs = s.inputs();
+            s.tick_after(PERIOD_US + late_us, &inputs);
+            // The late step integrates two periods of the ramp at most.
+            let rise_nm = s.c.torque_nm - before_nm;
+            let ramp_nm = RunParams::DEFAULT.ramp_rate_nm_per_s * 2e-3;
+            seen = Some((rise_nm, ramp_nm));
+            for _ in 0..late_us / PERIOD_US {
+                s.tick_after(20, &inputs);
+            }
+        }
+    })
+    .unwrap();
+    let (rise_nm, ramp_nm) = seen.expect("the late step came in the ramp");
+    assert!(rise_nm <= ramp_nm * 1.0001, "{rise_nm} N·m in one step");
+    assert!((late - on_time).abs() < 0.01, "{late} µm vs {on_time} µm");
+    assert_eq!(
+        s.c.tick_timing().longest_gap_us(),
+        MAX_GAP_PERIODS * PERIOD_US
+    );
+}
+
+#[test]
+fn a_step_after_a_longer_gap_is_an_overrun() {
+    let mut s = Script::new();
+    let end = scripted_run(&mut s, |s, tick| {
+        if tick == 300 {
+            late_tick(s, MAX_GAP_PERIODS * PERIOD_US, 0.06);
+        }
+    });
+    assert_eq!(end, Err(Fault::StepOverrun));
+    assert!(!s.c.output().awake, "safe from that step on");
+}
+
+#[test]
+fn frequent_late_steps_are_an_overrun() {
+    // A step 5 ms late every 30 ms: each one alone would be ridden through.
+    let mut s = Script::new();
+    let end = scripted_run(&mut s, |s, tick| {
+        if tick % 30 == 29 {
+            late_tick(s, 5 * PERIOD_US, 0.06);
+        }
+    });
+    assert_eq!(end, Err(Fault::StepOverrun));
+    // One every 100 ms is rare: the run ends with its result.
+    let mut s = Script::new();
+    let end = scripted_run(&mut s, |s, tick| {
+        if tick % 100 == 99 {
+            late_tick(s, 5 * PERIOD_US, 0.0);
+        }
+    });
+    assert!(end.is_ok(), "{end:?}");
+}
+
+#[test]
+fn a_late_step_in_a_reset_is_ridden_through() {
+    let mut s = Script::new();
+    s.angle_deg = 30.0;
     s.tick();
-    s.now_us += (OVERRUN_PERIODS + 1) * PERIOD_US;
-    s.tick();
-    assert_eq!(s.state(), RunState::Fault(Fault::StepOverrun));
+    assert_eq!(s.host().start_reset(), Ok(()));
+    for tick in 0..3000 {
+        let out = s.tick();
+        if out.awake && out.duty > 0.0 {
+            s.angle_deg = (s.angle_deg - 0.09).max(0.0);
+        }
+        if tick == 100 {
+            late_tick(&mut s, 5 * PERIOD_US, 0.0);
+        }
+        if s.state() != RunState::Resetting {
+            break;
+        }
+    }
+    assert_eq!(s.state(), RunState::Idle);
 }
 
 #[test]

@@ -1,6 +1,42 @@
 //! Every tuning constant of the controller, grouped by what it tunes, each with its unit and the
 //! reason for its value. The rates and lengths in ticks assume the 1 kHz control rate
 //! ([`CONTROL_RATE_HZ`]): one tick is one millisecond.
+//!
+//! # Late ticks
+//!
+//! A C3's control tick comes late now and then: an interrupt, a flash cache miss, USB work (the
+//! twin draws up to 5 late ticks a second, up to 5 ms late). Until the next step the motor keeps
+//! the last output, unwatched. The controller rides through a late tick when it is short and
+//! rare, and faults (`StepOverrun`, only while the motor may be driven) otherwise:
+//!
+//! - **A stale output is harmless for [`MAX_GAP_PERIODS`] (8 ms).** During a gap the torque does
+//!   not rise (the output is the last one; the ramp resumes after it, see below). At a fixed duty
+//!   the current is highest at standstill (back-EMF only lowers it), so a stale output draws no
+//!   more current than the held hub did, and the G2 limits its current itself. What can move is
+//!   the hub: at the ramp's speed limit ([`MAX_TURN_SPEED_DEG_PER_S`], which the speed loop
+//!   holds) it turns 0.72° in 8 ms, well inside the overtravel margin
+//!   ([`OVERTRAVEL_MARGIN_DEG`], 10°). The worst case is a
+//!   jam that breaks away entirely at the default torque cap (0.8 N·m) at the start of a gap:
+//!   on the reference build (2.4e-4 kg·m² at the output: a 5e-7 kg·m² rotor through 21:1 plus the
+//!   hub) the hub gains at most ½·(0.8 N·m / 2.4e-4 kg·m²)·(8 ms)² = 0.11 rad, about 6°, still
+//!   inside the overtravel margin, and the next step sees it (overtravel, reverse motion, or a
+//!   slip that resumes the ramp). A longer gap faults at once; the 50 ms hardware watchdog is the
+//!   backstop for a loop that stops altogether.
+//! - **Rare:** late time (what a gap longer than [`LATE_GAP_PERIODS`] lasts beyond one period) is
+//!   a debt that a tenth of the time passing repays ([`LATE_REPAY_DIVISOR`]); a debt above
+//!   [`LATE_BUDGET_US`] faults. A loop late more than a tenth of the time for long, or several
+//!   late ticks in quick succession, is no longer a 1 kHz controller: its speed estimate (a
+//!   regression over [`JAM_WINDOW_TICKS`] ticks) and its stillness test rest on ticks that did
+//!   not come on time. Two ticks 5 ms late ride through even back to back; a third within some
+//!   25 ms of them faults.
+//! - **No kick:** the ramp, the release and the speed loop's integral integrate the time since
+//!   the last step ([`MAX_STEP_DT_US`] at most), not a fixed period. A late step integrates at
+//!   most two periods; the ticks it delayed then run at once (embassy's `Ticker` catches up) and
+//!   integrate only the microseconds between them. Without the clamp a late step would add the
+//!   whole gap's ramp in one go; with a fixed period per step the burst of catch-up steps would
+//!   add it within microseconds. The windows counted in ticks (the regression, the stillness and
+//!   the hold, the settle and timeout counts) stay counts of periods to within one gap, as the
+//!   catch-up keeps the number of ticks in step with time.
 
 use crate::build::CONTROL_RATE_HZ;
 
@@ -8,11 +44,25 @@ use crate::build::CONTROL_RATE_HZ;
 
 /// Control period, µs: one tick at [`CONTROL_RATE_HZ`].
 pub const PERIOD_US: u64 = 1_000_000 / CONTROL_RATE_HZ as u64;
-/// Control period, seconds (the integration step of the ramp and the speed loop).
-pub(super) const DT_S: f32 = 1.0 / CONTROL_RATE_HZ as f32;
-/// A step later than this many periods after the previous one is an overrun (`StepOverrun`, only
-/// while the motor may be driven): for that long the motor ran on a stale output, unwatched.
-pub const OVERRUN_PERIODS: u64 = 3;
+
+// ---- Late ticks --------------------------------------------------------------------------------
+//
+/// A gap between two steps longer than this many periods is a late step: ridden through while
+/// late steps are rare (see [`LATE_BUDGET_US`]); a gap up to this long is jitter.
+pub const LATE_GAP_PERIODS: u64 = 3;
+/// A gap between two steps longer than this many periods is an overrun (`StepOverrun`, only
+/// while the motor may be driven), however rare: the most a stale output may be left unwatched.
+pub const MAX_GAP_PERIODS: u64 = 8;
+/// The late-time debt, µs, beyond which late steps are too frequent (`StepOverrun`): two steps
+/// 5 ms late (6 ms gaps, 5 ms of late time each, plus jitter) fit, a third soon after does not.
+pub const LATE_BUDGET_US: u64 = 12_000;
+/// Time passing repays late-time debt at one part in this many: a loop may be late a tenth of
+/// the time in the long run.
+pub const LATE_REPAY_DIVISOR: u64 = 10;
+/// The most time one step integrates (ramp, release, speed-loop integral), µs: two periods, so
+/// that jitter (a gap of 1.2 ms, then 0.8 ms) integrates the time that passed, and a late step
+/// no more than twice an on-time one.
+pub const MAX_STEP_DT_US: u64 = 2 * PERIOD_US;
 
 // ---- Jam detection -----------------------------------------------------------------------------
 

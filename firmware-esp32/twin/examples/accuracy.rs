@@ -9,12 +9,15 @@
 //! uncorrected reading c·θm, which ignores the hole play, and the compression (truth minus the
 //! mid-sheet kerf).
 //!
-//! Usage: `accuracy [--seeds N] [--quick] [--plant NAME=VALUE]...` (prints a table; exits
+//! Usage: `accuracy [--seeds N] [--quick] [--plant NAME=VALUE]...` (`--help` says what each
+//! does; prints a table; exits
 //! non-zero if a point misses the targets |mean error| ≤ 1 µm and SD ≤ 2 µm, or if any run
 //! failed). `--plant` sets a plant parameter for every run (e.g. `--plant kerf_taper_um=0` to
 //! see what the taper alone costs).
 
 use std::time::Instant;
+
+use clap::Parser;
 
 use kerfmeter_protocol::spiral::uncorrected_kerf_um;
 use kerfmeter_protocol::{GaugeGeometry, KerfResult, Request, Response, RunParams, RunState};
@@ -87,15 +90,34 @@ fn mean_sd(v: &[f64]) -> (f64, f64) {
     (mean, sd)
 }
 
+/// The twin's accuracy table: the real firmware measuring simulated gauges across kerf and stock
+/// thickness, many seeds per point (`cargo xtask accuracy`).
+#[derive(Parser)]
+#[command(name = "accuracy")]
+struct Args {
+    /// Seeds (runs) per point (default: 20, or 5 with --quick).
+    #[arg(long)]
+    seeds: Option<u64>,
+    /// Fewer points (3 kerfs × 2 thicknesses) and seeds: a quick look.
+    #[arg(long)]
+    quick: bool,
+    /// Set a plant parameter for every run, NAME=VALUE (repeatable; e.g. `kerf_taper_um=0`).
+    #[arg(long, value_name = "NAME=VALUE", value_parser = plant_assignment)]
+    plant: Vec<String>,
+}
+
+/// `s` if it sets a plant parameter within its range.
+fn plant_assignment(s: &str) -> Result<String, String> {
+    PlantParams::default()
+        .assign(s)
+        .map(|_| s.to_owned())
+        .map_err(|e| e.to_string())
+}
+
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let quick = args.iter().any(|a| a == "--quick");
-    let seeds: u64 = args
-        .iter()
-        .position(|a| a == "--seeds")
-        .and_then(|i| args.get(i + 1))
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(if quick { 5 } else { 20 });
+    let args = Args::parse();
+    let quick = args.quick;
+    let seeds = args.seeds.unwrap_or(if quick { 5 } else { 20 });
     let kerfs: &[f64] = if quick {
         &[50.0, 200.0, 430.0]
     } else {
@@ -108,14 +130,10 @@ fn main() {
     };
     let gauge = GaugeGeometry::PAPER;
     let mut plant = PlantParams::default();
-    for (i, arg) in args.iter().enumerate() {
-        if arg == "--plant" {
-            let assignment = args.get(i + 1).map_or("", String::as_str);
-            if let Err(e) = plant.assign(assignment) {
-                eprintln!("--plant: {e}");
-                std::process::exit(2);
-            }
-        }
+    for assignment in &args.plant {
+        plant
+            .assign(assignment)
+            .expect("checked when the flags were parsed");
     }
 
     let changed: Vec<String> = kerfmeter_twin::plant::PARAMS

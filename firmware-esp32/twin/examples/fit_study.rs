@@ -4,12 +4,14 @@
 //! in `kerfmeter_twin::study::fit`.
 //!
 //! Usage: `fit_study [--trials N] [--seed S] [--json] [--threads N] [--kerf-sd-um SD]
-//! [--edge-sd-um SD] [--location-sd-um SD] [--kerf-um K]`.
+//! [--edge-sd-um SD] [--location-sd-um SD] [--kerf-um K]` (`--help` says what each does).
 //!
 //! A gauge whose measurement ends in a fault is reported (its joint is not assembled); exits 1
 //! when no joint could be, 2 for bad arguments.
 
 use std::io::IsTerminal;
+
+use clap::Parser;
 
 use kerfmeter_twin::study::available_threads;
 use kerfmeter_twin::study::fit::{
@@ -18,54 +20,59 @@ use kerfmeter_twin::study::fit::{
 use kerfmeter_twin::study::robustness::failure_name;
 use serde_json::{Value, json};
 
+/// The paper's fit study on the twin: box joints dilated by the device's readings, and the force
+/// each takes to assemble (`cargo xtask fit-study`).
+#[derive(Parser)]
+#[command(name = "fit-study")]
 struct Args {
-    setup: Setup,
+    /// Joints to cut and assemble (the paper: 30).
+    #[arg(long, default_value_t = Setup::default().trials)]
+    trials: u32,
+    /// Seed of every draw.
+    #[arg(long, default_value_t = Setup::default().seed)]
+    seed: u64,
+    /// Print JSON instead of text.
+    #[arg(long)]
     json: bool,
+    /// Worker threads (default: the cores available).
+    #[arg(long, default_value_t = available_threads())]
     threads: usize,
+    /// Nominal kerf of the cutter, µm.
+    #[arg(long, default_value_t = Setup::default().kerf_um)]
+    kerf_um: f64,
+    /// SD of the kerf from one cut to the next at one place, µm.
+    #[arg(long, default_value_t = Setup::default().kerf_sd_um)]
+    kerf_sd_um: f64,
+    /// SD of each edge's position, µm.
+    #[arg(long, default_value_t = Setup::default().edge_sd_um)]
+    edge_sd_um: f64,
+    /// SD of the kerf from place to place on the bed, µm.
+    #[arg(long, default_value_t = Setup::default().location_sd_um)]
+    location_sd_um: f64,
 }
 
-fn parse_args() -> Result<Args, String> {
-    let mut args = Args {
-        setup: Setup::default(),
-        json: false,
-        threads: available_threads(),
-    };
-    let mut it = std::env::args().skip(1);
-    while let Some(flag) = it.next() {
-        if flag == "--json" {
-            args.json = true;
-            continue;
-        }
-        let value = it.next().ok_or(format!("{flag} needs a value"))?;
-        let bad = || format!("{flag}: `{value}` is not a valid value");
-        let number = || value.parse::<f64>().map_err(|_| bad());
-        let s = &mut args.setup;
-        match flag.as_str() {
-            "--trials" => s.trials = value.parse().map_err(|_| bad())?,
-            "--seed" => s.seed = value.parse().map_err(|_| bad())?,
-            "--threads" => args.threads = value.parse().map_err(|_| bad())?,
-            "--kerf-um" => s.kerf_um = number()?,
-            "--kerf-sd-um" => s.kerf_sd_um = number()?,
-            "--edge-sd-um" => s.edge_sd_um = number()?,
-            "--location-sd-um" => s.location_sd_um = number()?,
-            other => return Err(format!("unknown argument `{other}`")),
+impl Args {
+    /// The study's set-up: the defaults (MDF) with the flags given.
+    fn setup(&self) -> Setup {
+        Setup {
+            trials: self.trials,
+            seed: self.seed,
+            kerf_um: self.kerf_um,
+            kerf_sd_um: self.kerf_sd_um,
+            edge_sd_um: self.edge_sd_um,
+            location_sd_um: self.location_sd_um,
+            ..Setup::default()
         }
     }
-    Ok(args)
 }
 
 fn main() {
-    let args = match parse_args() {
-        Ok(args) => args,
-        Err(e) => {
-            eprintln!("fit-study: {e}");
-            std::process::exit(2);
-        }
-    };
+    let args = Args::parse();
+    let setup = args.setup();
     let terminal = std::io::stderr().is_terminal();
-    let trials = study(&args.setup, args.threads, &|done| {
+    let trials = study(&setup, args.threads, &|done| {
         if terminal {
-            eprint!("\rfit-study: {done}/{} joints", args.setup.trials);
+            eprint!("\rfit-study: {done}/{} joints", setup.trials);
         }
     });
     if terminal {
@@ -73,9 +80,9 @@ fn main() {
     }
     let results = Results::of(&trials);
     if args.json {
-        println!("{}", to_json(&args.setup, &trials, &results));
+        println!("{}", to_json(&setup, &trials, &results));
     } else {
-        print_text(&args.setup, &trials, &results);
+        print_text(&setup, &trials, &results);
     }
     if results.device.n == 0 {
         std::process::exit(1);

@@ -3,7 +3,8 @@
 //! (`kerfmeter_twin::study::robustness` has the rules).
 //!
 //! Usage: `robustness [--draws N] [--seed S] [--json] [--strict] [--tolerance-um T]
-//! [--threads N] [--worst N] [--out-dir DIR] [--replay DRAW]`.
+//! [--threads N] [--worst N] [--out-dir DIR] [--replay DRAW] [--hang-s S]` (`--help` says what
+//! each does).
 //!
 //! Prints the success rate, the device-added error over the readings, every failure by its
 //! typed fault or refusal, the unflagged wrong readings and the worst readings, each with the
@@ -24,6 +25,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
+use clap::Parser;
+
 use kerfmeter_twin::plant::PARAMS;
 use kerfmeter_twin::study::robustness::{
     Class, Draw, DrawReport, ErrorStats, Scale, Summary, TOLERANCE_UM, classify, failure_name,
@@ -32,63 +35,45 @@ use kerfmeter_twin::study::robustness::{
 use kerfmeter_twin::study::{Outcome, available_threads, parallel_map};
 use serde_json::{Value, json};
 
+/// The robustness sweep: many twins with every plant parameter drawn from its range, one
+/// measurement each, every ending classified (`cargo xtask robustness`).
+#[derive(Parser)]
+#[command(name = "robustness")]
 struct Args {
+    /// Draws (twins) to run.
+    #[arg(long, default_value_t = 200)]
     draws: u32,
+    /// Seed of the draws: the same seed gives the same draws on any number of threads.
+    #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Print JSON instead of text.
+    #[arg(long)]
     json: bool,
+    /// Also exit 1 when a reading is wrong with no flag.
+    #[arg(long)]
     strict: bool,
+    /// A reading off by more than this with no flag is wrong, µm.
+    #[arg(long, default_value_t = TOLERANCE_UM)]
     tolerance_um: f64,
+    /// Worker threads (default: the cores available).
+    #[arg(long, default_value_t = available_threads())]
     threads: usize,
+    /// How many of the worst readings to list.
+    #[arg(long, default_value_t = 5)]
     worst: usize,
+    /// Where the plant files of the listed draws go (`--sim-plant-file`).
+    #[arg(long, default_value = "target/robustness")]
     out_dir: PathBuf,
+    /// Run this draw alone and print everything about it.
+    #[arg(long, value_name = "DRAW")]
     replay: Option<u32>,
+    /// Give up when no draw has finished for this many seconds of wall time (a hung draw).
+    #[arg(long, default_value_t = 600)]
     hang_s: u64,
 }
 
-fn parse_args() -> Result<Args, String> {
-    let mut args = Args {
-        draws: 200,
-        seed: 1,
-        json: false,
-        strict: false,
-        tolerance_um: TOLERANCE_UM,
-        threads: available_threads(),
-        worst: 5,
-        out_dir: PathBuf::from("target/robustness"),
-        replay: None,
-        hang_s: 600,
-    };
-    let mut it = std::env::args().skip(1);
-    while let Some(flag) = it.next() {
-        let mut value = || it.next().ok_or(format!("{flag} needs a value"));
-        let bad = |v: &str| format!("{flag}: `{v}` is not a valid value");
-        match flag.as_str() {
-            "--json" => args.json = true,
-            "--strict" => args.strict = true,
-            "--draws" => args.draws = value().and_then(|v| v.parse().map_err(|_| bad(&v)))?,
-            "--seed" => args.seed = value().and_then(|v| v.parse().map_err(|_| bad(&v)))?,
-            "--threads" => args.threads = value().and_then(|v| v.parse().map_err(|_| bad(&v)))?,
-            "--worst" => args.worst = value().and_then(|v| v.parse().map_err(|_| bad(&v)))?,
-            "--replay" => args.replay = Some(value().and_then(|v| v.parse().map_err(|_| bad(&v)))?),
-            "--out-dir" => args.out_dir = PathBuf::from(value()?),
-            "--hang-s" => args.hang_s = value().and_then(|v| v.parse().map_err(|_| bad(&v)))?,
-            "--tolerance-um" => {
-                args.tolerance_um = value().and_then(|v| v.parse().map_err(|_| bad(&v)))?;
-            }
-            other => return Err(format!("unknown argument `{other}`")),
-        }
-    }
-    Ok(args)
-}
-
 fn main() {
-    let args = match parse_args() {
-        Ok(args) => args,
-        Err(e) => {
-            eprintln!("robustness: {e}");
-            std::process::exit(2);
-        }
-    };
+    let args = Args::parse();
     let ok = match args.replay {
         Some(index) => replay(&args, index),
         None => run_sweep(&args),

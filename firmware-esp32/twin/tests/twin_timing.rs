@@ -3,7 +3,7 @@
 //! mid-erase.
 
 use kerfmeter_firmware::build::FLASH_WATCHDOG_TIMEOUT_MS;
-use kerfmeter_firmware::controller::PERIOD_US;
+use kerfmeter_firmware::controller::{MAX_GAP_PERIODS, PERIOD_US};
 use kerfmeter_firmware::link::FRAMES_PER_TICK;
 use kerfmeter_protocol::{
     Deframer, DeviceConfig, Envelope, Fault, Feed, KerfResult, MAX_REQUEST_FRAME_LEN,
@@ -135,16 +135,77 @@ fn ticks_arrive_with_the_configured_jitter() {
     );
 }
 
+/// A twin with plant parameters set directly, beyond their ranges where need be (`assign`
+/// checks the range).
+fn twin_with(set: impl FnOnce(&mut TwinOptions)) -> Twin {
+    let mut options = TwinOptions {
+        kerf_um: 150.0,
+        seed: 11,
+        ..TwinOptions::default()
+    };
+    set(&mut options);
+    let mut t = Twin::new(options);
+    t.advance_ticks(5);
+    t
+}
+
+/// A reset to zero, polling every 10 ms; its end state.
+fn reset(t: &mut Twin) -> RunState {
+    assert_eq!(t.request(&Request::Reset), Response::Ok);
+    for _ in 0..1000 {
+        t.advance_ticks(10);
+        let Response::Status(s) = t.request(&Request::GetStatus) else {
+            panic!("no status");
+        };
+        if s.state != RunState::Resetting {
+            return s.state;
+        }
+    }
+    panic!("the reset did not end in 10 s");
+}
+
 #[test]
-fn a_late_tick_over_three_periods_faults_a_run_with_the_motor_safe() {
-    // 5 ms late: 6 ms between two steps, over the firmware's 3 periods. At 5 per second one
-    // comes within the first second or so of the reset and run.
-    let mut t = twin(&["late_ticks_per_s=5", "late_tick_ms=5"]);
+fn late_ticks_at_the_twins_upper_range_are_ridden_through() {
+    // 5 ms late (6 ms between two steps, twice the old 3-period limit), 5 a second, with the
+    // largest jitter: the reset and the run end as without them, to within the noise.
+    let upper = ["late_ticks_per_s=5", "late_tick_ms=5", "tick_jitter_us=200"];
+    let mut t = twin(&upper);
+    let unlate = measure(&mut twin(&["late_ticks_per_s=0", "tick_jitter_us=200"])).unwrap();
+    assert_eq!(reset(&mut t), RunState::Idle);
+    let late = measure(&mut t).unwrap();
+    assert!(
+        (late.kerf_um - unlate.kerf_um).abs() < 3.0,
+        "{} µm vs {} µm on time",
+        late.kerf_um,
+        unlate.kerf_um
+    );
+    let Response::Status(status) = t.request(&Request::GetStatus) else {
+        panic!("no status");
+    };
+    assert!(status.longest_gap_us > 5_000, "late ticks came: {status:?}");
+}
+
+#[test]
+fn a_tick_later_than_the_firmware_rides_through_faults_a_run_with_the_motor_safe() {
+    // 8 ms late (beyond the twin's range: a stalled loop): over the 8-period limit.
+    let mut t = twin_with(|o| {
+        o.plant.late_ticks_per_s = 5.0;
+        o.plant.late_tick_ms = MAX_GAP_PERIODS as f64;
+    });
     assert_eq!(measure(&mut t), Err(Fault::StepOverrun));
     assert!(t.motor_safe());
-    // 1.5 ms late (the default lateness) stays within 3 periods: the same rate does no harm.
-    let mut t = twin(&["late_ticks_per_s=5", "late_tick_ms=1.5"]);
-    measure(&mut t).unwrap();
+}
+
+#[test]
+fn frequent_late_ticks_fault_a_run_with_the_motor_safe() {
+    // 4 ms late, 50 a second (beyond the twin's range: a loop late a fifth of the time). Each
+    // one alone would be ridden through.
+    let mut t = twin_with(|o| {
+        o.plant.late_ticks_per_s = 50.0;
+        o.plant.late_tick_ms = 4.0;
+    });
+    assert_eq!(measure(&mut t), Err(Fault::StepOverrun));
+    assert!(t.motor_safe());
 }
 
 #[test]
@@ -381,7 +442,8 @@ fn in_lock_step_the_twin_leads_the_host_by_the_set_time_whatever_the_tick_times(
 
 #[test]
 fn the_step_of_a_stalled_pass_runs_before_the_host_hears_back() {
-    // A save stalls the core for its flash writes, longer than the firmware's three periods.
+    // A save stalls the core for its flash writes, longer than any gap the firmware rides
+    // through.
     // On the board the answer leaves only after that pass's step, so a run the host starts on
     // hearing back does not see the stall as an overrun of its own steps.
     let mut t = twin(&["flash_write_ms=10"]);
@@ -391,7 +453,7 @@ fn the_step_of_a_stalled_pass_runs_before_the_host_hears_back() {
         Response::Config(_)
     ));
     assert!(
-        t.now_us() - before > 3 * PERIOD_US,
+        t.now_us() - before > MAX_GAP_PERIODS * PERIOD_US,
         "the save stalled the core"
     );
     assert_eq!(t.request(&Request::Reset), Response::Ok);

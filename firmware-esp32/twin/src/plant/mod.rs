@@ -192,8 +192,10 @@ impl Plant {
         force_for_torque_n(run, torque_nm, self.inset_deg() as f32)
     }
 
-    /// Advance one 1 ms control tick with the bridge held at `bridge`.
-    pub fn tick(&mut self, bridge: &Bridge) {
+    /// Advance one 1 ms control tick with the bridge held at `bridge` (the unit tests' step; the
+    /// twin runs the plant by the core's clock, [`Plant::run_us`]).
+    #[cfg(test)]
+    fn tick(&mut self, bridge: &Bridge) {
         self.run_us(bridge, 1000);
     }
 
