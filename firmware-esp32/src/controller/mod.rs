@@ -133,8 +133,8 @@ mod tuning;
 
 use run::Run;
 use self_test::SelfTestPhase;
-pub use supply::SUPPLY_FILTER_GAIN;
 use supply::SupplyFilter;
+pub use supply::{SUPPLY_FILTER_GAIN, SUPPLY_SENSE_TOLERANCE};
 pub use timing::TickTiming;
 pub use tuning::*;
 

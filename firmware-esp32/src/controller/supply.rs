@@ -25,9 +25,9 @@
 //!
 //! # Limits
 //!
-//! - Rated range: outside [`SUPPLY_MIN_V`]–[`SUPPLY_MAX_V`] at rest the controller reports the
-//!   idle condition `SUPPLY_OUT_OF_RANGE`, which blocks a run, reset and self-test (latching
-//!   nothing). The condition is judged only at rest, on the unloaded supply: under load the bus
+//! - Rated range: outside [`SUPPLY_MIN_V`]–[`SUPPLY_MAX_V`] at rest, by more than the reading's
+//!   own uncertainty ([`SUPPLY_SENSE_TOLERANCE`]), the controller reports the idle condition
+//!   `SUPPLY_OUT_OF_RANGE`, which blocks a run, reset and self-test (latching nothing). The condition is judged only at rest, on the unloaded supply: under load the bus
 //!   sags by design, and a sag is judged by what it does to the torque (next item).
 //! - Reachable torque: a run is refused with `ErrorCode::SupplyTooLow` when the most torque it
 //!   may ask for needs more than full duty at the measured supply ([`needed_supply_v`]).
@@ -42,6 +42,11 @@ use kerfmeter_protocol::{DeviceConfig, REFERENCE_SUPPLY_V, SUPPLY_MAX_V, SUPPLY_
 /// The supply filter's gain per tick: a first-order low-pass of time constant 1/gain ticks
 /// (32 ms at 1 kHz). It divides white noise's SD by √(2/gain − 1) ≈ 8.
 pub const SUPPLY_FILTER_GAIN: f32 = 1.0 / 32.0;
+
+/// How far a reading may stray from the true supply, as a fraction: the divider's 1 % resistors
+/// (±2 %) and the ADC's calibration. A supply at the edge of the rated range is not refused for
+/// the sense's error: the range is widened by this much either way (8.73–26.78 V as read).
+pub const SUPPLY_SENSE_TOLERANCE: f32 = 0.03;
 
 /// The filtered motor supply and the duty scale it gives.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,10 +91,12 @@ impl SupplyFilter {
         self.duty_scale
     }
 
-    /// The measured supply is outside the rated range (false where it is not measured).
+    /// The measured supply is outside the rated range, beyond the sense's tolerance (false
+    /// where it is not measured).
     pub(super) fn out_of_range(&self) -> bool {
-        self.supply_v
-            .is_some_and(|v| !(SUPPLY_MIN_V..=SUPPLY_MAX_V).contains(&v))
+        let rated_as_read = SUPPLY_MIN_V * (1.0 - SUPPLY_SENSE_TOLERANCE)
+            ..=SUPPLY_MAX_V * (1.0 + SUPPLY_SENSE_TOLERANCE);
+        self.supply_v.is_some_and(|v| !rated_as_read.contains(&v))
     }
 
     /// The output torque full duty gives at this supply, N·m (at standstill, past breakaway);
@@ -161,7 +168,7 @@ mod tests {
         let mut f = SupplyFilter::new();
         assert!(!f.out_of_range(), "not measured: no condition");
         assert_eq!(f.full_duty_torque_nm(&config), f32::INFINITY);
-        for (v, out) in [(8.9, true), (9.0, false), (26.0, false), (26.1, true)] {
+        for (v, out) in [(8.7, true), (8.8, false), (26.7, false), (26.8, true)] {
             let mut f = SupplyFilter::new();
             f.update(Some(v));
             assert_eq!(f.out_of_range(), out, "{v}");
