@@ -392,7 +392,8 @@ fn a_supply_below_the_driver_lockout_blocks_a_run_but_not_the_configuration() {
 }
 
 /// On 9 V the default run's torque cap (0.8 N·m) is out of reach: `run` is refused before the
-/// motor moves, with the supply, the supply needed and what to do; a lower force runs.
+/// motor moves, with the supply, the supply needed and what to do; a lower force (35 N: 0.58
+/// N·m at most, which 8.4 V gives) runs.
 #[test]
 fn a_run_the_supply_cannot_drive_is_refused_with_the_figures() {
     let out = kerfmeter(&["--sim", "--sim-plant", "supply_v=9", "run"]);
@@ -413,7 +414,7 @@ fn a_run_the_supply_cannot_drive_is_refused_with_the_figures() {
         "supply_v=9",
         "run",
         "--force-n",
-        "40",
+        "35",
     ]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));
 }
@@ -433,4 +434,13 @@ fn info_shows_the_measured_supply_as_text_and_json() {
         "DeviceInfo's own fields stand: {info}"
     );
     assert!(info["protocol"]["major"].is_u64(), "{info}");
+}
+
+#[test]
+fn config_help_says_the_torque_calibration_is_at_the_reference_supply() {
+    let out = kerfmeter(&["config", "set", "--help"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let help = stdout(&out);
+    let reference = format!("{} V supply", kerfmeter::protocol::REFERENCE_SUPPLY_V);
+    assert_eq!(help.matches(&reference).count(), 2, "{help}");
 }
