@@ -100,12 +100,7 @@ fn a_run_asking_more_torque_than_9_v_gives_is_refused_with_the_figures() {
     assert_eq!(needed_mv, 11_389);
     t.advance_ticks(100);
     assert!(t.motor_safe(), "the motor did not move");
-    assert_eq!(
-        t.plant().hub_deg().abs() < 0.1,
-        true,
-        "{}",
-        t.plant().hub_deg()
-    );
+    assert!(t.plant().hub_deg().abs() < 0.1, "{}", t.plant().hub_deg());
     assert_eq!(t.device().controller().run_state(), RunState::Idle);
 }
 
