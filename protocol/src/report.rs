@@ -152,9 +152,10 @@ impl Conditions {
     pub const DRIVER_FAULT: Self = Self(1 << 3);
     /// The measured motor supply ([`Status::supply_v`], filtered) is outside the rated
     /// [`SUPPLY_MIN_V`](crate::SUPPLY_MIN_V)–[`SUPPLY_MAX_V`](crate::SUPPLY_MAX_V), by more than
-    /// the supply sense's own uncertainty (3 %), at rest (protocol 2.1). Unlike the others it latches no fault during a run: a bus that sags under load is
-    /// expected, and what matters then is whether the torque can still be delivered (see
-    /// [`QualityFlags::SUPPLY_LIMITED`]). Never set where the supply is not measured.
+    /// the supply sense's own uncertainty (3 %), at rest (protocol 2.1). Unlike the others it
+    /// latches no fault during a run: a bus that sags under load is expected, and what matters
+    /// then is whether the torque can still be delivered (see [`QualityFlags::SUPPLY_LIMITED`]).
+    /// Never set where the supply is not measured.
     pub const SUPPLY_OUT_OF_RANGE: Self = Self(1 << 4);
     /// Every condition above blocks a run, a reset and a self-test.
     pub const BLOCKING: Self = Self(0b1_1111);

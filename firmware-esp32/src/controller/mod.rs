@@ -58,8 +58,8 @@
 //!   for the inset angle θs of the current hub angle (the torque that presses the inset as hard
 //!   as the joint is pressed by F), nor above `max_torque_nm` (the result is then flagged
 //!   `TORQUE_LIMITED`), nor above what full duty gives at the measured supply (flagged
-//!   `SUPPLY_LIMITED`), and is eased off when the hub turns faster than [`MAX_TURN_SPEED_DEG_PER_S`]
-//!   so that the inset never slams into the jam.
+//!   `SUPPLY_LIMITED`), and is eased off when the hub turns faster than
+//!   [`MAX_TURN_SPEED_DEG_PER_S`] so that the inset never slams into the jam.
 //! - **Jam**: the angle's change over a [`JAM_WINDOW_TICKS`]-tick regression stays within
 //!   [`JAM_STILL_LSB`] encoder LSB for [`JAM_SETTLE_TICKS`] ticks, with the torque at its target
 //!   (above breakaway) and the inset past [`JAM_MIN_INSET_DEG`]. Then the torque is held for

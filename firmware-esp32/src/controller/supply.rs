@@ -27,8 +27,9 @@
 //!
 //! - Rated range: outside [`SUPPLY_MIN_V`]–[`SUPPLY_MAX_V`] at rest, by more than the reading's
 //!   own uncertainty ([`SUPPLY_SENSE_TOLERANCE`]), the controller reports the idle condition
-//!   `SUPPLY_OUT_OF_RANGE`, which blocks a run, reset and self-test (latching nothing). The condition is judged only at rest, on the unloaded supply: under load the bus
-//!   sags by design, and a sag is judged by what it does to the torque (next item).
+//!   `SUPPLY_OUT_OF_RANGE`, which blocks a run, reset and self-test (latching nothing). The
+//!   condition is judged only at rest, on the unloaded supply: under load the bus sags by
+//!   design, and a sag is judged by what it does to the torque (next item).
 //! - Reachable torque: a run is refused with `ErrorCode::SupplyTooLow` when the most torque it
 //!   may ask for needs more than full duty at the measured supply ([`needed_supply_v`]).
 //! - Mid-run sag: should the bus sag so far under load that the ramp's torque needs more than
