@@ -117,8 +117,9 @@ pub(super) fn needed_supply_v(config: &DeviceConfig, torque_nm: f32) -> f32 {
 
 /// `v` in millivolts, saturated to a `u16` (the figures of `ErrorCode::SupplyTooLow`).
 pub(super) fn millivolts(v: f32) -> u16 {
-    // `as` saturates, and maps NaN to 0.
-    (v * 1000.0).round() as u16
+    // Rounded half up (no `f32::round` without std); `as` saturates, and maps NaN and negative
+    // figures to 0.
+    (v * 1000.0 + 0.5) as u16
 }
 
 #[cfg(test)]
