@@ -104,7 +104,9 @@ impl SupplyFilter {
     /// `f32::INFINITY` where the supply is not measured (no limit is known).
     pub(super) fn full_duty_torque_nm(&self, config: &DeviceConfig) -> f32 {
         match self.supply_v {
-            Some(_) => (1.0 / self.duty_scale - config.breakaway_duty) * config.torque_per_duty_nm,
+            Some(v) => {
+                (v * (1.0 / REFERENCE_SUPPLY_V) - config.breakaway_duty) * config.torque_per_duty_nm
+            }
             None => f32::INFINITY,
         }
     }
