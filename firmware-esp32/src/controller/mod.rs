@@ -102,13 +102,13 @@
 //! # Idle conditions
 //!
 //! The encoder's and the driver's faults (no magnet, failing diagnostics, an unreadable encoder,
-//! driver FLT low, as when the motor supply is off) latch only while the motor may be driven. A
-//! measured supply outside the rated 9–26 V is a condition too, judged at rest only, and latches
-//! nothing during a run (see `supply.rs`). At
+//! driver FLT low, as when the motor supply is off) latch only while the motor may be driven. At
 //! rest they are *conditions* ([`Controller::conditions`], reported in `Status`), updated every
 //! tick and cleared when they go away: they latch nothing, so the device stays configurable
 //! and `ClearFault` does not re-latch at once, but they refuse `Run`, `Reset` and `SelfTest`
-//! with `ErrorCode::Blocked` (a latched fault is reported first, as `Faulted`).
+//! with `ErrorCode::Blocked` (a latched fault is reported first, as `Faulted`). A measured supply
+//! outside the rated 9–26 V is a condition too, judged at rest only, and latches nothing during
+//! a run (see `supply.rs`).
 
 use kerfmeter_protocol::{
     Conditions, DeviceConfig, ErrorCode, Fault, JamDirection, KerfResult, RunParams, RunState,
