@@ -72,7 +72,10 @@ pub use messages::{
     BOARD_NAME_LEN, ConfigReport, DeviceInfo, Envelope, ErrorCode, FirmwareVersion, HardwareInfo,
     ParamField, ProtocolVersion, Request, Response, START_TOLERANCE_DEG,
 };
-pub use params::{DeviceConfig, EncoderPlacement, GaugeGeometry, JamDirection, RunParams};
+pub use params::{
+    DeviceConfig, EncoderPlacement, GaugeGeometry, JamDirection, REFERENCE_SUPPLY_V, RunParams,
+    SUPPLY_MAX_V, SUPPLY_MIN_V,
+};
 pub use report::{
     Conditions, Fault, KerfResult, QualityFlags, RunState, SAMPLES_PER_CHUNK, Sample, SampleChunk,
     SelfTestItem, SelfTestReport, Status, TestOutcome,
@@ -86,7 +89,13 @@ pub use report::{
 ///   [`Status`] reports the motor supply, the longest step and gap since boot and the idle
 ///   [`Conditions`]; [`ConfigReport`] says whether the configuration was `saved`;
 ///   [`ErrorCode::Blocked`] refuses a run, reset or self-test while a blocking condition stands.
-pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 0 };
+/// - 2.1 (minor, additive): supply-aware torque. [`ErrorCode::SupplyTooLow`] (appended) refuses
+///   a run whose torque the measured supply cannot deliver, with the supply and the supply
+///   needed; [`Conditions::SUPPLY_OUT_OF_RANGE`] (a new, blocking bit) stands while the supply
+///   is outside [`SUPPLY_MIN_V`]–[`SUPPLY_MAX_V`]; [`QualityFlags::SUPPLY_LIMITED`] (a new bit)
+///   marks a result whose torque a sagging supply held below the target. An older host shows
+///   the new bits as unknown and the new error as a postcard decode failure.
+pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 1 };
 
 /// USB vendor id of the ESP32-C3/C6 USB-Serial-JTAG port (Espressif).
 pub const USB_VID_ESPRESSIF: u16 = 0x303A;

@@ -193,6 +193,17 @@ pub enum ErrorCode {
     /// driver FLT low with the motor supply off, ...). Nothing is latched: fix the cause and
     /// retry; `GetStatus` shows when they are gone.
     Blocked(Conditions),
+    /// `Run` refused (protocol 2.1): the torque the run may ask for (the most its target force
+    /// needs, at most its `max_torque_nm`) needs more than full duty at the measured motor
+    /// supply. Raise the supply to at least `needed_mv`, or ask for less torque (a lower force or
+    /// torque cap). The motor did not move.
+    SupplyTooLow {
+        /// The motor supply as measured (filtered), mV.
+        supply_mv: u16,
+        /// The least supply at which the run's torque is reachable, mV (saturated at
+        /// `u16::MAX`).
+        needed_mv: u16,
+    },
 }
 
 /// How far from its zero position, degrees either way, the hub may stand when a run starts.

@@ -173,13 +173,32 @@ pub enum EncoderPlacement {
     MotorShaft,
 }
 
+/// The motor supply at which [`DeviceConfig::torque_per_duty_nm`] and
+/// [`DeviceConfig::breakaway_duty`] are given, V: the reference build's 12 V. Where the device
+/// measures its supply it scales the duty by `REFERENCE_SUPPLY_V / supply` so that a torque is
+/// the same from [`SUPPLY_MIN_V`] to [`SUPPLY_MAX_V`]; where it does not, it assumes this supply.
+pub const REFERENCE_SUPPLY_V: f32 = 12.0;
+/// The lowest motor supply the device is rated for, V: below it the device reports
+/// `Conditions::SUPPLY_OUT_OF_RANGE` and refuses to drive the motor.
+pub const SUPPLY_MIN_V: f32 = 9.0;
+/// The highest motor supply the device is rated for, V (the G2 18v17 takes up to 30 V at most):
+/// above it the device reports `Conditions::SUPPLY_OUT_OF_RANGE` and refuses to drive the motor.
+pub const SUPPLY_MAX_V: f32 = 26.0;
+
 /// Calibration and wiring constants of one device, stored in its flash.
+///
+/// The torque calibration (`torque_per_duty_nm`, `breakaway_duty`) is given at the reference
+/// supply, [`REFERENCE_SUPPLY_V`] (12 V), whatever the supply the device runs on: the device
+/// scales the duty by the supply it measures. Calibrate at 12 V, or convert: a figure measured
+/// at V volts is `torque_per_duty_nm × 12 / V` and `breakaway_duty × V / 12`.
 #[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DeviceConfig {
-    /// Output torque at 100 % duty and standstill, N·m (reference motor: ≈ 0.88).
+    /// Output torque at 100 % duty and standstill on a [`REFERENCE_SUPPLY_V`] (12 V) supply,
+    /// N·m (reference motor: ≈ 0.88).
     pub torque_per_duty_nm: f32,
-    /// Duty (0..1) below which the gearbox does not move at all (static friction), as a fraction.
+    /// Duty (0..1) below which the gearbox does not move at all (static friction), as a
+    /// fraction, on a [`REFERENCE_SUPPLY_V`] (12 V) supply.
     pub breakaway_duty: f32,
     /// Raw encoder reading (0..16383) at the hub's zero position (prongs aligned with the gauge).
     pub encoder_zero_raw: u16,

@@ -96,8 +96,10 @@ pub struct Status {
     pub samples: u16,
     /// Encoder read errors ridden through since the run started (reported, not hidden).
     pub encoder_errors: u16,
-    /// Motor supply (the driver's `VIN`), volts, as the controller last saw it; `None` where the
-    /// board does not measure it.
+    /// Motor supply (the driver's `VIN`), volts, as the controller uses it: the measured supply,
+    /// low-pass filtered (a 32 ms time constant), the bus voltage under whatever load the motor
+    /// draws now; `None` where the board does not measure it (the device then assumes
+    /// [`REFERENCE_SUPPLY_V`](crate::REFERENCE_SUPPLY_V)).
     pub supply_v: Option<f32>,
     /// The longest control step since boot, µs (a tick's whole work, drivers included).
     pub longest_step_us: u32,
@@ -148,15 +150,23 @@ impl Conditions {
     /// driver's under-voltage lockout; also over-temperature or a short (as
     /// [`Fault::DriverFault`]).
     pub const DRIVER_FAULT: Self = Self(1 << 3);
+    /// The measured motor supply ([`Status::supply_v`], filtered) is outside the rated
+    /// [`SUPPLY_MIN_V`](crate::SUPPLY_MIN_V)–[`SUPPLY_MAX_V`](crate::SUPPLY_MAX_V), by more than
+    /// the supply sense's own uncertainty (3 %), at rest (protocol 2.1). Unlike the others it
+    /// latches no fault during a run: a bus that sags under load is expected, and what matters
+    /// then is whether the torque can still be delivered (see [`QualityFlags::SUPPLY_LIMITED`]).
+    /// Never set where the supply is not measured.
+    pub const SUPPLY_OUT_OF_RANGE: Self = Self(1 << 4);
     /// Every condition above blocks a run, a reset and a self-test.
-    pub const BLOCKING: Self = Self(0b1111);
+    pub const BLOCKING: Self = Self(0b1_1111);
 
     /// Names of the conditions, for messages and JSON.
-    pub const NAMES: [(Self, &'static str); 4] = [
+    pub const NAMES: [(Self, &'static str); 5] = [
         (Self::NO_MAGNET, "no-magnet"),
         (Self::ENCODER_DIAGNOSTICS, "encoder-diagnostics"),
         (Self::ENCODER_UNREADABLE, "encoder-unreadable"),
         (Self::DRIVER_FAULT, "driver-fault"),
+        (Self::SUPPLY_OUT_OF_RANGE, "supply-out-of-range"),
     ];
 
     /// No condition.
@@ -216,9 +226,13 @@ impl QualityFlags {
     pub const PLAY_NOT_CONVERGED: Self = Self(1 << 5);
     /// The sample log was decimated (a long run); the curve has coarser time steps.
     pub const DECIMATED: Self = Self(1 << 6);
+    /// The motor supply, sagging under load, could not deliver the torque the run asked for: the
+    /// torque was held to what it delivered (at full duty), so the jam is at a lower force, which
+    /// `torque_at_jam_nm` and `force_at_jam_n` report (protocol 2.1).
+    pub const SUPPLY_LIMITED: Self = Self(1 << 7);
 
     /// Names of the flags, for messages.
-    pub const NAMES: [(Self, &'static str); 7] = [
+    pub const NAMES: [(Self, &'static str); 8] = [
         (Self::NEAR_DISENGAGE, "near-disengage"),
         (Self::NOISY_HOLD, "noisy-hold"),
         (Self::WEAK_MAGNET, "weak-magnet"),
@@ -226,6 +240,7 @@ impl QualityFlags {
         (Self::TORQUE_LIMITED, "torque-limited"),
         (Self::PLAY_NOT_CONVERGED, "play-not-converged"),
         (Self::DECIMATED, "decimated"),
+        (Self::SUPPLY_LIMITED, "supply-limited"),
     ];
 
     /// No flag set.
@@ -371,6 +386,10 @@ mod tests {
         let c = Conditions::NO_MAGNET.union(Conditions::DRIVER_FAULT);
         assert_eq!(format!("{c:?}"), "Conditions(no-magnet|driver-fault)");
         assert_eq!(format!("{:?}", Conditions::empty()), "Conditions()");
-        assert_eq!(format!("{:?}", Conditions(0x30)), "Conditions(0x30)");
+        assert_eq!(format!("{:?}", Conditions(0x60)), "Conditions(0x60)");
+        assert_eq!(
+            format!("{:?}", Conditions(0x30)),
+            "Conditions(supply-out-of-range|0x20)"
+        );
     }
 }

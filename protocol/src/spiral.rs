@@ -178,7 +178,9 @@ fn torque_per_newton_nm(params: &RunParams, inset_deg: f32) -> f32 {
 /// never reached that force (ask for at most the force the run reached).
 ///
 /// The kerf that matters depends on how hard the joint is pressed; one run answers for every
-/// force up to its own.
+/// force up to its own. The log's samples are decimated (one kept per 2, 4, … ticks on a long
+/// run), so its highest torque can sit a little under the torque the jam was held at: a force up
+/// to [`SWEEP_PEAK_TOLERANCE`] above the sweep's peak is read at the peak.
 pub fn kerf_at_force_um(params: &RunParams, samples: &[Sample], force_n: f32) -> Option<f32> {
     let peak = samples
         .iter()
@@ -205,8 +207,17 @@ pub fn kerf_at_force_um(params: &RunParams, samples: &[Sample], force_n: f32) ->
         }
         previous = Some((force, s.angle_deg));
     }
-    None
+    match previous {
+        Some((peak_force, peak_deg)) if force_n <= peak_force * (1.0 + SWEEP_PEAK_TOLERANCE) => {
+            Some(kerf_from_angle(gauge, peak_deg).kerf_um)
+        }
+        _ => None,
+    }
 }
+
+/// How far above a sweep's highest force [`kerf_at_force_um`] still answers, as a fraction: the
+/// run's own force, a fraction of a percent above its decimated log's peak, is in the sweep.
+pub const SWEEP_PEAK_TOLERANCE: f32 = 0.01;
 
 #[cfg(test)]
 mod tests {

@@ -2,7 +2,10 @@
 //! here first; when it is intended, bump `PROTOCOL_VERSION` (see the compatibility rules) and
 //! update the bytes (the failure message prints the new ones: check that only the intended
 //! messages changed). Protocol 2.0 changed `Status` (supply, longest step and gap, conditions)
-//! and `ConfigReport` (`saved`), and added `ErrorCode::Blocked`; `DeviceInfo`'s bytes stand. Each golden frame is also mutated byte by byte: no mutation may be accepted.
+//! and `ConfigReport` (`saved`), and added `ErrorCode::Blocked`; `DeviceInfo`'s bytes stand.
+//! Protocol 2.1 only added: `ErrorCode::SupplyTooLow`, the `SUPPLY_OUT_OF_RANGE` condition and
+//! the `SUPPLY_LIMITED` flag (new frames below; every older frame's bytes stand). Each golden
+//! frame is also mutated byte by byte: no mutation may be accepted.
 
 mod common;
 use common::*;
@@ -109,6 +112,40 @@ fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
                 body: Response::Error(ErrorCode::Blocked(
                     Conditions::NO_MAGNET.union(Conditions::DRIVER_FAULT),
                 )),
+            },
+        ),
+        (
+            "000a0a02098c47fe58e93400",
+            Envelope {
+                seq: 10,
+                body: Response::Error(ErrorCode::SupplyTooLow {
+                    supply_mv: 9_100,
+                    needed_mv: 11_390,
+                }),
+            },
+        ),
+        (
+            "00070b0208187adb00",
+            Envelope {
+                seq: 11,
+                body: Response::Error(ErrorCode::Blocked(
+                    Conditions::SUPPLY_OUT_OF_RANGE.union(Conditions::DRIVER_FAULT),
+                )),
+            },
+        ),
+        (
+            "00050c050108010370420103d041010390400103403f01074e428001244e00",
+            Envelope {
+                seq: 12,
+                body: Response::Kerf(Some(KerfResult {
+                    run_id: 8,
+                    kerf_um: 60.0,
+                    angle_deg: 26.0,
+                    play_deg: 4.5,
+                    torque_at_jam_nm: 0.75,
+                    force_at_jam_n: 51.5,
+                    flags: QualityFlags::SUPPLY_LIMITED,
+                })),
             },
         ),
         (

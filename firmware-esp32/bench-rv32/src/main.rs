@@ -299,7 +299,9 @@ impl StepBench {
             diagnostics,
             current_a: Some(0.5),
             driver_fault: false,
-            supply_v: None,
+            // A measured supply, as a board with its supply sense wired has: the filter and the
+            // duty's scaling are part of every step. Varied a little, like a real reading.
+            supply_v: Some(11.9 + 0.02 * (self.tick % 8) as f32),
         };
         let before = self.controller.run_state();
         let Some(index) = state_index(before) else {

@@ -9,7 +9,8 @@
 //! Before both, [`Controller::update_conditions`] keeps the idle conditions: driver FLT, an
 //! unreadable encoder and failing encoder diagnostics are conditions in every state, and only
 //! while the motor may be driven does `check_faults` latch them as faults. At rest they latch
-//! nothing (see the controller's docs, "Idle conditions").
+//! nothing (see the controller's docs, "Idle conditions"). A supply outside the rated range is a
+//! condition judged at rest only, and never a fault (`supply.rs`).
 
 use kerfmeter_protocol::{Conditions, Fault, QualityFlags};
 
@@ -25,6 +26,7 @@ impl Controller {
     /// every tick; the diagnostics only on the ticks they are read, so their conditions stand
     /// until the next reading.
     pub(super) fn update_conditions(&mut self, inputs: &Inputs) {
+        let at_rest = !self.is_active();
         let c = &mut self.conditions;
         c.set(Conditions::DRIVER_FAULT, inputs.driver_fault);
         c.set(
@@ -36,6 +38,10 @@ impl Controller {
             let magnet = matches!(diagnostics, Err(DiagnosticFault::Magnet));
             c.set(Conditions::ENCODER_DIAGNOSTICS, chip);
             c.set(Conditions::NO_MAGNET, magnet);
+        }
+        // Judged on the unloaded supply only: under load the bus sags by design (`supply.rs`).
+        if at_rest {
+            c.set(Conditions::SUPPLY_OUT_OF_RANGE, self.supply.out_of_range());
         }
     }
 

@@ -21,8 +21,9 @@
 //! no waiting: the board binary and the twin call it the same way.
 //!
 //! The code is split by concern: `run.rs` (engage, ramp, jam, kerf, and the per-run state, which
-//! every run builds afresh), `reset.rs`, `self_test.rs`, `faults.rs` (every fault check) and
-//! `tuning.rs` (every tuning constant, with its unit and its reason; re-exported here).
+//! every run builds afresh), `reset.rs`, `self_test.rs`, `faults.rs` (every fault check),
+//! `supply.rs` (the measured supply and what it does to the duty) and `tuning.rs` (every tuning
+//! constant, with its unit and its reason; re-exported here).
 //!
 //! # Angles, torque and direction
 //!
@@ -33,8 +34,14 @@
 //!
 //! # Torque from duty
 //!
-//! Output torque is linear in duty at standstill: duty = breakaway + τ / torque_per_duty, where
-//! `breakaway_duty` covers the gearbox's friction. Back-EMF lowers the torque while the hub turns
+//! Output torque is linear in duty × supply at standstill: duty = (breakaway + τ /
+//! torque_per_duty) × V_ref / V_supply, where `breakaway_duty` covers the gearbox's friction and
+//! both calibration figures are at the reference supply V_ref =
+//! [`REFERENCE_SUPPLY_V`](kerfmeter_protocol::REFERENCE_SUPPLY_V) (12 V). V_supply is the measured
+//! motor supply, filtered, or V_ref where it is not measured: see `supply.rs` for the filter, the
+//! rated range, the refusal of a run whose torque is out of reach (`SupplyTooLow`) and what a
+//! supply sagging mid-run does (the torque is held to what full duty delivers, and the result
+//! flagged `SUPPLY_LIMITED`). Back-EMF lowers the torque while the hub turns
 //! (by ke·N·ω/Vs of duty); it is deliberately *not* compensated: the kerf is read at a jam, at
 //! standstill, where back-EMF is zero and the duty-derived torque is exact; while the inset turns
 //! a lower torque only slows the approach, and the ramp's speed limit keeps it slow anyway.
@@ -50,8 +57,9 @@
 //! - **Ramping**: torque rises at `ramp_rate_nm_per_s`, never above τ(θs) = (2π − 2θs)·r²·L·F/A_j
 //!   for the inset angle θs of the current hub angle (the torque that presses the inset as hard
 //!   as the joint is pressed by F), nor above `max_torque_nm` (the result is then flagged
-//!   `TORQUE_LIMITED`), and is eased off when the hub turns faster than [`MAX_TURN_SPEED_DEG_PER_S`]
-//!   so that the inset never slams into the jam.
+//!   `TORQUE_LIMITED`), nor above what full duty gives at the measured supply (flagged
+//!   `SUPPLY_LIMITED`), and is eased off when the hub turns faster than
+//!   [`MAX_TURN_SPEED_DEG_PER_S`] so that the inset never slams into the jam.
 //! - **Jam**: the angle's change over a [`JAM_WINDOW_TICKS`]-tick regression stays within
 //!   [`JAM_STILL_LSB`] encoder LSB for [`JAM_SETTLE_TICKS`] ticks, with the torque at its target
 //!   (above breakaway) and the inset past [`JAM_MIN_INSET_DEG`]. Then the torque is held for
@@ -100,7 +108,9 @@
 //! rest they are *conditions* ([`Controller::conditions`], reported in `Status`), updated every
 //! tick and cleared when they go away: they latch nothing, so the device stays configurable
 //! and `ClearFault` does not re-latch at once, but they refuse `Run`, `Reset` and `SelfTest`
-//! with `ErrorCode::Blocked` (a latched fault is reported first, as `Faulted`).
+//! with `ErrorCode::Blocked` (a latched fault is reported first, as `Faulted`). A measured supply
+//! outside the rated 9–26 V is a condition too, judged at rest only, and latches nothing during
+//! a run (see `supply.rs`).
 
 use kerfmeter_protocol::{
     Conditions, DeviceConfig, ErrorCode, Fault, JamDirection, KerfResult, RunParams, RunState,
@@ -117,6 +127,7 @@ mod faults;
 mod reset;
 mod run;
 mod self_test;
+mod supply;
 #[cfg(test)]
 mod tests;
 mod timing;
@@ -124,6 +135,8 @@ mod tuning;
 
 use run::Run;
 use self_test::SelfTestPhase;
+use supply::SupplyFilter;
+pub use supply::{SUPPLY_FILTER_GAIN, SUPPLY_SENSE_TOLERANCE};
 use timing::Pacing;
 pub use timing::TickTiming;
 pub use tuning::*;
@@ -166,8 +179,9 @@ pub struct Inputs {
     /// The driver's FLT line is low.
     pub driver_fault: bool,
     /// Motor supply (the G2's `VIN`), volts, as the supply-sense divider and ADC measure it
-    /// (`board::supply`); `None` where it is not measured. Reported in `Status` as last seen: the
-    /// board binary does not wire the ADC channel so far, and the digital twin measures it.
+    /// (`board::supply`); `None` where it is not measured (the board binary does not wire the
+    /// ADC channel so far; the digital twin measures it). Filtered, it scales the duty and is
+    /// reported in `Status` (see `supply.rs`, and "Torque from duty" above).
     pub supply_v: Option<f32>,
 }
 
@@ -247,8 +261,8 @@ pub struct Controller {
     last_diagnostics: Option<DiagnosticsReading>,
     /// The idle conditions as of the last tick (see [`Controller::conditions`]).
     conditions: Conditions,
-    /// The motor supply the last tick saw, volts.
-    supply_v: Option<f32>,
+    /// The motor supply, filtered, and the duty scale it gives.
+    supply: SupplyFilter,
     /// The last run's samples (kept outside [`Run`]: 24 KiB are cleared, not rebuilt).
     log: SampleLog<{ MAX_SAMPLES as usize }>,
     result: Option<KerfResult>,
@@ -276,7 +290,7 @@ impl Controller {
             consecutive_encoder_errors: 0,
             last_diagnostics: None,
             conditions: Conditions::empty(),
-            supply_v: None,
+            supply: SupplyFilter::new(),
             log: SampleLog::new(),
             result: None,
             self_test: None,
@@ -370,7 +384,7 @@ impl Controller {
             angle_deg: self.angle_deg,
             samples: self.log.len() as u16,
             encoder_errors: self.run.encoder_errors,
-            supply_v: self.supply_v,
+            supply_v: self.supply.supply_v(),
             longest_step_us: saturate_u32(self.timing.longest_step_us()),
             longest_gap_us: saturate_u32(self.timing.longest_gap_us()),
             conditions: self.conditions,
@@ -470,7 +484,7 @@ impl Controller {
         self.timing.started(now_us);
 
         let fresh = self.read_angle(inputs);
-        self.supply_v = inputs.supply_v;
+        self.supply.update(inputs.supply_v);
         self.update_conditions(inputs);
         if let Some(fault) = self.check_faults(now_us, inputs, pace.overrun) {
             self.latch(fault);
@@ -577,8 +591,9 @@ impl Controller {
             // Active but no torque wanted: brake (both low-side switches on) rather than coast.
             return MotorOutput::BRAKE;
         }
-        let duty =
+        let reference_duty =
             self.config.breakaway_duty + self.torque_nm.abs() / self.config.torque_per_duty_nm;
+        let duty = reference_duty * self.supply.duty_scale();
         let clockwise = self.jam_frame(self.torque_nm) > 0.0;
         MotorOutput {
             duty: duty.min(1.0),

@@ -6,6 +6,7 @@ use kerfmeter_protocol::{
     ErrorCode, KerfResult, QualityFlags, RunParams, START_TOLERANCE_DEG, Sample,
 };
 
+use super::supply::{millivolts, needed_supply_v};
 use super::{
     Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS,
     JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_TURN_SPEED_DEG_PER_S, Motion,
@@ -83,12 +84,15 @@ impl Controller {
     /// Start a measurement with `params` (`Run`). Refused while a run, reset or self-test is in
     /// progress (`Busy`), with a fault latched (`Faulted`), while a blocking idle condition
     /// stands (`Blocked`), with an invalid parameter
-    /// (`InvalidParam`), and unless the hub stands within [`START_TOLERANCE_DEG`] of zero
-    /// (`NotAtZero`). A refused run leaves the last result and samples as they were; one refused
-    /// as not at zero has already switched the jam frame to the new gauge's sense.
+    /// (`InvalidParam`), when the measured supply cannot deliver the run's torque
+    /// (`SupplyTooLow`, [`Controller::check_supply_for`]), and unless the hub stands within
+    /// [`START_TOLERANCE_DEG`] of zero (`NotAtZero`). A refused run leaves the last result and
+    /// samples as they were; one refused as not at zero has already switched the jam frame to the
+    /// new gauge's sense.
     pub fn start_run(&mut self, params: &RunParams) -> Result<(), ErrorCode> {
         self.refuse_unless_ready()?;
         params.validate().map_err(ErrorCode::InvalidParam)?;
+        self.check_supply_for(params)?;
         // The gauge's sense defines the jam frame: re-express the angle in the new one.
         let cw = self.angle_deg_cw();
         self.jam_direction = params.gauge.jam_direction;
@@ -108,6 +112,26 @@ impl Controller {
         self.torque_nm = 0.0;
         self.state = State::Engaging;
         Ok(())
+    }
+
+    /// Refuses `params` with `SupplyTooLow` when the most torque the run may ask for (its target
+    /// at the inset's start, where τ(θs) is largest, at most `max_torque_nm`) needs more than full
+    /// duty at the measured supply. Never refused where the supply is not measured (`supply.rs`).
+    pub fn check_supply_for(&self, params: &RunParams) -> Result<(), ErrorCode> {
+        let Some(supply_v) = self.supply.supply_v() else {
+            return Ok(());
+        };
+        let peak_nm =
+            torque_for_force_nm(params, params.target_force_n, 0.0).min(params.max_torque_nm);
+        let needed_v = needed_supply_v(&self.config, peak_nm);
+        if supply_v >= needed_v {
+            Ok(())
+        } else {
+            Err(ErrorCode::SupplyTooLow {
+                supply_mv: millivolts(supply_v),
+                needed_mv: millivolts(needed_v),
+            })
+        }
     }
 
     /// Log this tick of the run.
@@ -138,11 +162,13 @@ impl Controller {
         }
     }
 
-    /// The ramp's ceiling at the current angle, and whether `max_torque_nm` capped it. The
+    /// The ramp's ceiling at the current angle, and the flag to raise if the jam is reached
+    /// under it: `TORQUE_LIMITED` when `max_torque_nm` capped it, `SUPPLY_LIMITED` when full duty
+    /// at the measured supply did (a supply sagging under load, `supply.rs`). The
     /// inset angle comes from one step of the kerf solve a tick, from the last tick's kerf: a
     /// full solve is four or five `asinf`s, and the hub moves at most 0.09° a tick, which the
     /// step follows to within 0.002° of the solved inset (an error of 2e-5 in the target torque).
-    fn ramp_target_nm(&mut self) -> (f32, bool) {
+    fn ramp_target_nm(&mut self) -> (f32, QualityFlags) {
         let step = kerf_step(
             &self.run.params.gauge,
             self.angle_deg,
@@ -152,10 +178,13 @@ impl Controller {
         let params = &self.run.params;
         let inset = step.inset_deg.max(0.0);
         let target = torque_for_force_nm(params, params.target_force_n, inset);
-        if target > params.max_torque_nm {
-            (params.max_torque_nm, true)
+        let full_duty_nm = self.supply.full_duty_torque_nm(&self.config);
+        if target.min(params.max_torque_nm) > full_duty_nm {
+            (full_duty_nm.max(0.0), QualityFlags::SUPPLY_LIMITED)
+        } else if target > params.max_torque_nm {
+            (params.max_torque_nm, QualityFlags::TORQUE_LIMITED)
         } else {
-            (target, false)
+            (target, QualityFlags::empty())
         }
     }
 
@@ -176,9 +205,7 @@ impl Controller {
             self.run.still_ticks = 0;
         }
         if self.run.still_ticks >= JAM_SETTLE_TICKS {
-            if limited {
-                self.run.flags.insert(QualityFlags::TORQUE_LIMITED);
-            }
+            self.run.flags.insert(limited);
             self.run.hold.clear();
             self.state = State::Jammed {
                 torque_nm: self.torque_nm,

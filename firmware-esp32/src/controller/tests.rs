@@ -1,7 +1,9 @@
 //! Every state transition and every fault, with scripted inputs (the twin covers them with
 //! physics in `tests/twin_runs.rs`).
 
-use kerfmeter_protocol::{Conditions, DeviceConfig, ErrorCode, Fault, RunParams, RunState};
+use kerfmeter_protocol::{
+    Conditions, DeviceConfig, ErrorCode, Fault, KerfResult, QualityFlags, RunParams, RunState,
+};
 
 use super::*;
 use kerfmeter_protocol::spiral::kerf_from_angle;
@@ -11,6 +13,8 @@ struct Script {
     c: Controller,
     now_us: u64,
     angle_deg: f32,
+    /// The supply reading every tick gets (`None`: not measured).
+    supply_v: Option<f32>,
 }
 
 impl Script {
@@ -19,6 +23,7 @@ impl Script {
             c: Controller::new(DeviceConfig::DEFAULT),
             now_us: 0,
             angle_deg: 0.0,
+            supply_v: None,
         };
         s.tick();
         s
@@ -30,7 +35,7 @@ impl Script {
             diagnostics: None,
             current_a: Some(0.5),
             driver_fault: false,
-            supply_v: None,
+            supply_v: self.supply_v,
         }
     }
 
@@ -304,9 +309,163 @@ fn status_reports_the_supply_and_the_tick_timing() {
     s.tick();
     assert_eq!(
         s.c.status().supply_v,
-        None,
-        "the last tick's, not a stale one"
+        Some(11.5),
+        "a tick without a reading keeps the filtered supply"
     );
+}
+
+/// A script on a supply of `supply_v`, the filter settled on it.
+fn on_supply(supply_v: f32) -> Script {
+    let mut s = Script::new();
+    s.supply_v = Some(supply_v);
+    s.tick();
+    s
+}
+
+/// The hub scripted to turn 0.06°/tick while driven, until it jams at `jam_deg`; then
+/// `at_ramp` is called on the first ramping tick. The run's last output and its result.
+fn scripted_run(
+    s: &mut Script,
+    params: RunParams,
+    jam_deg: f32,
+    mut at_ramp: impl FnMut(&mut Script),
+) -> Option<KerfResult> {
+    s.start(params);
+    let mut ramping = false;
+    for _ in 0..5000 {
+        if s.angle_deg < jam_deg && s.c.torque_nm > 0.0 {
+            s.angle_deg += 0.06;
+        }
+        s.tick();
+        if !ramping && s.state() == RunState::Ramping {
+            ramping = true;
+            at_ramp(s);
+        }
+        if s.state() == RunState::Done {
+            break;
+        }
+    }
+    s.c.result().copied()
+}
+
+#[test]
+fn the_duty_is_scaled_by_the_measured_supply() {
+    // The same scripted engage on each supply: the same torque, so the same duty × supply.
+    let drive = |supply_v: Option<f32>| {
+        let mut s = Script::new();
+        s.supply_v = supply_v;
+        s.tick();
+        // A cap that 9 V can deliver (the default's 0.8 N·m needs 11.4 V).
+        s.start(RunParams {
+            max_torque_nm: 0.6,
+            ..RunParams::DEFAULT
+        });
+        let mut out = MotorOutput::SAFE;
+        for _ in 0..60 {
+            out = s.tick();
+        }
+        assert!(out.awake && out.duty > 0.05, "{out:?}");
+        out.duty
+    };
+    let unmeasured = drive(None);
+    assert_eq!(
+        drive(Some(12.0)),
+        unmeasured,
+        "the reference supply: unscaled"
+    );
+    for supply_v in [9.0, 24.0, 26.0] {
+        let duty = drive(Some(supply_v));
+        assert!(
+            (duty * supply_v - unmeasured * 12.0).abs() < 1e-4,
+            "{supply_v} V: duty {duty} vs {unmeasured} at 12 V"
+        );
+    }
+}
+
+#[test]
+fn a_run_whose_torque_the_supply_cannot_deliver_is_refused_with_the_figures() {
+    // The default run may ask for 0.8 N·m (its cap): 0.04 + 0.8/0.88 of full duty at 12 V,
+    // which needs 11.39 V.
+    let mut s = on_supply(10.0);
+    assert_eq!(
+        s.host().start_run(&RunParams::DEFAULT),
+        Err(ErrorCode::SupplyTooLow {
+            supply_mv: 10_000,
+            needed_mv: 11_389,
+        })
+    );
+    assert_eq!(s.state(), RunState::Idle);
+    assert!(s.tick().is_safe(), "the motor did not move");
+    // A cap the supply can deliver, or a supply that delivers the cap, runs.
+    let capped = RunParams {
+        max_torque_nm: 0.6,
+        ..RunParams::DEFAULT
+    };
+    s.start(capped);
+    let mut s = on_supply(11.4);
+    s.start(RunParams::DEFAULT);
+    // Not measured: never refused for the supply.
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+}
+
+#[test]
+fn a_supply_outside_the_rated_range_at_rest_blocks_without_latching() {
+    for bad_v in [8.5, 27.0] {
+        // (Beyond the range by more than the sense's 3 % tolerance.)
+        let mut s = on_supply(bad_v);
+        let blocked = Err(ErrorCode::Blocked(Conditions::SUPPLY_OUT_OF_RANGE));
+        assert_eq!(s.c.status().conditions, Conditions::SUPPLY_OUT_OF_RANGE);
+        assert_eq!(s.host().start_run(&RunParams::DEFAULT), blocked);
+        assert_eq!(s.host().start_reset(), blocked);
+        assert_eq!(s.host().start_self_test(), blocked);
+        assert_eq!(s.host().set_config(DeviceConfig::DEFAULT), Ok(()));
+        assert_eq!(s.state(), RunState::Idle, "nothing latched");
+        // Back in range: the condition goes once the filter has followed.
+        s.supply_v = Some(12.0);
+        for _ in 0..300 {
+            s.tick();
+        }
+        assert_eq!(s.c.status().conditions, Conditions::empty(), "{bad_v} V");
+        s.start(RunParams::DEFAULT);
+    }
+}
+
+#[test]
+fn a_supply_sagging_mid_run_holds_the_torque_to_full_duty_and_flags_the_result() {
+    // Healthy: no flag, the jam at the target force.
+    let mut s = on_supply(12.0);
+    let healthy = scripted_run(&mut s, RunParams::DEFAULT, 60.0, |_| {}).unwrap();
+    assert!(healthy.flags.is_empty(), "{:?}", healthy.flags);
+    assert!((healthy.force_at_jam_n - 55.0).abs() < 0.5);
+    // The supply sags to 8.5 V as the ramp starts: no fault and no condition (the run goes on),
+    // but full duty gives only (8.5/12 − 0.04) × 0.88 = 0.588 N·m, less than the 0.635 N·m the
+    // jam at 60° needs.
+    let mut s = on_supply(12.0);
+    let mut duties = Vec::new();
+    let sagged = scripted_run(&mut s, RunParams::DEFAULT, 60.0, |s| s.supply_v = Some(8.5));
+    for _ in 0..3 {
+        duties.push(s.tick().duty);
+    }
+    let sagged = sagged.unwrap();
+    assert!(
+        sagged.flags.contains(QualityFlags::SUPPLY_LIMITED),
+        "{:?}",
+        sagged.flags
+    );
+    assert!(!sagged.flags.contains(QualityFlags::TORQUE_LIMITED));
+    let full_duty_nm = (8.5 / 12.0 - 0.04) * 0.88;
+    assert!(
+        (sagged.torque_at_jam_nm - full_duty_nm).abs() < 0.005,
+        "{sagged:?}"
+    );
+    assert!(sagged.force_at_jam_n < 52.0, "{sagged:?}");
+    assert_eq!(
+        s.c.status().conditions,
+        Conditions::SUPPLY_OUT_OF_RANGE,
+        "at rest again"
+    );
+    assert!(duties.iter().all(|d| *d == 0.0), "done: safe");
 }
 
 #[test]
@@ -387,7 +546,10 @@ fn late_tick(s: &mut Script, late_us: u64, deg_per_tick: f32) {
 
 /// A scripted run: the hub turns 0.06° a period until it jams at 60°; `late` may put in a late
 /// tick (it gets the script and the tick count). The run's end: its result or its fault.
-fn scripted_run(s: &mut Script, mut late: impl FnMut(&mut Script, u32)) -> Result<f32, Fault> {
+fn run_with_late_steps(
+    s: &mut Script,
+    mut late: impl FnMut(&mut Script, u32),
+) -> Result<f32, Fault> {
     s.start(RunParams::DEFAULT);
     for tick in 0..5000 {
         let deg_per_tick = if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
@@ -422,10 +584,10 @@ fn a_late_step_in_idle_is_harmless() {
 #[test]
 fn a_single_late_step_is_ridden_through_without_a_kick() {
     let mut s = Script::new();
-    let on_time = scripted_run(&mut s, |_, _| {}).unwrap();
+    let on_time = run_with_late_steps(&mut s, |_, _| {}).unwrap();
     let mut s = Script::new();
     let mut seen = None;
-    let late = scripted_run(&mut s, |s, tick| {
+    let late = run_with_late_steps(&mut s, |s, tick| {
         if tick == 300 {
             assert_eq!(s.state(), RunState::Ramping);
             let before_nm = s.c.torque_nm;
@@ -455,7 +617,7 @@ fn a_single_late_step_is_ridden_through_without_a_kick() {
 #[test]
 fn a_step_after_a_longer_gap_is_an_overrun() {
     let mut s = Script::new();
-    let end = scripted_run(&mut s, |s, tick| {
+    let end = run_with_late_steps(&mut s, |s, tick| {
         if tick == 300 {
             late_tick(s, MAX_GAP_PERIODS * PERIOD_US, 0.06);
         }
@@ -468,7 +630,7 @@ fn a_step_after_a_longer_gap_is_an_overrun() {
 fn frequent_late_steps_are_an_overrun() {
     // A step 5 ms late every 30 ms: each one alone would be ridden through.
     let mut s = Script::new();
-    let end = scripted_run(&mut s, |s, tick| {
+    let end = run_with_late_steps(&mut s, |s, tick| {
         if tick % 30 == 29 {
             late_tick(s, 5 * PERIOD_US, 0.06);
         }
@@ -476,7 +638,7 @@ fn frequent_late_steps_are_an_overrun() {
     assert_eq!(end, Err(Fault::StepOverrun));
     // One every 100 ms is rare: the run ends with its result.
     let mut s = Script::new();
-    let end = scripted_run(&mut s, |s, tick| {
+    let end = run_with_late_steps(&mut s, |s, tick| {
         if tick % 100 == 99 {
             late_tick(s, 5 * PERIOD_US, 0.0);
         }

@@ -174,7 +174,9 @@ pub const SELFTEST_DIRECTION_MIN_DEG: f32 = 1.0;
 /// Self-test: settling time before the torque-constant pulse, ticks, so that the pulse starts from
 /// standstill.
 pub const SELFTEST_SETTLE_TICKS: u32 = 150;
-/// Self-test: duty of the torque-constant pulse (from standstill).
+/// Self-test: duty of the torque-constant pulse (from standstill), at the reference supply (12 V):
+/// scaled by the measured supply like every duty, so the pulse draws the same current, and gives
+/// the same estimate, on any supply.
 pub const SELFTEST_PULSE_DUTY: f32 = 0.3;
 /// Self-test: torque-constant pulse length, ticks (current is averaged over the first ones, before
 /// the hub has built up speed and back-EMF).

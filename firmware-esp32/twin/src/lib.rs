@@ -50,7 +50,7 @@
 //!   drifts through the period; an optional RC filter on the pin; gain error, noise, the 1 mV
 //!   steps of the calibrated ADC and the firmware's own mV→A conversion.
 //! - The supply sense: the bus through a divider into the ADC, with gain error, noise and 1 mV
-//!   steps (handed to the firmware, which does not use it yet).
+//!   steps (handed to the firmware, which scales the duty by it).
 //! - The configuration flash: NOR rules (erase to 0xFF, writes only clear bits), kept across a
 //!   reboot, opened at boot under the board's partition policy. Erases and writes take their
 //!   time (`flash_erase_ms`, `flash_write_ms`), stalling the core: no tick runs meanwhile.

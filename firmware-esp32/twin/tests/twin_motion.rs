@@ -153,12 +153,21 @@ fn a_motor_shaft_encoders_settings_change_only_at_zero() {
 }
 
 /// `kerfmeter run --samples 3` on a weak motor: reset, run, three times; every reset must end at
-/// zero (not `ResetFailed`) and every run in a result.
+/// zero (not `ResetFailed`) and every run in a result. On 9 V the runs ask for no more torque
+/// than 9 V gives (the default's 0.8 N·m cap needs 11.4 V: refused with `SupplyTooLow`).
 fn three_gauges(plant: PlantParams, seed: u64) {
+    let params = if plant.supply_v < 11.0 {
+        RunParams {
+            max_torque_nm: 0.6,
+            ..RunParams::DEFAULT
+        }
+    } else {
+        RunParams::DEFAULT
+    };
     let mut t = twin(plant, seed);
     for gauge in 0..3 {
         reset(&mut t).unwrap_or_else(|f| panic!("reset before gauge {gauge}: {f:?}"));
-        measure(&mut t, &RunParams::DEFAULT).unwrap_or_else(|f| panic!("gauge {gauge}: {f:?}"));
+        measure(&mut t, &params).unwrap_or_else(|f| panic!("gauge {gauge}: {f:?}"));
     }
     reset(&mut t).unwrap_or_else(|f| panic!("last reset: {f:?}"));
 }

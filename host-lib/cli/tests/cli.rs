@@ -353,9 +353,9 @@ fn status_reports_state_conditions_supply_and_timing_as_text_and_json() {
     assert!(status["longest_step_us"].is_u64(), "{status}");
 }
 
-/// A motor supply under the driver's under-voltage lockout holds FLT low from boot: an idle
-/// condition, shown by `status`, that refuses a run with a typed error (exit 4) and latches
-/// nothing, so the device stays configurable.
+/// A motor supply under the driver's under-voltage lockout holds FLT low from boot, and is below
+/// the rated 9 V: two idle conditions, shown by `status`, that refuse a run with a typed error
+/// (exit 4) and latch nothing, so the device stays configurable.
 #[test]
 fn a_supply_below_the_driver_lockout_blocks_a_run_but_not_the_configuration() {
     let low = [
@@ -370,7 +370,8 @@ fn a_supply_below_the_driver_lockout_blocks_a_run_but_not_the_configuration() {
     let out = with(&["--json", "status"]);
     let status: serde_json::Value = serde_json::from_str(&stdout(&out)).expect("JSON");
     assert_eq!(status["state"], "idle", "{status}");
-    assert_eq!(status["conditions"], serde_json::json!(["driver-fault"]));
+    let both = serde_json::json!(["driver-fault", "supply-out-of-range"]);
+    assert_eq!(status["conditions"], both);
 
     let out = with(&["run"]);
     assert_eq!(code(&out), 4);
@@ -378,13 +379,68 @@ fn a_supply_below_the_driver_lockout_blocks_a_run_but_not_the_configuration() {
     assert!(message.contains("refused Run"), "{message}");
     assert!(message.contains("motor supply"), "{message}");
     assert!(message.contains("Nothing is latched"), "{message}");
+    assert!(message.contains("outside the rated 9–26 V"), "{message}");
 
     let out = with(&["--json", "run"]);
     assert_eq!(code(&out), 4);
     let error: serde_json::Value = serde_json::from_str(stdout(&out).trim()).unwrap();
     assert_eq!(error["fault"], serde_json::Value::Null, "{error}");
-    assert_eq!(error["conditions"], serde_json::json!(["driver-fault"]));
+    assert_eq!(error["conditions"], both);
 
     let out = with(&["config", "set", "--max-current-a", "4"]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));
+}
+
+/// On 9 V the default run's torque cap (0.8 N·m) is out of reach: `run` is refused before the
+/// motor moves, with the supply, the supply needed and what to do; a lower force (35 N: 0.58
+/// N·m at most, which 8.4 V gives) runs.
+#[test]
+fn a_run_the_supply_cannot_drive_is_refused_with_the_figures() {
+    let out = kerfmeter(&["--sim", "--sim-plant", "supply_v=9", "run"]);
+    assert_eq!(code(&out), 4, "{}", stderr(&out));
+    let message = stderr(&out);
+    for part in [
+        "refused Run",
+        "measures 9.",
+        "needs 11.",
+        "did not move",
+        "--force-n",
+    ] {
+        assert!(message.contains(part), "{part:?} in {message}");
+    }
+    let out = kerfmeter(&[
+        "--sim",
+        "--sim-plant",
+        "supply_v=9",
+        "run",
+        "--force-n",
+        "35",
+    ]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+}
+
+#[test]
+fn info_shows_the_measured_supply_as_text_and_json() {
+    let out = kerfmeter(&["--sim", "--sim-plant", "supply_v=24", "info"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(stdout(&out).contains("supply:     24."), "{}", stdout(&out));
+    let out = kerfmeter(&["--sim", "--sim-plant", "supply_v=24", "--json", "info"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let info: serde_json::Value = serde_json::from_str(&stdout(&out)).expect("JSON");
+    let supply_v = info["supply_v"].as_f64().expect("the twin measures it");
+    assert!((23.5..24.7).contains(&supply_v), "{info}");
+    assert_eq!(
+        info["hardware"]["board"], "twin",
+        "DeviceInfo's own fields stand: {info}"
+    );
+    assert!(info["protocol"]["major"].is_u64(), "{info}");
+}
+
+#[test]
+fn config_help_says_the_torque_calibration_is_at_the_reference_supply() {
+    let out = kerfmeter(&["config", "set", "--help"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let help = stdout(&out);
+    let reference = format!("{} V supply", kerfmeter::protocol::REFERENCE_SUPPLY_V);
+    assert_eq!(help.matches(&reference).count(), 2, "{help}");
 }

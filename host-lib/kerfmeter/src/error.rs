@@ -1,6 +1,8 @@
 //! Host-side errors: every failure a caller can meet, each with a message that says what to do.
 
-use kerfmeter_protocol::{Conditions, ErrorCode, Fault, ProtocolVersion};
+use kerfmeter_protocol::{
+    Conditions, ErrorCode, Fault, ProtocolVersion, REFERENCE_SUPPLY_V, SUPPLY_MAX_V, SUPPLY_MIN_V,
+};
 
 /// Result of every fallible call of this crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -212,7 +214,26 @@ pub fn describe_error_code(code: ErrorCode) -> String {
             "{}. Nothing is latched: fix it and try again (`kerfmeter status` shows the conditions)",
             describe_conditions(conditions)
         ),
+        ErrorCode::SupplyTooLow {
+            supply_mv,
+            needed_mv,
+        } => describe_supply_too_low(supply_mv, needed_mv),
     }
+}
+
+/// The sentence for `ErrorCode::SupplyTooLow`: the figures, and the two ways out.
+fn describe_supply_too_low(supply_mv: u16, needed_mv: u16) -> String {
+    let (supply_v, needed_v) = (f32::from(supply_mv) / 1000.0, f32::from(needed_mv) / 1000.0);
+    let raise = if needed_v <= SUPPLY_MAX_V {
+        format!("use a motor supply of at least {needed_v:.1} V (rated up to {SUPPLY_MAX_V} V)")
+    } else {
+        format!(
+            "no supply within the rated {SUPPLY_MIN_V}–{SUPPLY_MAX_V} V can: check the torque calibration (`kerfmeter config get`, given at {REFERENCE_SUPPLY_V} V)"
+        )
+    };
+    format!(
+        "the motor supply measures {supply_v:.1} V, but the most torque this run may ask for needs {needed_v:.1} V at full duty. The motor did not move: {raise}, or measure at a lower joint force (`kerfmeter run --force-n`)"
+    )
 }
 
 /// A sentence for the idle conditions that stand, each with what to do about it.
@@ -241,6 +262,9 @@ fn describe_condition(condition: Conditions) -> &'static str {
         Conditions::ENCODER_UNREADABLE => "the encoder cannot be read; check the encoder wiring",
         Conditions::DRIVER_FAULT => {
             "the motor driver reports a fault (FLT low): check that the motor supply is on and above the driver's under-voltage lockout"
+        }
+        Conditions::SUPPLY_OUT_OF_RANGE => {
+            "the motor supply is outside the rated 9–26 V (`kerfmeter status` shows it): use a supply within that range"
         }
         _ => "an unknown condition (a newer firmware?)",
     }
@@ -273,5 +297,46 @@ pub fn describe_fault(fault: Fault) -> &'static str {
         Fault::HostSilent => "the host stopped talking during a run",
         Fault::StepOverrun => "the control loop could not keep its rate",
         Fault::ResetFailed => "the hub did not return to zero: is it blocked?",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_supply_too_low_says_the_figures_and_what_to_do() {
+        let message = describe_error_code(ErrorCode::SupplyTooLow {
+            supply_mv: 9_050,
+            needed_mv: 11_389,
+        });
+        for part in [
+            "measures 9.1 V",
+            "needs 11.4 V",
+            "did not move",
+            "at least 11.4 V",
+            "--force-n",
+        ] {
+            assert!(message.contains(part), "{part:?} in {message}");
+        }
+        // Beyond the rated range no supply helps: say so, and where to look instead.
+        let message = describe_error_code(ErrorCode::SupplyTooLow {
+            supply_mv: 24_000,
+            needed_mv: 30_000,
+        });
+        assert!(message.contains("no supply within the rated"), "{message}");
+        assert!(message.contains("config get"), "{message}");
+    }
+
+    #[test]
+    fn every_condition_has_its_own_sentence() {
+        for (condition, name) in Conditions::NAMES {
+            let sentence = describe_condition(condition);
+            assert!(!sentence.contains("unknown"), "{name}: {sentence}");
+        }
+        let supply = describe_conditions(Conditions::SUPPLY_OUT_OF_RANGE);
+        assert!(supply.contains("9–26 V"), "{supply}");
+        let blocked = describe_error_code(ErrorCode::Blocked(Conditions::SUPPLY_OUT_OF_RANGE));
+        assert!(blocked.contains("motor supply is outside"), "{blocked}");
     }
 }

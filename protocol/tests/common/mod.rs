@@ -109,6 +109,10 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         Just(ErrorCode::Storage),
         Just(ErrorCode::NotAtZero),
         any::<u16>().prop_map(|c| ErrorCode::Blocked(Conditions(c))),
+        (any::<u16>(), any::<u16>()).prop_map(|(supply_mv, needed_mv)| ErrorCode::SupplyTooLow {
+            supply_mv,
+            needed_mv
+        }),
     ]
 }
 

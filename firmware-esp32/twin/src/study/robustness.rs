@@ -43,7 +43,7 @@
 
 use std::collections::BTreeMap;
 
-use kerfmeter_protocol::{DeviceConfig, ParamField, QualityFlags, RunParams};
+use kerfmeter_protocol::{DeviceConfig, ErrorCode, ParamField, QualityFlags, RunParams};
 
 use super::{Outcome, configure, mean_sd, measure, quantile, stream};
 use crate::plant::{PARAMS, ParamSpec, PlantParams};
@@ -346,6 +346,11 @@ pub fn failure_name(outcome: &Outcome) -> Option<String> {
     Some(match outcome {
         Outcome::Reading { .. } => return None,
         Outcome::Fault { phase, fault } => format!("fault {fault:?} ({})", phase.name()),
+        // The figures of a supply refusal differ from draw to draw: counted by kind.
+        Outcome::Refused {
+            phase,
+            code: ErrorCode::SupplyTooLow { .. },
+        } => format!("refused SupplyTooLow ({})", phase.name()),
         Outcome::Refused { phase, code } => format!("refused {code:?} ({})", phase.name()),
         Outcome::NoEnd { phase, state } => format!("no end ({}, {state:?})", phase.name()),
         Outcome::Unexpected { phase, .. } => format!("unexpected answer ({})", phase.name()),

@@ -3,7 +3,7 @@
 use std::fmt;
 
 use clap::{Args, Subcommand};
-use kerfmeter::protocol::{ConfigReport, DeviceConfig, EncoderPlacement};
+use kerfmeter::protocol::{ConfigReport, DeviceConfig, EncoderPlacement, REFERENCE_SUPPLY_V};
 use serde::Serialize;
 
 use crate::connection::Global;
@@ -14,17 +14,23 @@ use crate::output::{JsonLayout, Report};
 pub enum ConfigCommand {
     /// Print the configuration and whether it is the default.
     Get,
-    /// Change some values; the others stay as they are.
+    /// Change some values; the others stay as they are. The torque calibration
+    /// (--torque-per-duty-nm, --breakaway-duty) is given at the reference supply, 12 V, whatever
+    /// the supply: the device scales the duty by the supply it measures.
     Set(ConfigSet),
 }
 
 #[derive(Args)]
 pub struct ConfigSet {
-    /// Output torque at full duty and standstill, N·m.
-    #[arg(long)]
+    #[arg(long, help = format!(
+        "Output torque at full duty and standstill on a {REFERENCE_SUPPLY_V} V supply (the \
+         reference), N·m; measured at V volts, give it × {REFERENCE_SUPPLY_V} / V"
+    ))]
     torque_per_duty_nm: Option<f32>,
-    /// Duty (0–0.5) below which the gearbox does not move.
-    #[arg(long)]
+    #[arg(long, help = format!(
+        "Duty (0–0.5) below which the gearbox does not move, on a {REFERENCE_SUPPLY_V} V supply \
+         (the reference); measured at V volts, give it × V / {REFERENCE_SUPPLY_V}"
+    ))]
     breakaway_duty: Option<f32>,
     /// Raw encoder reading (0–16383) at the hub's zero position.
     #[arg(long)]

@@ -1,4 +1,6 @@
-//! `kerfmeter info`: the device's protocol and firmware versions, boot id and hardware constants.
+//! `kerfmeter info`: the device's protocol and firmware versions, boot id and hardware constants,
+//! and its measured motor supply. `DeviceInfo` is frozen by design (the protocol's variant 0), so
+//! the supply, a measurement, comes from a `GetStatus` asked right after it.
 
 use std::fmt;
 
@@ -9,24 +11,30 @@ use crate::connection::Global;
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 
-/// The device's identity; its JSON is the device's own [`DeviceInfo`].
+/// The device's identity; its JSON is the device's own [`DeviceInfo`] with `supply_v` beside
+/// its fields.
 #[derive(Serialize)]
-#[serde(transparent)]
 pub struct InfoReport {
     /// The port the device answered on (text only).
     #[serde(skip)]
     pub port: String,
     /// What the device said.
+    #[serde(flatten)]
     pub info: DeviceInfo,
+    /// The motor supply the device measures, V (`Status.supply_v`, filtered; `null` where the
+    /// board does not measure it).
+    pub supply_v: Option<f32>,
 }
 
-/// Ask the device who it is.
+/// Ask the device who it is, and what supply it measures.
 pub fn run(g: &Global) -> Result<InfoReport, CliError> {
     let mut s = g.connect()?;
     let info = s.meter.info()?;
+    let supply_v = s.meter.status()?.supply_v;
     Ok(InfoReport {
         port: s.meter.path().to_string(),
         info,
+        supply_v,
     })
 }
 
@@ -43,7 +51,11 @@ impl fmt::Display for InfoReport {
         writeln!(f, "control:    {} Hz", h.control_rate_hz)?;
         writeln!(f, "encoder:    {} bit", h.encoder_bits)?;
         writeln!(f, "pwm:        {} bit", h.pwm_bits)?;
-        write!(f, "sample log: {} samples", h.max_samples)
+        writeln!(f, "sample log: {} samples", h.max_samples)?;
+        match self.supply_v {
+            Some(v) => write!(f, "supply:     {v:.2} V"),
+            None => write!(f, "supply:     not measured"),
+        }
     }
 }
 
