@@ -156,9 +156,11 @@ pub struct Inputs {
     pub angle_deg: Result<f32, EncoderFault>,
     /// The encoder diagnostics, on the ticks they were read.
     pub diagnostics: Option<Result<DiagnosticsReading, DiagnosticFault>>,
-    /// Motor current magnitude, A; `None` when it is unknown (the current sense has no fresh
-    /// reading). An unknown current cannot be shown to be within `max_current_a`, so it faults
-    /// with `OverCurrent` like a current above it.
+    /// Motor current magnitude, A: the current in the winding (the RC-filtered current sense
+    /// divided by the duty filtered alike, `board::current`), not the `CS` pin's pulsed reading;
+    /// `None` when it is unknown (no fresh reading, or one clipped at the ADC's range). An
+    /// unknown current cannot be shown to be within `max_current_a`, so it faults with
+    /// `OverCurrent` like a current above it.
     pub current_a: Option<f32>,
     /// The driver's FLT line is low.
     pub driver_fault: bool,

@@ -1,23 +1,50 @@
 //! The self-test, with no gauge under the prongs: encoder reads with the motor off (and the
 //! magnet's field from the diagnostics), the drive direction, and an estimate of the torque
 //! constant from the current drawn by a short pulse from standstill.
+//!
+//! # The torque constant
+//!
+//! At standstill the winding draws i = D·V/R, so the output torque per duty at the reference
+//! supply is `torque_per_amp_nm` · i / D · V_ref / V. The pulse runs at [`SELFTEST_PULSE_DUTY`]
+//! from standstill (after [`SELFTEST_SETTLE_TICKS`] of braking, in which the current sense also
+//! learns its offset). The motor current comes from the RC-filtered current sense divided by the
+//! duty filtered alike (`board::current`), read one conversion behind: the reading of the pulse's
+//! tick *j* is the filter's state at tick *j* − 1. So the first reading with the pulse in it is
+//! tick 2's, and it is already right (both filters saw the same first millisecond). The
+//! readings of [`PULSE_AVERAGED`] ticks are averaged, with the supply over the same ticks: enough
+//! readings to average the ADC's 1 mV step (0.17 A of motor current at 30 % duty) and its noise,
+//! early enough that the free hub's back-EMF has taken little of the current (some 6 % a
+//! millisecond on the reference build, the same at any supply: the hub's acceleration and the
+//! drive voltage both scale with it).
 
 use kerfmeter_protocol::{ErrorCode, SelfTestItem, SelfTestReport, TestOutcome};
 
 use super::{
     Controller, Inputs, SELFTEST_DIRECTION_MIN_DEG, SELFTEST_DIRECTION_TICKS,
     SELFTEST_DIRECTION_TORQUE_NM, SELFTEST_ENCODER_MIN_OK, SELFTEST_ENCODER_TICKS,
-    SELFTEST_PULSE_DUTY, SELFTEST_PULSE_TICKS, SELFTEST_SETTLE_TICKS, SELFTEST_TORQUE_TOLERANCE,
-    State,
+    SELFTEST_PULSE_DUTY, SELFTEST_PULSE_TICKS, SELFTEST_REFERENCE_SUPPLY_V, SELFTEST_SETTLE_TICKS,
+    SELFTEST_TORQUE_TOLERANCE, State,
 };
 
 /// The phases, in order, with their working data.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum SelfTestPhase {
-    Encoder { ticks: u32, ok: u32 },
-    Direction { ticks: u32, start_deg: f32 },
-    Settle { ticks: u32 },
-    Pulse { ticks: u32, current_sum_a: f32 },
+    Encoder {
+        ticks: u32,
+        ok: u32,
+    },
+    Direction {
+        ticks: u32,
+        start_deg: f32,
+    },
+    Settle {
+        ticks: u32,
+    },
+    Pulse {
+        ticks: u32,
+        current_sum_a: f32,
+        supply_sum_v: f32,
+    },
 }
 
 const SKIPPED: SelfTestItem = SelfTestItem {
@@ -33,8 +60,9 @@ pub(super) const NOT_RUN: SelfTestReport = SelfTestReport {
     torque_per_duty_nm: SKIPPED,
 };
 
-/// Pulse ticks whose current is averaged (the first tick's current is from before the pulse).
-const AVERAGED: u32 = 3;
+/// Pulse ticks whose current (and supply) readings are averaged: from the first reading with the
+/// pulse in it (module docs).
+const PULSE_AVERAGED: core::ops::RangeInclusive<u32> = 2..=6;
 
 fn item(pass: bool, value: f32) -> SelfTestItem {
     SelfTestItem {
@@ -83,13 +111,15 @@ impl Controller {
                     Some(SelfTestPhase::Pulse {
                         ticks: 0,
                         current_sum_a: 0.0,
+                        supply_sum_v: 0.0,
                     })
                 }
             }
             SelfTestPhase::Pulse {
                 ticks,
                 current_sum_a,
-            } => self.self_test_pulse(&mut report, ticks, current_sum_a, inputs),
+                supply_sum_v,
+            } => self.self_test_pulse(&mut report, ticks, (current_sum_a, supply_sum_v), inputs),
         };
         self.self_test_partial = report;
         match next {
@@ -147,37 +177,46 @@ impl Controller {
         Some(SelfTestPhase::Settle { ticks: 0 })
     }
 
-    /// Pulse phase: counter-clockwise, bringing the hub back, at exactly the pulse duty; then
-    /// the torque-constant item, and the self-test ends (`None`).
+    /// Pulse phase: counter-clockwise, bringing the hub back, at the pulse duty; the current and
+    /// supply readings summed (`sums`) over [`PULSE_AVERAGED`]; then the torque-constant item,
+    /// and the self-test ends (`None`).
     fn self_test_pulse(
         &mut self,
         report: &mut SelfTestReport,
         ticks: u32,
-        current_sum_a: f32,
+        sums: (f32, f32),
         inputs: &Inputs,
     ) -> Option<SelfTestPhase> {
         let torque =
             (SELFTEST_PULSE_DUTY - self.config.breakaway_duty) * self.config.torque_per_duty_nm;
         self.torque_nm = -self.jam_frame(torque);
-        // The current is known here: an unknown one latched `OverCurrent` before this step
-        // advanced the state.
-        let current_a = inputs.current_a.unwrap_or(0.0);
-        let current_sum_a = if (1..=AVERAGED).contains(&ticks) {
-            current_sum_a + current_a
-        } else {
-            current_sum_a
-        };
+        let (mut current_sum_a, mut supply_sum_v) = sums;
+        if PULSE_AVERAGED.contains(&ticks) {
+            // The current is known here: an unknown one latched `OverCurrent` before this step
+            // advanced the state. An unmeasured supply counts as the reference.
+            current_sum_a += inputs.current_a.unwrap_or(0.0);
+            supply_sum_v += inputs.supply_v.unwrap_or(SELFTEST_REFERENCE_SUPPLY_V);
+        }
         if ticks + 1 < SELFTEST_PULSE_TICKS {
             return Some(SelfTestPhase::Pulse {
                 ticks: ticks + 1,
                 current_sum_a,
+                supply_sum_v,
             });
         }
-        let current_a = current_sum_a / AVERAGED as f32;
-        let estimate = self.config.torque_per_amp_nm * current_a / SELFTEST_PULSE_DUTY;
+        let n = PULSE_AVERAGED.clone().count() as f32;
+        let estimate = self.torque_per_duty_estimate_nm(current_sum_a / n, supply_sum_v / n);
         let relative = (estimate / self.config.torque_per_duty_nm - 1.0).abs();
         report.torque_per_duty_nm = item(relative <= SELFTEST_TORQUE_TOLERANCE, estimate);
         self.torque_nm = 0.0;
         None
+    }
+
+    /// The output torque per duty at the reference supply, N·m, from the pulse's mean current,
+    /// A, at its mean supply, V, and the duty the pulse drives at.
+    fn torque_per_duty_estimate_nm(&self, current_a: f32, supply_v: f32) -> f32 {
+        let duty = self.output().duty.max(f32::EPSILON);
+        let supply_v = supply_v.max(f32::EPSILON);
+        self.config.torque_per_amp_nm * current_a / duty * SELFTEST_REFERENCE_SUPPLY_V / supply_v
     }
 }

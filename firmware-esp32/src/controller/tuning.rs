@@ -130,5 +130,9 @@ pub const SELFTEST_PULSE_DUTY: f32 = 0.3;
 /// the hub has built up speed and back-EMF).
 pub const SELFTEST_PULSE_TICKS: u32 = 20;
 /// Self-test: the estimate passes within this fraction of the configured torque constant (it
-/// rests on three current readings taken as the hub starts to move, so it is rough).
+/// rests on a few filtered current readings taken as the hub starts to move, against the
+/// G2's current-sense gain, known to ±10 %, so it is rough).
 pub const SELFTEST_TORQUE_TOLERANCE: f32 = 0.3;
+/// Self-test: the supply at which the configuration's `torque_per_duty_nm` holds, V (the
+/// reference build's 12 V); the estimate is scaled to it from the measured supply.
+pub const SELFTEST_REFERENCE_SUPPLY_V: f32 = 12.0;

@@ -1,8 +1,12 @@
 //! What the firmware's ADC channels read at each control tick: the G2's current-sense (`CS`)
 //! output as the chip produces it, and the motor supply through its sense divider. Each reading
-//! ends as the board's own conversion would hand it to [`Hardware::tick`]: millivolts on the pin,
-//! quantised to the calibrated ADC's 1 mV, converted by the firmware's `board::current` and
-//! `board::supply` functions.
+//! ends as the board's own conversion would hand it to [`Hardware::tick`]: the `CS` pin's
+//! millivolts, quantised to the calibrated ADC's 1 mV, which the firmware's own conversion
+//! (`board::current`, inside `Hardware::tick`) turns into the motor current; the supply in volts
+//! by the firmware's `board::supply`.
+//!
+//! The twin samples both channels as the board does, one conversion behind: at the end of each
+//! tick, just after the firmware's output was applied, for the next tick to use.
 //!
 //! # Current sense
 //!
@@ -11,7 +15,8 @@
 //! once per control tick, at a phase within the PWM period that drifts by `cs_sample_drift`
 //! periods per tick (the tick's timer and the PWM's are independent), starting at a phase drawn
 //! from the seed. A sample in the drive phase reads |i|, one outside reads about zero. With an RC
-//! filter on the pin (`cs_filter_tau_us` > 0) the sample is the filter's output: its exact
+//! filter on the pin (`cs_filter_tau_us` > 0; by default the board's 10 kΩ and 100 nF, 1 ms) the
+//! sample is the filter's output: its exact
 //! first-order response to the pulse train, advanced in closed form from one sample to the next
 //! (a few exponentials per tick), which tends to D·|i| for a long time constant. The waveform
 //! between two samples is the bridge's state after the plant's last sub-step.
@@ -29,7 +34,7 @@
 //! [`Hardware::tick`]: kerfmeter_firmware::hardware::Hardware::tick
 
 use kerfmeter_firmware::board::current::{
-    CURRENT_SENSE_MV_PER_A, CURRENT_SENSE_OFFSET_MV, motor_current_a,
+    CS_ADC_MAX_MV, CURRENT_SENSE_MV_PER_A, CURRENT_SENSE_OFFSET_MV,
 };
 use kerfmeter_firmware::board::supply::{ADC_MAX_MV, SUPPLY_DIVIDER_RATIO, supply_v};
 use kerfmeter_firmware::build::PWM_FREQUENCY_HZ;
@@ -51,8 +56,8 @@ const PERIODS_PER_TICK: f64 = PWM_FREQUENCY_HZ as f64 * PERIOD_US as f64 * 1e-6;
 /// One tick's readings, as the board's conversions give them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sensed {
-    /// Motor current, A.
-    pub current_a: f32,
+    /// The current-sense pin, mV, as the calibrated ADC reads it at 0 dB.
+    pub cs_mv: u16,
     /// Motor supply, V.
     pub supply_v: f32,
 }
@@ -137,15 +142,19 @@ impl Sense {
         let bus_v = bridge.bus_v * (1.0 + p.supply_sense_gain_error)
             + f64::from(self.rng.normal()) * p.supply_sense_noise_v;
         Sensed {
-            current_a: motor_current_a(adc_mv(cs_mv)),
-            supply_v: supply_v(adc_mv(bus_v / SUPPLY_DIVIDER_RATIO as f64 * 1e3)),
+            cs_mv: adc_mv(cs_mv, CS_ADC_MAX_MV),
+            supply_v: supply_v(adc_mv(
+                bus_v / SUPPLY_DIVIDER_RATIO as f64 * 1e3,
+                ADC_MAX_MV,
+            )),
         }
     }
 }
 
-/// The calibrated ADC's reading of `pin_mv` on its pin: whole millivolts within its range.
-fn adc_mv(pin_mv: f64) -> u16 {
-    pin_mv.round().clamp(0.0, f64::from(ADC_MAX_MV)) as u16
+/// The calibrated ADC's reading of `pin_mv` on its pin: whole millivolts within its range,
+/// `max_mv` at the attenuation of that channel.
+fn adc_mv(pin_mv: f64, max_mv: u16) -> u16 {
+    pin_mv.round().clamp(0.0, f64::from(max_mv)) as u16
 }
 
 /// A first-order low-pass filter (time constant `tau`, in PWM periods) fed with the `CS` pulse
@@ -203,17 +212,23 @@ mod tests {
         PlantParams {
             current_noise_a: 0.0,
             cs_gain_error: 0.0,
+            cs_filter_tau_us: 0.0,
             supply_sense_gain_error: 0.0,
             supply_sense_noise_v: 0.0,
             ..PlantParams::default()
         }
     }
 
+    /// The `CS` pin's reading as amps at the G2's nominal scaling.
+    fn cs_a(s: Sensed) -> f32 {
+        ((f32::from(s.cs_mv) - CURRENT_SENSE_OFFSET_MV) / CURRENT_SENSE_MV_PER_A).max(0.0)
+    }
+
     /// The readings of `ticks` ticks with the bridge at `b`.
     fn readings(sense: &mut Sense, b: &Electrical, ticks: u64) -> Vec<f32> {
         let mut rng = Rng::new(1);
         (1..=ticks)
-            .map(|t| sense.sample(b, t * PERIOD_US, false, &mut rng).current_a)
+            .map(|t| cs_a(sense.sample(b, t * PERIOD_US, false, &mut rng)))
             .collect()
     }
 
@@ -326,9 +341,9 @@ mod tests {
         let b = bridge(0.5, 0.4);
         let mut rng = Rng::new(1);
         let mut inside = Sense::new(&p, 1).with_phase(0.2);
-        let a = inside.sample(&b, PERIOD_US, true, &mut rng).current_a;
+        let a = cs_a(inside.sample(&b, PERIOD_US, true, &mut rng));
         assert!((f64::from(a) - SHORT_CURRENT_A).abs() < 0.1, "{a}");
         let mut outside = Sense::new(&p, 1).with_phase(0.7);
-        assert_eq!(outside.sample(&b, PERIOD_US, true, &mut rng).current_a, 0.0);
+        assert_eq!(cs_a(outside.sample(&b, PERIOD_US, true, &mut rng)), 0.0);
     }
 }

@@ -149,8 +149,10 @@ plant_params! {
     /// Relative gain error of the G2's current sense against the firmware's 20 mV/A.
     /// Pololu gives "about 20 mV/A" and "approximately 50 mV" offset, with no tolerance: ±10 %.
     cs_gain_error [""] = 0.05, -0.1..=0.1;
-    /// Time constant of an RC filter on the CS pin, µs (0: none, as the Pololu board ships).
-    cs_filter_tau_us ["µs"] = 0.0, 0.0..=10000.0;
+    /// Time constant of the RC filter on the CS pin, µs (0: none, as the Pololu board ships).
+    /// The board's wiring puts 10 kΩ in series and 100 nF to ground: 1 ms (firmware
+    /// `board::current`), which the firmware's conversion assumes (its duty filter has the same).
+    cs_filter_tau_us ["µs"] = kerfmeter_firmware::board::current::CS_FILTER_TAU_US as f64, 0.0..=10000.0;
     /// How far the ADC's sampling instant moves against the 20 kHz PWM each tick, in PWM periods.
     /// The control tick and the PWM run from independent timers: the instant drifts through
     /// the period, and the CS output is valid only in its drive phase (Pololu's G2 user's guide:
