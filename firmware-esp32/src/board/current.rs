@@ -58,10 +58,11 @@
 //!   filter has settled at zero (driver asleep or braking), readings within
 //!   [`OFFSET_RANGE_MV`] update it slowly; a reading outside that band (a G2 whose sense is off
 //!   while asleep) is not an offset and is ignored. It starts at [`CURRENT_SENSE_OFFSET_MV`].
-//! - Unknown (`None`, which the controller treats as an over-current): no reading (the ADC
-//!   missed more than [`CURRENT_STALE_TICKS`] conversions in a row: [`ReadingTracker`]), or a
-//!   reading at the top of the ADC's range ([`CS_ADC_MAX_MV`], clipped: the true value may be
-//!   anywhere above).
+//! - A tick without a reading (the board's ADC was busy with the supply, or its conversion had
+//!   not finished) keeps the last current.
+//! - Unknown (`None`, which the controller treats as an over-current): no reading for more than
+//!   [`CURRENT_STALE_TICKS`] ticks in a row, or a reading at the top of the ADC's range
+//!   ([`CS_ADC_MAX_MV`], clipped: the true value may be anywhere above).
 //!
 //! [`Hardware::tick`]: crate::hardware::Hardware::tick
 
@@ -131,6 +132,9 @@ pub struct MotorCurrent {
     last_applied_us: Option<u64>,
     /// The learnt `CS` offset, mV.
     offset_mv: f32,
+    /// The last current, A, and how many ticks without a reading have passed since.
+    last_a: f32,
+    stale_ticks: u32,
 }
 
 impl Default for MotorCurrent {
@@ -140,26 +144,37 @@ impl Default for MotorCurrent {
 }
 
 impl MotorCurrent {
-    /// The bridge at rest, the offset at its nominal value.
+    /// The bridge at rest, the offset at its nominal value; 0 A until a reading comes (or
+    /// [`CURRENT_STALE_TICKS`] ticks pass without one).
     pub const fn new() -> Self {
         Self {
             duty_filtered: 0.0,
             held_duty: 0.0,
             last_applied_us: None,
             offset_mv: CURRENT_SENSE_OFFSET_MV,
+            last_a: 0.0,
+            stale_ticks: 0,
         }
     }
 
-    /// The motor current, A, from this tick's `CS` reading (mV; `None`: there is none), taken
-    /// when the last output was applied; `None` when it is unknown (module docs). A reading with
-    /// the bridge idle also updates the learnt offset.
+    /// The motor current, A, from this tick's `CS` reading (mV; `None`: there is none this
+    /// tick), taken when the last output was applied; `None` when it is unknown (module docs). A
+    /// reading with the bridge idle also updates the learnt offset.
     pub fn current_a(&mut self, cs_mv: Option<u16>) -> Option<f32> {
-        let cs_mv = cs_mv.filter(|&mv| mv < CS_ADC_MAX_MV)?;
+        let Some(cs_mv) = cs_mv else {
+            self.stale_ticks = self.stale_ticks.saturating_add(1);
+            return (self.stale_ticks <= CURRENT_STALE_TICKS).then_some(self.last_a);
+        };
+        if cs_mv >= CS_ADC_MAX_MV {
+            return None;
+        }
+        self.stale_ticks = 0;
         let reading = f32::from(cs_mv);
         if self.duty_filtered < IDLE_DUTY && OFFSET_RANGE_MV.contains(&reading) {
             self.offset_mv += (reading - self.offset_mv) * OFFSET_WEIGHT;
         }
-        Some(filtered_a(cs_mv, self.offset_mv) / self.duty_filtered.max(DUTY_FLOOR))
+        self.last_a = filtered_a(cs_mv, self.offset_mv) / self.duty_filtered.max(DUTY_FLOOR);
+        Some(self.last_a)
     }
 
     /// The bridge was set to `out` at `now_us` (the safe state if applying it failed): the duty
@@ -189,49 +204,6 @@ impl MotorCurrent {
     /// The learnt `CS` offset, mV.
     pub fn offset_mv(&self) -> f32 {
         self.offset_mv
-    }
-}
-
-/// The last finished conversion of an ADC channel and how many ticks old it is: one read one
-/// conversion behind may miss a tick now and then.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ReadingTracker {
-    last_mv: u16,
-    stale_ticks: u32,
-    stale_after: u32,
-}
-
-impl ReadingTracker {
-    /// Nothing converted yet: reads `initial_mv` until `stale_after` ticks pass without a
-    /// conversion.
-    pub const fn new(initial_mv: u16, stale_after: u32) -> Self {
-        Self {
-            last_mv: initial_mv,
-            stale_ticks: 0,
-            stale_after,
-        }
-    }
-
-    /// The `CS` channel's: reads the nominal offset (0 A) until [`CURRENT_STALE_TICKS`] ticks
-    /// pass without a conversion.
-    pub const fn current_sense() -> Self {
-        Self::new(CURRENT_SENSE_OFFSET_MV as u16, CURRENT_STALE_TICKS)
-    }
-
-    /// A conversion finished with `mv` on the pin.
-    pub fn finished(&mut self, mv: u16) {
-        self.last_mv = mv;
-        self.stale_ticks = 0;
-    }
-
-    /// The reading for this tick, mV, given the conversion that finished for it (`None`: it had
-    /// not finished); `None` once it is stale.
-    pub fn at_tick(&mut self, finished_mv: Option<u16>) -> Option<u16> {
-        match finished_mv {
-            Some(mv) => self.finished(mv),
-            None => self.stale_ticks = self.stale_ticks.saturating_add(1),
-        }
-        (self.stale_ticks <= self.stale_after).then_some(self.last_mv)
     }
 }
 

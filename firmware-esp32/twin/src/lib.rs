@@ -46,9 +46,11 @@
 //!   carries. The magnet sits on the output shaft, or on the motor shaft
 //!   (`Twin::set_magnet_on_motor_shaft`, turning `gear_ratio` times per hub turn).
 //! - The current sense as the G2 produces it: the current only in the drive phase of each 20 kHz
-//!   PWM period (about zero while braking or chopping), sampled once per tick at an instant that
-//!   drifts through the period; an optional RC filter on the pin; gain error, noise, the 1 mV
-//!   steps of the calibrated ADC and the firmware's own mV→A conversion.
+//!   PWM period (about zero while braking or chopping), through the board's RC filter on the pin
+//!   (`cs_filter_tau_us`, 1 ms by default; 0 removes it), sampled once per tick, one conversion
+//!   behind as the board does, at an instant that drifts through the period; gain error, noise
+//!   and the 1 mV steps of the calibrated ADC. The firmware gets the pin's millivolts and does
+//!   the rest (its `board::current` conversion, inside the shared control tick).
 //! - The supply sense: the bus through a divider into the ADC, with gain error, noise and 1 mV
 //!   steps (handed to the firmware, which does not use it yet).
 //! - The configuration flash: NOR rules (erase to 0xFF, writes only clear bits), kept across a

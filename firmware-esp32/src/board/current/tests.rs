@@ -133,7 +133,6 @@ fn the_offset_is_learnt_only_with_the_bridge_idle_and_a_plausible_reading() {
 #[test]
 fn no_reading_or_a_clipped_one_is_an_unknown_current() {
     let mut sense = MotorCurrent::new();
-    assert_eq!(sense.current_a(None), None);
     assert_eq!(sense.current_a(Some(CS_ADC_MAX_MV)), None);
     assert!(sense.current_a(Some(CS_ADC_MAX_MV - 1)).is_some());
 }
@@ -159,24 +158,23 @@ fn asleep_the_duty_filter_decays_to_zero_even_after_a_long_gap() {
 }
 
 #[test]
-fn a_missed_conversion_keeps_the_last_reading_until_it_is_stale() {
-    let mut tracker = ReadingTracker::current_sense();
-    assert_eq!(tracker.at_tick(Some(150)), Some(150));
+fn a_missed_reading_keeps_the_last_current_until_it_is_stale() {
+    let mut sense = MotorCurrent::new();
+    assert_eq!(sense.current_a(Some(150)), Some(1.0 / DUTY_FLOOR * 5.0));
     for tick in 1..=CURRENT_STALE_TICKS {
-        assert_eq!(tracker.at_tick(None), Some(150), "missed tick {tick}");
+        assert_eq!(sense.current_a(None), Some(50.0), "missed tick {tick}");
     }
-    assert_eq!(tracker.at_tick(None), None);
-    assert_eq!(tracker.at_tick(None), None);
-    // A conversion finished between ticks (started late in the tick) makes it known again.
-    tracker.finished(90);
-    assert_eq!(tracker.at_tick(None), Some(90));
+    assert_eq!(sense.current_a(None), None);
+    assert_eq!(sense.current_a(None), None);
+    // A reading makes it known again.
+    assert_eq!(sense.current_a(Some(50)), Some(0.0));
 }
 
 #[test]
-fn before_any_conversion_the_sense_reads_its_offset_then_unknown() {
-    let mut tracker = ReadingTracker::current_sense();
+fn before_any_reading_the_current_reads_zero_then_unknown() {
+    let mut sense = MotorCurrent::default();
     for _ in 0..CURRENT_STALE_TICKS {
-        assert_eq!(tracker.at_tick(None), Some(50));
+        assert_eq!(sense.current_a(None), Some(0.0));
     }
-    assert_eq!(tracker.at_tick(None), None);
+    assert_eq!(sense.current_a(None), None);
 }

@@ -1,5 +1,6 @@
 //! `kerfmeter self-test`: check the encoder, magnet, drive direction and torque constant (no
-//! gauge under the prongs). A failed item makes the command fail after reporting every item.
+//! gauge under the prongs). A failed item makes the command fail after reporting every item,
+//! each failed one explained in words (what its value means, what to check).
 
 use std::fmt;
 
@@ -11,22 +12,83 @@ use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 use crate::progress::{progress_bar, show};
 
-/// The self-test's items and whether all passed.
+/// The self-test's items, whether all passed, and why those that failed did.
 #[derive(Serialize)]
 pub struct SelfTestOutcome {
     /// True when every item passed.
     pub passed: bool,
     /// The device's report.
     pub report: SelfTestReport,
+    /// Each failed item, in the order printed, with what its value means.
+    pub failures: Vec<Failure>,
+}
+
+/// A failed item, explained.
+#[derive(Serialize, Debug, Clone, PartialEq)]
+pub struct Failure {
+    /// The item's name, as printed.
+    pub item: &'static str,
+    /// What its value says went wrong, and what to check.
+    pub reason: String,
 }
 
 impl SelfTestOutcome {
     /// The outcome of `report`.
     pub fn new(report: SelfTestReport) -> Self {
-        let passed = items(&report)
-            .iter()
-            .all(|(_, i, _)| i.outcome == TestOutcome::Pass);
-        SelfTestOutcome { passed, report }
+        let failures: Vec<Failure> = items(&report)
+            .into_iter()
+            .filter(|(_, i, _)| i.outcome != TestOutcome::Pass)
+            .map(|(item, i, _)| Failure {
+                item,
+                reason: explain(item, i),
+            })
+            .collect();
+        SelfTestOutcome {
+            passed: failures.is_empty(),
+            report,
+            failures,
+        }
+    }
+}
+
+/// Motion of the direction check below which the hub counts as not having turned, degrees
+/// (the device passes it from 1°).
+const STILL_DEG: f32 = 1.0;
+/// A torque-constant estimate below this, N·m, means no current flowed at all.
+const NO_CURRENT_NM: f32 = 0.05;
+
+/// Why the item `name` did not pass, from its value.
+fn explain(name: &str, item: SelfTestItem) -> String {
+    let value = item.value;
+    match (item.outcome, name) {
+        (TestOutcome::Skipped, _) => "not run: the self-test stopped before it".to_owned(),
+        (_, "encoder reads ok") => format!(
+            "only {:.0} % of the encoder's reads were good (99 % pass): check the AS5048A's \
+             wiring, power and SPI lines",
+            value * 100.0
+        ),
+        (_, "magnet magnitude") => format!(
+            "the magnet's field ({value:.0}) is missing or at the edge of the encoder's range: \
+             check that the magnet is fitted, centred over the chip and at the right distance"
+        ),
+        (_, "direction") if value <= -STILL_DEG => format!(
+            "the hub turned the wrong way ({value:.1}°) under a clockwise torque: set \
+             motor_inverted (or encoder_inverted, if the encoder counts the wrong way)"
+        ),
+        (_, "direction") => format!(
+            "the hub did not turn ({value:.2}°) under a clockwise torque: the motor is \
+             disconnected, its supply is off, or the hub is jammed"
+        ),
+        (_, "torque constant") if value < NO_CURRENT_NM => format!(
+            "no motor current flowed during the test pulse ({value:.3} N·m per duty): the motor \
+             is disconnected or its supply is off"
+        ),
+        _ => format!(
+            "the current drawn at standstill gives {value:.3} N·m per duty, more than 30 % off \
+             the configured torque_per_duty_nm: check the calibration (torque_per_duty_nm, \
+             torque_per_amp_nm), the current-sense filter and gain, and the winding's \
+             temperature"
+        ),
     }
 }
 
@@ -62,7 +124,11 @@ impl fmt::Display for SelfTestOutcome {
             "self-test passed"
         } else {
             "self-test FAILED"
-        })
+        })?;
+        for Failure { item, reason } in &self.failures {
+            write!(f, "\n  {item}: {reason}")?;
+        }
+        Ok(())
     }
 }
 
