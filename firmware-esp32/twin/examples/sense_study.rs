@@ -4,13 +4,19 @@
 //! Usage: `sense_study [SEEDS]` (default 50). Every seed is a fresh twin at the plant's
 //! defaults but the supply: its own current-sense sampling phase, gain error and noise. Prints,
 //! per supply, the self-test's pass counts, the spread of its torque-constant estimate against
-//! the configured value, and the measurements' outcomes (kerf 150 µm, 55 N).
+//! the configured value, and the measurements' outcomes (kerf 150 µm, 55 N): how many ended in
+//! `OverCurrent`, how many of those were false trips (the plant's true current below 90 % of the
+//! limit all run long), and the true peak currents.
 
 use kerfmeter_protocol::{
     DeviceConfig, Fault, Request, Response, RunParams, RunState, TestOutcome,
 };
 use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{Twin, TwinOptions};
+
+/// A trip with the true current below this fraction of the limit is a false trip: beyond the
+/// G2's current-sense gain error (±10 %), the reading was wrong, not the current too high.
+const FALSE_TRIP_FRACTION: f64 = 0.9;
 
 fn twin(seed: u64, supply_v: f64) -> Twin {
     let mut t = Twin::new(TwinOptions {
@@ -49,7 +55,7 @@ fn self_test(seed: u64, supply_v: f64) -> (bool, bool, f32) {
 }
 
 /// One measurement's end (`Ok` or its fault), and the largest motor current the plant drew
-/// meanwhile, A (checked every tick): an `OverCurrent` with it below the limit is a false trip.
+/// meanwhile, A (checked every tick).
 fn measure(seed: u64, supply_v: f64) -> (Result<(), Option<Fault>>, f64) {
     let mut t = twin(seed, supply_v);
     let mut peak_a: f64 = 0.0;
@@ -81,16 +87,19 @@ fn main() {
         let mut ratios = Vec::new();
         let (mut ok, mut over_current, mut false_trips, mut other) = (0, 0, 0, 0);
         let limit_a = f64::from(DeviceConfig::DEFAULT.max_current_a);
+        let mut peaks_a = Vec::new();
         for seed in 1..=seeds {
             let (all, torque, ratio) = self_test(seed, supply_v);
             passed[0] += u32::from(all);
             passed[1] += u32::from(torque);
             ratios.push(ratio);
-            match measure(seed, supply_v) {
+            let (end, peak_a) = measure(seed, supply_v);
+            peaks_a.push(peak_a);
+            match (end, peak_a) {
                 (Ok(()), _) => ok += 1,
                 (Err(Some(Fault::OverCurrent)), peak_a) => {
                     over_current += 1;
-                    false_trips += u32::from(peak_a <= limit_a);
+                    false_trips += u32::from(peak_a < FALSE_TRIP_FRACTION * limit_a);
                 }
                 (Err(_), _) => other += 1,
             }
@@ -100,12 +109,16 @@ fn main() {
         println!(
             "{supply_v:>4} V: self-test passed {}/{seeds} (torque item {}/{seeds}; estimate/config \
              min {:.3} median {:.3} max {:.3}); runs ok {ok}, OverCurrent {over_current} \
-             ({false_trips} with the true current within the limit), other {other}",
+             ({false_trips} false: the true current below 90 % of the limit), other {other}; the \
+             runs' \
+             true peak current {:.2}–{:.2} A",
             passed[0],
             passed[1],
             ratios[0],
             ratios[n / 2],
             ratios[n - 1],
+            peaks_a.iter().copied().fold(f64::INFINITY, f64::min),
+            peaks_a.iter().copied().fold(0.0, f64::max),
         );
     }
 }
