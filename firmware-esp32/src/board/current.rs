@@ -56,8 +56,12 @@
 //! - The offset: the G2's is "about 50 mV" and varies from board to board (60 mV is reported),
 //!   and a 10 mV error divided by the floor would read 5 A. So it is learnt: while the duty
 //!   filter has settled at zero (driver asleep or braking), readings within
-//!   [`OFFSET_RANGE_MV`] update it slowly; a reading outside that band (a G2 whose sense is off
-//!   while asleep) is not an offset and is ignored. It starts at [`CURRENT_SENSE_OFFSET_MV`].
+//!   [`OFFSET_RANGE_MV`] update it (their mean at first, from the very first reading, so that an
+//!   off-nominal offset never reads as a current at boot; then an average over some 16 ticks);
+//!   a reading outside that band (a G2 whose sense is off while asleep) is not an offset and is
+//!   ignored. It starts at [`CURRENT_SENSE_OFFSET_MV`]. While braking, the G2 shows no current
+//!   at all (the brake phase is the whole period): the filtered reading decays to the offset,
+//!   and the current reads zero.
 //! - A tick without a reading (the board's ADC was busy with the supply, or its conversion had
 //!   not finished) keeps the last current.
 //! - Unknown (`None`, which the controller treats as an over-current): no reading for more than
@@ -104,8 +108,9 @@ pub const DUTY_FLOOR: f32 = 0.1;
 /// so the reading is the offset.
 const IDLE_DUTY: f32 = 1e-3;
 
-/// The learnt offset follows idle readings with this weight (an average over some 16 ticks).
-const OFFSET_WEIGHT: f32 = 1.0 / 16.0;
+/// The learnt offset is the mean of the first idle readings, then follows them with a weight of
+/// one in this many (an average over some 16 ticks).
+const OFFSET_AVERAGED: u32 = 16;
 
 /// The highest calibrated reading of the ADC at 0 dB attenuation, the `CS` channel's, mV: the
 /// ESP32-C3's range at 0 dB is about 0–750 mV (the ESP32-C6's is no narrower). A reading at or
@@ -132,6 +137,8 @@ pub struct MotorCurrent {
     last_applied_us: Option<u64>,
     /// The learnt `CS` offset, mV.
     offset_mv: f32,
+    /// Idle readings learnt from, up to [`OFFSET_AVERAGED`].
+    offset_readings: u32,
     /// The last current, A, and how many ticks without a reading have passed since.
     last_a: f32,
     stale_ticks: u32,
@@ -152,6 +159,7 @@ impl MotorCurrent {
             held_duty: 0.0,
             last_applied_us: None,
             offset_mv: CURRENT_SENSE_OFFSET_MV,
+            offset_readings: 0,
             last_a: 0.0,
             stale_ticks: 0,
         }
@@ -171,7 +179,8 @@ impl MotorCurrent {
         self.stale_ticks = 0;
         let reading = f32::from(cs_mv);
         if self.duty_filtered < IDLE_DUTY && OFFSET_RANGE_MV.contains(&reading) {
-            self.offset_mv += (reading - self.offset_mv) * OFFSET_WEIGHT;
+            self.offset_readings = (self.offset_readings + 1).min(OFFSET_AVERAGED);
+            self.offset_mv += (reading - self.offset_mv) / self.offset_readings as f32;
         }
         self.last_a = filtered_a(cs_mv, self.offset_mv) / self.duty_filtered.max(DUTY_FLOOR);
         Some(self.last_a)

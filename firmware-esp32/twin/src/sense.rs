@@ -22,7 +22,8 @@
 //! between two samples is the bridge's state after the plant's last sub-step.
 //!
 //! On top: the CS gain error (`cs_gain_error`) and Gaussian noise (`current_noise_a`), then the
-//! pin's millivolts at 20 mV/A plus the 50 mV offset, clipped to the ADC's range. An injected
+//! pin's millivolts at 20 mV/A plus the G2's offset (`cs_offset_mv`), clipped to the ADC's
+//! 0 dB range. An injected
 //! short reads [`SHORT_CURRENT_A`] in the drive phase instead of the motor current.
 //!
 //! # Supply sense
@@ -33,9 +34,7 @@
 //!
 //! [`Hardware::tick`]: kerfmeter_firmware::hardware::Hardware::tick
 
-use kerfmeter_firmware::board::current::{
-    CS_ADC_MAX_MV, CURRENT_SENSE_MV_PER_A, CURRENT_SENSE_OFFSET_MV,
-};
+use kerfmeter_firmware::board::current::{CS_ADC_MAX_MV, CURRENT_SENSE_MV_PER_A};
 use kerfmeter_firmware::board::supply::{ADC_MAX_MV, SUPPLY_DIVIDER_RATIO, supply_v};
 use kerfmeter_firmware::build::PWM_FREQUENCY_HZ;
 use kerfmeter_firmware::controller::PERIOD_US;
@@ -138,7 +137,7 @@ impl Sense {
             0.0
         };
         let noisy_a = cs_a * (1.0 + p.cs_gain_error) + f64::from(rng.normal()) * p.current_noise_a;
-        let cs_mv = CURRENT_SENSE_OFFSET_MV as f64 + CURRENT_SENSE_MV_PER_A as f64 * noisy_a;
+        let cs_mv = p.cs_offset_mv + CURRENT_SENSE_MV_PER_A as f64 * noisy_a;
         let bus_v = bridge.bus_v * (1.0 + p.supply_sense_gain_error)
             + f64::from(self.rng.normal()) * p.supply_sense_noise_v;
         Sensed {
@@ -194,6 +193,7 @@ fn filter_pulses(y: f64, from: f64, periods: f64, amp_a: f64, drive: f64, tau: f
 #[cfg(test)]
 mod tests {
     use super::*;
+    use kerfmeter_firmware::board::current::CURRENT_SENSE_OFFSET_MV;
 
     /// A bridge driving `amp_a` at `drive` duty from a 12 V bus.
     fn bridge(amp_a: f64, drive: f64) -> Electrical {

@@ -299,6 +299,39 @@ fn self_test_torque_constant_passes_against_the_pulsed_current_sense() {
     }
 }
 
+/// The G2's current-sense offset varies from board to board: the firmware learns it while the
+/// bridge is idle, so an offset 15 mV above the nominal 50 mV (7.5 A at the duty floor) does not
+/// trip while idle, and neither it nor one 10 mV below skews the self-test or a run.
+#[test]
+fn a_current_sense_offset_off_nominal_is_learnt_at_rest() {
+    use kerfmeter_protocol::TestOutcome::Pass;
+    for cs_offset_mv in [40.0, 65.0] {
+        let options = TwinOptions {
+            seed: 3,
+            plant: PlantParams {
+                cs_offset_mv,
+                ..PlantParams::default()
+            },
+            ..TwinOptions::default()
+        };
+        let r = self_test_report(options);
+        assert_eq!(
+            r.torque_per_duty_nm.outcome, Pass,
+            "{cs_offset_mv} mV: {r:?}"
+        );
+        let mut t = Twin::new(options);
+        t.advance_ticks(200);
+        assert_eq!(t.device().controller().fault(), None, "{cs_offset_mv} mV");
+        let k = measure(&mut t, &RunParams::DEFAULT)
+            .unwrap_or_else(|f| panic!("{cs_offset_mv} mV: {f:?}"));
+        let truth = t.plant().truth_um(&RunParams::DEFAULT);
+        assert!(
+            (f64::from(k.kerf_um) - truth).abs() < 3.0,
+            "{cs_offset_mv} mV"
+        );
+    }
+}
+
 /// With the motor's leads off, the self-test fails on what needs the motor, with the values
 /// that say why (no motion, no current), and passes the encoder's items.
 #[test]

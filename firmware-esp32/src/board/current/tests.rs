@@ -103,6 +103,8 @@ fn below_the_floor_the_current_reads_low_by_duty_over_floor() {
 fn the_offset_is_learnt_only_with_the_bridge_idle_and_a_plausible_reading() {
     let mut sense = MotorCurrent::new();
     sense.applied(&MotorOutput::SAFE, 0);
+    // From the very first idle reading on, an off-nominal offset reads no current.
+    assert_eq!(sense.current_a(Some(65)), Some(0.0));
     for _ in 0..200 {
         sense.current_a(Some(60));
     }
