@@ -49,10 +49,12 @@
 //! - Motor current = (reading − offset) / [`CURRENT_SENSE_MV_PER_A`] / max(filtered duty,
 //!   [`DUTY_FLOOR`]), never negative.
 //! - The floor: below it the filtered duty is too small to divide by (the ADC's 1 mV step and
-//!   its noise would be multiplied without bound). Under the floor the current reads low by the
-//!   factor duty/floor, where the stall current itself is at most floor × supply / R (1.3 A at
-//!   26 V, far below any limit); a short (tens of amps in the drive phase) still reads far above
-//!   the limit at any duty above a few percent.
+//!   its noise would be multiplied without bound; at the floor, by five: 1 mV reads 0.25 A).
+//!   Under the floor the current reads low by the factor duty/floor; but there the motor cannot
+//!   draw more than a fifth of its full-duty stall current, so no over-current is missed unless
+//!   that stall current is over five times the limit (the reference build's is 5.6 A at 12 V,
+//!   11 A at 24 V, against 6.5 A). A short (tens of amps in the drive phase) still reads above
+//!   the limit at any duty above a few percent, and the G2 limits current on its own.
 //! - The offset: the G2's is "about 50 mV" and varies from board to board (60 mV is reported),
 //!   and a 10 mV error divided by the floor would read 5 A. So it is learnt: while the duty
 //!   filter has settled at zero (driver asleep or braking), readings within
@@ -102,7 +104,7 @@ pub const FILTER_DECAY_PER_TICK: f32 = 0.367_879_44;
 const SETTLED_TICKS: u64 = 8;
 
 /// Below this filtered duty the division uses this instead (see the module docs).
-pub const DUTY_FLOOR: f32 = 0.1;
+pub const DUTY_FLOOR: f32 = 0.2;
 
 /// A filtered duty below this counts as zero: the bridge has been idle for the filter to settle,
 /// so the reading is the offset.

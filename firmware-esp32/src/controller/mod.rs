@@ -88,7 +88,9 @@
 //! Checked every tick; the first one found is latched as `Fault(reason)` and the output of that
 //! very tick is the safe state: max run time, overtravel past the disengage angle, no motion with
 //! torque above breakaway, reverse motion, [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a
-//! row, failed encoder diagnostics (chip or magnet), over-current (or a current that is unknown),
+//! row, failed encoder diagnostics (chip or magnet), over-current (the mean of the last
+//! [`OVER_CURRENT_MEAN_TICKS`] currents above the limit, one reading above twice it, or a current
+//! that is unknown),
 //! driver FLT, host silence (communication watchdog) and a late control step.
 //!
 //! # Idle conditions
@@ -245,6 +247,8 @@ pub struct Controller {
     conditions: Conditions,
     /// The motor supply the last tick saw, volts.
     supply_v: Option<f32>,
+    /// The last ticks' motor currents, for the over-current check.
+    current_mean: faults::CurrentMean,
     /// The last run's samples (kept outside [`Run`]: 24 KiB are cleared, not rebuilt).
     log: SampleLog<{ MAX_SAMPLES as usize }>,
     result: Option<KerfResult>,
@@ -272,6 +276,7 @@ impl Controller {
             last_diagnostics: None,
             conditions: Conditions::empty(),
             supply_v: None,
+            current_mean: faults::CurrentMean::new(),
             log: SampleLog::new(),
             result: None,
             self_test: None,

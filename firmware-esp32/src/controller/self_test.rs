@@ -10,7 +10,9 @@
 //! learns its offset). The motor current comes from the RC-filtered current sense divided by the
 //! duty filtered alike (`board::current`), read one conversion behind: the reading of the pulse's
 //! tick *j* is the filter's state at tick *j* − 1. So the first reading with the pulse in it is
-//! tick 2's, and it is already right (both filters saw the same first millisecond). The
+//! tick 2's, and it is already right (both filters saw the same first millisecond), but the
+//! filtered duty is still under the conversion's floor (0.19 against 0.2); from tick 3 on it is
+//! above it. The
 //! readings of [`PULSE_AVERAGED`] ticks are averaged, with the supply over the same ticks: enough
 //! readings to average the ADC's 1 mV step (0.17 A of motor current at 30 % duty) and its noise,
 //! early enough that the free hub's back-EMF has taken little of the current (some 6 % a
@@ -54,7 +56,7 @@ pub(super) const NOT_RUN: SelfTestReport = SelfTestReport {
 
 /// Pulse ticks whose current (and supply) readings are averaged: from the first reading with the
 /// pulse in it (module docs).
-const PULSE_AVERAGED: core::ops::RangeInclusive<u32> = 2..=6;
+const PULSE_AVERAGED: core::ops::RangeInclusive<u32> = 3..=7;
 
 /// What the pulse phase gathers for the torque-constant estimate.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -760,3 +760,31 @@ fn the_self_tests_torque_constant_is_right_at_any_supply_and_despite_back_emf() 
         );
     }
 }
+
+#[test]
+fn over_current_trips_on_the_mean_of_four_readings_or_one_twice_the_limit() {
+    let max_a = DeviceConfig::DEFAULT.max_current_a;
+    // (currents fed from tick 100 on, one a tick; the tick the fault latches, counted from then)
+    for (currents, trips_at) in [
+        (vec![max_a * 1.5, 0.5, 0.5, 0.5, 0.5], None),
+        (vec![max_a * 1.1; 4], Some(3)),
+        (vec![max_a * 2.1], Some(0)),
+    ] {
+        let mut s = Script::new();
+        s.start(RunParams::DEFAULT);
+        let mut latched = None;
+        for i in 0..110 {
+            s.angle_deg += 0.06;
+            let mut inputs = s.inputs();
+            if i >= 100 {
+                inputs.current_a = Some(*currents.get(i - 100).unwrap_or(&0.5));
+            }
+            s.tick_with(&inputs);
+            if s.state() == RunState::Fault(Fault::OverCurrent) {
+                latched = Some(i - 100);
+                break;
+            }
+        }
+        assert_eq!(latched, trips_at, "{currents:?}");
+    }
+}

@@ -74,6 +74,14 @@ pub const OVERTRAVEL_MARGIN_DEG: f32 = 10.0;
 /// Reverse motion: the hub fell back this far from the furthest angle it reached, degrees: far
 /// beyond the encoder noise and the slip tolerance ([`JAM_SLIP_DEG`]).
 pub const REVERSE_TOLERANCE_DEG: f32 = 2.0;
+/// Over-current: the check compares the mean of this many ticks' motor currents with
+/// `max_current_a`. The current is the filtered current sense divided by the filtered duty
+/// (`board::current`), which multiplies the ADC's noise by up to five at low duty; four readings
+/// halve it, for 4 ms more of the RC filter's 1 ms lag.
+pub const OVER_CURRENT_MEAN_TICKS: usize = 4;
+/// Over-current: a single reading above this many times `max_current_a` trips at once (a short,
+/// which the mean would take a few ticks to show).
+pub const OVER_CURRENT_PEAK_FACTOR: f32 = 2.0;
 /// Encoder errors in a row that fault the device (`EncoderErrors`). Fewer are ridden through on
 /// the last good angle (and flag the result `ENCODER_ERRORS`): 5 ms without an angle is the most
 /// the controller drives blind.

@@ -21,9 +21,11 @@
 //! (a few exponentials per tick), which tends to D·|i| for a long time constant. The waveform
 //! between two samples is the bridge's state after the plant's last sub-step.
 //!
-//! On top: the CS gain error (`cs_gain_error`) and Gaussian noise (`current_noise_a`), then the
-//! pin's millivolts at 20 mV/A plus the G2's offset (`cs_offset_mv`), clipped to the ADC's
-//! 0 dB range. An injected
+//! On top: the CS gain error (`cs_gain_error`) and the G2's Gaussian noise (`current_noise_a`,
+//! independent from one PWM period to the next, so the RC filter averages most of it away:
+//! 16 % of it is left at 1 ms), then the pin's millivolts at 20 mV/A plus the G2's offset
+//! (`cs_offset_mv`), the ADC's own noise (`adc_noise_mv`, which no filter removes), clipped to
+//! the ADC's 0 dB range. An injected
 //! short reads [`SHORT_CURRENT_A`] in the drive phase instead of the motor current.
 //!
 //! # Supply sense
@@ -136,8 +138,11 @@ impl Sense {
         } else {
             0.0
         };
-        let noisy_a = cs_a * (1.0 + p.cs_gain_error) + f64::from(rng.normal()) * p.current_noise_a;
-        let cs_mv = p.cs_offset_mv + CURRENT_SENSE_MV_PER_A as f64 * noisy_a;
+        let cs_noise_a = p.current_noise_a * filtered_noise_share(p.cs_filter_tau_us);
+        let noisy_a = cs_a * (1.0 + p.cs_gain_error) + f64::from(rng.normal()) * cs_noise_a;
+        let cs_mv = p.cs_offset_mv
+            + CURRENT_SENSE_MV_PER_A as f64 * noisy_a
+            + f64::from(self.rng.normal()) * p.adc_noise_mv;
         let bus_v = bridge.bus_v * (1.0 + p.supply_sense_gain_error)
             + f64::from(self.rng.normal()) * p.supply_sense_noise_v;
         Sensed {
@@ -148,6 +153,16 @@ impl Sense {
             )),
         }
     }
+}
+
+/// What is left of the G2's current-sense noise (independent from one PWM period to the next)
+/// after an RC filter of `tau_us` (0: none): √((1 − a)/(1 + a)), a = e^(−T/τ), T the PWM period.
+fn filtered_noise_share(tau_us: f64) -> f64 {
+    if tau_us <= 0.0 {
+        return 1.0;
+    }
+    let a = (-1e6 / PWM_FREQUENCY_HZ as f64 / tau_us).exp();
+    ((1.0 - a) / (1.0 + a)).sqrt()
 }
 
 /// The calibrated ADC's reading of `pin_mv` on its pin: whole millivolts within its range,
@@ -211,6 +226,7 @@ mod tests {
     fn exact() -> PlantParams {
         PlantParams {
             current_noise_a: 0.0,
+            adc_noise_mv: 0.0,
             cs_gain_error: 0.0,
             cs_filter_tau_us: 0.0,
             supply_sense_gain_error: 0.0,

@@ -346,7 +346,8 @@ fn self_test_fails_its_motor_items_with_the_motor_disconnected() {
     assert_eq!(r.direction_deg.outcome, Fail, "{r:?}");
     assert!(r.direction_deg.value.abs() < 0.1, "{r:?}");
     assert_eq!(r.torque_per_duty_nm.outcome, Fail, "{r:?}");
-    assert!(r.torque_per_duty_nm.value < 0.05, "{r:?}");
+    // What is left is the noise of the current sense: far below the configured 0.88 N·m.
+    assert!(r.torque_per_duty_nm.value < 0.1, "{r:?}");
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! The current-sense conversion against an exact RC filter of the G2's pulse train.
 
 use super::*;
+use kerfmeter_protocol::DeviceConfig;
 
 /// An output driving at `duty`.
 fn driving(duty: f32) -> MotorOutput {
@@ -76,11 +77,13 @@ fn a_step_of_duty_reads_the_current_from_the_first_reading_after_it() {
         reading_mv = Some(analog.y_mv);
         analog.run(f64::from(duty) * 3.0 * 20.0, PERIOD_US);
     }
-    // Ticks 0–2 read what the filter saw before the step reached it: nothing. From then on,
-    // the current within the ADC's step over the floor (the filtered duty climbs past it).
+    // Ticks 0–2 read what the filter saw before the step reached it: nothing. Tick 3 sees the
+    // first millisecond, its filtered duty (0.19) just under the floor: low by 5 %, and an ADC
+    // step. From then on, the current within half an ADC step over the filtered duty.
     assert!(reads[..3].iter().all(|&a| a == 0.0), "{reads:?}");
-    for &a in &reads[3..] {
-        assert!((a - 3.0).abs() < 0.5 / 20.0 / 0.18, "{reads:?}");
+    assert!((reads[3] - 3.0 * 0.19 / DUTY_FLOOR).abs() < 1.0 / 20.0 / DUTY_FLOOR);
+    for &a in &reads[4..] {
+        assert!((a - 3.0).abs() < 0.5 / 20.0 / 0.26, "{reads:?}");
     }
 }
 
@@ -91,12 +94,12 @@ fn below_the_floor_the_current_reads_low_by_duty_over_floor() {
         sense.applied(&driving(0.05), tick * PERIOD_US);
     }
     assert!((sense.duty_filtered() - 0.05).abs() < 1e-4);
-    // 1 A at 5 % duty: 1 mV above the offset.
+    // 1 A at 5 % duty: 1 mV above the offset, read as a quarter of it.
     let a = sense.current_a(Some(51)).unwrap();
-    assert!((a - 0.5).abs() < 1e-4, "{a}");
-    // A short at that duty (30 A in the drive phase) still reads far above any limit.
+    assert!((a - 0.25).abs() < 1e-4, "{a}");
+    // A short at that duty (30 A in the drive phase) still reads above the default limit.
     let a = sense.current_a(Some(50 + 30)).unwrap();
-    assert!(a > 10.0, "{a}");
+    assert!(a > DeviceConfig::DEFAULT.max_current_a, "{a}");
 }
 
 #[test]
@@ -164,7 +167,11 @@ fn a_missed_reading_keeps_the_last_current_until_it_is_stale() {
     let mut sense = MotorCurrent::new();
     assert_eq!(sense.current_a(Some(150)), Some(1.0 / DUTY_FLOOR * 5.0));
     for tick in 1..=CURRENT_STALE_TICKS {
-        assert_eq!(sense.current_a(None), Some(50.0), "missed tick {tick}");
+        assert_eq!(
+            sense.current_a(None),
+            Some(5.0 / DUTY_FLOOR),
+            "missed tick {tick}"
+        );
     }
     assert_eq!(sense.current_a(None), None);
     assert_eq!(sense.current_a(None), None);

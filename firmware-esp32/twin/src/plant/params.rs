@@ -144,8 +144,13 @@ plant_params! {
     winding_thermal_res_c_per_w ["°C/W"] = 15.0, 3.0..=40.0;
 
     // ---- Current sense (G2 CS pin into the ESP32-C3's ADC) ----
-    /// Noise on the current-sense reading, A (SD).
+    /// Noise of the G2's current-sense output, A (SD), independent from one PWM period to the
+    /// next: switching spikes and the sense amplifier's noise. The RC filter on the pin leaves
+    /// 16 % of it at 1 ms.
     current_noise_a ["A"] = 0.02, 0.0..=0.5;
+    /// The ADC's own noise on the current-sense pin, mV (SD), after the filter: the C3's SAR
+    /// at 0 dB, a few of its raw steps of 0.2 mV (0–3).
+    adc_noise_mv ["mV"] = 1.0, 0.0..=3.0;
     /// Relative gain error of the G2's current sense against the firmware's 20 mV/A.
     /// Pololu gives "about 20 mV/A" and "approximately 50 mV" offset, with no tolerance: ±10 %.
     cs_gain_error [""] = 0.05, -0.1..=0.1;

@@ -33,14 +33,15 @@ pub struct Failure {
 }
 
 impl SelfTestOutcome {
-    /// The outcome of `report`.
-    pub fn new(report: SelfTestReport) -> Self {
+    /// The outcome of `report`, by a device configured with `torque_per_duty_nm` (`None`: not
+    /// known).
+    pub fn new(report: SelfTestReport, torque_per_duty_nm: Option<f32>) -> Self {
         let failures: Vec<Failure> = items(&report)
             .into_iter()
             .filter(|(_, i, _)| i.outcome != TestOutcome::Pass)
             .map(|(item, i, _)| Failure {
                 item,
-                reason: explain(item, i),
+                reason: explain(item, i, torque_per_duty_nm),
             })
             .collect();
         SelfTestOutcome {
@@ -54,12 +55,18 @@ impl SelfTestOutcome {
 /// Motion of the direction check below which the hub counts as not having turned, degrees
 /// (the device passes it from 1°).
 const STILL_DEG: f32 = 1.0;
-/// A torque-constant estimate below this, N·m, means no current flowed at all.
-const NO_CURRENT_NM: f32 = 0.05;
+/// A torque-constant estimate below this fraction of the configured one means no current flowed
+/// (what is left is the current sense's noise)...
+const NO_CURRENT_FRACTION: f32 = 0.15;
+/// ...or below this, N·m, when the configured one is not known (the reference build's 0.88 N·m
+/// times that fraction).
+const NO_CURRENT_NM: f32 = 0.13;
 
-/// Why the item `name` did not pass, from its value.
-fn explain(name: &str, item: SelfTestItem) -> String {
+/// Why the item `name` did not pass, from its value (and, for the torque constant, the
+/// configured one).
+fn explain(name: &str, item: SelfTestItem, torque_per_duty_nm: Option<f32>) -> String {
     let value = item.value;
+    let no_current_nm = torque_per_duty_nm.map_or(NO_CURRENT_NM, |c| c * NO_CURRENT_FRACTION);
     match (item.outcome, name) {
         (TestOutcome::Skipped, _) => "not run: the self-test stopped before it".to_owned(),
         (_, "encoder reads ok") => format!(
@@ -79,15 +86,16 @@ fn explain(name: &str, item: SelfTestItem) -> String {
             "the hub did not turn ({value:.2}°) under a clockwise torque: the motor is \
              disconnected, its supply is off, or the hub is jammed"
         ),
-        (_, "torque constant") if value < NO_CURRENT_NM => format!(
+        (_, "torque constant") if value < no_current_nm => format!(
             "no motor current flowed during the test pulse ({value:.3} N·m per duty): the motor \
              is disconnected or its supply is off"
         ),
         _ => format!(
             "the current drawn at standstill gives {value:.3} N·m per duty, more than 30 % off \
-             the configured torque_per_duty_nm: check the calibration (torque_per_duty_nm, \
+             the configured torque_per_duty_nm{}: check the calibration (torque_per_duty_nm, \
              torque_per_amp_nm), the current-sense filter and gain, and the winding's \
-             temperature"
+             temperature",
+            torque_per_duty_nm.map_or(String::new(), |c| format!(" ({c:.3})"))
         ),
     }
 }
@@ -108,7 +116,10 @@ pub fn run(g: &Global) -> Result<SelfTestOutcome, CliError> {
     let bar = progress_bar(g, "self-test");
     let report = s.meter.self_test(|p| show(&bar, p));
     bar.finish_and_clear();
-    Ok(SelfTestOutcome::new(report?))
+    let report = report?;
+    // Only to explain a failed torque constant: a device that cannot answer still has its report.
+    let configured = s.meter.config().ok().map(|c| c.config.torque_per_duty_nm);
+    Ok(SelfTestOutcome::new(report, configured))
 }
 
 impl fmt::Display for SelfTestOutcome {
