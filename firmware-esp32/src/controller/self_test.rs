@@ -10,18 +10,17 @@
 //! learns its offset). The motor current comes from the RC-filtered current sense divided by the
 //! duty filtered alike (`board::current`), read one conversion behind: the reading of the pulse's
 //! tick *j* is the filter's state at tick *j* − 1. So the first reading with the pulse in it is
-//! tick 2's, and it is already right (both filters saw the same first millisecond), but the
-//! filtered duty is still under the conversion's floor (0.19 against 0.2); from tick 3 on it is
-//! above it. The
+//! tick 2's, and it is already right: both filters saw the same first millisecond, and the
+//! filtered duty is above the conversion's floor by then (0.25 against 0.2). The
 //! readings of [`PULSE_AVERAGED`] ticks are averaged, with the supply over the same ticks: enough
-//! readings to average the ADC's 1 mV step (0.17 A of motor current at 30 % duty) and its noise,
+//! readings to average the ADC's 1 mV step (0.13 A of motor current at 40 % duty) and its noise,
 //! early enough that the free hub's back-EMF has taken little of the current (some 6 % a
 //! millisecond on the reference build, the same at any supply: the hub's acceleration and the
 //! drive voltage both scale with it). What it took is put back from the hub's mean speed over
 //! those ticks (`torque_per_amp_nm` × ω: a lower bound, as the gearbox's efficiency is not
-//! known). On the twin's defaults the estimate lands at 0.90–1.12 of the configured value for 50
-//! seeds at each of 9, 12 and 24 V (the twin's current sense reads 5 % high); without the
-//! back-EMF term, at 0.83–0.96.
+//! known). On the twin's defaults the estimate lands at 0.86–1.09 of the configured value for 50
+//! seeds at each of 9, 12 and 24 V (the twin's current sense reads 5 % high, and its ADC adds
+//! 1 mV of noise).
 
 use kerfmeter_protocol::{ErrorCode, SelfTestItem, SelfTestReport, TestOutcome};
 
@@ -56,7 +55,7 @@ pub(super) const NOT_RUN: SelfTestReport = SelfTestReport {
 
 /// Pulse ticks whose current (and supply) readings are averaged: from the first reading with the
 /// pulse in it (module docs).
-const PULSE_AVERAGED: core::ops::RangeInclusive<u32> = 3..=7;
+const PULSE_AVERAGED: core::ops::RangeInclusive<u32> = 2..=6;
 
 /// What the pulse phase gathers for the torque-constant estimate.
 #[derive(Debug, Clone, Copy, PartialEq)]

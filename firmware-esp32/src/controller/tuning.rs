@@ -132,8 +132,12 @@ pub const SELFTEST_DIRECTION_MIN_DEG: f32 = 1.0;
 /// Self-test: settling time before the torque-constant pulse, ticks, so that the pulse starts from
 /// standstill.
 pub const SELFTEST_SETTLE_TICKS: u32 = 150;
-/// Self-test: duty of the torque-constant pulse (from standstill).
-pub const SELFTEST_PULSE_DUTY: f32 = 0.3;
+/// Self-test: duty of the torque-constant pulse (from standstill): high enough that the current
+/// stands well above the current sense's noise divided by the duty (the signal grows with the
+/// duty, the noise shrinks with it), low enough that the current stays under the default limit
+/// at 26 V (4.9 A on the reference motor), and its filtered duty is above the conversion's floor
+/// from the first millisecond (0.25 against 0.2).
+pub const SELFTEST_PULSE_DUTY: f32 = 0.4;
 /// Self-test: torque-constant pulse length, ticks (current is averaged over the first ones, before
 /// the hub has built up speed and back-EMF).
 pub const SELFTEST_PULSE_TICKS: u32 = 20;
