@@ -114,10 +114,12 @@ const IDLE_DUTY: f32 = 1e-3;
 /// one in this many (an average over some 16 ticks).
 const OFFSET_AVERAGED: u32 = 16;
 
-/// The highest calibrated reading of the ADC at 0 dB attenuation, the `CS` channel's, mV: the
-/// ESP32-C3's range at 0 dB is about 0–750 mV (the ESP32-C6's is no narrower). A reading at or
-/// above it is clipped: the current is unknown. The filtered `CS` stays far below it: 50 mV plus
-/// 20 mV/A times D·i, 180 mV at the 6.5 A limit.
+/// The highest trusted calibrated reading of the ADC at 0 dB attenuation, the `CS` channel's,
+/// mV: Espressif gives the ESP32-C3's range at 0 dB as about 0–750 mV (the ESP32-C6's is no
+/// narrower). esp-hal's calibrated output does not clip at it (its 0 dB curve is fitted through
+/// the eFuse reference point at 400 mV), so a reading at or above it counts as clipped: the
+/// current is unknown. The filtered `CS` stays far below it: 50 mV plus 20 mV/A times D·i,
+/// 180 mV at the 6.5 A limit, four times finer than at 11 dB (2.5 V over the same 12 bits).
 pub const CS_ADC_MAX_MV: u16 = 750;
 
 /// Ticks without a finished current-sense conversion after which the current counts as unknown.
