@@ -77,9 +77,10 @@ where
 
     /// One control tick at `now_us`, with the current-sense reading for it, the ADC's calibrated
     /// millivolts on the filtered `CS` pin, taken as the last tick's output was applied (`None`
-    /// when the ADC has no fresh reading: the current is then unknown, and the controller faults
-    /// with `OverCurrent`), and the motor supply measured for it, V (`None` where it is not
-    /// measured).
+    /// when the ADC has no fresh reading: the last current stands, and after
+    /// [`CURRENT_STALE_TICKS`](crate::board::current::CURRENT_STALE_TICKS) such ticks the current
+    /// is unknown and the controller faults with `OverCurrent`), and the motor supply measured
+    /// for it, V (`None` where it is not measured).
     pub fn tick<S: ConfigPersist>(
         &mut self,
         now_us: u64,

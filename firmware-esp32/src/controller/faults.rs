@@ -96,7 +96,8 @@ impl Controller {
             return true;
         };
         let max_a = self.config.max_current_a;
-        self.current_mean.push(current_a) > max_a || current_a > OVER_CURRENT_PEAK_FACTOR * max_a
+        self.current_mean.push_over(current_a, max_a)
+            || current_a > OVER_CURRENT_PEAK_FACTOR * max_a
     }
 
     /// Faults of the run's motion, checked after the state advanced.
@@ -143,6 +144,10 @@ impl Controller {
 pub(super) struct CurrentMean {
     last_a: [f32; OVER_CURRENT_MEAN_TICKS],
     next: usize,
+    /// Readings since the last one above the limit: their mean cannot be above it when none
+    /// of them is, so it is summed only within [`OVER_CURRENT_MEAN_TICKS`] of one (cheap on a
+    /// core without an FPU, where each addition is a call).
+    since_above: usize,
 }
 
 impl CurrentMean {
@@ -151,13 +156,21 @@ impl CurrentMean {
         Self {
             last_a: [0.0; OVER_CURRENT_MEAN_TICKS],
             next: 0,
+            since_above: OVER_CURRENT_MEAN_TICKS,
         }
     }
 
-    /// Add this tick's current, A; the mean of the last [`OVER_CURRENT_MEAN_TICKS`], A.
-    fn push(&mut self, current_a: f32) -> f32 {
+    /// Add this tick's current, A: true when the mean of the last [`OVER_CURRENT_MEAN_TICKS`]
+    /// is above `max_a` (their sum against N times it: no division).
+    fn push_over(&mut self, current_a: f32, max_a: f32) -> bool {
         self.last_a[self.next] = current_a;
         self.next = (self.next + 1) % OVER_CURRENT_MEAN_TICKS;
-        self.last_a.iter().sum::<f32>() / OVER_CURRENT_MEAN_TICKS as f32
+        self.since_above = if current_a > max_a {
+            0
+        } else {
+            (self.since_above + 1).min(OVER_CURRENT_MEAN_TICKS)
+        };
+        self.since_above < OVER_CURRENT_MEAN_TICKS
+            && self.last_a.iter().sum::<f32>() > OVER_CURRENT_MEAN_TICKS as f32 * max_a
     }
 }

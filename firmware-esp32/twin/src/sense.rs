@@ -318,6 +318,47 @@ mod tests {
         assert!((closed - y).abs() < 1e-3, "{closed} vs {y}");
     }
 
+    /// The G2's noise, independent from period to period, is averaged by the RC filter; the
+    /// ADC's own noise is not.
+    #[test]
+    fn the_filter_averages_the_sense_noise_but_not_the_adcs() {
+        let sd_mv = |p: &PlantParams| {
+            let mut sense = Sense::new(p, 5);
+            let mut rng = Rng::new(2);
+            let b = bridge(1.0, 0.5);
+            let reads: Vec<f64> = (1..=4000)
+                .map(|t| f64::from(sense.sample(&b, t * PERIOD_US, false, &mut rng).cs_mv))
+                .collect();
+            let mean = reads.iter().sum::<f64>() / reads.len() as f64;
+            (reads.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / reads.len() as f64).sqrt()
+        };
+        let g2 = PlantParams {
+            current_noise_a: 0.4,
+            cs_filter_tau_us: 1000.0,
+            cs_sample_drift: 0.0,
+            ..exact()
+        };
+        // 0.4 A is 8 mV at the pin; 16 % of it is left (the 1 mV steps add a little).
+        let filtered = sd_mv(&g2);
+        assert!(
+            (filtered - 8.0 * filtered_noise_share(1000.0)).abs() < 0.2,
+            "{filtered}"
+        );
+        assert!((filtered_noise_share(1000.0) - 0.158).abs() < 1e-3);
+        let unfiltered = sd_mv(&PlantParams {
+            cs_filter_tau_us: 0.0,
+            ..g2
+        });
+        assert!((unfiltered - 8.0).abs() < 0.4, "{unfiltered}");
+        let adc = sd_mv(&PlantParams {
+            adc_noise_mv: 2.0,
+            cs_filter_tau_us: 1000.0,
+            cs_sample_drift: 0.0,
+            ..exact()
+        });
+        assert!((adc - 2.0).abs() < 0.15, "{adc}");
+    }
+
     #[test]
     fn the_supply_reads_through_the_divider_with_its_gain_error() {
         let p = PlantParams {
