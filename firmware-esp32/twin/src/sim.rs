@@ -42,7 +42,6 @@ use crate::sense::{Sense, Sensed};
 use crate::timing::{HostBursts, SimWatchdog, TickClock};
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
-use kerfmeter_firmware::board::current::CURRENT_SENSE_OFFSET_MV;
 use kerfmeter_firmware::board::partition::{ConfigStorage, OpenedConfig, open_config_partition};
 use kerfmeter_firmware::config_store::ConfigSource;
 use kerfmeter_firmware::controller::PERIOD_US;
@@ -536,14 +535,10 @@ impl Twin {
         self.hardware.encoder.bus_mut().set_angle_deg(cw);
         self.flt
             .set_high(!self.flt_injected && !self.plant.driver_fault());
-        // Before the first tick's conversion, the board reads the current sense's offset and
-        // no supply yet.
+        // The first tick after boot has no conversion yet, as on the board.
         let out = self.hardware.tick(
             self.now_us,
-            Some(
-                self.sensed
-                    .map_or(CURRENT_SENSE_OFFSET_MV as u16, |s| s.cs_mv),
-            ),
+            self.sensed.map(|s| s.cs_mv),
             self.sensed.map(|s| s.supply_v),
             &mut self.device,
         );
