@@ -5,10 +5,13 @@
 //! 2. read its diagnostics every [`DIAGNOSTICS_PERIOD_TICKS`] ticks, and at once after any read
 //!    error (so that a lost magnet is reported as such, not as a run of bad reads);
 //! 3. read the driver's FLT line (an unreadable FLT counts as a fault);
-//! 4. step the [`Device`] with these inputs, the motor current (or that it is unknown) and the
+//! 4. convert the current-sense reading to the motor current ([`MotorCurrent`]: the RC-filtered
+//!    `CS` divided by the duty filtered alike, or unknown);
+//! 5. step the [`Device`] with these inputs, the motor current (or that it is unknown) and the
 //!    motor supply (when it is measured);
-//! 5. apply its output to the motor driver (a failed apply forces the motor safe and is reported
-//!    as a driver fault on the next tick).
+//! 6. apply its output to the motor driver (a failed apply forces the motor safe and is reported
+//!    as a driver fault on the next tick), and tell the current sense which duty the bridge holds
+//!    from now on.
 //!
 //! Changes of the encoder's own settings ([`EncoderSettings`]: zero, placement, gear ratio,
 //! sense) reach the encoder driver here, and only those restart its turn counting: any other
@@ -22,6 +25,7 @@ use embedded_hal::pwm::SetDutyCycle;
 use embedded_hal::spi::SpiDevice;
 
 use crate::as5048a::{As5048a, DiagnosticsError, EncoderError, EncoderSettings};
+use crate::board::current::MotorCurrent;
 use crate::config_store::ConfigPersist;
 use crate::controller::{DiagnosticsReading, EncoderFault, Inputs};
 use crate::device::Device;
@@ -47,6 +51,8 @@ where
     motor_error: bool,
     /// The encoder settings last given to the driver.
     applied: Option<EncoderSettings>,
+    /// The motor current from the current-sense readings and the duties applied.
+    current: MotorCurrent,
 }
 
 impl<SPI, PWM, DIR, SLP, FLT> Hardware<SPI, PWM, DIR, SLP, FLT>
@@ -65,16 +71,20 @@ where
             diagnostics_countdown: 0,
             motor_error: false,
             applied: None,
+            current: MotorCurrent::new(),
         }
     }
 
-    /// One control tick at `now_us`, with the motor current measured for it, A (`None` when the
-    /// current sense has no fresh reading: the controller then faults with `OverCurrent`), and
-    /// the motor supply measured for it, V (`None` where the board does not measure it).
+    /// One control tick at `now_us`, with the current-sense reading for it, the ADC's calibrated
+    /// millivolts on the filtered `CS` pin, taken as the last tick's output was applied (`None`
+    /// when the ADC has no fresh reading: the last current stands, and after
+    /// [`CURRENT_STALE_TICKS`](crate::board::current::CURRENT_STALE_TICKS) such ticks the current
+    /// is unknown and the controller faults with `OverCurrent`), and the motor supply measured
+    /// for it, V (`None` where it is not measured).
     pub fn tick<S: ConfigPersist>(
         &mut self,
         now_us: u64,
-        current_a: Option<f32>,
+        cs_mv: Option<u16>,
         supply_v: Option<f32>,
         device: &mut Device<S>,
     ) -> MotorOutput {
@@ -108,12 +118,23 @@ where
         let inputs = Inputs {
             angle_deg,
             diagnostics,
-            current_a,
+            current_a: self.current.current_a(cs_mv),
             driver_fault,
             supply_v,
         };
         let out = device.step(now_us, &inputs);
         self.motor_error = self.motor.apply(&out).is_err();
+        let held = if self.motor_error {
+            MotorOutput::SAFE
+        } else {
+            out
+        };
+        self.current.applied(&held, now_us);
         out
+    }
+
+    /// The motor current's conversion (for checks).
+    pub fn current(&self) -> &MotorCurrent {
+        &self.current
     }
 }

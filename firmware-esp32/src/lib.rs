@@ -21,8 +21,10 @@
 //! - [`device`]: the request handler behind the link: the whole request table.
 //! - [`watchdog`]: the hardware watchdog's timeouts, and the flash operations that lengthen it.
 //! - [`emergency`]: the motor bridge put safe on the registers from a panic, before any print.
-//! - [`board`]: board bring-up: pins, PWM, encoder SPI, current sense (chip features), and the
-//!   chip-independent current-sense scaling and configuration-partition policy.
+//! - [`board`]: board bring-up: pins, PWM, encoder SPI, the current and supply sense on ADC1
+//!   (chip features), and the chip-independent current-sense conversion (the RC-filtered `CS`
+//!   over the filtered duty, used by [`hardware`]), supply scaling and configuration-partition
+//!   policy.
 //! - `fakes` (feature `fakes`, std): fake peripherals for the drivers' tests and the digital twin
 //!   (the `kerfmeter-twin` crate).
 

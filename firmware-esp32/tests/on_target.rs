@@ -57,6 +57,7 @@ use esp_hal::{
     time::Instant,
 };
 use kerfmeter_firmware::as5048a::COUNTS_PER_TURN;
+use kerfmeter_firmware::board::adc::AnalogInputs;
 use kerfmeter_firmware::board::emergency::{ARMED, ChipRegisters};
 use kerfmeter_firmware::board::encoder::{BoardEncoder, encoder};
 use kerfmeter_firmware::board::motor::{BoardMotor, LineLevels, PWM_CHANNEL, motor_lines};
@@ -150,6 +151,8 @@ struct PulseOutcome {
 struct Board {
     encoder: BoardEncoder,
     motor: BoardMotor,
+    /// The current sense and the supply on ADC1.
+    analog: AnalogInputs,
     delay: Delay,
     sleep_gpio: u8,
     dir_gpio: u8,
@@ -182,10 +185,12 @@ fn build(levels: LineLevels) -> Board {
     safe.expect("motor driver: safe state at construction");
 
     let encoder = encoder(p.SPI2, pins.encoder, &DeviceConfig::DEFAULT);
+    let analog = AnalogInputs::new(p.ADC1, pins.motor_current, pins.motor_supply);
 
     Board {
         encoder,
         motor,
+        analog,
         delay,
         sleep_gpio,
         dir_gpio,
@@ -483,10 +488,12 @@ mod tests {
     use kerfmeter_firmware::motor::MotorOutput;
     use kerfmeter_protocol::DeviceConfig;
 
+    use kerfmeter_firmware::board::current::{MotorCurrent, OFFSET_RANGE_MV};
     use kerfmeter_firmware::board::emergency::{ARMED, ChipRegisters};
     use kerfmeter_firmware::board::flash::config_partition;
     use kerfmeter_firmware::board::motor::LineLevels;
     use kerfmeter_firmware::board::partition::{ConfigStorage, open_config_partition};
+    use kerfmeter_firmware::board::supply::SUPPLY_PERIOD_TICKS;
     use kerfmeter_firmware::board::watchdog::BoardWatchdog;
     use kerfmeter_firmware::config_store::ConfigPersist;
     use kerfmeter_firmware::emergency::on_panic;
@@ -710,6 +717,46 @@ mod tests {
             "the jam detector never saw the still hub as still for {} ticks in {} ticks",
             JAM_SETTLE_TICKS,
             STILL_WITHIN_TICKS
+        );
+        board.finish();
+    }
+
+    /// Both ADC channels, read as the control task reads them (one conversion behind, the
+    /// supply every tenth tick), give readings in their ranges with the motor asleep: the
+    /// current sense no more than the G2's offset (no drive, no current), the supply within the
+    /// G2's operating range.
+    #[test]
+    fn both_adc_channels_read_in_range_with_the_motor_asleep(mut board: Board) {
+        board.assert_safe("at the start");
+        let mut current = MotorCurrent::new();
+        let (mut cs_readings, mut supply) = (0, None);
+        for _ in 0..4 * SUPPLY_PERIOD_TICKS {
+            let (cs_mv, supply_v) = board.analog.read();
+            if let Some(mv) = cs_mv {
+                cs_readings += 1;
+                assert!(
+                    f32::from(mv) <= *OFFSET_RANGE_MV.end(),
+                    "CS reads {} mV with the motor asleep",
+                    mv
+                );
+            }
+            let a = current.current_a(cs_mv).expect("the current sense is read");
+            assert!(a < 0.5, "{} A with the motor asleep", a);
+            supply = supply_v.or(supply);
+            board.analog.start_next();
+            board.delay.delay_millis(SAMPLE_PERIOD_MS);
+        }
+        assert!(
+            cs_readings >= 3 * SUPPLY_PERIOD_TICKS,
+            "only {} current-sense readings in {} ticks",
+            cs_readings,
+            4 * SUPPLY_PERIOD_TICKS
+        );
+        let supply_v = supply.expect("no supply reading");
+        assert!(
+            (6.5..=30.0).contains(&supply_v),
+            "supply reads {} V (the bench's motor supply must be on)",
+            supply_v
         );
         board.finish();
     }

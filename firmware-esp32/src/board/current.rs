@@ -1,102 +1,224 @@
-//! The motor current from the Pololu G2's current-sense (`CS`) output, and when it counts as
-//! unknown.
+//! The motor current from the Pololu G2's current-sense (`CS`) output: an RC-filtered `CS`
+//! divided by the duty filtered the same way, and when the current counts as unknown.
+//! Chip-independent, so that it is tested on the host, and used by [`Hardware::tick`] on the
+//! board and in the digital twin alike: both hand it the ADC's millivolts, nothing else.
 //!
-//! The board reads `CS` one ADC conversion behind: each tick takes the conversion started at the
-//! end of the previous tick, so that the tick never waits for the ADC. A tick whose conversion
-//! has not finished keeps the last current; after [`CURRENT_STALE_TICKS`] such ticks in a row the
-//! current is unknown (`None`), and stays so until a conversion finishes again. Chip-independent,
-//! so that it is tested on the host; the ADC itself is in `board::adc` (chip features).
+//! # Why an RC filter and a division by duty
+//!
+//! The G2's `CS` follows the motor current only in the drive phase of each 20 kHz PWM period; in
+//! the brake phase (and while the driver limits current) it sits at its offset. A single
+//! unsynchronised sample per 1 ms tick therefore reads either the current or about nothing, and
+//! an over-current check on it is statistical. Two cures exist:
+//!
+//! - sampling in the drive phase, synchronised to the PWM: the C3's LEDC cannot trigger the ADC
+//!   (no event matrix from LEDC to the SAR ADC), and an interrupt in every 50 µs PWM period to
+//!   start a conversion would cost 20,000 interrupts a second for one reading a millisecond;
+//! - an RC low-pass on the `CS` pin, which averages the pulse train to D·|i| (D: the fraction of
+//!   each period the bridge drives, the duty), read at any instant: chosen.
+//!
+//! The motor current is then the filtered reading divided by the duty. The duty changes from
+//! tick to tick, so the division uses the duty *filtered with the same time constant*
+//! ([`MotorCurrent`]: a first-order filter of the duty applied, stepped once a tick), so that
+//! the ratio stays right while the duty ramps: both numerator and denominator are then the same
+//! weighted average over the recent past, of D·|i| and of D.
+//!
+//! # The filter: 10 kΩ and 100 nF, τ = 1 ms
+//!
+//! - Ripple: the pulse train leaves a sawtooth of about i·D(1−D)·T/τ peak to peak (T = 50 µs):
+//!   at most 1.25 % of the current, 1.6 mV at the 6.5 A limit, under two of the calibrated
+//!   ADC's 1 mV steps. A shorter τ lets more ripple through; at random sampling phases it is noise.
+//! - Lag: τ plus the ADC's one-conversion delay (the reading a tick uses was taken at the end of
+//!   the previous tick): a short's current shows within 2–3 ms, before a stalled motor's
+//!   winding or the G2 come to harm (the G2 also limits current itself). A longer τ is slower.
+//! - Source impedance: Pololu publishes no output impedance for `CS`; 10 kΩ in series keeps the
+//!   filter's R set by the resistor for any output impedance well below it (check on the bench:
+//!   the reading at a steady duty with the resistor shorted and with it in place agree), and
+//!   100 nF holds the charge the ADC's sample-and-hold takes (a few pF) with no visible droop.
+//!
+//! # The duty filter, and when a reading was taken
+//!
+//! The board reads `CS` one conversion behind: the conversion started at the end of tick *k*,
+//! just after the motor output of tick *k* was applied, is read at tick *k* + 1. So a reading
+//! holds the filter's state at the moment tick *k*'s output was applied, and [`MotorCurrent`]
+//! pairs it with the duty filter's state at that same moment: [`MotorCurrent::applied`] advances
+//! the duty filter over the time since the last output (by e^(−Δt/τ), Δt counted in whole
+//! ticks) with the duty held meanwhile, then takes the new output as the duty held from now on.
+//!
+//! # The rules
+//!
+//! - Motor current = (reading − offset) / [`CURRENT_SENSE_MV_PER_A`] / max(filtered duty,
+//!   [`DUTY_FLOOR`]), never negative.
+//! - The floor: below it the filtered duty is too small to divide by (the ADC's 1 mV step and
+//!   its noise would be multiplied without bound; at the floor, by five: 1 mV reads 0.25 A).
+//!   Under the floor the current reads low by the factor duty/floor; but there the motor cannot
+//!   draw more than a fifth of its full-duty stall current, so no over-current is missed unless
+//!   that stall current is over five times the limit (the reference build's is 5.6 A at 12 V,
+//!   11 A at 24 V, against 6.5 A). A short (tens of amps in the drive phase) still reads above
+//!   the limit at any duty above a few percent, and the G2 limits current on its own.
+//! - The offset: the G2's is "about 50 mV" and varies from board to board (60 mV is reported),
+//!   and a 10 mV error divided by the floor would read 5 A. So it is learnt: while the duty
+//!   filter has settled at zero (driver asleep or braking), readings within
+//!   [`OFFSET_RANGE_MV`] update it (their mean at first, from the very first reading, so that an
+//!   off-nominal offset never reads as a current at boot; then an average over some 16 ticks);
+//!   a reading outside that band (a G2 whose sense is off while asleep) is not an offset and is
+//!   ignored. It starts at [`CURRENT_SENSE_OFFSET_MV`]. While braking, the G2 shows no current
+//!   at all (the brake phase is the whole period): the filtered reading decays to the offset,
+//!   and the current reads zero.
+//! - A tick without a reading (the board's ADC was busy with the supply, or its conversion had
+//!   not finished) keeps the last current.
+//! - Unknown (`None`, which the controller treats as an over-current): no reading for more than
+//!   [`CURRENT_STALE_TICKS`] ticks in a row, or a reading at the top of the ADC's range
+//!   ([`CS_ADC_MAX_MV`], clipped: the true value may be anywhere above).
+//!
+//! [`Hardware::tick`]: crate::hardware::Hardware::tick
+
+use crate::controller::PERIOD_US;
+use crate::motor::MotorOutput;
 
 /// Current-sense gain of the Pololu G2 18v17 (the reference driver): its `CS` output rises by
-/// about 20 mV per amp of motor current. The gain depends on the G2 variant: look it up on
-/// Pololu's page for yours and adjust this (and [`CURRENT_SENSE_OFFSET_MV`]) for any other.
+/// about 20 mV per amp of motor current in the drive phase (10 mV/A on the 18v22; Pololu's G2
+/// documentation). Adjust this (and [`CURRENT_SENSE_OFFSET_MV`]) for another variant.
 pub const CURRENT_SENSE_MV_PER_A: f32 = 20.0;
 
 /// Current-sense offset of the Pololu G2 18v17: its `CS` output sits about 50 mV above ground
-/// at zero current. Depends on the G2 variant (and varies a little from board to board): adjust
-/// it for another driver.
+/// at zero current. The starting point of the offset [`MotorCurrent`] learns.
 pub const CURRENT_SENSE_OFFSET_MV: f32 = 50.0;
+
+/// Readings that may be the offset, mV: about 50 mV give or take what boards show. A reading
+/// outside it with the bridge idle is not taken for the offset.
+pub const OFFSET_RANGE_MV: core::ops::RangeInclusive<f32> = 30.0..=80.0;
+
+/// The RC filter's resistor, in series from the G2's `CS` to the ADC pin, Ω.
+pub const CS_FILTER_OHM: f32 = 10_000.0;
+/// The RC filter's capacitor, from the ADC pin to ground, nF.
+pub const CS_FILTER_NF: f32 = 100.0;
+/// The RC filter's time constant, µs (10 kΩ × 100 nF).
+pub const CS_FILTER_TAU_US: u64 = 1_000;
+
+/// e^(−[`PERIOD_US`] / [`CS_FILTER_TAU_US`]): how much of the filter's state is left after one
+/// tick (a constant: no `expf` on the hot path; a test checks it against the time constant).
+pub const FILTER_DECAY_PER_TICK: f32 = 0.367_879_44;
+
+/// Ticks after which the filter counts as fully settled (e^−8 < 0.04 %): a longer gap between
+/// two outputs is counted as this many.
+const SETTLED_TICKS: u64 = 8;
+
+/// Below this filtered duty the division uses this instead (see the module docs).
+pub const DUTY_FLOOR: f32 = 0.2;
+
+/// A filtered duty below this counts as zero: the bridge has been idle for the filter to settle,
+/// so the reading is the offset.
+const IDLE_DUTY: f32 = 1e-3;
+
+/// The learnt offset is the mean of the first idle readings, then follows them with a weight of
+/// one in this many (an average over some 16 ticks).
+const OFFSET_AVERAGED: u32 = 16;
+
+/// The highest trusted calibrated reading of the ADC at 0 dB attenuation, the `CS` channel's,
+/// mV: Espressif gives the ESP32-C3's range at 0 dB as about 0–750 mV (the ESP32-C6's is no
+/// narrower). esp-hal's calibrated output does not clip at it (its 0 dB curve is fitted through
+/// the eFuse reference point at 400 mV), so a reading at or above it counts as clipped: the
+/// current is unknown. The filtered `CS` stays far below it: 50 mV plus 20 mV/A times D·i,
+/// 180 mV at the 6.5 A limit, four times finer than at 11 dB (2.5 V over the same 12 bits).
+pub const CS_ADC_MAX_MV: u16 = 750;
 
 /// Ticks without a finished current-sense conversion after which the current counts as unknown.
 pub const CURRENT_STALE_TICKS: u32 = 10;
 
-/// Motor current, A, from the G2's `CS` voltage in millivolts (never negative).
-pub fn motor_current_a(cs_mv: u16) -> f32 {
-    ((f32::from(cs_mv) - CURRENT_SENSE_OFFSET_MV) / CURRENT_SENSE_MV_PER_A).max(0.0)
+/// The filtered `CS`, as amps of D·|i| above `offset_mv` (never negative).
+fn filtered_a(cs_mv: u16, offset_mv: f32) -> f32 {
+    ((f32::from(cs_mv) - offset_mv) / CURRENT_SENSE_MV_PER_A).max(0.0)
 }
 
-/// The last measured motor current and how many ticks old it is.
+/// The motor current from the filtered `CS` reading and the duty filtered alike (module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CurrentTracker {
+pub struct MotorCurrent {
+    /// The duty through the filter, at the moment the last output was applied.
+    duty_filtered: f32,
+    /// The duty the bridge holds since then (0 asleep).
+    held_duty: f32,
+    /// When the last output was applied, µs.
+    last_applied_us: Option<u64>,
+    /// The learnt `CS` offset, mV.
+    offset_mv: f32,
+    /// Idle readings learnt from, up to [`OFFSET_AVERAGED`].
+    offset_readings: u32,
+    /// The last current, A, and how many ticks without a reading have passed since.
     last_a: f32,
     stale_ticks: u32,
 }
 
-impl Default for CurrentTracker {
+impl Default for MotorCurrent {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl CurrentTracker {
-    /// Nothing measured yet: reads 0 A until [`CURRENT_STALE_TICKS`] ticks pass without a
-    /// conversion.
+impl MotorCurrent {
+    /// The bridge at rest, the offset at its nominal value; 0 A until a reading comes (or
+    /// [`CURRENT_STALE_TICKS`] ticks pass without one).
     pub const fn new() -> Self {
         Self {
+            duty_filtered: 0.0,
+            held_duty: 0.0,
+            last_applied_us: None,
+            offset_mv: CURRENT_SENSE_OFFSET_MV,
+            offset_readings: 0,
             last_a: 0.0,
             stale_ticks: 0,
         }
     }
 
-    /// A conversion finished with `cs_mv` on the `CS` pin.
-    pub fn finished(&mut self, cs_mv: u16) {
-        self.last_a = motor_current_a(cs_mv);
+    /// The motor current, A, from this tick's `CS` reading (mV; `None`: there is none this
+    /// tick), taken when the last output was applied; `None` when it is unknown (module docs). A
+    /// reading with the bridge idle also updates the learnt offset.
+    pub fn current_a(&mut self, cs_mv: Option<u16>) -> Option<f32> {
+        let Some(cs_mv) = cs_mv else {
+            self.stale_ticks = self.stale_ticks.saturating_add(1);
+            return (self.stale_ticks <= CURRENT_STALE_TICKS).then_some(self.last_a);
+        };
+        if cs_mv >= CS_ADC_MAX_MV {
+            return None;
+        }
         self.stale_ticks = 0;
+        let reading = f32::from(cs_mv);
+        if self.duty_filtered < IDLE_DUTY && OFFSET_RANGE_MV.contains(&reading) {
+            self.offset_readings = (self.offset_readings + 1).min(OFFSET_AVERAGED);
+            self.offset_mv += (reading - self.offset_mv) / self.offset_readings as f32;
+        }
+        self.last_a = filtered_a(cs_mv, self.offset_mv) / self.duty_filtered.max(DUTY_FLOOR);
+        Some(self.last_a)
     }
 
-    /// The current for this tick, A, given the conversion that finished for it (`None`: it had
-    /// not finished); `None` when it is unknown.
-    pub fn at_tick(&mut self, finished_mv: Option<u16>) -> Option<f32> {
-        match finished_mv {
-            Some(cs_mv) => self.finished(cs_mv),
-            None => self.stale_ticks = self.stale_ticks.saturating_add(1),
+    /// The bridge was set to `out` at `now_us` (the safe state if applying it failed): the duty
+    /// filter advances over the time since the last output, then holds `out`'s duty.
+    pub fn applied(&mut self, out: &MotorOutput, now_us: u64) {
+        if let Some(last_us) = self.last_applied_us {
+            let ticks = (now_us.saturating_sub(last_us) + PERIOD_US / 2) / PERIOD_US;
+            let mut left = 1.0;
+            for _ in 0..ticks.min(SETTLED_TICKS) {
+                left *= FILTER_DECAY_PER_TICK;
+            }
+            self.duty_filtered = self.held_duty + (self.duty_filtered - self.held_duty) * left;
         }
-        (self.stale_ticks <= CURRENT_STALE_TICKS).then_some(self.last_a)
+        self.held_duty = if out.awake {
+            out.duty.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        self.last_applied_us = Some(now_us);
+    }
+
+    /// The duty through the filter when the last output was applied.
+    pub fn duty_filtered(&self) -> f32 {
+        self.duty_filtered
+    }
+
+    /// The learnt `CS` offset, mV.
+    pub fn offset_mv(&self) -> f32 {
+        self.offset_mv
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_g2_scaling_has_its_offset_and_never_goes_negative() {
-        assert_eq!(motor_current_a(50), 0.0);
-        assert_eq!(motor_current_a(250), 10.0);
-        assert_eq!(motor_current_a(0), 0.0);
-        assert_eq!(motor_current_a(u16::MAX), (65535.0 - 50.0) / 20.0);
-    }
-
-    #[test]
-    fn a_missed_conversion_keeps_the_last_current_until_it_is_stale() {
-        let mut tracker = CurrentTracker::new();
-        assert_eq!(tracker.at_tick(Some(150)), Some(5.0));
-        for tick in 1..=CURRENT_STALE_TICKS {
-            assert_eq!(tracker.at_tick(None), Some(5.0), "missed tick {tick}");
-        }
-        assert_eq!(tracker.at_tick(None), None);
-        assert_eq!(tracker.at_tick(None), None);
-        // A conversion finished between ticks (started late in the tick) makes it known again.
-        tracker.finished(90);
-        assert_eq!(tracker.at_tick(None), Some(2.0));
-    }
-
-    #[test]
-    fn before_any_conversion_the_current_reads_zero_then_unknown() {
-        let mut tracker = CurrentTracker::default();
-        for _ in 0..CURRENT_STALE_TICKS {
-            assert_eq!(tracker.at_tick(None), Some(0.0));
-        }
-        assert_eq!(tracker.at_tick(None), None);
-    }
-}
+mod tests;

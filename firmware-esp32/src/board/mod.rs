@@ -11,8 +11,8 @@
 //!   motor lines are driven low before anything else is set up.
 //! - `encoder`: the AS5048A on SPI2 (mode 1, 2 MHz, chip select as a GPIO, its timing kept); then the
 //!   [`As5048a`] driver.
-//! - `adc`: the G2's current-sense output on ADC1 (11 dB, eFuse-calibrated), read one
-//!   conversion behind so that the control tick never waits.
+//! - `adc`: the G2's RC-filtered current-sense output (0 dB) and the supply divider (11 dB) on
+//!   ADC1, eFuse-calibrated, read one conversion behind so that the control tick never waits.
 //! - `flash`: the SPI flash and the partition table's `nvs` partition, which holds the
 //!   configuration, its erases and writes guarded by the watchdog.
 //! - `watchdog`: TIMG1's MWDT, fed by the control tick and lengthened around flash operations.
@@ -21,8 +21,10 @@
 //!
 //! Chip-independent, and tested on the host:
 //!
-//! - [`current`]: the G2's current-sense scaling and when the current counts as unknown.
-//! - [`supply`]: the motor supply's sense divider and its scaling (not wired on the board yet).
+//! - [`current`]: the motor current from the RC-filtered current sense divided by the duty
+//!   filtered alike, and when the current counts as unknown (used by `Hardware::tick`).
+//! - [`supply`]: the motor supply's sense divider, its scaling and its reading between
+//!   conversions.
 //! - [`partition`]: what is done at boot with the configuration partition: use a valid record,
 //!   erase foreign data, or run without persistence.
 //!

@@ -9,23 +9,31 @@
 //! | signal                  | part / pin          | dir | ESP32-C3 | ESP32-C6 | notes |
 //! |-------------------------|---------------------|-----|----------|----------|-------|
 //! | motor PWM               | Pololu G2 `PWM`     | out | GPIO3    | GPIO3    | LEDC, 20 kHz, 11-bit duty; duty 0 = no drive. A panic takes the pin off LEDC and drives it low |
-//! | motor direction         | Pololu G2 `DIR`     | out | GPIO4    | GPIO21   | |
+//! | motor direction         | Pololu G2 `DIR`     | out | GPIO10   | GPIO21   | |
 //! | motor sleep             | Pololu G2 `SLP`     | out | GPIO1    | GPIO1    | active-low sleep: low = asleep. **Board requirement:** a pull-down resistor (≈10 kΩ to GND) on this net, so the driver sleeps while the MCU is in reset, booting or unpowered (its pins are inputs then). A panic drives it low on the GPIO registers before anything is printed (`board::emergency`) |
 //! | motor fault             | Pololu G2 `FLT`     | in  | GPIO20   | GPIO20   | open-drain, active low; internal pull-up enabled (an external ≈10 kΩ pull-up to 3V3 is recommended) |
-//! | motor current           | Pololu G2 `CS`      | ain | GPIO0    | GPIO0    | ADC1 channel 0, 11 dB attenuation, calibrated to millivolts; ≈20 mV/A + ≈50 mV on the G2 18v17 ([`CURRENT_SENSE_MV_PER_A`], [`CURRENT_SENSE_OFFSET_MV`]); the voltage must stay below the ADC's 11 dB range (≈2.5 V) |
-//! | motor supply            | G2 `VIN` via a 100k/8.2k divider | ain | — | — | **not wired yet** (issue 12): ADC1's channels on the C3 (GPIO0–4) are all taken; the divider and its scaling are in `board::supply` |
+//! | motor current           | Pololu G2 `CS` via an RC low-pass | ain | GPIO0 | GPIO0 | ADC1 channel 0, **0 dB** attenuation (≈0–750 mV), calibrated to millivolts. **Board requirement:** 10 kΩ in series from `CS` to the pin and 100 nF from the pin to GND (τ = 1 ms, [`CS_FILTER_OHM`], [`CS_FILTER_NF`]): the filter averages the G2's pulsed `CS` to duty × current, which the firmware divides by the duty ([`MotorCurrent`]). ≈20 mV/A + ≈50 mV on the G2 18v17 ([`CURRENT_SENSE_MV_PER_A`], [`CURRENT_SENSE_OFFSET_MV`]) |
+//! | motor supply            | G2 `VIN` via a 100k/8.2k divider | ain | GPIO4 | GPIO2 | ADC1 channel 4 (C3) / 2 (C6), **11 dB** attenuation (≈0–2.5 V), calibrated; 100 kΩ from `VIN` to the pin, 8.2 kΩ and 100 nF from the pin to GND (`board::supply`): 30 V reads 2.27 V |
 //! | encoder clock           | AS5048A `CLK`       | out | GPIO6    | GPIO6    | SPI2 `SCLK`, mode 1, 2 MHz |
 //! | encoder data in         | AS5048A `MOSI`      | out | GPIO7    | GPIO7    | SPI2 `MOSI` |
-//! | encoder data out        | AS5048A `MISO`      | in  | GPIO5    | GPIO2    | SPI2 `MISO` |
-//! | encoder chip select     | AS5048A `CSn`       | out | GPIO10   | GPIO18   | plain GPIO, active low, idles high |
+//! | encoder data out        | AS5048A `MISO`      | in  | GPIO5    | GPIO19   | SPI2 `MISO` |
+//! | encoder chip select     | AS5048A `CSn`       | out | GPIO2    | GPIO18   | plain GPIO, active low, idles high. **C3 board requirement:** a 10 kΩ pull-up to 3V3 on this net: GPIO2 is a strapping pin that must be high at reset for the chip to boot from flash (or to enter download mode), and the pull-up also keeps the encoder deselected while the pin is an input |
 //! | protocol port           | USB `D-` / `D+`     | —   | GPIO18/19 | GPIO12/13 | USB-Serial-JTAG: protocol frames only |
 //! | logs and panics         | UART0 `TX`          | out | GPIO21   | GPIO16   | esp-println, 115200 baud; never on the protocol port |
 //!
+//! Both analog signals are on ADC1: the C6 has no other ADC, and ESP-IDF no longer supports the
+//! C3's ADC2 in oneshot mode (a hardware limitation: its results are not stable). The C3's ADC1
+//! has five channels, GPIO0–4: `CS`, `SLP`, `CSn` (GPIO2, with its pull-up), `PWM` and the
+//! supply; `DIR` moved from GPIO4 to GPIO10 to make room, and `CSn` from GPIO10 to GPIO2. On the
+//! C6, ADC1 is GPIO0–6, of which GPIO4 and GPIO5 are strapping pins (a divider on one would set
+//! the boot mode), so `MISO` moved from GPIO2 to GPIO19 and the supply took GPIO2.
+//!
 //! Pins avoided on purpose:
 //!
-//! - ESP32-C3: GPIO2, GPIO8, GPIO9 are boot-strapping pins; GPIO18/19 are the USB pins;
-//!   GPIO11–17 belong to the SPI flash; GPIO21 is the log UART's TX. GPIO20 (UART0 RX) is free
-//!   because logs are transmit-only: do **not** connect a USB-UART adapter's TX to it.
+//! - ESP32-C3: GPIO8 and GPIO9 are boot-strapping pins (so is GPIO2, used for `CSn` with its
+//!   pull-up, see above); GPIO18/19 are the USB pins; GPIO11–17 belong to the SPI flash; GPIO21
+//!   is the log UART's TX. GPIO20 (UART0 RX) is free because logs are transmit-only: do **not**
+//!   connect a USB-UART adapter's TX to it.
 //! - ESP32-C6: GPIO4, GPIO5, GPIO8, GPIO9, GPIO15 are strapping pins; GPIO12/13 are the USB pins;
 //!   GPIO24–30 belong to the SPI flash; GPIO16/17 are UART0.
 //!
@@ -34,6 +42,9 @@
 //!
 //! [`CURRENT_SENSE_MV_PER_A`]: super::current::CURRENT_SENSE_MV_PER_A
 //! [`CURRENT_SENSE_OFFSET_MV`]: super::current::CURRENT_SENSE_OFFSET_MV
+//! [`CS_FILTER_OHM`]: super::current::CS_FILTER_OHM
+//! [`CS_FILTER_NF`]: super::current::CS_FILTER_NF
+//! [`MotorCurrent`]: super::current::MotorCurrent
 
 use esp_hal::gpio::AnyPin;
 
@@ -41,12 +52,21 @@ use esp_hal::gpio::AnyPin;
 /// type, because the ADC driver needs to know the ADC channel at compile time.
 pub type CurrentSensePin = esp_hal::peripherals::GPIO0<'static>;
 
+/// The pin wired to the supply divider (ADC1 channel 4 on the C3): a concrete type, as above.
+#[cfg(feature = "esp32c3")]
+pub type SupplySensePin = esp_hal::peripherals::GPIO4<'static>;
+/// The pin wired to the supply divider (ADC1 channel 2 on the C6): a concrete type, as above.
+#[cfg(feature = "esp32c6")]
+pub type SupplySensePin = esp_hal::peripherals::GPIO2<'static>;
+
 /// The board's pins, named by what they are wired to (see the table in the module docs).
 pub struct Pins {
     /// The Pololu G2's digital lines.
     pub motor: MotorPins,
-    /// Pololu G2 `CS` (analog).
+    /// Pololu G2 `CS` through its RC filter (analog).
     pub motor_current: CurrentSensePin,
+    /// The motor supply's divider (analog).
+    pub motor_supply: SupplySensePin,
     /// The AS5048A's SPI lines.
     pub encoder: EncoderPins,
 }
@@ -82,8 +102,8 @@ pub struct EncoderPins {
 macro_rules! take_pins {
     ($p:ident) => {
         $crate::__take_board_pins!($p;
-            pwm: GPIO3, dir: GPIO4, sleep: GPIO1, fault: GPIO20, current: GPIO0,
-            sclk: GPIO6, mosi: GPIO7, miso: GPIO5, cs: GPIO10)
+            pwm: GPIO3, dir: GPIO10, sleep: GPIO1, fault: GPIO20, current: GPIO0,
+            supply: GPIO4, sclk: GPIO6, mosi: GPIO7, miso: GPIO5, cs: GPIO2)
     };
 }
 
@@ -95,7 +115,7 @@ macro_rules! take_pins {
     ($p:ident) => {
         $crate::__take_board_pins!($p;
             pwm: GPIO3, dir: GPIO21, sleep: GPIO1, fault: GPIO20, current: GPIO0,
-            sclk: GPIO6, mosi: GPIO7, miso: GPIO2, cs: GPIO18)
+            supply: GPIO2, sclk: GPIO6, mosi: GPIO7, miso: GPIO19, cs: GPIO18)
     };
 }
 
@@ -105,7 +125,7 @@ macro_rules! take_pins {
 macro_rules! __take_board_pins {
     ($p:ident;
      pwm: $pwm:ident, dir: $dir:ident, sleep: $sleep:ident, fault: $fault:ident,
-     current: $current:ident,
+     current: $current:ident, supply: $supply:ident,
      sclk: $sclk:ident, mosi: $mosi:ident, miso: $miso:ident, cs: $cs:ident) => {
         $crate::board::pins::Pins {
             motor: $crate::board::pins::MotorPins {
@@ -115,6 +135,7 @@ macro_rules! __take_board_pins {
                 fault: $p.$fault.into(),
             },
             motor_current: $p.$current,
+            motor_supply: $p.$supply,
             encoder: $crate::board::pins::EncoderPins {
                 sclk: $p.$sclk.into(),
                 mosi: $p.$mosi.into(),

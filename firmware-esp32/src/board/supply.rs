@@ -16,9 +16,10 @@
 //!
 //! The ADC reports calibrated millivolts, so one step is 1 mV at the pin, 13.2 mV at the bus.
 //!
-//! Not wired on the board yet: the C3's ADC1 channels (GPIO0–4) are all taken (current sense,
-//! `SLP`, a strapping pin, `PWM`, `DIR`), so the board binary passes no supply reading; issue 12
-//! moves a pin and wires it.
+//! The board converts the supply on ADC1 (11 dB) every [`SUPPLY_PERIOD_TICKS`] ticks, in place of
+//! that tick's current-sense conversion (`board::adc`), and keeps the last reading in between
+//! ([`SupplyReading`]): the supply changes slowly against 10 ms, and the current sense misses
+//! one tick in ten, which its conversion rides through.
 
 /// The divider's resistor from `VIN` to the ADC pin, Ω.
 pub const SUPPLY_DIVIDER_TOP_OHM: f32 = 100_000.0;
@@ -30,6 +31,43 @@ pub const SUPPLY_DIVIDER_RATIO: f32 =
 /// The highest calibrated reading of the ADC at 11 dB attenuation (any channel), mV: a pin above
 /// it reads this.
 pub const ADC_MAX_MV: u16 = 2_500;
+
+/// The supply is converted every this many ticks (100 Hz at the 1 kHz control rate).
+pub const SUPPLY_PERIOD_TICKS: u32 = 10;
+
+/// A supply reading older than this many ticks is no reading (`None`): three conversions missed.
+pub const SUPPLY_STALE_TICKS: u32 = 3 * SUPPLY_PERIOD_TICKS;
+
+/// The last supply reading and its age, so that every tick has one between conversions.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SupplyReading {
+    last_v: Option<f32>,
+    stale_ticks: u32,
+}
+
+impl SupplyReading {
+    /// No reading yet.
+    pub const fn new() -> Self {
+        Self {
+            last_v: None,
+            stale_ticks: 0,
+        }
+    }
+
+    /// The supply for this tick, V, given the conversion that finished for it (mV on the pin;
+    /// `None`: none did): the last reading until it is [`SUPPLY_STALE_TICKS`] old, then `None`.
+    pub fn at_tick(&mut self, finished_mv: Option<u16>) -> Option<f32> {
+        match finished_mv {
+            Some(mv) => {
+                self.last_v = Some(supply_v(mv));
+                self.stale_ticks = 0;
+            }
+            None => self.stale_ticks = self.stale_ticks.saturating_add(1),
+        }
+        self.last_v
+            .filter(|_| self.stale_ticks <= SUPPLY_STALE_TICKS)
+    }
+}
 
 /// The motor supply, V, from the ADC's calibrated reading of the divider's pin, mV.
 pub fn supply_v(pin_mv: u16) -> f32 {
@@ -56,5 +94,18 @@ mod tests {
             supply_v(pin_mv)
         );
         assert_eq!(supply_v(0), 0.0);
+    }
+
+    #[test]
+    fn a_reading_stands_between_conversions_until_it_is_stale() {
+        let mut r = SupplyReading::new();
+        assert_eq!(r.at_tick(None), None, "nothing converted yet");
+        let v = r.at_tick(Some(1_000)).unwrap();
+        assert_eq!(v, supply_v(1_000));
+        for tick in 1..=SUPPLY_STALE_TICKS {
+            assert_eq!(r.at_tick(None), Some(v), "tick {tick}");
+        }
+        assert_eq!(r.at_tick(None), None);
+        assert_eq!(r.at_tick(Some(0)), Some(0.0));
     }
 }

@@ -16,7 +16,8 @@ use kerfmeter_protocol::{Conditions, Fault, QualityFlags};
 
 use super::{
     Controller, DEFAULT_HOST_TIMEOUT_MS, Inputs, MAX_CONSECUTIVE_ENCODER_ERRORS, NO_MOTION_DEG,
-    NO_MOTION_TICKS, REVERSE_TOLERANCE_DEG, State,
+    NO_MOTION_TICKS, OVER_CURRENT_MEAN_TICKS, OVER_CURRENT_PEAK_FACTOR, REVERSE_TOLERANCE_DEG,
+    State,
 };
 use crate::as5048a::DiagnosticFault;
 use crate::build::CONTROL_RATE_HZ;
@@ -60,11 +61,7 @@ impl Controller {
         if active && inputs.driver_fault {
             return Some(Fault::DriverFault);
         }
-        // An unknown current cannot be shown to be within the limit.
-        if inputs
-            .current_a
-            .is_none_or(|current_a| current_a > self.config.max_current_a)
-        {
+        if self.over_current(inputs.current_a) {
             return Some(Fault::OverCurrent);
         }
         if active && self.consecutive_encoder_errors >= MAX_CONSECUTIVE_ENCODER_ERRORS {
@@ -95,6 +92,18 @@ impl Controller {
             return Some(Fault::HostSilent);
         }
         None
+    }
+
+    /// This tick's current is over the limit: unknown (it cannot be shown to be within it), its
+    /// mean over the last [`OVER_CURRENT_MEAN_TICKS`] ticks above `max_current_a`, or this one
+    /// reading above [`OVER_CURRENT_PEAK_FACTOR`] times it.
+    fn over_current(&mut self, current_a: Option<f32>) -> bool {
+        let Some(current_a) = current_a else {
+            return true;
+        };
+        let max_a = self.config.max_current_a;
+        self.current_mean.push_over(current_a, max_a)
+            || current_a > OVER_CURRENT_PEAK_FACTOR * max_a
     }
 
     /// Faults of the run's motion, checked after the state advanced.
@@ -133,5 +142,41 @@ impl Controller {
     pub(super) fn latch(&mut self, fault: Fault) {
         self.state = State::Fault(fault);
         self.torque_nm = 0.0;
+    }
+}
+
+/// The last [`OVER_CURRENT_MEAN_TICKS`] motor currents, for the over-current check.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct CurrentMean {
+    last_a: [f32; OVER_CURRENT_MEAN_TICKS],
+    next: usize,
+    /// Readings since the last one above the limit: their mean cannot be above it when none
+    /// of them is, so it is summed only within [`OVER_CURRENT_MEAN_TICKS`] of one (cheap on a
+    /// core without an FPU, where each addition is a call).
+    since_above: usize,
+}
+
+impl CurrentMean {
+    /// No current yet (zeros).
+    pub(super) const fn new() -> Self {
+        Self {
+            last_a: [0.0; OVER_CURRENT_MEAN_TICKS],
+            next: 0,
+            since_above: OVER_CURRENT_MEAN_TICKS,
+        }
+    }
+
+    /// Add this tick's current, A: true when the mean of the last [`OVER_CURRENT_MEAN_TICKS`]
+    /// is above `max_a` (their sum against N times it: no division).
+    fn push_over(&mut self, current_a: f32, max_a: f32) -> bool {
+        self.last_a[self.next] = current_a;
+        self.next = (self.next + 1) % OVER_CURRENT_MEAN_TICKS;
+        self.since_above = if current_a > max_a {
+            0
+        } else {
+            (self.since_above + 1).min(OVER_CURRENT_MEAN_TICKS)
+        };
+        self.since_above < OVER_CURRENT_MEAN_TICKS
+            && self.last_a.iter().sum::<f32>() > OVER_CURRENT_MEAN_TICKS as f32 * max_a
     }
 }

@@ -96,10 +96,11 @@
 //! Checked every tick; the first one found is latched as `Fault(reason)` and the output of that
 //! very tick is the safe state: max run time, overtravel past the disengage angle, no motion with
 //! torque above breakaway, reverse motion, [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a
-//! row, failed encoder diagnostics (chip or magnet), over-current (or a current that is unknown),
-//! driver FLT, host silence (communication watchdog) and a late control step: a gap of more
-//! than [`MAX_GAP_PERIODS`] since the last step, or late steps too frequent. An isolated late
-//! step is ridden through (the tuning's docs, "Late ticks", say when and why).
+//! row, failed encoder diagnostics (chip or magnet), over-current (the mean of the last
+//! [`OVER_CURRENT_MEAN_TICKS`] currents above the limit, one reading above twice it, or a current
+//! that is unknown), driver FLT, host silence (communication watchdog) and a late control step: a
+//! gap of more than [`MAX_GAP_PERIODS`] since the last step, or late steps too frequent. An
+//! isolated late step is ridden through (the tuning's docs, "Late ticks", say when and why).
 //!
 //! # Idle conditions
 //!
@@ -172,15 +173,17 @@ pub struct Inputs {
     pub angle_deg: Result<f32, EncoderFault>,
     /// The encoder diagnostics, on the ticks they were read.
     pub diagnostics: Option<Result<DiagnosticsReading, DiagnosticFault>>,
-    /// Motor current magnitude, A; `None` when it is unknown (the current sense has no fresh
-    /// reading). An unknown current cannot be shown to be within `max_current_a`, so it faults
-    /// with `OverCurrent` like a current above it.
+    /// Motor current magnitude, A: the current in the winding (the RC-filtered current sense
+    /// divided by the duty filtered alike, `board::current`), not the `CS` pin's pulsed reading;
+    /// `None` when it is unknown (no fresh reading, or one clipped at the ADC's range). An
+    /// unknown current cannot be shown to be within `max_current_a`, so it faults with
+    /// `OverCurrent` like a current above it.
     pub current_a: Option<f32>,
     /// The driver's FLT line is low.
     pub driver_fault: bool,
     /// Motor supply (the G2's `VIN`), volts, as the supply-sense divider and ADC measure it
-    /// (`board::supply`); `None` where it is not measured (the board binary does not wire the
-    /// ADC channel so far; the digital twin measures it). Filtered, it scales the duty and is
+    /// (`board::supply`); `None` where it is not measured (a board built without the divider;
+    /// the board binary and the digital twin both measure it). Filtered, it scales the duty and is
     /// reported in `Status` (see `supply.rs`, and "Torque from duty" above).
     pub supply_v: Option<f32>,
 }
@@ -263,6 +266,8 @@ pub struct Controller {
     conditions: Conditions,
     /// The motor supply, filtered, and the duty scale it gives.
     supply: SupplyFilter,
+    /// The last ticks' motor currents, for the over-current check.
+    current_mean: faults::CurrentMean,
     /// The last run's samples (kept outside [`Run`]: 24 KiB are cleared, not rebuilt).
     log: SampleLog<{ MAX_SAMPLES as usize }>,
     result: Option<KerfResult>,
@@ -291,6 +296,7 @@ impl Controller {
             last_diagnostics: None,
             conditions: Conditions::empty(),
             supply: SupplyFilter::new(),
+            current_mean: faults::CurrentMean::new(),
             log: SampleLog::new(),
             result: None,
             self_test: None,

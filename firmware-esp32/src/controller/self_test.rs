@@ -1,11 +1,33 @@
 //! The self-test, with no gauge under the prongs: encoder reads with the motor off (and the
 //! magnet's field from the diagnostics), the drive direction, and an estimate of the torque
 //! constant from the current drawn by a short pulse from standstill.
+//!
+//! # The torque constant
+//!
+//! At standstill the winding draws i = D·V/R, so the output torque per duty at the reference
+//! supply is `torque_per_amp_nm` · i / D · V_ref / V. The pulse runs at [`SELFTEST_PULSE_DUTY`]
+//! from standstill (after [`SELFTEST_SETTLE_TICKS`] of braking, in which the current sense also
+//! learns its offset). The motor current comes from the RC-filtered current sense divided by the
+//! duty filtered alike (`board::current`), read one conversion behind: the reading of the pulse's
+//! tick *j* is the filter's state at tick *j* − 1. So the first reading with the pulse in it is
+//! tick 2's, and it is already right: both filters saw the same first millisecond, and the
+//! filtered duty is above the conversion's floor by then (0.25 against 0.2). The
+//! readings of [`PULSE_AVERAGED`] ticks are averaged, with the supply over the same ticks: enough
+//! readings to average the ADC's 1 mV step (0.13 A of motor current at 40 % duty) and its noise,
+//! early enough that the free hub's back-EMF has taken little of the current (some 6 % a
+//! millisecond on the reference build, the same at any supply: the hub's acceleration and the
+//! drive voltage both scale with it). What it took is put back from the hub's mean speed over
+//! those ticks (`torque_per_amp_nm` × ω: a lower bound, as the gearbox's efficiency is not
+//! known). On the twin's defaults the estimate lands at 0.86–1.09 of the configured value for 50
+//! seeds at each of 9, 12 and 24 V (the twin's current sense reads 5 % high, and its ADC adds
+//! 1 mV of noise).
 
-use kerfmeter_protocol::{ErrorCode, SelfTestItem, SelfTestReport, TestOutcome};
+use kerfmeter_protocol::{
+    ErrorCode, REFERENCE_SUPPLY_V, SelfTestItem, SelfTestReport, TestOutcome,
+};
 
 use super::{
-    Controller, Inputs, SELFTEST_DIRECTION_MIN_DEG, SELFTEST_DIRECTION_TICKS,
+    Controller, Inputs, PERIOD_US, SELFTEST_DIRECTION_MIN_DEG, SELFTEST_DIRECTION_TICKS,
     SELFTEST_DIRECTION_TORQUE_NM, SELFTEST_ENCODER_MIN_OK, SELFTEST_ENCODER_TICKS,
     SELFTEST_PULSE_DUTY, SELFTEST_PULSE_TICKS, SELFTEST_SETTLE_TICKS, SELFTEST_TORQUE_TOLERANCE,
     State,
@@ -17,7 +39,7 @@ pub(super) enum SelfTestPhase {
     Encoder { ticks: u32, ok: u32 },
     Direction { ticks: u32, start_deg: f32 },
     Settle { ticks: u32 },
-    Pulse { ticks: u32, current_sum_a: f32 },
+    Pulse { ticks: u32, sums: PulseSums },
 }
 
 const SKIPPED: SelfTestItem = SelfTestItem {
@@ -33,8 +55,22 @@ pub(super) const NOT_RUN: SelfTestReport = SelfTestReport {
     torque_per_duty_nm: SKIPPED,
 };
 
-/// Pulse ticks whose current is averaged (the first tick's current is from before the pulse).
-const AVERAGED: u32 = 3;
+/// Pulse ticks whose current (and supply) readings are averaged: from the first reading with the
+/// pulse in it (module docs).
+const PULSE_AVERAGED: core::ops::RangeInclusive<u32> = 2..=6;
+
+/// What the pulse phase gathers for the torque-constant estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct PulseSums {
+    /// The motor current readings of [`PULSE_AVERAGED`], summed, A.
+    current_a: f32,
+    /// The supply readings of the same ticks, summed, V.
+    supply_v: f32,
+    /// The hub angle when the pulse started, degrees (jam frame).
+    start_deg: f32,
+    /// How far the hub turned from the pulse's start to the last averaged tick, degrees.
+    moved_deg: f32,
+}
 
 fn item(pass: bool, value: f32) -> SelfTestItem {
     SelfTestItem {
@@ -82,14 +118,18 @@ impl Controller {
                 } else {
                     Some(SelfTestPhase::Pulse {
                         ticks: 0,
-                        current_sum_a: 0.0,
+                        sums: PulseSums {
+                            current_a: 0.0,
+                            supply_v: 0.0,
+                            start_deg: self.angle_deg,
+                            moved_deg: 0.0,
+                        },
                     })
                 }
             }
-            SelfTestPhase::Pulse {
-                ticks,
-                current_sum_a,
-            } => self.self_test_pulse(&mut report, ticks, current_sum_a, inputs),
+            SelfTestPhase::Pulse { ticks, sums } => {
+                self.self_test_pulse(&mut report, ticks, sums, inputs)
+            }
         };
         self.self_test_partial = report;
         match next {
@@ -147,37 +187,58 @@ impl Controller {
         Some(SelfTestPhase::Settle { ticks: 0 })
     }
 
-    /// Pulse phase: counter-clockwise, bringing the hub back, at exactly the pulse duty; then
-    /// the torque-constant item, and the self-test ends (`None`).
+    /// Pulse phase: counter-clockwise, bringing the hub back, at the pulse duty; the current and
+    /// supply readings of [`PULSE_AVERAGED`] summed, and the hub's motion over them; then the
+    /// torque-constant item, and the self-test ends (`None`).
     fn self_test_pulse(
         &mut self,
         report: &mut SelfTestReport,
         ticks: u32,
-        current_sum_a: f32,
+        mut sums: PulseSums,
         inputs: &Inputs,
     ) -> Option<SelfTestPhase> {
         let torque =
             (SELFTEST_PULSE_DUTY - self.config.breakaway_duty) * self.config.torque_per_duty_nm;
         self.torque_nm = -self.jam_frame(torque);
-        // The current is known here: an unknown one latched `OverCurrent` before this step
-        // advanced the state.
-        let current_a = inputs.current_a.unwrap_or(0.0);
-        let current_sum_a = if (1..=AVERAGED).contains(&ticks) {
-            current_sum_a + current_a
-        } else {
-            current_sum_a
-        };
+        if PULSE_AVERAGED.contains(&ticks) {
+            // The current is known here: an unknown one latched `OverCurrent` before this step
+            // advanced the state. An unmeasured supply counts as the reference.
+            sums.current_a += inputs.current_a.unwrap_or(0.0);
+            sums.supply_v += inputs.supply_v.unwrap_or(REFERENCE_SUPPLY_V);
+        }
+        if ticks == *PULSE_AVERAGED.end() {
+            sums.moved_deg = (self.angle_deg - sums.start_deg).abs();
+        }
         if ticks + 1 < SELFTEST_PULSE_TICKS {
             return Some(SelfTestPhase::Pulse {
                 ticks: ticks + 1,
-                current_sum_a,
+                sums,
             });
         }
-        let current_a = current_sum_a / AVERAGED as f32;
-        let estimate = self.config.torque_per_amp_nm * current_a / SELFTEST_PULSE_DUTY;
+        let estimate = self.torque_per_duty_estimate_nm(&sums);
         let relative = (estimate / self.config.torque_per_duty_nm - 1.0).abs();
         report.torque_per_duty_nm = item(relative <= SELFTEST_TORQUE_TOLERANCE, estimate);
         self.torque_nm = 0.0;
         None
+    }
+
+    /// The output torque per duty at the reference supply, N·m, from what the pulse gathered, at
+    /// the duty the pulse drives at: the current it would draw at standstill (the mean current
+    /// scaled up by the drive voltage over what the back-EMF left of it), per duty, times
+    /// `torque_per_amp_nm`, scaled from the measured supply to the reference.
+    ///
+    /// The back-EMF is `torque_per_amp_nm` × the hub's mean speed over the averaged ticks: the
+    /// motor's ke·N·ω with the gearbox's efficiency taken as 1, so a lower bound, and capped at
+    /// half the drive voltage (a hub that spun that fast was not starting from standstill).
+    fn torque_per_duty_estimate_nm(&self, sums: &PulseSums) -> f32 {
+        let n = PULSE_AVERAGED.clone().count() as f32;
+        let (current_a, supply_v) = (sums.current_a / n, (sums.supply_v / n).max(f32::EPSILON));
+        let duty = self.output().duty.max(f32::EPSILON);
+        let window_s = *PULSE_AVERAGED.end() as f32 * PERIOD_US as f32 * 1e-6;
+        let speed_rad_per_s = sums.moved_deg.to_radians() / window_s;
+        let drive_v = duty * supply_v;
+        let emf_v = (self.config.torque_per_amp_nm * speed_rad_per_s).min(0.5 * drive_v);
+        let standstill_a = current_a * drive_v / (drive_v - emf_v);
+        self.config.torque_per_amp_nm * standstill_a / duty * REFERENCE_SUPPLY_V / supply_v
     }
 }

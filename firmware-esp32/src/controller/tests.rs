@@ -2,7 +2,8 @@
 //! physics in `tests/twin_runs.rs`).
 
 use kerfmeter_protocol::{
-    Conditions, DeviceConfig, ErrorCode, Fault, KerfResult, QualityFlags, RunParams, RunState,
+    Conditions, DeviceConfig, ErrorCode, Fault, KerfResult, QualityFlags, REFERENCE_SUPPLY_V,
+    RunParams, RunState,
 };
 
 use super::*;
@@ -997,4 +998,78 @@ fn clear_fault_forgets_the_encoders_stale_conditions() {
         s.host().start_reset(),
         Err(ErrorCode::Blocked(Conditions::NO_MAGNET))
     );
+}
+
+/// The self-test's torque-constant item from scripted currents: a winding of the resistance the
+/// configuration implies (R = torque_per_amp · 12 V / torque_per_duty), fed by the pulse's duty
+/// at `supply_v` against the back-EMF of a hub turning at `hub_deg_per_s` while it drives.
+fn self_test_torque_estimate(supply_v: f32, hub_deg_per_s: f32) -> f32 {
+    let config = DeviceConfig::DEFAULT;
+    let r_ohm = config.torque_per_amp_nm * REFERENCE_SUPPLY_V / config.torque_per_duty_nm;
+    let mut s = Script::new();
+    assert_eq!(s.host().start_self_test(), Ok(()));
+    let mut out = MotorOutput::SAFE;
+    for _ in 0..2000 {
+        let pulse = matches!(s.c.state, State::SelfTest(SelfTestPhase::Pulse { .. }));
+        let emf_v = if pulse && out.duty > 0.0 {
+            s.angle_deg -= hub_deg_per_s * PERIOD_US as f32 * 1e-6;
+            config.torque_per_amp_nm * hub_deg_per_s.to_radians()
+        } else {
+            0.0
+        };
+        let mut inputs = s.inputs();
+        inputs.supply_v = Some(supply_v);
+        inputs.current_a = Some(((out.duty * supply_v - emf_v) / r_ohm).max(0.0));
+        out = s.tick_with(&inputs);
+        if let Some(report) = s.c.self_test_report() {
+            return report.torque_per_duty_nm.value;
+        }
+    }
+    panic!("the self-test did not end");
+}
+
+#[test]
+fn the_self_tests_torque_constant_is_right_at_any_supply_and_despite_back_emf() {
+    let configured = DeviceConfig::DEFAULT.torque_per_duty_nm;
+    for supply_v in [9.0, 12.0, 24.0] {
+        let still = self_test_torque_estimate(supply_v, 0.0);
+        assert!(
+            (still / configured - 1.0).abs() < 0.01,
+            "{supply_v} V: {still}"
+        );
+        // A hub that starts turning takes current away; the estimate puts it back.
+        let turning = self_test_torque_estimate(supply_v, 200.0 * supply_v / 12.0);
+        assert!(
+            (turning / configured - 1.0).abs() < 0.02,
+            "{supply_v} V: {turning}"
+        );
+    }
+}
+
+#[test]
+fn over_current_trips_on_the_mean_of_four_readings_or_one_twice_the_limit() {
+    let max_a = DeviceConfig::DEFAULT.max_current_a;
+    // (currents fed from tick 100 on, one a tick; the tick the fault latches, counted from then)
+    for (currents, trips_at) in [
+        (vec![max_a * 1.5, 0.5, 0.5, 0.5, 0.5], None),
+        (vec![max_a * 1.1; 4], Some(3)),
+        (vec![max_a * 2.1], Some(0)),
+    ] {
+        let mut s = Script::new();
+        s.start(RunParams::DEFAULT);
+        let mut latched = None;
+        for i in 0..110 {
+            s.angle_deg += 0.06;
+            let mut inputs = s.inputs();
+            if i >= 100 {
+                inputs.current_a = Some(*currents.get(i - 100).unwrap_or(&0.5));
+            }
+            s.tick_with(&inputs);
+            if s.state() == RunState::Fault(Fault::OverCurrent) {
+                latched = Some(i - 100);
+                break;
+            }
+        }
+        assert_eq!(latched, trips_at, "{currents:?}");
+    }
 }

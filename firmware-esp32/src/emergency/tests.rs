@@ -181,14 +181,14 @@ fn panic_mid_tick(arm: bool) -> (Report, Vec<&'static str>, Bridge) {
     let mut hardware = Hardware::new(encoder, motor);
     let mut device = Device::new("test", 1);
     let mut now_us = PERIOD_US;
-    hardware.tick(now_us, Some(0.2), None, &mut device);
+    hardware.tick(now_us, Some(54), None, &mut device);
     assert_eq!(
         device.handle(&Request::Run(RunParams::DEFAULT)),
         Response::Ok
     );
     for _ in 0..200 {
         now_us += PERIOD_US;
-        hardware.tick(now_us, Some(0.2), None, &mut device);
+        hardware.tick(now_us, Some(54), None, &mut device);
         if !bridge.is_safe() {
             break;
         }
@@ -197,7 +197,7 @@ fn panic_mid_tick(arm: bool) -> (Report, Vec<&'static str>, Bridge) {
 
     cue.store(true, Ordering::Relaxed);
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        hardware.tick(now_us + PERIOD_US, Some(0.2), None, &mut device)
+        hardware.tick(now_us + PERIOD_US, Some(54), None, &mut device)
     }));
     assert!(result.is_err(), "the tick panicked");
     let path = PANIC_PATH.with(|p| p.borrow_mut().take()).unwrap();

@@ -46,9 +46,11 @@
 //!   carries. The magnet sits on the output shaft, or on the motor shaft
 //!   (`Twin::set_magnet_on_motor_shaft`, turning `gear_ratio` times per hub turn).
 //! - The current sense as the G2 produces it: the current only in the drive phase of each 20 kHz
-//!   PWM period (about zero while braking or chopping), sampled once per tick at an instant that
-//!   drifts through the period; an optional RC filter on the pin; gain error, noise, the 1 mV
-//!   steps of the calibrated ADC and the firmware's own mV→A conversion.
+//!   PWM period (about zero while braking or chopping), through the board's RC filter on the pin
+//!   (`cs_filter_tau_us`, 1 ms by default; 0 removes it), sampled once per tick, one conversion
+//!   behind as the board does, at an instant that drifts through the period; gain error, the
+//!   offset's spread from board to board, noise and the 1 mV steps of the calibrated ADC. The firmware gets the pin's millivolts and does
+//!   the rest (its `board::current` conversion, inside the shared control tick).
 //! - The supply sense: the bus through a divider into the ADC, with gain error, noise and 1 mV
 //!   steps (handed to the firmware, which scales the duty by it).
 //! - The configuration flash: NOR rules (erase to 0xFF, writes only clear bits), kept across a
@@ -81,7 +83,7 @@
 //! taken as continuous, with no ripple); the bus capacitance (the bus follows the load at once, so
 //! a supply that sags into the lockout stays locked while the load is asked for, rather than
 //! hiccuping); the current-sense waveform between two samples (the bridge's state at the end of
-//! the last tick stands for the whole tick); the CS offset's spread and the G2's other faults
+//! the last tick stands for the whole tick); the G2's other faults
 //! (short circuit, over-temperature); the control step's own execution time (a tick takes no
 //! core time, so the ticks that catch up after a late one come at once), the chip's boot time,
 //! and the USB link's own latency and flow control; the encoder's register writes and a magnet

@@ -22,7 +22,8 @@ pub enum InjectedFault {
     MisoStuck,
     /// No inset under the prongs: they turn freely, nothing jams.
     NoInset,
-    /// The motor leads are disconnected: no current, no motion.
+    /// The motor leads are disconnected (an open winding) from boot: no current, no torque. A
+    /// run ends in `NoMotion`; a self-test fails its direction and torque-constant items.
     MotorDisconnected,
     /// The driver pulls FLT low mid-run.
     DriverFault,

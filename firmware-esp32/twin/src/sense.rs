@@ -1,8 +1,12 @@
 //! What the firmware's ADC channels read at each control tick: the G2's current-sense (`CS`)
 //! output as the chip produces it, and the motor supply through its sense divider. Each reading
-//! ends as the board's own conversion would hand it to [`Hardware::tick`]: millivolts on the pin,
-//! quantised to the calibrated ADC's 1 mV, converted by the firmware's `board::current` and
-//! `board::supply` functions.
+//! ends as the board's own conversion would hand it to [`Hardware::tick`]: the `CS` pin's
+//! millivolts, quantised to the calibrated ADC's 1 mV, which the firmware's own conversion
+//! (`board::current`, inside `Hardware::tick`) turns into the motor current; the supply in volts
+//! by the firmware's `board::supply`.
+//!
+//! The twin samples both channels as the board does, one conversion behind: at the end of each
+//! tick, just after the firmware's output was applied, for the next tick to use.
 //!
 //! # Current sense
 //!
@@ -11,13 +15,17 @@
 //! once per control tick, at a phase within the PWM period that drifts by `cs_sample_drift`
 //! periods per tick (the tick's timer and the PWM's are independent), starting at a phase drawn
 //! from the seed. A sample in the drive phase reads |i|, one outside reads about zero. With an RC
-//! filter on the pin (`cs_filter_tau_us` > 0) the sample is the filter's output: its exact
+//! filter on the pin (`cs_filter_tau_us` > 0; by default the board's 10 kΩ and 100 nF, 1 ms) the
+//! sample is the filter's output: its exact
 //! first-order response to the pulse train, advanced in closed form from one sample to the next
 //! (a few exponentials per tick), which tends to D·|i| for a long time constant. The waveform
 //! between two samples is the bridge's state after the plant's last sub-step.
 //!
-//! On top: the CS gain error (`cs_gain_error`) and Gaussian noise (`current_noise_a`), then the
-//! pin's millivolts at 20 mV/A plus the 50 mV offset, clipped to the ADC's range. An injected
+//! On top: the CS gain error (`cs_gain_error`) and the G2's Gaussian noise (`current_noise_a`,
+//! independent from one PWM period to the next, so the RC filter averages most of it away:
+//! 16 % of it is left at 1 ms), then the pin's millivolts at 20 mV/A plus the G2's offset
+//! (`cs_offset_mv`), the ADC's own noise (`adc_noise_mv`, which no filter removes), clipped to
+//! the ADC's 0 dB range. An injected
 //! short reads [`SHORT_CURRENT_A`] in the drive phase instead of the motor current.
 //!
 //! # Supply sense
@@ -28,9 +36,7 @@
 //!
 //! [`Hardware::tick`]: kerfmeter_firmware::hardware::Hardware::tick
 
-use kerfmeter_firmware::board::current::{
-    CURRENT_SENSE_MV_PER_A, CURRENT_SENSE_OFFSET_MV, motor_current_a,
-};
+use kerfmeter_firmware::board::current::{CS_ADC_MAX_MV, CURRENT_SENSE_MV_PER_A};
 use kerfmeter_firmware::board::supply::{ADC_MAX_MV, SUPPLY_DIVIDER_RATIO, supply_v};
 use kerfmeter_firmware::build::PWM_FREQUENCY_HZ;
 use kerfmeter_firmware::controller::PERIOD_US;
@@ -51,8 +57,8 @@ const PERIODS_PER_TICK: f64 = PWM_FREQUENCY_HZ as f64 * PERIOD_US as f64 * 1e-6;
 /// One tick's readings, as the board's conversions give them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sensed {
-    /// Motor current, A.
-    pub current_a: f32,
+    /// The current-sense pin, mV, as the calibrated ADC reads it at 0 dB.
+    pub cs_mv: u16,
     /// Motor supply, V.
     pub supply_v: f32,
 }
@@ -132,20 +138,37 @@ impl Sense {
         } else {
             0.0
         };
-        let noisy_a = cs_a * (1.0 + p.cs_gain_error) + f64::from(rng.normal()) * p.current_noise_a;
-        let cs_mv = CURRENT_SENSE_OFFSET_MV as f64 + CURRENT_SENSE_MV_PER_A as f64 * noisy_a;
+        let cs_noise_a = p.current_noise_a * filtered_noise_share(p.cs_filter_tau_us);
+        let noisy_a = cs_a * (1.0 + p.cs_gain_error) + f64::from(rng.normal()) * cs_noise_a;
+        let cs_mv = p.cs_offset_mv
+            + CURRENT_SENSE_MV_PER_A as f64 * noisy_a
+            + f64::from(self.rng.normal()) * p.adc_noise_mv;
         let bus_v = bridge.bus_v * (1.0 + p.supply_sense_gain_error)
             + f64::from(self.rng.normal()) * p.supply_sense_noise_v;
         Sensed {
-            current_a: motor_current_a(adc_mv(cs_mv)),
-            supply_v: supply_v(adc_mv(bus_v / SUPPLY_DIVIDER_RATIO as f64 * 1e3)),
+            cs_mv: adc_mv(cs_mv, CS_ADC_MAX_MV),
+            supply_v: supply_v(adc_mv(
+                bus_v / SUPPLY_DIVIDER_RATIO as f64 * 1e3,
+                ADC_MAX_MV,
+            )),
         }
     }
 }
 
-/// The calibrated ADC's reading of `pin_mv` on its pin: whole millivolts within its range.
-fn adc_mv(pin_mv: f64) -> u16 {
-    pin_mv.round().clamp(0.0, f64::from(ADC_MAX_MV)) as u16
+/// What is left of the G2's current-sense noise (independent from one PWM period to the next)
+/// after an RC filter of `tau_us` (0: none): √((1 − a)/(1 + a)), a = e^(−T/τ), T the PWM period.
+fn filtered_noise_share(tau_us: f64) -> f64 {
+    if tau_us <= 0.0 {
+        return 1.0;
+    }
+    let a = (-1e6 / PWM_FREQUENCY_HZ as f64 / tau_us).exp();
+    ((1.0 - a) / (1.0 + a)).sqrt()
+}
+
+/// The calibrated ADC's reading of `pin_mv` on its pin: whole millivolts within its range,
+/// `max_mv` at the attenuation of that channel.
+fn adc_mv(pin_mv: f64, max_mv: u16) -> u16 {
+    pin_mv.round().clamp(0.0, f64::from(max_mv)) as u16
 }
 
 /// A first-order low-pass filter (time constant `tau`, in PWM periods) fed with the `CS` pulse
@@ -185,6 +208,7 @@ fn filter_pulses(y: f64, from: f64, periods: f64, amp_a: f64, drive: f64, tau: f
 #[cfg(test)]
 mod tests {
     use super::*;
+    use kerfmeter_firmware::board::current::CURRENT_SENSE_OFFSET_MV;
 
     /// A bridge driving `amp_a` at `drive` duty from a 12 V bus.
     fn bridge(amp_a: f64, drive: f64) -> Electrical {
@@ -202,18 +226,25 @@ mod tests {
     fn exact() -> PlantParams {
         PlantParams {
             current_noise_a: 0.0,
+            adc_noise_mv: 0.0,
             cs_gain_error: 0.0,
+            cs_filter_tau_us: 0.0,
             supply_sense_gain_error: 0.0,
             supply_sense_noise_v: 0.0,
             ..PlantParams::default()
         }
     }
 
+    /// The `CS` pin's reading as amps at the G2's nominal scaling.
+    fn cs_a(s: Sensed) -> f32 {
+        ((f32::from(s.cs_mv) - CURRENT_SENSE_OFFSET_MV) / CURRENT_SENSE_MV_PER_A).max(0.0)
+    }
+
     /// The readings of `ticks` ticks with the bridge at `b`.
     fn readings(sense: &mut Sense, b: &Electrical, ticks: u64) -> Vec<f32> {
         let mut rng = Rng::new(1);
         (1..=ticks)
-            .map(|t| sense.sample(b, t * PERIOD_US, false, &mut rng).current_a)
+            .map(|t| cs_a(sense.sample(b, t * PERIOD_US, false, &mut rng)))
             .collect()
     }
 
@@ -287,6 +318,47 @@ mod tests {
         assert!((closed - y).abs() < 1e-3, "{closed} vs {y}");
     }
 
+    /// The G2's noise, independent from period to period, is averaged by the RC filter; the
+    /// ADC's own noise is not.
+    #[test]
+    fn the_filter_averages_the_sense_noise_but_not_the_adcs() {
+        let sd_mv = |p: &PlantParams| {
+            let mut sense = Sense::new(p, 5);
+            let mut rng = Rng::new(2);
+            let b = bridge(1.0, 0.5);
+            let reads: Vec<f64> = (1..=4000)
+                .map(|t| f64::from(sense.sample(&b, t * PERIOD_US, false, &mut rng).cs_mv))
+                .collect();
+            let mean = reads.iter().sum::<f64>() / reads.len() as f64;
+            (reads.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / reads.len() as f64).sqrt()
+        };
+        let g2 = PlantParams {
+            current_noise_a: 0.4,
+            cs_filter_tau_us: 1000.0,
+            cs_sample_drift: 0.0,
+            ..exact()
+        };
+        // 0.4 A is 8 mV at the pin; 16 % of it is left (the 1 mV steps add a little).
+        let filtered = sd_mv(&g2);
+        assert!(
+            (filtered - 8.0 * filtered_noise_share(1000.0)).abs() < 0.2,
+            "{filtered}"
+        );
+        assert!((filtered_noise_share(1000.0) - 0.158).abs() < 1e-3);
+        let unfiltered = sd_mv(&PlantParams {
+            cs_filter_tau_us: 0.0,
+            ..g2
+        });
+        assert!((unfiltered - 8.0).abs() < 0.4, "{unfiltered}");
+        let adc = sd_mv(&PlantParams {
+            adc_noise_mv: 2.0,
+            cs_filter_tau_us: 1000.0,
+            cs_sample_drift: 0.0,
+            ..exact()
+        });
+        assert!((adc - 2.0).abs() < 0.15, "{adc}");
+    }
+
     #[test]
     fn the_supply_reads_through_the_divider_with_its_gain_error() {
         let p = PlantParams {
@@ -326,9 +398,9 @@ mod tests {
         let b = bridge(0.5, 0.4);
         let mut rng = Rng::new(1);
         let mut inside = Sense::new(&p, 1).with_phase(0.2);
-        let a = inside.sample(&b, PERIOD_US, true, &mut rng).current_a;
+        let a = cs_a(inside.sample(&b, PERIOD_US, true, &mut rng));
         assert!((f64::from(a) - SHORT_CURRENT_A).abs() < 0.1, "{a}");
         let mut outside = Sense::new(&p, 1).with_phase(0.7);
-        assert_eq!(outside.sample(&b, PERIOD_US, true, &mut rng).current_a, 0.0);
+        assert_eq!(cs_a(outside.sample(&b, PERIOD_US, true, &mut rng)), 0.0);
     }
 }

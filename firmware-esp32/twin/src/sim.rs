@@ -38,7 +38,7 @@ use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 use crate::encoder::EncoderErrors;
 use crate::options::{InjectedFault, TwinOptions};
 use crate::plant::{Bridge, Cutter, Plant};
-use crate::sense::Sense;
+use crate::sense::{Sense, Sensed};
 use crate::timing::{HostBursts, SimWatchdog, TickClock};
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
@@ -114,6 +114,9 @@ pub struct Twin {
     flt_injected: bool,
     /// The ADC's current-sense and supply-sense channels.
     sense: Sense,
+    /// Their readings taken at the end of the last tick, for the next one (the board reads them
+    /// one conversion behind); `None` before the first tick.
+    sensed: Option<Sensed>,
     device: TwinDevice,
     link: Link,
     /// The link the bursts of the other host go through.
@@ -207,6 +210,7 @@ impl Twin {
             encoder_errors: EncoderErrors::for_twin(&options.plant, options.seed),
             magnet_on_motor_shaft: false,
             sense: Sense::new(&options.plant, stream(0)),
+            sensed: None,
             flt_injected: false,
             options,
             rng,
@@ -529,20 +533,23 @@ impl Twin {
         };
         let cw = self.encoder_errors.measured_deg(magnet_cw_deg);
         self.hardware.encoder.bus_mut().set_angle_deg(cw);
-        let sensed = self.sense.sample(
+        self.flt
+            .set_high(!self.flt_injected && !self.plant.driver_fault());
+        // The first tick after boot has no conversion yet, as on the board.
+        let out = self.hardware.tick(
+            self.now_us,
+            self.sensed.map(|s| s.cs_mv),
+            self.sensed.map(|s| s.supply_v),
+            &mut self.device,
+        );
+        // The next conversions, started just after the output was applied: they see the bridge
+        // as it was until now.
+        self.sensed = Some(self.sense.sample(
             &self.plant.electrical(),
             self.now_us,
             self.over_current,
             &mut self.rng,
-        );
-        self.flt
-            .set_high(!self.flt_injected && !self.plant.driver_fault());
-        let out = self.hardware.tick(
-            self.now_us,
-            Some(sensed.current_a),
-            Some(sensed.supply_v),
-            &mut self.device,
-        );
+        ));
         // The control tick, and only it, feeds the watchdog at the normal timeout.
         self.watchdog.begin(self.now_us);
         self.watchdog.feed_ms(WATCHDOG_TIMEOUT_MS);

@@ -238,12 +238,9 @@ fn the_motor_is_safe_in_the_tick_a_fault_is_detected() {
     panic!("no fault");
 }
 
-/// The self-test's report on a healthy device, with no gauge under the prongs.
-fn healthy_self_test(seed: u64) -> kerfmeter_protocol::SelfTestReport {
-    let mut t2 = Twin::new(TwinOptions {
-        seed,
-        ..TwinOptions::default()
-    });
+/// The self-test's report of a twin with `options`, with no gauge under the prongs.
+fn self_test_report(options: TwinOptions) -> kerfmeter_protocol::SelfTestReport {
+    let mut t2 = Twin::new(options);
     t2.advance_ticks(5);
     assert_eq!(t2.request(&Request::SelfTest), Response::Ok);
     for _ in 0..100 {
@@ -256,6 +253,14 @@ fn healthy_self_test(seed: u64) -> kerfmeter_protocol::SelfTestReport {
     }
 }
 
+/// The self-test's report on a healthy device, with no gauge under the prongs.
+fn healthy_self_test(seed: u64) -> kerfmeter_protocol::SelfTestReport {
+    self_test_report(TwinOptions {
+        seed,
+        ..TwinOptions::default()
+    })
+}
+
 #[test]
 fn self_test_passes_on_a_healthy_device() {
     use kerfmeter_protocol::TestOutcome::Pass;
@@ -265,15 +270,84 @@ fn self_test_passes_on_a_healthy_device() {
     assert_eq!(r.direction_deg.outcome, Pass, "{r:?}");
 }
 
+/// The torque-constant item against the G2's pulsed current sense through the board's RC
+/// filter: at 9, 12 and 24 V, with the ADC sampling at a fixed phase of the PWM period, drifting
+/// slowly (the default) or fast, for several seeds (each its own phase, gain error and noise).
 #[test]
-#[ignore = "known failure, issue 12: the torque-constant check averages three CS samples taken \
-            anywhere in the PWM period, and the G2's CS reads ~0 outside the drive phase"]
 fn self_test_torque_constant_passes_against_the_pulsed_current_sense() {
     use kerfmeter_protocol::TestOutcome::Pass;
-    for seed in 1..=5 {
-        let r = healthy_self_test(seed);
-        assert_eq!(r.torque_per_duty_nm.outcome, Pass, "seed {seed}: {r:?}");
+    let configured = kerfmeter_protocol::DeviceConfig::DEFAULT.torque_per_duty_nm;
+    for supply_v in [9.0, 12.0, 24.0] {
+        for cs_sample_drift in [0.0, 0.013, 0.37] {
+            for seed in 1..=4 {
+                let r = self_test_report(TwinOptions {
+                    seed,
+                    plant: PlantParams {
+                        supply_v,
+                        cs_sample_drift,
+                        ..PlantParams::default()
+                    },
+                    ..TwinOptions::default()
+                });
+                let case = format!("{supply_v} V, drift {cs_sample_drift}, seed {seed}: {r:?}");
+                assert_eq!(r.torque_per_duty_nm.outcome, Pass, "{case}");
+                // Well inside the tolerance, not at its edge.
+                let ratio = r.torque_per_duty_nm.value / configured;
+                assert!((0.85..=1.15).contains(&ratio), "{ratio}: {case}");
+            }
+        }
     }
+}
+
+/// The G2's current-sense offset varies from board to board: the firmware learns it while the
+/// bridge is idle, so an offset 15 mV above the nominal 50 mV (7.5 A at the duty floor) does not
+/// trip while idle, and neither it nor one 10 mV below skews the self-test or a run.
+#[test]
+fn a_current_sense_offset_off_nominal_is_learnt_at_rest() {
+    use kerfmeter_protocol::TestOutcome::Pass;
+    for cs_offset_mv in [40.0, 65.0] {
+        let options = TwinOptions {
+            seed: 3,
+            plant: PlantParams {
+                cs_offset_mv,
+                ..PlantParams::default()
+            },
+            ..TwinOptions::default()
+        };
+        let r = self_test_report(options);
+        assert_eq!(
+            r.torque_per_duty_nm.outcome, Pass,
+            "{cs_offset_mv} mV: {r:?}"
+        );
+        let mut t = Twin::new(options);
+        t.advance_ticks(200);
+        assert_eq!(t.device().controller().fault(), None, "{cs_offset_mv} mV");
+        let k = measure(&mut t, &RunParams::DEFAULT)
+            .unwrap_or_else(|f| panic!("{cs_offset_mv} mV: {f:?}"));
+        let truth = t.plant().truth_um(&RunParams::DEFAULT);
+        assert!(
+            (f64::from(k.kerf_um) - truth).abs() < 3.0,
+            "{cs_offset_mv} mV"
+        );
+    }
+}
+
+/// With the motor's leads off, the self-test fails on what needs the motor, with the values
+/// that say why (no motion, no current), and passes the encoder's items.
+#[test]
+fn self_test_fails_its_motor_items_with_the_motor_disconnected() {
+    use kerfmeter_protocol::TestOutcome::{Fail, Pass};
+    let r = self_test_report(TwinOptions {
+        fault: Some(InjectedFault::MotorDisconnected),
+        ..TwinOptions::default()
+    });
+    assert_eq!(r.encoder_ok_fraction.outcome, Pass, "{r:?}");
+    assert_eq!(r.magnet_magnitude.outcome, Pass, "{r:?}");
+    assert_eq!(r.direction_deg.outcome, Fail, "{r:?}");
+    assert!(r.direction_deg.value.abs() < 0.1, "{r:?}");
+    assert_eq!(r.torque_per_duty_nm.outcome, Fail, "{r:?}");
+    // What is left is the noise of the current sense: far below the configured 0.88 N·m.
+    assert!(r.torque_per_duty_nm.value < 0.1, "{r:?}");
 }
 
 #[test]
@@ -283,9 +357,10 @@ fn the_sweep_gives_the_kerf_at_other_forces() {
     let params = RunParams::DEFAULT;
     let k = measure(&mut t, &params).unwrap();
     let samples = t.device().controller().samples();
-    // At the run's own force, the sweep agrees with the held jam reading.
+    // At the run's own force, the sweep agrees with the held jam reading (the median of the
+    // hold, where the sweep reads one decimated sample: within half a micrometre).
     let at_55 = kerf_at_force_um(&params, samples, 55.0).unwrap();
-    assert!((at_55 - k.kerf_um).abs() < 0.3, "{at_55} vs {}", k.kerf_um);
+    assert!((at_55 - k.kerf_um).abs() < 0.5, "{at_55} vs {}", k.kerf_um);
     // Less force, less compression: a smaller kerf, close to what the physics say.
     let at_25 = kerf_at_force_um(&params, samples, 25.0).unwrap();
     assert!(at_25 < at_55, "{at_25} !< {at_55}");

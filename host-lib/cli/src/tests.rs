@@ -113,13 +113,26 @@ fn self_test_prints_the_items_its_json_holds() {
             assert!(line.contains(&value), "{line} vs {value}");
         }
         let passed = json["passed"].as_bool().unwrap();
-        // A healthy twin's self-test may fail its torque-constant item against the G2's pulsed
-        // current sense (known, issue 12), so only the disconnected motor's verdict is certain.
-        if fault.is_some() {
-            assert!(!passed, "{text}");
-        }
+        assert_eq!(passed, fault.is_none(), "{text}");
         let verdict = if passed { "passed" } else { "FAILED" };
         assert_eq!(lines[4], format!("self-test {verdict}"));
         assert_eq!(report.verdict().is_ok(), passed);
+        // A disconnected motor fails the items that need it, each explained in words, in the
+        // text and in the JSON alike.
+        let explained: Vec<&str> = lines[5..].iter().map(|l| l.trim_start()).collect();
+        let failures = json["failures"].as_array().unwrap();
+        assert_eq!(explained.len(), failures.len(), "{text}");
+        if fault.is_some() {
+            assert!(
+                explained[0].starts_with("direction: the hub did not turn"),
+                "{text}"
+            );
+            assert!(
+                explained[1].starts_with("torque constant: no motor current flowed"),
+                "{text}"
+            );
+            assert!(explained[1].contains("disconnected"), "{text}");
+            assert_eq!(failures[1]["item"], "torque constant", "{json}");
+        }
     }
 }

@@ -70,16 +70,22 @@ fn a_failed_self_test_exits_4_like_any_device_failure() {
         serde_json::from_str(text.lines().next().unwrap()).expect("JSON");
     assert_eq!(first["passed"], false, "{text}");
 
-    // A healthy twin's self-test may fail its torque-constant item against the G2's pulsed
-    // current sense (known, issue 12): whichever verdict it prints, the exit code follows it.
-    let out = kerfmeter(&["--sim", "self-test"]);
-    let passed = stdout(&out).contains("self-test passed");
+    // The failed items are explained in words.
+    let out = kerfmeter(&["--sim", "--sim-fault", "motor-disconnected", "self-test"]);
     assert!(
-        passed || stdout(&out).contains("self-test FAILED"),
+        stdout(&out).contains("the motor is disconnected"),
         "{}",
         stdout(&out)
     );
-    assert_eq!(code(&out), if passed { 0 } else { 4 });
+
+    // A healthy twin's self-test passes, and exits 0.
+    let out = kerfmeter(&["--sim", "self-test"]);
+    assert!(
+        stdout(&out).contains("self-test passed"),
+        "{}",
+        stdout(&out)
+    );
+    assert_eq!(code(&out), 0);
 }
 
 #[test]

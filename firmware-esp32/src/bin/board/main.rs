@@ -1,7 +1,7 @@
 //! The Kerfmeter board binary for the ESP32-C3 (feature `esp32c3`) or ESP32-C6 (`esp32c6`).
 //!
 //! Glue only: this file takes the chip's peripherals, puts the motor in its safe state, sets up
-//! the PWM, encoder SPI, current-sense ADC and configuration flash through the library's
+//! the PWM, encoder SPI, current-sense and supply ADC and configuration flash through the library's
 //! [`board`] module (the same set-up the on-target tests use), starts the watchdog
 //! ([`BoardWatchdog`]), and starts three embassy tasks. All behaviour lives in the `kerfmeter_firmware` library, which is tested
 //! on the host; the per-tick sequence is the library's [`Hardware::tick`], the same one the
@@ -12,7 +12,7 @@
 //! ```text
 //!  USB-Serial-JTAG rx ─▶ usb_rx_task ─▶ REQUEST_CHUNKS ─┐ try_receive
 //!                                      (Channel)        ▼
-//!                                     control_task, every 1 ms: ADC ─▶ Hardware::tick(Device)
+//!                                     control_task, every 1 ms: ADC1 ─▶ Hardware::tick(Device)
 //!                                                                     ─▶ feed the watchdog
 //!                                                                     ─▶ Inbox ─▶ Link ─▶ Device
 //!                                                                      (FRAMES_PER_TICK at most)
@@ -22,9 +22,11 @@
 //!
 //! - [`control_task`], every [`PERIOD_US`] µs: owns the [`Device`] (controller, configuration,
 //!   request handler), the [`Link`] (protocol server), the [`Hardware`] (encoder and motor
-//!   drivers), the current-sense ADC and the watchdog. Each tick it reads the motor current (the
-//!   conversion started at the end of the previous tick, so the ADC never holds the tick up), runs
-//!   [`Hardware::tick`] (encoder, diagnostics, FLT, controller step, motor output), feeds the
+//!   drivers), the analog inputs on ADC1 (`board::adc`) and the watchdog. Each tick it takes the
+//!   current-sense reading and the motor supply (conversions started at the end of the previous
+//!   tick, so the ADC never holds the tick up; the supply every tenth tick in place of the current
+//!   sense), runs [`Hardware::tick`] (encoder, diagnostics, FLT, the motor current from the
+//!   filtered current sense, controller step, motor output), starts the next conversion, feeds the
 //!   watchdog, then hands received bytes to the link, which answers each complete request from
 //!   the same `Device`: at most
 //!   [`FRAMES_PER_TICK`](kerfmeter_firmware::link::FRAMES_PER_TICK) frames a pass, so that no
@@ -86,7 +88,7 @@ use esp_hal::{
 use kerfmeter_firmware::{
     board::{
         self, BOARD_NAME, BoardHardware,
-        adc::CurrentSense,
+        adc::AnalogInputs,
         flash::{ConfigFlash, config_partition},
         motor::{LineLevels, motor_lines},
         partition::{OpenedConfig, open_config_partition},
@@ -156,7 +158,7 @@ async fn main(spawner: Spawner) {
         env!("CARGO_PKG_VERSION")
     );
 
-    let current = CurrentSense::new(p.ADC1, pins.motor_current);
+    let analog = AnalogInputs::new(p.ADC1, pins.motor_current, pins.motor_supply);
 
     // The stored configuration (defaults if there is none).
     let opened = open_config(p.FLASH);
@@ -181,8 +183,7 @@ async fn main(spawner: Spawner) {
 
     let (usb_rx, usb_tx) = UsbSerialJtag::new(p.USB_DEVICE).into_async().split();
 
-    spawner
-        .spawn(control_task(hardware, current, watchdog, boot_id, opened).expect("control task"));
+    spawner.spawn(control_task(hardware, analog, watchdog, boot_id, opened).expect("control task"));
     spawner.spawn(usb_rx_task(usb_rx).expect("usb rx task"));
     spawner.spawn(usb_tx_task(usb_tx).expect("usb tx task"));
 }
@@ -214,7 +215,7 @@ fn open_config(flash: esp_hal::peripherals::FLASH<'static>) -> OpenedConfig<Conf
 #[embassy_executor::task]
 async fn control_task(
     mut hardware: BoardHardware,
-    mut current: CurrentSense,
+    mut analog: AnalogInputs,
     mut watchdog: BoardWatchdog,
     boot_id: u32,
     opened: OpenedConfig<ConfigFlash>,
@@ -231,13 +232,14 @@ async fn control_task(
     let mut ticker = Ticker::every(CONTROL_PERIOD);
     loop {
         let started = Instant::now();
-        // `None` (no conversion for too long) is "current unknown": the controller faults with
-        // `OverCurrent` rather than drive blind. The supply is not measured yet: its divider
-        // (`board::supply`) needs an ADC channel that issue 12 wires.
-        hardware.tick(started.as_micros(), current.read_a(), None, &mut device);
-        // The longest step since boot, for the bench and (after the protocol revision) `Status`.
+        // A tick without a current-sense reading keeps the last current; too many in a row make it
+        // unknown, and the controller faults with `OverCurrent` rather than drive blind.
+        let (cs_mv, supply_v) = analog.read();
+        hardware.tick(started.as_micros(), cs_mv, supply_v, &mut device);
+        // The longest step since boot, reported in `Status`.
         device.step_finished(Instant::now().as_micros());
-        current.start_next();
+        // Just after the output was applied: the reading the next tick pairs with it.
+        analog.start_next();
         watchdog.feed_ms(WATCHDOG_TIMEOUT_MS);
 
         // Requests, answered at the state of this tick; a save puts the motor safe first. At

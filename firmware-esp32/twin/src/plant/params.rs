@@ -144,13 +144,25 @@ plant_params! {
     winding_thermal_res_c_per_w ["°C/W"] = 15.0, 3.0..=40.0;
 
     // ---- Current sense (G2 CS pin into the ESP32-C3's ADC) ----
-    /// Noise on the current-sense reading, A (SD).
+    /// Noise of the G2's current-sense output, A (SD), independent from one PWM period to the
+    /// next: switching spikes and the sense amplifier's noise. The RC filter on the pin leaves
+    /// 16 % of it at 1 ms.
     current_noise_a ["A"] = 0.02, 0.0..=0.5;
+    /// The ADC's own noise on the current-sense pin, mV (SD), after the filter: the C3's SAR
+    /// at 0 dB, a few of its raw steps of 0.2 mV (0–3).
+    adc_noise_mv ["mV"] = 1.0, 0.0..=3.0;
     /// Relative gain error of the G2's current sense against the firmware's 20 mV/A.
     /// Pololu gives "about 20 mV/A" and "approximately 50 mV" offset, with no tolerance: ±10 %.
     cs_gain_error [""] = 0.05, -0.1..=0.1;
-    /// Time constant of an RC filter on the CS pin, µs (0: none, as the Pololu board ships).
-    cs_filter_tau_us ["µs"] = 0.0, 0.0..=10000.0;
+    /// The G2's current-sense offset at zero current, mV ("approximately 50 mV"; boards read
+    /// 40–65: one reported 60 mV). The firmware learns it while the bridge is idle.
+    cs_offset_mv ["mV"] = 50.0, 40.0..=65.0;
+    /// Time constant of the RC filter on the CS pin, µs: the board's 10 kΩ in series and 100 nF
+    /// to ground, 1 ms (firmware `board::current`), which the firmware's duty filter assumes.
+    /// 1 % resistors and an X7R capacitor (±10 %, and some 20 % lost to DC bias and
+    /// temperature): 0.7–1.2 ms. (No filter at all, as the Pololu board ships, is not a build
+    /// the firmware supports; the sense's own tests still model it, at 0.)
+    cs_filter_tau_us ["µs"] = kerfmeter_firmware::board::current::CS_FILTER_TAU_US as f64, 700.0..=1200.0;
     /// How far the ADC's sampling instant moves against the 20 kHz PWM each tick, in PWM periods.
     /// The control tick and the PWM run from independent timers: the instant drifts through
     /// the period, and the CS output is valid only in its drive phase (Pololu's G2 user's guide:

@@ -1,5 +1,6 @@
 //! `kerfmeter self-test`: check the encoder, magnet, drive direction and torque constant (no
-//! gauge under the prongs). A failed item makes the command fail after reporting every item.
+//! gauge under the prongs). A failed item makes the command fail after reporting every item,
+//! each failed one explained in words (what its value means, what to check).
 
 use std::fmt;
 
@@ -11,22 +12,91 @@ use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 use crate::progress::{progress_bar, show};
 
-/// The self-test's items and whether all passed.
+/// The self-test's items, whether all passed, and why those that failed did.
 #[derive(Serialize)]
 pub struct SelfTestOutcome {
     /// True when every item passed.
     pub passed: bool,
     /// The device's report.
     pub report: SelfTestReport,
+    /// Each failed item, in the order printed, with what its value means.
+    pub failures: Vec<Failure>,
+}
+
+/// A failed item, explained.
+#[derive(Serialize, Debug, Clone, PartialEq)]
+pub struct Failure {
+    /// The item's name, as printed.
+    pub item: &'static str,
+    /// What its value says went wrong, and what to check.
+    pub reason: String,
 }
 
 impl SelfTestOutcome {
-    /// The outcome of `report`.
-    pub fn new(report: SelfTestReport) -> Self {
-        let passed = items(&report)
-            .iter()
-            .all(|(_, i, _)| i.outcome == TestOutcome::Pass);
-        SelfTestOutcome { passed, report }
+    /// The outcome of `report`, by a device configured with `torque_per_duty_nm` (`None`: not
+    /// known).
+    pub fn new(report: SelfTestReport, torque_per_duty_nm: Option<f32>) -> Self {
+        let failures: Vec<Failure> = items(&report)
+            .into_iter()
+            .filter(|(_, i, _)| i.outcome != TestOutcome::Pass)
+            .map(|(item, i, _)| Failure {
+                item,
+                reason: explain(item, i, torque_per_duty_nm),
+            })
+            .collect();
+        SelfTestOutcome {
+            passed: failures.is_empty(),
+            report,
+            failures,
+        }
+    }
+}
+
+/// Motion of the direction check below which the hub counts as not having turned, degrees
+/// (the device passes it from 1°).
+const STILL_DEG: f32 = 1.0;
+/// A torque-constant estimate below this fraction of the configured one means no current flowed
+/// (what is left is the current sense's noise)...
+const NO_CURRENT_FRACTION: f32 = 0.15;
+/// ...or below this, N·m, when the configured one is not known (the reference build's 0.88 N·m
+/// times that fraction).
+const NO_CURRENT_NM: f32 = 0.13;
+
+/// Why the item `name` did not pass, from its value (and, for the torque constant, the
+/// configured one).
+fn explain(name: &str, item: SelfTestItem, torque_per_duty_nm: Option<f32>) -> String {
+    let value = item.value;
+    let no_current_nm = torque_per_duty_nm.map_or(NO_CURRENT_NM, |c| c * NO_CURRENT_FRACTION);
+    match (item.outcome, name) {
+        (TestOutcome::Skipped, _) => "not run: the self-test stopped before it".to_owned(),
+        (_, "encoder reads ok") => format!(
+            "only {:.0} % of the encoder's reads were good (99 % pass): check the AS5048A's \
+             wiring, power and SPI lines",
+            value * 100.0
+        ),
+        (_, "magnet magnitude") => format!(
+            "the magnet's field ({value:.0}) is missing or at the edge of the encoder's range: \
+             check that the magnet is fitted, centred over the chip and at the right distance"
+        ),
+        (_, "direction") if value <= -STILL_DEG => format!(
+            "the hub turned the wrong way ({value:.1}°) under a clockwise torque: set \
+             motor_inverted (or encoder_inverted, if the encoder counts the wrong way)"
+        ),
+        (_, "direction") => format!(
+            "the hub did not turn ({value:.2}°) under a clockwise torque: the motor is \
+             disconnected, its supply is off, or the hub is jammed"
+        ),
+        (_, "torque constant") if value < no_current_nm => format!(
+            "no motor current flowed during the test pulse ({value:.3} N·m per duty): the motor \
+             is disconnected or its supply is off"
+        ),
+        _ => format!(
+            "the current drawn at standstill gives {value:.3} N·m per duty, more than 30 % off \
+             the configured torque_per_duty_nm{}: check the calibration (torque_per_duty_nm, \
+             torque_per_amp_nm), the current-sense filter and gain, and the winding's \
+             temperature",
+            torque_per_duty_nm.map_or(String::new(), |c| format!(" ({c:.3})"))
+        ),
     }
 }
 
@@ -46,7 +116,10 @@ pub fn run(g: &Global) -> Result<SelfTestOutcome, CliError> {
     let bar = progress_bar(g, "self-test");
     let report = s.meter.self_test(|p| show(&bar, p));
     bar.finish_and_clear();
-    Ok(SelfTestOutcome::new(report?))
+    let report = report?;
+    // Only to explain a failed torque constant: a device that cannot answer still has its report.
+    let configured = s.meter.config().ok().map(|c| c.config.torque_per_duty_nm);
+    Ok(SelfTestOutcome::new(report, configured))
 }
 
 impl fmt::Display for SelfTestOutcome {
@@ -62,7 +135,11 @@ impl fmt::Display for SelfTestOutcome {
             "self-test passed"
         } else {
             "self-test FAILED"
-        })
+        })?;
+        for Failure { item, reason } in &self.failures {
+            write!(f, "\n  {item}: {reason}")?;
+        }
+        Ok(())
     }
 }
 
