@@ -48,6 +48,21 @@ pub(super) struct Run {
     /// The ramp's running kerf estimate, µm: one fixed-point step of the kerf solve per ramping
     /// tick, from the last tick's (see [`kerf_step`]), for the inset angle of the torque ceiling.
     pub(super) ramp_kerf_um: f32,
+    /// The held jam waiting for its kerf solve: (median angle, spread, torque). The hold's last
+    /// tick takes the median and the first releasing tick solves it, so that no tick pays for
+    /// both (each is some 5–8k instructions: together over the worst-step budget).
+    pub(super) held: Option<HeldJam>,
+}
+
+/// A held jam's figures, from the hold's last tick to the kerf solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct HeldJam {
+    /// Median hub angle over the hold, degrees, jam frame.
+    pub(super) angle_deg: f32,
+    /// Spread (max − min) of the held angles, degrees.
+    pub(super) spread_deg: f32,
+    /// The torque held, N·m.
+    pub(super) torque_nm: f32,
 }
 
 impl Run {
@@ -70,6 +85,7 @@ impl Run {
             zero_kerf_play_deg,
             overtravel_limit_deg,
             ramp_kerf_um: 0.0,
+            held: None,
         }
     }
 
@@ -234,12 +250,21 @@ impl Controller {
             .hold
             .median_and_spread()
             .unwrap_or((entry_deg, 0.0));
-        self.finish(median, spread, torque_nm);
+        self.run.held = Some(HeldJam {
+            angle_deg: median,
+            spread_deg: spread,
+            torque_nm,
+        });
         self.state = State::Releasing;
     }
 
-    /// The result from the hold's median angle and spread at `torque_nm`.
-    fn finish(&mut self, angle_deg: f32, spread_deg: f32, torque_nm: f32) {
+    /// The result from the held jam's median angle and spread at its torque.
+    fn finish(&mut self, held: HeldJam) {
+        let HeldJam {
+            angle_deg,
+            spread_deg,
+            torque_nm,
+        } = held;
         let params = &self.run.params;
         let gauge = &params.gauge;
         let solution = kerf_from_angle(gauge, angle_deg);
@@ -269,6 +294,9 @@ impl Controller {
 
     /// Releasing: ramp the torque down, then `Done`.
     pub(super) fn release(&mut self) {
+        if let Some(held) = self.run.held.take() {
+            self.finish(held);
+        }
         self.torque_nm = (self.torque_nm - RELEASE_RATE_NM_PER_S * self.dt_s()).max(0.0);
         if self.torque_nm == 0.0 {
             self.state = State::Done;
