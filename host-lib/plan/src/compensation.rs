@@ -296,15 +296,14 @@ fn refusal(found: &FoundCompensation, kerf: &KerfSource) -> String {
     let burn_um = found.offset_um.0[0];
     let net = match kerf {
         KerfSource::Uniform(k) => format!(
-            " (here {} − {} = {} µm)",
+            " = {} − {burn_um} = {} µm",
             k / 2.0,
-            burn_um,
-            (k / 2.0 - burn_um).round()
+            ((k / 2.0 - burn_um) * 1000.0).round() / 1000.0
         ),
         KerfSource::Map(_) => String::new(),
     };
     format!(
-        "{}. Dilating it by the kerf again would compensate twice and make every joint too loose; nothing was written. Either undo that compensation and apply the measured kerf instead with --recompensate (each cut moves by kerf/2 − {burn_um} µm{net}, inner corners kept sharp), or dilate it by the full kerf anyway with --already-compensated-ok.",
+        "{}. Dilating it by the kerf again would compensate twice and make every joint too loose; nothing was written. Either undo that compensation and apply the measured kerf instead with --recompensate (each cut moves by kerf/2 − burn{net}, inner corners kept sharp), or dilate it by the full kerf anyway with --already-compensated-ok.",
         found.describe()
     )
 }
@@ -441,7 +440,7 @@ pub(crate) fn own_svg_records(doc: &Document) -> Vec<std::ops::Range<usize>> {
 
 /// The texts boxes.py writes its command line into: comments, and the text of `<metadata>`,
 /// `<desc>` and `<title>` (with where each is).
-fn svg_texts<'a>(doc: &'a Document) -> Vec<(String, &'static str)> {
+fn svg_texts(doc: &Document) -> Vec<(String, &'static str)> {
     let mut texts = Vec::new();
     for n in doc.descendants() {
         if n.is_comment() {

@@ -232,7 +232,7 @@ fn boxes_py_plans_are_refused_naming_the_burn_and_both_ways_on() {
             "100 µm outside the parts",
             "--recompensate",
             "--already-compensated-ok",
-            "75 − 100 = -25 µm",
+            "kerf/2 − burn = 75 − 100 = -25 µm",
             "nothing was written",
         ] {
             assert!(msg.contains(needle), "{needle:?} not in: {msg}");
