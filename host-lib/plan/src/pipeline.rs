@@ -108,6 +108,11 @@ pub(crate) fn dilate_plan<F: Format>(
     let mut plan = format.read()?;
     let treatment =
         compensation::treatment(plan.summary.compensation_found.as_ref(), policy, kerf)?;
+    if treatment.action == "dilate" && policy != IfCompensated::Refuse {
+        plan.summary.notes.push(
+            "the plan records no compensation (boxes.py burn or an earlier dilation): it was dilated by the kerf as usual".into(),
+        );
+    }
     let loops = treatment
         .corner_loop_max_mm
         .map_or(0, |max_mm| plan.remove_corner_loops(max_mm));

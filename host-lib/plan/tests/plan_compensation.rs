@@ -317,6 +317,19 @@ fn every_form_of_boxes_py_record_is_recognised() {
             .compensation_found
             .is_none()
     );
+    // Asking to recompensate it says there was nothing to undo.
+    let (_, s) = run(&svg, 150.0, IfCompensated::Recompensate).unwrap();
+    assert_eq!(
+        s.compensation_applied.unwrap().net_offset_um.0,
+        [75.0, 75.0]
+    );
+    assert!(
+        s.notes
+            .iter()
+            .any(|n| n.contains("records no compensation")),
+        "{:?}",
+        s.notes
+    );
 }
 
 /// Recompensating boxes.py's plan at 0.1 mm for `kerf_um` against the same part drawn directly
