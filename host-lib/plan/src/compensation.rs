@@ -608,6 +608,36 @@ mod tests {
     }
 
     #[test]
+    fn a_compensation_that_varies_over_the_bed_cannot_be_undone_but_can_be_dilated_on() {
+        let found = FoundCompensation {
+            by: CompensatedBy::Kerfmeter,
+            offset_um: RangeUm([60.0, 80.0]),
+            kerf_um: Some(RangeUm([120.0, 160.0])),
+            rules: None,
+            version: Some("0.1.0".into()),
+            found_in: "here".into(),
+            default_burn: false,
+        };
+        let kerf = KerfSource::Uniform(150.0);
+        let e = treatment(Some(&found), IfCompensated::Recompensate, &kerf)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("kerf 120..160 µm") && e.contains("kerf map"),
+            "{e}"
+        );
+        let t = treatment(Some(&found), IfCompensated::DilateAnyway, &kerf).unwrap();
+        let a = applied(&t, Some([150.0, 150.0]), &kerf, String::new(), 0);
+        assert_eq!(a.offset_um, RangeUm([135.0, 155.0]));
+        // Nothing found: dilated as usual whatever the policy.
+        let t = treatment(None, IfCompensated::Refuse, &kerf).unwrap();
+        assert_eq!(
+            (t.offsetting, t.corner_loop_max_mm),
+            (Offsetting::Dilate, None)
+        );
+    }
+
+    #[test]
     fn records_round_trip_through_their_text() {
         let a = AppliedCompensation {
             action: "dilate".into(),
