@@ -48,10 +48,11 @@ struct LoopCut {
 /// Remove the small loops (each no larger than `max_loop_mm` across) a contour makes where it
 /// crosses itself, keeping the rest: the contour and how many loops went. Larger crossings stay
 /// (the dilation reports them).
-pub(crate) fn remove_corner_loops(p: &Pline, max_loop_mm: f64) -> (Pline, usize) {
+pub fn remove_corner_loops(p: &Pline, max_loop_mm: f64) -> (Pline, usize) {
     let mut cur = p.clone();
     let mut removed = 0;
-    // Loops found together never overlap in practice; a few rounds catch any that did.
+    // Loops found together rarely overlap (several crossings at one point); a few rounds catch
+    // any that were set aside.
     for _ in 0..8 {
         if cur.vertex_count() < 3 {
             break;
@@ -61,12 +62,17 @@ pub(crate) fn remove_corner_loops(p: &Pline, max_loop_mm: f64) -> (Pline, usize)
             .into_iter()
             .filter_map(|i| small_loop(&cur, i.start_index1, i.start_index2, i.point, max_loop_mm))
             .collect();
+        let found = cuts.len();
         let chosen = disjoint(cuts, cur.vertex_count());
         if chosen.is_empty() {
             break;
         }
         removed += chosen.len();
         cur = cut_loops(&cur, &chosen);
+        // Cutting a loop off makes no new crossing: look again only for loops set aside.
+        if chosen.len() == found {
+            break;
+        }
     }
     (cur, removed)
 }
@@ -168,7 +174,7 @@ fn cut_loops(p: &Pline, cuts: &[LoopCut]) -> Pline {
 /// round join it made at a drawn corner of `source` replaced by the two neighbouring segments
 /// extended to where they meet. Where that would make the contour cross itself, the error is
 /// the corner's position.
-pub(crate) fn sharpen(offset: &Pline, source: &Pline, r: f64) -> Result<Pline, V2> {
+pub fn sharpen(offset: &Pline, source: &Pline, r: f64) -> Result<Pline, V2> {
     let corners = corner_index(source);
     let n = offset.vertex_count();
     if n < 4 {
