@@ -357,17 +357,18 @@ fn recompensated_vs_direct(kerf_um: f64, inner: Inner, digits: usize) -> Vec<f64
 
 #[test]
 fn recompensation_matches_the_part_drawn_at_the_target_burn() {
-    // Exact coordinates: within 0.1 µm, shrinking (kerf/2 < burn) and growing.
+    // Exact coordinates: within 0.1 µm (0.041 µm measured: boxes.py's Bézier arcs), shrinking
+    // (kerf/2 < burn) and growing.
     for inner in [Inner::Loop, Inner::Backarc, Inner::Corner] {
         for kerf_um in [150.0, 120.0, 260.0] {
             let d = recompensated_vs_direct(kerf_um, inner, 6);
             assert!(d.iter().all(|&x| x < 1e-4), "kerf {kerf_um}: {d:?} mm");
         }
     }
-    // boxes.py's own 1 µm rounding of coordinates: within 2 µm.
+    // boxes.py's own 1 µm rounding of coordinates: within 0.5 µm (0.23 µm measured).
     for inner in [Inner::Loop, Inner::Backarc] {
         let d = recompensated_vs_direct(150.0, inner, 3);
-        assert!(d.iter().all(|&x| x < 2e-3), "{d:?} mm");
+        assert!(d.iter().all(|&x| x < 5e-4), "{d:?} mm");
     }
 }
 
