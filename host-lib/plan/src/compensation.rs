@@ -12,7 +12,8 @@
 //!   that gives it; a file that is plainly boxes.py's (`Created with Boxes.py`, or a `Command
 //!   line: boxes …`) but names no burn was made with boxes.py's default, 0.1 mm. A burn of 0 is
 //!   no compensation. boxes.py's DXF goes through `pstoedit` from PostScript and keeps no command
-//!   line, so it cannot be recognised.
+//!   line, so it cannot be recognised. One burn is taken for the whole plan (boxes.py's reference
+//!   rectangle is drawn without it, and its `BurnTest` draws each piece with its own).
 //! * **This tool's own outputs.** Every dilated SVG gets an XML comment and a `<metadata>` element
 //!   holding a `kerfmeter:compensation` element (namespace [`NAMESPACE`]) with the kerf, the net
 //!   offset of this run, the total offset the plan now carries, the cut rules, the tool and its
