@@ -12,8 +12,9 @@
 //!   that gives it; a file that is plainly boxes.py's (`Created with Boxes.py`, or a `Command
 //!   line: boxes …`) but names no burn was made with boxes.py's default, 0.1 mm. A burn of 0 is
 //!   no compensation. boxes.py's DXF goes through `pstoedit` from PostScript and keeps no command
-//!   line, so it cannot be recognised. One burn is taken for the whole plan (boxes.py's reference
-//!   rectangle is drawn without it, and its `BurnTest` draws each piece with its own).
+//!   line, so it cannot be recognised. boxes.py draws its reference rectangle (in the group with
+//!   the `burn:` label) without burn: recompensating dilates it by the kerf's half alone. One burn
+//!   is taken for the rest (boxes.py's `BurnTest` draws each piece with its own).
 //! * **This tool's own outputs.** Every dilated SVG gets an XML comment and a `<metadata>` element
 //!   holding a `kerfmeter:compensation` element (namespace [`NAMESPACE`]) with the kerf, the net
 //!   offset of this run, the total offset the plan now carries, the cut rules, the tool and its
@@ -507,6 +508,19 @@ fn boxes_in_svg(doc: &Document) -> Option<FoundCompensation> {
             "a boxes.py command line that does not set it".into(),
             true,
         ),
+    })
+}
+
+/// Whether an element is part of boxes.py's reference rectangle: its group holds the label
+/// `100.0mm, burn:0.10mm`.
+pub(crate) fn is_boxes_reference(n: Node) -> bool {
+    n.parent_element().is_some_and(|g| {
+        g.children()
+            .filter(|c| c.is_element() && c.tag_name().name() == "text")
+            .any(|t| {
+                t.descendants()
+                    .any(|d| d.text().is_some_and(|s| burn_in_label(s).is_some()))
+            })
     })
 }
 

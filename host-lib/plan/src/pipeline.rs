@@ -12,7 +12,7 @@
 //! together; the `--strict` refusal of open paths is in [`file`](mod@crate::file).
 
 use crate::compensation::{self, IfCompensated};
-use crate::dilate::{self, Contour, KerfSource};
+use crate::dilate::{self, Contour, KerfSource, Offsetting};
 use crate::error::Result;
 use crate::geom::{Pline, V2};
 use crate::outcome::{OpenPath, PlanSummary};
@@ -34,6 +34,9 @@ pub(crate) struct Plan<O> {
     pub cuts: Vec<Cut<O>>,
     /// What was found so far.
     pub summary: PlanSummary,
+    /// Cuts (indexes into `cuts`) that the plan's recorded compensation did not reach (boxes.py's
+    /// reference rectangle): when recompensating they are dilated by the kerf's half alone.
+    pub unburnt: Vec<usize>,
 }
 
 impl<O> Plan<O> {
@@ -41,6 +44,7 @@ impl<O> Plan<O> {
     pub fn new(format: &str) -> Self {
         Plan {
             cuts: Vec::new(),
+            unburnt: Vec::new(),
             summary: PlanSummary {
                 format: format.into(),
                 ..PlanSummary::default()
@@ -67,6 +71,24 @@ impl<O> Plan<O> {
                 n
             })
             .sum()
+    }
+
+    /// Give the cuts the compensation did not reach the `burn_mm` the others carry (outwards, round
+    /// corners), so that undoing it leaves them dilated by the kerf's half alone.
+    fn burn_unburnt(&mut self, burn_mm: f64) {
+        let mut done = 0;
+        for &k in &self.unburnt {
+            let contour = &mut self.cuts[k].contour;
+            if let Some(grown) = recompensate::grow_outline(&contour.pline, burn_mm) {
+                contour.pline = grown;
+                done += 1;
+            }
+        }
+        if done > 0 {
+            self.summary.notes.push(format!(
+                "{done} cut(s) of boxes.py's reference rectangle, drawn without burn, were dilated by the kerf's half alone"
+            ));
+        }
     }
 
     /// Record an open cut path (it cannot be dilated and is left as drawn), from `start` to `end`
@@ -116,6 +138,9 @@ pub(crate) fn dilate_plan<F: Format>(
     let loops = treatment
         .corner_loop_max_mm
         .map_or(0, |max_mm| plan.remove_corner_loops(max_mm));
+    if let Offsetting::Recompensate { burn_mm } = treatment.offsetting {
+        plan.burn_unburnt(burn_mm);
+    }
     let contours: Vec<Contour> = plan.cuts.iter().map(|c| c.contour.clone()).collect();
     let dilation = dilate::dilate_with(&contours, kerf, treatment.offsetting)?;
     plan.summary.record_parts(&dilation);

@@ -220,6 +220,15 @@ pub fn sharpen(offset: &Pline, source: &Pline, r: f64) -> Result<Pline, V2> {
     Ok(out)
 }
 
+/// A closed outline grown outwards by `d` mm (round corners), drawn in the same direction; `None`
+/// when the offset is not one outline.
+pub fn grow_outline(p: &Pline, d: f64) -> Option<Pline> {
+    let ccw = p.area() > 0.0;
+    // A positive offset goes left: inwards for a counter-clockwise outline.
+    let mut out: Vec<Pline> = p.parallel_offset(if ccw { -d } else { d });
+    (out.len() == 1).then(|| out.remove(0))
+}
+
 /// A spatial index of a contour's vertices.
 fn corner_index(p: &Pline) -> Option<StaticAABB2DIndex<f64>> {
     let mut b = StaticAABB2DIndexBuilder::new(p.vertex_count());

@@ -53,7 +53,7 @@ use cavalier_contours::polyline::PlineSource;
 use roxmltree::{Document, Node, ParsingOptions};
 use usvg::tiny_skia_path::PathSegment;
 
-use super::compensation::{self, IfCompensated};
+use super::compensation::{self, CompensatedBy, IfCompensated};
 use super::dilate::KerfSource;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, PlanSummary};
@@ -349,6 +349,24 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         }
     }
 
+    /// In a boxes.py plan, the cuts of its reference rectangle, which boxes.py draws without burn.
+    fn find_unburnt(&self, plan: &mut Plan<(usize, usize)>) {
+        let boxes = plan
+            .summary
+            .compensation_found
+            .as_ref()
+            .is_some_and(|f| f.by == CompensatedBy::BoxesPy);
+        if !boxes {
+            return;
+        }
+        for (k, cut) in plan.cuts.iter().enumerate() {
+            let node = self.shapes[self.instances[cut.origin.0].element];
+            if compensation::is_boxes_reference(node) {
+                plan.unburnt.push(k);
+            }
+        }
+    }
+
     /// The new geometry of every instance with a dilated subpath, as edits: those of elements
     /// drawn directly, and those of elements reached through each `<use>` (by `<use>`).
     fn geometry_edits(
@@ -524,6 +542,7 @@ impl Format for SvgPlan<'_, '_> {
         self.check_uses()?;
         plan.summary.cut_elements = self.instances.len();
         self.contours(&mut plan);
+        self.find_unburnt(&mut plan);
         Ok(plan)
     }
 

@@ -544,3 +544,42 @@ fn own_dxf_outputs_are_recorded_refused_and_recompensated() {
             .any(|v| (v.0 - 10.05).abs() < 1e-9 && (v.1 - 10.05).abs() < 1e-9)
     );
 }
+
+#[test]
+fn boxes_py_reference_rectangle_drawn_without_burn_is_only_dilated() {
+    // boxes.py's reference: 60 × 5 mm as drawn (no burn), labelled with the burn.
+    let rect = [(10.0, 70.0), (70.0, 70.0), (70.0, 75.0), (10.0, 75.0)];
+    let reference = format!(
+        r#"<g id="p-1" style="fill:none;"><path id="reference" d="{}" stroke="rgb(0,0,0)" stroke-width="0.20"/><text>60.0mm, burn:0.10mm</text></g></svg>"#,
+        boxes_path(&rect, false, 0.0, Inner::Corner, 6)
+    );
+    let svg = burnt(0.1, Inner::Loop, 6).replace("</svg>", &reference);
+    let (out, s) = run(&svg, 150.0, IfCompensated::Recompensate).unwrap();
+    assert!(
+        s.notes.iter().any(|n| n.contains("reference rectangle")),
+        "{:?}",
+        s.notes
+    );
+    let want = boxes_svg("", "", 0.0, Inner::Corner, 6).replace(
+        "</svg>",
+        &format!(
+            r#"<path id="reference" d="{}" fill="none" stroke="rgb(0,0,0)" stroke-width="0.20"/></svg>"#,
+            boxes_path(&rect, false, 0.075, Inner::Corner, 6)
+        ),
+    );
+    let (got, want) = (
+        outlines(&out, &["reference"]),
+        outlines(&want, &["reference"]),
+    );
+    assert!(
+        hausdorff(&got[0], &want[0]) < 1e-4,
+        "{}",
+        hausdorff(&got[0], &want[0])
+    );
+    // The parts themselves are recompensated as before.
+    assert!(
+        recompensated_vs_direct(150.0, Inner::Loop, 6)
+            .iter()
+            .all(|&x| x < 1e-4)
+    );
+}
