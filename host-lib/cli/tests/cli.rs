@@ -450,3 +450,114 @@ fn config_help_says_the_torque_calibration_is_at_the_reference_supply() {
     let reference = format!("{} V supply", kerfmeter::protocol::REFERENCE_SUPPLY_V);
     assert_eq!(help.matches(&reference).count(), 2, "{help}");
 }
+
+/// A square part as boxes.py writes it with `--burn 0.1`: drawn 0.1 mm outside (corners rounded
+/// by the burn), its command line in the comment.
+fn boxes_plan() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let to = dir.path().join("abox.svg");
+    std::fs::write(
+        &to,
+        r#"<?xml version='1.0' encoding='utf-8'?>
+<svg height="40.00mm" viewBox="0.0 0.0 40.00 40.00" width="40.00mm" xmlns="http://www.w3.org/2000/svg">
+<!--
+ABox - A simple Box
+
+Created with Boxes.py (https://boxes.hackerspace-bamberg.de/)
+Command line (remove spaces between dashes): boxes ABox - -burn=0.1
+-->
+<rect id="part" x="9.9" y="9.9" width="20.2" height="20.2" rx="0.1" fill="none" stroke="rgb(0,0,0)" stroke-width="0.20"/>
+</svg>
+"#,
+    )
+    .unwrap();
+    (dir, to)
+}
+
+#[test]
+fn an_already_compensated_plan_is_refused_like_any_plan_error_and_the_flags_lead_on() {
+    let (dir, input) = boxes_plan();
+    let out_file = dir.path().join("out.svg");
+    let refused = kerfmeter(&[
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "150",
+        "-o",
+        path(&out_file),
+    ]);
+    assert_eq!(code(&refused), 4, "{}", stderr(&refused));
+    for needle in [
+        "boxes.py compensated this plan with --burn 0.1 (mm",
+        "--recompensate",
+        "--already-compensated-ok",
+    ] {
+        assert!(stderr(&refused).contains(needle), "{}", stderr(&refused));
+    }
+    assert!(!out_file.exists());
+
+    // Undo the burn, apply the kerf: the part comes out 150 µm larger than drawn, not 350.
+    let args = [
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "150",
+        "-o",
+        path(&out_file),
+    ];
+    let done = kerfmeter(&[&["--json"][..], &args[..], &["--recompensate"]].concat());
+    assert_eq!(code(&done), 0, "{}", stderr(&done));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&done)).unwrap();
+    assert_eq!(json["compensation_found"]["by"], "boxes_py");
+    assert_eq!(
+        json["compensation_found"]["offset_um"],
+        serde_json::json!([100.0, 100.0])
+    );
+    assert_eq!(json["compensation_applied"]["action"], "recompensate");
+    assert_eq!(
+        json["compensation_applied"]["net_offset_um"],
+        serde_json::json!([-25.0, -25.0])
+    );
+    assert_eq!(
+        json["compensation_applied"]["offset_um"],
+        serde_json::json!([75.0, 75.0])
+    );
+    let written = std::fs::read_to_string(&out_file).unwrap();
+    assert!(written.contains("<kerfmeter:compensation"), "{written}");
+
+    // The output is this tool's own: refused too, and on top only when asked.
+    let again = dir.path().join("again.svg");
+    let refused = kerfmeter(&[
+        "dilate",
+        path(&out_file),
+        "--kerf-um",
+        "150",
+        "-o",
+        path(&again),
+    ]);
+    assert_eq!(code(&refused), 4);
+    assert!(
+        stderr(&refused).contains("kerfmeter"),
+        "{}",
+        stderr(&refused)
+    );
+    let anyway = kerfmeter(&[
+        "dilate",
+        path(&out_file),
+        "--kerf-um",
+        "150",
+        "-o",
+        path(&again),
+        "--already-compensated-ok",
+    ]);
+    assert_eq!(code(&anyway), 0, "{}", stderr(&anyway));
+    assert!(
+        stdout(&anyway).contains("the kerf added on top"),
+        "{}",
+        stdout(&anyway)
+    );
+
+    // Not both.
+    let both = kerfmeter(&[&args[..], &["--recompensate", "--already-compensated-ok"]].concat());
+    assert_eq!(code(&both), 2);
+}

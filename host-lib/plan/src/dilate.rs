@@ -16,6 +16,9 @@
 //!   move into the hole, away from each other, so they never interact.
 //! * **Kerf per part**: each part (an outer contour with its holes) uses one kerf, the one given
 //!   at the part's area centroid (with a kerf map, interpolated there).
+//! * **Recompensation** ([`Offsetting::Recompensate`], [`dilate_with`]): a plan already offset by
+//!   a burn moves by kerf/2 − burn instead, with its drawn corners kept sharp (see
+//!   [`crate::recompensate`]).
 //!
 //! Problems are collected, not stopped at, and reported together (each with the contours' labels
 //! and a position in mm): contours that cross themselves or each other, a hole narrower than the
@@ -33,6 +36,7 @@ use std::sync::Arc;
 
 use super::geom::{Pline, V2, area_and_centroid, v2};
 use crate::error::{PlanError, Problems, Result};
+use crate::recompensate;
 
 /// Largest kerf accepted, µm (a sanity bound: real kerfs are 50–500 µm).
 pub const MAX_KERF_UM: f64 = 5000.0;
@@ -185,9 +189,29 @@ fn index_of(boxes: &[Bbox]) -> Option<StaticAABB2DIndex<f64>> {
     b.build().ok()
 }
 
+/// How each contour is moved.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Offsetting {
+    /// By half the kerf, with round joins: the Minkowski sum with the beam's disk.
+    Dilate,
+    /// The plan is already offset by `burn_mm` (boxes.py's burn, or an earlier dilation): move
+    /// every contour by half the kerf minus that, keeping the drawn corners sharp
+    /// (see [`crate::recompensate`]).
+    Recompensate {
+        /// The offset already drawn, mm.
+        burn_mm: f64,
+    },
+}
+
 /// Dilate closed contours (document space, mm) by half the kerf, with nesting, per-part kerf and
 /// the checks described in the module doc.
 pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
+    dilate_with(contours, kerf, Offsetting::Dilate)
+}
+
+/// [`dilate`], with the contours moved as `how` says.
+pub fn dilate_with(contours: &[Contour], kerf: &KerfSource, how: Offsetting) -> Result<Dilation> {
     let (areas, centroids) = check_each(contours)?;
     let (depth, parent) = nest(contours, &areas)?;
     let roles: Vec<Role> = depth
@@ -196,7 +220,7 @@ pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
         .collect();
     let (mut parts, part_index) = group_parts(&roles, &depth, &parent);
     kerf_per_part(&mut parts, contours, &areas, &centroids, kerf)?;
-    let dilated = offset_all(contours, &roles, &parts, &part_index)?;
+    let dilated = offset_all(contours, &roles, &parts, &part_index, how)?;
     check_merges(contours, &parts, &dilated)?;
     Ok(Dilation {
         contours: dilated,
@@ -352,10 +376,15 @@ fn offset_all(
     roles: &[Role],
     parts: &[Part],
     part_index: &[usize],
+    how: Offsetting,
 ) -> Result<Vec<Pline>> {
     let n = contours.len();
+    let already_mm = match how {
+        Offsetting::Dilate => 0.0,
+        Offsetting::Recompensate { burn_mm } => burn_mm,
+    };
     let jobs: Vec<(usize, f64)> = (0..n)
-        .map(|i| (i, parts[part_index[i]].kerf_um / 2000.0))
+        .map(|i| (i, parts[part_index[i]].kerf_um / 2000.0 - already_mm))
         .collect();
     let threads = std::thread::available_parallelism()
         .map(|t| t.get())
@@ -368,7 +397,7 @@ fn offset_all(
             .map(|js| {
                 s.spawn(move || {
                     js.iter()
-                        .map(|&(i, grow)| offset_one(&contours[i], roles[i], grow))
+                        .map(|&(i, grow)| offset_one(&contours[i], roles[i], grow, how))
                         .collect::<Vec<_>>()
                 })
             })
@@ -426,7 +455,9 @@ fn check_merges(contours: &[Contour], parts: &[Part], dilated: &[Pline]) -> Resu
 
 /// Offset one contour: `grow` > 0 moves it away from the part's material by that many mm
 /// (outwards for an outer contour, into the hole for a hole).
-fn offset_one(c: &Contour, role: Role, grow: f64) -> Result<Pline, String> {
+/// With [`Offsetting::Recompensate`] the drawn corners stay sharp where the contour moves into
+/// the material (`grow` < 0).
+fn offset_one(c: &Contour, role: Role, grow: f64, how: Offsetting) -> Result<Pline, String> {
     if grow == 0.0 {
         return Ok(c.pline.clone());
     }
@@ -440,7 +471,22 @@ fn offset_one(c: &Contour, role: Role, grow: f64) -> Result<Pline, String> {
         Role::Outer => -grow,
         Role::Hole => grow,
     };
-    let results = p.parallel_offset(offset);
+    let mut results = p.parallel_offset(offset);
+    if matches!(how, Offsetting::Recompensate { .. }) && grow < 0.0 {
+        results = results
+            .iter()
+            .map(|r| recompensate::sharpen(r, &p, grow.abs()))
+            .collect::<Result<_, V2>>()
+            .map_err(|x| {
+                format!(
+                    "{} at {}: its inner corner near {} cannot be kept sharp when its compensation is undone (a feature there is narrower than the change, {:.1} µm); recompensate the original drawing or use --already-compensated-ok",
+                    c.label,
+                    at(first_point(&c.pline)),
+                    at(x),
+                    grow.abs() * 1000.0
+                )
+            })?;
+    }
     let kerf_um = grow.abs() * 2000.0;
     let total = results.len();
     let mut keep: Vec<Pline> = results.into_iter().filter(|r| r.area() > 0.0).collect();

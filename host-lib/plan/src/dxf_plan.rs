@@ -21,7 +21,9 @@
 //! extended data kept); a `CIRCLE` stays a `CIRCLE` with the new radius; a chain of pieces (and an
 //! old-style `POLYLINE` or an `ELLIPSE`) is replaced by one closed `LWPOLYLINE` with bulges that
 //! takes over the first piece's layer, colour, linetype and lineweight. Everything else is written
-//! back as read. A drawing older than R14 (which has no `LWPOLYLINE`) is written as R2000.
+//! back as read. A drawing older than R14 (which has no `LWPOLYLINE`) is written as R2000. What was
+//! applied is recorded in `999` comments at the top of the file (see
+//! [`compensation`](crate::compensation)).
 
 use std::collections::HashMap;
 use std::io::Cursor;
@@ -31,6 +33,7 @@ use dxf::entities::{Entity, EntityType, LwPolyline};
 use dxf::enums::{AcadVersion, Units};
 use dxf::{Drawing, LwPolylineVertex, Point, Vector};
 
+use super::compensation::{self, FoundCompensation, IfCompensated};
 use super::dilate::KerfSource;
 use super::geom::{PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, PlanSummary};
@@ -48,6 +51,8 @@ pub struct DxfOptions {
     pub rules: CutRules,
     /// What one drawing unit is when `$INSUNITS` does not say.
     pub assume_units: Option<AssumedUnits>,
+    /// What to do when the drawing is already compensated.
+    pub if_compensated: IfCompensated,
 }
 
 fn bad(message: impl Into<String>) -> PlanError {
@@ -111,13 +116,25 @@ pub fn dilate_dxf(
     kerf: &KerfSource,
     opts: &DxfOptions,
 ) -> Result<(Vec<u8>, PlanSummary)> {
+    let found = compensation::find_in_dxf(bytes);
     let drawing = Drawing::load(&mut Cursor::new(bytes))
         .map_err(|e| bad(format!("not a readable DXF file: {e}")))?;
-    let (drawing, summary) = dilate_drawing(drawing, kerf, opts)?;
-    let mut out = Vec::new();
+    let (drawing, summary) = dilate_loaded(drawing, kerf, opts, found)?;
+    let mut saved = Vec::new();
     drawing
-        .save(&mut out)
+        .save(&mut saved)
         .map_err(|e| bad(format!("cannot write the DXF: {e}")))?;
+    // The record goes first, as `999` comments (the `dxf` crate writes none).
+    let mut out = Vec::with_capacity(saved.len() + 512);
+    if let Some(applied) = &summary.compensation_applied {
+        let eol = if saved.windows(2).take(64).any(|w| w == b"\r\n") {
+            "\r\n"
+        } else {
+            "\n"
+        };
+        out.extend_from_slice(applied.dxf_record(eol).as_bytes());
+    }
+    out.extend_from_slice(&saved);
     Ok((out, summary))
 }
 
@@ -212,11 +229,22 @@ fn label(e: &Entity) -> String {
     )
 }
 
-/// Dilate the cuts of a loaded drawing.
+/// Dilate the cuts of a loaded drawing. (A loaded drawing has lost its comments, so a
+/// compensation recorded in them is not seen: [`dilate_dxf`] reads them from the file.)
 pub fn dilate_drawing(
     drawing: Drawing,
     kerf: &KerfSource,
     opts: &DxfOptions,
+) -> Result<(Drawing, PlanSummary)> {
+    dilate_loaded(drawing, kerf, opts, None)
+}
+
+/// Dilate a loaded drawing whose file recorded the compensation `found`.
+fn dilate_loaded(
+    drawing: Drawing,
+    kerf: &KerfSource,
+    opts: &DxfOptions,
+    found: Option<FoundCompensation>,
 ) -> Result<(Drawing, PlanSummary)> {
     pipeline::dilate_plan(
         DxfPlan {
@@ -224,8 +252,11 @@ pub fn dilate_drawing(
             opts,
             scale: 1.0,
             entities: Vec::new(),
+            found,
         },
         kerf,
+        opts.if_compensated,
+        &opts.rules,
     )
 }
 
@@ -237,6 +268,8 @@ struct DxfPlan<'o> {
     scale: f64,
     /// The entities as read, by index.
     entities: Vec<Entity>,
+    /// The compensation the file records (read from its comments before loading).
+    found: Option<FoundCompensation>,
 }
 
 /// What reading one cut entity gives.
@@ -257,6 +290,7 @@ impl Format for DxfPlan<'_> {
         let mut plan = Plan::new("dxf");
         self.scale = units_mm(&self.drawing, self.opts.assume_units, &mut plan.summary)?;
         plan.summary.mm_per_unit = self.scale;
+        plan.summary.compensation_found = self.found.take();
         self.entities = self.drawing.entities().cloned().collect();
         let pieces = self.read_entities(&mut plan)?;
         self.close_chains(pieces, &mut plan);

@@ -1,6 +1,7 @@
 //! What can go wrong with a cutting plan, by kind: a file that is not readable in its format, units
-//! that are not known, a plan that cannot be dilated as drawn, open paths where none are allowed,
-//! a bad argument, or the file itself (reading it). Every message says what to do.
+//! that are not known, a plan that cannot be dilated as drawn or is already compensated, open paths
+//! where none are allowed, a bad argument, or the file itself (reading it). Every message says what
+//! to do.
 
 use std::path::{Path, PathBuf};
 
@@ -23,6 +24,11 @@ pub enum PlanError {
     /// or cuts cross. The message lists every problem found, with positions.
     #[error("{0}")]
     CannotDilate(String),
+    /// The plan says it is already compensated for the kerf (boxes.py's `--burn`, or this tool's
+    /// own output): dilating it again would compensate twice. The message names what was found
+    /// and the two ways on (`--recompensate`, `--already-compensated-ok`).
+    #[error("{0}")]
+    AlreadyCompensated(String),
     /// Open cut paths, which cannot be dilated, where the caller refuses them.
     #[error("{0}")]
     OpenPaths(String),

@@ -7,6 +7,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use crate::compensation::IfCompensated;
 use crate::dilate::KerfSource;
 use crate::dxf_plan::{DxfOptions, dilate_dxf};
 use crate::error::{PlanError, Result};
@@ -61,6 +62,8 @@ pub struct DilateOptions {
     pub assume_units: Option<AssumedUnits>,
     /// Refuse open cut paths (which cannot be dilated) instead of leaving them as drawn.
     pub strict: bool,
+    /// What to do when the plan is already compensated (boxes.py's burn, this tool's output).
+    pub if_compensated: IfCompensated,
 }
 
 /// Read the plan at `input` (SVG or DXF, by its extension) and dilate it by `kerf`: the dilated
@@ -84,6 +87,7 @@ pub fn dilate_file(
             &DxfOptions {
                 rules: options.rules.clone(),
                 assume_units: options.assume_units,
+                if_compensated: options.if_compensated,
             },
         ),
     }
@@ -123,6 +127,7 @@ fn dilate_svg_bytes(
     let svg_options = SvgOptions {
         rules: options.rules.clone(),
         assume_units: options.assume_units,
+        if_compensated: options.if_compensated,
     };
     let (out, summary) = dilate_svg(&text, kerf, &svg_options)?;
     Ok((out.into_bytes(), summary))

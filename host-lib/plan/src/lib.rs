@@ -14,6 +14,10 @@
 //!   closed contours, each with the element or entity it came from, and open paths; dilate them;
 //!   write the dilated contours back in place. Counting, the summary, the problems reported
 //!   together and the open paths are done there once, not per format.
+//! * [`compensation`] recognises plans that are already compensated (boxes.py's `--burn`, this
+//!   tool's own outputs), refuses to compensate them twice or undoes their compensation
+//!   ([`recompensate`]: boxes.py's corner loops, inner corners kept sharp), and records what was
+//!   applied in every output.
 //! * [`file`](mod@file) reads a plan file and dilates it into bytes; [`PlanError`] says what went wrong,
 //!   by kind.
 //!
@@ -39,6 +43,7 @@
 
 #![warn(missing_docs)]
 
+pub mod compensation;
 pub mod dilate;
 pub mod dxf_plan;
 mod error;
@@ -47,6 +52,7 @@ pub mod gauge;
 pub mod geom;
 pub mod outcome;
 mod pipeline;
+pub mod recompensate;
 pub mod rules;
 pub mod svg;
 

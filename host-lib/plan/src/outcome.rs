@@ -7,6 +7,8 @@ use std::str::FromStr;
 
 use serde::Serialize;
 
+use crate::compensation::{AppliedCompensation, FoundCompensation};
+
 /// The length of one drawing unit when the file does not say (an SVG without absolute
 /// `width`/`height`, a DXF with `$INSUNITS` 0).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -136,6 +138,10 @@ pub struct PlanSummary {
     pub passed_through: BTreeMap<String, usize>,
     /// Anything else worth knowing.
     pub notes: Vec<String>,
+    /// A compensation the plan says it already carries (boxes.py's burn, this tool's record).
+    pub compensation_found: Option<FoundCompensation>,
+    /// What this run applied, as recorded in the output.
+    pub compensation_applied: Option<AppliedCompensation>,
 }
 
 impl PlanSummary {

@@ -6,14 +6,18 @@
 //! [`rules`](crate::rules)), what each contour came from (an SVG element, a DXF entity or chain
 //! of entities), and how to put a dilated contour back in its place. Everything else happens
 //! here, once for every format: the summary and its counts, the open cut paths, and the dilation
-//! itself (nesting, the kerf per part and the geometry checks, in [`dilate`]). A format collects
+//! itself (nesting, the kerf per part and the geometry checks, in [`dilate`]), and what to do
+//! with a plan that is already compensated ([`compensation`]). A format collects
 //! the problems it finds while reading in one `Problems` list (in `error`) and reports them
 //! together; the `--strict` refusal of open paths is in [`file`](mod@crate::file).
 
-use crate::dilate::{self, Contour, KerfSource};
+use crate::compensation::{self, IfCompensated};
+use crate::dilate::{self, Contour, KerfSource, Offsetting};
 use crate::error::Result;
 use crate::geom::{Pline, V2};
 use crate::outcome::{OpenPath, PlanSummary};
+use crate::recompensate;
+use crate::rules::CutRules;
 
 /// A closed cut contour and what it came from in the file.
 pub(crate) struct Cut<O> {
@@ -30,6 +34,9 @@ pub(crate) struct Plan<O> {
     pub cuts: Vec<Cut<O>>,
     /// What was found so far.
     pub summary: PlanSummary,
+    /// Cuts (indexes into `cuts`) that the plan's recorded compensation did not reach (boxes.py's
+    /// reference rectangle): when recompensating they are dilated by the kerf's half alone.
+    pub unburnt: Vec<usize>,
 }
 
 impl<O> Plan<O> {
@@ -37,6 +44,7 @@ impl<O> Plan<O> {
     pub fn new(format: &str) -> Self {
         Plan {
             cuts: Vec::new(),
+            unburnt: Vec::new(),
             summary: PlanSummary {
                 format: format.into(),
                 ..PlanSummary::default()
@@ -50,6 +58,37 @@ impl<O> Plan<O> {
             contour: Contour { pline, label },
             origin,
         });
+    }
+
+    /// Remove the small loops where a cut crosses itself (boxes.py's inner corners, no larger than
+    /// `max_mm`) from every cut: how many went.
+    pub fn remove_corner_loops(&mut self, max_mm: f64) -> usize {
+        self.cuts
+            .iter_mut()
+            .map(|c| {
+                let (pline, n) = recompensate::remove_corner_loops(&c.contour.pline, max_mm);
+                c.contour.pline = pline;
+                n
+            })
+            .sum()
+    }
+
+    /// Give the cuts the compensation did not reach the `burn_mm` the others carry (outwards, round
+    /// corners), so that undoing it leaves them dilated by the kerf's half alone.
+    fn burn_unburnt(&mut self, burn_mm: f64) {
+        let mut done = 0;
+        for &k in &self.unburnt {
+            let contour = &mut self.cuts[k].contour;
+            if let Some(grown) = recompensate::grow_outline(&contour.pline, burn_mm) {
+                contour.pline = grown;
+                done += 1;
+            }
+        }
+        if done > 0 {
+            self.summary.notes.push(format!(
+                "{done} cut(s) of boxes.py's reference rectangle, drawn without burn, were dilated by the kerf's half alone"
+            ));
+        }
     }
 
     /// Record an open cut path (it cannot be dilated and is left as drawn), from `start` to `end`
@@ -70,7 +109,7 @@ pub(crate) trait Format {
     /// The dilated document.
     type Output;
 
-    /// Read the document's cuts.
+    /// Read the document's cuts, and any compensation it records (in the summary).
     fn read(&mut self) -> Result<Plan<Self::Origin>>;
 
     /// Write the dilated contours (`dilated[k]` replaces `plan.cuts[k]`) back into the document;
@@ -79,15 +118,39 @@ pub(crate) trait Format {
 }
 
 /// Read, dilate and write back a plan in any format: the dilated document and what was found
-/// and done.
+/// and done. A plan that records a compensation is refused, dilated anyway or recompensated as
+/// `policy` says, before its geometry is checked (boxes.py's compensated plans cross themselves
+/// at every inner corner).
 pub(crate) fn dilate_plan<F: Format>(
     mut format: F,
     kerf: &KerfSource,
+    policy: IfCompensated,
+    rules: &CutRules,
 ) -> Result<(F::Output, PlanSummary)> {
     let mut plan = format.read()?;
+    let treatment =
+        compensation::treatment(plan.summary.compensation_found.as_ref(), policy, kerf)?;
+    if treatment.action == "dilate" && policy != IfCompensated::Refuse {
+        plan.summary.notes.push(
+            "the plan records no compensation (boxes.py burn or an earlier dilation): it was dilated by the kerf as usual".into(),
+        );
+    }
+    let loops = treatment
+        .corner_loop_max_mm
+        .map_or(0, |max_mm| plan.remove_corner_loops(max_mm));
+    if let Offsetting::Recompensate { burn_mm } = treatment.offsetting {
+        plan.burn_unburnt(burn_mm);
+    }
     let contours: Vec<Contour> = plan.cuts.iter().map(|c| c.contour.clone()).collect();
-    let dilation = dilate::dilate(&contours, kerf)?;
+    let dilation = dilate::dilate_with(&contours, kerf, treatment.offsetting)?;
     plan.summary.record_parts(&dilation);
+    plan.summary.compensation_applied = Some(compensation::applied(
+        &treatment,
+        plan.summary.kerf_range_um,
+        kerf,
+        rules.describe(),
+        loops,
+    ));
     let output = format.write(&mut plan, &dilation.contours)?;
     Ok((output, plan.summary))
 }

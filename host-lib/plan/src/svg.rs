@@ -40,6 +40,9 @@
 //!   `<use>`) are refused: unlink them first (Inkscape: Edit ▸ Clone ▸ Unlink Clone).
 //! * Open subpaths of a cut element are kept as drawn (re-emitted in the element's coordinates)
 //!   and reported.
+//! * What was applied is recorded right after the root's start tag (a comment and a `<metadata>`
+//!   element, see [`compensation`](crate::compensation)), replacing an earlier record of this
+//!   tool's.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -50,6 +53,7 @@ use cavalier_contours::polyline::PlineSource;
 use roxmltree::{Document, Node, ParsingOptions};
 use usvg::tiny_skia_path::PathSegment;
 
+use super::compensation::{self, CompensatedBy, IfCompensated};
 use super::dilate::KerfSource;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, PlanSummary};
@@ -77,6 +81,8 @@ pub struct SvgOptions {
     pub rules: CutRules,
     /// What one user unit is when the root `<svg>` does not give absolute units.
     pub assume_units: Option<AssumedUnits>,
+    /// What to do when the plan is already compensated.
+    pub if_compensated: IfCompensated,
 }
 
 /// One drawing command of a subpath, in the element's own coordinates.
@@ -122,7 +128,12 @@ pub fn dilate_svg(
     opts: &SvgOptions,
 ) -> Result<(String, PlanSummary)> {
     let doc = parse(text)?;
-    pipeline::dilate_plan(SvgPlan::new(text, &doc, opts), kerf)
+    pipeline::dilate_plan(
+        SvgPlan::new(text, &doc, opts),
+        kerf,
+        opts.if_compensated,
+        &opts.rules,
+    )
 }
 
 /// The source as XML, refused unless its root is an SVG `<svg>`.
@@ -338,6 +349,24 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         }
     }
 
+    /// In a boxes.py plan, the cuts of its reference rectangle, which boxes.py draws without burn.
+    fn find_unburnt(&self, plan: &mut Plan<(usize, usize)>) {
+        let boxes = plan
+            .summary
+            .compensation_found
+            .as_ref()
+            .is_some_and(|f| f.by == CompensatedBy::BoxesPy);
+        if !boxes {
+            return;
+        }
+        for (k, cut) in plan.cuts.iter().enumerate() {
+            let node = self.shapes[self.instances[cut.origin.0].element];
+            if compensation::is_boxes_reference(node) {
+                plan.unburnt.push(k);
+            }
+        }
+    }
+
     /// The new geometry of every instance with a dilated subpath, as edits: those of elements
     /// drawn directly, and those of elements reached through each `<use>` (by `<use>`).
     fn geometry_edits(
@@ -376,6 +405,29 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
             }
         }
         Ok((main_edits, clone_edits))
+    }
+
+    /// The compensation record (see [`compensation`]) right after the root's start tag, replacing
+    /// any this tool wrote before.
+    fn record_edits(&self, summary: &PlanSummary) -> Vec<Edit> {
+        let mut edits: Vec<Edit> = compensation::own_svg_records(self.doc)
+            .into_iter()
+            .map(|range| Edit {
+                range,
+                text: String::new(),
+            })
+            .collect();
+        if let (Some(applied), Some(first)) = (
+            &summary.compensation_applied,
+            self.doc.root_element().first_child(),
+        ) {
+            let at = first.range().start;
+            edits.push(Edit {
+                range: at..at,
+                text: applied.svg_record(),
+            });
+        }
+        edits
     }
 
     /// Copies of the targets of `<use>` elements whose cuts were dilated (ids suffixed `-kerfN`),
@@ -485,10 +537,12 @@ impl Format for SvgPlan<'_, '_> {
             &mut plan.summary,
         )?;
         plan.summary.mm_per_unit = mm_per_px;
+        plan.summary.compensation_found = compensation::find_in_svg(self.doc);
         self.walk(mm_per_px, &mut plan.summary)?;
         self.check_uses()?;
         plan.summary.cut_elements = self.instances.len();
         self.contours(&mut plan);
+        self.find_unburnt(&mut plan);
         Ok(plan)
     }
 
@@ -501,6 +555,7 @@ impl Format for SvgPlan<'_, '_> {
             .collect();
         let (mut main_edits, clone_edits) = self.geometry_edits(&contour_of, &mut plan.summary)?;
         self.clone_uses(clone_edits, &mut main_edits, &mut plan.summary)?;
+        main_edits.extend(self.record_edits(&plan.summary));
         apply_edits(self.text, main_edits)
     }
 }
@@ -941,7 +996,13 @@ mod tests {
         let src = format!("{HEAD}{body}</svg>");
         let (out, s) =
             dilate_svg(&src, &KerfSource::Uniform(150.0), &SvgOptions::default()).unwrap();
-        assert_eq!(out, src);
+        // All but the record of what was applied, right after the root's start tag.
+        let record = s.compensation_applied.as_ref().unwrap().svg_record();
+        assert!(
+            out.starts_with(&format!("{HEAD}{record}<!-- comment -->")),
+            "{out}"
+        );
+        assert_eq!(out.replacen(&record, "", 1), src);
         assert_eq!(s.contours_dilated, 0);
         assert_eq!(s.passed_through.get("text"), Some(&1));
     }

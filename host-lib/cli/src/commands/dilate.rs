@@ -9,6 +9,7 @@ use std::sync::Arc;
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use kerfmeter::files::{ensure_not_input, write_atomically};
 use kerfmeter::map::KerfMap;
+use kerfmeter_plan::compensation::IfCompensated;
 use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
 use kerfmeter_plan::rules::CutRules;
@@ -63,6 +64,14 @@ pub struct DilateArgs {
     /// What one drawing unit is, for files that do not say (unitless SVG, DXF without $INSUNITS).
     #[arg(long, value_parser = units_parser())]
     pub units: Option<AssumedUnits>,
+    /// A plan that says it is already compensated (a boxes.py --burn, or this tool's own output)
+    /// is refused; dilate it by the full kerf on top anyway.
+    #[arg(long, conflicts_with = "recompensate")]
+    pub already_compensated_ok: bool,
+    /// Undo the compensation the plan records (boxes.py's burn, this tool's earlier offset) and
+    /// apply the kerf instead: each cut moves by kerf/2 − burn, inner corners kept sharp.
+    #[arg(long)]
+    pub recompensate: bool,
 }
 
 /// What `dilate` did (or, with `--dry-run`, would do).
@@ -143,6 +152,7 @@ impl fmt::Display for DilateReport {
             writeln!(f, "  passed through untouched: {}", list.join(", "))?;
         }
         write_open_paths(f, s)?;
+        write_compensation(f, s)?;
         for n in &s.notes {
             writeln!(f, "  note: {n}")?;
         }
@@ -170,6 +180,34 @@ fn write_open_paths(f: &mut fmt::Formatter<'_>, s: &PlanSummary) -> fmt::Result 
         writeln!(f, "    - {o}")?;
     }
     Ok(())
+}
+
+/// What compensation was found and what was applied (nothing when none was found).
+fn write_compensation(f: &mut fmt::Formatter<'_>, s: &PlanSummary) -> fmt::Result {
+    let (Some(found), Some(applied)) = (&s.compensation_found, &s.compensation_applied) else {
+        return Ok(());
+    };
+    writeln!(f, "  found: {}", found.describe())?;
+    let what = match applied.action.as_str() {
+        "recompensate" => "undone and replaced by the kerf (--recompensate)",
+        "dilate_anyway" => "kept, the kerf added on top (--already-compensated-ok)",
+        _ => "none (not a compensation)",
+    };
+    writeln!(
+        f,
+        "  compensation: {what}; cuts moved {} µm, now {} µm outside the parts{}",
+        applied.net_offset_um,
+        applied.offset_um,
+        if applied.corner_loops_removed > 0 {
+            format!(
+                "; {} loop{} at inner corners removed",
+                applied.corner_loops_removed,
+                plural(applied.corner_loops_removed)
+            )
+        } else {
+            String::new()
+        }
+    )
 }
 
 /// "s" unless `n` is 1.
@@ -205,6 +243,13 @@ pub fn run(args: &DilateArgs) -> Result<DilateReport> {
         rules: CutRules::new(&args.cut_colors, args.cut_max_width_mm, &args.cut_layers)?,
         assume_units: args.units,
         strict: args.strict,
+        if_compensated: if args.recompensate {
+            IfCompensated::Recompensate
+        } else if args.already_compensated_ok {
+            IfCompensated::DilateAnyway
+        } else {
+            IfCompensated::Refuse
+        },
     };
     let (output, summary) = dilate_file(&args.input, &kerf, &options)?;
     if !args.dry_run

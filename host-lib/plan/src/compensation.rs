@@ -1,0 +1,680 @@
+//! Never compensate twice: plans that say they are already compensated for the kerf, what to do
+//! with them, and the record of what was applied that every output carries.
+//!
+//! **What is recognised.**
+//!
+//! * **boxes.py** SVG plans. boxes.py draws every cut `burn` mm outside its part (default 0.1 mm)
+//!   and writes its command line into the file: in the `<metadata>` description (`Command line:
+//!   boxes ABox --burn 0.1 …`, the full command line), in an XML comment (`Command line (remove
+//!   spaces between dashes): boxes ABox - -burn=0.1`, only the arguments that differ from the
+//!   defaults, with `--` written `- -`), and in the web generator's URL (`…&burn=0.1&…`). The
+//!   reference rectangle's label says `burn:0.10mm`. The burn is taken from the first of these
+//!   that gives it; a file that is plainly boxes.py's (`Created with Boxes.py`, or a `Command
+//!   line: boxes …`) but names no burn was made with boxes.py's default, 0.1 mm. A burn of 0 is
+//!   no compensation. boxes.py's DXF goes through `pstoedit` from PostScript and keeps no command
+//!   line, so it cannot be recognised. boxes.py draws its reference rectangle (in the group with
+//!   the `burn:` label) without burn: recompensating dilates it by the kerf's half alone. One burn
+//!   is taken for the rest (boxes.py's `BurnTest` draws each piece with its own).
+//! * **This tool's own outputs.** Every dilated SVG gets an XML comment and a `<metadata>` element
+//!   holding a `kerfmeter:compensation` element (namespace [`NAMESPACE`]) with the kerf, the net
+//!   offset of this run, the total offset the plan now carries, the cut rules, the tool and its
+//!   version. Every dilated DXF gets the same record as `999` comments at the top of the file:
+//!   the `dxf` crate neither writes nor keeps comments (it skips `999` on reading), and its only
+//!   free-text header variables (`$HYPERLINKBASE`, `$PROJECTNAME`, `$MENU`) mean something to CAD
+//!   programs, so the comments are added to the written bytes and looked for in the first lines
+//!   of a file read.
+//!
+//! **What is done** ([`IfCompensated`]): a compensated plan is refused by default
+//! ([`PlanError::AlreadyCompensated`], naming what was found and the two ways on);
+//! `--already-compensated-ok` dilates by the full kerf on top; `--recompensate` undoes the recorded
+//! offset and applies the kerf instead (net offset kerf/2 − burn, corners as drawn: see
+//! [`crate::recompensate`]). Either way boxes.py's small loops at inner corners are removed first.
+
+use std::fmt;
+
+use roxmltree::{Document, Node};
+use serde::Serialize;
+
+use crate::dilate::{KerfSource, Offsetting};
+use crate::error::{PlanError, Result};
+
+/// XML namespace of the `compensation` element this tool writes into SVG `<metadata>`.
+pub const NAMESPACE: &str = "urn:x-kerfmeter:compensation:1";
+/// The first word of this tool's records (SVG comment, DXF `999` comment).
+const MARKER: &str = "kerfmeter-compensation";
+/// The tool's name in records.
+const TOOL: &str = "kerfmeter";
+/// boxes.py's default `--burn`, mm.
+const BOXES_DEFAULT_BURN_MM: f64 = 0.1;
+/// How many lines at the top of a DXF file are searched for a record.
+const DXF_HEAD_LINES: usize = 64;
+
+/// What to do with a plan that says it is already compensated.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IfCompensated {
+    /// Refuse it (the default): dilating it again would double the compensation.
+    #[default]
+    Refuse,
+    /// Dilate it by the full kerf anyway (`--already-compensated-ok`).
+    DilateAnyway,
+    /// Undo the recorded compensation and apply the kerf instead (`--recompensate`).
+    Recompensate,
+}
+
+/// Who compensated a plan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CompensatedBy {
+    /// boxes.py, with its `--burn`.
+    BoxesPy,
+    /// This tool (`kerfmeter dilate`).
+    Kerfmeter,
+}
+
+/// A range of values, µm: one value when both ends agree (a uniform kerf), else a kerf map's.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RangeUm(pub [f64; 2]);
+
+impl RangeUm {
+    fn one(v: f64) -> RangeUm {
+        RangeUm([v, v])
+    }
+
+    fn is_uniform(&self) -> bool {
+        (self.0[0] - self.0[1]).abs() < 1e-6
+    }
+
+    fn parse(s: &str) -> Option<RangeUm> {
+        let (lo, hi) = s.split_once("..").unwrap_or((s, s));
+        let (lo, hi) = (lo.trim().parse().ok()?, hi.trim().parse().ok()?);
+        [lo, hi]
+            .iter()
+            .all(|v: &f64| v.is_finite())
+            .then_some(RangeUm([lo, hi]))
+    }
+}
+
+impl fmt::Display for RangeUm {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = |v: f64| (v * 1000.0).round() / 1000.0;
+        if self.is_uniform() {
+            write!(f, "{}", r(self.0[0]))
+        } else {
+            write!(f, "{}..{}", r(self.0[0]), r(self.0[1]))
+        }
+    }
+}
+
+/// A compensation a plan says it already carries.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FoundCompensation {
+    /// Who made it.
+    pub by: CompensatedBy,
+    /// How far the drawn cuts already lie outside the parts, µm: boxes.py's burn, or this tool's
+    /// total offset.
+    pub offset_um: RangeUm,
+    /// The kerf it was made for, µm (this tool's records).
+    pub kerf_um: Option<RangeUm>,
+    /// The cut rules it used (this tool's records).
+    pub rules: Option<String>,
+    /// The version of the tool that made it (this tool's records).
+    pub version: Option<String>,
+    /// Where in the file it was found.
+    pub found_in: String,
+    /// boxes.py: the burn is boxes.py's default, the command line does not set it.
+    pub default_burn: bool,
+}
+
+impl FoundCompensation {
+    /// What was found, in words, e.g. "boxes.py compensated this plan with --burn 0.1 (mm)".
+    pub fn describe(&self) -> String {
+        match self.by {
+            CompensatedBy::BoxesPy => format!(
+                "boxes.py compensated this plan with --burn {}{} (mm; found in {}): its cuts lie {} µm outside the parts",
+                self.offset_um.0[0] / 1000.0,
+                if self.default_burn {
+                    ", boxes.py's default,"
+                } else {
+                    ""
+                },
+                self.found_in,
+                self.offset_um
+            ),
+            CompensatedBy::Kerfmeter => format!(
+                "{TOOL} {} already dilated this plan (found in {}): kerf {} µm, its cuts lie {} µm outside the parts; cut rules: {}",
+                self.version.as_deref().unwrap_or("(unknown version)"),
+                self.found_in,
+                self.kerf_um
+                    .map_or("(not recorded)".into(), |k| k.to_string()),
+                self.offset_um,
+                self.rules.as_deref().unwrap_or("(not recorded)")
+            ),
+        }
+    }
+}
+
+/// What this run did about compensation: recorded in the output, and reported.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AppliedCompensation {
+    /// What was done: `dilate` (no compensation found), `dilate_anyway`
+    /// (`--already-compensated-ok`) or `recompensate`.
+    pub action: String,
+    /// The kerf applied, µm.
+    pub kerf_um: RangeUm,
+    /// How far this run moved the cuts away from the parts, µm (negative: towards them).
+    pub net_offset_um: RangeUm,
+    /// How far the output's cuts lie outside the parts, µm (what a later run must undo).
+    pub offset_um: RangeUm,
+    /// The cut rules, in words.
+    pub rules: String,
+    /// Small loops at inner corners (boxes.py's) removed before offsetting.
+    pub corner_loops_removed: usize,
+    /// The tool.
+    pub tool: String,
+    /// Its version.
+    pub version: String,
+}
+
+impl AppliedCompensation {
+    /// The record as `key=value` fields after [`MARKER`] (one line, no `--`).
+    fn record_line(&self) -> String {
+        format!(
+            "{MARKER} tool={} version={} kerf_um={} net_offset_um={} offset_um={} rules=\"{}\"",
+            self.tool,
+            self.version,
+            self.kerf_um,
+            self.net_offset_um,
+            self.offset_um,
+            self.rules.replace('"', "'")
+        )
+    }
+
+    /// The XML comment and `<metadata>` element recording this compensation in an SVG.
+    pub(crate) fn svg_record(&self) -> String {
+        let comment = format!(
+            "{}: the cuts of this plan lie {} µm outside its parts (kerf {} µm); do not dilate it again (kerfmeter dilate refuses it, and recompensates it for another kerf when asked)",
+            self.record_line(),
+            self.offset_um,
+            self.kerf_um
+        );
+        format!(
+            "\n<!-- {} -->\n<metadata><kerfmeter:compensation xmlns:kerfmeter=\"{NAMESPACE}\" tool=\"{}\" version=\"{}\" kerf_um=\"{}\" net_offset_um=\"{}\" offset_um=\"{}\" rules=\"{}\"/></metadata>",
+            comment_safe(&comment),
+            xml_escape(&self.tool),
+            xml_escape(&self.version),
+            self.kerf_um,
+            self.net_offset_um,
+            self.offset_um,
+            xml_escape(&self.rules)
+        )
+    }
+
+    /// The `999` comments recording this compensation in a DXF, with the file's line ending.
+    pub(crate) fn dxf_record(&self, eol: &str) -> String {
+        let human = format!(
+            "the cuts of this drawing lie {} um outside its parts (kerf {} um); do not dilate it again",
+            self.offset_um, self.kerf_um
+        );
+        format!("999{eol}{}{eol}999{eol}{human}{eol}", self.record_line())
+    }
+}
+
+/// A comment's text made safe for XML (`--` is not allowed in a comment).
+fn comment_safe(s: &str) -> String {
+    let mut out = s.replace("--", "- -");
+    while out.contains("--") {
+        out = out.replace("--", "- -");
+    }
+    if out.ends_with('-') {
+        out.push(' ');
+    }
+    out
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// What to do with a plan, decided from what it says and what the user asked.
+#[derive(Debug, Clone)]
+pub(crate) struct Treatment {
+    /// How the contours are offset.
+    pub offsetting: Offsetting,
+    /// Remove loops at inner corners no larger than this (mm) before offsetting.
+    pub corner_loop_max_mm: Option<f64>,
+    /// The offset already in the plan, µm (0 when none).
+    pub carried_um: RangeUm,
+    /// The action, as recorded.
+    pub action: &'static str,
+}
+
+/// Decide what to do with a plan that carries `found` (if anything), or refuse it.
+pub(crate) fn treatment(
+    found: Option<&FoundCompensation>,
+    policy: IfCompensated,
+    kerf: &KerfSource,
+) -> Result<Treatment> {
+    let Some(found) = found.filter(|f| f.offset_um.0[1] > 0.0) else {
+        return Ok(Treatment {
+            offsetting: Offsetting::Dilate,
+            corner_loop_max_mm: None,
+            carried_um: RangeUm::one(0.0),
+            action: "dilate",
+        });
+    };
+    // boxes.py's loops span about one burn; leave room for its 1 µm rounding.
+    let corner_loop_max_mm = Some(4.0 * found.offset_um.0[1] / 1000.0 + 0.005);
+    match policy {
+        IfCompensated::Refuse => Err(PlanError::AlreadyCompensated(refusal(found, kerf))),
+        IfCompensated::DilateAnyway => Ok(Treatment {
+            offsetting: Offsetting::Dilate,
+            corner_loop_max_mm,
+            carried_um: found.offset_um,
+            action: "dilate_anyway",
+        }),
+        IfCompensated::Recompensate if !found.offset_um.is_uniform() => {
+            Err(PlanError::AlreadyCompensated(format!(
+                "{}; it varies over the bed (a kerf map), so it cannot be undone here: recompensate the original plan instead (nothing was written)",
+                found.describe()
+            )))
+        }
+        IfCompensated::Recompensate => Ok(Treatment {
+            offsetting: Offsetting::Recompensate {
+                burn_mm: found.offset_um.0[0] / 1000.0,
+            },
+            corner_loop_max_mm,
+            carried_um: found.offset_um,
+            action: "recompensate",
+        }),
+    }
+}
+
+/// The refusal: what was found, why it is refused, and the two ways on.
+fn refusal(found: &FoundCompensation, kerf: &KerfSource) -> String {
+    let burn_um = found.offset_um.0[0];
+    let net = match kerf {
+        KerfSource::Uniform(k) => format!(
+            " = {} − {burn_um} = {} µm",
+            k / 2.0,
+            ((k / 2.0 - burn_um) * 1000.0).round() / 1000.0
+        ),
+        KerfSource::Map(_) => String::new(),
+    };
+    format!(
+        "{}. Dilating it by the kerf again would compensate twice and make every joint too loose; nothing was written. Either undo that compensation and apply the measured kerf instead with --recompensate (each cut moves by kerf/2 − burn{net}, inner corners kept sharp), or dilate it by the full kerf anyway with --already-compensated-ok.",
+        found.describe()
+    )
+}
+
+/// The applied record, once the parts' kerfs are known (`kerf_range_um` from the summary).
+pub(crate) fn applied(
+    t: &Treatment,
+    kerf_range_um: Option<[f64; 2]>,
+    kerf: &KerfSource,
+    rules: String,
+    corner_loops_removed: usize,
+) -> AppliedCompensation {
+    let [lo, hi] = kerf_range_um.unwrap_or_else(|| {
+        let k = kerf.kerf_at_um(0.0, 0.0);
+        [k, k]
+    });
+    let carried = t.carried_um.0;
+    let (net, total) = match t.offsetting {
+        Offsetting::Dilate => (
+            [lo / 2.0, hi / 2.0],
+            [carried[0] + lo / 2.0, carried[1] + hi / 2.0],
+        ),
+        Offsetting::Recompensate { burn_mm } => (
+            [lo / 2.0 - burn_mm * 1000.0, hi / 2.0 - burn_mm * 1000.0],
+            [lo / 2.0, hi / 2.0],
+        ),
+    };
+    AppliedCompensation {
+        action: t.action.into(),
+        kerf_um: RangeUm([lo, hi]),
+        net_offset_um: RangeUm(net),
+        offset_um: RangeUm(total),
+        rules,
+        corner_loops_removed,
+        tool: TOOL.into(),
+        version: env!("CARGO_PKG_VERSION").into(),
+    }
+}
+
+/// `key=value` fields of a record line (values may be "quoted"), after its [`MARKER`].
+fn record_fields(line: &str) -> Option<Vec<(String, String)>> {
+    let rest = line.trim_start().strip_prefix(MARKER)?;
+    let mut fields = Vec::new();
+    let mut s = rest.trim_start();
+    while let Some(eq) = s.find('=') {
+        let key = s[..eq].trim().to_string();
+        let after = &s[eq + 1..];
+        let (value, next) = match after.strip_prefix('"') {
+            Some(q) => {
+                let end = q.find('"')?;
+                (&q[..end], &q[end + 1..])
+            }
+            None => {
+                let end = after.find(char::is_whitespace).unwrap_or(after.len());
+                (&after[..end], &after[end..])
+            }
+        };
+        fields.push((key, value.to_string()));
+        s = next.trim_start();
+        if s.starts_with(':') || key_is_done(s) {
+            break;
+        }
+    }
+    Some(fields)
+}
+
+/// Whether what follows the fields is no longer `key=value` (the human part of a comment).
+fn key_is_done(s: &str) -> bool {
+    s.split_whitespace().next().is_none_or(|w| !w.contains('='))
+}
+
+/// A record of this tool's, from its fields.
+fn own_record(fields: &[(String, String)], found_in: &str) -> Option<FoundCompensation> {
+    let get = |k: &str| {
+        fields
+            .iter()
+            .find(|(key, _)| key == k)
+            .map(|(_, v)| v.as_str())
+    };
+    if get("tool").is_some_and(|t| t != TOOL) {
+        return None;
+    }
+    Some(FoundCompensation {
+        by: CompensatedBy::Kerfmeter,
+        offset_um: RangeUm::parse(get("offset_um")?)?,
+        kerf_um: get("kerf_um").and_then(RangeUm::parse),
+        rules: get("rules").map(str::to_string),
+        version: get("version").map(str::to_string),
+        found_in: found_in.into(),
+        default_burn: false,
+    })
+}
+
+/// What an SVG document says about compensation already applied: this tool's record first,
+/// then boxes.py's.
+pub(crate) fn find_in_svg(doc: &Document) -> Option<FoundCompensation> {
+    own_in_svg(doc).or_else(|| boxes_in_svg(doc))
+}
+
+fn own_in_svg(doc: &Document) -> Option<FoundCompensation> {
+    if let Some(e) = doc
+        .descendants()
+        .find(|n| n.has_tag_name((NAMESPACE, "compensation")))
+    {
+        let fields: Vec<(String, String)> = e
+            .attributes()
+            .map(|a| (a.name().to_string(), a.value().to_string()))
+            .collect();
+        return own_record(&fields, "the SVG's <metadata>");
+    }
+    doc.descendants()
+        .filter(|n| n.is_comment())
+        .filter_map(|n| record_fields(n.text()?))
+        .find_map(|f| own_record(&f, "an SVG comment"))
+}
+
+/// This tool's records in an SVG (the comment and the `kerfmeter:compensation` element, or the
+/// `<metadata>` holding only it): the byte ranges to remove when the plan is dilated again.
+pub(crate) fn own_svg_records(doc: &Document) -> Vec<std::ops::Range<usize>> {
+    let mut ranges = Vec::new();
+    for n in doc.descendants() {
+        if n.is_comment() && n.text().is_some_and(|t| record_fields(t).is_some()) {
+            ranges.push(n.range());
+        } else if n.has_tag_name((NAMESPACE, "compensation")) {
+            let parent = n.parent_element().filter(|p| {
+                p.tag_name().name() == "metadata"
+                    && p.children().filter(Node::is_element).count() == 1
+            });
+            ranges.push(parent.unwrap_or(n).range());
+        }
+    }
+    ranges
+}
+
+/// The texts boxes.py writes its command line into: comments, and the text of `<metadata>`,
+/// `<desc>` and `<title>` (with where each is).
+fn svg_texts(doc: &Document) -> Vec<(String, &'static str)> {
+    let mut texts = Vec::new();
+    for n in doc.descendants() {
+        if n.is_comment() {
+            if let Some(t) = n.text() {
+                texts.push((t.to_string(), "an SVG comment"));
+            }
+        } else if n.is_element() && matches!(n.tag_name().name(), "metadata" | "desc" | "title") {
+            let t: String = n
+                .descendants()
+                .filter(|d| d.is_text())
+                .filter_map(|d| d.text())
+                .collect();
+            let place = match n.tag_name().name() {
+                "metadata" => "the SVG's <metadata>",
+                "desc" => "the SVG's <desc>",
+                _ => "the SVG's <title>",
+            };
+            texts.push((t, place));
+        }
+    }
+    // The full command line (metadata) is more complete than the comment's short one.
+    texts.sort_by_key(|(_, place)| *place == "an SVG comment");
+    texts
+}
+
+fn boxes_in_svg(doc: &Document) -> Option<FoundCompensation> {
+    let texts = svg_texts(doc);
+    let is_boxes = texts.iter().any(|(t, _)| is_boxes_text(t));
+    let found = |burn_mm: f64, found_in: String, default_burn: bool| FoundCompensation {
+        by: CompensatedBy::BoxesPy,
+        offset_um: RangeUm::one(burn_mm * 1000.0),
+        kerf_um: None,
+        rules: None,
+        version: None,
+        found_in,
+        default_burn,
+    };
+    for (t, place) in &texts {
+        if let Some(b) = burn_in_command_line(t) {
+            return Some(found(b, format!("the command line in {place}"), false));
+        }
+    }
+    for (t, place) in &texts {
+        if let Some(b) = burn_in_url(t) {
+            return Some(found(b, format!("the URL in {place}"), false));
+        }
+    }
+    if !is_boxes {
+        return None;
+    }
+    let label = doc
+        .descendants()
+        .filter(|n| n.is_element() && n.tag_name().name() == "text")
+        .filter_map(|n| {
+            n.descendants()
+                .find_map(|d| d.text().and_then(burn_in_label))
+        })
+        .next();
+    Some(match label {
+        Some(b) => found(b, "the reference rectangle's label".into(), false),
+        None => found(
+            BOXES_DEFAULT_BURN_MM,
+            "a boxes.py command line that does not set it".into(),
+            true,
+        ),
+    })
+}
+
+/// Whether an element is part of boxes.py's reference rectangle: its group holds the label
+/// `100.0mm, burn:0.10mm`.
+pub(crate) fn is_boxes_reference(n: Node) -> bool {
+    n.parent_element().is_some_and(|g| {
+        g.children()
+            .filter(|c| c.is_element() && c.tag_name().name() == "text")
+            .any(|t| {
+                t.descendants()
+                    .any(|d| d.text().is_some_and(|s| burn_in_label(s).is_some()))
+            })
+    })
+}
+
+/// Whether a text says it was written by boxes.py.
+fn is_boxes_text(t: &str) -> bool {
+    t.to_ascii_lowercase().contains("boxes.py")
+        || t.lines().any(|l| {
+            l.split_once("Command line")
+                .and_then(|(_, rest)| rest.split_once(':'))
+                .is_some_and(|(_, cmd)| cmd.trim_start().starts_with("boxes "))
+        })
+}
+
+/// A number at the start of `s` (up to whitespace, a quote, `&` or the end).
+fn leading_number(s: &str) -> Option<f64> {
+    let end = s
+        .find(|c: char| c.is_whitespace() || matches!(c, '\'' | '"' | '&' | '<'))
+        .unwrap_or(s.len());
+    s[..end]
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite() && *v >= 0.0)
+}
+
+/// The value of `--burn VALUE` or `--burn=VALUE` in a command line (a comment's `- -burn` too).
+fn burn_in_command_line(t: &str) -> Option<f64> {
+    let mut s = t.replace("- -", "--");
+    while s.contains("- -") {
+        s = s.replace("- -", "--");
+    }
+    s.match_indices("--burn").find_map(|(i, m)| {
+        let rest = &s[i + m.len()..];
+        match rest.chars().next()? {
+            '=' => leading_number(&rest[1..]),
+            c if c.is_whitespace() => leading_number(rest.trim_start()),
+            _ => None,
+        }
+    })
+}
+
+/// The value of `burn=VALUE` in a URL's query (boxes.py's web generator).
+fn burn_in_url(t: &str) -> Option<f64> {
+    t.match_indices("burn=").find_map(|(i, m)| {
+        let before = t[..i].chars().next_back()?;
+        matches!(before, '?' | '&' | ';')
+            .then(|| leading_number(&t[i + m.len()..]))
+            .flatten()
+    })
+}
+
+/// The burn in boxes.py's reference label, `100.0mm, burn:0.10mm`.
+fn burn_in_label(t: &str) -> Option<f64> {
+    let rest = &t[t.find("burn:")? + 5..];
+    let end = rest.find("mm")?;
+    rest[..end].trim().parse().ok()
+}
+
+/// This tool's record among the first lines of a DXF file (ASCII DXF; `999` comments).
+pub(crate) fn find_in_dxf(bytes: &[u8]) -> Option<FoundCompensation> {
+    let head = &bytes[..bytes.len().min(16 * 1024)];
+    let text = String::from_utf8_lossy(head);
+    let lines: Vec<&str> = text.lines().take(DXF_HEAD_LINES).collect();
+    lines.windows(2).find_map(|w| {
+        (w[0].trim() == "999")
+            .then(|| record_fields(w[1]))
+            .flatten()
+            .and_then(|f| own_record(&f, "a DXF 999 comment"))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn burn_is_read_in_every_form_boxes_writes() {
+        assert_eq!(
+            burn_in_command_line("Command line: boxes ABox --burn 0.1 --x=3"),
+            Some(0.1)
+        );
+        assert_eq!(
+            burn_in_command_line("Command line: boxes ABox --x=3 --burn=0.05"),
+            Some(0.05)
+        );
+        assert_eq!(
+            burn_in_command_line(
+                "Command line (remove spaces between dashes): boxes ABox - -burn=0.2"
+            ),
+            Some(0.2)
+        );
+        // cli_short loses a separate value: not a burn.
+        assert_eq!(burn_in_command_line("boxes ABox --burn --x=3"), None);
+        assert_eq!(burn_in_command_line("boxes ABox --burnish=3"), None);
+        assert_eq!(
+            burn_in_url("Url: https://boxes.hackerspace-bamberg.de/ABox?x=100&burn=0.15&render=1"),
+            Some(0.15)
+        );
+        assert_eq!(burn_in_url("noburn=3"), None);
+        assert_eq!(burn_in_label("100.0mm, burn:0.10mm"), Some(0.1));
+    }
+
+    #[test]
+    fn a_compensation_that_varies_over_the_bed_cannot_be_undone_but_can_be_dilated_on() {
+        let found = FoundCompensation {
+            by: CompensatedBy::Kerfmeter,
+            offset_um: RangeUm([60.0, 80.0]),
+            kerf_um: Some(RangeUm([120.0, 160.0])),
+            rules: None,
+            version: Some("0.1.0".into()),
+            found_in: "here".into(),
+            default_burn: false,
+        };
+        let kerf = KerfSource::Uniform(150.0);
+        let e = treatment(Some(&found), IfCompensated::Recompensate, &kerf)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("kerf 120..160 µm") && e.contains("kerf map"),
+            "{e}"
+        );
+        let t = treatment(Some(&found), IfCompensated::DilateAnyway, &kerf).unwrap();
+        let a = applied(&t, Some([150.0, 150.0]), &kerf, String::new(), 0);
+        assert_eq!(a.offset_um, RangeUm([135.0, 155.0]));
+        // Nothing found: dilated as usual whatever the policy.
+        let t = treatment(None, IfCompensated::Refuse, &kerf).unwrap();
+        assert_eq!(
+            (t.offsetting, t.corner_loop_max_mm),
+            (Offsetting::Dilate, None)
+        );
+    }
+
+    #[test]
+    fn records_round_trip_through_their_text() {
+        let a = AppliedCompensation {
+            action: "dilate".into(),
+            kerf_um: RangeUm::one(150.0),
+            net_offset_um: RangeUm::one(75.0),
+            offset_um: RangeUm::one(75.0),
+            rules: "unfilled lines in red \"x\" -- y".into(),
+            corner_loops_removed: 0,
+            tool: TOOL.into(),
+            version: "1.2.3".into(),
+        };
+        let fields = record_fields(&a.record_line()).unwrap();
+        let f = own_record(&fields, "here").unwrap();
+        assert_eq!(f.offset_um, RangeUm::one(75.0));
+        assert_eq!(f.kerf_um, Some(RangeUm::one(150.0)));
+        assert_eq!(f.version.as_deref(), Some("1.2.3"));
+        let svg = a.svg_record();
+        let comment = &svg[svg.find("<!--").unwrap() + 4..svg.find("-->").unwrap()];
+        assert!(
+            !comment.contains("--") && comment.contains("kerf_um=150"),
+            "{svg}"
+        );
+        assert_eq!(RangeUm::parse("120..160"), Some(RangeUm([120.0, 160.0])));
+    }
+}

@@ -1,0 +1,386 @@
+//! The geometry of undoing a compensation: boxes.py's corner loops, and moving a compensated
+//! contour by kerf/2 − burn with its corners as drawn.
+//!
+//! **Corner loops.** boxes.py traces each part with a turtle, `burn` outside it: at a convex
+//! corner it turns along an arc of radius `burn` around the part's corner; at an inner corner it
+//! runs on past the point where the two offset edges cross, turns back along a small arc (or a
+//! small closed Bézier, its default `--inner_corners loop`) and crosses its own path there. The
+//! cut is right (the loop lies inside the cut region), but the contour crosses itself.
+//! [`remove_corner_loops`] cuts every such loop off at the crossing, which leaves exactly the
+//! offset contour with a sharp inner corner.
+//!
+//! **Moving a compensated contour.** Eroding the compensated region by burn − kerf/2 (a plain
+//! offset inwards with round joins) rounds every inner corner: that is a morphological closing,
+//! off by up to 0.41·(burn − kerf/2) at a right angle. The exact result moves each drawn segment
+//! and arc along its normal and extends its neighbours until they meet. A compensated contour
+//! has only two kinds of corner: tangent joins (its arcs around convex corners, which just change
+//! radius) and sharp inner corners. So [`sharpen`] takes `cavalier_contours`' offset (exact
+//! everywhere else, including where features vanish) and replaces each round join it made at a
+//! drawn corner by the two neighbours extended to where they meet. Moving outwards (kerf/2 >
+//! burn) needs no change: the neighbours at an inner corner already meet there.
+
+use cavalier_contours::core::math::{
+    CircleCircleIntr, LineCircleIntr, LineLineIntr, circle_circle_intr, line_circle_intr,
+    line_line_intr,
+};
+use cavalier_contours::polyline::internal::pline_intersects::all_self_intersects_as_basic;
+use cavalier_contours::polyline::{
+    PlineSource, PlineSourceMut, PlineVertex, seg_arc_radius_and_center, seg_split_at_point,
+};
+use cavalier_contours::static_aabb2d_index::{StaticAABB2DIndex, StaticAABB2DIndexBuilder};
+
+use crate::geom::{Pline, V2, v2};
+
+/// Positions closer than this are the same, mm.
+const POS_EPS: f64 = 1e-9;
+/// A loop reaches at least this far from its crossing, mm (less is the rounding of a joint).
+const LOOP_MIN_MM: f64 = 1e-5;
+
+/// One loop to cut off: the contour keeps the start of segment `p` up to `x`, then goes on from
+/// `x` along the end of segment `q`; the vertices after `p` up to `q` (cyclically) go.
+#[derive(Debug, Clone, Copy)]
+struct LoopCut {
+    p: usize,
+    q: usize,
+    x: V2,
+}
+
+/// Remove the small loops (each no larger than `max_loop_mm` across) a contour makes where it
+/// crosses itself, keeping the rest: the contour and how many loops went. Larger crossings stay
+/// (the dilation reports them).
+pub fn remove_corner_loops(p: &Pline, max_loop_mm: f64) -> (Pline, usize) {
+    let mut cur = p.clone();
+    let mut removed = 0;
+    // Loops found together rarely overlap (several crossings at one point); a few rounds catch
+    // any that were set aside.
+    for _ in 0..8 {
+        if cur.vertex_count() < 3 {
+            break;
+        }
+        let index = cur.create_approx_aabb_index();
+        let cuts: Vec<LoopCut> = all_self_intersects_as_basic(&cur, &index, false, POS_EPS)
+            .into_iter()
+            .filter_map(|i| small_loop(&cur, i.start_index1, i.start_index2, i.point, max_loop_mm))
+            .collect();
+        let found = cuts.len();
+        let chosen = disjoint(cuts, cur.vertex_count());
+        if chosen.is_empty() {
+            break;
+        }
+        removed += chosen.len();
+        cur = cut_loops(&cur, &chosen);
+        // Cutting a loop off makes no new crossing: look again only for loops set aside.
+        if chosen.len() == found {
+            break;
+        }
+    }
+    (cur, removed)
+}
+
+fn pos(p: &Pline, i: usize) -> V2 {
+    let v = p.at(i);
+    v2(v.x, v.y)
+}
+
+/// Whether the vertices `from..=to` (cyclically) and `x` fit in a box `max` across.
+fn small(p: &Pline, from: usize, to: usize, x: V2, max: f64) -> bool {
+    let n = p.vertex_count();
+    let (mut lo, mut hi) = (x, x);
+    let mut i = from % n;
+    loop {
+        let q = pos(p, i);
+        lo = v2(lo.x.min(q.x), lo.y.min(q.y));
+        hi = v2(hi.x.max(q.x), hi.y.max(q.y));
+        if (hi - lo).length() > max {
+            return false;
+        }
+        if i == to % n {
+            return true;
+        }
+        i = (i + 1) % n;
+    }
+}
+
+/// The loop cut for a crossing of segments `a` and `b` at `x`, when one side of it is small.
+fn small_loop(p: &Pline, a: usize, b: usize, x: V2, max: f64) -> Option<LoopCut> {
+    let (a, b) = (a.min(b), a.max(b));
+    if a == b {
+        return None;
+    }
+    let n = p.vertex_count();
+    // Neighbouring segments that meet where they join (within rounding) make no loop.
+    let reaches =
+        |from: usize, to: usize| (from..=to).any(|i| (pos(p, i % n) - x).length() > LOOP_MIN_MM);
+    if small(p, a + 1, b, x, max) && reaches(a + 1, b) {
+        Some(LoopCut { p: a, q: b, x })
+    } else if small(p, b + 1, a + n, x, max) && reaches(b + 1, a + n) {
+        Some(LoopCut { p: b, q: a, x })
+    } else {
+        None
+    }
+}
+
+/// Cyclic vertex indexes `p..=q`.
+fn span(c: &LoopCut, n: usize) -> impl Iterator<Item = usize> {
+    let len = (c.q + n - c.p) % n;
+    (0..=len).map(move |k| (c.p + k) % n)
+}
+
+/// Loop cuts that share no vertex, smallest first.
+fn disjoint(mut cuts: Vec<LoopCut>, n: usize) -> Vec<LoopCut> {
+    cuts.sort_by_key(|c| (c.q + n - c.p) % n);
+    let mut claimed = vec![false; n];
+    let mut chosen = Vec::new();
+    for c in cuts {
+        if span(&c, n).any(|i| claimed[i]) {
+            continue;
+        }
+        span(&c, n).for_each(|i| claimed[i] = true);
+        chosen.push(c);
+    }
+    chosen
+}
+
+/// The contour with the loops cut off.
+fn cut_loops(p: &Pline, cuts: &[LoopCut]) -> Pline {
+    let n = p.vertex_count();
+    let mut gone = vec![false; n];
+    let mut at: Vec<Option<(f64, PlineVertex<f64>)>> = vec![None; n];
+    for c in cuts {
+        span(c, n).skip(1).for_each(|i| gone[i] = true);
+        let first = seg_split_at_point(p.at(c.p), p.at((c.p + 1) % n), c.x, POS_EPS);
+        let second = seg_split_at_point(p.at(c.q), p.at((c.q + 1) % n), c.x, POS_EPS);
+        at[c.p] = Some((first.updated_start.bulge, second.split_vertex));
+    }
+    let mut out = Pline::new_closed();
+    for i in 0..n {
+        if gone[i] {
+            continue;
+        }
+        let mut v = p.at(i);
+        match at[i] {
+            Some((bulge, x)) => {
+                v.bulge = bulge;
+                out.add_vertex(v);
+                out.add_vertex(x);
+            }
+            None => out.add_vertex(v),
+        }
+    }
+    out.remove_repeat_pos(POS_EPS).unwrap_or(out)
+}
+
+/// `offset` (a `cavalier_contours` offset of `source` by `r` mm into its material) with every
+/// round join it made at a drawn corner of `source` replaced by the two neighbouring segments
+/// extended to where they meet. Where that would make the contour cross itself, the error is
+/// the corner's position.
+pub fn sharpen(offset: &Pline, source: &Pline, r: f64) -> Result<Pline, V2> {
+    let corners = corner_index(source);
+    let n = offset.vertex_count();
+    if n < 4 {
+        return Ok(offset.clone());
+    }
+    let joins: Vec<bool> = (0..n)
+        .map(|i| is_join(offset, i, &corners, source, r))
+        .collect();
+    // Where each join (not next to another) is replaced by a corner.
+    let meets: Vec<Option<V2>> = (0..n)
+        .map(|i| {
+            let (prev, next) = ((i + n - 1) % n, (i + 1) % n);
+            if !joins[i] || joins[prev] || joins[next] {
+                return None;
+            }
+            let at = |k: usize| offset.at(k % n);
+            meet(at(prev), at(i), at(next), at(i + 2))
+        })
+        .collect();
+    if meets.iter().all(Option::is_none) {
+        return Ok(offset.clone());
+    }
+    let mut out = Pline::new_closed();
+    for k in (0..n).filter(|&k| meets[k].is_none()) {
+        let (a, b) = (offset.at(k), offset.at((k + 1) % n));
+        let start = meets[(k + n - 1) % n].unwrap_or(a.pos());
+        let end = meets[(k + 1) % n].unwrap_or(b.pos());
+        let bulge = if a.bulge_is_zero() {
+            0.0
+        } else {
+            sweep_bulge(seg_arc_radius_and_center(a, b).1, start, end, a.bulge > 0.0)
+        };
+        out.add(start.x, start.y, bulge);
+    }
+    if out.scan_for_self_intersect() || out.area() * offset.area() <= 0.0 {
+        return Err(meets
+            .iter()
+            .flatten()
+            .next()
+            .copied()
+            .unwrap_or(pos(offset, 0)));
+    }
+    Ok(out)
+}
+
+/// A closed outline grown outwards by `d` mm (round corners), drawn in the same direction; `None`
+/// when the offset is not one outline.
+pub fn grow_outline(p: &Pline, d: f64) -> Option<Pline> {
+    let ccw = p.area() > 0.0;
+    // A positive offset goes left: inwards for a counter-clockwise outline.
+    let mut out: Vec<Pline> = p.parallel_offset(if ccw { -d } else { d });
+    (out.len() == 1).then(|| out.remove(0))
+}
+
+/// A spatial index of a contour's vertices.
+fn corner_index(p: &Pline) -> Option<StaticAABB2DIndex<f64>> {
+    let mut b = StaticAABB2DIndexBuilder::new(p.vertex_count());
+    for v in p.iter_vertexes() {
+        b.add(v.x, v.y, v.x, v.y);
+    }
+    b.build().ok()
+}
+
+/// Whether segment `i` of `offset` is a round join: an arc of radius `r` around a vertex of
+/// `source`.
+fn is_join(
+    offset: &Pline,
+    i: usize,
+    corners: &Option<StaticAABB2DIndex<f64>>,
+    source: &Pline,
+    r: f64,
+) -> bool {
+    let (a, b) = (offset.at(i), offset.at((i + 1) % offset.vertex_count()));
+    if a.bulge_is_zero() {
+        return false;
+    }
+    let (radius, c) = seg_arc_radius_and_center(a, b);
+    let tol = 1e-7 * r.max(1.0);
+    if (radius - r).abs() > tol {
+        return false;
+    }
+    corners.as_ref().is_some_and(|index| {
+        index
+            .query(c.x - tol, c.y - tol, c.x + tol, c.y + tol)
+            .into_iter()
+            .any(|k| (pos(source, k) - c).length() <= tol)
+    })
+}
+
+/// Where the segment `s0 → s1` and the segment `e0 → e1`, both extended along their own line or
+/// circle, meet nearest to the gap `s1`–`e0` between them.
+fn meet(
+    s0: PlineVertex<f64>,
+    s1: PlineVertex<f64>,
+    e0: PlineVertex<f64>,
+    e1: PlineVertex<f64>,
+) -> Option<V2> {
+    let gap_mid = (s1.pos() + e0.pos()).scale(0.5);
+    let gap = (s1.pos() - e0.pos()).length();
+    let candidates: Vec<V2> = match (s0.bulge_is_zero(), e0.bulge_is_zero()) {
+        (true, true) => match line_line_intr(s0.pos(), s1.pos(), e0.pos(), e1.pos(), POS_EPS) {
+            LineLineIntr::TrueIntersect { seg1_t, .. }
+            | LineLineIntr::FalseIntersect { seg1_t, .. } => {
+                vec![s0.pos() + (s1.pos() - s0.pos()).scale(seg1_t)]
+            }
+            _ => Vec::new(),
+        },
+        (true, false) => line_circle(s0.pos(), s1.pos(), seg_arc_radius_and_center(e0, e1)),
+        (false, true) => line_circle(e0.pos(), e1.pos(), seg_arc_radius_and_center(s0, s1)),
+        (false, false) => {
+            let (r1, c1) = seg_arc_radius_and_center(s0, s1);
+            let (r2, c2) = seg_arc_radius_and_center(e0, e1);
+            match circle_circle_intr(r1, c1, r2, c2, POS_EPS) {
+                CircleCircleIntr::TangentIntersect { point } => vec![point],
+                CircleCircleIntr::TwoIntersects { point1, point2 } => vec![point1, point2],
+                _ => Vec::new(),
+            }
+        }
+    };
+    candidates
+        .into_iter()
+        .min_by(|p, q| (*p - gap_mid).length().total_cmp(&(*q - gap_mid).length()))
+        // A corner far from its gap is a reversal, not a corner: leave it round.
+        .filter(|m| (*m - gap_mid).length() <= 50.0 * gap.max(POS_EPS))
+}
+
+/// Where the line through `p0`, `p1` meets the circle `(radius, center)`.
+fn line_circle(p0: V2, p1: V2, (radius, center): (f64, V2)) -> Vec<V2> {
+    let at = |t: f64| p0 + (p1 - p0).scale(t);
+    match line_circle_intr(p0, p1, radius, center, POS_EPS) {
+        LineCircleIntr::TangentIntersect { t0 } => vec![at(t0)],
+        LineCircleIntr::TwoIntersects { t0, t1 } => vec![at(t0), at(t1)],
+        LineCircleIntr::NoIntersect => Vec::new(),
+    }
+}
+
+/// The bulge of the arc around `c` from `s` to `e`, counter-clockwise when `ccw`.
+fn sweep_bulge(c: V2, s: V2, e: V2, ccw: bool) -> f64 {
+    let (u, w) = (s - c, e - c);
+    let mut sweep = u.perp_dot(w).atan2(u.dot(w));
+    if ccw && sweep < 0.0 {
+        sweep += std::f64::consts::TAU;
+    } else if !ccw && sweep > 0.0 {
+        sweep -= std::f64::consts::TAU;
+    }
+    (sweep / 4.0).tan()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An L-shaped part (inner corner at (10, 10)), counter-clockwise.
+    fn ell() -> Pline {
+        let mut p = Pline::new_closed();
+        for (x, y) in [
+            (0.0, 0.0),
+            (20.0, 0.0),
+            (20.0, 10.0),
+            (10.0, 10.0),
+            (10.0, 20.0),
+            (0.0, 20.0),
+        ] {
+            p.add(x, y, 0.0);
+        }
+        p
+    }
+
+    #[test]
+    fn shrinking_keeps_the_inner_corner_sharp_where_a_plain_offset_rounds_it() {
+        let d = 0.025;
+        let src = ell();
+        let plain: Vec<Pline> = src.parallel_offset(d);
+        assert_eq!(plain.len(), 1);
+        let sharp = sharpen(&plain[0], &src, d).unwrap();
+        let corner = v2(10.0 - d, 10.0 - d);
+        let has = |p: &Pline| {
+            p.iter_vertexes()
+                .any(|v| (v.pos() - corner).length() < 1e-9)
+        };
+        assert!(has(&sharp) && !has(&plain[0]));
+        // Everything else is the plain offset: one join arc fewer, one vertex fewer.
+        assert_eq!(sharp.vertex_count() + 1, plain[0].vertex_count());
+        assert!(sharp.iter_vertexes().all(|v| v.bulge == 0.0));
+    }
+
+    #[test]
+    fn a_loop_at_an_inner_corner_is_cut_off_at_its_crossing() {
+        // The L offset outwards by 0.1 with boxes.py's back-arc at the inner corner: the edge runs
+        // on to (10.1, 10.1)… drawn as x = 10.1 past y = 10.1 and back along an arc.
+        let b = 0.1;
+        let mut p = Pline::new_closed();
+        p.add(-b, -b, 0.0);
+        p.add(20.0 + b, -b, 0.0);
+        p.add(20.0 + b, 10.0 + b, 0.0);
+        // Along y = 10.1 to x = 10, past the crossing at x = 10.1, then back around (10, 10).
+        p.add(10.0, 10.0 + b, (-std::f64::consts::FRAC_PI_2 / 4.0).tan());
+        p.add(10.0 + b, 10.0, 0.0);
+        p.add(10.0 + b, 20.0 + b, 0.0);
+        p.add(-b, 20.0 + b, 0.0);
+        assert!(p.scan_for_self_intersect());
+        let (clean, n) = remove_corner_loops(&p, 0.5);
+        assert_eq!(n, 1);
+        assert!(!clean.scan_for_self_intersect());
+        let x = v2(10.0 + b, 10.0 + b);
+        assert!(clean.iter_vertexes().any(|v| (v.pos() - x).length() < 1e-9));
+        assert_eq!(clean.vertex_count(), 6);
+    }
+}
