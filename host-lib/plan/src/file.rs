@@ -11,6 +11,7 @@ use crate::dilate::KerfSource;
 use crate::dxf_plan::{DxfOptions, dilate_dxf};
 use crate::error::{PlanError, Result};
 use crate::outcome::{AssumedUnits, PlanSummary};
+use crate::progress::Progress;
 use crate::rules::CutRules;
 use crate::svg::{SvgOptions, dilate_svg};
 
@@ -61,6 +62,8 @@ pub struct DilateOptions {
     pub assume_units: Option<AssumedUnits>,
     /// Refuse open cut paths (which cannot be dilated) instead of leaving them as drawn.
     pub strict: bool,
+    /// Where to tell how far the work has got (nowhere by default).
+    pub progress: Progress,
 }
 
 /// Read the plan at `input` (SVG or DXF, by its extension) and dilate it by `kerf`: the dilated
@@ -84,6 +87,7 @@ pub fn dilate_file(
             &DxfOptions {
                 rules: options.rules.clone(),
                 assume_units: options.assume_units,
+                progress: options.progress.clone(),
             },
         ),
     }
@@ -123,6 +127,7 @@ fn dilate_svg_bytes(
     let svg_options = SvgOptions {
         rules: options.rules.clone(),
         assume_units: options.assume_units,
+        progress: options.progress.clone(),
     };
     let (out, summary) = dilate_svg(&text, kerf, &svg_options)?;
     Ok((out.into_bytes(), summary))

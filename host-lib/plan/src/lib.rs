@@ -15,7 +15,8 @@
 //!   write the dilated contours back in place. Counting, the summary, the problems reported
 //!   together and the open paths are done there once, not per format.
 //! * [`file`](mod@file) reads a plan file and dilates it into bytes; [`PlanError`] says what went wrong,
-//!   by kind.
+//!   by kind. [`progress`] tells a caller how far a long dilation has got (the work on contours is
+//!   spread over the cores; the result does not depend on how many).
 //!
 //! This crate is not the command-line tool (`kerfmeter gauge` and `kerfmeter dilate` live in
 //! `kerfmeter-cli`, which also writes the output files) and does not talk to the device: it has no
@@ -47,6 +48,7 @@ pub mod gauge;
 pub mod geom;
 pub mod outcome;
 mod pipeline;
+pub mod progress;
 pub mod rules;
 pub mod svg;
 

@@ -14,6 +14,7 @@ use crate::dilate::{self, Contour, KerfSource};
 use crate::error::Result;
 use crate::geom::{Pline, V2};
 use crate::outcome::{OpenPath, PlanSummary};
+use crate::progress::{Progress, Stage};
 
 /// A closed cut contour and what it came from in the file.
 pub(crate) struct Cut<O> {
@@ -79,15 +80,28 @@ pub(crate) trait Format {
 }
 
 /// Read, dilate and write back a plan in any format: the dilated document and what was found
-/// and done.
+/// and done. The dilation and writing stages are told to `progress` (the format tells when it
+/// starts reading).
 pub(crate) fn dilate_plan<F: Format>(
     mut format: F,
     kerf: &KerfSource,
+    progress: &Progress,
 ) -> Result<(F::Output, PlanSummary)> {
     let mut plan = format.read()?;
-    let contours: Vec<Contour> = plan.cuts.iter().map(|c| c.contour.clone()).collect();
-    let dilation = dilate::dilate(&contours, kerf)?;
+    // The contours are lent to the kernel, not copied (a large plan's geometry is most of its
+    // memory).
+    let (contours, origins): (Vec<Contour>, Vec<F::Origin>) = std::mem::take(&mut plan.cuts)
+        .into_iter()
+        .map(|c| (c.contour, c.origin))
+        .unzip();
+    let dilation = dilate::dilate_with_progress(&contours, kerf, progress)?;
+    plan.cuts = contours
+        .into_iter()
+        .zip(origins)
+        .map(|(contour, origin)| Cut { contour, origin })
+        .collect();
     plan.summary.record_parts(&dilation);
+    progress.start(Stage::Writing, 0);
     let output = format.write(&mut plan, &dilation.contours)?;
     Ok((output, plan.summary))
 }
