@@ -1,18 +1,21 @@
 //! `cargo xtask bench-plan`: the whole `kerfmeter dilate` command on generated plans of growing
 //! size, as a user runs it, beside the dilation kernel's share and GEOS buffering the same parts.
 //!
-//! For each size (100, 625 and 2,500 box-joint parts by default: 400 to 10,000 closed contours)
+//! For each size (156, 625 and 2,500 box-joint parts by default, each 4× the one before: 624 to
+//! 10,000 closed contours)
 //! the plan example `plan_bench` (in `kerfmeter-plan`) writes the plan as SVG, DXF and WKT. Then,
 //! per format and size:
 //!
 //! * **command**: the release `kerfmeter dilate plan.svg --kerf-um 150 -o out.svg`, end to end
-//!   (start, read, dilate, write the file, exit); the median of `--runs` runs;
+//!   (start, read, dilate, write the file, exit); the median of `--runs` runs, wall time and CPU
+//!   time (all threads; on a shared machine the wall time also says how busy it is, so the
+//!   load average is printed with each table);
 //! * **kernel**: the same plan dilated in one process (`plan_bench phases`), split into reading,
 //!   the kernel (nesting, offsets, checks) and writing, from the stages the library reports;
 //! * **peak memory**: the command's largest resident set (`ru_maxrss` of the child from `wait4`),
 //!   and its ratio to the input file's size;
-//! * **×4**: how much longer the command took than on the size before (each size has 4× the
-//!   parts of the one before; the target is never more than 5×);
+//! * **growth**: how much longer the command took than on the size before, beside how many times
+//!   the parts (the target: 4× the parts never more than 5× the time);
 //! * **GEOS**: shapely buffering the same parts (polygons with holes, arcs flattened) by the same
 //!   half kerf, when the Python given by `--python` has shapely; otherwise "unavailable".
 //!
@@ -32,8 +35,8 @@ const KERF_UM: f64 = 150.0;
 /// `cargo xtask bench-plan` options.
 #[derive(clap::Args)]
 pub struct BenchPlanArgs {
-    /// Plan sizes, in parts (square numbers; each part is 4 contours).
-    #[arg(long, value_delimiter = ',', default_values_t = [100, 625, 2500])]
+    /// Plan sizes, in parts (each part is 4 contours).
+    #[arg(long, value_delimiter = ',', default_values_t = [156, 625, 2500])]
     pub parts: Vec<usize>,
     /// Runs of the command per plan (the median is shown).
     #[arg(long, default_value_t = 5)]
@@ -47,9 +50,11 @@ pub struct BenchPlanArgs {
     pub kerfmeter: Option<PathBuf>,
 }
 
-/// One run of a child process: its wall time and peak resident set.
+/// One run of a child process: its wall time, CPU time (user + system, all threads) and peak
+/// resident set.
 struct Run {
     time: Duration,
+    cpu_s: f64,
     max_rss_bytes: u64,
 }
 
@@ -78,8 +83,10 @@ fn measure(cmd: &mut Command) -> Result<Run> {
         }
         bail!("the command failed (wait status {status}): {err}");
     }
+    let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
     Ok(Run {
         time,
+        cpu_s: secs(usage.ru_utime) + secs(usage.ru_stime),
         // Linux gives ru_maxrss in KiB.
         max_rss_bytes: usage.ru_maxrss as u64 * 1024,
     })
@@ -233,13 +240,22 @@ fn print_table(format: &str, rows: &[Row], runs: usize) {
         "\n{} plans: `kerfmeter dilate plan.{format} --kerf-um {KERF_UM} -o out.{format}` (release, median of {runs}), beside its phases in one process and GEOS",
         format.to_uppercase()
     );
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
-        "{:>6} {:>8} {:>9} {:>10} {:>6} {:>9} {:>9} {:>9} {:>10} {:>8} {:>10}",
+        "load average (1, 5, 15 min): {}",
+        load.split_whitespace()
+            .take(3)
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    println!(
+        "{:>6} {:>8} {:>9} {:>10} {:>7} {:>12} {:>9} {:>9} {:>9} {:>10} {:>8} {:>10}",
         "parts",
         "contours",
         "file MB",
         "command s",
-        "×4",
+        "cpu s",
+        "growth",
         "read s",
         "kernel s",
         "write s",
@@ -247,21 +263,24 @@ fn print_table(format: &str, rows: &[Row], runs: usize) {
         "peak/file",
         "GEOS s"
     );
-    let mut before: Option<f64> = None;
+    let mut before: Option<(f64, usize)> = None;
     for r in rows {
         let t = r.command.time.as_secs_f64();
-        let growth = before.map_or("".into(), |b| format!("{:.2}", t / b));
-        before = Some(t);
+        let growth = before.map_or("".into(), |(bt, bp)| {
+            format!("{:.2}× /{:.1}×", t / bt, r.parts as f64 / bp as f64)
+        });
+        before = Some((t, r.parts));
         let geos = match &r.geos {
             Ok(s) => format!("{s:.3}"),
             Err(why) => why.clone(),
         };
         println!(
-            "{:>6} {:>8} {:>9.2} {:>10.3} {:>6} {:>9.3} {:>9.3} {:>9.3} {:>10.1} {:>8.1}× {:>10}",
+            "{:>6} {:>8} {:>9.2} {:>10.3} {:>7.3} {:>12} {:>9.3} {:>9.3} {:>9.3} {:>10.1} {:>8.1}× {:>10}",
             r.parts,
             4 * r.parts,
             r.file_bytes as f64 / 1e6,
             t,
+            r.command.cpu_s,
             growth,
             r.phases.read_s,
             r.phases.kernel_s,

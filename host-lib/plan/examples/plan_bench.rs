@@ -1,9 +1,9 @@
 //! The plan benchmark's helper (`cargo xtask bench-plan` runs it; it is not a test):
 //!
-//! * `plan_bench generate --parts N --out-dir DIR` writes a plan of N box-joint parts (N a square
-//!   number) as `plan-N.svg`, `plan-N.dxf` and `plan-N.wkt`: each part a 40 × 40 mm outline with
-//!   seven fingers a side (116 vertices) and three holes, a slot, a round hole and a rounded
-//!   window, on a 50 mm grid: 4·N closed contours.
+//! * `plan_bench generate --parts N --out-dir DIR` writes a plan of N box-joint parts as
+//!   `plan-N.svg`, `plan-N.dxf` and `plan-N.wkt`: each part a 40 × 40 mm outline with seven
+//!   fingers a side (116 vertices) and three holes, a slot, a round hole and a rounded window, on
+//!   a square grid of 50 mm pitch filled row by row: 4·N closed contours.
 //!   - SVG: one `<g transform="translate(…)">` per part holding a `<path>` (outline), a `<path>`
 //!     (slot), a `<circle>` and a `<rect rx>`, the cut style inherited from the group; no ids.
 //!   - DXF (R2000, mm): the outline a closed `LWPOLYLINE`, the slot four `LINE`s, the hole a
@@ -60,15 +60,16 @@ fn generate(args: &[String]) -> Result<(), String> {
     let parts: usize = flag(args, "--parts")?
         .parse()
         .map_err(|e| format!("--parts: {e}"))?;
-    let side = parts.isqrt();
-    if side * side != parts || side == 0 {
-        return Err(format!("--parts must be a square number, got {parts}"));
+    if parts == 0 {
+        return Err("--parts must be at least 1".into());
     }
+    let side = parts.isqrt() + usize::from(parts.isqrt().pow(2) < parts);
     let dir = PathBuf::from(flag(args, "--out-dir")?);
     std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
-    let origins: Vec<(f64, f64)> = (0..side)
-        .flat_map(|i| {
-            (0..side).map(move |j| (i as f64 * PITCH_MM + 5.0, j as f64 * PITCH_MM + 5.0))
+    let origins: Vec<(f64, f64)> = (0..parts)
+        .map(|k| {
+            let (i, j) = (k % side, k / side);
+            (i as f64 * PITCH_MM + 5.0, j as f64 * PITCH_MM + 5.0)
         })
         .collect();
     let write = |ext: &str, bytes: &[u8]| {
@@ -264,6 +265,16 @@ fn wkt(origins: &[(f64, f64)]) -> String {
     s
 }
 
+/// This process's peak resident set so far (VmHWM), MB; 0 where /proc does not say.
+fn peak_mb() -> f64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
+        .map_or(0.0, |kb| kb * 1024.0 / 1e6)
+}
+
 fn phases(args: &[String]) -> Result<(), String> {
     let file = Path::new(args.first().ok_or("phases: FILE is missing")?);
     let kerf_um: f64 = flag(args, "--kerf-um")?
@@ -277,6 +288,7 @@ fn phases(args: &[String]) -> Result<(), String> {
             let mut s = seen.lock().expect("not poisoned");
             if done == 0 && !s.iter().any(|(st, _)| *st == stage) {
                 s.push((stage, Instant::now()));
+                eprintln!("{stage}: peak so far {:.1} MB", peak_mb());
             }
         }),
         ..DilateOptions::default()
@@ -285,6 +297,7 @@ fn phases(args: &[String]) -> Result<(), String> {
     let (bytes, summary) =
         dilate_file(file, &KerfSource::Uniform(kerf_um), &options).map_err(|e| e.to_string())?;
     let t_end = Instant::now();
+    eprintln!("done: peak {:.1} MB", peak_mb());
     let starts = starts.lock().expect("not poisoned");
     let at = |stage| {
         starts

@@ -118,7 +118,8 @@ pub fn dilate_dxf(
     let drawing = Drawing::load(&mut Cursor::new(bytes))
         .map_err(|e| bad(format!("not a readable DXF file: {e}")))?;
     let (drawing, summary) = dilate_drawing(drawing, kerf, opts)?;
-    let mut out = Vec::new();
+    // The output is about the input's size, a little more: no copying as it grows.
+    let mut out = Vec::with_capacity(bytes.len() + bytes.len() / 2);
     drawing
         .save(&mut out)
         .map_err(|e| bad(format!("cannot write the DXF: {e}")))?;

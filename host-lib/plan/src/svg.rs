@@ -755,9 +755,11 @@ fn digits_for(to_doc: &Affine) -> usize {
 
 /// `v` with at most `digits` decimals, trailing zeros dropped (`-0` is `0`).
 fn num(v: f64, digits: usize, out: &mut String) {
-    // Fast path: round to an integer count of the last decimal and print that (formatting a
-    // float exactly is most of the time spent writing a large plan).
-    let scaled = (v * 10f64.powi(digits as i32)).round();
+    // Fast path: round to an integer count of the last decimal, ties to even as float
+    // formatting does, and print that (formatting a float exactly was most of the time spent
+    // writing a large plan). Where the product itself rounds across a tie (rare), the last
+    // decimal differs by one: 0.01 µm in mm.
+    let scaled = (v * 10f64.powi(digits as i32)).round_ties_even();
     if digits <= 12 && scaled.abs() < 1e15 {
         let mut n = scaled as i64;
         if n == 0 {
@@ -774,10 +776,10 @@ fn num(v: f64, digits: usize, out: &mut String) {
             frac /= 10;
             places -= 1;
         }
-        if places == 0 {
-            let _ = write!(out, "{int}");
-        } else {
-            let _ = write!(out, "{int}.{frac:0places$}");
+        push_digits(out, int as u64, 1);
+        if places > 0 {
+            out.push('.');
+            push_digits(out, frac as u64, places);
         }
         return;
     }
@@ -794,6 +796,18 @@ fn num(v: f64, digits: usize, out: &mut String) {
         s = "0".into();
     }
     out.push_str(&s);
+}
+
+/// The decimal digits of `n`, at least `width` of them (zeros in front).
+fn push_digits(out: &mut String, mut n: u64, width: usize) {
+    let mut buf = [b'0'; 20];
+    let mut start = buf.len();
+    while n > 0 || buf.len() - start < width {
+        start -= 1;
+        buf[start] = b'0' + (n % 10) as u8;
+        n /= 10;
+    }
+    out.extend(buf[start..].iter().map(|&b| char::from(b)));
 }
 
 fn point(p: V2, digits: usize, out: &mut String) {
@@ -1125,6 +1139,43 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("nested <use>"), "{e}");
+    }
+
+    #[test]
+    fn numbers_are_written_as_exact_float_formatting_would() {
+        let exact = |v: f64, digits: usize| {
+            let s = format!("{v:.digits$}");
+            let s = if s.contains('.') {
+                s.trim_end_matches('0').trim_end_matches('.').to_string()
+            } else {
+                s
+            };
+            if s == "-0" { "0".to_string() } else { s }
+        };
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            20.1,
+            29.9,
+            0.1,
+            -0.000_004,
+            1_234.567_891_23,
+            -987.654_321,
+            1e-5,
+            3.000_01,
+            12.5,
+            100.0,
+            2_550.075_000_1,
+        ];
+        for v in values {
+            for digits in [0, 1, 3, 5, 6] {
+                let mut out = String::new();
+                num(v, digits, &mut out);
+                assert_eq!(out, exact(v, digits), "{v} with {digits} digits");
+            }
+        }
     }
 
     #[test]
