@@ -55,15 +55,17 @@ pub fn plan_progress(json: bool) -> (PlanProgress, ProgressBar) {
     let shown = bar.clone();
     let progress = PlanProgress::new(move |stage: Stage, done, total| {
         if done == 0 {
-            shown.set_prefix(stage.to_string());
             shown.set_style(if total > 0 {
                 counted.clone()
             } else {
                 uncounted.clone()
             });
             shown.set_length(total as u64);
+            shown.set_position(0);
+            shown.set_prefix(stage.to_string());
+        } else {
+            shown.set_position(done as u64);
         }
-        shown.set_position(done as u64);
     });
     (progress, bar)
 }

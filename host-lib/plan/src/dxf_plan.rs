@@ -266,7 +266,7 @@ impl Format for DxfPlan<'_> {
         Ok(plan)
     }
 
-    fn write(mut self, plan: &mut Plan<Origin>, dilated: &[Pline]) -> Result<Drawing> {
+    fn write(mut self, plan: &mut Plan<Origin>, dilated: Vec<Pline>) -> Result<Drawing> {
         let mut removed = vec![false; self.drawing.entities().count()];
         let mut added: Vec<Entity> = Vec::new();
         {
@@ -278,7 +278,7 @@ impl Format for DxfPlan<'_> {
                     &mut slots,
                     self.scale,
                     &cut.origin,
-                    d,
+                    &d,
                     &mut removed,
                     &mut added,
                 );

@@ -75,8 +75,9 @@ pub(crate) trait Format {
     fn read(&mut self) -> Result<Plan<Self::Origin>>;
 
     /// Write the dilated contours (`dilated[k]` replaces `plan.cuts[k]`) back into the document;
-    /// counts the elements changed and adds notes to `plan.summary`.
-    fn write(self, plan: &mut Plan<Self::Origin>, dilated: &[Pline]) -> Result<Self::Output>;
+    /// counts the elements changed and adds notes to `plan.summary`. The contours are given, so
+    /// that a format can free them as soon as they are in the document.
+    fn write(self, plan: &mut Plan<Self::Origin>, dilated: Vec<Pline>) -> Result<Self::Output>;
 }
 
 /// Read, dilate and write back a plan in any format: the dilated document and what was found
@@ -102,6 +103,6 @@ pub(crate) fn dilate_plan<F: Format>(
         .collect();
     plan.summary.record_parts(&dilation);
     progress.start(Stage::Writing, 0);
-    let output = format.write(&mut plan, &dilation.contours)?;
+    let output = format.write(&mut plan, dilation.contours)?;
     Ok((output, plan.summary))
 }

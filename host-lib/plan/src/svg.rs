@@ -555,14 +555,17 @@ impl Format for SvgPlan<'_, '_> {
         Ok(plan)
     }
 
-    fn write(self, plan: &mut Plan<(usize, usize)>, dilated: &[Pline]) -> Result<String> {
+    fn write(self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<String> {
         let contour_of: HashMap<(usize, usize), &Pline> = plan
             .cuts
             .iter()
-            .zip(dilated)
+            .zip(&dilated)
             .map(|(cut, d)| (cut.origin, d))
             .collect();
         let (mut main_edits, clone_edits) = self.geometry_edits(&contour_of, &mut plan.summary)?;
+        // The geometry is in the edits' path data now: free it before the document is built.
+        drop(contour_of);
+        drop(dilated);
         self.clone_uses(clone_edits, &mut main_edits, &mut plan.summary)?;
         apply_edits(self.text, main_edits)
     }
