@@ -5,6 +5,7 @@
 //! targets, cargo-fuzz) and fails loudly when something it needs cannot be had.
 
 mod bench;
+mod bench_plan;
 mod firmware;
 mod fuzz;
 mod tools;
@@ -48,6 +49,10 @@ enum Cmd {
     /// 1 kHz on a 160 MHz ESP32-C3 (`--json`: the target figures alone). A benchmark: not part
     /// of `test`.
     BenchStep(bench::BenchArgs),
+    /// The whole `kerfmeter dilate` command on generated plans of 400 to 10,000 contours (SVG
+    /// and DXF): time, growth per 4× the parts, the kernel's share, peak memory against the
+    /// file's size, and GEOS buffering the same parts. A benchmark: not part of `test`.
+    BenchPlan(bench_plan::BenchPlanArgs),
     /// The on-target driver tests (encoder, PWM) on a real ESP32-C3 board through probe-rs
     /// (needs --probe; see firmware-esp32/tests/on_target.rs for the bench set-up).
     OnTarget(firmware::OnTargetArgs),
@@ -155,6 +160,7 @@ fn main() -> Result<()> {
         Cmd::Robustness(args) => robustness(&args, true),
         Cmd::FitStudy(args) => fit_study(&args),
         Cmd::BenchStep(args) => bench::step(&args),
+        Cmd::BenchPlan(args) => bench_plan::run(&args),
         Cmd::OnTarget(args) => firmware::run_on_target_tests(args.probe),
         Cmd::Hil(args) => hil(&args),
         Cmd::BenchRtt(args) => {

@@ -117,6 +117,6 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Config(c) => emit(json, &config::run(g, c)?),
         Command::Map(args) => emit(json, &map::run(g, args)?),
         Command::Gauge(args) => emit(json, &gauge::run(args)?),
-        Command::Dilate(args) => emit(json, &dilate::run(args)?),
+        Command::Dilate(args) => emit(json, &dilate::run(g, args)?),
     }
 }

@@ -1,6 +1,7 @@
 //! The `kerfmeter` binary as a user or a script runs it: exit codes by the error's category, the
 //! `--json` output, and what only the `dilate` command does (never writing over the input, the
-//! dry-run report, the kerf map file, no temporary files left behind).
+//! dry-run report, the kerf map file, no temporary files left behind, no progress printed when
+//! stderr is not a terminal).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -161,6 +162,8 @@ fn dilate_writes_the_output_atomically_and_reports_it() {
     assert!(std::fs::read_to_string(&output).unwrap().contains("<svg"));
     // The input and the output, no temporary file left next to them.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    // The progress bar is for a terminal: with stderr going elsewhere nothing is printed there.
+    assert_eq!(stderr(&out), "");
 }
 
 #[test]

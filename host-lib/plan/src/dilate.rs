@@ -29,6 +29,7 @@
 
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut};
 use cavalier_contours::static_aabb2d_index::{StaticAABB2DIndex, StaticAABB2DIndexBuilder};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use std::fmt;
@@ -36,6 +37,7 @@ use std::sync::Arc;
 
 use super::geom::{Pline, V2, area_and_centroid, v2};
 use crate::error::{PlanError, Problems, Result};
+use crate::progress::{Progress, Stage};
 use crate::recompensate;
 
 /// Largest kerf accepted, µm (a sanity bound: real kerfs are 50–500 µm).
@@ -207,11 +209,26 @@ pub enum Offsetting {
 /// Dilate closed contours (document space, mm) by half the kerf, with nesting, per-part kerf and
 /// the checks described in the module doc.
 pub fn dilate(contours: &[Contour], kerf: &KerfSource) -> Result<Dilation> {
-    dilate_with(contours, kerf, Offsetting::Dilate)
+    dilate_with_progress(contours, kerf, Offsetting::Dilate, &Progress::default())
 }
 
 /// [`dilate`], with the contours moved as `how` says.
 pub fn dilate_with(contours: &[Contour], kerf: &KerfSource, how: Offsetting) -> Result<Dilation> {
+    dilate_with_progress(contours, kerf, how, &Progress::default())
+}
+
+/// [`dilate_with`], telling `progress` how many contours are offset.
+///
+/// The contours are independent, so the work on them (the checks of each, nesting, offsets, the
+/// merge check) is spread over the cores with rayon; the results are put together in the input's
+/// order, so they do not depend on the number of threads.
+pub fn dilate_with_progress(
+    contours: &[Contour],
+    kerf: &KerfSource,
+    how: Offsetting,
+    progress: &Progress,
+) -> Result<Dilation> {
+    progress.start(Stage::Dilating, contours.len());
     let (areas, centroids) = check_each(contours)?;
     let (depth, parent) = nest(contours, &areas)?;
     let roles: Vec<Role> = depth
@@ -220,7 +237,7 @@ pub fn dilate_with(contours: &[Contour], kerf: &KerfSource, how: Offsetting) -> 
         .collect();
     let (mut parts, part_index) = group_parts(&roles, &depth, &parent);
     kerf_per_part(&mut parts, contours, &areas, &centroids, kerf)?;
-    let dilated = offset_all(contours, &roles, &parts, &part_index, how)?;
+    let dilated = offset_all(contours, &roles, &parts, &part_index, how, progress)?;
     check_merges(contours, &parts, &dilated)?;
     Ok(Dilation {
         contours: dilated,
@@ -233,26 +250,37 @@ pub fn dilate_with(contours: &[Contour], kerf: &KerfSource, how: Offsetting) -> 
 /// Each contour on its own: closed, with an area, not crossing itself. Its signed area and
 /// centroid.
 fn check_each(contours: &[Contour]) -> Result<(Vec<f64>, Vec<V2>)> {
-    let n = contours.len();
+    let checked: Vec<(f64, V2, Option<String>)> = contours
+        .par_iter()
+        .map(|c| {
+            let (a, cen) = area_and_centroid(&c.pline);
+            let problem = if !c.pline.is_closed() || c.pline.vertex_count() < 2 || a.abs() < 1e-12
+            {
+                Some(format!(
+                    "{} at {} encloses no area; remove it or draw it as an open line",
+                    c.label,
+                    at(first_point(&c.pline))
+                ))
+            } else if c.pline.scan_for_self_intersect() {
+                Some(format!(
+                    "{} at {} crosses itself; fix the drawing (each cut must be a simple closed line)",
+                    c.label,
+                    at(first_point(&c.pline))
+                ))
+            } else {
+                None
+            };
+            (a, cen, problem)
+        })
+        .collect();
     let mut problems = Problems::default();
-    let mut areas = vec![0.0; n];
-    let mut centroids = vec![v2(0.0, 0.0); n];
-    for (i, c) in contours.iter().enumerate() {
-        let (a, cen) = area_and_centroid(&c.pline);
-        areas[i] = a;
-        centroids[i] = cen;
-        if !c.pline.is_closed() || c.pline.vertex_count() < 2 || a.abs() < 1e-12 {
-            problems.push(format!(
-                "{} at {} encloses no area; remove it or draw it as an open line",
-                c.label,
-                at(first_point(&c.pline))
-            ));
-        } else if c.pline.scan_for_self_intersect() {
-            problems.push(format!(
-                "{} at {} crosses itself; fix the drawing (each cut must be a simple closed line)",
-                c.label,
-                at(first_point(&c.pline))
-            ));
+    let mut areas = Vec::with_capacity(checked.len());
+    let mut centroids = Vec::with_capacity(checked.len());
+    for (a, cen, problem) in checked {
+        areas.push(a);
+        centroids.push(cen);
+        if let Some(p) = problem {
+            problems.push(p);
         }
     }
     problems.cannot_dilate()?;
@@ -263,41 +291,72 @@ fn check_each(contours: &[Contour]) -> Result<(Vec<f64>, Vec<V2>)> {
 /// (the smallest one that does); contours that cross are problems.
 fn nest(contours: &[Contour], areas: &[f64]) -> Result<(Vec<usize>, Vec<Option<usize>>)> {
     let n = contours.len();
-    let mut problems = Problems::default();
     let boxes: Vec<Bbox> = contours.iter().map(|c| Bbox::of(&c.pline)).collect();
-    let mut depth = vec![0usize; n];
-    let mut parent: Vec<Option<usize>> = vec![None; n];
-    if let Some(index) = &index_of(&boxes) {
-        for i in 0..n {
-            let p = first_point(&contours[i].pline);
-            let mut best: Option<usize> = None;
-            for j in index.query(p.x, p.y, p.x, p.y) {
-                if j == i || !boxes[j].contains(&boxes[i], 1e-9) || areas[j].abs() <= areas[i].abs()
-                {
-                    continue;
-                }
-                // Each pair is looked at once: only the larger contour can enclose.
-                if let Some(x) = crossing(&contours[i].pline, &contours[j].pline) {
-                    problems.push(format!(
-                        "{} and {} cross or touch at {}; cut lines must not meet",
-                        contours[i].label,
-                        contours[j].label,
-                        at(x)
-                    ));
-                    continue;
-                }
-                if inside(&contours[j].pline, p) {
-                    depth[i] += 1;
-                    if best.is_none_or(|b| areas[j].abs() < areas[b].abs()) {
-                        best = Some(j);
-                    }
-                }
-            }
-            parent[i] = best;
+    let Some(index) = &index_of(&boxes) else {
+        return Ok((vec![0; n], vec![None; n]));
+    };
+    let found: Vec<Enclosers> = (0..n)
+        .into_par_iter()
+        .map(|i| enclosers(i, contours, areas, &boxes, index))
+        .collect();
+    let mut problems = Problems::default();
+    let mut depth = Vec::with_capacity(n);
+    let mut parent = Vec::with_capacity(n);
+    for e in found {
+        depth.push(e.depth);
+        parent.push(e.parent);
+        for p in e.problems {
+            problems.push(p);
         }
     }
     problems.cannot_dilate()?;
     Ok((depth, parent))
+}
+
+/// What encloses one contour: how many contours, the smallest of them, and the contours it
+/// crosses (as problems).
+struct Enclosers {
+    depth: usize,
+    parent: Option<usize>,
+    problems: Vec<String>,
+}
+
+/// The contours enclosing contour `i`, found among those whose boxes hold its first point.
+fn enclosers(
+    i: usize,
+    contours: &[Contour],
+    areas: &[f64],
+    boxes: &[Bbox],
+    index: &StaticAABB2DIndex<f64>,
+) -> Enclosers {
+    let p = first_point(&contours[i].pline);
+    let mut found = Enclosers {
+        depth: 0,
+        parent: None,
+        problems: Vec::new(),
+    };
+    for j in index.query(p.x, p.y, p.x, p.y) {
+        if j == i || !boxes[j].contains(&boxes[i], 1e-9) || areas[j].abs() <= areas[i].abs() {
+            continue;
+        }
+        // Each pair is looked at once: only the larger contour can enclose.
+        if let Some(x) = crossing(&contours[i].pline, &contours[j].pline) {
+            found.problems.push(format!(
+                "{} and {} cross or touch at {}; cut lines must not meet",
+                contours[i].label,
+                contours[j].label,
+                at(x)
+            ));
+            continue;
+        }
+        if inside(&contours[j].pline, p) {
+            found.depth += 1;
+            if found.parent.is_none_or(|b| areas[j].abs() < areas[b].abs()) {
+                found.parent = Some(j);
+            }
+        }
+    }
+    found
 }
 
 /// Parts: one per outer contour, with the holes directly inside it. The parts, and each
@@ -377,38 +436,24 @@ fn offset_all(
     parts: &[Part],
     part_index: &[usize],
     how: Offsetting,
+    progress: &Progress,
 ) -> Result<Vec<Pline>> {
-    let n = contours.len();
     let already_mm = match how {
         Offsetting::Dilate => 0.0,
         Offsetting::Recompensate { burn_mm } => burn_mm,
     };
-    let jobs: Vec<(usize, f64)> = (0..n)
-        .map(|i| (i, parts[part_index[i]].kerf_um / 2000.0 - already_mm))
+    let counter = progress.counter(Stage::Dilating, contours.len());
+    let outcomes: Vec<Result<Pline, String>> = (0..contours.len())
+        .into_par_iter()
+        .map(|i| {
+            let grow = parts[part_index[i]].kerf_um / 2000.0 - already_mm;
+            let offset = offset_one(&contours[i], roles[i], grow, how);
+            counter.step();
+            offset
+        })
         .collect();
-    let threads = std::thread::available_parallelism()
-        .map(|t| t.get())
-        .unwrap_or(1)
-        .clamp(1, 8);
-    let chunk = n.div_ceil(threads).max(1);
-    let outcomes: Vec<Result<Pline, String>> = std::thread::scope(|s| {
-        let handles: Vec<_> = jobs
-            .chunks(chunk)
-            .map(|js| {
-                s.spawn(move || {
-                    js.iter()
-                        .map(|&(i, grow)| offset_one(&contours[i], roles[i], grow, how))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().expect("offset threads do not panic"))
-            .collect()
-    });
     let mut problems = Problems::default();
-    let mut dilated = Vec::with_capacity(n);
+    let mut dilated = Vec::with_capacity(outcomes.len());
     for o in outcomes {
         match o {
             Ok(p) => dilated.push(p),
@@ -424,33 +469,45 @@ fn offset_all(
 
 /// Parts that would merge: their dilated outlines overlap.
 fn check_merges(contours: &[Contour], parts: &[Part], dilated: &[Pline]) -> Result<()> {
-    let mut problems = Problems::default();
     let part_boxes: Vec<Bbox> = parts.iter().map(|p| Bbox::of(&dilated[p.outer])).collect();
-    if let Some(index) = index_of(&part_boxes) {
-        for (a, pa) in parts.iter().enumerate() {
+    let Some(index) = index_of(&part_boxes) else {
+        return Ok(());
+    };
+    let found: Vec<Vec<String>> = (0..parts.len())
+        .into_par_iter()
+        .map(|a| {
             let b0 = part_boxes[a];
+            let mut merges = Vec::new();
             for b in index.query(b0.min.x, b0.min.y, b0.max.x, b0.max.y) {
-                if b <= a {
-                    continue;
-                }
-                if let Some(x) = parts_overlap(&parts[a], &parts[b], dilated) {
-                    let pb = &parts[b];
-                    let need = if (pa.kerf_um - pb.kerf_um).abs() < 1e-9 {
-                        format!("{:.1} µm", pa.kerf_um)
-                    } else {
-                        format!("{:.1} µm", (pa.kerf_um + pb.kerf_um) / 2.0)
-                    };
-                    problems.push(format!(
-                        "the parts {} and {} would merge near {}: dilated they overlap; parts must be more than the kerf ({need}) apart and must not share cut lines",
-                        contours[pa.outer].label,
-                        contours[pb.outer].label,
-                        at(x)
-                    ));
+                if b > a
+                    && let Some(x) = parts_overlap(&parts[a], &parts[b], dilated)
+                {
+                    merges.push(merge_problem(contours, &parts[a], &parts[b], x));
                 }
             }
-        }
+            merges
+        })
+        .collect();
+    let mut problems = Problems::default();
+    for p in found.into_iter().flatten() {
+        problems.push(p);
     }
     problems.cannot_dilate()
+}
+
+/// The message for parts `pa` and `pb` that would merge near `x`.
+fn merge_problem(contours: &[Contour], pa: &Part, pb: &Part, x: V2) -> String {
+    let need = if (pa.kerf_um - pb.kerf_um).abs() < 1e-9 {
+        format!("{:.1} µm", pa.kerf_um)
+    } else {
+        format!("{:.1} µm", (pa.kerf_um + pb.kerf_um) / 2.0)
+    };
+    format!(
+        "the parts {} and {} would merge near {}: dilated they overlap; parts must be more than the kerf ({need}) apart and must not share cut lines",
+        contours[pa.outer].label,
+        contours[pb.outer].label,
+        at(x)
+    )
 }
 
 /// Offset one contour: `grow` > 0 moves it away from the part's material by that many mm

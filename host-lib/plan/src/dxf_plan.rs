@@ -38,6 +38,7 @@ use super::dilate::KerfSource;
 use super::geom::{PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, PlanSummary};
 use super::pipeline::{self, Format, Plan};
+use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
 use crate::error::{PlanError, Problems, Result};
 
@@ -53,6 +54,8 @@ pub struct DxfOptions {
     pub assume_units: Option<AssumedUnits>,
     /// What to do when the drawing is already compensated.
     pub if_compensated: IfCompensated,
+    /// Where to tell how far the work has got.
+    pub progress: Progress,
 }
 
 fn bad(message: impl Into<String>) -> PlanError {
@@ -117,10 +120,12 @@ pub fn dilate_dxf(
     opts: &DxfOptions,
 ) -> Result<(Vec<u8>, PlanSummary)> {
     let found = compensation::find_in_dxf(bytes);
+    opts.progress.start(Stage::Reading, 0);
     let drawing = Drawing::load(&mut Cursor::new(bytes))
         .map_err(|e| bad(format!("not a readable DXF file: {e}")))?;
     let (drawing, summary) = dilate_loaded(drawing, kerf, opts, found)?;
-    let mut saved = Vec::new();
+    // The output is about the input's size, a little more: no copying as it grows.
+    let mut saved = Vec::with_capacity(bytes.len() + bytes.len() / 2);
     drawing
         .save(&mut saved)
         .map_err(|e| bad(format!("cannot write the DXF: {e}")))?;
@@ -251,12 +256,12 @@ fn dilate_loaded(
             drawing,
             opts,
             scale: 1.0,
-            entities: Vec::new(),
             found,
         },
         kerf,
         opts.if_compensated,
         &opts.rules,
+        &opts.progress,
     )
 }
 
@@ -266,8 +271,6 @@ struct DxfPlan<'o> {
     opts: &'o DxfOptions,
     /// mm per drawing unit (set by `read`).
     scale: f64,
-    /// The entities as read, by index.
-    entities: Vec<Entity>,
     /// The compensation the file records (read from its comments before loading).
     found: Option<FoundCompensation>,
 }
@@ -291,24 +294,31 @@ impl Format for DxfPlan<'_> {
         self.scale = units_mm(&self.drawing, self.opts.assume_units, &mut plan.summary)?;
         plan.summary.mm_per_unit = self.scale;
         plan.summary.compensation_found = self.found.take();
-        self.entities = self.drawing.entities().cloned().collect();
-        let pieces = self.read_entities(&mut plan)?;
-        self.close_chains(pieces, &mut plan);
+        let entities: Vec<&Entity> = self.drawing.entities().collect();
+        let pieces = self.read_entities(&entities, &mut plan)?;
+        self.close_chains(&entities, pieces, &mut plan);
         Ok(plan)
     }
 
-    fn write(mut self, plan: &mut Plan<Origin>, dilated: &[Pline]) -> Result<Drawing> {
-        let mut removed: Vec<usize> = Vec::new();
+    fn write(mut self, plan: &mut Plan<Origin>, dilated: Vec<Pline>) -> Result<Drawing> {
+        let mut removed = vec![false; self.drawing.entities().count()];
         let mut added: Vec<Entity> = Vec::new();
-        for (cut, d) in plan.cuts.iter().zip(dilated) {
-            plan.summary.changed_elements += 1;
-            self.write_cut(&cut.origin, d, &mut removed, &mut added);
+        {
+            // Each entity by index, found once (not by counting from the first every time).
+            let mut slots: Vec<&mut Entity> = self.drawing.entities_mut().collect();
+            for (cut, d) in plan.cuts.iter().zip(dilated) {
+                plan.summary.changed_elements += 1;
+                write_cut(
+                    &mut slots,
+                    self.scale,
+                    &cut.origin,
+                    &d,
+                    &mut removed,
+                    &mut added,
+                );
+            }
         }
-        removed.sort_unstable();
-        removed.dedup();
-        for &i in removed.iter().rev() {
-            self.drawing.remove_entity(i);
-        }
+        remove_entities(&mut self.drawing, &removed);
         for e in added {
             self.drawing.add_entity(e);
         }
@@ -324,7 +334,7 @@ impl Format for DxfPlan<'_> {
 
 impl DxfPlan<'_> {
     /// Classify every entity; read the cuts into `plan` (closed ones) or the returned open pieces.
-    fn read_entities(&self, plan: &mut Plan<Origin>) -> Result<Vec<Piece>> {
+    fn read_entities(&self, entities: &[&Entity], plan: &mut Plan<Origin>) -> Result<Vec<Piece>> {
         let layer_colors: HashMap<String, dxf::Color> = self
             .drawing
             .layers()
@@ -332,7 +342,7 @@ impl DxfPlan<'_> {
             .collect();
         let mut pieces: Vec<Piece> = Vec::new();
         let mut problems = Problems::default();
-        for (i, e) in self.entities.iter().enumerate() {
+        for (i, &e) in entities.iter().enumerate() {
             if !self.is_cut(e, &layer_colors, &mut plan.summary) {
                 continue;
             }
@@ -547,9 +557,9 @@ impl DxfPlan<'_> {
     }
 
     /// Join the open pieces into chains: the closed ones are cuts, the rest open paths.
-    fn close_chains(&self, pieces: Vec<Piece>, plan: &mut Plan<Origin>) {
+    fn close_chains(&self, entities: &[&Entity], pieces: Vec<Piece>, plan: &mut Plan<Origin>) {
         for chain in join_pieces(pieces) {
-            let first = &self.entities[chain.entities[0]];
+            let first = entities[chain.entities[0]];
             let name = if chain.entities.len() == 1 {
                 label(first)
             } else {
@@ -571,56 +581,73 @@ impl DxfPlan<'_> {
             }
         }
     }
+}
 
-    /// Put one dilated contour back: edit its entity in place, or note the entities it replaces
-    /// (`removed`) and the new `LWPOLYLINE` (`added`).
-    fn write_cut(
-        &mut self,
-        origin: &Origin,
-        d: &Pline,
-        removed: &mut Vec<usize>,
-        added: &mut Vec<Entity>,
-    ) {
-        let scale = self.scale;
-        let to_units = |x: f64| x / scale;
-        match origin {
-            Origin::Circle(i) => {
-                let entity = self
-                    .drawing
-                    .entities_mut()
-                    .nth(*i)
-                    .expect("index from the same list");
-                match (as_circle(d), &mut entity.specific) {
-                    (Some((c, r)), EntityType::Circle(circle)) => {
-                        let m = mirrored(&circle.normal).unwrap_or(false);
-                        let z = circle.center.z * if m { -1.0 } else { 1.0 };
-                        circle.center = Point::new(to_units(c.x), to_units(c.y), z);
-                        circle.radius = to_units(r);
-                        circle.normal = Vector::z_axis();
-                    }
-                    _ => {
-                        removed.push(*i);
-                        added.push(new_lwpolyline(&self.entities[*i], d, scale));
-                    }
+/// Put one dilated contour back (`slots`: the drawing's entities by index, `scale`: mm per
+/// drawing unit): edit its entity in place, or mark the entities it replaces (`removed`) and add
+/// the new `LWPOLYLINE` to `added`.
+fn write_cut(
+    slots: &mut [&mut Entity],
+    scale: f64,
+    origin: &Origin,
+    d: &Pline,
+    removed: &mut [bool],
+    added: &mut Vec<Entity>,
+) {
+    let to_units = |x: f64| x / scale;
+    match origin {
+        Origin::Circle(i) => {
+            let entity = &mut *slots[*i];
+            match (as_circle(d), &mut entity.specific) {
+                (Some((c, r)), EntityType::Circle(circle)) => {
+                    let m = mirrored(&circle.normal).unwrap_or(false);
+                    let z = circle.center.z * if m { -1.0 } else { 1.0 };
+                    circle.center = Point::new(to_units(c.x), to_units(c.y), z);
+                    circle.radius = to_units(r);
+                    circle.normal = Vector::z_axis();
                 }
-            }
-            Origin::LwPolyline(i) => {
-                let entity = self
-                    .drawing
-                    .entities_mut()
-                    .nth(*i)
-                    .expect("index from the same list");
-                if let EntityType::LwPolyline(lw) = &mut entity.specific {
-                    lw.vertices = lw_vertices(d, scale);
-                    lw.set_is_closed(true);
-                    lw.extrusion_direction = Vector::z_axis();
+                _ => {
+                    removed[*i] = true;
+                    added.push(new_lwpolyline(entity, d, scale));
                 }
-            }
-            Origin::Replace(list) => {
-                removed.extend(list.iter().copied());
-                added.push(new_lwpolyline(&self.entities[list[0]], d, scale));
             }
         }
+        Origin::LwPolyline(i) => {
+            if let EntityType::LwPolyline(lw) = &mut slots[*i].specific {
+                lw.vertices = lw_vertices(d, scale);
+                lw.set_is_closed(true);
+                lw.extrusion_direction = Vector::z_axis();
+            }
+        }
+        Origin::Replace(list) => {
+            for &i in list {
+                removed[i] = true;
+            }
+            added.push(new_lwpolyline(slots[list[0]], d, scale));
+        }
+    }
+}
+
+/// Remove the entities marked in `removed` in one pass, the others keeping their order and
+/// handles. (Removing them one at a time from the middle of the list is quadratic.)
+fn remove_entities(drawing: &mut Drawing, removed: &[bool]) {
+    let (kept, total) = {
+        let mut slots: Vec<&mut Entity> = drawing.entities_mut().collect();
+        let mut kept = 0;
+        for r in 0..slots.len() {
+            if !removed.get(r).copied().unwrap_or(false) {
+                if kept != r {
+                    let (front, back) = slots.split_at_mut(r);
+                    std::mem::swap(&mut *front[kept], &mut *back[0]);
+                }
+                kept += 1;
+            }
+        }
+        (kept, slots.len())
+    };
+    // The removed ones are now at the end, where removing is cheap.
+    for i in (kept..total).rev() {
+        drawing.remove_entity(i);
     }
 }
 
@@ -736,19 +763,29 @@ fn join_pieces(pieces: Vec<Piece>) -> Vec<Piece> {
             };
             chain.append(next);
         }
-        // Backward, for chains that did not close.
-        while (chain.end() - chain.start()).length() > JOIN_MM {
-            let Some(j) = near(chain.start(), &used, &ends) else {
+        // Backward, for chains that did not close: the pieces before it, nearest first (joined
+        // at the end, so that each vertex is copied once).
+        let mut before: Vec<Piece> = Vec::new();
+        let mut start = chain.start();
+        while (chain.end() - start).length() > JOIN_MM {
+            let Some(j) = near(start, &used, &ends) else {
                 break;
             };
             used[j] = true;
-            let mut prev = if (pieces[j].end() - chain.start()).length() <= JOIN_MM {
+            let prev = if (pieces[j].end() - start).length() <= JOIN_MM {
                 pieces[j].clone()
             } else {
                 pieces[j].clone().reversed()
             };
-            prev.append(chain);
-            chain = prev;
+            start = prev.start();
+            before.push(prev);
+        }
+        if let Some(mut whole) = before.pop() {
+            while let Some(next) = before.pop() {
+                whole.append(next);
+            }
+            whole.append(chain);
+            chain = whole;
         }
         chains.push(chain);
     }

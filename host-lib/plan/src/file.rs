@@ -12,6 +12,7 @@ use crate::dilate::KerfSource;
 use crate::dxf_plan::{DxfOptions, dilate_dxf};
 use crate::error::{PlanError, Result};
 use crate::outcome::{AssumedUnits, PlanSummary};
+use crate::progress::Progress;
 use crate::rules::CutRules;
 use crate::svg::{SvgOptions, dilate_svg};
 
@@ -64,6 +65,8 @@ pub struct DilateOptions {
     pub strict: bool,
     /// What to do when the plan is already compensated (boxes.py's burn, this tool's output).
     pub if_compensated: IfCompensated,
+    /// Where to tell how far the work has got (nowhere by default).
+    pub progress: Progress,
 }
 
 /// Read the plan at `input` (SVG or DXF, by its extension) and dilate it by `kerf`: the dilated
@@ -88,6 +91,7 @@ pub fn dilate_file(
                 rules: options.rules.clone(),
                 assume_units: options.assume_units,
                 if_compensated: options.if_compensated,
+                progress: options.progress.clone(),
             },
         ),
     }
@@ -128,6 +132,7 @@ fn dilate_svg_bytes(
         rules: options.rules.clone(),
         assume_units: options.assume_units,
         if_compensated: options.if_compensated,
+        progress: options.progress.clone(),
     };
     let (out, summary) = dilate_svg(&text, kerf, &svg_options)?;
     Ok((out.into_bytes(), summary))

@@ -19,7 +19,8 @@
 //!   ([`recompensate`]: boxes.py's corner loops, inner corners kept sharp), and records what was
 //!   applied in every output.
 //! * [`file`](mod@file) reads a plan file and dilates it into bytes; [`PlanError`] says what went wrong,
-//!   by kind.
+//!   by kind. [`progress`] tells a caller how far a long dilation has got (the work on contours is
+//!   spread over the cores; the result does not depend on how many).
 //!
 //! This crate is not the command-line tool (`kerfmeter gauge` and `kerfmeter dilate` live in
 //! `kerfmeter-cli`, which also writes the output files) and does not talk to the device: it has no
@@ -52,6 +53,7 @@ pub mod gauge;
 pub mod geom;
 pub mod outcome;
 mod pipeline;
+pub mod progress;
 pub mod recompensate;
 pub mod rules;
 pub mod svg;

@@ -16,6 +16,7 @@ use crate::dilate::{self, Contour, KerfSource, Offsetting};
 use crate::error::Result;
 use crate::geom::{Pline, V2};
 use crate::outcome::{OpenPath, PlanSummary};
+use crate::progress::{Progress, Stage};
 use crate::recompensate;
 use crate::rules::CutRules;
 
@@ -113,19 +114,22 @@ pub(crate) trait Format {
     fn read(&mut self) -> Result<Plan<Self::Origin>>;
 
     /// Write the dilated contours (`dilated[k]` replaces `plan.cuts[k]`) back into the document;
-    /// counts the elements changed and adds notes to `plan.summary`.
-    fn write(self, plan: &mut Plan<Self::Origin>, dilated: &[Pline]) -> Result<Self::Output>;
+    /// counts the elements changed and adds notes to `plan.summary`. The contours are given, so
+    /// that a format can free them as soon as they are in the document.
+    fn write(self, plan: &mut Plan<Self::Origin>, dilated: Vec<Pline>) -> Result<Self::Output>;
 }
 
 /// Read, dilate and write back a plan in any format: the dilated document and what was found
 /// and done. A plan that records a compensation is refused, dilated anyway or recompensated as
 /// `policy` says, before its geometry is checked (boxes.py's compensated plans cross themselves
-/// at every inner corner).
+/// at every inner corner). The dilation and writing stages are told to `progress` (the format
+/// tells when it starts reading).
 pub(crate) fn dilate_plan<F: Format>(
     mut format: F,
     kerf: &KerfSource,
     policy: IfCompensated,
     rules: &CutRules,
+    progress: &Progress,
 ) -> Result<(F::Output, PlanSummary)> {
     let mut plan = format.read()?;
     let treatment =
@@ -141,8 +145,18 @@ pub(crate) fn dilate_plan<F: Format>(
     if let Offsetting::Recompensate { burn_mm } = treatment.offsetting {
         plan.burn_unburnt(burn_mm);
     }
-    let contours: Vec<Contour> = plan.cuts.iter().map(|c| c.contour.clone()).collect();
-    let dilation = dilate::dilate_with(&contours, kerf, treatment.offsetting)?;
+    // The contours are lent to the kernel, not copied (a large plan's geometry is most of its
+    // memory).
+    let (contours, origins): (Vec<Contour>, Vec<F::Origin>) = std::mem::take(&mut plan.cuts)
+        .into_iter()
+        .map(|c| (c.contour, c.origin))
+        .unzip();
+    let dilation = dilate::dilate_with_progress(&contours, kerf, treatment.offsetting, progress)?;
+    plan.cuts = contours
+        .into_iter()
+        .zip(origins)
+        .map(|(contour, origin)| Cut { contour, origin })
+        .collect();
     plan.summary.record_parts(&dilation);
     plan.summary.compensation_applied = Some(compensation::applied(
         &treatment,
@@ -151,6 +165,7 @@ pub(crate) fn dilate_plan<F: Format>(
         rules.describe(),
         loops,
     ));
-    let output = format.write(&mut plan, &dilation.contours)?;
+    progress.start(Stage::Writing, 0);
+    let output = format.write(&mut plan, dilation.contours)?;
     Ok((output, plan.summary))
 }

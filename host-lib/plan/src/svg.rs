@@ -50,6 +50,7 @@ use std::ops::Range;
 use std::str::FromStr;
 
 use cavalier_contours::polyline::PlineSource;
+use rayon::prelude::*;
 use roxmltree::{Document, Node, ParsingOptions};
 use usvg::tiny_skia_path::PathSegment;
 
@@ -58,6 +59,7 @@ use super::dilate::KerfSource;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, PlanSummary};
 use super::pipeline::{self, Format, Plan};
+use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
 use crate::error::{PlanError, Problems, Result};
 
@@ -83,6 +85,8 @@ pub struct SvgOptions {
     pub assume_units: Option<AssumedUnits>,
     /// What to do when the plan is already compensated.
     pub if_compensated: IfCompensated,
+    /// Where to tell how far the work has got.
+    pub progress: Progress,
 }
 
 /// One drawing command of a subpath, in the element's own coordinates.
@@ -117,6 +121,14 @@ struct Edit {
 /// Edits inside the targets of `<use>` elements, by `<use>` (index into the `<use>` elements).
 type CloneEdits = BTreeMap<usize, Vec<Edit>>;
 
+/// A subpath of an instance traced into document mm.
+enum Traced {
+    /// A closed contour: its subpath's index, the contour, its name.
+    Closed(usize, Pline, String),
+    /// An open path: its name, first and last points.
+    Open(String, V2, V2),
+}
+
 fn bad(message: impl Into<String>) -> PlanError {
     PlanError::Svg(message.into())
 }
@@ -127,12 +139,14 @@ pub fn dilate_svg(
     kerf: &KerfSource,
     opts: &SvgOptions,
 ) -> Result<(String, PlanSummary)> {
+    opts.progress.start(Stage::Reading, 0);
     let doc = parse(text)?;
     pipeline::dilate_plan(
         SvgPlan::new(text, &doc, opts),
         kerf,
         opts.if_compensated,
         &opts.rules,
+        &opts.progress,
     )
 }
 
@@ -170,6 +184,8 @@ struct SvgPlan<'d, 'a> {
     ids: HashMap<&'d str, Node<'d, 'a>>,
     /// The rendered occurrences of cut elements (set by `read`).
     instances: Vec<Instance>,
+    /// Where each line of the source starts, to name elements by line and column.
+    lines: LineIndex<'a>,
 }
 
 impl<'d, 'a> SvgPlan<'d, 'a> {
@@ -200,6 +216,7 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
             uses,
             ids,
             instances: Vec::new(),
+            lines: LineIndex::new(text),
         }
     }
 
@@ -283,9 +300,12 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
 
     /// How to name an instance in messages.
     fn label(&self, inst: &Instance) -> String {
-        let mut s = describe(self.doc, self.shapes[inst.element]);
+        let mut s = describe(&self.lines, self.shapes[inst.element]);
         if let Some(u) = inst.via_use {
-            s.push_str(&format!(" via <use> {}", describe(self.doc, self.uses[u])));
+            s.push_str(&format!(
+                " via <use> {}",
+                describe(&self.lines, self.uses[u])
+            ));
         }
         s
     }
@@ -311,39 +331,22 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
     }
 
     /// Each instance's subpaths, in document mm: closed ones are cuts, the rest open paths.
-    fn contours(&self, plan: &mut Plan<(usize, usize)>) {
-        for (ii, inst) in self.instances.iter().enumerate() {
-            let eps = coordinate_eps(inst);
-            let n_sub = inst.subpaths.len();
-            for (si, segs) in inst.subpaths.iter().enumerate() {
-                // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
-                let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
-                for s in segs {
-                    match *s {
-                        Seg::M(p) => sink.move_to(inst.to_doc.apply(p)),
-                        Seg::L(p) => sink.line_to(inst.to_doc.apply(p)),
-                        Seg::Q(a, b) => sink.quad_to(inst.to_doc.apply(a), inst.to_doc.apply(b)),
-                        Seg::C(a, b, c) => sink.cubic_to(
-                            inst.to_doc.apply(a),
-                            inst.to_doc.apply(b),
-                            inst.to_doc.apply(c),
-                        ),
-                        Seg::Z => sink.close(),
+    /// Traced on any core, added in document order.
+    /// The drawn segments of closed subpaths are not kept (they are written back dilated).
+    fn contours(&mut self, plan: &mut Plan<(usize, usize)>) {
+        let traced: Vec<Vec<Traced>> = self
+            .instances
+            .par_iter()
+            .map(|inst| self.trace(inst))
+            .collect();
+        for (ii, subpaths) in traced.into_iter().enumerate() {
+            for t in subpaths {
+                match t {
+                    Traced::Closed(si, pline, name) => {
+                        self.instances[ii].subpaths[si] = Vec::new();
+                        plan.cut(pline, name, (ii, si));
                     }
-                }
-                let Some(sub) = sink.finish().into_iter().next() else {
-                    continue;
-                };
-                let mut name = self.label(inst);
-                if n_sub > 1 {
-                    name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
-                }
-                if sub.pline.is_closed() {
-                    plan.cut(sub.pline, name, (ii, si));
-                } else {
-                    let first = sub.pline.at(0);
-                    let last = sub.pline.at(sub.pline.vertex_count() - 1);
-                    plan.open_path(name, v2(first.x, first.y), v2(last.x, last.y));
+                    Traced::Open(name, first, last) => plan.open_path(name, first, last),
                 }
             }
         }
@@ -367,6 +370,45 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         }
     }
 
+    /// One instance's subpaths in document mm.
+    fn trace(&self, inst: &Instance) -> Vec<Traced> {
+        let eps = coordinate_eps(inst);
+        let n_sub = inst.subpaths.len();
+        let mut traced = Vec::with_capacity(n_sub);
+        for (si, segs) in inst.subpaths.iter().enumerate() {
+            // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
+            let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
+            for s in segs {
+                match *s {
+                    Seg::M(p) => sink.move_to(inst.to_doc.apply(p)),
+                    Seg::L(p) => sink.line_to(inst.to_doc.apply(p)),
+                    Seg::Q(a, b) => sink.quad_to(inst.to_doc.apply(a), inst.to_doc.apply(b)),
+                    Seg::C(a, b, c) => sink.cubic_to(
+                        inst.to_doc.apply(a),
+                        inst.to_doc.apply(b),
+                        inst.to_doc.apply(c),
+                    ),
+                    Seg::Z => sink.close(),
+                }
+            }
+            let Some(sub) = sink.finish().into_iter().next() else {
+                continue;
+            };
+            let mut name = self.label(inst);
+            if n_sub > 1 {
+                name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
+            }
+            if sub.pline.is_closed() {
+                traced.push(Traced::Closed(si, sub.pline, name));
+            } else {
+                let first = sub.pline.at(0);
+                let last = sub.pline.at(sub.pline.vertex_count() - 1);
+                traced.push(Traced::Open(name, v2(first.x, first.y), v2(last.x, last.y)));
+            }
+        }
+        traced
+    }
+
     /// The new geometry of every instance with a dilated subpath, as edits: those of elements
     /// drawn directly, and those of elements reached through each `<use>` (by `<use>`).
     fn geometry_edits(
@@ -374,30 +416,21 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         contour_of: &HashMap<(usize, usize), &Pline>,
         summary: &mut PlanSummary,
     ) -> Result<(Vec<Edit>, CloneEdits)> {
+        // The path data of each instance is written on any core; the edits are gathered in
+        // document order.
+        let per_instance: Vec<Option<Result<Vec<Edit>>>> = self
+            .instances
+            .par_iter()
+            .enumerate()
+            .map(|(ii, inst)| self.instance_edits(ii, inst, contour_of))
+            .collect();
         let mut main_edits: Vec<Edit> = Vec::new();
         let mut clone_edits: CloneEdits = BTreeMap::new();
-        for (ii, inst) in self.instances.iter().enumerate() {
-            if !(0..inst.subpaths.len()).any(|si| contour_of.contains_key(&(ii, si))) {
+        for (inst, edits) in self.instances.iter().zip(per_instance) {
+            let Some(edits) = edits else {
                 continue;
-            }
-            let Some(to_local) = inst.to_doc.inverse() else {
-                return Err(bad(format!(
-                    "{} has a degenerate transform (zero scale)",
-                    self.label(inst)
-                )));
             };
-            let digits = digits_for(&inst.to_doc);
-            let mut d = String::new();
-            for (si, segs) in inst.subpaths.iter().enumerate() {
-                if !d.is_empty() {
-                    d.push(' ');
-                }
-                match contour_of.get(&(ii, si)) {
-                    Some(pline) => write_pline(pline, &to_local, digits, &mut d),
-                    None => write_segs(segs, digits, &mut d),
-                }
-            }
-            let edits = geometry_edits(self.text, self.shapes[inst.element], &d);
+            let edits = edits?;
             summary.changed_elements += 1;
             match inst.via_use {
                 None => main_edits.extend(edits),
@@ -428,6 +461,37 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
             });
         }
         edits
+    }
+
+    /// The edits that give instance `ii` its dilated subpaths (the others re-emitted as drawn);
+    /// `None` when none of its subpaths was dilated.
+    fn instance_edits(
+        &self,
+        ii: usize,
+        inst: &Instance,
+        contour_of: &HashMap<(usize, usize), &Pline>,
+    ) -> Option<Result<Vec<Edit>>> {
+        if !(0..inst.subpaths.len()).any(|si| contour_of.contains_key(&(ii, si))) {
+            return None;
+        }
+        let Some(to_local) = inst.to_doc.inverse() else {
+            return Some(Err(bad(format!(
+                "{} has a degenerate transform (zero scale)",
+                self.label(inst)
+            ))));
+        };
+        let digits = digits_for(&inst.to_doc);
+        let mut d = String::new();
+        for (si, segs) in inst.subpaths.iter().enumerate() {
+            if !d.is_empty() {
+                d.push(' ');
+            }
+            match contour_of.get(&(ii, si)) {
+                Some(pline) => write_pline(pline, &to_local, digits, &mut d),
+                None => write_segs(segs, digits, &mut d),
+            }
+        }
+        Some(Ok(geometry_edits(self.text, self.shapes[inst.element], &d)))
     }
 
     /// Copies of the targets of `<use>` elements whose cuts were dilated (ids suffixed `-kerfN`),
@@ -485,7 +549,7 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
             });
             summary.notes.push(format!(
                 "cuts reached through <use> were dilated in copies of {} (ids suffixed -kerfN)",
-                describe(self.doc, target)
+                describe(&self.lines, target)
             ));
         }
         Ok(())
@@ -546,14 +610,17 @@ impl Format for SvgPlan<'_, '_> {
         Ok(plan)
     }
 
-    fn write(self, plan: &mut Plan<(usize, usize)>, dilated: &[Pline]) -> Result<String> {
+    fn write(self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<String> {
         let contour_of: HashMap<(usize, usize), &Pline> = plan
             .cuts
             .iter()
-            .zip(dilated)
+            .zip(&dilated)
             .map(|(cut, d)| (cut.origin, d))
             .collect();
         let (mut main_edits, clone_edits) = self.geometry_edits(&contour_of, &mut plan.summary)?;
+        // The geometry is in the edits' path data now: free it before the document is built.
+        drop(contour_of);
+        drop(dilated);
         self.clone_uses(clone_edits, &mut main_edits, &mut plan.summary)?;
         main_edits.extend(self.record_edits(&plan.summary));
         apply_edits(self.text, main_edits)
@@ -745,7 +812,36 @@ fn digits_for(to_doc: &Affine) -> usize {
     (-step.log10()).ceil().clamp(0.0, 12.0) as usize
 }
 
+/// `v` with at most `digits` decimals, trailing zeros dropped (`-0` is `0`).
 fn num(v: f64, digits: usize, out: &mut String) {
+    // Fast path: round to an integer count of the last decimal, ties to even as float
+    // formatting does, and print that (formatting a float exactly was most of the time spent
+    // writing a large plan). Where the product itself rounds across a tie (rare), the last
+    // decimal differs by one: 0.01 µm in mm.
+    let scaled = (v * 10f64.powi(digits as i32)).round_ties_even();
+    if digits <= 12 && scaled.abs() < 1e15 {
+        let mut n = scaled as i64;
+        if n == 0 {
+            out.push('0');
+            return;
+        }
+        if n < 0 {
+            out.push('-');
+            n = -n;
+        }
+        let unit = 10i64.pow(digits as u32);
+        let (int, mut frac, mut places) = (n / unit, n % unit, digits);
+        while places > 0 && frac % 10 == 0 {
+            frac /= 10;
+            places -= 1;
+        }
+        push_digits(out, int as u64, 1);
+        if places > 0 {
+            out.push('.');
+            push_digits(out, frac as u64, places);
+        }
+        return;
+    }
     let mut s = format!("{v:.digits$}");
     if s.contains('.') {
         while s.ends_with('0') {
@@ -759,6 +855,18 @@ fn num(v: f64, digits: usize, out: &mut String) {
         s = "0".into();
     }
     out.push_str(&s);
+}
+
+/// The decimal digits of `n`, at least `width` of them (zeros in front).
+fn push_digits(out: &mut String, mut n: u64, width: usize) {
+    let mut buf = [b'0'; 20];
+    let mut start = buf.len();
+    while n > 0 || buf.len() - start < width {
+        start -= 1;
+        buf[start] = b'0' + (n % 10) as u8;
+        n /= 10;
+    }
+    out.extend(buf[start..].iter().map(|&b| char::from(b)));
 }
 
 fn point(p: V2, digits: usize, out: &mut String) {
@@ -945,15 +1053,47 @@ fn use_target<'a, 'i>(u: Node<'a, 'i>, ids: &HashMap<&str, Node<'a, 'i>>) -> Opt
     ids.get(href.strip_prefix('#')?).copied()
 }
 
-/// `path "id"` or `<rect> at line 12`.
-fn describe(doc: &Document, n: Node) -> String {
+/// `path "id"` or `<rect> at line 12, column 5`.
+fn describe(lines: &LineIndex, n: Node) -> String {
     match n.attribute("id") {
         Some(id) => format!("{} \"{id}\"", n.tag_name().name()),
-        None => format!(
-            "<{}> at line {}",
-            n.tag_name().name(),
-            doc.text_pos_at(n.range().start).row
-        ),
+        None => {
+            let (line, column) = lines.line_column(n.range().start);
+            format!("<{}> at line {line}, column {column}", n.tag_name().name())
+        }
+    }
+}
+
+/// Line and column numbers of byte offsets in a text, each found by a binary search over the
+/// lines' starts. (roxmltree's `Document::text_pos_at` counts from the start of the document
+/// every time, which made naming every element of a large file quadratic in its size.)
+struct LineIndex<'a> {
+    text: &'a str,
+    /// Byte offset of the start of each line.
+    starts: Vec<usize>,
+}
+
+impl<'a> LineIndex<'a> {
+    fn new(text: &'a str) -> Self {
+        let breaks = text.bytes().enumerate().filter(|&(_, b)| b == b'\n');
+        let starts = std::iter::once(0)
+            .chain(breaks.map(|(i, _)| i + 1))
+            .collect();
+        LineIndex { text, starts }
+    }
+
+    /// The line and column (both from 1; the column counts characters, as XML tools do) of the
+    /// byte at `offset`.
+    fn line_column(&self, offset: usize) -> (usize, usize) {
+        let offset = offset.min(self.text.len());
+        let line = self.starts.partition_point(|&s| s <= offset);
+        let start = self.starts[line - 1];
+        let column = self
+            .text
+            .get(start..offset)
+            .map_or(0, |s| s.chars().count())
+            + 1;
+        (line, column)
     }
 }
 
@@ -1064,6 +1204,43 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("nested <use>"), "{e}");
+    }
+
+    #[test]
+    fn numbers_are_written_as_exact_float_formatting_would() {
+        let exact = |v: f64, digits: usize| {
+            let s = format!("{v:.digits$}");
+            let s = if s.contains('.') {
+                s.trim_end_matches('0').trim_end_matches('.').to_string()
+            } else {
+                s
+            };
+            if s == "-0" { "0".to_string() } else { s }
+        };
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            20.1,
+            29.9,
+            0.1,
+            -0.000_004,
+            1_234.567_891_23,
+            -987.654_321,
+            1e-5,
+            3.000_01,
+            12.5,
+            100.0,
+            2_550.075_000_1,
+        ];
+        for v in values {
+            for digits in [0, 1, 3, 5, 6] {
+                let mut out = String::new();
+                num(v, digits, &mut out);
+                assert_eq!(out, exact(v, digits), "{v} with {digits} digits");
+            }
+        }
     }
 
     #[test]

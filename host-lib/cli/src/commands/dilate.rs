@@ -16,8 +16,10 @@ use kerfmeter_plan::rules::CutRules;
 use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file};
 use serde::Serialize;
 
+use crate::connection::Global;
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
+use crate::progress::plan_progress;
 
 type Result<T, E = CliError> = std::result::Result<T, E>;
 
@@ -215,8 +217,9 @@ fn plural(n: usize) -> &'static str {
     if n == 1 { "" } else { "s" }
 }
 
-/// Dilate the plan named by `args` (see [`DilateArgs`]).
-pub fn run(args: &DilateArgs) -> Result<DilateReport> {
+/// Dilate the plan named by `args` (see [`DilateArgs`]), with a progress bar on a terminal
+/// (not with `--json`).
+pub fn run(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
     let format = PlanFormat::of(&args.input)?;
     if let Some(out) = &args.output {
         let out_format = PlanFormat::of(out)?;
@@ -239,6 +242,7 @@ pub fn run(args: &DilateArgs) -> Result<DilateReport> {
             }))
         }
     };
+    let (progress, bar) = plan_progress(g.json);
     let options = DilateOptions {
         rules: CutRules::new(&args.cut_colors, args.cut_max_width_mm, &args.cut_layers)?,
         assume_units: args.units,
@@ -250,8 +254,11 @@ pub fn run(args: &DilateArgs) -> Result<DilateReport> {
         } else {
             IfCompensated::Refuse
         },
+        progress,
     };
-    let (output, summary) = dilate_file(&args.input, &kerf, &options)?;
+    let dilated = dilate_file(&args.input, &kerf, &options);
+    bar.finish_and_clear();
+    let (output, summary) = dilated?;
     if !args.dry_run
         && let Some(out) = &args.output
     {
