@@ -160,7 +160,9 @@ fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
                     play_deg: 5.5,
                     torque_at_jam_nm: 0.625,
                     force_at_jam_n: 55.0,
-                    flags: QualityFlags(QualityFlags::TORQUE_MISMATCH.0 | QualityFlags::NOISY_HOLD.0),
+                    flags: QualityFlags(
+                        QualityFlags::TORQUE_MISMATCH.0 | QualityFlags::NOISY_HOLD.0,
+                    ),
                 })),
             },
         ),
