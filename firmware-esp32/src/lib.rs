@@ -15,6 +15,8 @@
 //! - [`config_store`]: the device configuration in flash, versioned, CRC-checked and migrated.
 //! - [`controller`]: the measuring state machine, stepped at 1 kHz: ramp, jam, kerf, faults. Its
 //!   kerf and torque math is the gauge's model in `kerfmeter_protocol::spiral`, shared with the host.
+//!   Torque is set from the duty, scaled by the measured supply and by the winding's resistance,
+//!   which it measures from the motor current where the hub stands still at each jam.
 //! - [`hardware`]: one control tick on the real drivers (shared by the board and the twin).
 //! - [`jam`]: jam detection: windowed slope, hold median.
 //! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.

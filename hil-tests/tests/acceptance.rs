@@ -318,9 +318,6 @@ fn protocol_abuse_never_hangs_the_device_nor_moves_the_motor() {
 }
 
 #[test]
-#[ignore = "known failure, issue 12: torque from duty assumes a cold winding and a 12 V supply; \
-            back-to-back runs warm the winding and readings drift low (on the twin: drift -1.5 µm \
-            over 100 runs, worst error 3.8 µm at run 88; every Reset now settles)"]
 fn soak_runs_do_not_drift() {
     let mut b = bench("soak", 18);
     let runs = b.soak_runs as usize;

@@ -95,7 +95,11 @@ pub use report::{
 ///   is outside [`SUPPLY_MIN_V`]–[`SUPPLY_MAX_V`]; [`QualityFlags::SUPPLY_LIMITED`] (a new bit)
 ///   marks a result whose torque a sagging supply held below the target. An older host shows
 ///   the new bits as unknown and the new error as a postcard decode failure.
-pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 1 };
+/// - 2.2 (minor, additive): [`QualityFlags::TORQUE_MISMATCH`] (a new bit, 8) marks a result whose
+///   torque from the duty and motor current measured at the jam disagree beyond what the
+///   winding's temperature and the senses' gain errors explain. An older host shows it as an
+///   unknown bit; every 2.1 frame keeps its bytes.
+pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 2 };
 
 /// USB vendor id of the ESP32-C3/C6 USB-Serial-JTAG port (Espressif).
 pub const USB_VID_ESPRESSIF: u16 = 0x303A;

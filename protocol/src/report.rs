@@ -230,9 +230,15 @@ impl QualityFlags {
     /// torque was held to what it delivered (at full duty), so the jam is at a lower force, which
     /// `torque_at_jam_nm` and `force_at_jam_n` report (protocol 2.1).
     pub const SUPPLY_LIMITED: Self = Self(1 << 7);
+    /// The torque set from the duty and the motor current measured at the jam disagree beyond
+    /// what the winding's temperature and the current and supply senses' gain errors explain (a
+    /// wrong `torque_per_duty_nm` or `torque_per_amp_nm`, a driver limiting its current below
+    /// the motor's stall current, a loose lead): the torque at the jam, and so the force, is not
+    /// the one reported (protocol 2.2).
+    pub const TORQUE_MISMATCH: Self = Self(1 << 8);
 
     /// Names of the flags, for messages.
-    pub const NAMES: [(Self, &'static str); 8] = [
+    pub const NAMES: [(Self, &'static str); 9] = [
         (Self::NEAR_DISENGAGE, "near-disengage"),
         (Self::NOISY_HOLD, "noisy-hold"),
         (Self::WEAK_MAGNET, "weak-magnet"),
@@ -241,6 +247,7 @@ impl QualityFlags {
         (Self::PLAY_NOT_CONVERGED, "play-not-converged"),
         (Self::DECIMATED, "decimated"),
         (Self::SUPPLY_LIMITED, "supply-limited"),
+        (Self::TORQUE_MISMATCH, "torque-mismatch"),
     ];
 
     /// No flag set.

@@ -4,8 +4,9 @@
 //! messages changed). Protocol 2.0 changed `Status` (supply, longest step and gap, conditions)
 //! and `ConfigReport` (`saved`), and added `ErrorCode::Blocked`; `DeviceInfo`'s bytes stand.
 //! Protocol 2.1 only added: `ErrorCode::SupplyTooLow`, the `SUPPLY_OUT_OF_RANGE` condition and
-//! the `SUPPLY_LIMITED` flag (new frames below; every older frame's bytes stand). Each golden
-//! frame is also mutated byte by byte: no mutation may be accepted.
+//! the `SUPPLY_LIMITED` flag (new frames below; every older frame's bytes stand). Protocol 2.2
+//! only added the `TORQUE_MISMATCH` flag, bit 8 (its frame below). Each golden frame is also
+//! mutated byte by byte: no mutation may be accepted.
 
 mod common;
 use common::*;
@@ -145,6 +146,23 @@ fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
                     torque_at_jam_nm: 0.75,
                     force_at_jam_n: 51.5,
                     flags: QualityFlags::SUPPLY_LIMITED,
+                })),
+            },
+        ),
+        (
+            "00050d05010901031643010370420103b0400103203f01075c428202b8ab00",
+            Envelope {
+                seq: 13,
+                body: Response::Kerf(Some(KerfResult {
+                    run_id: 9,
+                    kerf_um: 150.0,
+                    angle_deg: 60.0,
+                    play_deg: 5.5,
+                    torque_at_jam_nm: 0.625,
+                    force_at_jam_n: 55.0,
+                    flags: QualityFlags(
+                        QualityFlags::TORQUE_MISMATCH.0 | QualityFlags::NOISY_HOLD.0,
+                    ),
                 })),
             },
         ),

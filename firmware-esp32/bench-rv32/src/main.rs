@@ -282,6 +282,15 @@ struct StepBench {
     overhead: Counters,
     by_state: [Stat; STATES.len()],
     all: Stat,
+    /// The duty of the last step's output (the current a step reads is what it drove).
+    last_duty: f32,
+}
+
+/// The winding's resistance the default configuration implies, Ω: the benchmark's motor is the
+/// one the configuration describes, cold.
+fn reference_ohm() -> f32 {
+    let c = DeviceConfig::DEFAULT;
+    c.torque_per_amp_nm * 12.0 / c.torque_per_duty_nm
 }
 
 impl StepBench {
@@ -294,14 +303,17 @@ impl StepBench {
                 magnitude: DIAG_MAGNITUDE,
                 marginal: false,
             }));
+        let supply_v = 11.9 + 0.02 * (self.tick % 8) as f32;
         let inputs = Inputs {
             angle_deg: Ok(angle_deg),
             diagnostics,
-            current_a: Some(0.5),
+            // What the last output's duty drives through the winding at standstill, so that
+            // the winding's estimate at the jam runs as on a motor (and finds it cold).
+            current_a: Some(self.last_duty * supply_v / reference_ohm()),
             driver_fault: false,
             // A measured supply, as a board with its supply sense wired has: the filter and the
             // duty's scaling are part of every step. Varied a little, like a real reading.
-            supply_v: Some(11.9 + 0.02 * (self.tick % 8) as f32),
+            supply_v: Some(supply_v),
         };
         let before = self.controller.run_state();
         let Some(index) = state_index(before) else {
@@ -309,7 +321,8 @@ impl StepBench {
         };
         let now_us = self.now_us;
         let controller = &mut self.controller;
-        let (_output, spent) = measure(inputs, |inputs| controller.step(now_us, &inputs));
+        let (output, spent) = measure(inputs, |inputs| controller.step(now_us, &inputs));
+        self.last_duty = if output.awake { output.duty } else { 0.0 };
         let spent = spent.less(self.overhead);
         self.by_state[index].add(spent);
         self.all.add(spent);
@@ -470,6 +483,7 @@ fn main() -> ! {
         overhead,
         by_state: [Stat::EMPTY; STATES.len()],
         all: Stat::EMPTY,
+        last_duty: 0.0,
     };
     for hold_deg in HOLD_ANGLES_DEG {
         bench.run(hold_deg);

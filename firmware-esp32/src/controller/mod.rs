@@ -22,7 +22,8 @@
 //!
 //! The code is split by concern: `run.rs` (engage, ramp, jam, kerf, and the per-run state, which
 //! every run builds afresh), `reset.rs`, `self_test.rs`, `faults.rs` (every fault check),
-//! `supply.rs` (the measured supply and what it does to the duty) and `tuning.rs` (every tuning
+//! `supply.rs` (the measured supply and what it does to the duty), `winding.rs` (the winding's
+//! resistance from the current at the jam, and what it does to the duty) and `tuning.rs` (every tuning
 //! constant, with its unit and its reason; re-exported here).
 //!
 //! # Angles, torque and direction
@@ -35,13 +36,17 @@
 //! # Torque from duty
 //!
 //! Output torque is linear in duty × supply at standstill: duty = (breakaway + τ /
-//! torque_per_duty) × V_ref / V_supply, where `breakaway_duty` covers the gearbox's friction and
+//! torque_per_duty) × ρ × V_ref / V_supply, where `breakaway_duty` covers the gearbox's friction and
 //! both calibration figures are at the reference supply V_ref =
 //! [`REFERENCE_SUPPLY_V`](kerfmeter_protocol::REFERENCE_SUPPLY_V) (12 V). V_supply is the measured
 //! motor supply, filtered, or V_ref where it is not measured: see `supply.rs` for the filter, the
 //! rated range, the refusal of a run whose torque is out of reach (`SupplyTooLow`) and what a
 //! supply sagging mid-run does (the torque is held to what full duty delivers, and the result
-//! flagged `SUPPLY_LIMITED`). Back-EMF lowers the torque while the hub turns
+//! flagged `SUPPLY_LIMITED`). The duty is also scaled by the winding's resistance over its
+//! resistance at calibration, ρ, estimated from the measured current where the hub stands still
+//! at the jam (`winding.rs`: a warm winding draws less current for the same duty); a ρ that
+//! the winding's temperature and the senses' gain errors cannot explain flags the result
+//! `TORQUE_MISMATCH`. Back-EMF lowers the torque while the hub turns
 //! (by ke·N·ω/Vs of duty); it is deliberately *not* compensated: the kerf is read at a jam, at
 //! standstill, where back-EMF is zero and the duty-derived torque is exact; while the inset turns
 //! a lower torque only slows the approach, and the ramp's speed limit keeps it slow anyway.
@@ -133,6 +138,7 @@ mod supply;
 mod tests;
 mod timing;
 mod tuning;
+mod winding;
 
 use run::Run;
 use self_test::SelfTestPhase;
@@ -141,6 +147,8 @@ pub use supply::{SUPPLY_FILTER_GAIN, SUPPLY_SENSE_TOLERANCE};
 use timing::Pacing;
 pub use timing::TickTiming;
 pub use tuning::*;
+use winding::WindingEstimate;
+pub use winding::{MIN_DUTY as WINDING_MIN_DUTY, PLAUSIBLE_FACTOR as WINDING_PLAUSIBLE_FACTOR};
 
 /// Why an encoder read failed (the driver's error, without the bus type).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -264,8 +272,12 @@ pub struct Controller {
     last_diagnostics: Option<DiagnosticsReading>,
     /// The idle conditions as of the last tick (see [`Controller::conditions`]).
     conditions: Conditions,
-    /// The motor supply, filtered, and the duty scale it gives.
+    /// The motor supply, filtered, and the duty scale it gives (the winding's factor included).
     supply: SupplyFilter,
+    /// The winding's resistance over the calibration's, from the current at the jams.
+    winding: WindingEstimate,
+    /// The duty of the last step's output (what this step's current reading was drawn at).
+    applied_duty: f32,
     /// The last ticks' motor currents, for the over-current check.
     current_mean: faults::CurrentMean,
     /// The last run's samples (kept outside [`Run`]: 24 KiB are cleared, not rebuilt).
@@ -296,6 +308,8 @@ impl Controller {
             last_diagnostics: None,
             conditions: Conditions::empty(),
             supply: SupplyFilter::new(),
+            winding: WindingEstimate::new(),
+            applied_duty: 0.0,
             current_mean: faults::CurrentMean::new(),
             log: SampleLog::new(),
             result: None,
@@ -518,7 +532,9 @@ impl Controller {
             // makes the motor safe.
             self.log.settle();
         }
-        self.output()
+        let out = self.output();
+        self.applied_duty = out.duty;
+        out
     }
 
     fn read_angle(&mut self, inputs: &Inputs) -> Option<f32> {
@@ -543,7 +559,7 @@ impl Controller {
         match self.state {
             State::Idle | State::Done | State::Fault(_) => self.torque_nm = 0.0,
             State::Engaging => self.engage(),
-            State::Ramping => self.ramp(),
+            State::Ramping => self.ramp(inputs.current_a),
             State::Jammed {
                 torque_nm,
                 entry_deg,

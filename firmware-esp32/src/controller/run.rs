@@ -3,10 +3,11 @@
 //! every run builds afresh: nothing of the previous run can leak into the next.
 
 use kerfmeter_protocol::{
-    ErrorCode, KerfResult, QualityFlags, RunParams, START_TOLERANCE_DEG, Sample,
+    ErrorCode, KerfResult, QualityFlags, REFERENCE_SUPPLY_V, RunParams, START_TOLERANCE_DEG, Sample,
 };
 
 use super::supply::{millivolts, needed_supply_v};
+use super::winding::{ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS};
 use super::{
     Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS,
     JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_TURN_SPEED_DEG_PER_S, Motion,
@@ -204,8 +205,9 @@ impl Controller {
         }
     }
 
-    /// Ramping: raise the torque towards the target while watching for the jam.
-    pub(super) fn ramp(&mut self) {
+    /// Ramping: raise the torque towards the target while watching for the jam. `current_a` is
+    /// this tick's motor current, for the winding's resistance while the hub settles at the jam.
+    pub(super) fn ramp(&mut self, current_a: Option<f32>) {
         let (target, limited) = self.ramp_target_nm();
         // The torque rises at the ramp rate, never above the speed loop's (so the inset turns at
         // most at the speed limit) nor above the target for the current angle.
@@ -217,8 +219,14 @@ impl Controller {
         let inset = self.angle_deg - self.run.zero_kerf_play_deg;
         if at_target && self.is_still() && inset >= JAM_MIN_INSET_DEG {
             self.run.still_ticks += 1;
+            if self.run.still_ticks == ESTIMATE_TICK {
+                self.apply_winding_estimate();
+            } else {
+                self.winding_reading(current_a);
+            }
         } else {
             self.run.still_ticks = 0;
+            self.winding.clear();
         }
         if self.run.still_ticks >= JAM_SETTLE_TICKS {
             self.run.flags.insert(limited);
@@ -227,6 +235,46 @@ impl Controller {
                 torque_nm: self.torque_nm,
                 entry_deg: self.angle_deg,
             };
+        }
+    }
+
+    /// [`ESTIMATE_TICK`] ticks into the jam's settle: the winding's factor from the readings so
+    /// far applies from the next output on (flagging a mismatch).
+    ///
+    /// A factor that rose by more than [`MAX_STEP`] (the first run on a warm winding) must not
+    /// step the torque up at the jam: the inset would overshoot into the self-locking spiral and
+    /// stay there. The commanded torque is then lowered to what the duty already drove at the
+    /// new factor, and the ramp takes it up again at its rate, through a new settle (which
+    /// estimates again). A smaller rise (a run's warming, the estimate's noise) or a fall is
+    /// applied as it is: the settle's remaining ticks let the hub take it before the hold, and
+    /// should it move, the settle starts again. Should full duty no longer give the target torque
+    /// at the new factor, the ramp's ceiling holds the torque to what it gives, and the result is
+    /// flagged `SUPPLY_LIMITED`, as for a sag.
+    fn apply_winding_estimate(&mut self) {
+        let old = self.winding.factor();
+        if self.winding.conclude(&self.config) == Some(true) {
+            self.run.flags.insert(QualityFlags::TORQUE_MISMATCH);
+        }
+        let new = self.winding.factor();
+        self.supply.set_winding_factor(new);
+        if new > old * (1.0 + MAX_STEP) {
+            let (breakaway, per_duty) =
+                (self.config.breakaway_duty, self.config.torque_per_duty_nm);
+            let duty = (breakaway + self.torque_nm / per_duty) * (old / new);
+            self.torque_nm = ((duty - breakaway) * per_duty).max(0.0);
+        }
+    }
+
+    /// A tick of the jam's settle, the hub still: past the first [`SKIP_TICKS`] and at a duty of
+    /// at least [`MIN_DUTY`], the drive voltage the last output applied and the current it drew
+    /// are a reading of the winding's resistance (`winding.rs`).
+    fn winding_reading(&mut self, current_a: Option<f32>) {
+        if let Some(current_a) = current_a
+            && self.run.still_ticks > SKIP_TICKS
+            && self.applied_duty >= MIN_DUTY
+        {
+            let supply_v = self.supply.supply_v().unwrap_or(REFERENCE_SUPPLY_V);
+            self.winding.push(supply_v * self.applied_duty, current_a);
         }
     }
 

@@ -13,6 +13,18 @@
 //! torque at 12 V), while the sag, which follows the current and so the torque ramp (at most
 //! about 1.5 V per second), is followed within some 0.05 V.
 //!
+//! # The winding's resistance
+//!
+//! The calibration holds for the winding's resistance at calibration; a winding ρ times as
+//! resistive (warm: `winding.rs` estimates ρ from the measured current at each jam) needs ρ times
+//! the duty for the same torque, as if the calibration had been made at ρ·`REFERENCE_SUPPLY_V`.
+//! So the filter keeps that *effective reference* ([`SupplyFilter::set_winding_factor`]), which
+//! the duty scale and the torque full duty gives use (no extra operation a tick: the scale was a
+//! division by the supply already). The refusal of a run for its supply does not: it is judged
+//! with the winding as at calibration, since warmth passes within minutes and a run that a warm
+//! winding leaves short of torque is held to full duty and flagged `SUPPLY_LIMITED` as for a
+//! sag.
+//!
 //! # Not measured
 //!
 //! Where the board passes no reading (`None` since boot), the supply is taken to be
@@ -31,7 +43,8 @@
 //!   condition is judged only at rest, on the unloaded supply: under load the bus sags by
 //!   design, and a sag is judged by what it does to the torque (next item).
 //! - Reachable torque: a run is refused with `ErrorCode::SupplyTooLow` when the most torque it
-//!   may ask for needs more than full duty at the measured supply ([`needed_supply_v`]).
+//!   may ask for needs more than full duty at the measured supply ([`needed_supply_v`]), with
+//!   the winding as at calibration.
 //! - Mid-run sag: should the bus sag so far under load that the ramp's torque needs more than
 //!   full duty, the ramp holds the torque to what full duty delivers at the measured supply
 //!   ([`SupplyFilter::full_duty_torque_nm`]), like the `max_torque_nm` cap; a jam reached so is
@@ -54,9 +67,13 @@ pub const SUPPLY_SENSE_TOLERANCE: f32 = 0.03;
 pub(super) struct SupplyFilter {
     /// The filtered supply, V; `None` until the first reading.
     supply_v: Option<f32>,
-    /// `REFERENCE_SUPPLY_V / supply_v` (1 while not measured), kept so that the duty costs a
-    /// multiply, not a division, wherever it is computed.
+    /// `reference_v / supply_v` (the winding factor while not measured), kept so that the duty
+    /// costs a multiply, not a division, wherever it is computed.
     duty_scale: f32,
+    /// The effective reference supply, V: `REFERENCE_SUPPLY_V` × the winding's resistance factor.
+    reference_v: f32,
+    /// 1 / `reference_v`, 1/V.
+    per_reference_v: f32,
 }
 
 impl SupplyFilter {
@@ -65,7 +82,20 @@ impl SupplyFilter {
         Self {
             supply_v: None,
             duty_scale: 1.0,
+            reference_v: REFERENCE_SUPPLY_V,
+            per_reference_v: 1.0 / REFERENCE_SUPPLY_V,
         }
+    }
+
+    /// The winding is `factor` times as resistive as at calibration (`winding.rs`): every duty
+    /// is scaled by it from now on.
+    pub(super) fn set_winding_factor(&mut self, factor: f32) {
+        self.reference_v = REFERENCE_SUPPLY_V * factor;
+        self.per_reference_v = 1.0 / self.reference_v;
+        self.duty_scale = match self.supply_v {
+            Some(v) => self.reference_v / v,
+            None => factor,
+        };
     }
 
     /// Take this tick's reading (`None`: none this tick, the filtered value stands). The first
@@ -79,7 +109,7 @@ impl SupplyFilter {
             None => v,
         };
         self.supply_v = Some(filtered);
-        self.duty_scale = REFERENCE_SUPPLY_V / filtered;
+        self.duty_scale = self.reference_v / filtered;
     }
 
     /// The filtered supply, V; `None` where it is not measured.
@@ -105,14 +135,16 @@ impl SupplyFilter {
     pub(super) fn full_duty_torque_nm(&self, config: &DeviceConfig) -> f32 {
         match self.supply_v {
             Some(v) => {
-                (v * (1.0 / REFERENCE_SUPPLY_V) - config.breakaway_duty) * config.torque_per_duty_nm
+                (v * self.per_reference_v - config.breakaway_duty) * config.torque_per_duty_nm
             }
             None => f32::INFINITY,
         }
     }
 }
 
-/// The least supply at which `torque_nm` is reachable at full duty, V.
+/// The least supply at which `torque_nm` is reachable at full duty with the winding as at
+/// calibration, V. A run is refused on this figure, not on the warm winding's: warmth passes
+/// within minutes, and a run it leaves short of torque is flagged `SUPPLY_LIMITED` (module docs).
 pub(super) fn needed_supply_v(config: &DeviceConfig, torque_nm: f32) -> f32 {
     REFERENCE_SUPPLY_V * (config.breakaway_duty + torque_nm / config.torque_per_duty_nm)
 }
@@ -184,6 +216,25 @@ mod tests {
         let needed = needed_supply_v(&config, full);
         assert!((needed - REFERENCE_SUPPLY_V).abs() < 1e-4, "{needed}");
         assert_eq!(millivolts(11.3899), 11_390);
+    }
+
+    #[test]
+    fn a_warm_winding_scales_the_duty_and_what_full_duty_gives() {
+        let config = DeviceConfig::DEFAULT;
+        let mut f = SupplyFilter::new();
+        f.set_winding_factor(1.25);
+        assert_eq!(f.duty_scale(), 1.25, "not measured: the factor alone");
+        f.update(Some(24.0));
+        assert!((f.duty_scale() - 0.625).abs() < 1e-6, "{}", f.duty_scale());
+        // Full duty at 12 V gives a quarter less drive over breakaway's share...
+        let mut f12 = SupplyFilter::new();
+        f12.update(Some(REFERENCE_SUPPLY_V));
+        f12.set_winding_factor(1.25);
+        let full = f12.full_duty_torque_nm(&config);
+        assert!((full - (0.8 - 0.04) * 0.88).abs() < 1e-5, "{full}");
+        // Back to the reference.
+        f12.set_winding_factor(1.0);
+        assert!((f12.duty_scale() - 1.0).abs() < 1e-6);
         assert_eq!(millivolts(100.0), u16::MAX);
     }
 }

@@ -16,6 +16,17 @@ struct Script {
     angle_deg: f32,
     /// The supply reading every tick gets (`None`: not measured).
     supply_v: Option<f32>,
+    /// The scripted winding's resistance over the calibration's: the current a tick reads is
+    /// what the last output's duty drives through it at standstill.
+    winding_factor: f32,
+    /// The last output.
+    last_out: MotorOutput,
+}
+
+/// The winding's resistance the default configuration implies, Ω (0.157 · 12 / 0.88).
+fn reference_ohm() -> f32 {
+    let c = DeviceConfig::DEFAULT;
+    c.torque_per_amp_nm * REFERENCE_SUPPLY_V / c.torque_per_duty_nm
 }
 
 impl Script {
@@ -25,6 +36,8 @@ impl Script {
             now_us: 0,
             angle_deg: 0.0,
             supply_v: None,
+            winding_factor: 1.0,
+            last_out: MotorOutput::SAFE,
         };
         s.tick();
         s
@@ -34,10 +47,20 @@ impl Script {
         Inputs {
             angle_deg: Ok(self.angle_deg),
             diagnostics: None,
-            current_a: Some(0.5),
+            current_a: Some(self.current_a()),
             driver_fault: false,
             supply_v: self.supply_v,
         }
+    }
+
+    /// The current the last output drives through the scripted winding at standstill, A.
+    fn current_a(&self) -> f32 {
+        let out = self.last_out;
+        if !out.awake {
+            return 0.0;
+        }
+        let supply_v = self.supply_v.unwrap_or(REFERENCE_SUPPLY_V);
+        out.duty * supply_v / (self.winding_factor * reference_ohm())
     }
 
     fn tick(&mut self) -> MotorOutput {
@@ -53,6 +76,7 @@ impl Script {
     fn tick_after(&mut self, gap_us: u64, inputs: &Inputs) -> MotorOutput {
         self.now_us += gap_us;
         let out = self.c.step(self.now_us, inputs);
+        self.last_out = out;
         // A host that polls every 10 ms.
         if (self.now_us / PERIOD_US).is_multiple_of(10) {
             self.c.host_activity(self.now_us);
@@ -1071,5 +1095,103 @@ fn over_current_trips_on_the_mean_of_four_readings_or_one_twice_the_limit() {
             }
         }
         assert_eq!(latched, trips_at, "{currents:?}");
+    }
+}
+
+/// A scripted run on a winding `winding_factor` times as resistive as at calibration, on 12 V,
+/// jamming at 60°: the duty 10 ticks into the hold, and the result.
+fn run_on_winding(s: &mut Script, winding_factor: f32) -> (f32, KerfResult) {
+    s.winding_factor = winding_factor;
+    s.start(RunParams::DEFAULT);
+    let mut held = None;
+    let mut jammed_ticks = 0;
+    for _ in 0..5000 {
+        if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
+            s.angle_deg += 0.06;
+        }
+        let out = s.tick();
+        if s.state() == RunState::Jammed {
+            jammed_ticks += 1;
+            if jammed_ticks == 10 {
+                held = Some(out.duty);
+            }
+        }
+        if s.state() == RunState::Done {
+            break;
+        }
+    }
+    (held.expect("a hold"), *s.c.result().expect("a result"))
+}
+
+/// Back to zero, as the reset would: the scripted hub is put there.
+fn back_to_zero(s: &mut Script) {
+    s.angle_deg = 0.0;
+    for _ in 0..30 {
+        s.tick();
+    }
+}
+
+#[test]
+fn a_warm_winding_is_measured_at_the_jam_and_the_duty_scaled_by_it() {
+    let mut cold = on_supply(12.0);
+    let (cold_duty, cold_result) = run_on_winding(&mut cold, 1.0);
+    assert!(cold_result.flags.is_empty(), "{:?}", cold_result.flags);
+    assert!((cold.c.winding.factor() - 1.0).abs() < 0.01);
+    // 30 % more resistance (a winding at 102 °C): measured at the settle, the hold of the same
+    // run drives 30 % more duty for the same commanded torque.
+    let mut warm = on_supply(12.0);
+    let (warm_duty, warm_result) = run_on_winding(&mut warm, 1.3);
+    let factor = warm.c.winding.factor();
+    assert!((factor - 1.3).abs() < 0.01, "{factor}");
+    assert!(
+        (warm_duty / cold_duty - 1.3).abs() < 0.01,
+        "{warm_duty} vs {cold_duty}"
+    );
+    assert!(warm_result.flags.is_empty(), "{:?}", warm_result.flags);
+    assert!((warm_result.torque_at_jam_nm - cold_result.torque_at_jam_nm).abs() < 1e-3);
+    // Kept for the next run, whose engage starts from it; and the winding cooling back is
+    // measured again.
+    back_to_zero(&mut warm);
+    warm.start(RunParams::DEFAULT);
+    let mut engage = MotorOutput::SAFE;
+    for _ in 0..60 {
+        engage = warm.tick();
+    }
+    back_to_zero(&mut cold);
+    cold.start(RunParams::DEFAULT);
+    let mut cold_engage = MotorOutput::SAFE;
+    for _ in 0..60 {
+        cold_engage = cold.tick();
+    }
+    assert!(
+        (engage.duty / cold_engage.duty - 1.3).abs() < 0.01,
+        "{engage:?} vs {cold_engage:?}"
+    );
+    warm.host().abort();
+    back_to_zero(&mut warm);
+    let (cooled_duty, _) = run_on_winding(&mut warm, 1.1);
+    assert!((warm.c.winding.factor() - 1.1).abs() < 0.01);
+    assert!((cooled_duty / cold_duty - 1.1).abs() < 0.01);
+}
+
+#[test]
+fn a_current_that_disagrees_with_the_duty_flags_a_torque_mismatch() {
+    // Twice the resistance the configuration implies (or a torque constant half the
+    // configured one): more than warmth and gain errors explain.
+    for (factor, held) in [(2.0, 1.61), (0.7, 0.76)] {
+        let mut s = on_supply(12.0);
+        let (_, result) = run_on_winding(&mut s, factor);
+        assert!(
+            result.flags.contains(QualityFlags::TORQUE_MISMATCH),
+            "{factor}: {:?}",
+            result.flags
+        );
+        assert_eq!(s.c.winding.factor(), held, "held to the plausible range");
+    }
+    // Near the range's edges: explained, no flag (on 24 V, where full duty gives the torque).
+    for factor in [0.8, 1.55] {
+        let mut s = on_supply(24.0);
+        let (_, result) = run_on_winding(&mut s, factor);
+        assert!(result.flags.is_empty(), "{factor}: {:?}", result.flags);
     }
 }

@@ -183,7 +183,8 @@ pub const SELFTEST_DIRECTION_MIN_DEG: f32 = 1.0;
 /// standstill.
 pub const SELFTEST_SETTLE_TICKS: u32 = 150;
 /// Self-test: duty of the torque-constant pulse (from standstill), at the reference supply (12 V):
-/// scaled by the measured supply like every duty, so the pulse draws the same current (3.4 A at
+/// scaled by the measured supply (and the winding's factor, `winding.rs`) like every duty, so the
+/// pulse draws the same current (3.4 A at
 /// standstill on the reference motor, under the default 6.5 A limit) and gives the same estimate
 /// on any supply. High enough that at 24–26 V, where the scaled duty is least (0.28–0.3), the
 /// current stands well above the current sense's noise and offset error divided by the duty, and
