@@ -23,7 +23,7 @@
 //! takes over the first piece's layer, colour, linetype and lineweight. Everything else is written
 //! back as read. A drawing older than R14 (which has no `LWPOLYLINE`) is written as R2000. What was
 //! applied is recorded in `999` comments at the top of the file (see
-//! [`compensation`](crate::compensation)).
+//! [`compensation`]).
 
 use std::collections::HashMap;
 use std::io::Cursor;

@@ -41,7 +41,7 @@
 //! * Open subpaths of a cut element are kept as drawn (re-emitted in the element's coordinates)
 //!   and reported.
 //! * What was applied is recorded right after the root's start tag (a comment and a `<metadata>`
-//!   element, see [`compensation`](crate::compensation)), replacing an earlier record of this
+//!   element, see [`compensation`]), replacing an earlier record of this
 //!   tool's.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
