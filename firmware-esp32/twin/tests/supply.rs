@@ -3,8 +3,11 @@
 //! kerf from 9 to 26 V; a run whose torque the supply cannot give is refused with the figures,
 //! and a supply outside the rated 9–26 V blocks a run.
 
+mod common;
+use common::measure;
+
 use kerfmeter_protocol::{
-    Conditions, ErrorCode, Fault, KerfResult, Request, Response, RunParams, RunState,
+    Conditions, ErrorCode, KerfResult, Request, Response, RunParams, RunState,
 };
 use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{Twin, TwinOptions};
@@ -23,26 +26,6 @@ fn twin(supply_v: f64, kerf_um: f64, seed: u64) -> Twin {
     // Long enough for the supply filter (32 ms) to settle on the idle supply.
     t.advance_ticks(100);
     t
-}
-
-/// Run one measurement, polling like a host every 10 ms; the result or the fault.
-fn measure(t: &mut Twin, params: &RunParams) -> Result<KerfResult, Fault> {
-    assert_eq!(t.request(&Request::Run(*params)), Response::Ok);
-    for _ in 0..3000 {
-        t.advance_ticks(10);
-        let Response::Status(s) = t.request(&Request::GetStatus) else {
-            panic!("a status");
-        };
-        match s.state {
-            RunState::Done => match t.request(&Request::GetKerf) {
-                Response::Kerf(Some(k)) => return Ok(k),
-                other => panic!("no result after Done: {other:?}"),
-            },
-            RunState::Fault(f) => return Err(f),
-            _ => {}
-        }
-    }
-    panic!("the run neither finished nor faulted in 30 s");
 }
 
 /// The device-added error of a run at `supply_v` on kerf `kerf_um`, µm, and its result.

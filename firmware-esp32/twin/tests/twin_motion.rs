@@ -2,29 +2,15 @@
 //! configuration changes (output and motor shaft), and `Reset` between gauges when the motor is
 //! weaker than its calibration says (a hot winding, a low supply).
 
+mod common;
+use common::measure;
+
 use kerfmeter_protocol::{
     DeviceConfig, EncoderPlacement, ErrorCode, Fault, KerfResult, Request, Response, RunParams,
     RunState, Status,
 };
 use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{Twin, TwinOptions};
-
-/// Run one measurement, polling like a host every 10 ms; the run's end or its fault.
-fn measure(twin: &mut Twin, params: &RunParams) -> Result<KerfResult, Fault> {
-    assert_eq!(twin.request(&Request::Run(*params)), Response::Ok);
-    for _ in 0..3000 {
-        twin.advance_ticks(10);
-        match status(twin).state {
-            RunState::Done => match twin.request(&Request::GetKerf) {
-                Response::Kerf(Some(k)) => return Ok(k),
-                other => panic!("no result after Done: {other:?}"),
-            },
-            RunState::Fault(f) => return Err(f),
-            _ => {}
-        }
-    }
-    panic!("the run neither finished nor faulted in 30 s");
-}
 
 /// Reset, polling every 10 ms; `Ok` in `Idle`, or the fault it ended in.
 fn reset(twin: &mut Twin) -> Result<(), Fault> {

@@ -1,30 +1,13 @@
 //! The firmware measuring on the digital twin, in-process: real drivers and controller, fake
 //! peripherals, physics.
 
-use kerfmeter_protocol::{Fault, KerfResult, QualityFlags, Request, Response, RunParams, RunState};
+mod common;
+use common::measure;
+
+use kerfmeter_protocol::{Fault, QualityFlags, Request, Response, RunParams, RunState};
 use kerfmeter_twin::encoder::EncoderErrors;
 use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{InjectedFault, Twin, TwinOptions};
-
-/// Run one measurement, polling like a host every 10 ms; the run's end or its fault.
-fn measure(twin: &mut Twin, params: &RunParams) -> Result<KerfResult, Fault> {
-    assert_eq!(twin.request(&Request::Run(*params)), Response::Ok);
-    for _ in 0..3000 {
-        twin.advance_ticks(10);
-        match twin.request(&Request::GetStatus) {
-            Response::Status(s) => match s.state {
-                RunState::Done => match twin.request(&Request::GetKerf) {
-                    Response::Kerf(Some(k)) => return Ok(k),
-                    other => panic!("no result after Done: {other:?}"),
-                },
-                RunState::Fault(f) => return Err(f),
-                _ => {}
-            },
-            other => panic!("{other:?}"),
-        }
-    }
-    panic!("the run neither finished nor faulted in 30 s");
-}
 
 fn reset(twin: &mut Twin) {
     assert_eq!(twin.request(&Request::Reset), Response::Ok);

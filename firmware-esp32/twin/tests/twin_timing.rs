@@ -2,12 +2,15 @@
 //! another host's bursts, flash operations that stall the core, and the watchdog that resets it
 //! mid-erase.
 
+mod common;
+use common::measure;
+
 use kerfmeter_firmware::build::FLASH_WATCHDOG_TIMEOUT_MS;
 use kerfmeter_firmware::controller::{MAX_GAP_PERIODS, PERIOD_US};
 use kerfmeter_firmware::link::FRAMES_PER_TICK;
 use kerfmeter_protocol::{
-    Deframer, DeviceConfig, Envelope, Fault, Feed, KerfResult, MAX_REQUEST_FRAME_LEN,
-    MAX_RESPONSE_FRAME_LEN, Request, Response, RunParams, RunState, encode_frame,
+    Deframer, DeviceConfig, Envelope, Fault, Feed, MAX_REQUEST_FRAME_LEN, MAX_RESPONSE_FRAME_LEN,
+    Request, Response, RunParams, RunState, encode_frame,
 };
 use kerfmeter_twin::sim::MAX_LEAD_MS;
 use kerfmeter_twin::{Twin, TwinOptions};
@@ -36,26 +39,6 @@ fn tick_times(t: &mut Twin, n: usize) -> Vec<u64> {
             at
         })
         .collect()
-}
-
-/// Run one measurement, polling like a host every 10 ms; the run's end or its fault.
-fn measure(t: &mut Twin) -> Result<KerfResult, Fault> {
-    assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
-    for _ in 0..3000 {
-        t.advance_ticks(10);
-        let Response::Status(s) = t.request(&Request::GetStatus) else {
-            panic!("no status");
-        };
-        match s.state {
-            RunState::Done => match t.request(&Request::GetKerf) {
-                Response::Kerf(Some(k)) => return Ok(k),
-                other => panic!("no result after Done: {other:?}"),
-            },
-            RunState::Fault(f) => return Err(f),
-            _ => {}
-        }
-    }
-    panic!("the run neither finished nor faulted in 30 s");
 }
 
 /// A configuration told apart by `n`.
@@ -170,9 +153,13 @@ fn late_ticks_at_the_twins_upper_range_are_ridden_through() {
     // largest jitter: the reset and the run end as without them, to within the noise.
     let upper = ["late_ticks_per_s=5", "late_tick_ms=5", "tick_jitter_us=200"];
     let mut t = twin(&upper);
-    let unlate = measure(&mut twin(&["late_ticks_per_s=0", "tick_jitter_us=200"])).unwrap();
+    let unlate = measure(
+        &mut twin(&["late_ticks_per_s=0", "tick_jitter_us=200"]),
+        &RunParams::DEFAULT,
+    )
+    .unwrap();
     assert_eq!(reset(&mut t), RunState::Idle);
-    let late = measure(&mut t).unwrap();
+    let late = measure(&mut t, &RunParams::DEFAULT).unwrap();
     assert!(
         (late.kerf_um - unlate.kerf_um).abs() < 3.0,
         "{} µm vs {} µm on time",
@@ -192,7 +179,10 @@ fn a_tick_later_than_the_firmware_rides_through_faults_a_run_with_the_motor_safe
         o.plant.late_ticks_per_s = 5.0;
         o.plant.late_tick_ms = MAX_GAP_PERIODS as f64;
     });
-    assert_eq!(measure(&mut t), Err(Fault::StepOverrun));
+    assert_eq!(
+        measure(&mut t, &RunParams::DEFAULT),
+        Err(Fault::StepOverrun)
+    );
     assert!(t.motor_safe());
 }
 
@@ -204,7 +194,10 @@ fn frequent_late_ticks_fault_a_run_with_the_motor_safe() {
         o.plant.late_ticks_per_s = 50.0;
         o.plant.late_tick_ms = 4.0;
     });
-    assert_eq!(measure(&mut t), Err(Fault::StepOverrun));
+    assert_eq!(
+        measure(&mut t, &RunParams::DEFAULT),
+        Err(Fault::StepOverrun)
+    );
     assert!(t.motor_safe());
 }
 
@@ -285,7 +278,7 @@ fn a_burst_of_host_frames_does_not_fault_a_run() {
         "frame_cost_us=100",
         "host_burst_period_ms=100",
     ]);
-    measure(&mut t).unwrap();
+    measure(&mut t, &RunParams::DEFAULT).unwrap();
 }
 
 #[test]
@@ -463,5 +456,5 @@ fn the_step_of_a_stalled_pass_runs_before_the_host_hears_back() {
         other => panic!("{other:?}"),
     };
     assert_eq!(status.state, RunState::Idle, "{status:?}");
-    measure(&mut t).unwrap();
+    measure(&mut t, &RunParams::DEFAULT).unwrap();
 }
