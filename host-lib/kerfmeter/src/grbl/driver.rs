@@ -320,14 +320,8 @@ impl Cutter {
                     total: streamer.total(),
                 });
             }
-            while let Some(bytes) = streamer.next_to_send() {
-                self.write(&bytes)?;
-                max_unanswered_bytes = max_unanswered_bytes.max(streamer.unanswered_bytes());
-            }
-            if last_poll.is_none_or(|t| t.elapsed() >= self.options.poll_interval) {
-                self.write(b"?")?;
-                last_poll = Some(Instant::now());
-            }
+            let unanswered_bytes = self.send_ready(streamer, &mut last_poll)?;
+            max_unanswered_bytes = max_unanswered_bytes.max(unanswered_bytes);
             let lines = self.read_available()?;
             if !lines.is_empty() {
                 last_heard = Instant::now();
@@ -364,6 +358,22 @@ impl Cutter {
                 return Err(self.silent("streaming"));
             }
         }
+    }
+
+    /// Send every line that fits, and a status request when one is due; the bytes unanswered.
+    fn send_ready(
+        &mut self,
+        streamer: &mut Streamer,
+        last_poll: &mut Option<Instant>,
+    ) -> Result<usize, CutterError> {
+        while let Some(bytes) = streamer.next_to_send() {
+            self.write(&bytes)?;
+        }
+        if last_poll.is_none_or(|t| t.elapsed() >= self.options.poll_interval) {
+            self.write(b"?")?;
+            *last_poll = Some(Instant::now());
+        }
+        Ok(streamer.unanswered_bytes())
     }
 
     /// Act on one reply while streaming; a status report is returned.
