@@ -182,6 +182,8 @@ fn a_hard_limit_stops_everything_and_only_a_reset_is_heard() {
     grbl.advance_us(1_000_000);
     assert_eq!(said(&mut grbl), "ALARM:1\r\n[MSG:Reset to continue]\r\n");
     assert_eq!(line(&mut grbl, "$X"), "", "nothing but a reset is heard");
+    grbl.receive(b"?");
+    assert_eq!(said(&mut grbl), "", "not even a status request");
     grbl.receive(&[SOFT_RESET]);
     assert!(said(&mut grbl).contains("'$X' to unlock"));
     let record = grbl.log().snapshot();

@@ -156,6 +156,8 @@ impl Grbl {
         let mut lost_bytes = 0;
         for &b in bytes {
             match b {
+                // After a hard limit GRBL services nothing but a reset, not even `?`.
+                b'?' if self.critical => {}
                 b'?' => self.status_report(),
                 b'!' => self.feed_hold(),
                 b'~' => self.resume(),

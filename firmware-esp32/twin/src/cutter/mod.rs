@@ -31,7 +31,8 @@
 //!   completed hold or at rest keeps the position. Every reset turns the laser off, empties the
 //!   queue and the buffer, prints the banner, and keeps an alarm until `$X`.
 //! - Injected faults ([`CutterOptions`]): boot in alarm (as a machine with homing enabled), a
-//!   hard limit after some motion time (`ALARM:1`, then nothing but a reset is heard), an
+//!   hard limit after some motion time (`ALARM:1`, then nothing but a reset is heard, not even
+//!   `?`, as in GRBL's code), an
 //!   `error:N` for the Nth G-code line.
 //!
 //! Everything it did is recorded in its [`CutterLog`] ([`trace`]).

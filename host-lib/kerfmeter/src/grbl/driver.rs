@@ -428,6 +428,13 @@ impl Cutter {
                 break;
             }
         }
+        self.reset()
+    }
+
+    /// Soft reset (ctrl-X) and wait for the banner: the queue is emptied, the laser off. A
+    /// machine in motion raises `ALARM:3` (its position may be lost); [`Cutter::stop`] holds
+    /// first to avoid that.
+    pub fn reset(&mut self) -> Result<(), CutterError> {
         self.write(&[SOFT_RESET])?;
         let mut seen = Vec::new();
         if self.await_banner(self.options.reply_timeout, &mut seen)? {
@@ -437,9 +444,14 @@ impl Cutter {
         }
     }
 
-    /// `cause`, after stopping the cutter (or both, when it cannot be stopped).
+    /// `cause`, after stopping the cutter (or both, when it cannot be stopped). After an alarm
+    /// the machine has stopped already and may hear nothing but a reset.
     fn stop_after(&mut self, cause: CutterError) -> CutterError {
-        match self.stop() {
+        let stopped = match cause {
+            CutterError::Alarm { .. } => self.reset(),
+            _ => self.stop(),
+        };
+        match stopped {
             Ok(()) => cause,
             Err(stop) => CutterError::NotStopped {
                 cause: Box::new(cause),

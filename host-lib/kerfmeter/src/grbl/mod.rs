@@ -23,7 +23,8 @@
 //! receive buffer unanswered, each `ok`/`error:N` matched to its line in order. It polls the
 //! state (`?`) meanwhile, and returns once every line is accepted and the machine reports Idle
 //! twice. Every failure stops the cutter before it is returned ([`Cutter::stop`]: feed hold `!`,
-//! then soft reset ctrl-X, which empties the queue and turns the laser off): a refused line
+//! then soft reset ctrl-X, which empties the queue and turns the laser off; after an alarm, which
+//! has stopped the machine already, the reset alone): a refused line
 //! (reported with its line number in the file, its text and the code's meaning), an alarm (with
 //! the last line accepted), silence, a restart, and a cancel flag set (Ctrl-C). If even stopping
 //! fails, the error says so and asks for the laser to be switched off at the machine.
