@@ -1,7 +1,8 @@
 //! Why a command failed, and the process's exit code for it. The code comes from the error's
 //! category and from nothing else: 0 success; 2 bad arguments; 3 communication error (port,
-//! timeout, protocol, device restarted); 4 the device refused, faulted, failed its self-test or
-//! could not finish, or a file could not be read or written.
+//! timeout, protocol, device restarted, or the same with the cutter); 4 the device refused,
+//! faulted, failed its self-test or could not finish, the cutter refused a line, raised an alarm
+//! or was stopped (Ctrl-C), or a file could not be read or written.
 
 use kerfmeter::grbl::CutterError;
 use kerfmeter::{Category, Error};

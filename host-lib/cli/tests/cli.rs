@@ -635,3 +635,27 @@ fn ctrl_c_during_cut_stops_the_cutter_and_fails() {
     assert!(rest.contains("cancelled after"), "{rest}");
     assert!(rest.contains("laser is off"), "{rest}");
 }
+
+#[test]
+fn the_twin_binary_serves_the_cutter_on_tcp_for_cut() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let mut twin = Command::new(env!("CARGO_BIN_EXE_kerfmeter-twin"))
+        .args(["--cutter", "--tcp", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut url = String::new();
+    BufReader::new(twin.stdout.take().unwrap())
+        .read_line(&mut url)
+        .unwrap();
+    let url = url.trim().to_owned();
+    assert!(url.starts_with("grbl+tcp://127.0.0.1:"), "{url}");
+    let (_dir, file) = gcode_file(SQUARE_GCODE);
+    let out = kerfmeter(&["--json", "cut", path(&file), "--cutter", &url]);
+    twin.kill().unwrap();
+    twin.wait().unwrap();
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(stdout(&out).contains("\"lines\":10"), "{}", stdout(&out));
+}

@@ -52,7 +52,7 @@ struct Args {
     #[arg(long)]
     list_plant: bool,
     /// Serve the cutter twin (a simulated GRBL 1.1 laser cutter) instead of the device.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["fault", "material", "plant_file", "plant", "list_plant"])]
     cutter: bool,
     /// Cutter twin: serve on this loopback TCP port (0: any free one) instead of a
     /// pseudo-terminal.
