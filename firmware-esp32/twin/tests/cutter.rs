@@ -222,3 +222,59 @@ fn what_it_does_not_understand_is_an_error_not_silence() {
     assert_eq!(line(&mut grbl, "$32=0"), "ok\r\n");
     assert!(line(&mut grbl, "$$").contains("$32=0\r\n"));
 }
+
+proptest::proptest! {
+    /// Whatever a sender writes, and whenever, the twin answers without panicking, and its
+    /// receive buffer never holds more than GRBL's.
+    #[test]
+    fn any_bytes_at_any_time_are_survived(
+        chunks in proptest::collection::vec(
+            (
+                proptest::collection::vec(
+                    proptest::prop_oneof![
+                        proptest::sample::select(b"G0123XYZIJFSMP$=.-?!~\n\r ;()".to_vec()),
+                        proptest::num::u8::ANY,
+                    ],
+                    0..64,
+                ),
+                0u64..5_000_000,
+            ),
+            0..24,
+        )
+    ) {
+        let mut grbl = cutter(CutterOptions::default());
+        for (bytes, dt_us) in chunks {
+            grbl.receive(&bytes);
+            grbl.advance_us(dt_us);
+            grbl.receive(b"?");
+            let out = grbl.take_output();
+            let text = String::from_utf8_lossy(&out);
+            if let Some(start) = text.rfind("|Bf:") {
+                let free: Vec<usize> = text[start + 4..]
+                    .split(['|', '>'])
+                    .next()
+                    .unwrap()
+                    .split(',')
+                    .map(|n| n.parse().unwrap())
+                    .collect();
+                proptest::prop_assert!(free[1] <= RX_BUFFER_LEN);
+            }
+        }
+    }
+
+    /// Huge values (as many digits as a line holds) are errors or long moves, never an
+    /// overflow, even held and reset.
+    #[test]
+    fn huge_numbers_are_survived(
+        value in 1e3f64..1e70,
+        letter in proptest::sample::select(vec!['X', 'P', 'I']),
+    ) {
+        let mut grbl = cutter(CutterOptions::default());
+        let text = format!("F100\nG1 {letter}{value:.0}\nG2 X1 I{value:.0}\nG4 P{value:.0}\n");
+        grbl.receive(text.as_bytes());
+        grbl.advance_us(1_000);
+        grbl.receive(b"!");
+        grbl.advance_us(u64::MAX / 4);
+        grbl.receive(&[SOFT_RESET]);
+    }
+}

@@ -212,7 +212,10 @@ impl Grbl {
         let (mut step_us, speed_divisor) = match &mut self.hold {
             Hold::Complete => return 0,
             Hold::Decelerating { remaining_us } => {
-                let step_us = max_us.min(left_in_move_us * 2).min(*remaining_us).max(1);
+                let step_us = max_us
+                    .min(left_in_move_us.saturating_mul(2))
+                    .min(*remaining_us)
+                    .max(1);
                 *remaining_us = remaining_us.saturating_sub(step_us);
                 if *remaining_us == 0 {
                     self.hold = Hold::Complete;
@@ -222,7 +225,7 @@ impl Grbl {
             Hold::None => (max_us.min(left_in_move_us), 1),
         };
         if let Some(limit_ms) = self.options.hard_limit_after_ms {
-            let left_us = (limit_ms * 1000).saturating_sub(self.motion_us);
+            let left_us = limit_ms.saturating_mul(1000).saturating_sub(self.motion_us);
             if left_us == 0 {
                 self.hard_limit();
                 return max_us;
