@@ -387,4 +387,31 @@ mod tests {
         let mut fresh = Streamer::new(Vec::new());
         assert_eq!(fresh.answer(), Err(UnexpectedReply));
     }
+
+    proptest::proptest! {
+        /// Any text: what is sent is short, printable and free of realtime characters; any
+        /// order of sends and answers keeps the window; any reply line is classified.
+        #[test]
+        fn any_program_streams_within_the_window(
+            program in "[ -~\n\t]{0,2000}",
+            answers in proptest::collection::vec(proptest::bool::ANY, 0..200),
+        ) {
+            let _ = parse_reply(&program);
+            let Ok(lines) = prepare(&program) else { return Ok(()) };
+            for line in &lines {
+                proptest::prop_assert!(line.text.len() <= LINE_MAX_LEN);
+                proptest::prop_assert!(!line.text.contains(['?', '!', '~']));
+                proptest::prop_assert!(line.text.bytes().all(|b| b.is_ascii_graphic()));
+            }
+            let mut streamer = Streamer::new(lines);
+            for answer in answers {
+                if answer {
+                    let _ = streamer.answer();
+                } else {
+                    let _ = streamer.next_to_send();
+                }
+                proptest::prop_assert!(streamer.unanswered_bytes() <= RX_BUFFER_LEN);
+            }
+        }
+    }
 }
