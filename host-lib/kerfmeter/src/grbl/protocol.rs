@@ -119,7 +119,11 @@ pub fn parse_reply(line: &str) -> Reply {
     if let Some(n) = line.strip_prefix("ALARM:").and_then(code) {
         return Reply::Alarm(n);
     }
-    if let Some(rest) = line.strip_prefix("Grbl ") {
+    // GRBL's banner; grblHAL names itself `GrblHAL`, FluidNC says `Grbl 3.x [FluidNC ...]`.
+    if let Some(rest) = line
+        .strip_prefix("Grbl ")
+        .or_else(|| line.strip_prefix("GrblHAL "))
+    {
         let version = rest.split_whitespace().next().unwrap_or_default();
         return Reply::Banner(version.to_owned());
     }
@@ -362,6 +366,10 @@ mod tests {
             parse_reply("Grbl 1.1h ['$' for help]"),
             Reply::Banner("1.1h".into())
         );
+        let fluidnc = "Grbl 3.7 [FluidNC v3.7.8 (wifi) '$' for help]";
+        assert_eq!(parse_reply(fluidnc), Reply::Banner("3.7".into()));
+        let grblhal = "GrblHAL 1.1f ['$' or '$HELP' for help]";
+        assert_eq!(parse_reply(grblhal), Reply::Banner("1.1f".into()));
         assert_eq!(parse_reply("$32=1"), Reply::Setting(32, 1.0));
         let Reply::Status(s) = parse_reply("<Hold:0|MPos:1.000,2.500,0.000|Bf:15,128|FS:0,0>")
         else {
