@@ -96,6 +96,7 @@ pub struct Grbl {
     current: Option<(Move, u64)>,
     machine_pos: Point,
     pub(super) hold: Hold,
+    /// The alarm state: the code raised, or 0 when it booted locked without one.
     pub(super) alarm: Option<u8>,
     critical: bool,
     gcode_lines: u32,

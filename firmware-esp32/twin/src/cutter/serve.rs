@@ -2,6 +2,10 @@
 //! an ordinary serial port, as a USB GRBL board is) or on a loopback TCP port (as FluidNC and
 //! other networked controllers are). Simulated time runs in lock-step (fast) or at the wall
 //! clock ([`Pace`]).
+//!
+//! It has its own loop rather than the device's [`crate::serve()`]: a cutter speaks unprompted
+//! (an `ok` once its planner frees a block, an alarm in the middle of a move), while the device
+//! only answers what it receives.
 
 use std::io::{self, Read, Write};
 use std::net::{Ipv4Addr, TcpListener, TcpStream};
