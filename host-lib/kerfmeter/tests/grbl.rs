@@ -252,3 +252,112 @@ fn something_that_is_not_grbl_is_named_in_the_error() {
     assert!(error.to_string().contains("SSH-2.0-OpenSSH"), "{error}");
     talker.join().unwrap();
 }
+
+/// A scripted controller for the failures the twin does not stage: it answers the connect like
+/// GRBL, then, after `good_lines` program lines, restarts (`restart`) or falls silent for good.
+struct Scripted {
+    out: std::collections::VecDeque<u8>,
+    good_lines: usize,
+    restart: bool,
+    lines: usize,
+    silent: bool,
+}
+
+impl Scripted {
+    fn new(good_lines: usize, restart: bool) -> Self {
+        let mut out = std::collections::VecDeque::new();
+        out.extend(b"\r\nGrbl 1.1h ['$' for help]\r\n");
+        Self {
+            out,
+            good_lines,
+            restart,
+            lines: 0,
+            silent: false,
+        }
+    }
+
+    fn say(&mut self, text: &str) {
+        if !self.silent {
+            self.out.extend(text.as_bytes());
+        }
+    }
+}
+
+impl Write for Scripted {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        for line in bytes.split_inclusive(|&b| b == b'\n') {
+            match line {
+                b"?" => self.say("<Idle|MPos:0.000,0.000,0.000|FS:0,0>\r\n"),
+                b"!" => {}
+                [0x18] => self.say("\r\nGrbl 1.1h ['$' for help]\r\n"),
+                b"$$\n" => self.say("$32=1\r\nok\r\n"),
+                _ => {
+                    self.lines += 1;
+                    if self.lines <= self.good_lines {
+                        self.say("ok\r\n");
+                    } else if self.restart {
+                        self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
+                    } else {
+                        self.silent = true;
+                    }
+                }
+            }
+        }
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Read for Scripted {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.out.is_empty() {
+            std::thread::sleep(Duration::from_millis(1));
+            return Err(std::io::ErrorKind::TimedOut.into());
+        }
+        let n = buf.len().min(self.out.len());
+        for (slot, byte) in buf.iter_mut().zip(self.out.drain(..n)) {
+            *slot = byte;
+        }
+        Ok(n)
+    }
+}
+
+fn scripted(good_lines: usize, restart: bool) -> Cutter {
+    let quick = ConnectOptions {
+        reply_timeout: Duration::from_millis(200),
+        silence_timeout: Duration::from_millis(300),
+        ..options()
+    };
+    Cutter::connect(
+        Box::new(Scripted::new(good_lines, restart)),
+        "scripted".into(),
+        quick,
+    )
+    .unwrap()
+}
+
+#[test]
+fn a_controller_that_restarts_mid_job_is_reported() {
+    let mut cutter = scripted(3, true);
+    let error = stream(&mut cutter, "G1X1F100\n".repeat(6).as_str()).unwrap_err();
+    assert!(matches!(error, CutterError::Restarted), "{error}");
+}
+
+#[test]
+fn a_controller_that_falls_silent_cannot_be_stopped_and_the_error_says_so() {
+    let mut cutter = scripted(2, false);
+    let error = stream(&mut cutter, "G1X1F100\n".repeat(20).as_str()).unwrap_err();
+    let CutterError::NotStopped { cause, .. } = &error else {
+        panic!("{error}");
+    };
+    assert!(matches!(**cause, CutterError::Silent { .. }), "{error}");
+    assert!(
+        error
+            .to_string()
+            .contains("switch the laser off at the machine"),
+        "{error}"
+    );
+}
