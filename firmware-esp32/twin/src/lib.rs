@@ -17,6 +17,8 @@
 //! - [`pty`]: [`PtyTwin`], a twin served on a pseudo-terminal by a thread, whose client side is an
 //!   ordinary serial port.
 //! - [`study`]: many twins in-process: the robustness sweep and the paper's fit study.
+//! - [`cutter`]: the cutter twin, a simulated GRBL 1.1 laser cutter (sans-IO), and its server on
+//!   a pseudo-terminal or a TCP port, with a record of what its laser traced.
 //!
 //! # What the twin models
 //!
@@ -92,6 +94,7 @@
 //! sheet; a hole out of round, or a kerf that varies around the spiral rather than through the
 //! sheet; the zero the user sets being quantised to one LSB.
 
+pub mod cutter;
 pub mod encoder;
 pub mod options;
 pub mod plant;

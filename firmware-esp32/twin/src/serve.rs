@@ -149,7 +149,7 @@ pub fn serve<P: Read + Write + ?Sized>(
 }
 
 /// A read that found nothing in time (or was interrupted): try again.
-fn is_timeout(e: &io::Error) -> bool {
+pub(crate) fn is_timeout(e: &io::Error) -> bool {
     matches!(
         e.kind(),
         ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
@@ -157,7 +157,7 @@ fn is_timeout(e: &io::Error) -> bool {
 }
 
 /// A pseudo-terminal master reports `EIO` once the slave side is closed.
-fn is_hangup(e: &io::Error) -> bool {
+pub(crate) fn is_hangup(e: &io::Error) -> bool {
     e.raw_os_error() == Some(5)
         || matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::UnexpectedEof)
 }

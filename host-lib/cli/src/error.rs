@@ -1,8 +1,10 @@
 //! Why a command failed, and the process's exit code for it. The code comes from the error's
 //! category and from nothing else: 0 success; 2 bad arguments; 3 communication error (port,
-//! timeout, protocol, device restarted); 4 the device refused, faulted, failed its self-test or
-//! could not finish, or a file could not be read or written.
+//! timeout, protocol, device restarted, or the same with the cutter); 4 the device refused,
+//! faulted, failed its self-test or could not finish, the cutter refused a line, raised an alarm
+//! or was stopped (Ctrl-C), or a file could not be read or written.
 
+use kerfmeter::grbl::CutterError;
 use kerfmeter::{Category, Error};
 use kerfmeter_plan::PlanError;
 
@@ -25,6 +27,9 @@ pub enum CliError {
     /// A cutting plan could not be drawn, read or dilated.
     #[error(transparent)]
     Plan(#[from] PlanError),
+    /// The cutter failed, refused or was stopped.
+    #[error(transparent)]
+    Cutter(#[from] CutterError),
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
@@ -40,6 +45,7 @@ impl CliError {
             CliError::Plan(e) if e.path().is_some() => Category::File,
             CliError::Plan(_) => Category::Usage,
             CliError::SelfTestFailed => Category::Device,
+            CliError::Cutter(e) => e.category(),
         }
     }
 
@@ -47,7 +53,10 @@ impl CliError {
     pub fn fault(&self) -> Option<String> {
         match self {
             CliError::Meter(m) => m.fault().map(|f| format!("{f:?}")),
-            CliError::Usage(_) | CliError::Plan(_) | CliError::SelfTestFailed => None,
+            CliError::Usage(_)
+            | CliError::Plan(_)
+            | CliError::SelfTestFailed
+            | CliError::Cutter(_) => None,
         }
     }
 
@@ -55,7 +64,10 @@ impl CliError {
     pub fn conditions(&self) -> Vec<&'static str> {
         match self {
             CliError::Meter(m) => m.blocking_conditions().names().collect(),
-            CliError::Usage(_) | CliError::Plan(_) | CliError::SelfTestFailed => Vec::new(),
+            CliError::Usage(_)
+            | CliError::Plan(_)
+            | CliError::SelfTestFailed
+            | CliError::Cutter(_) => Vec::new(),
         }
     }
 }

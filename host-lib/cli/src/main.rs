@@ -29,7 +29,7 @@ mod tests;
 use commands::config::ConfigCommand;
 use commands::map::MapArgs;
 use commands::run::RunArgs;
-use commands::{dilate, gauge};
+use commands::{cut, dilate, gauge};
 use connection::Global;
 use error::{CliError, exit_code};
 use output::{ErrorReport, JsonLayout, emit, print_line, to_json};
@@ -78,6 +78,9 @@ enum Command {
     /// Dilate a cutting plan (SVG or DXF) by the measured kerf: cuts grow by half the kerf on
     /// each side, so parts come out at their drawn size.
     Dilate(dilate::DilateArgs),
+    /// Stream a G-code file to a laser cutter's GRBL controller (--cutter sim for the simulated
+    /// one). Refuses a cutter in alarm (--unlock) or without laser mode; Ctrl-C stops the cutter.
+    Cut(cut::CutArgs),
 }
 
 fn main() -> ExitCode {
@@ -118,5 +121,6 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Map(args) => emit(json, &map::run(g, args)?),
         Command::Gauge(args) => emit(json, &gauge::run(args)?),
         Command::Dilate(args) => emit(json, &dilate::run(g, args)?),
+        Command::Cut(args) => emit(json, &cut::run(g, args)?),
     }
 }

@@ -564,3 +564,98 @@ fn an_already_compensated_plan_is_refused_like_any_plan_error_and_the_flags_lead
     let both = kerfmeter(&[&args[..], &["--recompensate", "--already-compensated-ok"]].concat());
     assert_eq!(code(&both), 2);
 }
+
+/// A small program: a square with an arc, travels with the laser off.
+const SQUARE_GCODE: &str = "; a 20 mm square\nG21 G90\nM4 S0\nG0 X10 Y10\nG1 X30 Y10 S700 F1200\nG1 X30 Y30\nG2 X10 Y30 I-10 J0\nG1 X10 Y10\nM5\nG0 X0 Y0\nM2\n";
+
+fn gcode_file(text: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("job.gcode");
+    std::fs::write(&file, text).unwrap();
+    (dir, file)
+}
+
+#[test]
+fn cut_streams_a_program_to_the_simulated_cutter() {
+    let (_dir, file) = gcode_file(SQUARE_GCODE);
+    let out = kerfmeter(&["--json", "cut", path(&file), "--cutter", "sim"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    assert_eq!(report["lines"], 10);
+    assert_eq!(report["grbl_version"], "1.1h");
+    assert!(report["max_unanswered_bytes"].as_u64().unwrap() <= 128);
+}
+
+#[test]
+fn cut_refuses_an_unstreamable_program_and_reports_a_refused_line() {
+    let (_dir, file) = gcode_file("G0 X1\nG1 X2 F100 ?\n");
+    let out = kerfmeter(&["cut", path(&file), "--cutter", "sim"]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    assert!(stderr(&out).contains("line 2"), "{}", stderr(&out));
+    assert!(
+        !stderr(&out).contains("streaming"),
+        "refused before connecting"
+    );
+    let (_dir, file) = gcode_file("G0 X1\nG28\n");
+    let out = kerfmeter(&["cut", path(&file), "--cutter", "sim"]);
+    assert_eq!(code(&out), 4);
+    let message = stderr(&out);
+    assert!(message.contains("line 2 (G28) with error:20"), "{message}");
+    assert!(message.contains("laser is off"), "{message}");
+}
+
+#[test]
+fn ctrl_c_during_cut_stops_the_cutter_and_fails() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    // Long enough (hours of simulated motion) that only Ctrl-C ends it.
+    let long: String = (0..2000)
+        .map(|i| format!("G1 X{} Y0 S500 F600\n", 100 * (i % 2)))
+        .collect();
+    let (_dir, file) = gcode_file(&format!("M4\n{long}"));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+        .args(["cut", path(&file), "--cutter", "sim"])
+        .stderr(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut first = String::new();
+    stderr.read_line(&mut first).unwrap();
+    assert!(first.starts_with("streaming"), "{first}");
+    let interrupted = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(interrupted.success());
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(4), "{rest}");
+    assert!(rest.contains("cancelled after"), "{rest}");
+    assert!(rest.contains("laser is off"), "{rest}");
+}
+
+#[test]
+fn the_twin_binary_serves_the_cutter_on_tcp_for_cut() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let mut twin = Command::new(env!("CARGO_BIN_EXE_kerfmeter-twin"))
+        .args(["--cutter", "--tcp", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut url = String::new();
+    BufReader::new(twin.stdout.take().unwrap())
+        .read_line(&mut url)
+        .unwrap();
+    let url = url.trim().to_owned();
+    assert!(url.starts_with("grbl+tcp://127.0.0.1:"), "{url}");
+    let (_dir, file) = gcode_file(SQUARE_GCODE);
+    let out = kerfmeter(&["--json", "cut", path(&file), "--cutter", &url]);
+    twin.kill().unwrap();
+    twin.wait().unwrap();
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(stdout(&out).contains("\"lines\":10"), "{}", stdout(&out));
+}

@@ -9,7 +9,8 @@
 //! Beside the client: the calls ([`Kerfmeter::run_kerfmeter`], [`Kerfmeter::get_kerf_value`],
 //! [`Kerfmeter::reset_kerfmeter`] and the rest), run parameters from a joint ([`params`]),
 //! statistics over repeated runs ([`stats`]), the bed map ([`map`]), safe output files
-//! ([`files`]) and, with the `sim` feature (on by default), the digital twin in-process ([`sim`]).
+//! ([`files`]), the laser cutter's GRBL driver ([`grbl`]) and, with the `sim` feature (on by
+//! default), the digital twin in-process ([`sim`]).
 //!
 //! This crate is not the command-line tool (that is `kerfmeter-cli`, which also draws the plots)
 //! and does not read or write cutting plans (that is `kerfmeter-plan`): it has no argument parser,
@@ -28,6 +29,7 @@ mod calls;
 mod client;
 mod error;
 pub mod files;
+pub mod grbl;
 pub mod map;
 pub mod params;
 #[cfg(feature = "sim")]

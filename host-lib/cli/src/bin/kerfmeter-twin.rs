@@ -1,14 +1,19 @@
 //! `kerfmeter-twin`: the digital twin served on a pseudo-terminal, for any program that talks to a
 //! Kerfmeter over a serial port (the `kerfmeter` CLI with `--port`, cutter-integration code, a
 //! serial monitor). Prints the port's path, then serves until interrupted (Ctrl-C).
+//!
+//! With `--cutter` it serves the cutter twin instead, a simulated GRBL 1.1 laser cutter, on a
+//! pseudo-terminal (`kerfmeter cut FILE --cutter grbl:PATH`, or any G-code sender) or, with
+//! `--tcp PORT`, on a loopback TCP port (`--cutter grbl+tcp://127.0.0.1:PORT`).
 
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
+use kerfmeter_twin::cutter::{CutterOptions, CutterServer};
 use kerfmeter_twin::plant::{Material, PlantParams, param_table};
-use kerfmeter_twin::{InjectedFault, PtyTwin, StartError, TwinOptions};
+use kerfmeter_twin::{InjectedFault, Pace, PtyTwin, StartError, TwinOptions};
 
 #[derive(Parser)]
 #[command(
@@ -46,6 +51,19 @@ struct Args {
     /// List every plant parameter with its range, default and meaning, and exit.
     #[arg(long)]
     list_plant: bool,
+    /// Serve the cutter twin (a simulated GRBL 1.1 laser cutter) instead of the device.
+    #[arg(long, conflicts_with_all = ["fault", "material", "plant_file", "plant", "list_plant"])]
+    cutter: bool,
+    /// Cutter twin: serve on this loopback TCP port (0: any free one) instead of a
+    /// pseudo-terminal.
+    #[arg(long, value_name = "PORT", requires = "cutter")]
+    tcp: Option<u16>,
+    /// Cutter twin: boot in alarm, as a machine with homing enabled does.
+    #[arg(long, requires = "cutter")]
+    cutter_alarm: bool,
+    /// Cutter twin: without laser mode ($32=0), a spindle machine that fires on travels.
+    #[arg(long, requires = "cutter")]
+    cutter_no_laser_mode: bool,
 }
 
 fn main() -> ExitCode {
@@ -53,6 +71,9 @@ fn main() -> ExitCode {
     if args.list_plant {
         print!("{}", param_table());
         return ExitCode::SUCCESS;
+    }
+    if args.cutter {
+        return serve_cutter(&args);
     }
     let plant = match PlantParams::build(args.material, args.plant_file.as_deref(), &args.plant) {
         Ok(plant) => plant,
@@ -97,6 +118,50 @@ fn main() -> ExitCode {
     );
     let _ = std::io::stdout().flush();
     match twin.wait() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(3)
+        }
+    }
+}
+
+/// Serve the cutter twin on a pseudo-terminal or a TCP port until interrupted.
+fn serve_cutter(args: &Args) -> ExitCode {
+    let options = CutterOptions {
+        laser_mode: !args.cutter_no_laser_mode,
+        boot_in_alarm: args.cutter_alarm,
+        ..CutterOptions::default()
+    };
+    let pace = if args.realtime {
+        Pace::RealTime
+    } else {
+        Pace::LockStep
+    };
+    // The pseudo-terminal's client side stays open here so that senders may come and go.
+    let started = match args.tcp {
+        Some(port) => CutterServer::tcp(options, pace, port).map(|server| (server, None)),
+        None => CutterServer::pty(options, pace).map(|(server, client)| (server, Some(client))),
+    };
+    let (server, _client) = match started {
+        Ok(started) => started,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(3);
+        }
+    };
+    let address = server.address().to_owned();
+    let url = match args.tcp {
+        Some(_) => format!("grbl+tcp://{address}"),
+        None => format!("grbl:{address}"),
+    };
+    println!("{url}");
+    eprintln!(
+        "kerfmeter cutter twin (GRBL 1.1) on {address}{}. Try: kerfmeter cut FILE.gcode --cutter {url}   (Ctrl-C stops)",
+        if args.realtime { ", real time" } else { "" }
+    );
+    let _ = std::io::stdout().flush();
+    match server.wait() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");

@@ -1,0 +1,59 @@
+//! The cutter twin: a simulated laser cutter that speaks GRBL 1.1, sans-IO (bytes in, bytes out,
+//! a simulated clock moved on by the caller), for the host's GRBL driver to be tested against and
+//! for `kerfmeter-twin --cutter` to serve on a pseudo-terminal or a TCP port ([`serve`](mod@serve)).
+//!
+//! # What it emulates
+//!
+//! - The serial link as GRBL has it: a 128-byte receive buffer for lines ([`RX_BUFFER_LEN`]); bytes
+//!   that arrive while it is full are lost, as on the real controller, and recorded as a
+//!   [`ProtocolViolation`] (a sender that counts characters never causes one). The realtime
+//!   commands `?` (status report), `!` (feed hold), `~` (resume) and 0x18 (soft reset) are taken
+//!   out of the stream as they arrive and never occupy the buffer.
+//! - Lines: `ok` or `error:N` for each, in order; `ok` is delayed while the planner queue
+//!   ([`PLANNER_BLOCKS`] blocks, as GRBL's) is full, which is how a real controller paces a
+//!   sender. Lines over 80 characters are refused (`error:11`).
+//! - G-code ([`gcode`]): G0 G1 G2 G3 (I/J arcs in XY) G4 G17 G20 G21 G54 G90 G91 G94, M2 M30 M3
+//!   M4 M5 (M7–M9 accepted), F S X Y Z I J P N. Anything else is `error:20`; the other checks
+//!   give GRBL's codes (missing feed `error:22`, arc end off its circle `error:33`, ...).
+//! - `$` commands: `$$` (settings), `$N=V`, `$X` (unlock), `$G` (parser state), `$I` (build
+//!   info), `$` (help); `$H` is `error:5` (no homing); others `error:3`.
+//! - Motion ([`motion`]): each move at its programmed feed (travels at `$110`), no acceleration;
+//!   G4 waits for the queue to empty, then dwells as a block (real GRBL answers `ok` only after
+//!   the dwell). M2/M30 wait for the queue to empty, then reset the modal state (M5, G90).
+//! - The laser: with laser mode (`$32=1`) it fires only during G1/G2/G3 (M3 or M4, at `S`; M4's
+//!   scaling by speed is not modelled since the feed is constant), never on G0 nor while idle,
+//!   and it is off during a completed feed hold. Without laser mode it is a spindle: on from M3
+//!   or M4 with S > 0 until M5, travels included (each such travel is a [`TravelFiring`]).
+//! - Status reports: `<State|MPos:x,y,z|Bf:blocks,bytes|FS:feed,S>`, the states Idle, Run,
+//!   Hold:1 (decelerating at `$120` along the path), Hold:0, Alarm.
+//! - Feed hold, resume and soft reset. A reset during motion (running, or a hold still
+//!   decelerating) raises `ALARM:3` as GRBL does: the position may be lost. A reset at a
+//!   completed hold or at rest keeps the position. Every reset turns the laser off, empties the
+//!   queue and the buffer, prints the banner, and keeps an alarm until `$X`.
+//! - Injected faults ([`CutterOptions`]): boot in alarm (as a machine with homing enabled), a
+//!   hard limit after some motion time (`ALARM:1`, then nothing but a reset is heard, not even
+//!   `?`, as in GRBL's code), an
+//!   `error:N` for the Nth G-code line.
+//!
+//! Everything it did is recorded in its [`CutterLog`] ([`trace`]).
+
+pub mod gcode;
+pub mod motion;
+pub mod serve;
+pub mod trace;
+
+mod machine;
+mod system;
+
+pub use machine::{CutterOptions, Grbl};
+pub use serve::{CutterServer, ServeError};
+pub use trace::{CutterLog, CutterRecord, ProtocolViolation, Segment, SegmentKind, TravelFiring};
+
+/// GRBL's serial receive buffer, bytes: a sender may have at most this many unacknowledged.
+pub const RX_BUFFER_LEN: usize = 128;
+/// Blocks GRBL's planner queue holds (its 16-slot ring keeps one free).
+pub const PLANNER_BLOCKS: usize = 15;
+/// The version in the banner and `$I`.
+pub const VERSION: &str = "1.1h";
+/// The realtime soft-reset character (ctrl-X).
+pub const SOFT_RESET: u8 = 0x18;

@@ -1,0 +1,185 @@
+//! The cutter twin's `$` commands and its settings (`$$`, `$N=V`): the values a stock GRBL 1.1
+//! reports, with laser mode (`$32`) as the twin was set up.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use super::gcode::{Motion, Spindle, codes};
+use super::machine::{Grbl, error, ok};
+use super::{PLANNER_BLOCKS, RX_BUFFER_LEN, VERSION};
+
+/// `$32`: laser mode.
+const LASER_MODE: u16 = 32;
+/// `$30`: the `S` value of full power.
+const MAX_POWER: u16 = 30;
+/// `$110`: X's maximum rate, mm/min (the twin's rate for every axis).
+const MAX_RATE: u16 = 110;
+/// `$120`: X's acceleration, mm/s² (used only to stop a feed hold).
+const ACCELERATION: u16 = 120;
+
+/// Every setting and its stock value (laser mode off: the caller sets it).
+const DEFAULTS: [(u16, f64); 34] = [
+    (0, 10.0),
+    (1, 25.0),
+    (2, 0.0),
+    (3, 0.0),
+    (4, 0.0),
+    (5, 0.0),
+    (6, 0.0),
+    (10, 1.0),
+    (11, 0.010),
+    (12, 0.002),
+    (13, 0.0),
+    (20, 0.0),
+    (21, 0.0),
+    (22, 0.0),
+    (23, 0.0),
+    (24, 25.0),
+    (25, 500.0),
+    (26, 250.0),
+    (27, 1.0),
+    (30, 1000.0),
+    (31, 0.0),
+    (32, 0.0),
+    (100, 80.0),
+    (101, 80.0),
+    (102, 250.0),
+    (110, 6000.0),
+    (111, 6000.0),
+    (112, 500.0),
+    (120, 1000.0),
+    (121, 1000.0),
+    (122, 10.0),
+    (130, 400.0),
+    (131, 400.0),
+    (132, 50.0),
+];
+
+/// The settings by number.
+#[derive(Debug, Clone)]
+pub(super) struct Settings(BTreeMap<u16, f64>);
+
+impl Settings {
+    /// Stock settings, with laser mode as given.
+    pub fn new(laser_mode: bool) -> Self {
+        let mut map: BTreeMap<u16, f64> = DEFAULTS.into_iter().collect();
+        map.insert(LASER_MODE, if laser_mode { 1.0 } else { 0.0 });
+        Self(map)
+    }
+
+    fn get(&self, number: u16) -> f64 {
+        self.0.get(&number).copied().unwrap_or(0.0)
+    }
+
+    pub fn laser_mode(&self) -> bool {
+        self.get(LASER_MODE) != 0.0
+    }
+
+    pub fn max_power_s(&self) -> f64 {
+        self.get(MAX_POWER)
+    }
+
+    pub fn max_rate_mm_per_min(&self) -> f64 {
+        self.get(MAX_RATE).max(1.0)
+    }
+
+    pub fn acceleration_mm_per_s2(&self) -> f64 {
+        self.get(ACCELERATION).max(1.0)
+    }
+
+    /// `$N=V`: set a known setting.
+    fn set(&mut self, number: u16, value: f64) -> Result<(), u8> {
+        if value < 0.0 {
+            return Err(codes::NEGATIVE_VALUE);
+        }
+        match self.0.get_mut(&number) {
+            Some(slot) => {
+                *slot = value;
+                Ok(())
+            }
+            None => Err(codes::INVALID_STATEMENT),
+        }
+    }
+
+    /// The `$$` report (without its `ok`).
+    fn report(&self) -> String {
+        let mut out = String::new();
+        for (number, value) in &self.0 {
+            let _ = if value.fract() == 0.0 {
+                write!(out, "${number}={value:.0}\r\n")
+            } else {
+                write!(out, "${number}={value:.3}\r\n")
+            };
+        }
+        out
+    }
+}
+
+impl Grbl {
+    /// Run a `$` line; its whole reply.
+    pub(super) fn system_command(&mut self, line: &str) -> String {
+        let command: String = line
+            .chars()
+            .filter(|c| !c.is_whitespace())
+            .map(|c| c.to_ascii_uppercase())
+            .collect();
+        let needs_rest = matches!(command.as_str(), "$$" | "$H") || command.contains('=');
+        if needs_rest && self.is_busy() {
+            return error(codes::NOT_IDLE);
+        }
+        match command.as_str() {
+            "$" => {
+                "[HLP:$$ $# $G $I $N $x=val $Nx=line $J=line $SLP $C $X $H ~ ! ? ctrl-x]\r\nok\r\n"
+                    .into()
+            }
+            "$$" => self.settings.report() + &ok(),
+            "$X" if self.alarm.is_some() => {
+                self.unlock();
+                "[MSG:Caution: Unlocked]\r\nok\r\n".into()
+            }
+            "$X" => ok(),
+            "$G" => format!("{}\r\nok\r\n", self.parser_state()),
+            "$I" => format!(
+                "[VER:{VERSION}.kerfmeter-twin:]\r\n[OPT:V,{PLANNER_BLOCKS},{RX_BUFFER_LEN}]\r\nok\r\n"
+            ),
+            "$H" => error(codes::SETTING_DISABLED),
+            _ => self.set_setting(&command),
+        }
+    }
+
+    /// `$N=V`.
+    fn set_setting(&mut self, command: &str) -> String {
+        let Some((number, value)) = command[1..].split_once('=') else {
+            return error(codes::INVALID_STATEMENT);
+        };
+        let (Ok(number), Ok(value)) = (number.parse::<u16>(), value.parse::<f64>()) else {
+            return error(codes::BAD_NUMBER_FORMAT);
+        };
+        match self.settings.set(number, value) {
+            Ok(()) => ok(),
+            Err(code) => error(code),
+        }
+    }
+
+    /// The `$G` report.
+    fn parser_state(&self) -> String {
+        let m = &self.modal;
+        let motion = match m.motion {
+            Motion::Rapid => "G0",
+            Motion::Linear => "G1",
+            Motion::Arc { clockwise: true } => "G2",
+            Motion::Arc { clockwise: false } => "G3",
+        };
+        let units = if m.metric { "G21" } else { "G20" };
+        let distance = if m.absolute { "G90" } else { "G91" };
+        let spindle = match m.spindle {
+            Spindle::Constant => "M3",
+            Spindle::Dynamic => "M4",
+            Spindle::Off => "M5",
+        };
+        format!(
+            "[GC:{motion} G54 G17 {units} {distance} G94 {spindle} M9 T0 F{:.0} S{:.0}]",
+            m.feed_mm_per_min, m.power_s
+        )
+    }
+}

@@ -1,0 +1,107 @@
+//! What the cutter twin did, shared with whoever serves it: every move it executed with the
+//! laser's power and feed (the geometry the laser traced, for the twin that "cuts" later), every
+//! moment the laser fired during a travel move (a safety violation: tests assert there is none),
+//! every breach of the serial protocol by the sender (bytes lost to a full receive buffer), and
+//! the machine's state and laser output now. Cloning a [`CutterLog`] shares it.
+
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+
+/// A position, mm (X, Y, Z).
+pub type Point = [f64; 3];
+
+/// What kind of move a segment is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SegmentKind {
+    /// G0: a travel at the maximum rate.
+    Travel,
+    /// G1: a straight feed move.
+    Line,
+    /// G2/G3: an arc about `center` (XY).
+    Arc {
+        /// The arc's centre, mm.
+        center: [f64; 2],
+        /// G2.
+        clockwise: bool,
+    },
+    /// G4: a pause where the head stands still.
+    Dwell,
+}
+
+/// One executed move.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segment {
+    /// Its kind (and an arc's centre and sense).
+    pub kind: SegmentKind,
+    /// Where it started, mm.
+    pub start: Point,
+    /// Where it ended, mm: its target, or where it was stopped.
+    pub end: Point,
+    /// The laser's power while it ran (the `S` value; 0 when off).
+    pub power_s: f64,
+    /// Its feed rate, mm/min.
+    pub feed_mm_per_min: f64,
+    /// False when it was cut short (reset, alarm).
+    pub complete: bool,
+    /// The received G-code line it came from (1 = the first G-code line since boot).
+    pub line: u32,
+}
+
+/// The laser fired during a travel move: where and how strongly.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TravelFiring {
+    /// Simulated time when the travel started, µs.
+    pub at_us: u64,
+    /// The travel's start, mm.
+    pub start: Point,
+    /// The travel's target, mm.
+    pub end: Point,
+    /// The laser's power (`S`).
+    pub power_s: f64,
+}
+
+/// A breach of GRBL's serial protocol by the sender.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ProtocolViolation {
+    /// Bytes arrived while the 128-byte receive buffer was full; they were lost.
+    RxOverflow {
+        /// Simulated time, µs.
+        at_us: u64,
+        /// Bytes lost.
+        lost_bytes: usize,
+    },
+}
+
+/// Everything recorded (see the [module docs](self)).
+#[derive(Debug, Clone, Default)]
+pub struct CutterRecord {
+    /// Executed moves, in order.
+    pub segments: Vec<Segment>,
+    /// Travels during which the laser fired.
+    pub travel_firings: Vec<TravelFiring>,
+    /// The sender's protocol breaches.
+    pub violations: Vec<ProtocolViolation>,
+    /// The laser's power now (0 when off).
+    pub laser_power_s: f64,
+    /// The state as a status report names it (`Idle`, `Run`, `Hold:0`, `Alarm`, ...).
+    pub state: String,
+    /// Alarms raised since boot (GRBL's `ALARM:N` codes).
+    pub alarms: Vec<u8>,
+    /// Soft resets received.
+    pub resets: u32,
+}
+
+/// The shared record of a cutter twin.
+#[derive(Debug, Clone, Default)]
+pub struct CutterLog(Arc<Mutex<CutterRecord>>);
+
+impl CutterLog {
+    /// Lock the record (to read it, or for the twin to write it).
+    pub fn lock(&self) -> MutexGuard<'_, CutterRecord> {
+        self.0.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// A copy of the record now.
+    pub fn snapshot(&self) -> CutterRecord {
+        self.lock().clone()
+    }
+}

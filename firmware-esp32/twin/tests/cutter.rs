@@ -1,0 +1,280 @@
+//! The cutter twin's GRBL emulation, byte for byte: what a sender sees and what the twin records.
+
+use kerfmeter_twin::cutter::{
+    CutterLog, CutterOptions, Grbl, PLANNER_BLOCKS, ProtocolViolation, RX_BUFFER_LEN, SOFT_RESET,
+    SegmentKind,
+};
+
+fn cutter(options: CutterOptions) -> Grbl {
+    Grbl::new(options, CutterLog::default())
+}
+
+fn said(grbl: &mut Grbl) -> String {
+    String::from_utf8(grbl.take_output()).unwrap()
+}
+
+/// Send `line` and return the reply.
+fn line(grbl: &mut Grbl, text: &str) -> String {
+    grbl.receive(format!("{text}\n").as_bytes());
+    said(grbl)
+}
+
+#[test]
+fn it_boots_with_the_banner_and_reports_idle() {
+    let mut grbl = cutter(CutterOptions::default());
+    assert_eq!(said(&mut grbl), "\r\nGrbl 1.1h ['$' for help]\r\n");
+    grbl.receive(b"?");
+    let status = said(&mut grbl);
+    assert!(
+        status.starts_with("<Idle|MPos:0.000,0.000,0.000|"),
+        "{status}"
+    );
+    assert!(line(&mut grbl, "$$").contains("$32=1\r\n"));
+}
+
+#[test]
+fn bytes_beyond_the_receive_buffer_are_lost_and_recorded() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    // Thirty moves at once: the planner fills, the buffer fills, the rest is lost.
+    let greedy: String = (1..=30).map(|i| format!("G1X{i}F600\n")).collect();
+    assert!(greedy.len() > RX_BUFFER_LEN + PLANNER_BLOCKS * 10);
+    grbl.receive(greedy.as_bytes());
+    let violations = grbl.log().snapshot().violations;
+    assert!(
+        matches!(violations.as_slice(), [ProtocolViolation::RxOverflow { lost_bytes, .. }] if *lost_bytes > 0),
+        "{violations:?}"
+    );
+}
+
+#[test]
+fn a_full_planner_holds_back_ok_until_a_block_is_done() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    let mut oks = 0;
+    for i in 1..=PLANNER_BLOCKS + 2 {
+        oks += line(&mut grbl, &format!("G1X{i}F600"))
+            .matches("ok")
+            .count();
+    }
+    assert_eq!(
+        oks, PLANNER_BLOCKS,
+        "one block runs, the queue holds the rest"
+    );
+    // Each move is 1 mm at 10 mm/s: 100 ms.
+    grbl.advance_us(100_000);
+    assert_eq!(said(&mut grbl).matches("ok").count(), 1);
+    assert!(grbl.log().snapshot().violations.is_empty());
+}
+
+#[test]
+fn a_move_takes_its_length_over_its_feed_and_is_traced_with_its_power() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    for l in [
+        "G21G90",
+        "M4 S800",
+        "G0X10",
+        "G1X10Y10F600",
+        "G2X0Y10I-5J0",
+        "M5",
+    ] {
+        assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
+    }
+    grbl.advance_us(999_000);
+    grbl.receive(b"?");
+    assert!(said(&mut grbl).starts_with("<Run|MPos:"));
+    grbl.advance_us(20_000_000);
+    grbl.receive(b"?");
+    assert!(said(&mut grbl).starts_with("<Idle|MPos:0.000,10.000,0.000|"));
+    let record = grbl.log().snapshot();
+    let kinds: Vec<_> = record
+        .segments
+        .iter()
+        .map(|s| (s.kind, s.power_s))
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            (SegmentKind::Travel, 0.0),
+            (SegmentKind::Line, 800.0),
+            (
+                SegmentKind::Arc {
+                    center: [5.0, 10.0],
+                    clockwise: true
+                },
+                800.0
+            ),
+        ]
+    );
+    assert!(record.travel_firings.is_empty());
+}
+
+#[test]
+fn without_laser_mode_the_spindle_fires_through_travels_and_that_is_recorded() {
+    let mut grbl = cutter(CutterOptions {
+        laser_mode: false,
+        ..CutterOptions::default()
+    });
+    for l in ["M3S500", "G0X10"] {
+        line(&mut grbl, l);
+    }
+    grbl.advance_us(1_000_000);
+    let firings = grbl.log().snapshot().travel_firings;
+    assert_eq!(firings.len(), 1, "{firings:?}");
+    assert_eq!(firings[0].power_s, 500.0);
+}
+
+#[test]
+fn a_reset_during_motion_is_alarm_3_with_the_laser_off_until_unlocked() {
+    let mut grbl = cutter(CutterOptions::default());
+    for l in ["M3S1000", "G1X100F600"] {
+        line(&mut grbl, l);
+    }
+    grbl.advance_us(500_000);
+    assert_eq!(grbl.log().snapshot().laser_power_s, 1000.0);
+    said(&mut grbl);
+    grbl.receive(&[SOFT_RESET]);
+    let reply = said(&mut grbl);
+    assert!(reply.starts_with("ALARM:3\r\n\r\nGrbl 1.1h"), "{reply}");
+    assert!(reply.ends_with("[MSG:'$H'|'$X' to unlock]\r\n"), "{reply}");
+    let record = grbl.log().snapshot();
+    assert_eq!(
+        (record.laser_power_s, record.state.as_str()),
+        (0.0, "Alarm")
+    );
+    assert!(!record.segments[0].complete);
+    assert_eq!(line(&mut grbl, "G1X1"), "error:9\r\n");
+    assert_eq!(line(&mut grbl, "$X"), "[MSG:Caution: Unlocked]\r\nok\r\n");
+    assert_eq!(line(&mut grbl, "G1X1F600"), "ok\r\n");
+}
+
+#[test]
+fn a_feed_hold_stops_the_laser_and_a_reset_after_it_keeps_the_position() {
+    let mut grbl = cutter(CutterOptions::default());
+    for l in ["M4S1000", "G1X100F6000"] {
+        line(&mut grbl, l);
+    }
+    grbl.advance_us(100_000);
+    grbl.receive(b"!?");
+    assert!(said(&mut grbl).starts_with("<Hold:1|"));
+    // 100 mm/s at 1000 mm/s²: 100 ms to stop.
+    grbl.advance_us(100_000);
+    grbl.receive(b"?");
+    assert!(said(&mut grbl).starts_with("<Hold:0|MPos:15.000,"));
+    assert_eq!(grbl.log().snapshot().laser_power_s, 0.0);
+    grbl.receive(&[SOFT_RESET, b'?']);
+    let reply = said(&mut grbl);
+    assert!(!reply.contains("ALARM"), "{reply}");
+    assert!(reply.contains("<Idle|MPos:15.000,"), "{reply}");
+}
+
+#[test]
+fn a_hard_limit_stops_everything_and_only_a_reset_is_heard() {
+    let mut grbl = cutter(CutterOptions {
+        hard_limit_after_ms: Some(300),
+        ..CutterOptions::default()
+    });
+    said(&mut grbl);
+    for l in ["M4S1000", "G1X100F600"] {
+        line(&mut grbl, l);
+    }
+    grbl.advance_us(1_000_000);
+    assert_eq!(said(&mut grbl), "ALARM:1\r\n[MSG:Reset to continue]\r\n");
+    assert_eq!(line(&mut grbl, "$X"), "", "nothing but a reset is heard");
+    grbl.receive(b"?");
+    assert_eq!(said(&mut grbl), "", "not even a status request");
+    grbl.receive(&[SOFT_RESET]);
+    assert!(said(&mut grbl).contains("'$X' to unlock"));
+    let record = grbl.log().snapshot();
+    assert_eq!(record.alarms, [1]);
+    assert_eq!(record.segments[0].end[0], 3.0);
+    assert_eq!(record.laser_power_s, 0.0);
+}
+
+#[test]
+fn injected_errors_and_alarms_come_as_asked() {
+    let mut grbl = cutter(CutterOptions {
+        boot_in_alarm: true,
+        error_on_line: Some((2, 33)),
+        ..CutterOptions::default()
+    });
+    assert!(said(&mut grbl).ends_with("[MSG:'$H'|'$X' to unlock]\r\n"));
+    line(&mut grbl, "$X");
+    assert_eq!(line(&mut grbl, "G0X1"), "ok\r\n");
+    assert_eq!(line(&mut grbl, "G0X2"), "error:33\r\n");
+    assert_eq!(line(&mut grbl, "G0X3"), "ok\r\n");
+}
+
+#[test]
+fn what_it_does_not_understand_is_an_error_not_silence() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    assert_eq!(line(&mut grbl, "G1X10"), "error:22\r\n", "no feed yet");
+    assert_eq!(
+        line(&mut grbl, "G2X10F100"),
+        "error:35\r\n",
+        "arc without I/J"
+    );
+    assert_eq!(line(&mut grbl, "G28"), "error:20\r\n");
+    assert_eq!(line(&mut grbl, "$Q"), "error:3\r\n");
+    assert_eq!(line(&mut grbl, "(only a comment)"), "ok\r\n");
+    assert_eq!(line(&mut grbl, "$32=0"), "ok\r\n");
+    assert!(line(&mut grbl, "$$").contains("$32=0\r\n"));
+}
+
+proptest::proptest! {
+    /// Whatever a sender writes, and whenever, the twin answers without panicking, and its
+    /// receive buffer never holds more than GRBL's.
+    #[test]
+    fn any_bytes_at_any_time_are_survived(
+        chunks in proptest::collection::vec(
+            (
+                proptest::collection::vec(
+                    proptest::prop_oneof![
+                        proptest::sample::select(b"G0123XYZIJFSMP$=.-?!~\n\r ;()".to_vec()),
+                        proptest::num::u8::ANY,
+                    ],
+                    0..64,
+                ),
+                0u64..5_000_000,
+            ),
+            0..24,
+        )
+    ) {
+        let mut grbl = cutter(CutterOptions::default());
+        for (bytes, dt_us) in chunks {
+            grbl.receive(&bytes);
+            grbl.advance_us(dt_us);
+            grbl.receive(b"?");
+            let out = grbl.take_output();
+            let text = String::from_utf8_lossy(&out);
+            if let Some(start) = text.rfind("|Bf:") {
+                let free: Vec<usize> = text[start + 4..]
+                    .split(['|', '>'])
+                    .next()
+                    .unwrap()
+                    .split(',')
+                    .map(|n| n.parse().unwrap())
+                    .collect();
+                proptest::prop_assert!(free[1] <= RX_BUFFER_LEN);
+            }
+        }
+    }
+
+    /// Huge values (as many digits as a line holds) are errors or long moves, never an
+    /// overflow, even held and reset.
+    #[test]
+    fn huge_numbers_are_survived(
+        value in 1e3f64..1e70,
+        letter in proptest::sample::select(vec!['X', 'P', 'I']),
+    ) {
+        let mut grbl = cutter(CutterOptions::default());
+        let text = format!("F100\nG1 {letter}{value:.0}\nG2 X1 I{value:.0}\nG4 P{value:.0}\n");
+        grbl.receive(text.as_bytes());
+        grbl.advance_us(1_000);
+        grbl.receive(b"!");
+        grbl.advance_us(u64::MAX / 4);
+        grbl.receive(&[SOFT_RESET]);
+    }
+}

@@ -1,0 +1,137 @@
+//! `kerfmeter cut`: stream a G-code file to a laser cutter's GRBL controller (or the simulated
+//! cutter) with a progress bar. Ctrl-C stops the cutter (feed hold, then soft reset: the laser
+//! goes off) and the command fails; so does any refused line or alarm, with its meaning.
+
+use std::fmt;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use kerfmeter::grbl::protocol::prepare;
+use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, CutterError, StreamProgress};
+use serde::Serialize;
+
+use crate::connection::Global;
+use crate::error::CliError;
+use crate::output::{JsonLayout, Report};
+
+/// `kerfmeter cut`: stream a G-code program to a cutter.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CutArgs {
+    /// The G-code program to stream.
+    #[arg(value_name = "FILE.gcode")]
+    pub input: PathBuf,
+    /// The cutter: `sim`, `grbl:/dev/ttyUSB0[?baud=N]` or `grbl+tcp://HOST:PORT`. Also from
+    /// KERFMETER_CUTTER.
+    #[arg(long, env = "KERFMETER_CUTTER", value_name = "ADDRESS")]
+    pub cutter: CutterAddress,
+    /// Unlock a cutter that is in alarm (`$X`) instead of refusing it. Check the machine first:
+    /// an alarm after a hard limit or a reset means its position may be lost.
+    #[arg(long)]
+    pub unlock: bool,
+    /// Accept a controller without laser mode (`$32=0`). Only for a spindle machine: GRBL then
+    /// keeps a laser on through every travel move.
+    #[arg(long)]
+    pub allow_without_laser_mode: bool,
+}
+
+/// What `cut` did.
+#[derive(Debug, Clone, Serialize)]
+pub struct CutReport {
+    /// The cutter's address.
+    pub cutter: String,
+    /// GRBL's version.
+    pub grbl_version: String,
+    /// Lines streamed.
+    pub lines: usize,
+    /// From the first line until the machine was idle, s.
+    pub elapsed_s: f64,
+    /// The most bytes that were unanswered at once (at most 128).
+    pub max_unanswered_bytes: usize,
+}
+
+impl fmt::Display for CutReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "cut {} lines on {} (GRBL {}) in {:.1} s; the machine is idle",
+            self.lines, self.cutter, self.grbl_version, self.elapsed_s
+        )
+    }
+}
+
+impl Report for CutReport {
+    const JSON: JsonLayout = JsonLayout::CompactSorted;
+}
+
+/// Stream the file; Ctrl-C stops the cutter.
+pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
+    let program = std::fs::read_to_string(&args.input).map_err(|e| kerfmeter::Error::File {
+        path: args.input.clone(),
+        message: format!("cannot read the G-code program: {e}"),
+    })?;
+    // A line that cannot be streamed is refused before the cutter is touched.
+    prepare(&program).map_err(|bad| CutterError::BadProgram {
+        line: bad.number,
+        reason: bad.reason,
+    })?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    let flag = cancel.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
+        .map_err(|e| CliError::Usage(format!("cannot take over Ctrl-C: {e}")))?;
+    let options = ConnectOptions {
+        unlock: args.unlock,
+        allow_without_laser_mode: args.allow_without_laser_mode,
+        ..ConnectOptions::default()
+    };
+    let mut cutter = Cutter::open(&args.cutter, options)?;
+    if !g.json {
+        eprintln!(
+            "streaming {} to {} (GRBL {}); Ctrl-C stops the cutter",
+            args.input.display(),
+            cutter.address(),
+            cutter.version()
+        );
+    }
+    let bar = stream_bar(g.json);
+    let report = cutter.stream(&program, &cancel, &mut |p| show(&bar, p));
+    bar.finish_and_clear();
+    let report = report?;
+    Ok(CutReport {
+        cutter: cutter.address().to_owned(),
+        grbl_version: cutter.version().to_owned(),
+        lines: report.lines,
+        elapsed_s: report.elapsed.as_secs_f64(),
+        max_unanswered_bytes: report.max_unanswered_bytes,
+    })
+}
+
+/// A bar of lines accepted, on stderr when it is a terminal and `json` is off.
+fn stream_bar(json: bool) -> ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} lines  {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.enable_steady_tick(Duration::from_millis(100));
+    bar
+}
+
+fn show(bar: &ProgressBar, p: &StreamProgress) {
+    bar.set_length(p.total as u64);
+    bar.set_position(p.answered as u64);
+    if let Some(status) = &p.status {
+        let at = status
+            .position_mm
+            .map(|[x, y, _]| format!(" at X{x:.1} Y{y:.1}"))
+            .unwrap_or_default();
+        bar.set_message(format!("{}{at}", status.state));
+    }
+}

@@ -1,0 +1,548 @@
+//! The blocking GRBL driver: connect (banner, alarm, laser mode), stream a program with
+//! character counting, wait for the motion to end, and stop the cutter on every failure.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use super::error::CutterError;
+use super::protocol::{MachineState, Reply, Status, Streamer, parse_reply, prepare};
+use super::transport::{CutterAddress, Link, open_serial, open_tcp};
+
+/// The realtime soft reset (ctrl-X): stops everything, laser off.
+const SOFT_RESET: u8 = 0x18;
+/// `$32`: laser mode.
+const LASER_MODE_SETTING: u16 = 32;
+/// How many unrecognised lines a failed connection reports.
+const SEEN_KEPT: usize = 8;
+
+/// How the driver connects and streams.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ConnectOptions {
+    /// Unlock (`$X`) a controller that is in alarm, instead of refusing it.
+    pub unlock: bool,
+    /// Accept a controller without laser mode (`$32=0`): only for a spindle machine, since GRBL
+    /// then keeps the beam on during travel moves.
+    pub allow_without_laser_mode: bool,
+    /// How long to wait for the banner before waking the controller with a soft reset (a board
+    /// that resets when its port opens needs about 2 s to boot).
+    pub banner_wait: Duration,
+    /// How long to wait for an answer to a command, a status request or a reset.
+    pub reply_timeout: Duration,
+    /// How often the state is polled (`?`) while streaming.
+    pub poll_interval: Duration,
+    /// How long the controller may say nothing at all while streaming before it is given up.
+    pub silence_timeout: Duration,
+}
+
+impl Default for ConnectOptions {
+    fn default() -> Self {
+        Self {
+            unlock: false,
+            allow_without_laser_mode: false,
+            banner_wait: Duration::from_millis(2500),
+            reply_timeout: Duration::from_secs(2),
+            poll_interval: Duration::from_millis(200),
+            silence_timeout: Duration::from_secs(5),
+        }
+    }
+}
+
+/// Where a stream is, for a progress display.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamProgress {
+    /// Lines the controller has answered.
+    pub answered: usize,
+    /// Lines in the program.
+    pub total: usize,
+    /// Bytes sent and not yet answered (never more than 128).
+    pub unanswered_bytes: usize,
+    /// The last status report.
+    pub status: Option<Status>,
+}
+
+/// How a stream went.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamReport {
+    /// Lines streamed.
+    pub lines: usize,
+    /// From the first line sent until the machine was idle again.
+    pub elapsed: Duration,
+    /// The most bytes that were unanswered at once.
+    pub max_unanswered_bytes: usize,
+    /// Where the machine ended, mm (when it reports its machine position).
+    pub position_mm: Option<[f64; 3]>,
+}
+
+/// A connected GRBL 1.1 controller.
+pub struct Cutter {
+    link: Box<dyn Link>,
+    address: String,
+    incoming: Vec<u8>,
+    options: ConnectOptions,
+    version: String,
+    settings: BTreeMap<u16, f64>,
+    notes: Vec<String>,
+    in_job: bool,
+    #[cfg(feature = "sim")]
+    pub(super) sim: Option<kerfmeter_twin::cutter::CutterServer>,
+}
+
+impl std::fmt::Debug for Cutter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Cutter")
+            .field("address", &self.address)
+            .field("version", &self.version)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Cutter {
+    /// Connect to the cutter at `address` (see [`CutterAddress`]).
+    pub fn open(address: &CutterAddress, options: ConnectOptions) -> Result<Self, CutterError> {
+        let link = match address {
+            CutterAddress::Serial { path, baud } => open_serial(path, *baud)?,
+            CutterAddress::Tcp { host_port } => open_tcp(host_port)?,
+            #[cfg(feature = "sim")]
+            CutterAddress::Sim => return Self::sim(Default::default(), options),
+            #[cfg(not(feature = "sim"))]
+            CutterAddress::Sim => {
+                return Err(CutterError::Sim(
+                    "this program was built without the `sim` feature".into(),
+                ));
+            }
+        };
+        Self::connect(link, address.to_string(), options)
+    }
+
+    /// Talk to a controller on an open byte stream (reads must time out within milliseconds):
+    /// wait for its banner (or wake it with a soft reset), refuse or unlock an alarm, and check
+    /// laser mode, as [`ConnectOptions`] say.
+    pub fn connect(
+        link: Box<dyn Link>,
+        address: String,
+        options: ConnectOptions,
+    ) -> Result<Self, CutterError> {
+        let mut cutter = Self {
+            link,
+            address,
+            incoming: Vec::new(),
+            options,
+            version: String::new(),
+            settings: BTreeMap::new(),
+            notes: Vec::new(),
+            in_job: false,
+            #[cfg(feature = "sim")]
+            sim: None,
+        };
+        cutter.handshake()?;
+        Ok(cutter)
+    }
+
+    /// The address it was opened at.
+    pub fn address(&self) -> &str {
+        &self.address
+    }
+
+    /// GRBL's version from the banner (`1.1h`).
+    pub fn version(&self) -> &str {
+        &self.version
+    }
+
+    /// The controller's settings (`$$`) as read at connect.
+    pub fn settings(&self) -> &BTreeMap<u16, f64> {
+        &self.settings
+    }
+
+    fn handshake(&mut self) -> Result<(), CutterError> {
+        let mut seen = Vec::new();
+        if !self.await_banner(self.options.banner_wait, &mut seen)? {
+            self.write(&[SOFT_RESET])?;
+            if !self.await_banner(self.options.reply_timeout, &mut seen)? {
+                let waited = self.options.banner_wait + self.options.reply_timeout;
+                return Err(CutterError::NoBanner {
+                    address: self.address.clone(),
+                    waited_ms: waited.as_millis() as u64,
+                    seen,
+                });
+            }
+        }
+        let mut status = self.status()?;
+        if status.state == MachineState::Alarm {
+            if !self.options.unlock {
+                return Err(self.alarm_at_connect());
+            }
+            self.command("$X")?;
+            status = self.status()?;
+        }
+        if status.state != MachineState::Idle {
+            return Err(CutterError::NotIdle {
+                state: status.state.to_string(),
+            });
+        }
+        self.read_settings()?;
+        self.check_laser_mode()
+    }
+
+    /// Why the controller is in alarm, from what it said since the banner.
+    fn alarm_at_connect(&self) -> CutterError {
+        let code = self.notes.iter().rev().find_map(|n| match parse_reply(n) {
+            Reply::Alarm(code) => Some(code),
+            _ => None,
+        });
+        let reason = match code {
+            Some(code) => super::codes::describe_alarm(code).to_owned(),
+            None => "it starts locked (homing is enabled, or it was stopped abruptly)".to_owned(),
+        };
+        CutterError::AlarmAtConnect { code, reason }
+    }
+
+    fn read_settings(&mut self) -> Result<(), CutterError> {
+        for line in self.command("$$")? {
+            if let Reply::Setting(number, value) = parse_reply(&line) {
+                self.settings.insert(number, value);
+            }
+        }
+        Ok(())
+    }
+
+    fn check_laser_mode(&self) -> Result<(), CutterError> {
+        let laser_mode = self.settings.get(&LASER_MODE_SETTING);
+        if laser_mode == Some(&1.0) || self.options.allow_without_laser_mode {
+            return Ok(());
+        }
+        Err(CutterError::LaserModeOff {
+            value: laser_mode.map_or("?".into(), |v| v.to_string()),
+        })
+    }
+
+    /// Read until the banner comes (true) or `wait` passes (false); other lines go to `seen`.
+    fn await_banner(
+        &mut self,
+        wait: Duration,
+        seen: &mut Vec<String>,
+    ) -> Result<bool, CutterError> {
+        let deadline = Instant::now() + wait;
+        while let Some(line) = self.read_line(deadline)? {
+            match parse_reply(&line) {
+                Reply::Banner(version) => {
+                    self.version = version;
+                    self.notes.clear();
+                    return Ok(true);
+                }
+                Reply::Alarm(_) | Reply::Message(_) => self.notes.push(line.clone()),
+                _ => {}
+            }
+            if seen.len() < SEEN_KEPT {
+                seen.push(line);
+            }
+        }
+        Ok(false)
+    }
+
+    /// Ask for a status report and wait for it.
+    pub fn status(&mut self) -> Result<Status, CutterError> {
+        self.write(b"?")?;
+        let deadline = Instant::now() + self.options.reply_timeout;
+        while let Some(line) = self.read_line(deadline)? {
+            match parse_reply(&line) {
+                Reply::Status(status) => return Ok(status),
+                Reply::Alarm(_) | Reply::Message(_) => self.notes.push(line),
+                _ => {}
+            }
+        }
+        Err(self.silent("waiting for a status report"))
+    }
+
+    /// Send one command line (not a program line: nothing else may be unanswered) and wait for
+    /// its `ok`; the lines that came before it.
+    pub fn command(&mut self, line: &str) -> Result<Vec<String>, CutterError> {
+        self.write(format!("{line}\n").as_bytes())?;
+        let deadline = Instant::now() + self.options.reply_timeout;
+        let mut said = Vec::new();
+        while let Some(reply) = self.read_line(deadline)? {
+            match parse_reply(&reply) {
+                Reply::Ok => return Ok(said),
+                Reply::Error(code) => {
+                    return Err(CutterError::Protocol(format!(
+                        "`{line}` was refused with error:{code}: {}",
+                        super::codes::describe_error(code)
+                    )));
+                }
+                Reply::Alarm(code) => return Err(CutterError::Alarm { code, after: None }),
+                _ => said.push(reply),
+            }
+        }
+        Err(self.silent("waiting for a command's `ok`"))
+    }
+
+    /// Stream a G-code program: at most 128 bytes unanswered, the state polled, until every line
+    /// is accepted and the machine is idle again. `progress` hears of each batch of replies.
+    ///
+    /// On any failure (a refused line, an alarm, silence, `cancel` set) the cutter is stopped
+    /// ([`Cutter::stop`]: feed hold, then soft reset, which turns the laser off) before the error
+    /// is returned. A program with a line that cannot be streamed is refused before anything is
+    /// sent.
+    pub fn stream(
+        &mut self,
+        program: &str,
+        cancel: &AtomicBool,
+        progress: &mut dyn FnMut(&StreamProgress),
+    ) -> Result<StreamReport, CutterError> {
+        let lines = prepare(program).map_err(|bad| CutterError::BadProgram {
+            line: bad.number,
+            reason: bad.reason,
+        })?;
+        let mut streamer = Streamer::new(lines);
+        self.in_job = true;
+        let result = self.stream_lines(&mut streamer, cancel, progress);
+        let result = result.map_err(|e| self.stop_after(e));
+        self.in_job = false;
+        result
+    }
+
+    fn stream_lines(
+        &mut self,
+        streamer: &mut Streamer,
+        cancel: &AtomicBool,
+        progress: &mut dyn FnMut(&StreamProgress),
+    ) -> Result<StreamReport, CutterError> {
+        let started = Instant::now();
+        let mut last_poll: Option<Instant> = None;
+        let mut last_heard = Instant::now();
+        let mut max_unanswered_bytes = 0;
+        let mut idle_reports_after_done = 0;
+        let mut status = None;
+        loop {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(CutterError::Cancelled {
+                    answered: streamer.answered(),
+                    total: streamer.total(),
+                });
+            }
+            let unanswered_bytes = self.send_ready(streamer, &mut last_poll)?;
+            max_unanswered_bytes = max_unanswered_bytes.max(unanswered_bytes);
+            let lines = self.read_available()?;
+            if !lines.is_empty() {
+                last_heard = Instant::now();
+            }
+            for line in lines {
+                let Some(s) = self.stream_reply(streamer, &line)? else {
+                    continue;
+                };
+                // Idle twice after the last `ok`: the first report may predate the last block's
+                // start by a moment.
+                let idle = s.state == MachineState::Idle;
+                idle_reports_after_done = if streamer.done() && idle {
+                    idle_reports_after_done + 1
+                } else {
+                    0
+                };
+                status = Some(s);
+            }
+            progress(&StreamProgress {
+                answered: streamer.answered(),
+                total: streamer.total(),
+                unanswered_bytes: streamer.unanswered_bytes(),
+                status: status.clone(),
+            });
+            if idle_reports_after_done >= 2 {
+                return Ok(StreamReport {
+                    lines: streamer.total(),
+                    elapsed: started.elapsed(),
+                    max_unanswered_bytes,
+                    position_mm: status.and_then(|s| s.position_mm),
+                });
+            }
+            if last_heard.elapsed() > self.options.silence_timeout {
+                return Err(self.silent("streaming"));
+            }
+        }
+    }
+
+    /// Send every line that fits, and a status request when one is due; the bytes unanswered.
+    fn send_ready(
+        &mut self,
+        streamer: &mut Streamer,
+        last_poll: &mut Option<Instant>,
+    ) -> Result<usize, CutterError> {
+        while let Some(bytes) = streamer.next_to_send() {
+            self.write(&bytes)?;
+        }
+        if last_poll.is_none_or(|t| t.elapsed() >= self.options.poll_interval) {
+            self.write(b"?")?;
+            *last_poll = Some(Instant::now());
+        }
+        Ok(streamer.unanswered_bytes())
+    }
+
+    /// Act on one reply while streaming; a status report is returned.
+    fn stream_reply(
+        &mut self,
+        streamer: &mut Streamer,
+        line: &str,
+    ) -> Result<Option<Status>, CutterError> {
+        let unexpected = |what: &str| CutterError::Protocol(format!("{what} answered no line"));
+        match parse_reply(line) {
+            Reply::Ok => {
+                streamer.answer().map_err(|_| unexpected("an `ok`"))?;
+            }
+            Reply::Error(code) => {
+                let refused = streamer.answer().map_err(|_| unexpected("an `error`"))?;
+                return Err(CutterError::Rejected {
+                    line: refused.number,
+                    text: refused.text.clone(),
+                    code,
+                });
+            }
+            Reply::Alarm(code) => {
+                let after = streamer.last_answered().map(|l| (l.number, l.text.clone()));
+                return Err(CutterError::Alarm { code, after });
+            }
+            Reply::Banner(_) => return Err(CutterError::Restarted),
+            Reply::Status(status) => return Ok(Some(status)),
+            Reply::Message(_) | Reply::Setting(..) | Reply::Other(_) => {}
+        }
+        Ok(None)
+    }
+
+    /// Stop the cutter: feed hold (`!`) so that the machine decelerates and keeps its position,
+    /// wait (bounded) for the hold to complete, then soft reset (ctrl-X), which empties its
+    /// queue and turns the laser off. Waits for the reset's banner.
+    pub fn stop(&mut self) -> Result<(), CutterError> {
+        self.write(b"!")?;
+        let deadline = Instant::now() + self.options.reply_timeout;
+        while Instant::now() < deadline {
+            self.write(b"?")?;
+            let poll_end = Instant::now() + Duration::from_millis(50);
+            let mut stopped = false;
+            while let Some(line) = self.read_line(poll_end.min(deadline))? {
+                if let Reply::Status(s) = parse_reply(&line) {
+                    stopped = matches!(
+                        s.state,
+                        MachineState::Hold(0) | MachineState::Idle | MachineState::Alarm
+                    );
+                }
+            }
+            if stopped {
+                break;
+            }
+        }
+        self.reset()
+    }
+
+    /// Soft reset (ctrl-X) and wait for the banner: the queue is emptied, the laser off. A
+    /// machine in motion raises `ALARM:3` (its position may be lost); [`Cutter::stop`] holds
+    /// first to avoid that.
+    pub fn reset(&mut self) -> Result<(), CutterError> {
+        self.write(&[SOFT_RESET])?;
+        let mut seen = Vec::new();
+        if self.await_banner(self.options.reply_timeout, &mut seen)? {
+            Ok(())
+        } else {
+            Err(self.silent("waiting for the banner after a soft reset"))
+        }
+    }
+
+    /// `cause`, after stopping the cutter (or both, when it cannot be stopped). After an alarm
+    /// the machine has stopped already and may hear nothing but a reset.
+    fn stop_after(&mut self, cause: CutterError) -> CutterError {
+        let stopped = match cause {
+            CutterError::Alarm { .. } => self.reset(),
+            _ => self.stop(),
+        };
+        match stopped {
+            Ok(()) => cause,
+            Err(stop) => CutterError::NotStopped {
+                cause: Box::new(cause),
+                stop: Box::new(stop),
+            },
+        }
+    }
+
+    fn silent(&self, doing: &'static str) -> CutterError {
+        CutterError::Silent {
+            address: self.address.clone(),
+            waited_ms: self.options.reply_timeout.as_millis() as u64,
+            doing,
+        }
+    }
+
+    fn write(&mut self, bytes: &[u8]) -> Result<(), CutterError> {
+        self.link
+            .write_all(bytes)
+            .and_then(|()| self.link.flush())
+            .map_err(|source| CutterError::Io {
+                address: self.address.clone(),
+                source,
+            })
+    }
+
+    /// One read slice into the incoming bytes.
+    fn fill(&mut self) -> Result<(), CutterError> {
+        let mut buf = [0u8; 512];
+        let io_error = |source| CutterError::Io {
+            address: self.address.clone(),
+            source,
+        };
+        match self.link.read(&mut buf) {
+            Ok(0) => Err(io_error(std::io::ErrorKind::UnexpectedEof.into())),
+            Ok(n) => {
+                self.incoming.extend_from_slice(&buf[..n]);
+                Ok(())
+            }
+            Err(e) if is_timeout(&e) => Ok(()),
+            Err(source) => Err(io_error(source)),
+        }
+    }
+
+    /// The next complete, non-empty line already received.
+    fn take_line(&mut self) -> Option<String> {
+        while let Some(end) = self.incoming.iter().position(|&b| b == b'\n') {
+            let raw: Vec<u8> = self.incoming.drain(..=end).collect();
+            let line = String::from_utf8_lossy(&raw).trim().to_owned();
+            if !line.is_empty() {
+                return Some(line);
+            }
+        }
+        None
+    }
+
+    /// One read slice; every complete line received so far.
+    fn read_available(&mut self) -> Result<Vec<String>, CutterError> {
+        self.fill()?;
+        Ok(std::iter::from_fn(|| self.take_line()).collect())
+    }
+
+    /// The next complete line, or `None` once `deadline` passes.
+    fn read_line(&mut self, deadline: Instant) -> Result<Option<String>, CutterError> {
+        loop {
+            if let Some(line) = self.take_line() {
+                return Ok(Some(line));
+            }
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
+            self.fill()?;
+        }
+    }
+}
+
+impl Drop for Cutter {
+    /// Dropped in the middle of a job (a panic unwinding): stop the cutter, best effort.
+    fn drop(&mut self) {
+        if self.in_job {
+            let _ = self.link.write_all(&[b'!', SOFT_RESET]);
+            let _ = self.link.flush();
+        }
+    }
+}
+
+fn is_timeout(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::TimedOut
+            | std::io::ErrorKind::WouldBlock
+            | std::io::ErrorKind::Interrupted
+    )
+}

@@ -1,0 +1,177 @@
+//! Why a cutter operation failed, each with a message that says what to do.
+
+use crate::error::Category;
+
+use super::codes::{describe_alarm, describe_error};
+
+/// What went wrong with the cutter.
+#[derive(Debug, thiserror::Error)]
+pub enum CutterError {
+    /// The cutter's address is not one this program understands.
+    #[error(
+        "cannot understand the cutter address {0:?}: use grbl:/dev/ttyUSB0[?baud=N], grbl+tcp://HOST:PORT or sim"
+    )]
+    BadAddress(String),
+    /// The serial port or TCP connection could not be opened.
+    #[error("cannot connect to the cutter at {address}: {reason}")]
+    Open {
+        /// The address.
+        address: String,
+        /// Why.
+        reason: String,
+    },
+    /// The connection failed while in use.
+    #[error("lost the connection to the cutter at {address}: {source}")]
+    Io {
+        /// The address.
+        address: String,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// No GRBL banner came, even after a soft reset.
+    #[error(
+        "no GRBL 1.1 banner from {address} within {waited_ms} ms, even after a soft reset; {}. Check the address, the baud rate and that the controller runs GRBL 1.1",
+        describe_seen(seen)
+    )]
+    NoBanner {
+        /// The address.
+        address: String,
+        /// How long it waited, ms.
+        waited_ms: u64,
+        /// The lines that did come.
+        seen: Vec<String>,
+    },
+    /// The controller stopped answering.
+    #[error("the cutter at {address} did not answer for {waited_ms} ms while {doing}")]
+    Silent {
+        /// The address.
+        address: String,
+        /// How long, ms.
+        waited_ms: u64,
+        /// What the driver was waiting for.
+        doing: &'static str,
+    },
+    /// The controller is in alarm and was not to be unlocked.
+    #[error(
+        "the cutter is in alarm{}: {reason}. Check the machine, then home it or unlock it (`--unlock` sends $X)",
+        code.map(|c| format!(" (ALARM:{c})")).unwrap_or_default()
+    )]
+    AlarmAtConnect {
+        /// The alarm code, when it said one.
+        code: Option<u8>,
+        /// What the controller said about it.
+        reason: String,
+    },
+    /// The controller is not idle after connecting (door open, holding, running).
+    #[error(
+        "the cutter is not idle but {state}; make it idle (close the door, finish or stop its job) and try again"
+    )]
+    NotIdle {
+        /// Its state.
+        state: String,
+    },
+    /// Laser mode (`$32=1`) is off: GRBL would keep the beam on through travel moves.
+    #[error(
+        "the controller is not in laser mode ($32={value}): it would keep the laser on during travel moves. Set `$32=1` if it drives a laser, or override this check only for a spindle machine"
+    )]
+    LaserModeOff {
+        /// `$32` as read (`?` when absent).
+        value: String,
+    },
+    /// The program has a line that cannot be streamed; nothing was sent.
+    #[error("line {line} of the program cannot be sent: {reason}. Nothing was sent")]
+    BadProgram {
+        /// Its line number in the file.
+        line: usize,
+        /// Why.
+        reason: String,
+    },
+    /// The controller refused a line; the cutter was stopped.
+    #[error(
+        "the cutter refused line {line} ({text}) with error:{code}: {}. The cutter was stopped and the laser is off",
+        describe_error(*code)
+    )]
+    Rejected {
+        /// Its line number in the file.
+        line: usize,
+        /// The line as sent.
+        text: String,
+        /// The `error:N` code.
+        code: u8,
+    },
+    /// The controller raised an alarm during the job; the cutter was stopped.
+    #[error(
+        "the cutter raised ALARM:{code} during the job: {}. The laser is off. {}",
+        describe_alarm(*code),
+        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} ({t})")).unwrap_or_else(|| "It had accepted no line yet".into())
+    )]
+    Alarm {
+        /// The alarm code.
+        code: u8,
+        /// The last line accepted before it: file line number and text.
+        after: Option<(usize, String)>,
+    },
+    /// The controller restarted during the job.
+    #[error(
+        "the cutter restarted during the job (its banner came again); the job is lost. Check its power and cable"
+    )]
+    Restarted,
+    /// The job was cancelled (Ctrl-C); the cutter was stopped.
+    #[error(
+        "cancelled after {answered} of {total} lines: the cutter was stopped and the laser is off"
+    )]
+    Cancelled {
+        /// Lines the controller had accepted.
+        answered: usize,
+        /// Lines in the program.
+        total: usize,
+    },
+    /// The controller said something the protocol does not allow here.
+    #[error("the cutter broke the GRBL protocol: {0}")]
+    Protocol(String),
+    /// A failure, and then the cutter could not be stopped.
+    #[error(
+        "{cause}; AND the cutter could not be stopped ({stop}): switch the laser off at the machine"
+    )]
+    NotStopped {
+        /// The first failure.
+        cause: Box<CutterError>,
+        /// Why stopping failed.
+        stop: Box<CutterError>,
+    },
+    /// The simulated cutter could not be started.
+    #[error("cannot start the simulated cutter: {0}")]
+    Sim(String),
+}
+
+impl CutterError {
+    /// What kind of failure this is (the command-line tool's exit code follows from it).
+    pub fn category(&self) -> Category {
+        match self {
+            Self::BadAddress(_) | Self::BadProgram { .. } => Category::Usage,
+            Self::Open { .. }
+            | Self::Io { .. }
+            | Self::NoBanner { .. }
+            | Self::Silent { .. }
+            | Self::Protocol(_)
+            | Self::Restarted
+            | Self::Sim(_) => Category::Communication,
+            Self::AlarmAtConnect { .. }
+            | Self::NotIdle { .. }
+            | Self::LaserModeOff { .. }
+            | Self::Rejected { .. }
+            | Self::Alarm { .. }
+            | Self::Cancelled { .. } => Category::Device,
+            Self::NotStopped { cause, .. } => cause.category(),
+        }
+    }
+}
+
+/// "nothing came" or the first lines that did.
+fn describe_seen(seen: &[String]) -> String {
+    if seen.is_empty() {
+        return "nothing came".into();
+    }
+    let shown: Vec<&str> = seen.iter().take(3).map(String::as_str).collect();
+    format!("it said {:?}", shown.join(" | "))
+}

@@ -1,0 +1,425 @@
+//! The GRBL 1.1 protocol without I/O: a program cleaned into lines fit to stream, the replies
+//! classified, status reports parsed, and the character-counting streamer that never lets more
+//! than the controller's 128-byte receive buffer go unacknowledged.
+//!
+//! Character counting: the controller answers every line (`ok` or `error:N`) in order, so the
+//! bytes of the lines not yet answered are exactly what may still sit in its receive buffer. A
+//! line is sent only when it fits beside them. Realtime commands (`?`, `!`, `~`, ctrl-X) never
+//! enter the buffer and are not counted, which is also why a program line may not contain them.
+
+use std::collections::VecDeque;
+
+/// GRBL's serial receive buffer, bytes.
+pub const RX_BUFFER_LEN: usize = 128;
+/// GRBL 1.1's line buffer: longer lines (without spaces and comments) are refused.
+pub const LINE_MAX_LEN: usize = 80;
+
+/// One line of a program, ready to stream.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ProgramLine {
+    /// Its line number in the file (1 = the first).
+    pub number: usize,
+    /// What is sent: the line without comments and spaces.
+    pub text: String,
+}
+
+/// A program line that cannot be streamed, and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BadLine {
+    /// Its line number in the file.
+    pub number: usize,
+    /// Why.
+    pub reason: String,
+}
+
+/// Clean a G-code program into the lines to stream: comments (`;...`, `(...)`), spaces, `%`
+/// delimiters and empty lines go. Refused: characters GRBL would take as realtime commands or
+/// cannot read, `$` system commands (run them on their own, not inside a job), and lines longer
+/// than GRBL's line buffer.
+pub fn prepare(program: &str) -> Result<Vec<ProgramLine>, BadLine> {
+    let mut lines = Vec::new();
+    for (index, raw) in program.lines().enumerate() {
+        let number = index + 1;
+        let bad = |reason: String| BadLine { number, reason };
+        let text = clean(raw).map_err(bad)?;
+        if text.is_empty() || text == "%" {
+            continue;
+        }
+        if text.starts_with('$') {
+            return Err(bad(format!(
+                "`{text}` is a GRBL system command; run it on its own, not inside a job"
+            )));
+        }
+        if text.len() > LINE_MAX_LEN {
+            return Err(bad(format!(
+                "{} characters without spaces and comments; GRBL's line buffer holds {LINE_MAX_LEN}",
+                text.len()
+            )));
+        }
+        lines.push(ProgramLine { number, text });
+    }
+    Ok(lines)
+}
+
+/// One line without comments and spaces, or why it cannot be sent.
+fn clean(raw: &str) -> Result<String, String> {
+    let mut text = String::with_capacity(raw.len());
+    let mut in_comment = false;
+    for c in raw.chars() {
+        match c {
+            '(' => in_comment = true,
+            ')' if in_comment => in_comment = false,
+            ';' if !in_comment => break,
+            _ if in_comment => {}
+            '?' | '!' | '~' => {
+                return Err(format!(
+                    "`{c}` outside a comment would be taken by GRBL as a realtime command"
+                ));
+            }
+            c if c.is_ascii_whitespace() => {}
+            c if c.is_ascii_graphic() => text.push(c.to_ascii_uppercase()),
+            c => return Err(format!("character {c:?} is not printable ASCII")),
+        }
+    }
+    Ok(text)
+}
+
+/// What a line from the controller is.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reply {
+    /// `ok`: the oldest unanswered line was accepted.
+    Ok,
+    /// `error:N`: the oldest unanswered line was refused.
+    Error(u8),
+    /// `ALARM:N`: the machine stopped.
+    Alarm(u8),
+    /// The welcome banner (`Grbl 1.1h ['$' for help]`), with its version: the controller
+    /// (re)started.
+    Banner(String),
+    /// A `[MSG:...]` message, without its brackets.
+    Message(String),
+    /// A status report.
+    Status(Status),
+    /// A setting from `$$` (`$N=V`).
+    Setting(u16, f64),
+    /// Anything else (other `[...]` feedback, echoes, noise).
+    Other(String),
+}
+
+/// Classify one line (without its line ending).
+pub fn parse_reply(line: &str) -> Reply {
+    let line = line.trim();
+    if line == "ok" {
+        return Reply::Ok;
+    }
+    let code = |rest: &str| rest.trim().parse::<u8>().ok();
+    if let Some(n) = line.strip_prefix("error:").and_then(code) {
+        return Reply::Error(n);
+    }
+    if let Some(n) = line.strip_prefix("ALARM:").and_then(code) {
+        return Reply::Alarm(n);
+    }
+    // GRBL's banner; grblHAL names itself `GrblHAL`, FluidNC says `Grbl 3.x [FluidNC ...]`.
+    if let Some(rest) = line
+        .strip_prefix("Grbl ")
+        .or_else(|| line.strip_prefix("GrblHAL "))
+    {
+        let version = rest.split_whitespace().next().unwrap_or_default();
+        return Reply::Banner(version.to_owned());
+    }
+    if let Some(message) = line.strip_prefix("[MSG:").and_then(|m| m.strip_suffix(']')) {
+        return Reply::Message(message.to_owned());
+    }
+    if let Some(status) = Status::parse(line) {
+        return Reply::Status(status);
+    }
+    if let Some((n, v)) = line.strip_prefix('$').and_then(|s| s.split_once('='))
+        && let (Ok(n), Ok(v)) = (n.parse(), v.parse())
+    {
+        return Reply::Setting(n, v);
+    }
+    Reply::Other(line.to_owned())
+}
+
+/// The machine's state, as a status report names it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum MachineState {
+    /// At rest, ready.
+    Idle,
+    /// Running a program.
+    Run,
+    /// Feed hold: `Hold:1` while stopping, `Hold:0` once stopped.
+    Hold(u8),
+    /// Jogging.
+    Jog,
+    /// In alarm: G-code is locked until `$X` (or homing).
+    Alarm,
+    /// The safety door is open (its sub-state).
+    Door(u8),
+    /// Check mode (`$C`).
+    Check,
+    /// Homing.
+    Home,
+    /// Asleep.
+    Sleep,
+    /// A state this program does not know.
+    Other(String),
+}
+
+impl MachineState {
+    fn parse(text: &str) -> Self {
+        let (name, sub) = match text.split_once(':') {
+            Some((name, sub)) => (name, sub.parse().unwrap_or(0)),
+            None => (text, 0),
+        };
+        match name {
+            "Idle" => Self::Idle,
+            "Run" => Self::Run,
+            "Hold" => Self::Hold(sub),
+            "Jog" => Self::Jog,
+            "Alarm" => Self::Alarm,
+            "Door" => Self::Door(sub),
+            "Check" => Self::Check,
+            "Home" => Self::Home,
+            "Sleep" => Self::Sleep,
+            _ => Self::Other(text.to_owned()),
+        }
+    }
+}
+
+impl std::fmt::Display for MachineState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Hold(n) => write!(f, "Hold:{n}"),
+            Self::Door(n) => write!(f, "Door:{n}"),
+            Self::Other(s) => f.write_str(s),
+            other => write!(f, "{other:?}"),
+        }
+    }
+}
+
+/// A status report (`<Idle|MPos:0.000,0.000,0.000|FS:0,0>`); the fields a controller leaves out
+/// are `None`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Status {
+    /// The machine's state.
+    pub state: MachineState,
+    /// Machine position, mm (`MPos`; `None` when it reports `WPos` only).
+    pub position_mm: Option<[f64; 3]>,
+    /// Feed now, mm/min, and spindle (laser) value (`FS`).
+    pub feed_mm_per_min: Option<f64>,
+    /// The spindle (laser) value now (`FS`).
+    pub spindle_s: Option<f64>,
+    /// Free planner blocks and free receive-buffer bytes (`Bf`).
+    pub buffer_free: Option<(u32, u32)>,
+}
+
+impl Status {
+    /// Parse `<...>`; `None` when `line` is not a status report.
+    pub fn parse(line: &str) -> Option<Self> {
+        let body = line.strip_prefix('<')?.strip_suffix('>')?;
+        let mut fields = body.split('|');
+        let mut status = Status {
+            state: MachineState::parse(fields.next()?),
+            position_mm: None,
+            feed_mm_per_min: None,
+            spindle_s: None,
+            buffer_free: None,
+        };
+        for field in fields {
+            let Some((name, value)) = field.split_once(':') else {
+                continue;
+            };
+            let numbers: Vec<f64> = value.split(',').filter_map(|v| v.parse().ok()).collect();
+            match (name, numbers.as_slice()) {
+                ("MPos", [x, y, z, ..]) => status.position_mm = Some([*x, *y, *z]),
+                ("FS", [feed, s]) => {
+                    status.feed_mm_per_min = Some(*feed);
+                    status.spindle_s = Some(*s);
+                }
+                ("F", [feed]) => status.feed_mm_per_min = Some(*feed),
+                ("Bf", [blocks, bytes]) => {
+                    status.buffer_free = Some((*blocks as u32, *bytes as u32))
+                }
+                _ => {}
+            }
+        }
+        Some(status)
+    }
+}
+
+/// A reply the streamer did not expect.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UnexpectedReply;
+
+/// The character-counting streamer: which line goes next, and which line a reply answers.
+#[derive(Debug, Clone)]
+pub struct Streamer {
+    lines: Vec<ProgramLine>,
+    next: usize,
+    in_flight: VecDeque<usize>,
+    in_flight_bytes: usize,
+    answered: usize,
+    window: usize,
+}
+
+impl Streamer {
+    /// Stream `lines` with at most [`RX_BUFFER_LEN`] bytes unanswered.
+    pub fn new(lines: Vec<ProgramLine>) -> Self {
+        Self::with_window(lines, RX_BUFFER_LEN)
+    }
+
+    /// Stream with another window (a controller with a larger buffer; tests).
+    pub fn with_window(lines: Vec<ProgramLine>, window: usize) -> Self {
+        Self {
+            lines,
+            next: 0,
+            in_flight: VecDeque::new(),
+            in_flight_bytes: 0,
+            answered: 0,
+            window,
+        }
+    }
+
+    /// The next line to send, with its newline, when it fits beside the unanswered ones.
+    pub fn next_to_send(&mut self) -> Option<Vec<u8>> {
+        let line = self.lines.get(self.next)?;
+        let len = line.text.len() + 1;
+        if self.in_flight_bytes + len > self.window {
+            return None;
+        }
+        self.in_flight.push_back(self.next);
+        self.in_flight_bytes += len;
+        self.next += 1;
+        let mut bytes = line.text.clone().into_bytes();
+        bytes.push(b'\n');
+        Some(bytes)
+    }
+
+    /// An `ok` or `error:N` arrived: the oldest unanswered line it answers.
+    pub fn answer(&mut self) -> Result<&ProgramLine, UnexpectedReply> {
+        let index = self.in_flight.pop_front().ok_or(UnexpectedReply)?;
+        let line = &self.lines[index];
+        self.in_flight_bytes -= line.text.len() + 1;
+        self.answered += 1;
+        Ok(line)
+    }
+
+    /// Bytes sent and not yet answered.
+    pub fn unanswered_bytes(&self) -> usize {
+        self.in_flight_bytes
+    }
+
+    /// Lines answered so far.
+    pub fn answered(&self) -> usize {
+        self.answered
+    }
+
+    /// Lines in the program.
+    pub fn total(&self) -> usize {
+        self.lines.len()
+    }
+
+    /// The last line the controller accepted, if any.
+    pub fn last_answered(&self) -> Option<&ProgramLine> {
+        let last = self.in_flight.front().copied().unwrap_or(self.next);
+        last.checked_sub(1).map(|i| &self.lines[i])
+    }
+
+    /// True once every line is answered.
+    pub fn done(&self) -> bool {
+        self.answered == self.lines.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_program_is_cleaned_and_what_cannot_be_streamed_is_named() {
+        let lines = prepare("%\n; header\nG21 G90 (mm)\n\ng1 x1 f600 ; cut\n").unwrap();
+        let texts: Vec<_> = lines.iter().map(|l| (l.number, l.text.as_str())).collect();
+        assert_eq!(texts, [(3, "G21G90"), (5, "G1X1F600")]);
+        assert_eq!(prepare("G0X1\nG1X2?\n").unwrap_err().number, 2);
+        assert!(
+            prepare("$X\n")
+                .unwrap_err()
+                .reason
+                .contains("system command")
+        );
+        assert!(
+            prepare(&"G1X1".repeat(25))
+                .unwrap_err()
+                .reason
+                .contains("80")
+        );
+        assert!(prepare("G1 X1 (a ! in a comment is fine)\n").is_ok());
+    }
+
+    #[test]
+    fn replies_and_status_reports_are_read() {
+        assert_eq!(parse_reply("ok\r"), Reply::Ok);
+        assert_eq!(parse_reply("error:22"), Reply::Error(22));
+        assert_eq!(parse_reply("ALARM:1"), Reply::Alarm(1));
+        assert_eq!(
+            parse_reply("Grbl 1.1h ['$' for help]"),
+            Reply::Banner("1.1h".into())
+        );
+        let fluidnc = "Grbl 3.7 [FluidNC v3.7.8 (wifi) '$' for help]";
+        assert_eq!(parse_reply(fluidnc), Reply::Banner("3.7".into()));
+        let grblhal = "GrblHAL 1.1f ['$' or '$HELP' for help]";
+        assert_eq!(parse_reply(grblhal), Reply::Banner("1.1f".into()));
+        assert_eq!(parse_reply("$32=1"), Reply::Setting(32, 1.0));
+        let Reply::Status(s) = parse_reply("<Hold:0|MPos:1.000,2.500,0.000|Bf:15,128|FS:0,0>")
+        else {
+            panic!("not a status");
+        };
+        assert_eq!(s.state, MachineState::Hold(0));
+        assert_eq!(s.position_mm, Some([1.0, 2.5, 0.0]));
+        assert_eq!(s.buffer_free, Some((15, 128)));
+    }
+
+    #[test]
+    fn the_streamer_keeps_the_unanswered_bytes_within_the_window() {
+        let lines = prepare(&"G1X10F600\n".repeat(40)).unwrap();
+        let mut streamer = Streamer::new(lines);
+        let mut sent = 0;
+        while let Some(bytes) = streamer.next_to_send() {
+            sent += bytes.len();
+        }
+        assert_eq!(sent, 120, "12 lines of 10 bytes; the 13th would pass 128");
+        assert_eq!(streamer.answer().unwrap().number, 1);
+        assert!(streamer.next_to_send().is_some());
+        assert_eq!(streamer.unanswered_bytes(), 120);
+        let mut fresh = Streamer::new(Vec::new());
+        assert_eq!(fresh.answer(), Err(UnexpectedReply));
+    }
+
+    proptest::proptest! {
+        /// Any text: what is sent is short, printable and free of realtime characters; any
+        /// order of sends and answers keeps the window; any reply line is classified.
+        #[test]
+        fn any_program_streams_within_the_window(
+            program in "[ -~\n\t]{0,2000}",
+            answers in proptest::collection::vec(proptest::bool::ANY, 0..200),
+        ) {
+            let _ = parse_reply(&program);
+            let Ok(lines) = prepare(&program) else { return Ok(()) };
+            for line in &lines {
+                proptest::prop_assert!(line.text.len() <= LINE_MAX_LEN);
+                proptest::prop_assert!(!line.text.contains(['?', '!', '~']));
+                proptest::prop_assert!(line.text.bytes().all(|b| b.is_ascii_graphic()));
+            }
+            let mut streamer = Streamer::new(lines);
+            for answer in answers {
+                if answer {
+                    let _ = streamer.answer();
+                } else {
+                    let _ = streamer.next_to_send();
+                }
+                proptest::prop_assert!(streamer.unanswered_bytes() <= RX_BUFFER_LEN);
+            }
+        }
+    }
+}

@@ -1,0 +1,157 @@
+//! Where the cutter is: its address (`grbl:/dev/ttyUSB0[?baud=N]`, `grbl+tcp://HOST:PORT`,
+//! `sim`) and the byte stream to it, a serial port or a TCP connection, each read in short
+//! slices so that the driver's deadlines hold.
+
+use std::io::{Read, Write};
+use std::net::{TcpStream, ToSocketAddrs};
+use std::str::FromStr;
+use std::time::Duration;
+
+use super::error::CutterError;
+
+/// GRBL's usual baud rate.
+pub const DEFAULT_BAUD: u32 = 115_200;
+/// How long one read may block.
+pub(super) const READ_SLICE: Duration = Duration::from_millis(10);
+/// How long a TCP connection may take to open.
+const TCP_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Where a cutter is.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CutterAddress {
+    /// A serial port (`grbl:/dev/ttyUSB0`, `grbl:COM3?baud=250000`).
+    Serial {
+        /// The port's path.
+        path: String,
+        /// Its baud rate.
+        baud: u32,
+    },
+    /// A networked controller (`grbl+tcp://192.168.1.20:23`).
+    Tcp {
+        /// `HOST:PORT`.
+        host_port: String,
+    },
+    /// The simulated cutter, in this process (`sim`).
+    Sim,
+}
+
+impl FromStr for CutterAddress {
+    type Err = CutterError;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let bad = || CutterError::BadAddress(text.to_owned());
+        if text == "sim" {
+            return Ok(Self::Sim);
+        }
+        if let Some(rest) = text.strip_prefix("grbl+tcp://") {
+            let host_port = rest.trim_end_matches('/');
+            let (host, port) = host_port.rsplit_once(':').ok_or_else(bad)?;
+            if host.is_empty() || port.parse::<u16>().is_err() {
+                return Err(bad());
+            }
+            return Ok(Self::Tcp {
+                host_port: host_port.to_owned(),
+            });
+        }
+        let rest = text.strip_prefix("grbl:").ok_or_else(bad)?;
+        let (path, query) = match rest.split_once('?') {
+            Some((path, query)) => (path, Some(query)),
+            None => (rest, None),
+        };
+        let baud = match query {
+            None => DEFAULT_BAUD,
+            Some(q) => q
+                .strip_prefix("baud=")
+                .and_then(|b| b.parse().ok())
+                .filter(|b| *b > 0)
+                .ok_or_else(bad)?,
+        };
+        if path.is_empty() {
+            return Err(bad());
+        }
+        Ok(Self::Serial {
+            path: path.to_owned(),
+            baud,
+        })
+    }
+}
+
+impl std::fmt::Display for CutterAddress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Serial { path, baud } if *baud == DEFAULT_BAUD => write!(f, "grbl:{path}"),
+            Self::Serial { path, baud } => write!(f, "grbl:{path}?baud={baud}"),
+            Self::Tcp { host_port } => write!(f, "grbl+tcp://{host_port}"),
+            Self::Sim => f.write_str("sim"),
+        }
+    }
+}
+
+/// A byte stream to a controller whose reads time out after a few milliseconds.
+pub trait Link: Read + Write + Send {}
+
+impl<T: Read + Write + Send> Link for T {}
+
+/// Open a serial port at `baud`.
+pub(super) fn open_serial(path: &str, baud: u32) -> Result<Box<dyn Link>, CutterError> {
+    let port = serialport::new(path, baud)
+        .timeout(READ_SLICE)
+        .open()
+        .map_err(|e| CutterError::Open {
+            address: format!("grbl:{path}"),
+            reason: format!(
+                "{e}. Check the path and that no other program (a sender, a serial monitor) holds the port"
+            ),
+        })?;
+    Ok(Box::new(port))
+}
+
+/// Connect to `host:port`.
+pub(super) fn open_tcp(host_port: &str) -> Result<Box<dyn Link>, CutterError> {
+    let open_error = |reason: String| CutterError::Open {
+        address: format!("grbl+tcp://{host_port}"),
+        reason,
+    };
+    let addr = host_port
+        .to_socket_addrs()
+        .map_err(|e| open_error(format!("cannot resolve it: {e}")))?
+        .next()
+        .ok_or_else(|| open_error("it resolves to no address".into()))?;
+    let stream = TcpStream::connect_timeout(&addr, TCP_CONNECT_TIMEOUT)
+        .map_err(|e| open_error(format!("{e}. Is the controller on the network?")))?;
+    stream
+        .set_read_timeout(Some(READ_SLICE))
+        .and_then(|()| stream.set_nodelay(true))
+        .map_err(|e| open_error(e.to_string()))?;
+    Ok(Box::new(stream))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn addresses_are_read_and_bad_ones_refused() {
+        let serial: CutterAddress = "grbl:/dev/ttyUSB0".parse().unwrap();
+        assert_eq!(
+            serial,
+            CutterAddress::Serial {
+                path: "/dev/ttyUSB0".into(),
+                baud: DEFAULT_BAUD
+            }
+        );
+        let fast: CutterAddress = "grbl:COM3?baud=250000".parse().unwrap();
+        assert_eq!(fast.to_string(), "grbl:COM3?baud=250000");
+        let tcp: CutterAddress = "grbl+tcp://10.0.0.5:23".parse().unwrap();
+        assert_eq!(tcp.to_string(), "grbl+tcp://10.0.0.5:23");
+        for bad in [
+            "grbl:",
+            "grbl:/dev/x?baud=0",
+            "grbl+tcp://host",
+            "tcp://h:1",
+            "/dev/ttyUSB0",
+        ] {
+            assert!(bad.parse::<CutterAddress>().is_err(), "{bad}");
+        }
+    }
+}

@@ -1,0 +1,363 @@
+//! The GRBL driver against the cutter twin, which enforces GRBL's 128-byte receive buffer and
+//! records what its laser traced: streaming, refused lines, alarms, cancel, laser safety, and
+//! the TCP transport.
+
+use std::io::{Read, Write};
+use std::net::TcpListener;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use kerfmeter::grbl::{
+    ConnectOptions, Cutter, CutterAddress, CutterError, SimCutterOptions, StreamProgress,
+};
+use kerfmeter_twin::Pace;
+use kerfmeter_twin::cutter::{CutterLog, CutterServer, SegmentKind};
+
+/// Quick to connect and to notice the end of motion.
+fn options() -> ConnectOptions {
+    ConnectOptions {
+        banner_wait: Duration::from_millis(500),
+        poll_interval: Duration::from_millis(20),
+        ..ConnectOptions::default()
+    }
+}
+
+fn sim(twin: SimCutterOptions) -> Cutter {
+    Cutter::sim(twin, options()).unwrap()
+}
+
+/// A square of `side_mm` cut at 3000 mm/min, with travels between, `repeats` times.
+fn squares(side_mm: u32, repeats: usize) -> String {
+    let mut program = String::from("G21 G90 ; mm, absolute\nM4 S0\n");
+    for i in 0..repeats {
+        let x0 = 5 * i;
+        let x1 = x0 + side_mm as usize;
+        program += &format!("G0 X{x0} Y0\nG1 X{x1} Y0 S800 F3000\nG1 X{x1} Y{side_mm}\n");
+        program += &format!("G1 X{x0} Y{side_mm}\nG1 X{x0} Y0\n");
+    }
+    program + "M5\nG0 X0 Y0\nM2\n"
+}
+
+fn stream(
+    cutter: &mut Cutter,
+    program: &str,
+) -> Result<kerfmeter::grbl::StreamReport, CutterError> {
+    cutter.stream(program, &AtomicBool::new(false), &mut |_| {})
+}
+
+fn log(cutter: &Cutter) -> CutterLog {
+    cutter.sim_log().unwrap().clone()
+}
+
+#[test]
+fn a_program_streams_within_the_window_and_the_laser_traces_only_the_cuts() {
+    let mut cutter = sim(SimCutterOptions::default());
+    assert_eq!(cutter.version(), "1.1h");
+    let program = squares(10, 12);
+    let report = stream(&mut cutter, &program).unwrap();
+    assert!(report.max_unanswered_bytes <= 128, "{report:?}");
+    assert!(
+        report.max_unanswered_bytes > 100,
+        "the window is used: {report:?}"
+    );
+    assert_eq!(report.position_mm, Some([0.0, 0.0, 0.0]));
+    let record = log(&cutter).snapshot();
+    assert!(record.violations.is_empty(), "{:?}", record.violations);
+    assert!(record.travel_firings.is_empty());
+    let cuts = record.segments.iter().filter(|s| s.power_s > 0.0).count();
+    assert_eq!(cuts, 4 * 12);
+    assert!(record.segments.iter().all(|s| s.complete));
+    assert!(
+        record
+            .segments
+            .iter()
+            .all(|s| (s.kind == SegmentKind::Travel) == (s.power_s == 0.0))
+    );
+    assert_eq!((record.state.as_str(), record.laser_power_s), ("Idle", 0.0));
+}
+
+#[test]
+fn a_greedy_sender_is_caught_by_the_twin() {
+    // The check the driver passes can fail: write a program without waiting for any `ok`.
+    let (server, mut port) =
+        CutterServer::pty(SimCutterOptions::default(), Pace::LockStep).unwrap();
+    port.write_all(squares(10, 12).as_bytes()).unwrap();
+    port.flush().unwrap();
+    let mut buf = [0u8; 4096];
+    let _ = port.read(&mut buf);
+    std::thread::sleep(Duration::from_millis(200));
+    assert!(!server.log().snapshot().violations.is_empty());
+}
+
+#[test]
+fn a_refused_line_is_reported_with_its_number_text_and_meaning_and_the_laser_is_off() {
+    // The 7th G-code line (file line 8: the first is a comment) gets error:33.
+    let mut cutter = sim(SimCutterOptions {
+        error_on_line: Some((7, 33)),
+        ..SimCutterOptions::default()
+    });
+    let program = format!("; a job\n{}", squares(10, 12));
+    let error = stream(&mut cutter, &program).unwrap_err();
+    let CutterError::Rejected {
+        line,
+        ref text,
+        code,
+    } = error
+    else {
+        panic!("{error}");
+    };
+    assert_eq!((line, text.as_str(), code), (8, "G1X0Y0", 33));
+    let message = error.to_string();
+    assert!(
+        message.contains("its end is not on its circle"),
+        "{message}"
+    );
+    assert!(message.contains("laser is off"), "{message}");
+    let record = log(&cutter).snapshot();
+    assert_eq!(record.laser_power_s, 0.0);
+    assert!(record.resets >= 1, "stopped with a soft reset");
+    assert_ne!(record.state, "Run");
+}
+
+#[test]
+fn a_controller_in_alarm_is_refused_unless_unlocking_is_asked_for() {
+    let twin = SimCutterOptions {
+        boot_in_alarm: true,
+        ..SimCutterOptions::default()
+    };
+    let error = Cutter::sim(twin, options()).unwrap_err();
+    assert!(
+        matches!(error, CutterError::AlarmAtConnect { .. }),
+        "{error}"
+    );
+    assert!(error.to_string().contains("--unlock"), "{error}");
+    let mut cutter = Cutter::sim(
+        twin,
+        ConnectOptions {
+            unlock: true,
+            ..options()
+        },
+    )
+    .unwrap();
+    stream(&mut cutter, &squares(5, 1)).unwrap();
+}
+
+#[test]
+fn a_controller_without_laser_mode_is_refused_because_it_would_fire_on_travels() {
+    let twin = SimCutterOptions {
+        laser_mode: false,
+        ..SimCutterOptions::default()
+    };
+    let error = Cutter::sim(twin, options()).unwrap_err();
+    assert!(matches!(error, CutterError::LaserModeOff { .. }), "{error}");
+    // Overridden, the twin shows why: the beam stays on through the travels.
+    let mut cutter = Cutter::sim(
+        twin,
+        ConnectOptions {
+            allow_without_laser_mode: true,
+            ..options()
+        },
+    )
+    .unwrap();
+    stream(&mut cutter, "M3 S500\nG1 X5 F3000\nG0 X0\nM5\n").unwrap();
+    assert_eq!(log(&cutter).snapshot().travel_firings.len(), 1);
+}
+
+#[test]
+fn an_alarm_mid_job_stops_and_is_reported_with_the_laser_off() {
+    let mut cutter = sim(SimCutterOptions {
+        hard_limit_after_ms: Some(1_500),
+        ..SimCutterOptions::default()
+    });
+    let error = stream(&mut cutter, &squares(10, 12)).unwrap_err();
+    let CutterError::Alarm {
+        code: 1,
+        after: Some((line, _)),
+    } = &error
+    else {
+        panic!("{error}");
+    };
+    assert!(*line > 3, "{error}");
+    assert!(error.to_string().contains("hard limit"), "{error}");
+    let record = log(&cutter).snapshot();
+    assert_eq!(record.laser_power_s, 0.0);
+    assert_eq!(record.alarms, [1]);
+    assert!(!record.segments.last().unwrap().complete);
+}
+
+#[test]
+fn cancelling_mid_stream_stops_the_cutter_with_the_laser_off() {
+    let mut cutter = sim(SimCutterOptions::default());
+    let cancel = Arc::new(AtomicBool::new(false));
+    let mut on_progress = |p: &StreamProgress| {
+        if p.answered >= 20 {
+            cancel.store(true, Ordering::Relaxed);
+        }
+    };
+    let error = cutter
+        .stream(&squares(10, 12), &cancel, &mut on_progress)
+        .unwrap_err();
+    assert!(
+        matches!(error, CutterError::Cancelled { answered, total: 65 } if answered >= 20),
+        "{error}"
+    );
+    let record = log(&cutter).snapshot();
+    assert_eq!(record.laser_power_s, 0.0);
+    assert!(record.resets >= 1);
+    assert!(
+        record.segments.len() < 4 * 12 + 12,
+        "the job did not run to its end"
+    );
+    assert!(
+        record.alarms.is_empty(),
+        "a completed hold keeps the position: no ALARM:3"
+    );
+    assert_eq!(record.state, "Idle");
+}
+
+#[test]
+fn a_networked_controller_is_driven_over_tcp() {
+    let server = CutterServer::tcp(SimCutterOptions::default(), Pace::LockStep, 0).unwrap();
+    let address: CutterAddress = format!("grbl+tcp://{}", server.address()).parse().unwrap();
+    let mut cutter = Cutter::open(&address, options()).unwrap();
+    let report = stream(&mut cutter, &squares(10, 4)).unwrap();
+    assert!(report.max_unanswered_bytes <= 128);
+    let record = server.log().snapshot();
+    assert!(record.violations.is_empty() && record.travel_firings.is_empty());
+    assert_eq!(
+        record.segments.iter().filter(|s| s.power_s > 0.0).count(),
+        16
+    );
+}
+
+#[test]
+fn something_that_is_not_grbl_is_named_in_the_error() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = format!("grbl+tcp://{}", listener.local_addr().unwrap());
+    let talker = std::thread::spawn(move || {
+        let (mut stream, _) = listener.accept().unwrap();
+        stream.write_all(b"SSH-2.0-OpenSSH\r\n").unwrap();
+        // Hold the connection until the driver gives up and hangs up.
+        let mut buf = [0u8; 64];
+        while matches!(stream.read(&mut buf), Ok(n) if n > 0) {}
+    });
+    let quick = ConnectOptions {
+        banner_wait: Duration::from_millis(100),
+        reply_timeout: Duration::from_millis(200),
+        ..options()
+    };
+    let error = Cutter::open(&address.parse().unwrap(), quick).unwrap_err();
+    assert!(matches!(error, CutterError::NoBanner { .. }), "{error}");
+    assert!(error.to_string().contains("SSH-2.0-OpenSSH"), "{error}");
+    talker.join().unwrap();
+}
+
+/// A scripted controller for the failures the twin does not stage: it answers the connect like
+/// GRBL, then, after `good_lines` program lines, restarts (`restart`) or falls silent for good.
+struct Scripted {
+    out: std::collections::VecDeque<u8>,
+    good_lines: usize,
+    restart: bool,
+    lines: usize,
+    silent: bool,
+}
+
+impl Scripted {
+    fn new(good_lines: usize, restart: bool) -> Self {
+        let mut out = std::collections::VecDeque::new();
+        out.extend(b"\r\nGrbl 1.1h ['$' for help]\r\n");
+        Self {
+            out,
+            good_lines,
+            restart,
+            lines: 0,
+            silent: false,
+        }
+    }
+
+    fn say(&mut self, text: &str) {
+        if !self.silent {
+            self.out.extend(text.as_bytes());
+        }
+    }
+}
+
+impl Write for Scripted {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        for line in bytes.split_inclusive(|&b| b == b'\n') {
+            match line {
+                b"?" => self.say("<Idle|MPos:0.000,0.000,0.000|FS:0,0>\r\n"),
+                b"!" => {}
+                [0x18] => self.say("\r\nGrbl 1.1h ['$' for help]\r\n"),
+                b"$$\n" => self.say("$32=1\r\nok\r\n"),
+                _ => {
+                    self.lines += 1;
+                    if self.lines <= self.good_lines {
+                        self.say("ok\r\n");
+                    } else if self.restart {
+                        self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
+                    } else {
+                        self.silent = true;
+                    }
+                }
+            }
+        }
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Read for Scripted {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.out.is_empty() {
+            std::thread::sleep(Duration::from_millis(1));
+            return Err(std::io::ErrorKind::TimedOut.into());
+        }
+        let n = buf.len().min(self.out.len());
+        for (slot, byte) in buf.iter_mut().zip(self.out.drain(..n)) {
+            *slot = byte;
+        }
+        Ok(n)
+    }
+}
+
+fn scripted(good_lines: usize, restart: bool) -> Cutter {
+    let quick = ConnectOptions {
+        reply_timeout: Duration::from_millis(200),
+        silence_timeout: Duration::from_millis(300),
+        ..options()
+    };
+    Cutter::connect(
+        Box::new(Scripted::new(good_lines, restart)),
+        "scripted".into(),
+        quick,
+    )
+    .unwrap()
+}
+
+#[test]
+fn a_controller_that_restarts_mid_job_is_reported() {
+    let mut cutter = scripted(3, true);
+    let error = stream(&mut cutter, "G1X1F100\n".repeat(6).as_str()).unwrap_err();
+    assert!(matches!(error, CutterError::Restarted), "{error}");
+}
+
+#[test]
+fn a_controller_that_falls_silent_cannot_be_stopped_and_the_error_says_so() {
+    let mut cutter = scripted(2, false);
+    let error = stream(&mut cutter, "G1X1F100\n".repeat(20).as_str()).unwrap_err();
+    let CutterError::NotStopped { cause, .. } = &error else {
+        panic!("{error}");
+    };
+    assert!(matches!(**cause, CutterError::Silent { .. }), "{error}");
+    assert!(
+        error
+            .to_string()
+            .contains("switch the laser off at the machine"),
+        "{error}"
+    );
+}
