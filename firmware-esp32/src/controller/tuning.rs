@@ -119,8 +119,11 @@ pub const MIN_PROBE_FRACTION: f32 = 0.02;
 /// `FORCE_SENSITIVE` whatever the probe says: the self-locking spiral keeps the deeper
 /// compression, and its static friction keeps the probe from gauging the contact's compliance
 /// past it (on the twin a contact of 1.2 N/µm pressed 28 % too hard read 13 µm high and moved
-/// 0.1 µm under the probe). Three times the estimate's noise (1 %).
-pub const OVERSHOOT_LIMIT: f32 = 0.03;
+/// 0.1 µm under the probe). The first run after boot starts from a factor of 1, so a current
+/// sense that reads high lowers the factor at its first settle by its gain error (5 % on the
+/// twin's default board, on MDF some 0.5 µm of compression): the limit stands above that, and
+/// the probe judges what is below it.
+pub const OVERSHOOT_LIMIT: f32 = 0.08;
 /// A reading that a [`TORQUE_UNCERTAINTY`] torque error could move by more than this, µm, is
 /// flagged `FORCE_SENSITIVE`: issue 12's accuracy target for the device-added error (p95
 /// ≤ 3 µm), so an unflagged reading is one the torque's uncertainty cannot take past it.
@@ -233,7 +236,9 @@ pub const SELFTEST_PULSE_DUTY: f32 = 0.6;
 /// Self-test: torque-constant pulse length, ticks (current is averaged over the first ones, before
 /// the hub has built up speed and back-EMF).
 pub const SELFTEST_PULSE_TICKS: u32 = 20;
-/// Self-test: the estimate passes within this fraction of the configured torque constant (it
-/// rests on a few filtered current readings taken as the hub starts to move, against the
-/// G2's current-sense gain, known to ±10 %, so it is rough).
-pub const SELFTEST_TORQUE_TOLERANCE: f32 = 0.3;
+/// Self-test: the torque-constant estimate's own error, as a fraction (it rests on a few
+/// filtered current readings taken as the hub starts to move: 0.86–1.09 of the expected value on
+/// the twin). It passes where the winding's resistance factor, anywhere in
+/// `winding::PLAUSIBLE_FACTOR` (temperature and the current sense's gain), widened by this,
+/// explains it: 0.56–1.45 of the configured value (`self_test.rs`).
+pub const SELFTEST_TORQUE_TOLERANCE: f32 = 0.1;
