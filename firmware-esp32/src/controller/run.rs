@@ -78,9 +78,6 @@ pub(super) struct HeldJam {
     /// How much harder the contact was pressed before the hold than during it, as a fraction of
     /// the held torque ([`Run::max_still_drive_v`]).
     pub(super) overshoot: f32,
-    /// How far the probe's extra torque turned the hub on from `angle_deg`, degrees, and that
-    /// extra torque as a fraction of the held one (0: no probe, the torque was at its cap).
-    pub(super) probe: (f32, f32),
     /// The torque held, N·m.
     pub(super) torque_nm: f32,
 }
@@ -339,7 +336,6 @@ impl Controller {
             angle_deg: median,
             drift_deg: self.run.hold.drift_deg(),
             overshoot,
-            probe: (0.0, 0.0),
             torque_nm,
         });
         self.run.probe_sum_deg = 0.0;
@@ -381,34 +377,40 @@ impl Controller {
             };
             return;
         }
-        if let Some(held) = self.run.held.as_mut() {
+        if let Some(held) = self.run.held {
             let mean_deg = self.run.probe_sum_deg / PROBE_AVERAGED_TICKS as f32;
-            held.probe = (mean_deg - held.angle_deg, probe_nm / held.torque_nm - 1.0);
+            let probe = (mean_deg - held.angle_deg, probe_nm / held.torque_nm - 1.0);
+            self.judge_hold(&held, probe);
         }
         self.state = State::Releasing;
     }
 
-    /// The result from the held jam's median angle and drift at its torque.
+    /// The hold's flags, on the probe's last tick (a light one: the first releasing tick has the
+    /// kerf solve): `NOISY_HOLD` for a hold that drifted, `FORCE_SENSITIVE` for a reading the
+    /// probe's `(rise_deg, fraction)` or an overshoot says a torque error could move too far.
+    fn judge_hold(&mut self, held: &HeldJam, probe: (f32, f32)) {
+        if held.drift_deg.abs() > HOLD_DRIFT_LSB * self.lsb_deg() {
+            self.run.flags.insert(QualityFlags::NOISY_HOLD);
+        }
+        if held.overshoot > OVERSHOOT_LIMIT
+            || self.force_sensitivity_um(probe, held.overshoot) > FORCE_SENSITIVITY_LIMIT_UM
+        {
+            self.run.flags.insert(QualityFlags::FORCE_SENSITIVE);
+        }
+    }
+
+    /// The result from the held jam's median angle at its torque (the hold's flags are in the
+    /// run's already: [`Controller::judge_hold`]).
     fn finish(&mut self, held: HeldJam) {
         let HeldJam {
             angle_deg,
-            drift_deg,
-            overshoot,
-            probe,
             torque_nm,
+            ..
         } = held;
         let params = &self.run.params;
         let gauge = &params.gauge;
         let solution = kerf_from_angle(gauge, angle_deg);
         let mut flags = self.run.flags;
-        if drift_deg.abs() > HOLD_DRIFT_LSB * self.lsb_deg() {
-            flags.insert(QualityFlags::NOISY_HOLD);
-        }
-        if overshoot > OVERSHOOT_LIMIT
-            || self.force_sensitivity_um(probe, overshoot) > FORCE_SENSITIVITY_LIMIT_UM
-        {
-            flags.insert(QualityFlags::FORCE_SENSITIVE);
-        }
         if solution.inset_deg > NEAR_DISENGAGE_FRACTION * gauge.disengage_deg {
             flags.insert(QualityFlags::NEAR_DISENGAGE);
         }
