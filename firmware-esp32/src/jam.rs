@@ -10,8 +10,9 @@
 //! [`SlopeWindow`] keeps the last [`JAM_WINDOW_TICKS`] angles and fits a least-squares line: its
 //! slope is the hub speed, and slope × window length is the angle change "over the window" that
 //! must stay within a few encoder LSB for the hub to count as still. [`HoldWindow`] collects the
-//! angles while torque is held at a jam and gives their median (robust to a stray sample) and
-//! spread (a noisy hold is flagged).
+//! angles while torque is held at a jam and gives their median (robust to a stray sample), their
+//! spread, and the drift between the means of the hold's halves (a hold that drifts is flagged:
+//! the jam was still moving).
 //!
 //! # The regression in O(1) per tick, in integers
 //!
