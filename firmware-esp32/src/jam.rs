@@ -10,8 +10,9 @@
 //! [`SlopeWindow`] keeps the last [`JAM_WINDOW_TICKS`] angles and fits a least-squares line: its
 //! slope is the hub speed, and slope × window length is the angle change "over the window" that
 //! must stay within a few encoder LSB for the hub to count as still. [`HoldWindow`] collects the
-//! angles while torque is held at a jam and gives their median (robust to a stray sample) and
-//! spread (a noisy hold is flagged).
+//! angles while torque is held at a jam and gives their median (robust to a stray sample), their
+//! spread, and the drift between the means of the hold's halves (a hold that drifts is flagged:
+//! the jam was still moving).
 //!
 //! # The regression in O(1) per tick, in integers
 //!
@@ -143,6 +144,10 @@ impl SlopeWindow {
 pub struct HoldWindow {
     angles: [f32; HOLD_TICKS],
     len: usize,
+    /// Σ(angle − first angle) over the first and the second half of the window, degrees: the
+    /// drift between the halves' means ([`HoldWindow::drift_deg`]) with one addition a tick,
+    /// taken from the first angle so that the sums stay small and keep f32's precision.
+    half_sums_deg: [f32; 2],
 }
 
 impl Default for HoldWindow {
@@ -157,20 +162,37 @@ impl HoldWindow {
         Self {
             angles: [0.0; HOLD_TICKS],
             len: 0,
+            half_sums_deg: [0.0; 2],
         }
     }
 
     /// Forget everything.
     pub fn clear(&mut self) {
         self.len = 0;
+        self.half_sums_deg = [0.0; 2];
     }
 
     /// Add an angle; ignored once full.
     pub fn push(&mut self, angle_deg: f32) {
         if self.len < HOLD_TICKS {
             self.angles[self.len] = angle_deg;
+            self.half_sums_deg[usize::from(self.len >= HOLD_TICKS / 2)] +=
+                angle_deg - self.angles[0];
             self.len += 1;
         }
+    }
+
+    /// How far the hold's angle moved between its halves, degrees: the mean of the second half
+    /// of a full window minus the mean of the first (0 until the window is full). White noise of
+    /// SD σ gives this an SD of σ·√(4 / [`HOLD_TICKS`]) (0.22σ over 80 ticks), so unlike the
+    /// spread, which grows with the noise and the window's length, it shows a jam that still
+    /// moves (a creeping contact) and hardly the encoder's noise.
+    pub fn drift_deg(&self) -> f32 {
+        if !self.is_full() {
+            return 0.0;
+        }
+        let [first, second] = self.half_sums_deg;
+        (second - first) * (2.0 / HOLD_TICKS as f32)
     }
 
     /// True once [`HOLD_TICKS`] angles are in.
@@ -417,5 +439,27 @@ mod tests {
         assert_eq!(m, 50.0);
         assert_eq!(spread, 40.0);
         assert!(h.is_full());
+    }
+
+    #[test]
+    fn the_drift_shows_a_creeping_hold_and_hardly_the_noise() {
+        // A still jam under noise of ±6 counts: the spread is large, the drift is not.
+        let mut rng = Noise(5);
+        let mut h = HoldWindow::new();
+        assert_eq!(h.drift_deg(), 0.0);
+        for _ in 0..HOLD_TICKS {
+            h.push(60.0 + rng.counts(6) as f32 * LSB_DEG);
+        }
+        let (_, spread) = h.median_and_spread().unwrap();
+        assert!(spread >= 6.0 * LSB_DEG, "{spread}");
+        assert!(h.drift_deg().abs() < 3.0 * LSB_DEG, "{}", h.drift_deg());
+        // A jam creeping 0.01° a tick: the halves' means lie 40 ticks, 0.4°, apart.
+        h.clear();
+        for i in 0..HOLD_TICKS {
+            h.push(60.0 + 0.01 * i as f32);
+        }
+        assert!((h.drift_deg() - 0.4).abs() < 1e-4, "{}", h.drift_deg());
+        h.clear();
+        assert_eq!(h.drift_deg(), 0.0, "cleared");
     }
 }

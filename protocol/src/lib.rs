@@ -99,7 +99,11 @@ pub use report::{
 ///   torque from the duty and motor current measured at the jam disagree beyond what the
 ///   winding's temperature and the senses' gain errors explain. An older host shows it as an
 ///   unknown bit; every 2.1 frame keeps its bytes.
-pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 2 };
+/// - 2.3 (minor, additive): [`QualityFlags::FORCE_SENSITIVE`] (a new bit, 9) marks a result
+///   that the torque's uncertainty could move by more than the device's accuracy (a soft gauge
+///   material); [`QualityFlags::NOISY_HOLD`] now means a hold that drifted, not one the
+///   encoder's noise spread. Every 2.2 frame keeps its bytes.
+pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 3 };
 
 /// USB vendor id of the ESP32-C3/C6 USB-Serial-JTAG port (Espressif).
 pub const USB_VID_ESPRESSIF: u16 = 0x303A;

@@ -214,7 +214,9 @@ pub struct QualityFlags(pub u16);
 impl QualityFlags {
     /// The jam angle is within 10 % of the gauge's disengage angle.
     pub const NEAR_DISENGAGE: Self = Self(1 << 0);
-    /// The angle moved more than a few LSB during the hold window.
+    /// The held angle drifted during the hold window: the jam was still moving while it was
+    /// read (protocol 2.3: before, any spread of a few LSB, which the encoder's noise alone
+    /// gives).
     pub const NOISY_HOLD: Self = Self(1 << 1);
     /// The magnet field was at the edge of its band during the run.
     pub const WEAK_MAGNET: Self = Self(1 << 2);
@@ -236,9 +238,14 @@ impl QualityFlags {
     /// the motor's stall current, a loose lead): the torque at the jam, and so the force, is not
     /// the one reported (protocol 2.2).
     pub const TORQUE_MISMATCH: Self = Self(1 << 8);
+    /// The reading depends on the force more than the device's torque is known: the kerf it
+    /// read moved so far over the last part of the torque ramp that the torque's uncertainty
+    /// (the senses' gain errors, the winding's temperature) could move it by more than the
+    /// device's accuracy. A soft gauge material or a contact still creeping (protocol 2.3).
+    pub const FORCE_SENSITIVE: Self = Self(1 << 9);
 
     /// Names of the flags, for messages.
-    pub const NAMES: [(Self, &'static str); 9] = [
+    pub const NAMES: [(Self, &'static str); 10] = [
         (Self::NEAR_DISENGAGE, "near-disengage"),
         (Self::NOISY_HOLD, "noisy-hold"),
         (Self::WEAK_MAGNET, "weak-magnet"),
@@ -248,6 +255,7 @@ impl QualityFlags {
         (Self::DECIMATED, "decimated"),
         (Self::SUPPLY_LIMITED, "supply-limited"),
         (Self::TORQUE_MISMATCH, "torque-mismatch"),
+        (Self::FORCE_SENSITIVE, "force-sensitive"),
     ];
 
     /// No flag set.

@@ -5,7 +5,8 @@
 //! and `ConfigReport` (`saved`), and added `ErrorCode::Blocked`; `DeviceInfo`'s bytes stand.
 //! Protocol 2.1 only added: `ErrorCode::SupplyTooLow`, the `SUPPLY_OUT_OF_RANGE` condition and
 //! the `SUPPLY_LIMITED` flag (new frames below; every older frame's bytes stand). Protocol 2.2
-//! only added the `TORQUE_MISMATCH` flag, bit 8 (its frame below). Each golden frame is also
+//! only added the `TORQUE_MISMATCH` flag, bit 8 (its frame below); protocol 2.3 only the
+//! `FORCE_SENSITIVE` flag, bit 9 (its frame below). Each golden frame is also
 //! mutated byte by byte: no mutation may be accepted.
 
 mod common;
@@ -163,6 +164,21 @@ fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
                     flags: QualityFlags(
                         QualityFlags::TORQUE_MISMATCH.0 | QualityFlags::NOISY_HOLD.0,
                     ),
+                })),
+            },
+        ),
+        (
+            "00050e05010a01031643010370420103b0400103203f01075c428004953000",
+            Envelope {
+                seq: 14,
+                body: Response::Kerf(Some(KerfResult {
+                    run_id: 10,
+                    kerf_um: 150.0,
+                    angle_deg: 60.0,
+                    play_deg: 5.5,
+                    torque_at_jam_nm: 0.625,
+                    force_at_jam_n: 55.0,
+                    flags: QualityFlags::FORCE_SENSITIVE,
                 })),
             },
         ),

@@ -207,10 +207,22 @@ enum State {
     Idle,
     Engaging,
     Ramping,
-    Jammed { torque_nm: f32, entry_deg: f32 },
+    Jammed {
+        torque_nm: f32,
+        entry_deg: f32,
+    },
+    /// After the hold, still reported as `Jammed`: the torque raised to `torque_nm` to see how
+    /// far the reading would move (`run.rs`, `FORCE_SENSITIVE`).
+    Probing {
+        torque_nm: f32,
+        ticks: u32,
+    },
     Releasing,
     Done,
-    Resetting { ticks: u32, settled: u32 },
+    Resetting {
+        ticks: u32,
+        settled: u32,
+    },
     SelfTest(SelfTestPhase),
     Fault(Fault),
 }
@@ -220,7 +232,11 @@ impl State {
     fn is_run(self) -> bool {
         matches!(
             self,
-            State::Engaging | State::Ramping | State::Jammed { .. } | State::Releasing
+            State::Engaging
+                | State::Ramping
+                | State::Jammed { .. }
+                | State::Probing { .. }
+                | State::Releasing
         )
     }
 }
@@ -385,7 +401,7 @@ impl Controller {
             State::Idle => RunState::Idle,
             State::Engaging => RunState::Engaging,
             State::Ramping => RunState::Ramping,
-            State::Jammed { .. } => RunState::Jammed,
+            State::Jammed { .. } | State::Probing { .. } => RunState::Jammed,
             State::Releasing => RunState::Releasing,
             State::Done => RunState::Done,
             State::Resetting { .. } => RunState::Resetting,
@@ -564,6 +580,7 @@ impl Controller {
                 torque_nm,
                 entry_deg,
             } => self.hold_jam(torque_nm, entry_deg, fresh),
+            State::Probing { torque_nm, ticks } => self.probe(torque_nm, ticks),
             State::Releasing => self.release(),
             State::Resetting { ticks, settled } => self.reset_step(ticks, settled),
             State::SelfTest(phase) => self.self_test_step(phase, inputs, fresh),

@@ -9,9 +9,12 @@ use kerfmeter_protocol::{
 use super::supply::{millivolts, needed_supply_v};
 use super::winding::{ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS};
 use super::{
-    Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS,
-    JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_TURN_SPEED_DEG_PER_S, Motion,
-    NEAR_DISENGAGE_FRACTION, NOISY_HOLD_LSB, OVERTRAVEL_MARGIN_DEG, RELEASE_RATE_NM_PER_S, State,
+    Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, FORCE_SENSITIVITY_LIMIT_UM,
+    HOLD_DRIFT_LSB, JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB,
+    JAM_WINDOW_TICKS, MAX_TURN_SPEED_DEG_PER_S, MIN_PROBE_FRACTION, Motion,
+    NEAR_DISENGAGE_FRACTION, OVERSHOOT_LIMIT, OVERTRAVEL_MARGIN_DEG, PROBE_AVERAGED_TICKS,
+    PROBE_FRACTION, PROBE_TICKS, RELEASE_RATE_NM_PER_S, State, TORQUE_UNCERTAINTY,
+    TORQUE_UNCERTAINTY_UNMEASURED,
 };
 use crate::build::CONTROL_RATE_HZ;
 use crate::jam::HoldWindow;
@@ -49,7 +52,16 @@ pub(super) struct Run {
     /// The ramp's running kerf estimate, µm: one fixed-point step of the kerf solve per ramping
     /// tick, from the last tick's (see [`kerf_step`]), for the inset angle of the torque ceiling.
     pub(super) ramp_kerf_um: f32,
-    /// The held jam waiting for its kerf solve: (median angle, spread, torque). The hold's last
+    /// The highest drive voltage (supply × duty applied) on a tick the hub stood still at its
+    /// target torque (the jam's settles and hold), V: at a still hub the torque follows it, so
+    /// one above the hold's means the contact was pressed harder before the hold than during
+    /// it (a winding estimate that lowered the factor), which the self-locking spiral keeps.
+    pub(super) max_still_drive_v: f32,
+    /// The winding was measured at one of this run's settles (`winding.rs`).
+    pub(super) winding_measured: bool,
+    /// The probe's angles summed over its last [`PROBE_AVERAGED_TICKS`], degrees.
+    pub(super) probe_sum_deg: f32,
+    /// The held jam waiting for its kerf solve: (median angle, drift, torque). The hold's last
     /// tick takes the median and the first releasing tick solves it, so that no tick pays for
     /// both (each is some 5–8k instructions: together over the worst-step budget).
     pub(super) held: Option<HeldJam>,
@@ -60,8 +72,12 @@ pub(super) struct Run {
 pub(super) struct HeldJam {
     /// Median hub angle over the hold, degrees, jam frame.
     pub(super) angle_deg: f32,
-    /// Spread (max − min) of the held angles, degrees.
-    pub(super) spread_deg: f32,
+    /// Drift of the held angles between the hold's halves, degrees
+    /// ([`HoldWindow::drift_deg`]).
+    pub(super) drift_deg: f32,
+    /// How much harder the contact was pressed before the hold than during it, as a fraction of
+    /// the held torque ([`Run::max_still_drive_v`]).
+    pub(super) overshoot: f32,
     /// The torque held, N·m.
     pub(super) torque_nm: f32,
 }
@@ -86,6 +102,9 @@ impl Run {
             zero_kerf_play_deg,
             overtravel_limit_deg,
             ramp_kerf_um: 0.0,
+            max_still_drive_v: 0.0,
+            winding_measured: false,
+            probe_sum_deg: 0.0,
             held: None,
         }
     }
@@ -219,6 +238,7 @@ impl Controller {
         let inset = self.angle_deg - self.run.zero_kerf_play_deg;
         if at_target && self.is_still() && inset >= JAM_MIN_INSET_DEG {
             self.run.still_ticks += 1;
+            self.note_still_drive();
             if self.run.still_ticks == ESTIMATE_TICK {
                 self.apply_winding_estimate();
             } else {
@@ -252,7 +272,9 @@ impl Controller {
     /// flagged `SUPPLY_LIMITED`, as for a sag.
     fn apply_winding_estimate(&mut self) {
         let old = self.winding.factor();
-        if self.winding.conclude(&self.config) == Some(true) {
+        let concluded = self.winding.conclude(&self.config);
+        self.run.winding_measured |= concluded.is_some();
+        if concluded == Some(true) {
             self.run.flags.insert(QualityFlags::TORQUE_MISMATCH);
         }
         let new = self.winding.factor();
@@ -263,6 +285,15 @@ impl Controller {
             let duty = (breakaway + self.torque_nm / per_duty) * (old / new);
             self.torque_nm = ((duty - breakaway) * per_duty).max(0.0);
         }
+    }
+
+    /// The drive voltage the last output applied, V (the reference where the supply is not
+    /// measured), kept in [`Run::max_still_drive_v`]: this tick the hub stands still at its
+    /// target torque.
+    fn note_still_drive(&mut self) -> f32 {
+        let drive_v = self.supply.supply_v().unwrap_or(REFERENCE_SUPPLY_V) * self.applied_duty;
+        self.run.max_still_drive_v = self.run.max_still_drive_v.max(drive_v);
+        drive_v
     }
 
     /// A tick of the jam's settle, the hub still: past the first [`SKIP_TICKS`] and at a duty of
@@ -290,36 +321,96 @@ impl Controller {
         if let Some(angle) = fresh {
             self.run.hold.push(angle);
         }
+        let drive_v = self.note_still_drive();
         if !self.run.hold.is_full() {
             return;
         }
-        let (median, spread) = self
+        // The contact was pressed this much harder before the hold than it is held.
+        let overshoot = (self.run.max_still_drive_v / drive_v.max(f32::EPSILON) - 1.0).max(0.0);
+        let (median, _) = self
             .run
             .hold
             .median_and_spread()
             .unwrap_or((entry_deg, 0.0));
         self.run.held = Some(HeldJam {
             angle_deg: median,
-            spread_deg: spread,
+            drift_deg: self.run.hold.drift_deg(),
+            overshoot,
             torque_nm,
         });
+        self.run.probe_sum_deg = 0.0;
+        self.state = State::Probing {
+            torque_nm: self.probe_torque_nm(torque_nm, overshoot),
+            ticks: 0,
+        };
+    }
+
+    /// The probe's torque for a jam held at `held_nm` after an `overshoot`: [`PROBE_FRACTION`]
+    /// above the most the contact has borne, within the run's cap and what full duty gives at
+    /// the measured supply.
+    fn probe_torque_nm(&self, held_nm: f32, overshoot: f32) -> f32 {
+        let cap_nm = self
+            .run
+            .params
+            .max_torque_nm
+            .min(self.supply.full_duty_torque_nm(&self.config));
+        (held_nm * (1.0 + overshoot + PROBE_FRACTION))
+            .min(cap_nm)
+            .max(held_nm)
+    }
+
+    /// Probing, after the hold: the torque rises at the ramp's rate to `probe_nm` and stays
+    /// there; over the last [`PROBE_AVERAGED_TICKS`] of [`PROBE_TICKS`] the angles are summed.
+    /// How far the hub moved on from the held median is how far a torque error that large
+    /// moves the reading (`FORCE_SENSITIVE`, [`Controller::force_sensitivity_um`]). The probe
+    /// comes after the reading's angles: whatever it compresses does not enter the reading.
+    pub(super) fn probe(&mut self, probe_nm: f32, ticks: u32) {
+        let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * self.dt_s();
+        self.torque_nm = ramped.min(probe_nm);
+        if ticks + PROBE_AVERAGED_TICKS >= PROBE_TICKS {
+            self.run.probe_sum_deg += self.angle_deg;
+        }
+        if ticks + 1 < PROBE_TICKS {
+            self.state = State::Probing {
+                torque_nm: probe_nm,
+                ticks: ticks + 1,
+            };
+            return;
+        }
+        if let Some(held) = self.run.held {
+            let mean_deg = self.run.probe_sum_deg / PROBE_AVERAGED_TICKS as f32;
+            let probe = (mean_deg - held.angle_deg, probe_nm / held.torque_nm - 1.0);
+            self.judge_hold(&held, probe);
+        }
         self.state = State::Releasing;
     }
 
-    /// The result from the held jam's median angle and spread at its torque.
+    /// The hold's flags, on the probe's last tick (a light one: the first releasing tick has the
+    /// kerf solve): `NOISY_HOLD` for a hold that drifted, `FORCE_SENSITIVE` for a reading the
+    /// probe's `(rise_deg, fraction)` or an overshoot says a torque error could move too far.
+    fn judge_hold(&mut self, held: &HeldJam, probe: (f32, f32)) {
+        if held.drift_deg.abs() > HOLD_DRIFT_LSB * self.lsb_deg() {
+            self.run.flags.insert(QualityFlags::NOISY_HOLD);
+        }
+        if held.overshoot > OVERSHOOT_LIMIT
+            || self.force_sensitivity_um(probe, held.overshoot) > FORCE_SENSITIVITY_LIMIT_UM
+        {
+            self.run.flags.insert(QualityFlags::FORCE_SENSITIVE);
+        }
+    }
+
+    /// The result from the held jam's median angle at its torque (the hold's flags are in the
+    /// run's already: [`Controller::judge_hold`]).
     fn finish(&mut self, held: HeldJam) {
         let HeldJam {
             angle_deg,
-            spread_deg,
             torque_nm,
+            ..
         } = held;
         let params = &self.run.params;
         let gauge = &params.gauge;
         let solution = kerf_from_angle(gauge, angle_deg);
         let mut flags = self.run.flags;
-        if spread_deg > NOISY_HOLD_LSB * self.lsb_deg() {
-            flags.insert(QualityFlags::NOISY_HOLD);
-        }
         if solution.inset_deg > NEAR_DISENGAGE_FRACTION * gauge.disengage_deg {
             flags.insert(QualityFlags::NEAR_DISENGAGE);
         }
@@ -338,6 +429,30 @@ impl Controller {
             force_at_jam_n: force_for_torque_n(params, torque_nm, solution.inset_deg),
             flags,
         });
+    }
+
+    /// How far the torque's uncertainty could move the reading, µm, from the probe's
+    /// `(rise_deg, fraction)` (a torque `fraction` above the held one turned the hub `rise_deg`
+    /// on) after an `overshoot` (the contact had borne that much more before the hold, so the
+    /// hub only moves once the probe passes it, and the reading is high by what the overshoot
+    /// compressed). The contact's compliance is the rise over the probe's torque beyond the
+    /// overshoot; the error it allows is that compliance times the torque's uncertainty
+    /// ([`TORQUE_UNCERTAINTY`], or [`TORQUE_UNCERTAINTY_UNMEASURED`] where no settle of the run
+    /// measured the winding) or the overshoot, whichever is larger. Zero where the probe could
+    /// not rise far enough to tell (the run's cap or full duty held it: `TORQUE_LIMITED` and
+    /// `SUPPLY_LIMITED` flag those).
+    fn force_sensitivity_um(&self, (rise_deg, fraction): (f32, f32), overshoot: f32) -> f32 {
+        let beyond = fraction - overshoot;
+        if beyond < MIN_PROBE_FRACTION {
+            return 0.0;
+        }
+        let uncertainty = if self.run.winding_measured {
+            TORQUE_UNCERTAINTY
+        } else {
+            TORQUE_UNCERTAINTY_UNMEASURED
+        };
+        let rise_um = self.run.params.gauge.pitch_um_per_deg * rise_deg.max(0.0);
+        rise_um / beyond * uncertainty.max(overshoot)
     }
 
     /// Releasing: ramp the torque down, then `Done`.

@@ -14,6 +14,16 @@
 //!   drawn with no change here.
 //! - A draw whose parameters contradict each other (kinetic friction above static,
 //!   [`PlantParams::validate`]) is drawn again, up to [`MAX_ATTEMPTS`] times.
+//! - The winding's temperature at boot is held to what the drawn build can reach
+//!   ([`reachable_winding_temp_c`]): between the enclosure's temperature and that plus the
+//!   steady rise of the winding stalled at the run's torque cap for good. Only this device
+//!   drives the motor, so a winding is hotter than its enclosure by what the device's own
+//!   current dissipates (a device restarted mid-job, the case the warm boot is for), and not
+//!   colder than it. Drawn independently, a build whose cap draws 0.5 A (a 78:1 gearbox: under
+//!   4 °C of rise at 15 °C/W) booted at 118 °C, 30 % less torque than its duty gives, at a duty
+//!   too low (0.05) for its current to be measured: a combination no bench shows, which gave
+//!   the sweep's largest errors before. Set with `--sim-plant`, a twin still takes any
+//!   temperature in the range.
 //! - The kerf is uniform in [`KERF_RANGE_UM`], the gauge-to-gauge spread in
 //!   [`KERF_SD_RANGE_UM`], the twin's own seed from the draw's stream.
 //! - Every value comes from its own stream ([`super::stream`], keyed by the sweep's seed, the
@@ -46,7 +56,7 @@ use std::collections::BTreeMap;
 use kerfmeter_protocol::{DeviceConfig, ErrorCode, ParamField, QualityFlags, RunParams};
 
 use super::{Outcome, configure, mean_sd, measure, quantile, stream};
-use crate::plant::{PARAMS, ParamSpec, PlantParams};
+use crate::plant::{COPPER_TEMPCO_PER_C, PARAMS, ParamSpec, PlantParams};
 use crate::{Twin, TwinOptions};
 
 /// A range spanning more than this ratio (with a positive minimum) is drawn log-uniformly.
@@ -174,11 +184,30 @@ fn draw_plant(seed: u64, index: u32) -> PlantParams {
                 .expect("a value drawn within the range is accepted");
         }
         if plant.validate().is_ok() {
+            plant.winding_temp_c = reachable_winding_temp_c(&plant);
             return plant;
         }
     }
     panic!("no consistent plant parameters in {MAX_ATTEMPTS} draws: check the ranges");
 }
+
+/// The drawn boot temperature of the winding, held to what the build can reach (module docs):
+/// no colder than the enclosure, no hotter than the enclosure plus the steady rise of the
+/// winding stalled at the run's torque cap (or at full duty, if that draws less) for good,
+/// `I²·R(120 °C)·R_th`: more than any sequence of runs heats it.
+pub fn reachable_winding_temp_c(plant: &PlantParams) -> f64 {
+    let per_amp_nm = plant.gear_ratio * plant.gear_efficiency * plant.kt_nm_per_a;
+    let cap_a = (f64::from(RunParams::DEFAULT.max_torque_nm) / per_amp_nm)
+        .min(plant.supply_v / plant.resistance_ohm);
+    let hot_ohm = plant.resistance_ohm * (1.0 + COPPER_TEMPCO_PER_C * (HOTTEST_WINDING_C - 25.0));
+    let rise_c = cap_a * cap_a * hot_ohm * plant.winding_thermal_res_c_per_w;
+    plant
+        .winding_temp_c
+        .clamp(plant.ambient_temp_c, plant.ambient_temp_c + rise_c)
+}
+
+/// The hottest winding the sweep draws, °C (the top of `winding_temp_c`'s range).
+const HOTTEST_WINDING_C: f64 = 120.0;
 
 /// Supply voltage the datasheet figures of a build are given at, V.
 pub const REFERENCE_SUPPLY_V: f64 = 12.0;
@@ -533,6 +562,37 @@ mod tests {
                 flags,
             },
             truth_um,
+        }
+    }
+
+    #[test]
+    fn the_boot_temperature_is_held_to_what_the_build_can_reach() {
+        // The reference build stalled at 0.8 N·m draws 5 A: hundreds of degrees of rise, so
+        // any drawn temperature above the enclosure's stands, and one below it is raised to it.
+        let hot = PlantParams {
+            winding_temp_c: 110.0,
+            ambient_temp_c: 20.0,
+            ..PlantParams::default()
+        };
+        assert_eq!(reachable_winding_temp_c(&hot), 110.0);
+        let cold = PlantParams {
+            winding_temp_c: 5.0,
+            ..hot
+        };
+        assert_eq!(reachable_winding_temp_c(&cold), 20.0);
+        // A 95:1 gearbox draws 1.1 A at the cap, 3.7 W in the hot winding: 11 °C above the
+        // enclosure at 3 °C/W.
+        let geared = PlantParams {
+            gear_ratio: 95.0,
+            winding_thermal_res_c_per_w: 3.0,
+            ..hot
+        };
+        let t = reachable_winding_temp_c(&geared);
+        assert!((30.0..32.0).contains(&t), "{t}");
+        // Every draw is within its range and the rule.
+        for index in 0..50 {
+            let plant = Draw::new(5, index).plant;
+            assert_eq!(reachable_winding_temp_c(&plant), plant.winding_temp_c);
         }
     }
 
