@@ -335,16 +335,16 @@ fn header_lines(
         format!("kerf applied: {}", provenance.kerf),
         format!("settings: {profile}"),
         format!(
-            "S max {} ($30), needs $32=1; {}",
-            fmt_plain(options.s_max),
-            if mapping.flip_y {
-                "SVG y flipped, box lower-left at origin"
-            } else {
-                "y up as drawn"
-            }
+            "S max {} is $30; needs $32=1 laser mode",
+            fmt_plain(options.s_max)
         ),
         format!(
-            "placed at X{} Y{} mm",
+            "{} at X{} Y{} mm",
+            if mapping.flip_y {
+                "SVG y flipped, box lower-left"
+            } else {
+                "placed y up,"
+            },
             fmt_plain(options.origin_mm[0]),
             fmt_plain(options.origin_mm[1])
         ),
@@ -439,11 +439,7 @@ pub fn build(jobs: Vec<Job>, header: Vec<String>, s_max: f64) -> Program {
         let Some(start) = job.pline.iter_vertexes().next().map(|v| v2(v.x, v.y)) else {
             continue;
         };
-        ops.push(Op::Comment(format!(
-            "{}, {}",
-            job.label,
-            s.to_string().replace(" %", " pct")
-        )));
+        ops.push(Op::Comment(format!("{}, {s}", job.label)));
         ops.push(Op::Travel { to: start });
         ops.push(Op::Feed {
             feed_mm_per_min: s.feed_mm_per_min,
@@ -523,7 +519,8 @@ fn fmt_units(u: i64) -> String {
 
 /// A comment's text as GRBL takes it: printable ASCII, no parentheses, not too long.
 fn comment_text(s: &str) -> String {
-    s.chars()
+    s.replace('%', "pct")
+        .chars()
         .map(|c| match c {
             '(' => '[',
             ')' => ']',
