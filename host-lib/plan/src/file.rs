@@ -88,7 +88,7 @@ pub fn dilate_file(
     }
     .map_err(|e| e.in_file(input))?;
     if options.strict {
-        refuse_open_paths(&summary).map_err(|e| e.in_file(input))?;
+        refuse_open_paths(&summary, "--strict").map_err(|e| e.in_file(input))?;
     }
     Ok((output, summary))
 }
@@ -115,18 +115,20 @@ pub fn dilate_file_cuts(
         PlanFormat::Dxf => dilate_dxf_cuts(&bytes, kerf, &dxf_options(options)),
     }
     .map_err(|e| e.in_file(input))?;
-    refuse_open_paths(&summary).map_err(|e| e.in_file(input))?;
+    refuse_open_paths(&summary, "G-code cuts closed contours only")
+        .map_err(|e| e.in_file(input))?;
     Ok((format, cuts, summary))
 }
 
-/// The `--strict` policy: open cut paths cannot be dilated, so a plan with any is refused.
-fn refuse_open_paths(summary: &PlanSummary) -> Result<()> {
+/// The `--strict` policy (and G-code's): open cut paths cannot be dilated, so a plan with any is
+/// refused; `why` says which policy.
+fn refuse_open_paths(summary: &PlanSummary, why: &str) -> Result<()> {
     if summary.open_paths.is_empty() {
         return Ok(());
     }
     let list: Vec<String> = summary.open_paths.iter().map(|o| o.to_string()).collect();
     Err(PlanError::OpenPaths(format!(
-        "{} open cut path(s) cannot be dilated (--strict; nothing was written):\n  - {}",
+        "{} open cut path(s) cannot be dilated ({why}; nothing was written):\n  - {}",
         list.len(),
         list.join("\n  - ")
     )))

@@ -272,7 +272,12 @@ pub fn plan_program(
             settings,
         })
         .collect();
-    let header = header_lines(provenance, &profile.describe(), &mapping, options);
+    let placed = if y_down {
+        "SVG y flipped, box lower-left at"
+    } else {
+        "box lower-left at"
+    };
+    let header = header_lines(provenance, &profile.describe(), placed, options);
     Ok((build(cut_order(jobs)?, header, options.s_max), mapping))
 }
 
@@ -316,14 +321,20 @@ pub fn gauge_program(
             settings: *settings,
         })
         .collect();
-    let header = header_lines(provenance, &settings.to_string(), &mapping, options);
+    let header = header_lines(
+        provenance,
+        &settings.to_string(),
+        "spiral centre at",
+        options,
+    );
     Ok((build(cut_order(jobs)?, header, options.s_max), mapping))
 }
 
+/// The header comments; `placed` says what goes to `options.origin_mm`.
 fn header_lines(
     provenance: &Provenance,
     profile: &str,
-    mapping: &Mapping,
+    placed: &str,
     options: &GcodeOptions,
 ) -> Vec<String> {
     vec![
@@ -339,12 +350,7 @@ fn header_lines(
             fmt_plain(options.s_max)
         ),
         format!(
-            "{} at X{} Y{} mm",
-            if mapping.flip_y {
-                "SVG y flipped, box lower-left"
-            } else {
-                "placed y up,"
-            },
+            "{placed} X{} Y{} mm",
             fmt_plain(options.origin_mm[0]),
             fmt_plain(options.origin_mm[1])
         ),
@@ -532,7 +538,49 @@ fn comment_text(s: &str) -> String {
         .collect()
 }
 
+/// How much a program cuts and travels.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ProgramStats {
+    /// Contours cut (each once, whatever its passes).
+    pub contours: usize,
+    /// Length cut, all passes, mm.
+    pub cut_mm: f64,
+    /// Length travelled with the laser off, from the origin, mm.
+    pub travel_mm: f64,
+}
+
 impl Program {
+    /// How much the program cuts and travels.
+    pub fn stats(&self) -> ProgramStats {
+        let mut stats = ProgramStats::default();
+        let mut head = v2(0.0, 0.0);
+        for op in &self.ops {
+            match op {
+                Op::Travel { to } => {
+                    stats.contours += 1;
+                    stats.travel_mm += (*to - head).length();
+                    head = *to;
+                }
+                Op::Line { to } => {
+                    stats.cut_mm += (*to - head).length();
+                    head = *to;
+                }
+                Op::Arc {
+                    to,
+                    center,
+                    clockwise,
+                } => {
+                    let bulge = arc_bulge(head, *to, *center, *clockwise);
+                    let sweep = 4.0 * bulge.atan();
+                    stats.cut_mm += (head - *center).length() * sweep.abs();
+                    head = *to;
+                }
+                _ => {}
+            }
+        }
+        stats
+    }
+
     /// The program as G-code text (see the module doc).
     pub fn to_text(&self) -> String {
         let mut out = String::with_capacity(self.ops.len() * 24 + 512);

@@ -6,6 +6,7 @@ pub mod clear_fault;
 pub mod config;
 pub mod dilate;
 pub mod gauge;
+pub mod gcode;
 pub mod info;
 pub mod kerf;
 pub mod map;

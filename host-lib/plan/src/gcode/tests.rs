@@ -300,6 +300,11 @@ fn a_square_with_a_round_hole_gives_the_golden_text() {
       <circle id="hole" cx="10" cy="10" r="4" fill="none" stroke="red" stroke-width="0.01"/>"#;
     let cuts = svg_cuts(body, 200.0);
     let (prog, _) = program(&cuts, true, &Profile::uniform(SETTINGS).unwrap()).unwrap();
+    let stats = prog.stats();
+    assert_eq!(stats.contours, 2);
+    let expected_mm =
+        2.0 * std::f64::consts::PI * 3.9 + 4.0 * 20.0 + 2.0 * std::f64::consts::PI * 0.1;
+    assert!((stats.cut_mm - expected_mm).abs() < 1e-4, "{stats:?}");
     let text = prog.to_text();
     let body: Vec<&str> = text.lines().skip(1).collect();
     assert_eq!(body.join("\n"), GOLDEN.trim(), "\n{text}");
