@@ -254,3 +254,37 @@ pub fn run(g: &Global, args: &GcodeArgs) -> Result<GcodeReport> {
 impl Report for GcodeReport {
     const JSON: JsonLayout = JsonLayout::Pretty;
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn placements_are_two_finite_numbers() {
+        assert_eq!(parse_xy("10,20"), Ok([10.0, 20.0]));
+        assert_eq!(parse_xy(" -5.5 , 3 "), Ok([-5.5, 3.0]));
+        for bad in ["1", "1,2,3", "a,b", "inf,0", ""] {
+            assert!(parse_xy(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn the_cut_flags_need_both_feed_and_power() {
+        let flags = |feed, power, passes| CutArgs {
+            feed_mm_per_min: feed,
+            power_percent: power,
+            passes,
+            s_max: DEFAULT_S_MAX,
+        };
+        assert!(flags(None, None, None).settings().unwrap().is_none());
+        assert!(flags(Some(600.0), None, None).settings().is_err());
+        assert!(flags(None, None, Some(2)).settings().is_err());
+        let s = flags(Some(600.0), Some(80.0), None)
+            .settings()
+            .unwrap()
+            .unwrap();
+        assert_eq!(s.passes, 1);
+        assert!(flags(None, None, None).profile(None).is_err());
+        assert!(flags(Some(600.0), Some(180.0), None).profile(None).is_err());
+    }
+}
