@@ -264,6 +264,7 @@ pub fn plan_program(
     }
     let settings = profile.resolve(cuts)?;
     let mapping = Mapping::for_plan(cuts.iter().map(|c| &c.pline), y_down, options.origin_mm);
+    check_size(cuts, &mapping)?;
     let jobs = cuts
         .iter()
         .zip(settings)
@@ -280,6 +281,27 @@ pub fn plan_program(
     };
     let header = header_lines(provenance, &profile.describe(), placed, options);
     Ok((build(cut_order(jobs)?, header, options.s_max), mapping))
+}
+
+/// Largest machine coordinate accepted, mm (a sanity bound: 100 m).
+const MAX_COORDINATE_MM: f64 = 100_000.0;
+
+/// Refuse a plan that does not fit any cutter once placed (it would also overflow the written
+/// numbers).
+fn check_size(cuts: &[CutPath], mapping: &Mapping) -> Result<()> {
+    for c in cuts {
+        let Some(e) = c.pline.extents() else { continue };
+        for corner in [v2(e.min_x, e.min_y), v2(e.max_x, e.max_y)] {
+            let q = mapping.apply(corner);
+            if !(q.x.abs() <= MAX_COORDINATE_MM && q.y.abs() <= MAX_COORDINATE_MM) {
+                return Err(PlanError::InvalidArgument(format!(
+                    "{} reaches ({:.1}, {:.1}) mm on the machine, beyond any cutter's bed: check the plan's units",
+                    c.label, q.x, q.y
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The gauge drawing's cuts (y up, mm): the prong holes, the spiral, and the test-piece parts,
@@ -641,8 +663,8 @@ impl Program {
                         if *clockwise { "G2" } else { "G3" },
                         fmt_units(t.0),
                         fmt_units(t.1),
-                        fmt_units(c.0 - head.0),
-                        fmt_units(c.1 - head.1)
+                        fmt_units(c.0.saturating_sub(head.0)),
+                        fmt_units(c.1.saturating_sub(head.1))
                     );
                     head = t;
                 }

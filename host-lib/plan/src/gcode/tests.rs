@@ -432,6 +432,20 @@ fn numbers_are_written_on_a_tenth_of_a_micron() {
 }
 
 #[test]
+fn a_plan_beyond_any_bed_is_refused() {
+    let mut huge = svg_cuts(ARCS, 0.0);
+    let mut far = Pline::new_closed();
+    for (x, y) in [(0.0, 0.0), (1e6, 0.0), (1e6, 1.0)] {
+        far.add(x, y, 0.0);
+    }
+    huge[0].pline = far;
+    let e = program(&huge, true, &Profile::uniform(SETTINGS).unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("beyond any cutter's bed"), "{e}");
+}
+
+#[test]
 fn a_program_with_a_travel_while_cutting_is_caught() {
     let prog = Program {
         header: Vec::new(),
