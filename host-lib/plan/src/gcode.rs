@@ -5,8 +5,8 @@
 //! without parsing text ([`Program::traced`]); [`Program::to_text`] then writes it out.
 //!
 //! **What the text looks like.** Header comments (tool and version, source, kerf applied,
-//! profile, coordinate mapping), then `G21` (mm), `G90` (absolute) and `M5` (laser off). Each
-//! contour is: a comment naming it, `G0` to its start, `F` (its feed), `M4 S…` (laser on,
+//! profile, placement), then `G21` (mm), `G90` (absolute) and `M5` (laser off). Each contour is:
+//! a comment with its settings and name, `G0` to its start, `F` (its feed), `M4 S…` (laser on,
 //! dynamic power), its `G1` lines and `G2`/`G3` arcs (`I`/`J` centre offsets, relative to the
 //! arc's start as GRBL's default `G91.1` says) — every pass in a row, the contour being closed —
 //! and `M5`. The program ends with `M5` and `M2`.
@@ -494,7 +494,7 @@ pub fn build(jobs: Vec<Job>, header: Vec<String>, s_max: f64) -> Program {
         let Some(start) = job.pline.iter_vertexes().next().map(|v| v2(v.x, v.y)) else {
             continue;
         };
-        ops.push(Op::Comment(format!("{}, {s}", job.label)));
+        ops.push(Op::Comment(format!("{s}: {}", job.label)));
         ops.push(Op::Travel { to: start });
         ops.push(Op::Feed {
             feed_mm_per_min: s.feed_mm_per_min,

@@ -319,7 +319,7 @@ const GOLDEN: &str = r#"
 G21
 G90
 M5
-(circle "hole" [colour #FF0000], 600 mm/min, 80 pct, 1 pass)
+(600 mm/min, 80 pct, 1 pass: circle "hole" [colour #FF0000])
 G0 X10.1 Y6.2
 F600
 M4 S800
@@ -328,7 +328,7 @@ G2 X10.1 Y14 I3.9 J0
 G2 X14 Y10.1 I0 J-3.9
 G2 X10.1 Y6.2 I-3.9 J0
 M5
-(rect "square" [colour #FF0000], 600 mm/min, 80 pct, 1 pass)
+(600 mm/min, 80 pct, 1 pass: rect "square" [colour #FF0000])
 G0 X0.1 Y0
 F600
 M4 S800
