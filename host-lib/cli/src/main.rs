@@ -1,5 +1,5 @@
 //! `kerfmeter-cli`: the `kerfmeter` command-line tool. Drive a Kerfmeter (or its simulated twin)
-//! from a terminal or a script, draw the gauge, dilate plans. `kerfmeter --help` lists the
+//! from a terminal or a script, draw the gauge, dilate plans, write G-code. `kerfmeter --help` lists the
 //! commands; `--json` makes every command print one JSON object on stdout for scripts.
 //!
 //! This package holds what only a terminal needs: the arguments (clap), progress bars
@@ -29,7 +29,7 @@ mod tests;
 use commands::config::ConfigCommand;
 use commands::map::MapArgs;
 use commands::run::RunArgs;
-use commands::{cut, dilate, gauge};
+use commands::{cut, dilate, gauge, gcode};
 use connection::Global;
 use error::{CliError, exit_code};
 use output::{ErrorReport, JsonLayout, emit, print_line, to_json};
@@ -73,7 +73,7 @@ enum Command {
     Config(ConfigCommand),
     /// Measure a grid of gauges across the bed and save a location-compensation map (JSON).
     Map(MapArgs),
-    /// Draw the spiral gauge to cut before a measurement (SVG or DXF by extension).
+    /// Draw the spiral gauge to cut before a measurement (SVG, DXF or G-code by extension).
     Gauge(gauge::GaugeArgs),
     /// Dilate a cutting plan (SVG or DXF) by the measured kerf: cuts grow by half the kerf on
     /// each side, so parts come out at their drawn size.
@@ -81,6 +81,9 @@ enum Command {
     /// Stream a G-code file to a laser cutter's GRBL controller (--cutter sim for the simulated
     /// one). Refuses a cutter in alarm (--unlock) or without laser mode; Ctrl-C stops the cutter.
     Cut(cut::CutArgs),
+    /// Dilate a cutting plan by the kerf and write it as G-code for a GRBL 1.1 laser (laser
+    /// mode, M4 dynamic power), with speed, power and passes per colour or layer.
+    Gcode(gcode::GcodeArgs),
 }
 
 fn main() -> ExitCode {
@@ -122,5 +125,6 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Gauge(args) => emit(json, &gauge::run(args)?),
         Command::Dilate(args) => emit(json, &dilate::run(g, args)?),
         Command::Cut(args) => emit(json, &cut::run(g, args)?),
+        Command::Gcode(args) => emit(json, &gcode::run(g, args)?),
     }
 }

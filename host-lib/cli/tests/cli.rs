@@ -1,7 +1,7 @@
 //! The `kerfmeter` binary as a user or a script runs it: exit codes by the error's category, the
 //! `--json` output, and what only the `dilate` command does (never writing over the input, the
 //! dry-run report, the kerf map file, no temporary files left behind, no progress printed when
-//! stderr is not a terminal).
+//! stderr is not a terminal), and the G-code of `gcode` and `gauge`.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -658,4 +658,102 @@ fn the_twin_binary_serves_the_cutter_on_tcp_for_cut() {
     twin.wait().unwrap();
     assert_eq!(code(&out), 0, "{}", stderr(&out));
     assert!(stdout(&out).contains("\"lines\":10"), "{}", stdout(&out));
+}
+
+/// A 40 × 30 mm plate with a round hole (red) and a blue square, in mm.
+fn plate_plan() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let to = dir.path().join("plate.svg");
+    std::fs::write(
+        &to,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
+  <rect x="5" y="5" width="40" height="30" fill="none" stroke="red" stroke-width="0.01"/>
+  <circle cx="25" cy="20" r="5" fill="none" stroke="red" stroke-width="0.01"/>
+  <rect x="60" y="5" width="20" height="20" fill="none" stroke="blue" stroke-width="0.01"/>
+</svg>"#,
+    )
+    .unwrap();
+    (dir, to)
+}
+
+#[test]
+fn gcode_writes_the_dilated_plan_with_settings_per_colour_and_refuses_what_it_cannot_cut() {
+    let (dir, input) = plate_plan();
+    let out = dir.path().join("plate.gcode");
+    let profile = dir.path().join("cut.toml");
+    std::fs::write(
+        &profile,
+        "[color.red]\nfeed_mm_per_min = 400\npower_percent = 90\npasses = 2\n",
+    )
+    .unwrap();
+    let args = [
+        "gcode",
+        path(&input),
+        "--kerf-um",
+        "200",
+        "-o",
+        path(&out),
+        "--profile",
+        path(&profile),
+    ];
+    // The blue square has no settings: refused like any plan that cannot be cut (4), naming its
+    // colour; nothing written.
+    let refused = kerfmeter(&args);
+    assert_eq!(code(&refused), 4, "{}", stderr(&refused));
+    assert!(
+        stderr(&refused).contains("colour #0000FF"),
+        "{}",
+        stderr(&refused)
+    );
+    assert!(!out.exists());
+    // With a default for the rest it is written.
+    let mut with_default = args.to_vec();
+    with_default.extend([
+        "--feed-mm-per-min",
+        "900",
+        "--power-percent",
+        "50",
+        "--json",
+    ]);
+    let done = kerfmeter(&with_default);
+    assert_eq!(code(&done), 0, "{}", stderr(&done));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&done)).unwrap();
+    assert_eq!(report["program"]["contours"], 3);
+    assert_eq!(report["mapping"]["flip_y"], true);
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("(kerf applied: 200 um)"), "{text}");
+    assert!(
+        text.contains("M4 S900") && text.contains("M4 S500"),
+        "{text}"
+    );
+    assert!(text.contains("F400") && text.contains("F900"));
+    // Never over the input, and only into a G-code file.
+    let over = kerfmeter(&[
+        "gcode",
+        path(&input),
+        "--kerf-um",
+        "200",
+        "-o",
+        path(&input),
+    ]);
+    assert_eq!(code(&over), 2);
+    assert!(stderr(&over).contains(".gcode"), "{}", stderr(&over));
+}
+
+#[test]
+fn gauge_writes_g_code_with_its_spiral_centre_where_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("gauge.gcode");
+    let done = kerfmeter(&["--json", "gauge", "-o", path(&out), "--at-mm", "120,40"]);
+    assert_eq!(code(&done), 0, "{}", stderr(&done));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&done)).unwrap();
+    assert_eq!(report["format"], "gcode");
+    assert_eq!(report["gcode"]["at_mm"], serde_json::json!([120.0, 40.0]));
+    assert_eq!(report["gcode"]["program"]["contours"], 3);
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("(spiral centre at X120 Y40 mm)"), "{text}");
+    // --at-mm means nothing for a drawing.
+    let svg = dir.path().join("gauge.svg");
+    let refused = kerfmeter(&["gauge", "-o", path(&svg), "--at-mm", "1,2"]);
+    assert_eq!(code(&refused), 2);
 }

@@ -289,7 +289,10 @@ fn check_each(contours: &[Contour]) -> Result<(Vec<f64>, Vec<V2>)> {
 
 /// Nesting: who encloses whom. Each contour's depth (how many contours enclose it) and parent
 /// (the smallest one that does); contours that cross are problems.
-fn nest(contours: &[Contour], areas: &[f64]) -> Result<(Vec<usize>, Vec<Option<usize>>)> {
+pub(crate) fn nest(
+    contours: &[Contour],
+    areas: &[f64],
+) -> Result<(Vec<usize>, Vec<Option<usize>>)> {
     let n = contours.len();
     let boxes: Vec<Bbox> = contours.iter().map(|c| Bbox::of(&c.pline)).collect();
     let Some(index) = &index_of(&boxes) else {

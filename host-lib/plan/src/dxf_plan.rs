@@ -36,7 +36,7 @@ use dxf::{Drawing, LwPolylineVertex, Point, Vector};
 use super::compensation::{self, FoundCompensation, IfCompensated};
 use super::dilate::KerfSource;
 use super::geom::{PathSink, Pline, V2, arc_geom, v2};
-use super::outcome::{AssumedUnits, PlanSummary};
+use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
 use super::pipeline::{self, Format, Plan};
 use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
@@ -265,6 +265,26 @@ fn dilate_loaded(
     )
 }
 
+/// Dilate the cuts of a DXF plan and give them back as contours in mm (the drawing's frame, y
+/// up), each with its colour and layer: what G-code is made from.
+pub(crate) fn dilate_dxf_cuts(
+    bytes: &[u8],
+    kerf: &KerfSource,
+    opts: &DxfOptions,
+) -> Result<(Vec<CutPath>, PlanSummary)> {
+    let found = compensation::find_in_dxf(bytes);
+    opts.progress.start(Stage::Reading, 0);
+    let drawing = Drawing::load(&mut Cursor::new(bytes))
+        .map_err(|e| bad(format!("not a readable DXF file: {e}")))?;
+    let plan = DxfPlan {
+        drawing,
+        opts,
+        scale: 1.0,
+        found,
+    };
+    pipeline::dilate_plan_cuts(plan, kerf, opts.if_compensated, &opts.rules, &opts.progress)
+}
+
 /// A DXF drawing in the plan pipeline.
 struct DxfPlan<'o> {
     drawing: Drawing,
@@ -298,6 +318,29 @@ impl Format for DxfPlan<'_> {
         let pieces = self.read_entities(&entities, &mut plan)?;
         self.close_chains(&entities, pieces, &mut plan);
         Ok(plan)
+    }
+
+    fn groups(&self, plan: &Plan<Origin>) -> Vec<CutGroup> {
+        let layer_colors: HashMap<String, dxf::Color> = self
+            .drawing
+            .layers()
+            .map(|l| (l.name.to_uppercase(), l.color.clone()))
+            .collect();
+        let entities: Vec<&Entity> = self.drawing.entities().collect();
+        plan.cuts
+            .iter()
+            .map(|cut| {
+                let first = match &cut.origin {
+                    Origin::LwPolyline(i) | Origin::Circle(i) => *i,
+                    Origin::Replace(list) => list[0],
+                };
+                let e = entities[first];
+                CutGroup {
+                    color: resolve_color(e, &layer_colors),
+                    layer: Some(e.common.layer.clone()),
+                }
+            })
+            .collect()
     }
 
     fn write(mut self, plan: &mut Plan<Origin>, dilated: Vec<Pline>) -> Result<Drawing> {

@@ -1,6 +1,6 @@
 //! Plan files: the format a file name says, and dilating a plan read from disk into the bytes of
-//! the dilated plan. Writing those bytes is the caller's (the CLI writes them atomically and never
-//! over the input).
+//! the dilated plan ([`dilate_file`]) or into its dilated cuts ([`dilate_file_cuts`], for G-code).
+//! Writing the output is the caller's (the CLI writes it atomically and never over the input).
 
 use std::fmt;
 use std::path::Path;
@@ -9,12 +9,12 @@ use serde::Serialize;
 
 use crate::compensation::IfCompensated;
 use crate::dilate::KerfSource;
-use crate::dxf_plan::{DxfOptions, dilate_dxf};
+use crate::dxf_plan::{DxfOptions, dilate_dxf, dilate_dxf_cuts};
 use crate::error::{PlanError, Result};
-use crate::outcome::{AssumedUnits, PlanSummary};
+use crate::outcome::{AssumedUnits, CutPath, PlanSummary};
 use crate::progress::Progress;
 use crate::rules::CutRules;
-use crate::svg::{SvgOptions, dilate_svg};
+use crate::svg::{SvgOptions, dilate_svg, dilate_svg_cuts};
 
 /// Plan file formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -84,56 +84,92 @@ pub fn dilate_file(
     })?;
     let (output, summary) = match format {
         PlanFormat::Svg => dilate_svg_bytes(bytes, kerf, options),
-        PlanFormat::Dxf => dilate_dxf(
-            &bytes,
-            kerf,
-            &DxfOptions {
-                rules: options.rules.clone(),
-                assume_units: options.assume_units,
-                if_compensated: options.if_compensated,
-                progress: options.progress.clone(),
-            },
-        ),
+        PlanFormat::Dxf => dilate_dxf(&bytes, kerf, &dxf_options(options)),
     }
     .map_err(|e| e.in_file(input))?;
     if options.strict {
-        refuse_open_paths(&summary).map_err(|e| e.in_file(input))?;
+        refuse_open_paths(&summary, "--strict").map_err(|e| e.in_file(input))?;
     }
     Ok((output, summary))
 }
 
-/// The `--strict` policy: open cut paths cannot be dilated, so a plan with any is refused.
-fn refuse_open_paths(summary: &PlanSummary) -> Result<()> {
+/// Read the plan at `input` (SVG or DXF, by its extension) and dilate it by `kerf`, like
+/// [`dilate_file`], but give back the dilated cuts (mm, in the file's own frame: SVG's y axis
+/// points down, DXF's up) with their colours and layers, and what was found and done. Open cut
+/// paths are always refused: they cannot be dilated, and a G-code program made from this would
+/// silently leave them out.
+pub fn dilate_file_cuts(
+    input: &Path,
+    kerf: &KerfSource,
+    options: &DilateOptions,
+) -> Result<(PlanFormat, Vec<CutPath>, PlanSummary)> {
+    let format = PlanFormat::of(input)?;
+    let bytes = std::fs::read(input).map_err(|source| PlanError::Io {
+        path: input.to_owned(),
+        source,
+    })?;
+    let (cuts, summary) = match format {
+        PlanFormat::Svg => {
+            svg_text(bytes).and_then(|text| dilate_svg_cuts(&text, kerf, &svg_options(options)))
+        }
+        PlanFormat::Dxf => dilate_dxf_cuts(&bytes, kerf, &dxf_options(options)),
+    }
+    .map_err(|e| e.in_file(input))?;
+    refuse_open_paths(&summary, "G-code cuts closed contours only")
+        .map_err(|e| e.in_file(input))?;
+    Ok((format, cuts, summary))
+}
+
+/// The `--strict` policy (and G-code's): open cut paths cannot be dilated, so a plan with any is
+/// refused; `why` says which policy.
+fn refuse_open_paths(summary: &PlanSummary, why: &str) -> Result<()> {
     if summary.open_paths.is_empty() {
         return Ok(());
     }
     let list: Vec<String> = summary.open_paths.iter().map(|o| o.to_string()).collect();
     Err(PlanError::OpenPaths(format!(
-        "{} open cut path(s) cannot be dilated (--strict; nothing was written):\n  - {}",
+        "{} open cut path(s) cannot be dilated ({why}; nothing was written):\n  - {}",
         list.len(),
         list.join("\n  - ")
     )))
 }
 
-/// An SVG file's bytes, dilated: refuses compressed SVG and text that is not UTF-8.
+/// An SVG file's bytes, dilated.
 fn dilate_svg_bytes(
     bytes: Vec<u8>,
     kerf: &KerfSource,
     options: &DilateOptions,
 ) -> Result<(Vec<u8>, PlanSummary)> {
+    let text = svg_text(bytes)?;
+    let (out, summary) = dilate_svg(&text, kerf, &svg_options(options))?;
+    Ok((out.into_bytes(), summary))
+}
+
+/// An SVG file's text: refuses compressed SVG and text that is not UTF-8.
+fn svg_text(bytes: Vec<u8>) -> Result<String> {
     if bytes.starts_with(&[0x1f, 0x8b]) {
         return Err(PlanError::Svg(
             "a compressed SVG (.svgz) is not supported; save it uncompressed".into(),
         ));
     }
-    let text = String::from_utf8(bytes)
-        .map_err(|_| PlanError::Svg("not a readable SVG file (not UTF-8 text)".into()))?;
-    let svg_options = SvgOptions {
+    String::from_utf8(bytes)
+        .map_err(|_| PlanError::Svg("not a readable SVG file (not UTF-8 text)".into()))
+}
+
+fn svg_options(options: &DilateOptions) -> SvgOptions {
+    SvgOptions {
         rules: options.rules.clone(),
         assume_units: options.assume_units,
         if_compensated: options.if_compensated,
         progress: options.progress.clone(),
-    };
-    let (out, summary) = dilate_svg(&text, kerf, &svg_options)?;
-    Ok((out.into_bytes(), summary))
+    }
+}
+
+fn dxf_options(options: &DilateOptions) -> DxfOptions {
+    DxfOptions {
+        rules: options.rules.clone(),
+        assume_units: options.assume_units,
+        if_compensated: options.if_compensated,
+        progress: options.progress.clone(),
+    }
 }

@@ -18,11 +18,14 @@
 //!   tool's own outputs), refuses to compensate them twice or undoes their compensation
 //!   ([`recompensate`]: boxes.py's corner loops, inner corners kept sharp), and records what was
 //!   applied in every output.
+//! * [`gcode`] turns a dilated plan (or the gauge drawing) into G-code for GRBL 1.1 laser mode:
+//!   a typed program first (checked without parsing text), then its text; holes before the
+//!   outline that holds them, short travels, per-colour or per-layer settings from a [`profile`].
 //! * [`file`](mod@file) reads a plan file and dilates it into bytes; [`PlanError`] says what went wrong,
 //!   by kind. [`progress`] tells a caller how far a long dilation has got (the work on contours is
 //!   spread over the cores; the result does not depend on how many).
 //!
-//! This crate is not the command-line tool (`kerfmeter gauge` and `kerfmeter dilate` live in
+//! This crate is not the command-line tool (`kerfmeter gauge`, `kerfmeter dilate` and `kerfmeter gcode` live in
 //! `kerfmeter-cli`, which also writes the output files) and does not talk to the device: it has no
 //! serial port, no argument parser and no plotting. It shares the gauge geometry (and its checks)
 //! with the device through `kerfmeter-protocol`.
@@ -50,13 +53,15 @@ pub mod dxf_plan;
 mod error;
 pub mod file;
 pub mod gauge;
+pub mod gcode;
 pub mod geom;
 pub mod outcome;
 mod pipeline;
+pub mod profile;
 pub mod progress;
 pub mod recompensate;
 pub mod rules;
 pub mod svg;
 
 pub use error::{PlanError, Result};
-pub use file::{DilateOptions, PlanFormat, dilate_file};
+pub use file::{DilateOptions, PlanFormat, dilate_file, dilate_file_cuts};

@@ -1,5 +1,6 @@
 //! What a dilation found and did, shared by the SVG and DXF paths, plus the units to assume for
-//! files that do not say.
+//! files that do not say, and the dilated cuts themselves with the colour and layer each was
+//! drawn with (what G-code is made from, see [`crate::gcode`]).
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -8,6 +9,40 @@ use std::str::FromStr;
 use serde::Serialize;
 
 use crate::compensation::{AppliedCompensation, FoundCompensation};
+use crate::geom::Pline;
+use crate::rules::Rgb;
+
+/// What a cut was drawn with that can choose its cut settings: its stroke colour (SVG) or
+/// colour (DXF, resolved through its layer), and its layer (DXF layer, Inkscape layer).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Hash, Serialize)]
+pub struct CutGroup {
+    /// The colour, when the file gives one.
+    pub color: Option<Rgb>,
+    /// The layer's name, when the cut is on one (Inkscape: its label, else its id).
+    pub layer: Option<String>,
+}
+
+impl fmt::Display for CutGroup {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (&self.color, &self.layer) {
+            (Some(c), Some(l)) => write!(f, "colour {c} on layer \"{l}\""),
+            (Some(c), None) => write!(f, "colour {c}"),
+            (None, Some(l)) => write!(f, "layer \"{l}\""),
+            (None, None) => f.write_str("no colour or layer"),
+        }
+    }
+}
+
+/// A dilated closed cut (document space, mm), with where it came from.
+#[derive(Debug, Clone)]
+pub struct CutPath {
+    /// The contour as it is to be cut.
+    pub pline: Pline,
+    /// How to name it in messages.
+    pub label: String,
+    /// Its colour and layer.
+    pub group: CutGroup,
+}
 
 /// The length of one drawing unit when the file does not say (an SVG without absolute
 /// `width`/`height`, a DXF with `$INSUNITS` 0).

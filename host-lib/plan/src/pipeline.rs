@@ -15,7 +15,7 @@ use crate::compensation::{self, IfCompensated};
 use crate::dilate::{self, Contour, KerfSource, Offsetting};
 use crate::error::Result;
 use crate::geom::{Pline, V2};
-use crate::outcome::{OpenPath, PlanSummary};
+use crate::outcome::{CutGroup, CutPath, OpenPath, PlanSummary};
 use crate::progress::{Progress, Stage};
 use crate::recompensate;
 use crate::rules::CutRules;
@@ -117,20 +117,64 @@ pub(crate) trait Format {
     /// counts the elements changed and adds notes to `plan.summary`. The contours are given, so
     /// that a format can free them as soon as they are in the document.
     fn write(self, plan: &mut Plan<Self::Origin>, dilated: Vec<Pline>) -> Result<Self::Output>;
+
+    /// The colour and layer each cut was drawn with (`plan.cuts` order), which choose its cut
+    /// settings when the plan becomes G-code.
+    fn groups(&self, plan: &Plan<Self::Origin>) -> Vec<CutGroup>;
 }
 
 /// Read, dilate and write back a plan in any format: the dilated document and what was found
-/// and done. A plan that records a compensation is refused, dilated anyway or recompensated as
-/// `policy` says, before its geometry is checked (boxes.py's compensated plans cross themselves
-/// at every inner corner). The dilation and writing stages are told to `progress` (the format
-/// tells when it starts reading).
+/// and done (see [`read_and_dilate`]). The writing stage is told to `progress`.
 pub(crate) fn dilate_plan<F: Format>(
-    mut format: F,
+    format: F,
     kerf: &KerfSource,
     policy: IfCompensated,
     rules: &CutRules,
     progress: &Progress,
 ) -> Result<(F::Output, PlanSummary)> {
+    let (format, mut plan, dilated) = read_and_dilate(format, kerf, policy, rules, progress)?;
+    progress.start(Stage::Writing, 0);
+    let output = format.write(&mut plan, dilated)?;
+    Ok((output, plan.summary))
+}
+
+/// Read and dilate a plan in any format, and give the dilated cuts back as contours (each with
+/// its colour and layer) instead of writing them into the document: what G-code is made from.
+pub(crate) fn dilate_plan_cuts<F: Format>(
+    format: F,
+    kerf: &KerfSource,
+    policy: IfCompensated,
+    rules: &CutRules,
+    progress: &Progress,
+) -> Result<(Vec<CutPath>, PlanSummary)> {
+    let (format, plan, dilated) = read_and_dilate(format, kerf, policy, rules, progress)?;
+    let groups = format.groups(&plan);
+    let cuts = plan
+        .cuts
+        .into_iter()
+        .zip(dilated)
+        .zip(groups)
+        .map(|((cut, pline), group)| CutPath {
+            pline,
+            label: cut.contour.label,
+            group,
+        })
+        .collect();
+    Ok((cuts, plan.summary))
+}
+
+/// Read a plan and dilate its cuts: the format (to write with), the plan read and the dilated
+/// contours (`dilated[k]` for `plan.cuts[k]`). A plan that records a compensation is refused,
+/// dilated anyway or recompensated as `policy` says, before its geometry is checked (boxes.py's
+/// compensated plans cross themselves at every inner corner). The dilation stage is told to
+/// `progress` (the format tells when it starts reading).
+fn read_and_dilate<F: Format>(
+    mut format: F,
+    kerf: &KerfSource,
+    policy: IfCompensated,
+    rules: &CutRules,
+    progress: &Progress,
+) -> Result<(F, Plan<F::Origin>, Vec<Pline>)> {
     let mut plan = format.read()?;
     let treatment =
         compensation::treatment(plan.summary.compensation_found.as_ref(), policy, kerf)?;
@@ -165,7 +209,5 @@ pub(crate) fn dilate_plan<F: Format>(
         rules.describe(),
         loops,
     ));
-    progress.start(Stage::Writing, 0);
-    let output = format.write(&mut plan, dilation.contours)?;
-    Ok((output, plan.summary))
+    Ok((format, plan, dilation.contours))
 }

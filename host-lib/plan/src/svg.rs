@@ -57,7 +57,7 @@ use usvg::tiny_skia_path::PathSegment;
 use super::compensation::{self, CompensatedBy, IfCompensated};
 use super::dilate::KerfSource;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
-use super::outcome::{AssumedUnits, PlanSummary};
+use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
 use super::pipeline::{self, Format, Plan};
 use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
@@ -109,6 +109,8 @@ struct Instance {
     to_doc: Affine,
     /// The element's subpaths, as `usvg` resolved them.
     subpaths: Vec<Vec<Seg>>,
+    /// Its stroke colour (chooses its G-code cut settings).
+    stroke: Option<Rgb>,
 }
 
 /// A byte-range replacement in the source (an insertion when the range is empty).
@@ -142,6 +144,24 @@ pub fn dilate_svg(
     opts.progress.start(Stage::Reading, 0);
     let doc = parse(text)?;
     pipeline::dilate_plan(
+        SvgPlan::new(text, &doc, opts),
+        kerf,
+        opts.if_compensated,
+        &opts.rules,
+        &opts.progress,
+    )
+}
+
+/// Dilate the cuts of an SVG plan and give them back as contours in document mm (y down), each
+/// with its stroke colour and Inkscape layer: what G-code is made from.
+pub(crate) fn dilate_svg_cuts(
+    text: &str,
+    kerf: &KerfSource,
+    opts: &SvgOptions,
+) -> Result<(Vec<CutPath>, PlanSummary)> {
+    opts.progress.start(Stage::Reading, 0);
+    let doc = parse(text)?;
+    pipeline::dilate_plan_cuts(
         SvgPlan::new(text, &doc, opts),
         kerf,
         opts.if_compensated,
@@ -610,6 +630,23 @@ impl Format for SvgPlan<'_, '_> {
         Ok(plan)
     }
 
+    fn groups(&self, plan: &Plan<(usize, usize)>) -> Vec<CutGroup> {
+        plan.cuts
+            .iter()
+            .map(|cut| {
+                let inst = &self.instances[cut.origin.0];
+                // A clone is on the layer of its <use>, not of the element it copies.
+                let placed = inst
+                    .via_use
+                    .map_or(self.shapes[inst.element], |u| self.uses[u]);
+                CutGroup {
+                    color: inst.stroke,
+                    layer: inkscape_layer(placed),
+                }
+            })
+            .collect()
+    }
+
     fn write(self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<String> {
         let contour_of: HashMap<(usize, usize), &Pline> = plan
             .cuts
@@ -768,10 +805,23 @@ impl Walk<'_> {
                     via_use,
                     to_doc,
                     subpaths,
+                    stroke: stroke.map(|s| s.0),
                 });
             }
         }
     }
+}
+
+/// The Inkscape layer (a `<g inkscape:groupmode="layer">`) nearest around `node`: its label, else
+/// its id.
+fn inkscape_layer(node: Node) -> Option<String> {
+    node.ancestors()
+        .find(|a| a.attribute((INKSCAPE_NS, "groupmode")) == Some("layer"))
+        .and_then(|g| {
+            g.attribute((INKSCAPE_NS, "label"))
+                .or_else(|| g.attribute("id"))
+                .map(str::to_string)
+        })
 }
 
 fn affine(t: usvg::Transform) -> Affine {

@@ -12,6 +12,7 @@ use kerfmeter::map::KerfMap;
 use kerfmeter_plan::compensation::IfCompensated;
 use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
+use kerfmeter_plan::progress::Progress;
 use kerfmeter_plan::rules::CutRules;
 use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file};
 use serde::Serialize;
@@ -37,13 +38,6 @@ pub struct DilateArgs {
     /// The plan to dilate: an .svg or .dxf file.
     #[arg(value_name = "IN")]
     pub input: PathBuf,
-    /// Kerf (full cut width), µm; every cut moves by half of it. With --map: the kerf measured
-    /// at the map's reference cell.
-    #[arg(long)]
-    pub kerf_um: f64,
-    /// Kerf map (JSON from the map command): each part uses the kerf at its centroid.
-    #[arg(long, value_name = "MAP.json")]
-    pub map: Option<PathBuf>,
     /// Output file, same format as the input (never the input itself).
     #[arg(short, long, value_name = "OUT", required_unless_present = "dry_run")]
     pub output: Option<PathBuf>,
@@ -53,6 +47,21 @@ pub struct DilateArgs {
     /// Report what would change; write nothing.
     #[arg(long)]
     pub dry_run: bool,
+    /// The kerf, the cut rules and what to do with a compensated plan.
+    #[command(flatten)]
+    pub dilation: DilationArgs,
+}
+
+/// How to dilate a plan: the options `dilate` and `gcode` share.
+#[derive(Debug, Clone, clap::Args)]
+pub struct DilationArgs {
+    /// Kerf (full cut width), µm; every cut moves by half of it. With --map: the kerf measured
+    /// at the map's reference cell.
+    #[arg(long)]
+    pub kerf_um: f64,
+    /// Kerf map (JSON from the map command): each part uses the kerf at its centroid.
+    #[arg(long, value_name = "MAP.json")]
+    pub map: Option<PathBuf>,
     /// Colours that mean "cut" (CSS syntax; repeat or separate by commas) [default: red, blue,
     /// black].
     #[arg(long = "cut-color", value_name = "COLOR", value_delimiter = ',')]
@@ -74,6 +83,40 @@ pub struct DilateArgs {
     /// apply the kerf instead: each cut moves by kerf/2 − burn, inner corners kept sharp.
     #[arg(long)]
     pub recompensate: bool,
+}
+
+impl DilationArgs {
+    /// The kerf, checked: uniform, or from the kerf map.
+    pub fn kerf(&self) -> Result<(f64, KerfSource)> {
+        let kerf_um = KerfSource::check_kerf_um(self.kerf_um)?;
+        let kerf = match &self.map {
+            None => KerfSource::Uniform(kerf_um),
+            Some(path) => {
+                let map = KerfMap::load(path)?;
+                KerfSource::Map(Arc::new(move |x_mm, y_mm| {
+                    map.kerf_at_um(kerf_um, x_mm, y_mm)
+                }))
+            }
+        };
+        Ok((kerf_um, kerf))
+    }
+
+    /// The plan library's options, reporting to `progress`.
+    pub fn options(&self, strict: bool, progress: Progress) -> Result<DilateOptions> {
+        Ok(DilateOptions {
+            rules: CutRules::new(&self.cut_colors, self.cut_max_width_mm, &self.cut_layers)?,
+            assume_units: self.units,
+            strict,
+            if_compensated: if self.recompensate {
+                IfCompensated::Recompensate
+            } else if self.already_compensated_ok {
+                IfCompensated::DilateAnyway
+            } else {
+                IfCompensated::Refuse
+            },
+            progress,
+        })
+    }
 }
 
 /// What `dilate` did (or, with `--dry-run`, would do).
@@ -185,7 +228,7 @@ fn write_open_paths(f: &mut fmt::Formatter<'_>, s: &PlanSummary) -> fmt::Result 
 }
 
 /// What compensation was found and what was applied (nothing when none was found).
-fn write_compensation(f: &mut fmt::Formatter<'_>, s: &PlanSummary) -> fmt::Result {
+pub(crate) fn write_compensation(f: &mut fmt::Formatter<'_>, s: &PlanSummary) -> fmt::Result {
     let (Some(found), Some(applied)) = (&s.compensation_found, &s.compensation_applied) else {
         return Ok(());
     };
@@ -213,7 +256,7 @@ fn write_compensation(f: &mut fmt::Formatter<'_>, s: &PlanSummary) -> fmt::Resul
 }
 
 /// "s" unless `n` is 1.
-fn plural(n: usize) -> &'static str {
+pub(crate) fn plural(n: usize) -> &'static str {
     if n == 1 { "" } else { "s" }
 }
 
@@ -232,30 +275,9 @@ pub fn run(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
         }
         ensure_not_input(&args.input, out)?;
     }
-    let kerf_um = KerfSource::check_kerf_um(args.kerf_um)?;
-    let kerf = match &args.map {
-        None => KerfSource::Uniform(kerf_um),
-        Some(path) => {
-            let map = KerfMap::load(path)?;
-            KerfSource::Map(Arc::new(move |x_mm, y_mm| {
-                map.kerf_at_um(kerf_um, x_mm, y_mm)
-            }))
-        }
-    };
+    let (kerf_um, kerf) = args.dilation.kerf()?;
     let (progress, bar) = plan_progress(g.json);
-    let options = DilateOptions {
-        rules: CutRules::new(&args.cut_colors, args.cut_max_width_mm, &args.cut_layers)?,
-        assume_units: args.units,
-        strict: args.strict,
-        if_compensated: if args.recompensate {
-            IfCompensated::Recompensate
-        } else if args.already_compensated_ok {
-            IfCompensated::DilateAnyway
-        } else {
-            IfCompensated::Refuse
-        },
-        progress,
-    };
+    let options = args.dilation.options(args.strict, progress)?;
     let dilated = dilate_file(&args.input, &kerf, &options);
     bar.finish_and_clear();
     let (output, summary) = dilated?;
@@ -274,7 +296,7 @@ pub fn run(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
         dry_run: args.dry_run,
         format,
         kerf_um,
-        map: args.map.clone(),
+        map: args.dilation.map.clone(),
         cut_rules: options.rules.describe(),
         summary,
     })

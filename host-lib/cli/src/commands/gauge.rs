@@ -1,20 +1,57 @@
-//! `kerfmeter gauge`: draw the spiral gauge to cut before a measurement (SVG or DXF by the
-//! output's extension). The drawing is `kerfmeter_plan`'s; this module turns the arguments into
-//! its options, writes the file atomically and reports what it drew.
+//! `kerfmeter gauge`: draw the spiral gauge to cut before a measurement (SVG, DXF or G-code by
+//! the output's extension). The drawing and the G-code are `kerfmeter_plan`'s; this module turns
+//! the arguments into their options, writes the file atomically and reports what it drew.
+//!
+//! As G-code the gauge is not dilated (the kerf is what it measures), its spiral centre is put at
+//! `--at-mm` (default: the drawing's lower-left corner at the machine origin), and it is cut with
+//! [`GAUGE_SETTINGS`] unless the cut-setting flags say otherwise. Cut it with the job's own
+//! settings: the kerf depends on them.
 
 use std::fmt;
 use std::path::PathBuf;
 
 use kerfmeter::files::write_atomically;
-use kerfmeter_plan::gauge::{self, GaugeOptions, TestPieceSpec};
+use kerfmeter_plan::gauge::{self, GaugeDrawing, GaugeOptions, TestPieceSpec};
+use kerfmeter_plan::gcode::{GcodeOptions, ProgramStats, Provenance, gauge_program};
+use kerfmeter_plan::profile::CutSettings;
 use kerfmeter_plan::{PlanError, PlanFormat};
 use kerfmeter_protocol::{GaugeGeometry, JamDirection};
 use serde::Serialize;
 
+use super::gcode::{CutArgs, is_gcode, parse_xy};
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 
 type Result<T, E = CliError> = std::result::Result<T, E>;
+
+/// How the gauge is cut when the flags do not say: slow and at full power, one pass.
+pub const GAUGE_SETTINGS: CutSettings = CutSettings {
+    feed_mm_per_min: 300.0,
+    power_percent: 100.0,
+    passes: 1,
+};
+
+/// What `gauge` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GaugeFormat {
+    /// SVG.
+    Svg,
+    /// DXF.
+    Dxf,
+    /// G-code for GRBL 1.1 laser mode.
+    Gcode,
+}
+
+impl fmt::Display for GaugeFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            GaugeFormat::Svg => "SVG",
+            GaugeFormat::Dxf => "DXF",
+            GaugeFormat::Gcode => "G-code",
+        })
+    }
+}
 
 /// Sense in which the hub turns to close the gauge's gap, seen from above.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
@@ -75,9 +112,16 @@ pub struct GaugeArgs {
     /// Kerf to dilate the test piece by, µm.
     #[arg(long)]
     pub test_piece_kerf_um: Option<f64>,
-    /// Add an engraved label naming the geometry and the jam direction.
+    /// Add an engraved label naming the geometry and the jam direction (not in G-code).
     #[arg(long)]
     pub label: bool,
+    /// G-code: where the spiral centre goes on the machine, mm [default: the drawing's
+    /// lower-left corner at 0,0].
+    #[arg(long, value_name = "X,Y", value_parser = parse_xy)]
+    pub at_mm: Option<[f64; 2]>,
+    /// G-code: how to cut the gauge [default: 300 mm/min, 100 %, 1 pass].
+    #[command(flatten)]
+    pub cut: CutArgs,
 }
 
 impl GaugeArgs {
@@ -121,7 +165,7 @@ pub struct GaugeReport {
     /// The file written.
     pub output: PathBuf,
     /// Its format.
-    pub format: PlanFormat,
+    pub format: GaugeFormat,
     /// Page size (width, height), mm.
     pub page_mm: [f64; 2],
     /// Spiral pitch, µm per degree.
@@ -146,6 +190,21 @@ pub struct GaugeReport {
     pub test_piece: Option<TestPieceSpec>,
     /// Whether a label was engraved.
     pub label: bool,
+    /// The G-code, when that was written.
+    pub gcode: Option<GaugeGcode>,
+}
+
+/// The gauge's G-code: where and how it is cut.
+#[derive(Debug, Clone, Serialize)]
+pub struct GaugeGcode {
+    /// The spiral centre on the machine, mm.
+    pub at_mm: [f64; 2],
+    /// How it is cut.
+    pub settings: CutSettings,
+    /// The S of full power ($30).
+    pub s_max: f64,
+    /// What the program cuts and travels.
+    pub program: ProgramStats,
 }
 
 impl fmt::Display for GaugeReport {
@@ -184,6 +243,18 @@ impl fmt::Display for GaugeReport {
                 t.finger_width_mm, t.thickness_mm, t.kerf_um
             )?;
         }
+        if let Some(gc) = &self.gcode {
+            writeln!(
+                f,
+                "G-code: spiral centre at ({}, {}) mm, {}, {} contours, {:.1} mm cut; needs GRBL $32=1, $30={}",
+                gc.at_mm[0],
+                gc.at_mm[1],
+                gc.settings,
+                gc.program.contours,
+                gc.program.cut_mm,
+                gc.s_max
+            )?;
+        }
         write!(
             f,
             "cut the red hairlines with the sheet's top face up; there is no outer cut"
@@ -198,12 +269,22 @@ fn clean(x: f32) -> f64 {
 
 /// Write the gauge described by `args`.
 pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
-    let format = PlanFormat::of(&args.output)?;
     let geometry = args.geometry();
     let drawing = gauge::build(&geometry, &args.options()?)?;
-    let bytes = match format {
-        PlanFormat::Svg => gauge::to_svg(&drawing).into_bytes(),
-        PlanFormat::Dxf => gauge::to_dxf(&drawing)?,
+    let (format, bytes, gcode) = if is_gcode(&args.output) {
+        let (text, gcode) = gauge_gcode(args, &drawing)?;
+        (GaugeFormat::Gcode, text.into_bytes(), Some(gcode))
+    } else {
+        if args.at_mm.is_some() || args.cut.settings()?.is_some() {
+            return Err(PlanError::InvalidArgument(
+                "--at-mm and the cut settings are for G-code output (a .gcode file)".into(),
+            )
+            .into());
+        }
+        match PlanFormat::of(&args.output)? {
+            PlanFormat::Svg => (GaugeFormat::Svg, gauge::to_svg(&drawing).into_bytes(), None),
+            PlanFormat::Dxf => (GaugeFormat::Dxf, gauge::to_dxf(&drawing)?, None),
+        }
     };
     write_atomically(&args.output, &bytes)?;
     let arcs = drawing
@@ -227,7 +308,35 @@ pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
         jam_direction: args.jam_direction,
         test_piece: args.options()?.test_piece,
         label: args.label,
+        gcode,
     })
+}
+
+/// The gauge's G-code text, and what it cuts where.
+fn gauge_gcode(args: &GaugeArgs, drawing: &GaugeDrawing) -> Result<(String, GaugeGcode)> {
+    let settings = args.cut.settings()?.unwrap_or(GAUGE_SETTINGS);
+    let at_mm = args.at_mm.unwrap_or([drawing.center.x, drawing.center.y]);
+    let options = GcodeOptions {
+        s_max: args.cut.s_max,
+        origin_mm: at_mm,
+    };
+    let g = &drawing.geometry;
+    let provenance = Provenance {
+        source: format!(
+            "gauge, pitch {} um/deg, radius {} mm",
+            clean(g.pitch_um_per_deg),
+            clean(g.radius_mm)
+        ),
+        kerf: "none: the gauge measures it".into(),
+    };
+    let (program, _) = gauge_program(drawing, &settings, &options, &provenance)?;
+    let gcode = GaugeGcode {
+        at_mm,
+        settings,
+        s_max: options.s_max,
+        program: program.stats(),
+    };
+    Ok((program.to_text(), gcode))
 }
 
 impl Report for GaugeReport {

@@ -7,6 +7,7 @@ pub mod config;
 pub mod cut;
 pub mod dilate;
 pub mod gauge;
+pub mod gcode;
 pub mod info;
 pub mod kerf;
 pub mod map;
