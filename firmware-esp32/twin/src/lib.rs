@@ -96,6 +96,7 @@
 
 pub mod cutter;
 pub mod encoder;
+pub mod gauge_trace;
 pub mod options;
 pub mod plant;
 pub mod pty;

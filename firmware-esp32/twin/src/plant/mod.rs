@@ -90,6 +90,18 @@ impl Plant {
         self.gauge = Gauge::new(self.gauge.geometry, cut);
     }
 
+    /// A new gauge of physical `geometry` (a gauge cut from other G-code than the device was
+    /// told of: [`crate::gauge_trace`]), cut as `cut` says, under the prongs, as
+    /// [`Plant::place_gauge`] places one.
+    pub fn place_gauge_of(&mut self, geometry: GaugeGeometry, cut: GaugeCut) {
+        self.gauge = Gauge::new(geometry, cut);
+    }
+
+    /// The physical geometry of the gauge in place.
+    pub fn geometry(&self) -> &GaugeGeometry {
+        &self.gauge.geometry
+    }
+
     /// How the gauge in place was cut.
     pub fn cut(&self) -> &GaugeCut {
         &self.gauge.cut

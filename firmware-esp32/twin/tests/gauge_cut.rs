@@ -1,0 +1,216 @@
+//! The gauge the cutter twin cut is the gauge the device twin measures: the plan crate's gauge
+//! drawing, written as G-code here (G0 travels, G1 lines and G2/G3 arcs at 1 µm, laser mode),
+//! streamed into the GRBL cutter twin, and the trace it records put under the device twin's
+//! prongs. Drawn right, it reads like any gauge of the twin's cutter; with its pitch wrong it
+//! reads wrong by c/c′; mirrored, or with a hole missing or too small, it is refused with the
+//! reason.
+
+mod common;
+
+use kerfmeter_plan::gauge::{GaugeDrawing, GaugeOptions, build};
+use kerfmeter_protocol::{GaugeGeometry, RunParams};
+use kerfmeter_twin::cutter::{CutterLog, CutterOptions, Grbl, Segment};
+use kerfmeter_twin::gauge_trace::GaugeTraceError;
+use kerfmeter_twin::{Twin, TwinOptions};
+
+/// Where on the bed the gauge is cut, and where the prongs then come down, mm.
+const AT_MM: [f64; 2] = [212.5, 87.25];
+
+/// How the G-code places the drawing: each point's offset from the gauge's centre is scaled by
+/// these before it is put at [`AT_MM`] (−1 in y mirrors it).
+#[derive(Clone, Copy)]
+struct Placement {
+    scale: [f64; 2],
+}
+
+const AS_DRAWN: Placement = Placement { scale: [1.0, 1.0] };
+
+/// G-code for the drawing's spiral and holes (holes listed in `holes`), placed as `placement`.
+fn gcode(drawing: &GaugeDrawing, holes: &[usize], placement: Placement) -> Vec<String> {
+    let c = drawing.center;
+    let at = |x: f64, y: f64| {
+        let (sx, sy) = (placement.scale[0], placement.scale[1]);
+        [AT_MM[0] + sx * (x - c.x), AT_MM[1] + sy * (y - c.y)]
+    };
+    let mirrored = placement.scale[0] * placement.scale[1] < 0.0;
+    let mut lines = vec!["G21 G90 G94".to_owned(), "M4 S0".to_owned()];
+    let v = &drawing.spiral.vertex_data;
+    let [x0, y0] = at(v[0].x, v[0].y);
+    lines.push(format!("G0 X{x0:.3} Y{y0:.3}"));
+    for i in 0..v.len() {
+        let (p, q) = (&v[i], &v[(i + 1) % v.len()]);
+        let [x, y] = at(q.x, q.y);
+        if p.bulge == 0.0 {
+            lines.push(format!("G1 X{x:.3} Y{y:.3} S1000 F600"));
+            continue;
+        }
+        // The arc's centre from its bulge (tan of a quarter of its signed sweep).
+        let (dx, dy) = (q.x - p.x, q.y - p.y);
+        let h = (1.0 - p.bulge * p.bulge) / (4.0 * p.bulge);
+        let centre = at((p.x + q.x) / 2.0 - dy * h, (p.y + q.y) / 2.0 + dx * h);
+        let [px, py] = at(p.x, p.y);
+        let ccw = (p.bulge > 0.0) != mirrored;
+        let (i_mm, j_mm) = (centre[0] - px, centre[1] - py);
+        let g = if ccw { "G3" } else { "G2" };
+        lines.push(format!(
+            "{g} X{x:.3} Y{y:.3} I{i_mm:.3} J{j_mm:.3} S1000 F600"
+        ));
+    }
+    for &i in holes {
+        let (centre, r) = drawing.holes[i];
+        let [cx, cy] = at(centre.x, centre.y);
+        let r = r * placement.scale[0].abs();
+        lines.push(format!("G0 X{:.3} Y{cy:.3}", cx + r));
+        lines.push(format!(
+            "G2 X{:.3} Y{cy:.3} I{:.3} J0 S1000 F600",
+            cx + r,
+            -r
+        ));
+    }
+    lines.push("M5".to_owned());
+    lines
+}
+
+/// Stream `lines` into a cutter twin one at a time (each waits for its `ok`), let it finish,
+/// and return the segments it traced.
+fn cut(lines: &[String]) -> Vec<Segment> {
+    let log = CutterLog::default();
+    let mut grbl = Grbl::new(CutterOptions::default(), log.clone());
+    grbl.take_output();
+    for line in lines {
+        grbl.receive(format!("{line}\n").as_bytes());
+        let mut reply = String::new();
+        while !reply.contains("ok") {
+            assert!(!reply.contains("error"), "{line}: {reply}");
+            grbl.advance_us(10_000);
+            reply += &String::from_utf8(grbl.take_output()).unwrap();
+        }
+    }
+    grbl.advance_us(600_000_000);
+    let record = log.snapshot();
+    assert!(record.travel_firings.is_empty());
+    record.segments
+}
+
+/// The drawing of `geometry`, as the plan crate draws it.
+fn drawing(geometry: &GaugeGeometry) -> GaugeDrawing {
+    build(geometry, &GaugeOptions::default()).unwrap()
+}
+
+fn twin(seed: u64) -> Twin {
+    let mut t = Twin::new(TwinOptions {
+        seed,
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    t
+}
+
+#[test]
+fn the_gauge_cut_as_drawn_reads_like_any_gauge_of_the_twins_cutter() {
+    let segments = cut(&gcode(&drawing(&GaugeGeometry::PAPER), &[0, 1], AS_DRAWN));
+    for seed in [3, 4] {
+        let mut traced = twin(seed);
+        let placed = traced.place_traced_gauge(&segments, AT_MM).unwrap();
+        let reading = common::measure(&mut traced, &RunParams::DEFAULT).unwrap();
+        assert_eq!(traced.plant().cut(), &placed);
+        let geometry = *traced.plant().geometry();
+        let pitch_error = geometry.pitch_um_per_deg / GaugeGeometry::PAPER.pitch_um_per_deg - 1.0;
+        assert!(pitch_error.abs() < 5e-4, "{geometry:?}");
+        assert_eq!(geometry.jam_direction, GaugeGeometry::PAPER.jam_direction);
+        let truth = traced.plant().truth_um(&RunParams::DEFAULT);
+        // The same seed's twin without the trace draws the same gauge from its cutter.
+        let mut plain = twin(seed);
+        let usual = common::measure(&mut plain, &RunParams::DEFAULT).unwrap();
+        let error_um = f64::from(reading.kerf_um) - truth;
+        eprintln!(
+            "seed {seed}: read {:.2} µm, truth {truth:.2} µm, untraced twin {:.2} µm",
+            reading.kerf_um, usual.kerf_um
+        );
+        assert!(error_um.abs() < 3.0, "{error_um}");
+        assert!((reading.kerf_um - usual.kerf_um).abs() < 1.0);
+    }
+}
+
+#[test]
+fn a_pitch_scaled_in_the_g_code_reads_wrong_by_the_pitchs_ratio() {
+    // The device takes the jam angle θs = k / c′ of a spiral of pitch c′ for one of pitch c:
+    // it reads c·θs = k·c/c′ (the spiral model's gap = k − c·θs).
+    for scale in [1.05f32, 0.96] {
+        let wrong = GaugeGeometry {
+            pitch_um_per_deg: GaugeGeometry::PAPER.pitch_um_per_deg * scale,
+            ..GaugeGeometry::PAPER
+        };
+        let segments = cut(&gcode(&drawing(&wrong), &[0, 1], AS_DRAWN));
+        let mut t = twin(5);
+        t.place_traced_gauge(&segments, AT_MM).unwrap();
+        let reading = f64::from(
+            common::measure(&mut t, &RunParams::DEFAULT)
+                .unwrap()
+                .kerf_um,
+        );
+        let traced = t.plant().geometry().pitch_um_per_deg;
+        // Within 0.05 % (G-code's 1 µm rounding): 0.08 µm of a 160 µm reading.
+        assert!(
+            (traced / wrong.pitch_um_per_deg - 1.0).abs() < 5e-4,
+            "{traced} vs {}",
+            wrong.pitch_um_per_deg
+        );
+        let truth = t.plant().truth_um(&RunParams::DEFAULT);
+        let expected = truth / f64::from(scale);
+        eprintln!("pitch ×{scale}: read {reading:.2} µm, truth {truth:.2}, expected {expected:.2}");
+        assert!((reading - expected).abs() < 3.0, "{reading} vs {expected}");
+        assert!((reading - truth).abs() > 5.0, "{reading} vs {truth}");
+    }
+}
+
+#[test]
+fn a_mirrored_gauge_is_refused_as_turning_the_wrong_way() {
+    let mirrored = Placement { scale: [1.0, -1.0] };
+    let segments = cut(&gcode(&drawing(&GaugeGeometry::PAPER), &[0, 1], mirrored));
+    let mut t = twin(6);
+    let err = t.place_traced_gauge(&segments, AT_MM).unwrap_err();
+    assert!(
+        matches!(err, GaugeTraceError::SenseReversed { .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("mirrored"), "{err}");
+}
+
+#[test]
+fn a_missing_or_too_small_hole_is_refused_with_which_and_where() {
+    let paper = drawing(&GaugeGeometry::PAPER);
+    let mut t = twin(7);
+    let missing = cut(&gcode(&paper, &[0], AS_DRAWN));
+    let err = t.place_traced_gauge(&missing, AT_MM).unwrap_err();
+    assert!(
+        matches!(err, GaugeTraceError::HoleMissing { hole: 1, .. }),
+        "{err}"
+    );
+    assert!(err.to_string().starts_with("hole 1 is missing"), "{err}");
+    // Hole 1 drawn 1.9 mm in radius: with half a 150 µm kerf, still under the 2 mm prong.
+    let mut small = paper.clone();
+    small.holes[1].1 = 1.9;
+    let err = t
+        .place_traced_gauge(&cut(&gcode(&small, &[0, 1], AS_DRAWN)), AT_MM)
+        .unwrap_err();
+    assert!(
+        matches!(err, GaugeTraceError::HoleTooSmall { hole: 1, .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("too small"), "{err}");
+    // Nothing cut there at all.
+    let err = t.place_traced_gauge(&missing, [20.0, 20.0]).unwrap_err();
+    assert!(matches!(err, GaugeTraceError::NoSpiral { .. }), "{err}");
+}
+
+#[test]
+fn a_gauge_cut_off_where_the_prongs_come_down_is_refused_beyond_the_holes_play() {
+    let segments = cut(&gcode(&drawing(&GaugeGeometry::PAPER), &[0, 1], AS_DRAWN));
+    let mut t = twin(8);
+    // The prongs come down 0.7 mm off: more than the 0.42 mm + half-kerf clearance.
+    let err = t
+        .place_traced_gauge(&segments, [AT_MM[0], AT_MM[1] + 0.7])
+        .unwrap_err();
+    assert!(matches!(err, GaugeTraceError::ProngOffHole { .. }), "{err}");
+}
