@@ -17,7 +17,7 @@
 //!   nearest where prong 0 comes down (the gauge's centre + hole distance along +X), hole 1 the
 //!   one nearest prong 1 (along −X), each within the drawn hole radius of it.
 //! - **The spiral**: every other cut, sampled every [`SAMPLE_STEP_MM`], fitted by least squares
-//!   (Gauss–Newton from a coarse search) to r(φ) = a + c·(φ − φ₀) about an unknown centre, with
+//!   (Gauss–Newton, the step found where the radius jumps) to r(φ) = a + c·(φ − φ₀) about an unknown centre, with
 //!   a signed pitch c: c > 0 means φ grows counter-clockwise (a clockwise jam, as drawn by
 //!   default), c < 0 the mirror image. Samples within [`STEP_EXCLUSION_RAD`] of the radial step
 //!   are left out of the fit. Every other sample must lie within [`SPIRAL_TOLERANCE_UM`] of the
@@ -73,8 +73,6 @@ pub const MIN_SPIRAL_COVERAGE: f64 = 0.9;
 
 /// Sectors of the coverage check.
 const SECTORS: usize = 64;
-/// Coarse search of the step's direction before the fit.
-const STEP_SEARCH: usize = 72;
 /// Gauss–Newton iterations at most.
 const FIT_ITERATIONS: usize = 40;
 /// The fit has converged when no parameter moves more than this (mm or rad).
@@ -237,7 +235,7 @@ impl TracedGauge {
                 coverage * 100.0
             )));
         }
-        let fit = fit_spiral(&points, first_centre(&circles, at_mm, nominal), nominal)
+        let fit = fit_spiral(&points, first_centre(&circles, at_mm, nominal))
             .ok_or_else(|| no_spiral("the cuts there fit no spiral".into()))?;
         let [x0, y0, step_rad, a, c] = fit.params;
         let max_residual_um = fit.max_residual_mm * 1e3;
@@ -491,37 +489,26 @@ fn away_from_step(phi: f64) -> bool {
     (STEP_EXCLUSION_RAD..=TAU - STEP_EXCLUSION_RAD).contains(&phi)
 }
 
-/// Fit r = a + c·φ about an unknown centre (see the [module docs](self)), starting at `at_mm`
-/// with the step's direction from a coarse search; `None` if the equations are singular.
-fn fit_spiral(points: &[[f64; 2]], at_mm: [f64; 2], nominal: &GaugeGeometry) -> Option<SpiralFit> {
-    let mut params = (0..STEP_SEARCH)
-        .map(|k| {
-            let mut p = [
-                at_mm[0],
-                at_mm[1],
-                TAU * k as f64 / STEP_SEARCH as f64,
-                0.0,
-                0.0,
-            ];
-            let cost = fit_radius_line(points, &mut p);
-            (p, cost)
-        })
-        .min_by(|x, y| x.1.total_cmp(&y.1))
-        .map(|(p, _)| p)
-        .unwrap_or([
-            at_mm[0],
-            at_mm[1],
-            0.0,
-            start_radius_mm(nominal),
-            pitch_mm_per_rad(nominal),
-        ]);
+/// Fit r = a + c·φ about an unknown centre (see the [module docs](self)), starting at
+/// `start_mm`: Gauss–Newton on the centre, a and c, the step's direction found again from the
+/// samples about each new centre (rotating a spiral is the same as changing its a, so only the
+/// step fixes its direction); `None` if the equations are singular.
+fn fit_spiral(points: &[[f64; 2]], start_mm: [f64; 2]) -> Option<SpiralFit> {
+    let mut params = [start_mm[0], start_mm[1], 0.0, 0.0, 0.0];
     for _ in 0..FIT_ITERATIONS {
+        params[2] = step_direction_rad(points, [params[0], params[1]]);
+        if !fit_radius_line(points, &mut params).is_finite() {
+            return None;
+        }
         let step = gauss_newton_step(points, &params)?;
-        params.iter_mut().zip(step).for_each(|(p, d)| *p += d);
+        for (p, d) in [0, 1, 3, 4].into_iter().zip(step) {
+            params[p] += d;
+        }
         if step.iter().all(|d| d.abs() < FIT_CONVERGED) {
             break;
         }
     }
+    params[2] = step_direction_rad(points, [params[0], params[1]]);
     let max_residual_mm = points
         .iter()
         .map(|q| polar(&params, *q))
@@ -534,8 +521,26 @@ fn fit_spiral(points: &[[f64; 2]], at_mm: [f64; 2], nominal: &GaugeGeometry) -> 
     })
 }
 
+/// The direction of the spiral's radial step from `centre`, rad: where, going round, the
+/// samples' radius jumps the most (along the step it changes by a sample's spacing, along the
+/// spiral by c times a sample's tiny angle).
+fn step_direction_rad(points: &[[f64; 2]], centre: [f64; 2]) -> f64 {
+    let mut polar: Vec<(f64, f64)> = points
+        .iter()
+        .map(|q| {
+            let (dx, dy) = (q[0] - centre[0], q[1] - centre[1]);
+            (dy.atan2(dx), dx.hypot(dy))
+        })
+        .collect();
+    polar.sort_by(|p, q| p.0.total_cmp(&q.0));
+    polar
+        .windows(2)
+        .max_by(|p, q| (p[1].1 - p[0].1).abs().total_cmp(&(q[1].1 - q[0].1).abs()))
+        .map_or(0.0, |w| w[0].0)
+}
+
 /// With the centre and step fixed, the least-squares a and c (written into `p`); the sum of
-/// squared residuals.
+/// squared residuals (infinite with fewer than two samples).
 fn fit_radius_line(points: &[[f64; 2]], p: &mut [f64; 5]) -> f64 {
     let (mut n, mut sx, mut sy, mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for q in points {
@@ -560,10 +565,11 @@ fn fit_radius_line(points: &[[f64; 2]], p: &mut [f64; 5]) -> f64 {
     syy - a * sy - c * sxy
 }
 
-/// One Gauss–Newton step of the residual ρ − a − c·φ over the points away from the step.
-fn gauss_newton_step(points: &[[f64; 2]], p: &[f64; 5]) -> Option<[f64; 5]> {
-    let mut jtj = [[0.0; 5]; 5];
-    let mut jtr = [0.0; 5];
+/// One Gauss–Newton step of the residual ρ − a − c·φ over the points away from the step, in
+/// the centre, a and c (the step's direction held).
+fn gauss_newton_step(points: &[[f64; 2]], p: &[f64; 5]) -> Option<[f64; 4]> {
+    let mut jtj = [[0.0; 4]; 4];
+    let mut jtr = [0.0; 4];
     for q in points {
         let (r, phi) = polar(p, *q);
         if !away_from_step(phi) || r == 0.0 {
@@ -571,18 +577,17 @@ fn gauss_newton_step(points: &[[f64; 2]], p: &[f64; 5]) -> Option<[f64; 5]> {
         }
         let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
         let c = p[4];
-        // ∂ρ/∂x0 = −dx/ρ, ∂θ/∂x0 = dy/ρ²; ∂ρ/∂y0 = −dy/ρ, ∂θ/∂y0 = −dx/ρ²; ∂φ/∂φ0 = −1.
+        // ∂ρ/∂x0 = −dx/ρ, ∂θ/∂x0 = dy/ρ²; ∂ρ/∂y0 = −dy/ρ, ∂θ/∂y0 = −dx/ρ².
         let jacobian = [
             -dx / r - c * dy / (r * r),
             -dy / r + c * dx / (r * r),
-            c,
             -1.0,
             -phi,
         ];
         let residual = r - p[3] - c * phi;
-        for i in 0..5 {
+        for i in 0..4 {
             jtr[i] += jacobian[i] * residual;
-            for j in 0..5 {
+            for j in 0..4 {
                 jtj[i][j] += jacobian[i] * jacobian[j];
             }
         }
@@ -591,15 +596,15 @@ fn gauss_newton_step(points: &[[f64; 2]], p: &[f64; 5]) -> Option<[f64; 5]> {
 }
 
 /// Solve `m·x = b` by Gaussian elimination with partial pivoting; `None` if singular.
-fn solve(mut m: [[f64; 5]; 5], mut b: [f64; 5]) -> Option<[f64; 5]> {
-    for col in 0..5 {
-        let pivot = (col..5).max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))?;
+fn solve<const N: usize>(mut m: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
+    for col in 0..N {
+        let pivot = (col..N).max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))?;
         if m[pivot][col].abs() < 1e-300 {
             return None;
         }
         m.swap(col, pivot);
         b.swap(col, pivot);
-        for row in col + 1..5 {
+        for row in col + 1..N {
             let f = m[row][col] / m[col][col];
             let pivot_row = m[col];
             for (x, p) in m[row].iter_mut().zip(pivot_row).skip(col) {
@@ -608,10 +613,143 @@ fn solve(mut m: [[f64; 5]; 5], mut b: [f64; 5]) -> Option<[f64; 5]> {
             b[row] -= f * b[col];
         }
     }
-    let mut x = [0.0; 5];
-    for row in (0..5).rev() {
-        let tail: f64 = (row + 1..5).map(|k| m[row][k] * x[k]).sum();
+    let mut x = [0.0; N];
+    for row in (0..N).rev() {
+        let tail: f64 = (row + 1..N).map(|k| m[row][k] * x[k]).sum();
         x[row] = (b[row] - tail) / m[row][row];
     }
     Some(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::{CutterKerf, PlantParams};
+
+    const PAPER: GaugeGeometry = GaugeGeometry::PAPER;
+
+    /// A cut move from `start` to `end`, mm.
+    fn cut_move(kind: SegmentKind, start: [f64; 2], end: [f64; 2]) -> Segment {
+        Segment {
+            kind,
+            start: [start[0], start[1], 0.0],
+            end: [end[0], end[1], 0.0],
+            power_s: 1000.0,
+            feed_mm_per_min: 600.0,
+            complete: true,
+            line: 1,
+        }
+    }
+
+    /// The paper's gauge about `centre`, its spiral as 720 lines (φ counter-clockwise, or
+    /// clockwise when `mirrored`), its holes (centres given) as full circles.
+    fn trace(centre: [f64; 2], holes: [[f64; 2]; 2], mirrored: bool) -> Vec<Segment> {
+        let (a, c) = (start_radius_mm(&PAPER), pitch_mm_per_rad(&PAPER));
+        let y_sign = if mirrored { -1.0 } else { 1.0 };
+        let at = |phi: f64| {
+            let r = a + c * phi;
+            [
+                centre[0] + r * phi.cos(),
+                centre[1] + y_sign * r * phi.sin(),
+            ]
+        };
+        let n = 720;
+        let mut segments: Vec<Segment> = (0..n)
+            .map(|k| {
+                let phi = |k: usize| TAU * k as f64 / n as f64;
+                cut_move(SegmentKind::Line, at(phi(k)), at(phi(k + 1)))
+            })
+            .collect();
+        segments.push(cut_move(SegmentKind::Line, at(TAU), at(0.0)));
+        for h in holes {
+            let r = f64::from(PAPER.hole_radius_mm);
+            let start = [h[0] + r, h[1]];
+            let kind = SegmentKind::Arc {
+                center: h,
+                clockwise: true,
+            };
+            segments.push(cut_move(kind, start, start));
+        }
+        segments
+    }
+
+    /// A cutter with no spread at all: a gauge's cut is what its trace says.
+    fn exact_cutter() -> Cutter {
+        let params = PlantParams {
+            kerf_location_sd_um: 0.0,
+            ..PlantParams::default()
+        };
+        let kerf = CutterKerf {
+            repeatability_um: 0.0,
+            ..CutterKerf::default()
+        };
+        kerf.cutter(params, 1).unwrap()
+    }
+
+    fn drawn_holes(centre: [f64; 2]) -> [[f64; 2]; 2] {
+        let d = f64::from(PAPER.hole_distance_mm);
+        [[centre[0] + d, centre[1]], [centre[0] - d, centre[1]]]
+    }
+
+    #[test]
+    fn the_spirals_centre_pitch_and_sense_are_recovered() {
+        let centre = [100.03, 50.02];
+        let segments = trace(centre, drawn_holes(centre), false);
+        let traced = TracedGauge::recover(&segments, &PAPER, [100.0, 50.0]).unwrap();
+        assert!((traced.center_mm[0] - centre[0]).abs() < 1e-6, "{traced:?}");
+        assert!((traced.center_mm[1] - centre[1]).abs() < 1e-6, "{traced:?}");
+        let pitch = f64::from(PAPER.pitch_um_per_deg);
+        assert!((traced.pitch_um_per_deg / pitch - 1.0).abs() < 1e-5);
+        assert!((traced.radius_mm - f64::from(PAPER.radius_mm)).abs() < 1e-4);
+        assert_eq!(traced.jam_direction, JamDirection::Clockwise);
+        assert!(
+            traced.step_rad.min(TAU - traced.step_rad) < 1e-3,
+            "{traced:?}"
+        );
+        let mirrored = trace(centre, drawn_holes(centre), true);
+        let traced = TracedGauge::recover(&mirrored, &PAPER, [100.0, 50.0]).unwrap();
+        assert_eq!(traced.jam_direction, JamDirection::CounterClockwise);
+        assert!((traced.pitch_um_per_deg / pitch - 1.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn traced_displacements_land_in_the_plants_frames() {
+        let centre = [100.0, 50.0];
+        let mut holes = drawn_holes(centre);
+        // Hole 0 cut 30 µm towards +Y: on a clockwise gauge, against the jam at hole 0.
+        holes[0][1] += 0.030;
+        // Hole 1 cut 20 µm further out (−X).
+        holes[1][0] -= 0.020;
+        let segments = trace(centre, holes, false);
+        // The prongs come down 50 µm towards +X of the spiral's centre.
+        let at_mm = [100.05, 50.0];
+        let traced = TracedGauge::recover(&segments, &PAPER, at_mm).unwrap();
+        let (_, cut) = traced
+            .gauge_cut(&PAPER, at_mm, &exact_cutter(), &mut Rng::new(1))
+            .unwrap();
+        let close = |x: f64, y: f64| (x - y).abs() < 1e-3;
+        assert!(close(cut.hub_offset_um[0], 50.0), "{cut:?}");
+        assert!(close(cut.hub_offset_um[1], 0.0), "{cut:?}");
+        assert!(close(cut.hole_offset_um[0][0], 0.0), "{cut:?}");
+        assert!(close(cut.hole_offset_um[0][1], -30.0), "{cut:?}");
+        assert!(close(cut.hole_offset_um[1][0], 20.0), "{cut:?}");
+        assert!(close(cut.hole_offset_um[1][1], 0.0), "{cut:?}");
+    }
+
+    #[test]
+    fn laser_off_moves_and_far_away_cuts_are_not_the_gauge() {
+        let centre = [100.0, 50.0];
+        let mut segments = trace(centre, drawn_holes(centre), false);
+        for s in &mut segments[..400] {
+            s.power_s = 0.0;
+        }
+        let err = TracedGauge::recover(&segments, &PAPER, centre).unwrap_err();
+        assert!(
+            err.to_string().contains("% of a turn"),
+            "a half-cut spiral: {err}"
+        );
+        let whole = trace(centre, drawn_holes(centre), false);
+        let err = TracedGauge::recover(&whole, &PAPER, [130.0, 50.0]).unwrap_err();
+        assert!(matches!(err, GaugeTraceError::NoSpiral { .. }), "{err}");
+    }
 }

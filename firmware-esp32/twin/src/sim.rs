@@ -289,10 +289,22 @@ impl Twin {
         segments: &[Segment],
         at_mm: [f64; 2],
     ) -> Result<GaugeCut, GaugeTraceError> {
+        let cutter = self.cutter;
+        self.place_traced_gauge_cut_by(segments, at_mm, &cutter)
+    }
+
+    /// [`place_traced_gauge`](Self::place_traced_gauge), the gauge cut by `cutter` (a cutter
+    /// twin's, from its [`CutterOptions::kerf`](crate::cutter::CutterOptions)) instead of this
+    /// twin's own.
+    pub fn place_traced_gauge_cut_by(
+        &mut self,
+        segments: &[Segment],
+        at_mm: [f64; 2],
+        cutter: &Cutter,
+    ) -> Result<GaugeCut, GaugeTraceError> {
         let nominal = self.options.gauge;
         let traced = TracedGauge::recover(segments, &nominal, at_mm)?;
-        let (geometry, cut) =
-            traced.gauge_cut(&nominal, at_mm, &self.cutter, &mut self.gauge_rng)?;
+        let (geometry, cut) = traced.gauge_cut(&nominal, at_mm, cutter, &mut self.gauge_rng)?;
         self.traced_gauge = Some((geometry, cut));
         Ok(cut)
     }

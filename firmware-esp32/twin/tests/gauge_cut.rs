@@ -11,6 +11,7 @@ use kerfmeter_plan::gauge::{GaugeDrawing, GaugeOptions, build};
 use kerfmeter_protocol::{GaugeGeometry, RunParams};
 use kerfmeter_twin::cutter::{CutterLog, CutterOptions, Grbl, Segment};
 use kerfmeter_twin::gauge_trace::GaugeTraceError;
+use kerfmeter_twin::plant::{CutterKerf, PlantParams};
 use kerfmeter_twin::{Twin, TwinOptions};
 
 /// Where on the bed the gauge is cut, and where the prongs then come down, mm.
@@ -74,8 +75,13 @@ fn gcode(drawing: &GaugeDrawing, holes: &[usize], placement: Placement) -> Vec<S
 /// Stream `lines` into a cutter twin one at a time (each waits for its `ok`), let it finish,
 /// and return the segments it traced.
 fn cut(lines: &[String]) -> Vec<Segment> {
+    cut_on(CutterOptions::default(), lines)
+}
+
+/// [`cut`] on a cutter twin set up as `options`.
+fn cut_on(options: CutterOptions, lines: &[String]) -> Vec<Segment> {
     let log = CutterLog::default();
-    let mut grbl = Grbl::new(CutterOptions::default(), log.clone());
+    let mut grbl = Grbl::new(options, log.clone());
     grbl.take_output();
     for line in lines {
         grbl.receive(format!("{line}\n").as_bytes());
@@ -130,6 +136,48 @@ fn the_gauge_cut_as_drawn_reads_like_any_gauge_of_the_twins_cutter() {
         assert!(error_um.abs() < 3.0, "{error_um}");
         assert!((reading.kerf_um - usual.kerf_um).abs() < 1.0);
     }
+}
+
+#[test]
+fn the_kerf_measured_is_the_cutter_twins_not_the_device_twins() {
+    let options = CutterOptions {
+        kerf: CutterKerf {
+            kerf_um: 230.0,
+            kerf_sd_um: 0.0,
+            repeatability_um: 5.0,
+        },
+        ..CutterOptions::default()
+    };
+    let segments = cut_on(
+        options,
+        &gcode(&drawing(&GaugeGeometry::PAPER), &[0, 1], AS_DRAWN),
+    );
+    let params = PlantParams {
+        kerf_location_sd_um: 0.0,
+        ..PlantParams::default()
+    };
+    let cutter = options.kerf.cutter(params, 11).unwrap();
+    let mut t = Twin::new(TwinOptions {
+        kerf_um: 150.0,
+        seed: 11,
+        plant: params,
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    let placed = t
+        .place_traced_gauge_cut_by(&segments, AT_MM, &cutter)
+        .unwrap();
+    assert_eq!(placed.kerf_um, 230.0);
+    let reading = f64::from(
+        common::measure(&mut t, &RunParams::DEFAULT)
+            .unwrap()
+            .kerf_um,
+    );
+    let truth = t.plant().truth_um(&RunParams::DEFAULT);
+    eprintln!("cutter kerf 230 µm: read {reading:.2} µm, truth {truth:.2} µm");
+    assert!((reading - truth).abs() < 3.0, "{reading} vs {truth}");
+    // The truth is the cutter's kerf plus the contact's compression at the run's force.
+    assert!(truth > 230.0 && truth < 245.0, "{truth}");
 }
 
 #[test]

@@ -23,7 +23,7 @@ mod gauge;
 mod motor;
 mod params;
 
-pub use cut::{Cutter, GaugeCut};
+pub use cut::{Cutter, CutterKerf, GaugeCut};
 pub use gauge::tapered_contact_force_n;
 pub use motor::{COPPER_TEMPCO_PER_C, Electrical, UVLO_HYSTERESIS_V};
 pub use params::{Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_table};
