@@ -16,6 +16,10 @@
 //!   friction coefficient (SD `contact_mu_sd`), each clamped to its parameter's documented range
 //!   (and the stiffness to at least a fifth of its mean): a draw may not leave the physical.
 //!
+//! A cutter twin's settings of this model are a [`CutterKerf`] (kerf, spread, repeatability);
+//! a gauge it traced keeps its traced holes and centre on top of these draws
+//! ([`crate::gauge_trace`]).
+//!
 //! Every draw takes the same number of numbers from the stream whatever the spreads are, so
 //! that setting one spread to zero does not reshuffle the others.
 
