@@ -49,6 +49,7 @@
 //! was told c (a spiral 4 % too steep reads 3.8 % low).
 
 use core::f64::consts::{PI, TAU};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_protocol::spiral::{pitch_mm_per_rad, start_radius_mm};
@@ -180,6 +181,41 @@ pub enum GaugeTraceError {
         /// Hole radius as cut minus prong radius, µm.
         clearance_um: f64,
     },
+}
+
+/// The traced gauge a twin places for its runs (its physical geometry and cut), shared with
+/// whoever serves it (a [`crate::PtyTwin`]'s caller places one while the twin runs in its
+/// thread). Cloning shares the slot.
+#[derive(Debug, Clone, Default)]
+pub struct TracedGaugeSlot(Arc<Mutex<Option<(GaugeGeometry, GaugeCut)>>>);
+
+impl TracedGaugeSlot {
+    /// The gauge in the slot, if any.
+    pub fn get(&self) -> Option<(GaugeGeometry, GaugeCut)> {
+        *self.0.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Put `gauge` in the slot (or empty it).
+    pub fn set(&self, gauge: Option<(GaugeGeometry, GaugeCut)>) {
+        *self.0.lock().unwrap_or_else(PoisonError::into_inner) = gauge;
+    }
+
+    /// Recover the gauge cut around `at_mm` from `segments` for a device that expects
+    /// `nominal`, cut by `cutter` (drawing from `rng`), and put it in the slot; the cut, or why
+    /// not (the slot is then left as it was).
+    pub fn place(
+        &self,
+        segments: &[Segment],
+        nominal: &GaugeGeometry,
+        at_mm: [f64; 2],
+        cutter: &Cutter,
+        rng: &mut Rng,
+    ) -> Result<GaugeCut, GaugeTraceError> {
+        let traced = TracedGauge::recover(segments, nominal, at_mm)?;
+        let (geometry, cut) = traced.gauge_cut(nominal, at_mm, cutter, rng)?;
+        self.set(Some((geometry, cut)));
+        Ok(cut)
+    }
 }
 
 /// +1 when φ grows counter-clockwise (a clockwise jam), −1 otherwise.

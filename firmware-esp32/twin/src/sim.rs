@@ -37,7 +37,7 @@ use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 
 use crate::cutter::Segment;
 use crate::encoder::EncoderErrors;
-use crate::gauge_trace::{GaugeTraceError, TracedGauge};
+use crate::gauge_trace::{GaugeTraceError, TracedGaugeSlot};
 use crate::options::{InjectedFault, TwinOptions};
 use crate::plant::{Bridge, Cutter, GaugeCut, Plant};
 use crate::sense::{Sense, Sensed};
@@ -103,7 +103,7 @@ pub struct Twin {
     cutter: Cutter,
     /// The gauge a traced cut left under the prongs, placed for every run instead of a fresh
     /// one ([`Twin::place_traced_gauge`]): its physical geometry and cut.
-    traced_gauge: Option<(kerfmeter_protocol::GaugeGeometry, GaugeCut)>,
+    traced_gauge: TracedGaugeSlot,
     /// This twin's encoder chip's and magnet's angle errors.
     encoder_errors: EncoderErrors,
     /// The magnet sits on the motor shaft (it turns `gear_ratio` times per hub turn) instead of
@@ -212,7 +212,7 @@ impl Twin {
                 options.kerf_sd_um,
                 options.seed,
             ),
-            traced_gauge: None,
+            traced_gauge: TracedGaugeSlot::default(),
             encoder_errors: EncoderErrors::for_twin(&options.plant, options.seed),
             magnet_on_motor_shaft: false,
             sense: Sense::new(&options.plant, stream(0)),
@@ -268,7 +268,7 @@ impl Twin {
         let truths = self.truths.clone();
         truths.clear();
         let magnet_on_motor_shaft = self.magnet_on_motor_shaft;
-        let traced_gauge = self.traced_gauge;
+        let traced_gauge = self.traced_gauge.clone();
         *self = Self::boot(self.options, flash, self.boots + 1, self.now_us);
         self.magnet_on_motor_shaft = magnet_on_motor_shaft;
         self.traced_gauge = traced_gauge;
@@ -302,11 +302,26 @@ impl Twin {
         at_mm: [f64; 2],
         cutter: &Cutter,
     ) -> Result<GaugeCut, GaugeTraceError> {
-        let nominal = self.options.gauge;
-        let traced = TracedGauge::recover(segments, &nominal, at_mm)?;
-        let (geometry, cut) = traced.gauge_cut(&nominal, at_mm, cutter, &mut self.gauge_rng)?;
-        self.traced_gauge = Some((geometry, cut));
-        Ok(cut)
+        self.traced_gauge.place(
+            segments,
+            &self.options.gauge,
+            at_mm,
+            cutter,
+            &mut self.gauge_rng,
+        )
+    }
+
+    /// This twin's traced-gauge slot (see [`place_traced_gauge`](Self::place_traced_gauge)).
+    pub fn traced_gauges(&self) -> &TracedGaugeSlot {
+        &self.traced_gauge
+    }
+
+    /// This twin, its runs measuring whatever gauge `slot` holds (shared with its caller).
+    pub fn with_traced_gauges(self, slot: TracedGaugeSlot) -> Self {
+        Self {
+            traced_gauge: slot,
+            ..self
+        }
     }
 
     /// How many times the device rebooted ([`reboot`](Self::reboot) or its watchdog).
@@ -491,7 +506,7 @@ impl Twin {
                 plant: &mut self.plant,
                 gauge_rng: &mut self.gauge_rng,
                 cutter: &self.cutter,
-                traced_gauge: self.traced_gauge.as_ref(),
+                traced_gauge: &self.traced_gauge,
                 options: &self.options,
                 run_started: &mut self.run_started_us,
                 truths: &self.truths,
@@ -727,7 +742,7 @@ struct TwinHandler<'a> {
     plant: &'a mut Plant,
     gauge_rng: &'a mut Rng,
     cutter: &'a Cutter,
-    traced_gauge: Option<&'a (kerfmeter_protocol::GaugeGeometry, GaugeCut)>,
+    traced_gauge: &'a TracedGaugeSlot,
     options: &'a TwinOptions,
     run_started: &'a mut Option<u64>,
     truths: &'a TruthLog,
@@ -774,8 +789,8 @@ impl Handler for TwinHandler<'_> {
         }
         match request {
             Request::Run(params) => {
-                match self.traced_gauge {
-                    Some(&(geometry, cut)) => self.plant.place_gauge_of(geometry, cut),
+                match self.traced_gauge.get() {
+                    Some((geometry, cut)) => self.plant.place_gauge_of(geometry, cut),
                     None => self.plant.place_gauge(self.cutter.cut(self.gauge_rng)),
                 }
                 let run_id = self.device.controller().run_id();

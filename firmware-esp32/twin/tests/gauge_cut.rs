@@ -7,10 +7,11 @@
 
 mod common;
 
+use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_plan::gauge::{GaugeDrawing, GaugeOptions, build};
 use kerfmeter_protocol::{GaugeGeometry, RunParams};
 use kerfmeter_twin::cutter::{CutterLog, CutterOptions, Grbl, Segment};
-use kerfmeter_twin::gauge_trace::GaugeTraceError;
+use kerfmeter_twin::gauge_trace::{GaugeTraceError, TracedGaugeSlot};
 use kerfmeter_twin::plant::{CutterKerf, PlantParams};
 use kerfmeter_twin::{Twin, TwinOptions};
 
@@ -210,6 +211,43 @@ fn a_pitch_scaled_in_the_g_code_reads_wrong_by_the_pitchs_ratio() {
         assert!((reading - expected).abs() < 3.0, "{reading} vs {expected}");
         assert!((reading - truth).abs() > 5.0, "{reading} vs {truth}");
     }
+}
+
+#[test]
+fn a_gauge_placed_through_a_shared_slot_is_the_one_the_next_run_measures() {
+    // As a served twin's caller places it, while the twin runs in its thread.
+    let steep = GaugeGeometry {
+        pitch_um_per_deg: GaugeGeometry::PAPER.pitch_um_per_deg * 1.05,
+        ..GaugeGeometry::PAPER
+    };
+    let segments = cut(&gcode(&drawing(&steep), &[0, 1], AS_DRAWN));
+    let slot = TracedGaugeSlot::default();
+    let mut t = twin(12).with_traced_gauges(slot.clone());
+    let cutter = CutterKerf::default()
+        .cutter(PlantParams::default(), 12)
+        .unwrap();
+    let placed = slot
+        .place(
+            &segments,
+            &GaugeGeometry::PAPER,
+            AT_MM,
+            &cutter,
+            &mut Rng::new(2),
+        )
+        .unwrap();
+    common::measure(&mut t, &RunParams::DEFAULT).unwrap();
+    assert_eq!(t.plant().cut(), &placed);
+    let pitch = t.plant().geometry().pitch_um_per_deg;
+    assert!(
+        (pitch / steep.pitch_um_per_deg - 1.0).abs() < 5e-4,
+        "{pitch}"
+    );
+    // A refused trace leaves the slot as it was.
+    assert!(
+        slot.place(&[], &GaugeGeometry::PAPER, AT_MM, &cutter, &mut Rng::new(3))
+            .is_err()
+    );
+    assert_eq!(slot.get().map(|(_, cut)| cut), Some(placed));
 }
 
 #[test]
