@@ -6,8 +6,9 @@
 //!
 //! # What is recovered
 //!
-//! The trace is read in bed coordinates, mm, seen from above with X to the right and Y away from
-//! the operator (the drawing's own y-up frame). Only the cutting moves count (G1/G2/G3 with the
+//! The trace is read in bed coordinates, mm, seen from above with X to the right and Y up (the
+//! drawing's own y-up frame): G-code that flips Y (a machine whose Y grows towards the operator,
+//! fed the drawing unflipped) cuts the gauge mirrored. Only the cutting moves count (G1/G2/G3 with the
 //! laser at `S` > 0), and only within the nominal gauge's outer radius plus
 //! [`SEARCH_MARGIN_MM`] of where the gauge was meant to be (engraving or parts farther away are
 //! ignored).
