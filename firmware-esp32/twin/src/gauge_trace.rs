@@ -7,23 +7,27 @@
 //! # What is recovered
 //!
 //! The trace is read in bed coordinates, mm, seen from above with X to the right and Y up (the
-//! drawing's own y-up frame): G-code that flips Y (a machine whose Y grows towards the operator,
-//! fed the drawing unflipped) cuts the gauge mirrored. Only the cutting moves count (G1/G2/G3 with the
-//! laser at `S` > 0), and only within the nominal gauge's outer radius plus
-//! [`SEARCH_MARGIN_MM`] of where the gauge was meant to be (engraving or parts farther away are
-//! ignored).
+//! drawing's own y-up frame): G-code that flips Y (a machine whose Y grows towards the
+//! operator, fed the drawing unflipped) cuts the gauge mirrored. The device comes down with its
+//! prongs' axis along X, centred on where the gauge was meant to be. Only the cutting moves
+//! count (G1/G2/G3 with the laser at `S` > 0), and only within the nominal gauge's outer radius
+//! plus [`SEARCH_MARGIN_MM`] of where the gauge was meant to be (engraving or parts farther away
+//! are ignored).
 //!
 //! - **Holes**: full circles, i.e. G2/G3 arcs about one centre and radius (within
-//!   [`CIRCLE_MATCH_UM`]) that together sweep a whole turn. Hole 0 is the circle whose centre is
-//!   nearest where prong 0 comes down (the gauge's centre + hole distance along +X), hole 1 the
-//!   one nearest prong 1 (along −X), each within the drawn hole radius of it.
+//!   [`CIRCLE_MATCH_UM`]) that together sweep a whole turn (holes cut as polygons are not
+//!   recognised). Hole 0 is the circle whose centre is nearest where prong 0 comes down (the
+//!   hole distance along +X from where the gauge was meant to be), hole 1 the one nearest prong 1
+//!   (along −X), each within the drawn hole radius of it.
 //! - **The spiral**: every other cut, sampled every [`SAMPLE_STEP_MM`], fitted by least squares
-//!   (Gauss–Newton, the step found where the radius jumps) to r(φ) = a + c·(φ − φ₀) about an unknown centre, with
-//!   a signed pitch c: c > 0 means φ grows counter-clockwise (a clockwise jam, as drawn by
-//!   default), c < 0 the mirror image. Samples within [`STEP_EXCLUSION_RAD`] of the radial step
-//!   are left out of the fit. Every other sample must lie within [`SPIRAL_TOLERANCE_UM`] of the
-//!   fitted spiral (G-code rounds to 1 µm; the drawing's biarcs are within 0.05 µm), and the
-//!   cut must go round at least [`MIN_SPIRAL_COVERAGE`] of a turn.
+//!   to r(φ) = a + c·φ about an unknown centre, φ counted from the radial step, with a signed
+//!   pitch c: c > 0 means φ grows counter-clockwise (a clockwise jam, as drawn by default), c < 0
+//!   the mirror image. Gauss–Newton on the centre, a and c from the holes' midpoint; the step's
+//!   direction is where the samples' radius jumps (elsewhere a rotation of the spiral is the same
+//!   as a change of a), and samples within [`STEP_EXCLUSION_RAD`] of it are left out. Every
+//!   other sample must lie within [`SPIRAL_TOLERANCE_UM`] of the fitted spiral (G-code rounds to
+//!   1 µm; the drawing's biarcs are within 0.05 µm), and the cut must go round at least
+//!   [`MIN_SPIRAL_COVERAGE`] of a turn. Where the step points does not matter to the device.
 //!
 //! # What the device then meets ([`TracedGauge::gauge_cut`])
 //!
@@ -246,12 +250,14 @@ impl TracedGauge {
         let c_nominal = pitch_mm_per_rad(nominal);
         let search_mm = start_radius_mm(nominal) + TAU * c_nominal + SEARCH_MARGIN_MM;
         let near = |p: [f64; 3]| (p[0] - at_mm[0]).hypot(p[1] - at_mm[1]) <= search_mm;
+        // An arc wider than the search area leaves it, whatever its ends.
+        let small = |s: &Segment| arc_of(s).is_none_or(|arc| arc.radius <= search_mm);
         let cuts: Vec<&Segment> = segments
             .iter()
             .filter(|s| {
                 s.power_s > 0.0 && matches!(s.kind, SegmentKind::Line | SegmentKind::Arc { .. })
             })
-            .filter(|s| near(s.start) && near(s.end))
+            .filter(|s| near(s.start) && near(s.end) && small(s))
             .collect();
         let circles = full_circles(&cuts);
         let mut points = Vec::new();
@@ -276,7 +282,8 @@ impl TracedGauge {
             .ok_or_else(|| no_spiral("the cuts there fit no spiral".into()))?;
         let [x0, y0, step_rad, a, c] = fit.params;
         let max_residual_um = fit.max_residual_mm * 1e3;
-        if max_residual_um > SPIRAL_TOLERANCE_UM || c == 0.0 {
+        // Written so that a NaN (a degenerate fit) is refused too.
+        if !(max_residual_um <= SPIRAL_TOLERANCE_UM && c != 0.0) {
             return Err(no_spiral(format!(
                 "the cut there is {max_residual_um:.1} µm off the nearest Archimedean spiral (at most {SPIRAL_TOLERANCE_UM} µm)"
             )));
@@ -788,5 +795,17 @@ mod tests {
         let whole = trace(centre, drawn_holes(centre), false);
         let err = TracedGauge::recover(&whole, &PAPER, [130.0, 50.0]).unwrap_err();
         assert!(matches!(err, GaugeTraceError::NoSpiral { .. }), "{err}");
+        // A whole circle of a kilometre's radius through the gauge's area is not sampled.
+        let mut huge = whole.clone();
+        let kind = SegmentKind::Arc {
+            center: [100.0, 50.0 + 1e6],
+            clockwise: false,
+        };
+        huge.push(cut_move(kind, [100.0, 50.0], [100.0, 50.0]));
+        assert!(TracedGauge::recover(&huge, &PAPER, centre).is_ok());
+        let mut nan = whole;
+        nan[3].end = [f64::NAN; 3];
+        nan[4].start = [f64::NAN; 3];
+        assert!(TracedGauge::recover(&nan, &PAPER, centre).is_ok());
     }
 }
