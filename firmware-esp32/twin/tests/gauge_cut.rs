@@ -9,6 +9,7 @@ mod common;
 
 use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_plan::gauge::{GaugeDrawing, GaugeOptions, build};
+use kerfmeter_protocol::spiral::kerf_from_angle;
 use kerfmeter_protocol::{GaugeGeometry, RunParams};
 use kerfmeter_twin::cutter::{CutterLog, CutterOptions, Grbl, Segment};
 use kerfmeter_twin::gauge_trace::{GaugeTraceError, TracedGaugeSlot};
@@ -248,6 +249,48 @@ fn a_gauge_placed_through_a_shared_slot_is_the_one_the_next_run_measures() {
             .is_err()
     );
     assert_eq!(slot.get().map(|(_, cut)| cut), Some(placed));
+}
+
+#[test]
+fn a_drawing_scaled_as_a_whole_reads_as_its_pitch_and_holes_say() {
+    // G-code scaled 2 % (a units or DPI slip): the pitch, the hole radius and the holes' distance
+    // all grow. The device reads θm = θplay′ + k′/c′ (the play of the holes as cut, the jam of
+    // the steeper spiral) as c·(θm − θplay(k)) = k, the spiral model's fixed point.
+    let scaled = Placement {
+        scale: [1.02, 1.02],
+    };
+    let segments = cut(&gcode(&drawing(&GaugeGeometry::PAPER), &[0, 1], scaled));
+    // No repeatability and no location bias: the holes' play is then the same at every angle.
+    let plant = PlantParams {
+        hole_position_sd_um: 0.0,
+        prong_offset_sd_um: 0.0,
+        kerf_location_sd_um: 0.0,
+        ..PlantParams::default()
+    };
+    let mut t = Twin::new(TwinOptions {
+        seed: 13,
+        plant,
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(5);
+    let placed = t.place_traced_gauge(&segments, AT_MM).unwrap();
+    assert!(
+        (placed.hole_offset_um[0][0] - 106.0).abs() < 1.0,
+        "{placed:?}"
+    );
+    let reading = f64::from(
+        common::measure(&mut t, &RunParams::DEFAULT)
+            .unwrap()
+            .kerf_um,
+    );
+    let truth = t.plant().truth_um(&RunParams::DEFAULT);
+    let physical = *t.plant().geometry();
+    let jam_deg = t.plant().play_deg().0 + truth / f64::from(physical.pitch_um_per_deg);
+    let expected = kerf_from_angle(&GaugeGeometry::PAPER, jam_deg as f32).kerf_um;
+    let expected = f64::from(expected);
+    eprintln!("scaled ×1.02: read {reading:.2} µm, truth {truth:.2}, expected {expected:.2}");
+    assert!((reading - expected).abs() < 3.0, "{reading} vs {expected}");
+    assert!((reading - truth).abs() > 2.0, "{reading} vs {truth}");
 }
 
 #[test]
