@@ -19,6 +19,9 @@
 //! - [`study`]: many twins in-process: the robustness sweep and the paper's fit study.
 //! - [`cutter`]: the cutter twin, a simulated GRBL 1.1 laser cutter (sans-IO), and its server on
 //!   a pseudo-terminal or a TCP port, with a record of what its laser traced.
+//! - [`gauge_trace`]: the gauge a cutter cut, recovered from what its laser traced (spiral
+//!   centre, pitch and sense, holes), for the device twin to measure
+//!   ([`Twin::place_traced_gauge`]); refused with the reason when the device could not.
 //!
 //! # What the twin models
 //!
@@ -67,7 +70,8 @@
 //!   the board, which resets the chip when a stall reaches it, the operation under way left
 //!   torn.
 //! - The cutter: a bias of the kerf where this twin's gauges are cut (drawn once per twin) and a
-//!   gauge-to-gauge Gaussian spread of the kerf.
+//!   gauge-to-gauge Gaussian spread of the kerf. A gauge the cutter twin traced keeps the
+//!   geometry it was traced with (pitch, sense, holes, centre): a wrong G-code is measured wrong.
 //! - The truth of a run ([`plant::Plant::truth_um`]): the closure of the spiral at which this
 //!   gauge's contact carries the run's target torque; the holes', prongs' and encoder's errors
 //!   are the device's to correct, not part of it.
@@ -96,6 +100,7 @@
 
 pub mod cutter;
 pub mod encoder;
+pub mod gauge_trace;
 pub mod options;
 pub mod plant;
 pub mod pty;

@@ -119,6 +119,10 @@ pub const KERF_RANGE_UM: RangeInclusive<f64> = 0.0..=2000.0;
 /// The gauge-to-gauge kerf spreads a twin accepts, µm.
 pub const KERF_SD_RANGE_UM: RangeInclusive<f64> = 0.0..=200.0;
 
+/// The cutter repeatabilities a twin accepts (SD of a traced position, each axis), µm: the
+/// range of [`PlantParams::hole_position_sd_um`], which it sets.
+pub const REPEATABILITY_RANGE_UM: RangeInclusive<f64> = 0.0..=30.0;
+
 /// How a twin is set up.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwinOptions {
@@ -189,6 +193,9 @@ pub enum InvalidOptions {
     /// The kerf spread, µm, is outside [`KERF_SD_RANGE_UM`].
     #[error("simulated kerf spread must be between 0 and 200 µm, got {0}")]
     KerfSpread(f64),
+    /// The cutter's repeatability, µm, is outside [`REPEATABILITY_RANGE_UM`].
+    #[error("simulated cutter repeatability must be between 0 and 30 µm (SD), got {0}")]
+    Repeatability(f64),
     /// A plant parameter is out of its range or contradicts another.
     #[error(transparent)]
     Plant(#[from] PlantParamError),

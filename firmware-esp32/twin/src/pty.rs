@@ -3,17 +3,27 @@
 //! it talks to hardware. The host's `--sim` and the `kerfmeter-twin` binary both start it here.
 
 use std::io;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
 use serialport::{SerialPort, TTYPort};
 
+use kerfmeter_firmware::fakes::rng::Rng;
+use kerfmeter_protocol::GaugeGeometry;
+
+use crate::cutter::Segment;
+use crate::gauge_trace::{GaugeTraceError, TracedGaugeSlot};
 use crate::options::{InvalidOptions, TwinOptions};
+use crate::plant::{Cutter, GaugeCut};
 use crate::serve::serve;
 use crate::sim::Twin;
 use crate::truth::TruthLog;
+
+/// Mixed into the seed of the stream that draws the cuts of the traced gauges placed from the
+/// caller's side.
+const TRACED_STREAM: u64 = 0x7472_6163_6564_0000;
 
 /// How long a read of the terminal waits before simulated time moves on.
 const READ_TIMEOUT: Duration = Duration::from_millis(1);
@@ -38,6 +48,11 @@ pub struct PtyTwin {
     thread: Option<JoinHandle<io::Result<()>>>,
     path: String,
     truths: TruthLog,
+    traced: TracedGaugeSlot,
+    /// The served twin's cutter (its location bias depends on the seed alone) and gauge.
+    cutter: Cutter,
+    gauge: GaugeGeometry,
+    traced_rng: Mutex<Rng>,
 }
 
 impl PtyTwin {
@@ -53,13 +68,15 @@ impl PtyTwin {
         let path = client.name().unwrap_or_else(|| "<pty>".into());
         let stop = Arc::new(AtomicBool::new(false));
         let truths = TruthLog::default();
+        let traced = TracedGaugeSlot::default();
         let thread = {
             let stop = stop.clone();
             let truths = truths.clone();
+            let traced = traced.clone();
             std::thread::Builder::new()
                 .name("kerfmeter-twin".into())
                 .spawn(move || {
-                    let mut twin = Twin::with_truth_log(options, truths);
+                    let mut twin = Twin::with_truth_log(options, truths).with_traced_gauges(traced);
                     serve(&mut master, &mut twin, &stop, options.pace())
                 })?
         };
@@ -68,6 +85,15 @@ impl PtyTwin {
             thread: Some(thread),
             path,
             truths,
+            traced,
+            cutter: Cutter::for_twin(
+                options.plant,
+                options.kerf_um,
+                options.kerf_sd_um,
+                options.seed,
+            ),
+            gauge: options.gauge,
+            traced_rng: Mutex::new(Rng::new(options.seed ^ TRACED_STREAM)),
         };
         Ok((twin, client))
     }
@@ -80,6 +106,24 @@ impl PtyTwin {
     /// The truth of each run the twin has started.
     pub fn truths(&self) -> &TruthLog {
         &self.truths
+    }
+
+    /// The gauge the laser traced around `at_mm` (`segments`) goes under the prongs for the
+    /// served twin's following runs, cut by `cutter` (a cutter twin's, or `None`: the served
+    /// twin's own): see [`Twin::place_traced_gauge`]. The cut, or why it was refused.
+    pub fn place_traced_gauge(
+        &self,
+        segments: &[Segment],
+        at_mm: [f64; 2],
+        cutter: Option<&Cutter>,
+    ) -> Result<GaugeCut, GaugeTraceError> {
+        let mut rng = self
+            .traced_rng
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let cutter = cutter.unwrap_or(&self.cutter);
+        self.traced
+            .place(segments, &self.gauge, at_mm, cutter, &mut rng)
     }
 
     /// Ask the twin to stop serving (it does within a read timeout).
@@ -124,6 +168,15 @@ mod tests {
             PtyTwin::start(options),
             Err(StartError::Options(InvalidOptions::Kerf(_)))
         ));
+    }
+
+    #[test]
+    fn a_trace_with_no_gauge_is_refused_with_where_it_was_looked_for() {
+        let (twin, _client) = PtyTwin::start(TwinOptions::default()).unwrap();
+        let err = twin
+            .place_traced_gauge(&[], [30.0, 40.0], None)
+            .unwrap_err();
+        assert!(err.to_string().contains("of (30.000, 40.000) mm"), "{err}");
     }
 
     #[test]

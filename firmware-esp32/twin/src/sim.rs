@@ -35,9 +35,11 @@
 
 use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
 
+use crate::cutter::Segment;
 use crate::encoder::EncoderErrors;
+use crate::gauge_trace::{GaugeTraceError, TracedGaugeSlot};
 use crate::options::{InjectedFault, TwinOptions};
-use crate::plant::{Bridge, Cutter, Plant};
+use crate::plant::{Bridge, Cutter, GaugeCut, Plant};
 use crate::sense::{Sense, Sensed};
 use crate::timing::{HostBursts, SimWatchdog, TickClock};
 use crate::truth::TruthLog;
@@ -99,6 +101,9 @@ pub struct Twin {
     gauge_rng: Rng,
     /// Cuts each gauge, at this twin's place on the bed.
     cutter: Cutter,
+    /// The gauge a traced cut left under the prongs, placed for every run instead of a fresh
+    /// one ([`Twin::place_traced_gauge`]): its physical geometry and cut.
+    traced_gauge: TracedGaugeSlot,
     /// This twin's encoder chip's and magnet's angle errors.
     encoder_errors: EncoderErrors,
     /// The magnet sits on the motor shaft (it turns `gear_ratio` times per hub turn) instead of
@@ -207,6 +212,7 @@ impl Twin {
                 options.kerf_sd_um,
                 options.seed,
             ),
+            traced_gauge: TracedGaugeSlot::default(),
             encoder_errors: EncoderErrors::for_twin(&options.plant, options.seed),
             magnet_on_motor_shaft: false,
             sense: Sense::new(&options.plant, stream(0)),
@@ -262,11 +268,60 @@ impl Twin {
         let truths = self.truths.clone();
         truths.clear();
         let magnet_on_motor_shaft = self.magnet_on_motor_shaft;
+        let traced_gauge = self.traced_gauge.clone();
         *self = Self::boot(self.options, flash, self.boots + 1, self.now_us);
         self.magnet_on_motor_shaft = magnet_on_motor_shaft;
+        self.traced_gauge = traced_gauge;
         self.plant = plant;
         self.bursts = bursts;
         self.truths = truths;
+    }
+
+    /// The gauge a cutter cut around `at_mm` on its bed, as the laser traced it (`segments`, a
+    /// cutter twin's [`CutterRecord::segments`](crate::cutter::CutterRecord)), goes under the
+    /// prongs, which come down over `at_mm`: every run from now on measures it (its physical
+    /// pitch, sense, holes and centre, from the trace; its kerf, contact and the machine's
+    /// repeatability from this twin's [`Cutter`]), while the device keeps the nominal geometry
+    /// its `RunParams` give it. The cut drawn for it, or why no gauge the device can measure was
+    /// cut there ([`crate::gauge_trace`]); a refused trace leaves the gauges as they were.
+    pub fn place_traced_gauge(
+        &mut self,
+        segments: &[Segment],
+        at_mm: [f64; 2],
+    ) -> Result<GaugeCut, GaugeTraceError> {
+        let cutter = self.cutter;
+        self.place_traced_gauge_cut_by(segments, at_mm, &cutter)
+    }
+
+    /// [`place_traced_gauge`](Self::place_traced_gauge), the gauge cut by `cutter` (a cutter
+    /// twin's, from its [`CutterOptions::kerf`](crate::cutter::CutterOptions)) instead of this
+    /// twin's own.
+    pub fn place_traced_gauge_cut_by(
+        &mut self,
+        segments: &[Segment],
+        at_mm: [f64; 2],
+        cutter: &Cutter,
+    ) -> Result<GaugeCut, GaugeTraceError> {
+        self.traced_gauge.place(
+            segments,
+            &self.options.gauge,
+            at_mm,
+            cutter,
+            &mut self.gauge_rng,
+        )
+    }
+
+    /// This twin's traced-gauge slot (see [`place_traced_gauge`](Self::place_traced_gauge)).
+    pub fn traced_gauges(&self) -> &TracedGaugeSlot {
+        &self.traced_gauge
+    }
+
+    /// This twin, its runs measuring whatever gauge `slot` holds (shared with its caller).
+    pub fn with_traced_gauges(self, slot: TracedGaugeSlot) -> Self {
+        Self {
+            traced_gauge: slot,
+            ..self
+        }
     }
 
     /// How many times the device rebooted ([`reboot`](Self::reboot) or its watchdog).
@@ -451,6 +506,7 @@ impl Twin {
                 plant: &mut self.plant,
                 gauge_rng: &mut self.gauge_rng,
                 cutter: &self.cutter,
+                traced_gauge: &self.traced_gauge,
                 options: &self.options,
                 run_started: &mut self.run_started_us,
                 truths: &self.truths,
@@ -686,6 +742,7 @@ struct TwinHandler<'a> {
     plant: &'a mut Plant,
     gauge_rng: &'a mut Rng,
     cutter: &'a Cutter,
+    traced_gauge: &'a TracedGaugeSlot,
     options: &'a TwinOptions,
     run_started: &'a mut Option<u64>,
     truths: &'a TruthLog,
@@ -732,7 +789,10 @@ impl Handler for TwinHandler<'_> {
         }
         match request {
             Request::Run(params) => {
-                self.plant.place_gauge(self.cutter.cut(self.gauge_rng));
+                match self.traced_gauge.get() {
+                    Some((geometry, cut)) => self.plant.place_gauge_of(geometry, cut),
+                    None => self.plant.place_gauge(self.cutter.cut(self.gauge_rng)),
+                }
                 let run_id = self.device.controller().run_id();
                 self.truths.record(run_id, self.plant.truth_um(params));
                 if self.options.fault == Some(InjectedFault::NoInset) {

@@ -8,6 +8,7 @@ use super::motion::Move;
 use super::system::Settings;
 use super::trace::{CutterLog, Point, ProtocolViolation, Segment, SegmentKind, TravelFiring};
 use super::{PLANNER_BLOCKS, RX_BUFFER_LEN, SOFT_RESET, VERSION};
+use crate::plant::CutterKerf;
 
 /// Longest raw line kept while it is read (GRBL's line buffer overflows well before).
 const RAW_LINE_MAX: usize = 256;
@@ -27,6 +28,10 @@ pub struct CutterOptions {
     pub hard_limit_after_ms: Option<u64>,
     /// Answer the Nth G-code line since boot (1 = the first) with `error:` this code.
     pub error_on_line: Option<(u32, u8)>,
+    /// How what the laser traces is cut: kerf, its spread and the machine's repeatability (the
+    /// one kerf model, [`crate::plant::Cutter`], made by [`CutterKerf::cutter`]). The device
+    /// twin measures a traced gauge cut so ([`crate::Twin::place_traced_gauge_cut_by`]).
+    pub kerf: CutterKerf,
 }
 
 impl Default for CutterOptions {
@@ -36,6 +41,7 @@ impl Default for CutterOptions {
             boot_in_alarm: false,
             hard_limit_after_ms: None,
             error_on_line: None,
+            kerf: CutterKerf::default(),
         }
     }
 }

@@ -35,7 +35,10 @@
 //!   `?`, as in GRBL's code), an
 //!   `error:N` for the Nth G-code line.
 //!
-//! Everything it did is recorded in its [`CutterLog`] ([`trace`]).
+//! Everything it did is recorded in its [`CutterLog`] ([`trace`]). What it cuts is what its laser
+//! traced, with the kerf, spread and repeatability of [`CutterOptions::kerf`] (the one kerf
+//! model, [`crate::plant::Cutter`]): a gauge it cut is recovered from the trace and measured by
+//! the device twin ([`crate::gauge_trace`], [`crate::Twin::place_traced_gauge_cut_by`]).
 
 pub mod gcode;
 pub mod motion;

@@ -136,7 +136,7 @@ impl Move {
 }
 
 /// The angle an arc sweeps, rad, in (0, 2π]: a whole turn when it ends where it starts.
-fn sweep_rad(start: Point, end: Point, center: [f64; 2], clockwise: bool) -> f64 {
+pub(crate) fn sweep_rad(start: Point, end: Point, center: [f64; 2], clockwise: bool) -> f64 {
     let a0 = (start[1] - center[1]).atan2(start[0] - center[0]);
     let a1 = (end[1] - center[1]).atan2(end[0] - center[0]);
     let ccw = if clockwise { a0 - a1 } else { a1 - a0 };

@@ -16,12 +16,17 @@
 //!   friction coefficient (SD `contact_mu_sd`), each clamped to its parameter's documented range
 //!   (and the stiffness to at least a fifth of its mean): a draw may not leave the physical.
 //!
+//! A cutter twin's settings of this model are a [`CutterKerf`] (kerf, spread, repeatability);
+//! a gauge it traced keeps its traced holes and centre on top of these draws
+//! ([`crate::gauge_trace`]).
+//!
 //! Every draw takes the same number of numbers from the stream whatever the spreads are, so
 //! that setting one spread to zero does not reshuffle the others.
 
 use kerfmeter_firmware::fakes::rng::Rng;
 
 use super::{PlantParams, param};
+use crate::options::{InvalidOptions, KERF_RANGE_UM, KERF_SD_RANGE_UM, REPEATABILITY_RANGE_UM};
 
 /// Mixed into the seed of the stream that draws the location bias of a twin's gauges (once per
 /// twin), so that it depends on the seed alone.
@@ -74,6 +79,58 @@ impl GaugeCut {
             "stiffness_n_per_um": self.stiffness_n_per_um,
             "mu": self.mu,
         })
+    }
+}
+
+/// How a cutter cuts, as a cutter twin is set up ([`crate::cutter::CutterOptions::kerf`]): the
+/// settings of the one kerf model, [`Cutter`], that a cutter's own options carry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CutterKerf {
+    /// Nominal kerf at mid-sheet, µm (before the bias of the place on the bed).
+    pub kerf_um: f64,
+    /// SD of the kerf from gauge to gauge, µm.
+    pub kerf_sd_um: f64,
+    /// The machine's repeatability: SD of each traced position, each axis, µm. Each hole centre
+    /// is displaced by it, and the head returning over the gauge (the prongs ride on it) too.
+    pub repeatability_um: f64,
+}
+
+impl Default for CutterKerf {
+    /// 150 µm, no spread, the default plant's repeatability (7.5 µm).
+    fn default() -> Self {
+        Self {
+            kerf_um: 150.0,
+            kerf_sd_um: 0.0,
+            repeatability_um: 7.5,
+        }
+    }
+}
+
+impl CutterKerf {
+    /// The cutter these settings make, on the plant `params` (its taper, contact and location
+    /// spread), for the twin seeded with `seed`; or which setting is out of its range.
+    pub fn cutter(&self, params: PlantParams, seed: u64) -> Result<Cutter, InvalidOptions> {
+        if !KERF_RANGE_UM.contains(&self.kerf_um) {
+            return Err(InvalidOptions::Kerf(self.kerf_um));
+        }
+        if !KERF_SD_RANGE_UM.contains(&self.kerf_sd_um) {
+            return Err(InvalidOptions::KerfSpread(self.kerf_sd_um));
+        }
+        if !REPEATABILITY_RANGE_UM.contains(&self.repeatability_um) {
+            return Err(InvalidOptions::Repeatability(self.repeatability_um));
+        }
+        let params = PlantParams {
+            hole_position_sd_um: self.repeatability_um,
+            prong_offset_sd_um: self.repeatability_um,
+            ..params
+        };
+        params.validate()?;
+        Ok(Cutter::for_twin(
+            params,
+            self.kerf_um,
+            self.kerf_sd_um,
+            seed,
+        ))
     }
 }
 
@@ -249,6 +306,36 @@ mod tests {
         assert_eq!(json["hub_offset_um"][1], cut.hub_offset_um[1]);
         assert_eq!(json["mu"], cut.mu);
         assert_eq!(json.as_object().map(|o| o.len()), Some(6));
+    }
+
+    #[test]
+    fn a_cutters_settings_make_the_one_kerf_model_and_out_of_range_ones_are_named() {
+        let p = PlantParams::default();
+        let kerf = CutterKerf {
+            kerf_um: 180.0,
+            kerf_sd_um: 4.0,
+            repeatability_um: 12.0,
+        };
+        let made = kerf.cutter(p, 9).unwrap();
+        let repeatable = PlantParams {
+            hole_position_sd_um: 12.0,
+            prong_offset_sd_um: 12.0,
+            ..p
+        };
+        assert_eq!(made, Cutter::for_twin(repeatable, 180.0, 4.0, 9));
+        let bad = CutterKerf {
+            repeatability_um: 31.0,
+            ..kerf
+        };
+        assert_eq!(bad.cutter(p, 9), Err(InvalidOptions::Repeatability(31.0)));
+        let bad = CutterKerf {
+            kerf_sd_um: f64::NAN,
+            ..kerf
+        };
+        assert!(matches!(
+            bad.cutter(p, 9),
+            Err(InvalidOptions::KerfSpread(_))
+        ));
     }
 
     #[test]

@@ -23,7 +23,7 @@ mod gauge;
 mod motor;
 mod params;
 
-pub use cut::{Cutter, GaugeCut};
+pub use cut::{Cutter, CutterKerf, GaugeCut};
 pub use gauge::tapered_contact_force_n;
 pub use motor::{COPPER_TEMPCO_PER_C, Electrical, UVLO_HYSTERESIS_V};
 pub use params::{Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_table};
@@ -88,6 +88,18 @@ impl Plant {
     /// (displaced as the cut says), wherever the hub stands within the play.
     pub fn place_gauge(&mut self, cut: GaugeCut) {
         self.gauge = Gauge::new(self.gauge.geometry, cut);
+    }
+
+    /// A new gauge of physical `geometry` (a gauge cut from other G-code than the device was
+    /// told of: [`crate::gauge_trace`]), cut as `cut` says, under the prongs, as
+    /// [`Plant::place_gauge`] places one.
+    pub fn place_gauge_of(&mut self, geometry: GaugeGeometry, cut: GaugeCut) {
+        self.gauge = Gauge::new(geometry, cut);
+    }
+
+    /// The physical geometry of the gauge in place.
+    pub fn geometry(&self) -> &GaugeGeometry {
+        &self.gauge.geometry
     }
 
     /// How the gauge in place was cut.
