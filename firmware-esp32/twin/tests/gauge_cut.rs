@@ -9,6 +9,8 @@ mod common;
 
 use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_plan::gauge::{GaugeDrawing, GaugeOptions, build};
+use kerfmeter_plan::gcode::{GcodeOptions, Provenance, gauge_program};
+use kerfmeter_plan::profile::CutSettings;
 use kerfmeter_protocol::spiral::kerf_from_angle;
 use kerfmeter_protocol::{GaugeGeometry, RunParams};
 use kerfmeter_twin::cutter::{CutterLog, CutterOptions, Grbl, Segment};
@@ -138,6 +140,48 @@ fn the_gauge_cut_as_drawn_reads_like_any_gauge_of_the_twins_cutter() {
         assert!(error_um.abs() < 3.0, "{error_um}");
         assert!((reading.kerf_um - usual.kerf_um).abs() < 1.0);
     }
+}
+
+/// The program `kerfmeter gauge -o gauge.gcode --at-mm X,Y` writes, as its lines.
+fn product_gauge_gcode() -> Vec<String> {
+    let settings = CutSettings {
+        feed_mm_per_min: 300.0,
+        power_percent: 100.0,
+        passes: 1,
+    };
+    let options = GcodeOptions {
+        origin_mm: AT_MM,
+        ..GcodeOptions::default()
+    };
+    let provenance = Provenance {
+        source: "gauge".to_owned(),
+        kerf: "none: the gauge measures it".to_owned(),
+    };
+    let drawing = drawing(&GaugeGeometry::PAPER);
+    let (program, _) = gauge_program(&drawing, &settings, &options, &provenance).unwrap();
+    program.to_text().lines().map(str::to_owned).collect()
+}
+
+/// The product's own gauge G-code, not this file's: cut by the cutter twin, it is recognised
+/// and reads the cutter's kerf. A wrong pitch, a missing hole or a mirrored spiral in the gauge
+/// writer would fail here.
+#[test]
+fn the_products_gauge_g_code_cut_by_the_cutter_twin_reads_the_cutters_kerf() {
+    let segments = cut(&product_gauge_gcode());
+    let mut traced = twin(3);
+    traced.place_traced_gauge(&segments, AT_MM).unwrap();
+    let geometry = *traced.plant().geometry();
+    let pitch_error = geometry.pitch_um_per_deg / GaugeGeometry::PAPER.pitch_um_per_deg - 1.0;
+    assert!(pitch_error.abs() < 5e-4, "{geometry:?}");
+    assert_eq!(geometry.jam_direction, GaugeGeometry::PAPER.jam_direction);
+    let reading = common::measure(&mut traced, &RunParams::DEFAULT).unwrap();
+    let truth = traced.plant().truth_um(&RunParams::DEFAULT);
+    let error_um = f64::from(reading.kerf_um) - truth;
+    assert!(
+        error_um.abs() < 3.0,
+        "read {} µm, truth {truth} µm",
+        reading.kerf_um
+    );
 }
 
 #[test]
