@@ -29,8 +29,8 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// The whole check suite, as CI runs it: formatting, clippy (host and firmware targets), all
-    /// host tests, the Python package's tests, a short robustness sweep, docs, the firmware images for the C3 and C6 with
-    /// their sizes, a short fuzz run.
+    /// host tests, the Python package's tests, a short robustness sweep, docs, the firmware
+    /// images for the C3 and C6 with their sizes, a short fuzz run.
     Test(TestArgs),
     /// Build the firmware image for a chip (release) and print its flash and RAM use.
     Firmware(firmware::FirmwareArgs),
