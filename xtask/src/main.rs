@@ -32,6 +32,9 @@ enum Cmd {
     /// host tests, the Python package's tests, a short robustness sweep, docs, the firmware
     /// images for the C3 and C6 with their sizes, a short fuzz run.
     Test(TestArgs),
+    /// The Python package's step of `test` alone: build and install `host-lib/python` into the
+    /// project's venv (`target/python-venv`) and run its pytest suite on the twin.
+    TestPython,
     /// Build the firmware image for a chip (release) and print its flash and RAM use.
     Firmware(firmware::FirmwareArgs),
     /// Build the firmware and write it to a board (real hardware: needs --port).
@@ -155,6 +158,7 @@ const TEST_SWEEP_DRAWS: u32 = 24;
 fn main() -> Result<()> {
     match Cli::parse().command {
         Cmd::Test(args) => test(&args),
+        Cmd::TestPython => python::test_package(),
         Cmd::Firmware(args) => firmware::run(&args),
         Cmd::Flash(args) => firmware::flash(&args),
         Cmd::Fuzz(args) => fuzz::run(&args),
