@@ -2,12 +2,14 @@
 //!
 //! Everything a developer or CI runs goes through here, so that what CI checks is exactly what
 //! the README tells a newcomer to run. `cargo xtask test` installs what it needs (the RISC-V
-//! targets, cargo-fuzz) and fails loudly when something it needs cannot be had.
+//! targets, cargo-fuzz, the Python venv with maturin and pytest) and fails loudly when something
+//! it needs cannot be had.
 
 mod bench;
 mod bench_plan;
 mod firmware;
 mod fuzz;
+mod python;
 mod tools;
 
 use std::path::PathBuf;
@@ -27,9 +29,12 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// The whole check suite, as CI runs it: formatting, clippy (host and firmware targets), all
-    /// host tests, a short robustness sweep, docs, the firmware images for the C3 and C6 with
-    /// their sizes, a short fuzz run.
+    /// host tests, the Python package's tests, a short robustness sweep, docs, the firmware
+    /// images for the C3 and C6 with their sizes, a short fuzz run.
     Test(TestArgs),
+    /// The Python package's step of `test` alone: build and install `host-lib/python` into the
+    /// project's venv (`target/python-venv`) and run its pytest suite on the twin.
+    TestPython,
     /// Build the firmware image for a chip (release) and print its flash and RAM use.
     Firmware(firmware::FirmwareArgs),
     /// Build the firmware and write it to a board (real hardware: needs --port).
@@ -153,6 +158,7 @@ const TEST_SWEEP_DRAWS: u32 = 24;
 fn main() -> Result<()> {
     match Cli::parse().command {
         Cmd::Test(args) => test(&args),
+        Cmd::TestPython => python::test_package(),
         Cmd::Firmware(args) => firmware::run(&args),
         Cmd::Flash(args) => firmware::flash(&args),
         Cmd::Fuzz(args) => fuzz::run(&args),
@@ -368,6 +374,10 @@ fn test(args: &TestArgs) -> Result<()> {
         (
             "host tests",
             Box::new(|| run_cmd(cargo().args(["test", "--workspace"]))),
+        ),
+        (
+            "python package (pip install ./host-lib/python, pytest)",
+            Box::new(python::test_package),
         ),
         (
             "robustness sweep (short)",

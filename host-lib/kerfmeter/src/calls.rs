@@ -10,6 +10,7 @@
 //! A run starts only with the hub at its zero position: [`Kerfmeter::prepare_for_run`] resets it
 //! first when it is further from zero than the firmware's own start tolerance.
 
+use std::ops::ControlFlow;
 use std::time::{Duration, Instant};
 
 // The device refuses to start a run further than this from zero; the host resets beyond it.
@@ -120,6 +121,33 @@ impl Kerfmeter {
         params: &RunParams,
         mut progress: impl FnMut(&Progress),
     ) -> Result<KerfResult> {
+        self.run_kerfmeter_until(params, |p| {
+            progress(p);
+            ControlFlow::Continue(())
+        })
+    }
+
+    /// [`Kerfmeter::run_kerfmeter`] that the caller can stop: when `progress` returns
+    /// [`ControlFlow::Break`] (a Ctrl-C seen, a user's Stop button) the device is told to abort,
+    /// so its motor is safe, and the call ends with [`Error::Cancelled`].
+    ///
+    /// ```no_run
+    /// use std::ops::ControlFlow;
+    /// use std::sync::atomic::{AtomicBool, Ordering};
+    /// use kerfmeter::{Kerfmeter, JointSpec, protocol::GaugeGeometry};
+    /// static STOP: AtomicBool = AtomicBool::new(false);
+    /// let mut meter = Kerfmeter::open("/dev/ttyACM0")?;
+    /// let params = JointSpec::default().run_params(GaugeGeometry::PAPER)?;
+    /// meter.prepare_for_run()?;
+    /// let stop = || if STOP.load(Ordering::Relaxed) { ControlFlow::Break(()) } else { ControlFlow::Continue(()) };
+    /// let result = meter.run_kerfmeter_until(&params, |_| stop())?;
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
+    pub fn run_kerfmeter_until(
+        &mut self,
+        params: &RunParams,
+        mut progress: impl FnMut(&Progress) -> ControlFlow<()>,
+    ) -> Result<KerfResult> {
         crate::params::check(params)?;
         match self.call(Request::Run(*params))? {
             Response::Ok => {}
@@ -128,7 +156,10 @@ impl Kerfmeter {
         let limit = Duration::from_millis(u64::from(params.max_time_ms)) + RUN_SLACK;
         let mut run_id = None;
         self.poll_until(limit, |meter, status| {
-            progress(&Progress::from(status));
+            if progress(&Progress::from(status)).is_break() {
+                meter.abort()?;
+                return Err(Error::Cancelled);
+            }
             let id = *run_id.get_or_insert(status.run_id);
             match status.state {
                 RunState::Done => match meter.get_kerf_value()? {

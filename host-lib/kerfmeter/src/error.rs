@@ -97,6 +97,9 @@ pub enum Error {
         "the run ended without a result (aborted from elsewhere, or the device was reset); start it again"
     )]
     RunInterrupted,
+    /// The caller stopped the run (Ctrl-C); the device was told to abort, its motor is safe.
+    #[error("the run was stopped on request; the device aborted it and its motor is stopped")]
+    Cancelled,
     /// The device did not finish in time.
     #[error("the device did not finish within {seconds} s; it was told to abort")]
     RunTimeout {
@@ -161,6 +164,7 @@ impl Error {
             Error::Device { .. }
             | Error::Fault { .. }
             | Error::RunInterrupted
+            | Error::Cancelled
             | Error::RunTimeout { .. } => Category::Device,
             Error::InvalidArgument(_) => Category::Usage,
             Error::File { .. } => Category::File,

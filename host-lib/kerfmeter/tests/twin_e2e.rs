@@ -202,6 +202,25 @@ fn a_fault_is_a_typed_error_latched_until_cleared_then_the_next_run_works() {
 }
 
 #[test]
+fn a_run_stopped_by_its_caller_is_aborted_and_the_motor_left_safe() {
+    let (_sim, mut meter) = SimDevice::connect(SimOptions::default(), options()).unwrap();
+    meter.reset_kerfmeter().unwrap();
+    let stop_when_ramping = |p: &kerfmeter::Progress| {
+        if p.state == RunState::Ramping {
+            std::ops::ControlFlow::Break(())
+        } else {
+            std::ops::ControlFlow::Continue(())
+        }
+    };
+    let err = meter
+        .run_kerfmeter_until(&params(), stop_when_ramping)
+        .unwrap_err();
+    assert!(matches!(err, Error::Cancelled), "{err:?}");
+    assert_eq!(meter.status().unwrap().state, RunState::Idle);
+    assert_eq!(meter.get_kerf_value().unwrap(), None);
+}
+
+#[test]
 fn garbage_on_the_line_is_skipped() {
     let (bench, mut meter) = Bench::start(TwinOptions::default());
     bench.controls.line.garbage.store(true, Ordering::SeqCst);

@@ -1,0 +1,106 @@
+//! The project's Python: one virtual environment (`target/python-venv`) made with the machine's
+//! `python3` and filled with pip, and the Python package's test step.
+//!
+//! `cargo xtask test` builds and installs `host-lib/python` (the `kerfmeter` package) into it
+//! and runs its pytest suite against the twin. This needs `python3` (3.9 or later) with its
+//! `venv` module, and PyPI for maturin and pytest on first use; without them the step fails and
+//! says what is missing. The wheel is built by maturin into the workspace's own `target/` in the
+//! dev profile, so it reuses what `cargo test --workspace` already compiled instead of building
+//! the whole dependency tree again in release.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use anyhow::{Context, Result, bail};
+
+use crate::{root, run_cmd};
+
+/// What the environment is made with.
+const PYTHON: &str = "python3";
+/// The build backend and the test runner; pinned below the next major versions.
+const TOOLS: [&str; 2] = ["maturin>=1.9,<2", "pytest>=7,<10"];
+
+/// The environment's directory.
+fn venv_dir() -> PathBuf {
+    root().join("target").join("python-venv")
+}
+
+/// A program of the environment (`python`, `pip`, `pytest`).
+pub fn venv_bin(name: &str) -> PathBuf {
+    venv_dir().join("bin").join(name)
+}
+
+/// Make the environment if it is missing and install `packages` into it (pip skips those
+/// already satisfied). Returns its `python`.
+pub fn ensure_venv(packages: &[&str]) -> Result<PathBuf> {
+    let python = venv_bin("python");
+    if !python.exists() {
+        let made = Command::new(PYTHON)
+            .arg("-m")
+            .arg("venv")
+            .arg(venv_dir())
+            .status();
+        match made {
+            Ok(s) if s.success() => {}
+            Ok(s) => bail!(
+                "`{PYTHON} -m venv {}` failed ({s}): install Python 3.9+ with its venv module (Debian: apt-get install python3-venv)",
+                venv_dir().display()
+            ),
+            Err(e) => bail!("cannot run {PYTHON} ({e}): install Python 3.9 or later"),
+        }
+    }
+    if !packages.is_empty() {
+        run_cmd(
+            Command::new(&python)
+                .args([
+                    "-m",
+                    "pip",
+                    "install",
+                    "--quiet",
+                    "--disable-pip-version-check",
+                ])
+                .args(packages),
+        )
+        .context("pip could not install the packages (is PyPI reachable?)")?;
+    }
+    Ok(python)
+}
+
+/// The PATH with the environment's programs first.
+fn path_with_venv() -> std::ffi::OsString {
+    let mut dirs = vec![venv_dir().join("bin")];
+    dirs.extend(std::env::split_paths(
+        &std::env::var_os("PATH").unwrap_or_default(),
+    ));
+    std::env::join_paths(dirs).unwrap_or_default()
+}
+
+/// Build and install the `kerfmeter` Python package into the environment, then run its tests.
+pub fn test_package() -> Result<()> {
+    let python = ensure_venv(&TOOLS)?;
+    let package = root().join("host-lib").join("python");
+    run_cmd(
+        Command::new(&python)
+            .args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "--disable-pip-version-check",
+            ])
+            // maturin is already in the environment: no isolated build environment to fetch.
+            .arg("--no-build-isolation")
+            .arg("--force-reinstall")
+            .arg("--no-deps")
+            .arg(&package)
+            // The build backend runs the environment's `maturin` from the PATH.
+            .env("PATH", path_with_venv())
+            .env("CARGO_TARGET_DIR", root().join("target"))
+            .env("MATURIN_PEP517_ARGS", "--profile dev"),
+    )?;
+    run_cmd(
+        Command::new(&python)
+            .args(["-m", "pytest", "-q"])
+            .arg(package.join("tests")),
+    )
+}
