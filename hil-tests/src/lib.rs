@@ -45,7 +45,7 @@ pub const TWIN_TOLERANCE_UM: f64 = 2.0;
 /// What the cases run against.
 pub enum Target {
     /// The digital twin, in-process behind a pseudo-terminal (kept alive here).
-    Twin(SimDevice),
+    Twin(Box<SimDevice>),
     /// A real board on this serial port.
     Board(String),
 }
@@ -157,7 +157,7 @@ impl Bench {
             }
             _ => {
                 let (sim, port) = SimDevice::start(twin).map_err(|e| e.to_string())?;
-                Ok((Target::Twin(sim), port))
+                Ok((Target::Twin(Box::new(sim)), port))
             }
         }
     }
