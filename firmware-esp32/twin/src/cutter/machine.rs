@@ -297,8 +297,20 @@ impl Grbl {
         match (&self.current, self.hold) {
             (_, Hold::Complete) if laser_mode => 0.0,
             (Some((m, _)), _) => m.power_s,
-            (None, _) if laser_mode => 0.0,
+            (None, _) if laser_mode => self.laser_idle_output(),
             (None, _) => self.spindle_output(&self.modal),
+        }
+    }
+
+    /// The laser's output at rest in laser mode: GRBL turns the beam off when motion stops only
+    /// under M4 (dynamic power) or after a travel; under M3 after a G1/G2/G3 its PWM stays at `S`
+    /// until M5, a stationary beam burning one spot.
+    fn laser_idle_output(&self) -> f64 {
+        match (self.modal.spindle, self.modal.motion) {
+            (Spindle::Constant, Motion::Linear | Motion::Arc { .. }) => {
+                self.spindle_output(&self.modal)
+            }
+            _ => 0.0,
         }
     }
 
@@ -527,7 +539,7 @@ impl Grbl {
         let mut plan = Plan {
             modal,
             step: None,
-            sync: block.program_end,
+            sync: block.program_end || self.spindle_sync(block, &modal),
             program_end: block.program_end,
         };
         match (block.dwell, block.p) {
@@ -550,6 +562,18 @@ impl Grbl {
             return Err(codes::UNUSED_VALUE_WORDS);
         }
         Ok(plan)
+    }
+
+    /// True when `block` changes the spindle the way GRBL synchronises: it waits for the
+    /// planner to empty before parsing on (its `spindle_sync`), so the `ok` comes only once
+    /// every earlier move has run: a change of M3/M4/M5, or a new `S` with the spindle on and no
+    /// motion on the line.
+    fn spindle_sync(&self, block: &Block, modal: &Modal) -> bool {
+        let state_changed = modal.spindle != self.modal.spindle;
+        let power_changed = modal.power_s != self.modal.power_s
+            && modal.spindle != Spindle::Off
+            && !block.has_axes();
+        state_changed || power_changed
     }
 
     /// The move a block with axis words makes (`None` when it goes nowhere).

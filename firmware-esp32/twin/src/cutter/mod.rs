@@ -11,7 +11,10 @@
 //!   out of the stream as they arrive and never occupy the buffer.
 //! - Lines: `ok` or `error:N` for each, in order; `ok` is delayed while the planner queue
 //!   ([`PLANNER_BLOCKS`] blocks, as GRBL's) is full, which is how a real controller paces a
-//!   sender. Lines over 80 characters are refused (`error:11`).
+//!   sender. Lines over 79 characters (GRBL's 80-byte line buffer less its terminator) are
+//!   refused (`error:11`). A line that changes the spindle (M3/M4/M5, or a new `S` with the
+//!   spindle on and no motion) waits for the planner to empty before its `ok`, as GRBL's
+//!   `spindle_sync` does; lines behind it wait in the receive buffer.
 //! - G-code ([`gcode`]): G0 G1 G2 G3 (I/J arcs in XY) G4 G17 G20 G21 G54 G90 G91 G94, M2 M30 M3
 //!   M4 M5 (M7–M9 accepted), F S X Y Z I J P N. Anything else is `error:20`; the other checks
 //!   give GRBL's codes (missing feed `error:22`, arc end off its circle `error:33`, ...).
@@ -21,8 +24,10 @@
 //!   G4 waits for the queue to empty, then dwells as a block (real GRBL answers `ok` only after
 //!   the dwell). M2/M30 wait for the queue to empty, then reset the modal state (M5, G90).
 //! - The laser: with laser mode (`$32=1`) it fires only during G1/G2/G3 (M3 or M4, at `S`; M4's
-//!   scaling by speed is not modelled since the feed is constant), never on G0 nor while idle,
-//!   and it is off during a completed feed hold. Without laser mode it is a spindle: on from M3
+//!   scaling by speed is not modelled since the feed is constant), never on G0, and it is off
+//!   during a completed feed hold. At rest it is off under M4 or after a G0, but under M3 after
+//!   a G1/G2/G3 it stays on at `S` until M5, as GRBL's constant-power mode does (a program that
+//!   ends without M5 leaves a stationary beam burning). Without laser mode it is a spindle: on from M3
 //!   or M4 with S > 0 until M5, travels included (each such travel is a [`TravelFiring`]).
 //! - Status reports: `<State|MPos:x,y,z|Bf:blocks,bytes|FS:feed,S>`, the states Idle, Run,
 //!   Hold:1 (decelerating at `$120` along the path), Hold:0, Alarm.
