@@ -71,13 +71,7 @@ fn a_full_planner_holds_back_ok_until_a_block_is_done() {
 fn a_move_takes_its_length_over_its_feed_and_is_traced_with_its_power() {
     let mut grbl = cutter(CutterOptions::default());
     said(&mut grbl);
-    for l in [
-        "G21G90",
-        "M4 S800",
-        "G0X10",
-        "G1X10Y10F600",
-        "G2X0Y10I-5J0",
-    ] {
+    for l in ["G21G90", "M4 S800", "G0X10", "G1X10Y10F600", "G2X0Y10I-5J0"] {
         assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
     }
     assert_eq!(line(&mut grbl, "M5"), "", "M5 waits for the moves to run");
@@ -87,7 +81,10 @@ fn a_move_takes_its_length_over_its_feed_and_is_traced_with_its_power() {
     grbl.advance_us(20_000_000);
     grbl.receive(b"?");
     let said_then = said(&mut grbl);
-    assert!(said_then.starts_with("ok\r\n<Idle|MPos:0.000,10.000,0.000|"), "{said_then}");
+    assert!(
+        said_then.starts_with("ok\r\n<Idle|MPos:0.000,10.000,0.000|"),
+        "{said_then}"
+    );
     let record = grbl.log().snapshot();
     let kinds: Vec<_> = record
         .segments

@@ -99,11 +99,12 @@ fn a_refused_line_is_reported_with_its_number_text_and_meaning_and_the_laser_is_
     });
     let program = format!("; a job\n{}", squares(10, 12));
     let error = stream(&mut cutter, &program).unwrap_err();
+    assert!(matches!(error, CutterError::Stopped { .. }), "{error}");
     let CutterError::Rejected {
         line,
         ref text,
         code,
-    } = error
+    } = *error.cause()
     else {
         panic!("{error}");
     };
@@ -174,12 +175,13 @@ fn an_alarm_mid_job_stops_and_is_reported_with_the_laser_off() {
     let CutterError::Alarm {
         code: 1,
         after: Some((line, _)),
-    } = &error
+    } = error.cause()
     else {
         panic!("{error}");
     };
     assert!(*line > 3, "{error}");
     assert!(error.to_string().contains("hard limit"), "{error}");
+    assert!(error.to_string().ends_with("laser is off"), "{error}");
     let record = log(&cutter).snapshot();
     assert_eq!(record.laser_power_s, 0.0);
     assert_eq!(record.alarms, [1]);
@@ -199,7 +201,11 @@ fn cancelling_mid_stream_stops_the_cutter_with_the_laser_off() {
         .stream(&squares(10, 12), &cancel, &mut on_progress)
         .unwrap_err();
     assert!(
-        matches!(error, CutterError::Cancelled { answered, total: 65 } if answered >= 20),
+        matches!(error.cause(), CutterError::Cancelled { answered, total: 65 } if *answered >= 20),
+        "{error}"
+    );
+    assert!(
+        error.to_string().contains("stopped and the laser is off"),
         "{error}"
     );
     let record = log(&cutter).snapshot();
@@ -257,6 +263,8 @@ fn something_that_is_not_grbl_is_named_in_the_error() {
 /// GRBL, then, after `good_lines` program lines, restarts (`restart`) or falls silent for good.
 struct Scripted {
     out: std::collections::VecDeque<u8>,
+    /// Writes of the feed hold `!` fail, as on a port that times out a write.
+    refuse_hold: bool,
     good_lines: usize,
     restart: bool,
     lines: usize,
@@ -269,6 +277,7 @@ impl Scripted {
         out.extend(b"\r\nGrbl 1.1h ['$' for help]\r\n");
         Self {
             out,
+            refuse_hold: false,
             good_lines,
             restart,
             lines: 0,
@@ -288,7 +297,9 @@ impl Write for Scripted {
         for line in bytes.split_inclusive(|&b| b == b'\n') {
             match line {
                 b"?" => self.say("<Idle|MPos:0.000,0.000,0.000|FS:0,0>\r\n"),
+                b"!" if self.refuse_hold => return Err(std::io::ErrorKind::TimedOut.into()),
                 b"!" => {}
+                b"$G\n" => self.say("[GC:G1 G54 G17 G21 G90 G94 M5 M9 T0 F100 S0]\r\nok\r\n"),
                 [0x18] => self.say("\r\nGrbl 1.1h ['$' for help]\r\n"),
                 b"$$\n" => self.say("$32=1\r\nok\r\n"),
                 _ => {
@@ -325,16 +336,20 @@ impl Read for Scripted {
     }
 }
 
-fn scripted(good_lines: usize, restart: bool) -> Cutter {
-    let quick = ConnectOptions {
+/// Quick to give up.
+fn quick() -> ConnectOptions {
+    ConnectOptions {
         reply_timeout: Duration::from_millis(200),
         silence_timeout: Duration::from_millis(300),
         ..options()
-    };
+    }
+}
+
+fn scripted(good_lines: usize, restart: bool) -> Cutter {
     Cutter::connect(
         Box::new(Scripted::new(good_lines, restart)),
         "scripted".into(),
-        quick,
+        quick(),
     )
     .unwrap()
 }
@@ -343,7 +358,7 @@ fn scripted(good_lines: usize, restart: bool) -> Cutter {
 fn a_controller_that_restarts_mid_job_is_reported() {
     let mut cutter = scripted(3, true);
     let error = stream(&mut cutter, "G1X1F100\n".repeat(6).as_str()).unwrap_err();
-    assert!(matches!(error, CutterError::Restarted), "{error}");
+    assert!(matches!(error.cause(), CutterError::Restarted), "{error}");
 }
 
 #[test]
@@ -354,10 +369,104 @@ fn a_controller_that_falls_silent_cannot_be_stopped_and_the_error_says_so() {
         panic!("{error}");
     };
     assert!(matches!(**cause, CutterError::Silent { .. }), "{error}");
+    assert!(error.laser_may_be_on());
+    let message = error.to_string();
     assert!(
-        error
-            .to_string()
-            .contains("switch the laser off at the machine"),
+        message.starts_with("THE LASER MAY STILL BE ON: switch it off at the machine"),
+        "{message}"
+    );
+    assert!(!message.contains("laser is off"), "{message}");
+}
+
+#[test]
+fn a_failed_feed_hold_write_does_not_keep_the_reset_from_being_sent() {
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.refuse_hold = true;
+    let mut cutter = Cutter::connect(Box::new(fake), "scripted".into(), quick()).unwrap();
+    let cancel = AtomicBool::new(true);
+    let error = cutter
+        .stream("G1X1F100\n", &cancel, &mut |_| {})
+        .unwrap_err();
+    assert!(
+        matches!(error, CutterError::Stopped { ref cause, .. } if matches!(**cause, CutterError::Cancelled { .. })),
         "{error}"
     );
+}
+
+#[test]
+fn a_grbl_older_than_1_1_is_refused() {
+    let mut fake = Scripted::new(0, false);
+    fake.out = b"\r\nGrbl 0.9j ['$' for help]\r\n"
+        .iter()
+        .copied()
+        .collect();
+    let error = Cutter::connect(Box::new(fake), "scripted".into(), quick()).unwrap_err();
+    assert!(matches!(error, CutterError::OldVersion { .. }), "{error}");
+    assert!(error.to_string().contains("GRBL 0.9j"), "{error}");
+}
+
+#[test]
+fn a_job_under_m3_without_m5_ends_with_the_laser_off() {
+    // Under M3 GRBL keeps the beam on at rest after a cut: the driver closes every program
+    // with M5 and confirms it.
+    let mut cutter = sim(SimCutterOptions::default());
+    let report = stream(&mut cutter, "G21 G90\nM3 S800\nG1 X10 F600\n").unwrap();
+    assert_eq!(report.lines, 3);
+    let record = log(&cutter).snapshot();
+    assert_eq!((record.state.as_str(), record.laser_power_s), ("Idle", 0.0));
+    assert_eq!(record.segments.len(), 1);
+    assert!(record.segments[0].complete);
+}
+
+#[test]
+fn a_link_that_dies_mid_job_is_the_laser_may_still_be_on_error() {
+    let (server, mut port) =
+        CutterServer::pty(SimCutterOptions::default(), Pace::LockStep).unwrap();
+    serialport::SerialPort::set_timeout(&mut port, Duration::from_millis(10)).unwrap();
+    let mut cutter = Cutter::connect(Box::new(port), "pty".into(), quick()).unwrap();
+    let mut on_progress = |p: &StreamProgress| {
+        if p.answered >= 10 {
+            server.stop();
+        }
+    };
+    let error = cutter
+        .stream(&squares(10, 12), &AtomicBool::new(false), &mut on_progress)
+        .unwrap_err();
+    assert!(error.laser_may_be_on(), "{error}");
+    assert!(
+        error.to_string().starts_with("THE LASER MAY STILL BE ON"),
+        "{error}"
+    );
+}
+
+#[test]
+fn ctrl_c_while_connecting_ends_the_connect() {
+    // A controller that accepts the connection and never says a word.
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let address: CutterAddress = format!("grbl+tcp://{}", listener.local_addr().unwrap())
+        .parse()
+        .unwrap();
+    let cancel = Arc::new(AtomicBool::new(false));
+    let flag = cancel.clone();
+    let pressed = std::thread::spawn(move || {
+        let held = listener.accept().unwrap();
+        std::thread::sleep(Duration::from_millis(100));
+        flag.store(true, Ordering::Relaxed);
+        held
+    });
+    let slow = ConnectOptions {
+        banner_wait: Duration::from_secs(30),
+        ..options()
+    };
+    let started = std::time::Instant::now();
+    let error = Cutter::open_cancellable(&address, slow, cancel).unwrap_err();
+    assert!(
+        matches!(error, CutterError::ConnectCancelled { .. }),
+        "{error}"
+    );
+    assert!(
+        started.elapsed() < Duration::from_secs(30),
+        "it did not wait out the banner"
+    );
+    drop(pressed.join().unwrap());
 }

@@ -2,19 +2,35 @@
 //! character counting, wait for the motion to end, and stop the cutter on every failure.
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::error::CutterError;
-use super::protocol::{MachineState, Reply, Status, Streamer, parse_reply, prepare};
-use super::transport::{CutterAddress, Link, open_serial, open_tcp};
+use super::protocol::{MachineState, ProgramLine, Reply, Status, Streamer, parse_reply, prepare};
+use super::transport::{CutterAddress, Link, READ_SLICE, open_serial, open_tcp};
 
 /// The realtime soft reset (ctrl-X): stops everything, laser off.
 const SOFT_RESET: u8 = 0x18;
+/// `ALARM:3`: reset while in motion, the position may be lost.
+const ALARM_ABORT_CYCLE: u8 = 3;
 /// `$32`: laser mode.
 const LASER_MODE_SETTING: u16 = 32;
+/// `$13`: status reports in inches (1) or mm (0).
+const REPORT_INCHES_SETTING: u16 = 13;
+/// `$110`, `$111`: the X and Y maximum rates, mm/min.
+const MAX_RATE_SETTINGS: [u16; 2] = [110, 111];
+/// `$120`, `$121`: the X and Y accelerations, mm/s².
+const ACCELERATION_SETTINGS: [u16; 2] = [120, 121];
+/// The longest a feed hold is waited for, whatever the settings say.
+const HOLD_WAIT_MAX: Duration = Duration::from_secs(60);
+/// How long one soft reset is given to bring the banner before it is sent again.
+const RESET_RETRY: Duration = Duration::from_millis(500);
 /// How many unrecognised lines a failed connection reports.
 const SEEN_KEPT: usize = 8;
+/// The line every program is closed with: laser off. Under M3 GRBL keeps the beam on at rest
+/// after a cut, so a program that does not end with M5 would leave it burning one spot.
+const CLOSING_LINE: &str = "M5";
 
 /// How the driver connects and streams.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -84,6 +100,12 @@ pub struct Cutter {
     settings: BTreeMap<u16, f64>,
     notes: Vec<String>,
     in_job: bool,
+    /// The alarm that came just before the last banner (`ALARM:3` after a reset in motion).
+    alarm_before_banner: Option<u8>,
+    /// Set from outside (Ctrl-C): ends a connect early.
+    cancel: Arc<AtomicBool>,
+    /// True while connecting: `cancel` is heard.
+    connecting: bool,
     #[cfg(feature = "sim")]
     pub(super) sim: Option<kerfmeter_twin::cutter::CutterServer>,
 }
@@ -100,9 +122,19 @@ impl std::fmt::Debug for Cutter {
 impl Cutter {
     /// Connect to the cutter at `address` (see [`CutterAddress`]).
     pub fn open(address: &CutterAddress, options: ConnectOptions) -> Result<Self, CutterError> {
+        Self::open_cancellable(address, options, Arc::new(AtomicBool::new(false)))
+    }
+
+    /// [`Cutter::open`], given up with [`CutterError::ConnectCancelled`] as soon as `cancel` is
+    /// set (Ctrl-C while a name resolves or a controller boots).
+    pub fn open_cancellable(
+        address: &CutterAddress,
+        options: ConnectOptions,
+        cancel: Arc<AtomicBool>,
+    ) -> Result<Self, CutterError> {
         let link = match address {
             CutterAddress::Serial { path, baud } => open_serial(path, *baud)?,
-            CutterAddress::Tcp { host_port } => open_tcp(host_port)?,
+            CutterAddress::Tcp { host_port } => open_tcp(host_port, &cancel)?,
             #[cfg(feature = "sim")]
             CutterAddress::Sim => return Self::sim(Default::default(), options),
             #[cfg(not(feature = "sim"))]
@@ -112,7 +144,7 @@ impl Cutter {
                 ));
             }
         };
-        Self::connect(link, address.to_string(), options)
+        Self::connect_cancellable(link, address.to_string(), options, cancel)
     }
 
     /// Talk to a controller on an open byte stream (reads must time out within milliseconds):
@@ -123,6 +155,16 @@ impl Cutter {
         address: String,
         options: ConnectOptions,
     ) -> Result<Self, CutterError> {
+        Self::connect_cancellable(link, address, options, Arc::new(AtomicBool::new(false)))
+    }
+
+    /// [`Cutter::connect`], given up as soon as `cancel` is set.
+    pub fn connect_cancellable(
+        link: Box<dyn Link>,
+        address: String,
+        options: ConnectOptions,
+        cancel: Arc<AtomicBool>,
+    ) -> Result<Self, CutterError> {
         let mut cutter = Self {
             link,
             address,
@@ -132,10 +174,14 @@ impl Cutter {
             settings: BTreeMap::new(),
             notes: Vec::new(),
             in_job: false,
+            alarm_before_banner: None,
+            cancel,
+            connecting: true,
             #[cfg(feature = "sim")]
             sim: None,
         };
         cutter.handshake()?;
+        cutter.connecting = false;
         Ok(cutter)
     }
 
@@ -167,6 +213,7 @@ impl Cutter {
                 });
             }
         }
+        self.check_version()?;
         let mut status = self.status()?;
         if status.state == MachineState::Alarm {
             if !self.options.unlock {
@@ -197,6 +244,18 @@ impl Cutter {
         CutterError::AlarmAtConnect { code, reason }
     }
 
+    /// Refuse a GRBL older than 1.1 (grblHAL and FluidNC, 1.1 and later, pass).
+    fn check_version(&self) -> Result<(), CutterError> {
+        let mut numbers = self.version.split(|c: char| !c.is_ascii_digit());
+        let mut next = || numbers.next().and_then(|n| n.parse::<u32>().ok());
+        match (next(), next()) {
+            (Some(major), Some(minor)) if (major, minor) >= (1, 1) => Ok(()),
+            _ => Err(CutterError::OldVersion {
+                version: self.version.clone(),
+            }),
+        }
+    }
+
     fn read_settings(&mut self) -> Result<(), CutterError> {
         for line in self.command("$$")? {
             if let Reply::Setting(number, value) = parse_reply(&line) {
@@ -223,14 +282,20 @@ impl Cutter {
         seen: &mut Vec<String>,
     ) -> Result<bool, CutterError> {
         let deadline = Instant::now() + wait;
+        let mut alarm = None;
         while let Some(line) = self.read_line(deadline)? {
             match parse_reply(&line) {
                 Reply::Banner(version) => {
                     self.version = version;
                     self.notes.clear();
+                    self.alarm_before_banner = alarm;
                     return Ok(true);
                 }
-                Reply::Alarm(_) | Reply::Message(_) => self.notes.push(line.clone()),
+                Reply::Alarm(code) => {
+                    alarm = Some(code);
+                    self.notes.push(line.clone());
+                }
+                Reply::Message(_) => self.notes.push(line.clone()),
                 _ => {}
             }
             if seen.len() < SEEN_KEPT {
@@ -246,7 +311,7 @@ impl Cutter {
         let deadline = Instant::now() + self.options.reply_timeout;
         while let Some(line) = self.read_line(deadline)? {
             match parse_reply(&line) {
-                Reply::Status(status) => return Ok(status),
+                Reply::Status(status) => return Ok(self.in_mm(status)),
                 Reply::Alarm(_) | Reply::Message(_) => self.notes.push(line),
                 _ => {}
             }
@@ -254,9 +319,20 @@ impl Cutter {
         Err(self.silent("waiting for a status report"))
     }
 
-    /// Send one command line (not a program line: nothing else may be unanswered) and wait for
-    /// its `ok`; the lines that came before it.
-    pub fn command(&mut self, line: &str) -> Result<Vec<String>, CutterError> {
+    /// `status` with its position and feed in mm, when the controller reports inches (`$13=1`).
+    fn in_mm(&self, mut status: Status) -> Status {
+        if self.settings.get(&REPORT_INCHES_SETTING) == Some(&1.0) {
+            const MM_PER_INCH: f64 = 25.4;
+            status.position_mm = status.position_mm.map(|p| p.map(|v| v * MM_PER_INCH));
+            status.feed_mm_per_min = status.feed_mm_per_min.map(|f| f * MM_PER_INCH);
+        }
+        status
+    }
+
+    /// Send one command line of the driver's own (a `$` command: nothing else may be
+    /// unanswered) and wait for its `ok`; the lines that came before it. Private: a motion line
+    /// would return with the machine still moving, and `?`/`!` in the text would act at once.
+    fn command(&mut self, line: &str) -> Result<Vec<String>, CutterError> {
         self.write(format!("{line}\n").as_bytes())?;
         let deadline = Instant::now() + self.options.reply_timeout;
         let mut said = Vec::new();
@@ -279,26 +355,77 @@ impl Cutter {
     /// Stream a G-code program: at most 128 bytes unanswered, the state polled, until every line
     /// is accepted and the machine is idle again. `progress` hears of each batch of replies.
     ///
-    /// On any failure (a refused line, an alarm, silence, `cancel` set) the cutter is stopped
-    /// ([`Cutter::stop`]: feed hold, then soft reset, which turns the laser off) before the error
-    /// is returned. A program with a line that cannot be streamed is refused before anything is
-    /// sent.
+    /// The program is always closed with an `M5` of the driver's own (numbered one past the
+    /// file's last line), and the stream succeeds only once the controller confirms the laser
+    /// off (`M5` in its `$G` parser state, spindle 0 in its status): under M3 GRBL keeps the beam
+    /// on at rest after a cut until M5.
+    ///
+    /// On any failure (a refused line, an alarm, silence, `cancel` set, the laser not confirmed
+    /// off) the cutter is stopped ([`Cutter::stop`]: feed hold, then soft reset, which turns the
+    /// laser off) and the error is [`CutterError::Stopped`] around the failure, or
+    /// [`CutterError::NotStopped`] when even stopping failed. A program with a line that cannot
+    /// be streamed is refused before anything is sent.
     pub fn stream(
         &mut self,
         program: &str,
         cancel: &AtomicBool,
         progress: &mut dyn FnMut(&StreamProgress),
     ) -> Result<StreamReport, CutterError> {
-        let lines = prepare(program).map_err(|bad| CutterError::BadProgram {
+        let mut lines = prepare(program).map_err(|bad| CutterError::BadProgram {
             line: bad.number,
             reason: bad.reason,
         })?;
+        let program_lines = lines.len();
+        lines.push(ProgramLine {
+            number: program.lines().count() + 1,
+            text: CLOSING_LINE.into(),
+        });
         let mut streamer = Streamer::new(lines);
         self.in_job = true;
-        let result = self.stream_lines(&mut streamer, cancel, progress);
-        let result = result.map_err(|e| self.stop_after(e));
+        let result = self
+            .stream_lines(&mut streamer, cancel, progress)
+            .and_then(|report| self.confirm_laser_off().map(|()| report));
+        let result = result
+            .map(|report| StreamReport {
+                lines: program_lines,
+                ..report
+            })
+            .map_err(|e| match e {
+                CutterError::Cancelled { answered, .. } => CutterError::Cancelled {
+                    answered: answered.min(program_lines),
+                    total: program_lines,
+                },
+                other => other,
+            })
+            .map_err(|e| self.stop_after(e));
         self.in_job = false;
         result
+    }
+
+    /// After the closing `M5`: the parser state must say M5 and the status spindle 0.
+    fn confirm_laser_off(&mut self) -> Result<(), CutterError> {
+        let said = self.command("$G")?;
+        let parser_state = said.iter().find(|l| l.starts_with("[GC:"));
+        let m5 = parser_state.is_some_and(|gc| {
+            gc.trim_end_matches(']')
+                .split(|c: char| c == ' ' || c == ':')
+                .any(|word| word == CLOSING_LINE)
+        });
+        if !m5 {
+            return Err(CutterError::LaserNotOff {
+                said: parser_state.map_or_else(
+                    || "no `[GC:...]` parser state came for `$G`".into(),
+                    |gc| format!("its parser state is {gc}"),
+                ),
+            });
+        }
+        let status = self.status()?;
+        match status.spindle_s {
+            Some(s) if s > 0.0 => Err(CutterError::LaserNotOff {
+                said: format!("its status reports the spindle at S{s}"),
+            }),
+            _ => Ok(()),
+        }
     }
 
     fn stream_lines(
@@ -400,59 +527,114 @@ impl Cutter {
                 return Err(CutterError::Alarm { code, after });
             }
             Reply::Banner(_) => return Err(CutterError::Restarted),
-            Reply::Status(status) => return Ok(Some(status)),
+            Reply::Status(status) => return Ok(Some(self.in_mm(status))),
             Reply::Message(_) | Reply::Setting(..) | Reply::Other(_) => {}
         }
         Ok(None)
     }
 
     /// Stop the cutter: feed hold (`!`) so that the machine decelerates and keeps its position,
-    /// wait (bounded) for the hold to complete, then soft reset (ctrl-X), which empties its
-    /// queue and turns the laser off. Waits for the reset's banner.
+    /// wait (bounded by its fastest rate over its slowest acceleration) for the hold to
+    /// complete, then soft reset (ctrl-X), which empties its queue and turns the laser off.
+    /// Waits for the reset's banner. A failed write of the hold or a status request does not
+    /// keep the reset from being tried; the reset is sent again until its banner comes.
     pub fn stop(&mut self) -> Result<(), CutterError> {
-        self.write(b"!")?;
-        let deadline = Instant::now() + self.options.reply_timeout;
-        while Instant::now() < deadline {
-            self.write(b"?")?;
-            let poll_end = Instant::now() + Duration::from_millis(50);
-            let mut stopped = false;
-            while let Some(line) = self.read_line(poll_end.min(deadline))? {
-                if let Reply::Status(s) = parse_reply(&line) {
-                    stopped = matches!(
-                        s.state,
-                        MachineState::Hold(0) | MachineState::Idle | MachineState::Alarm
-                    );
-                }
-            }
-            if stopped {
-                break;
+        self.halt().map(|_| ())
+    }
+
+    /// [`Cutter::stop`]; true when the reset raised `ALARM:3` (the machine still moved).
+    fn halt(&mut self) -> Result<bool, CutterError> {
+        let _ = self.write(b"!");
+        let deadline = Instant::now() + self.hold_wait();
+        while Instant::now() < deadline && !self.poll_stopped(deadline) {}
+        self.reset_checked()
+    }
+
+    /// One status request while holding: true once the machine reports it has stopped.
+    fn poll_stopped(&mut self, deadline: Instant) -> bool {
+        if self.write(b"?").is_err() {
+            std::thread::sleep(READ_SLICE);
+            return false;
+        }
+        let poll_end = (Instant::now() + Duration::from_millis(50)).min(deadline);
+        let mut stopped = false;
+        while let Ok(Some(line)) = self.read_line(poll_end) {
+            if let Reply::Status(s) = parse_reply(&line) {
+                stopped = matches!(
+                    s.state,
+                    MachineState::Hold(0)
+                        | MachineState::Door(0 | 1)
+                        | MachineState::Idle
+                        | MachineState::Alarm
+                        | MachineState::Sleep
+                );
             }
         }
-        self.reset()
+        stopped
+    }
+
+    /// How long a feed hold may take: the fastest rate over the slowest acceleration of X and Y
+    /// (`$110`, `$111`, `$120`, `$121`), with margin, plus a reply's time.
+    fn hold_wait(&self) -> Duration {
+        let setting = |numbers: [u16; 2], pick: fn(f64, f64) -> f64| {
+            numbers
+                .iter()
+                .filter_map(|n| self.settings.get(n).copied())
+                .filter(|v| v.is_finite() && *v > 0.0)
+                .reduce(pick)
+        };
+        let stopping_s = match (
+            setting(MAX_RATE_SETTINGS, f64::max),
+            setting(ACCELERATION_SETTINGS, f64::min),
+        ) {
+            (Some(rate_mm_per_min), Some(accel)) => 1.5 * rate_mm_per_min / 60.0 / accel,
+            _ => 0.0,
+        };
+        let stopping = Duration::try_from_secs_f64(stopping_s).unwrap_or(HOLD_WAIT_MAX);
+        (self.options.reply_timeout + stopping).min(HOLD_WAIT_MAX)
     }
 
     /// Soft reset (ctrl-X) and wait for the banner: the queue is emptied, the laser off. A
     /// machine in motion raises `ALARM:3` (its position may be lost); [`Cutter::stop`] holds
     /// first to avoid that.
     pub fn reset(&mut self) -> Result<(), CutterError> {
-        self.write(&[SOFT_RESET])?;
+        self.reset_checked().map(|_| ())
+    }
+
+    /// [`Cutter::reset`], sent again until its banner comes within the reply timeout; true when
+    /// `ALARM:3` came with it.
+    fn reset_checked(&mut self) -> Result<bool, CutterError> {
+        let deadline = Instant::now() + self.options.reply_timeout;
         let mut seen = Vec::new();
-        if self.await_banner(self.options.reply_timeout, &mut seen)? {
-            Ok(())
-        } else {
-            Err(self.silent("waiting for the banner after a soft reset"))
+        loop {
+            let write_error = self.write(&[SOFT_RESET]).err();
+            let wait = RESET_RETRY.min(deadline.saturating_duration_since(Instant::now()));
+            if write_error.is_none() && self.await_banner(wait, &mut seen)? {
+                return Ok(self.alarm_before_banner == Some(ALARM_ABORT_CYCLE));
+            }
+            if Instant::now() >= deadline {
+                return Err(write_error
+                    .unwrap_or_else(|| self.silent("waiting for the banner after a soft reset")));
+            }
+            if write_error.is_some() {
+                std::thread::sleep(READ_SLICE);
+            }
         }
     }
 
-    /// `cause`, after stopping the cutter (or both, when it cannot be stopped). After an alarm
-    /// the machine has stopped already and may hear nothing but a reset.
+    /// `cause`, after stopping the cutter: [`CutterError::Stopped`] around it, or
+    /// [`CutterError::NotStopped`] when it cannot be stopped. After an alarm the machine has
+    /// stopped already and may hear nothing but a reset.
     fn stop_after(&mut self, cause: CutterError) -> CutterError {
         let stopped = match cause {
-            CutterError::Alarm { .. } => self.reset(),
-            _ => self.stop(),
+            CutterError::Alarm { .. } => self.reset_checked(),
+            _ => self.halt(),
         };
         match stopped {
-            Ok(()) => cause,
+            Ok(position_lost) => CutterError::Stopped {
+                cause: Box::new(cause),
+                position_lost,
+            },
             Err(stop) => CutterError::NotStopped {
                 cause: Box::new(cause),
                 stop: Box::new(stop),
@@ -514,7 +696,8 @@ impl Cutter {
         Ok(std::iter::from_fn(|| self.take_line()).collect())
     }
 
-    /// The next complete line, or `None` once `deadline` passes.
+    /// The next complete line, or `None` once `deadline` passes. While connecting, a cancel
+    /// ends it with [`CutterError::ConnectCancelled`].
     fn read_line(&mut self, deadline: Instant) -> Result<Option<String>, CutterError> {
         loop {
             if let Some(line) = self.take_line() {
@@ -522,6 +705,11 @@ impl Cutter {
             }
             if Instant::now() >= deadline {
                 return Ok(None);
+            }
+            if self.connecting && self.cancel.load(Ordering::Relaxed) {
+                return Err(CutterError::ConnectCancelled {
+                    address: self.address.clone(),
+                });
             }
             self.fill()?;
         }

@@ -11,8 +11,9 @@ use std::collections::VecDeque;
 
 /// GRBL's serial receive buffer, bytes.
 pub const RX_BUFFER_LEN: usize = 128;
-/// GRBL 1.1's line buffer: longer lines (without spaces and comments) are refused.
-pub const LINE_MAX_LEN: usize = 80;
+/// The longest line GRBL 1.1 takes, without spaces and comments: its line buffer is 80 bytes
+/// and one is kept for the terminator, so 79 characters; longer lines are refused.
+pub const LINE_MAX_LEN: usize = 79;
 
 /// One line of a program, ready to stream.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -52,13 +53,36 @@ pub fn prepare(program: &str) -> Result<Vec<ProgramLine>, BadLine> {
         }
         if text.len() > LINE_MAX_LEN {
             return Err(bad(format!(
-                "{} characters without spaces and comments; GRBL's line buffer holds {LINE_MAX_LEN}",
+                "{} characters without spaces and comments; GRBL takes at most {LINE_MAX_LEN}",
                 text.len()
+            )));
+        }
+        if let Some(pause) = program_pause(&text) {
+            return Err(bad(format!(
+                "`{pause}` pauses the program until cycle start is pressed at the machine, with the job half done; remove it"
             )));
         }
         lines.push(ProgramLine { number, text });
     }
     Ok(lines)
+}
+
+/// The program pause (`M0`, `M1`) on a cleaned line, if any.
+fn program_pause(text: &str) -> Option<String> {
+    let mut rest = text;
+    while let Some(at) = rest.find('M') {
+        let digits = &rest[at + 1..];
+        let end = digits
+            .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .unwrap_or(digits.len());
+        if let Ok(number) = digits[..end].parse::<f64>()
+            && (number == 0.0 || number == 1.0)
+        {
+            return Some(format!("M{}", &digits[..end]));
+        }
+        rest = &digits[end..];
+    }
+    None
 }
 
 /// One line without comments and spaces, or why it cannot be sent.
@@ -348,12 +372,20 @@ mod tests {
                 .reason
                 .contains("system command")
         );
-        assert!(
-            prepare(&"G1X1".repeat(25))
-                .unwrap_err()
-                .reason
-                .contains("80")
-        );
+        let longest = format!("G1X{}", "1".repeat(LINE_MAX_LEN - 3));
+        assert_eq!(longest.len(), 79);
+        assert!(prepare(&longest).is_ok(), "79 characters fit");
+        let error = prepare(&format!("{longest}1")).unwrap_err();
+        assert!(error.reason.contains("at most 79"), "{}", error.reason);
+        for pause in ["M0", "G0X1M1", "M00", "m1 (pause)"] {
+            let error = prepare(pause).unwrap_err();
+            assert!(
+                error.reason.contains("cycle start"),
+                "{pause}: {}",
+                error.reason
+            );
+        }
+        assert!(prepare("M3S100\nM5\nM2\nM30\nM4\nM100\n").is_ok());
         assert!(prepare("G1 X1 (a ! in a comment is fine)\n").is_ok());
     }
 
