@@ -606,9 +606,20 @@ fn cut_refuses_an_unstreamable_program_and_reports_a_refused_line() {
 
 #[test]
 fn ctrl_c_during_cut_stops_the_cutter_and_fails() {
+    interrupting_a_cut_stops_the_cutter("-INT");
+}
+
+#[test]
+fn sigterm_and_sighup_during_cut_stop_the_cutter_too() {
+    // Without ctrlc's "termination" feature these killed the process with the laser running.
+    interrupting_a_cut_stops_the_cutter("-TERM");
+    interrupting_a_cut_stops_the_cutter("-HUP");
+}
+
+fn interrupting_a_cut_stops_the_cutter(signal: &str) {
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
-    // Long enough (hours of simulated motion) that only Ctrl-C ends it.
+    // Long enough (hours of simulated motion) that only the signal ends it.
     let long: String = (0..2000)
         .map(|i| format!("G1 X{} Y0 S500 F600\n", 100 * (i % 2)))
         .collect();
@@ -624,16 +635,16 @@ fn ctrl_c_during_cut_stops_the_cutter_and_fails() {
     stderr.read_line(&mut first).unwrap();
     assert!(first.starts_with("streaming"), "{first}");
     let interrupted = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
+        .args([signal, &child.id().to_string()])
         .status()
         .unwrap();
     assert!(interrupted.success());
     let mut rest = String::new();
     std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
     let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(4), "{rest}");
-    assert!(rest.contains("cancelled after"), "{rest}");
-    assert!(rest.contains("laser is off"), "{rest}");
+    assert_eq!(status.code(), Some(4), "{signal}: {rest}");
+    assert!(rest.contains("cancelled after"), "{signal}: {rest}");
+    assert!(rest.contains("laser is off"), "{signal}: {rest}");
 }
 
 #[test]

@@ -1,6 +1,8 @@
 //! `kerfmeter cut`: stream a G-code file to a laser cutter's GRBL controller (or the simulated
-//! cutter) with a progress bar. Ctrl-C stops the cutter (feed hold, then soft reset: the laser
-//! goes off) and the command fails; so does any refused line or alarm, with its meaning.
+//! cutter) with a progress bar. Ctrl-C, SIGTERM and SIGHUP stop the cutter (feed hold, then soft
+//! reset: the laser goes off) and the command fails, also while it connects; so does any refused
+//! line or alarm, with its meaning. SIGKILL and a power loss of the computer cannot be caught:
+//! then only the machine's own safety (its E-stop, its interlock) stops the laser.
 
 use std::fmt;
 use std::io::IsTerminal;
@@ -10,7 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use kerfmeter::grbl::protocol::prepare;
+use kerfmeter::grbl::protocol::{MachineState, prepare};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, CutterError, StreamProgress};
 use serde::Serialize;
 
@@ -80,6 +82,7 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
     })?;
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
+    // With ctrlc's "termination" feature this also catches SIGTERM and SIGHUP.
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
         .map_err(|e| CliError::Usage(format!("cannot take over Ctrl-C: {e}")))?;
     let options = ConnectOptions {
@@ -87,7 +90,7 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         allow_without_laser_mode: args.allow_without_laser_mode,
         ..ConnectOptions::default()
     };
-    let mut cutter = Cutter::open(&args.cutter, options)?;
+    let mut cutter = Cutter::open_cancellable(&args.cutter, options, cancel.clone())?;
     if !g.json {
         eprintln!(
             "streaming {} to {} (GRBL {}); Ctrl-C stops the cutter",
@@ -132,6 +135,15 @@ fn show(bar: &ProgressBar, p: &StreamProgress) {
             .position_mm
             .map(|[x, y, _]| format!(" at X{x:.1} Y{y:.1}"))
             .unwrap_or_default();
-        bar.set_message(format!("{}{at}", status.state));
+        let state = match status.state {
+            MachineState::Hold(_) | MachineState::Door(_) => {
+                format!(
+                    "{}: held, press cycle start at the machine or Ctrl-C",
+                    status.state
+                )
+            }
+            ref other => other.to_string(),
+        };
+        bar.set_message(format!("{state}{at}"));
     }
 }
