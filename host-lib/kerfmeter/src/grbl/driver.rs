@@ -408,7 +408,7 @@ impl Cutter {
         let parser_state = said.iter().find(|l| l.starts_with("[GC:"));
         let m5 = parser_state.is_some_and(|gc| {
             gc.trim_end_matches(']')
-                .split(|c: char| c == ' ' || c == ':')
+                .split([' ', ':'])
                 .any(|word| word == CLOSING_LINE)
         });
         if !m5 {
