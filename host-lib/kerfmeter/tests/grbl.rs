@@ -265,6 +265,12 @@ struct Scripted {
     out: std::collections::VecDeque<u8>,
     /// Writes of the feed hold `!` fail, as on a port that times out a write.
     refuse_hold: bool,
+    /// How long a feed hold takes to stop the machine (`Hold:1` until then; a reset before it
+    /// raises `ALARM:3`), and when the hold began.
+    hold_takes: Duration,
+    held_at: Option<std::time::Instant>,
+    /// The `$$` listing.
+    settings: &'static str,
     good_lines: usize,
     restart: bool,
     lines: usize,
@@ -278,10 +284,21 @@ impl Scripted {
         Self {
             out,
             refuse_hold: false,
+            hold_takes: Duration::ZERO,
+            held_at: None,
+            settings: "$32=1\r\n",
             good_lines,
             restart,
             lines: 0,
             silent: false,
+        }
+    }
+
+    fn state(&self) -> &'static str {
+        match self.held_at {
+            Some(at) if at.elapsed() < self.hold_takes => "Hold:1",
+            Some(_) => "Hold:0",
+            None => "Idle",
         }
     }
 
@@ -296,12 +313,22 @@ impl Write for Scripted {
     fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
         for line in bytes.split_inclusive(|&b| b == b'\n') {
             match line {
-                b"?" => self.say("<Idle|MPos:0.000,0.000,0.000|FS:0,0>\r\n"),
+                b"?" => self.say(&format!(
+                    "<{}|MPos:0.000,0.000,0.000|FS:0,0>\r\n",
+                    self.state()
+                )),
                 b"!" if self.refuse_hold => return Err(std::io::ErrorKind::TimedOut.into()),
-                b"!" => {}
+                b"!" => self.held_at = Some(std::time::Instant::now()),
+                [0x18] if self.state() == "Hold:1" => {
+                    self.held_at = None;
+                    self.say("ALARM:3\r\n\r\nGrbl 1.1h ['$' for help]\r\n");
+                }
                 b"$G\n" => self.say("[GC:G1 G54 G17 G21 G90 G94 M5 M9 T0 F100 S0]\r\nok\r\n"),
-                [0x18] => self.say("\r\nGrbl 1.1h ['$' for help]\r\n"),
-                b"$$\n" => self.say("$32=1\r\nok\r\n"),
+                [0x18] => {
+                    self.held_at = None;
+                    self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
+                }
+                b"$$\n" => self.say(&format!("{}ok\r\n", self.settings)),
                 _ => {
                     self.lines += 1;
                     if self.lines <= self.good_lines {
@@ -389,6 +416,55 @@ fn a_failed_feed_hold_write_does_not_keep_the_reset_from_being_sent() {
         .unwrap_err();
     assert!(
         matches!(error, CutterError::Stopped { ref cause, .. } if matches!(**cause, CutterError::Cancelled { .. })),
+        "{error}"
+    );
+}
+
+#[test]
+fn a_slow_feed_hold_is_waited_for_from_the_machines_rate_and_acceleration() {
+    // 3000 mm/min at 10 mm/s²: up to 5 s to stop; this one takes 1 s, far past the reply
+    // timeout (200 ms) the wait once was capped at, and the reset after it raises no ALARM:3.
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.hold_takes = Duration::from_secs(1);
+    fake.settings = "$32=1\r\n$110=3000\r\n$111=3000\r\n$120=10\r\n$121=10\r\n";
+    let mut cutter = Cutter::connect(Box::new(fake), "scripted".into(), quick()).unwrap();
+    let error = cutter
+        .stream("G1X1F100\n", &AtomicBool::new(true), &mut |_| {})
+        .unwrap_err();
+    assert!(
+        matches!(
+            error,
+            CutterError::Stopped {
+                position_lost: false,
+                ..
+            }
+        ),
+        "{error}"
+    );
+}
+
+#[test]
+fn a_reset_that_raises_alarm_3_says_the_position_may_be_lost() {
+    // No rates in its settings: the hold is waited for only a reply's time, and it is still
+    // stopping when the reset comes.
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.hold_takes = Duration::from_secs(60);
+    let mut cutter = Cutter::connect(Box::new(fake), "scripted".into(), quick()).unwrap();
+    let error = cutter
+        .stream("G1X1F100\n", &AtomicBool::new(true), &mut |_| {})
+        .unwrap_err();
+    assert!(
+        matches!(
+            error,
+            CutterError::Stopped {
+                position_lost: true,
+                ..
+            }
+        ),
+        "{error}"
+    );
+    assert!(
+        error.to_string().contains("home it before the next job"),
         "{error}"
     );
 }
