@@ -271,6 +271,14 @@ struct Scripted {
     held_at: Option<std::time::Instant>,
     /// The `$$` listing.
     settings: &'static str,
+    /// Status reports say `Run` (another client's job) instead of `Idle`.
+    running: bool,
+    /// Soft resets received (shared, to be read after the fake is moved into a driver).
+    resets: Arc<std::sync::atomic::AtomicUsize>,
+    /// The first this many status requests are answered by a banner (a restart).
+    banners_for_status: usize,
+    /// Lines said later, at their time (a boot log).
+    timed: std::collections::VecDeque<(std::time::Instant, &'static str)>,
     good_lines: usize,
     restart: bool,
     lines: usize,
@@ -287,6 +295,10 @@ impl Scripted {
             hold_takes: Duration::ZERO,
             held_at: None,
             settings: "$32=1\r\n",
+            running: false,
+            banners_for_status: 0,
+            resets: Arc::default(),
+            timed: Default::default(),
             good_lines,
             restart,
             lines: 0,
@@ -298,6 +310,7 @@ impl Scripted {
         match self.held_at {
             Some(at) if at.elapsed() < self.hold_takes => "Hold:1",
             Some(_) => "Hold:0",
+            None if self.running => "Run",
             None => "Idle",
         }
     }
@@ -313,12 +326,17 @@ impl Write for Scripted {
     fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
         for line in bytes.split_inclusive(|&b| b == b'\n') {
             match line {
+                b"?" if self.banners_for_status > 0 => {
+                    self.banners_for_status -= 1;
+                    self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
+                }
                 b"?" => self.say(&format!(
                     "<{}|MPos:0.000,0.000,0.000|FS:0,0>\r\n",
                     self.state()
                 )),
                 b"!" if self.refuse_hold => return Err(std::io::ErrorKind::TimedOut.into()),
                 b"!" => self.held_at = Some(std::time::Instant::now()),
+                [0x18] if self.resets.fetch_add(1, Ordering::Relaxed) == usize::MAX => {}
                 [0x18] if self.state() == "Hold:1" => {
                     self.held_at = None;
                     self.say("ALARM:3\r\n\r\nGrbl 1.1h ['$' for help]\r\n");
@@ -351,6 +369,12 @@ impl Write for Scripted {
 
 impl Read for Scripted {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        while let Some((at, text)) = self.timed.front()
+            && at.elapsed() > Duration::ZERO
+        {
+            self.out.extend(text.as_bytes());
+            self.timed.pop_front();
+        }
         if self.out.is_empty() {
             std::thread::sleep(Duration::from_millis(1));
             return Err(std::io::ErrorKind::TimedOut.into());
@@ -467,6 +491,61 @@ fn a_reset_that_raises_alarm_3_says_the_position_may_be_lost() {
         error.to_string().contains("home it before the next job"),
         "{error}"
     );
+}
+
+#[test]
+fn a_boot_log_longer_than_the_banner_wait_is_waited_out_without_a_reset() {
+    // An ESP32 controller: 1.2 s of boot log, then the banner; the banner wait is 500 ms.
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.out.clear();
+    let start = std::time::Instant::now();
+    for i in 1..=4 {
+        fake.timed.push_back((
+            start + Duration::from_millis(300 * i),
+            "[MSG:INFO: booting]\r\n",
+        ));
+    }
+    fake.timed.push_back((
+        start + Duration::from_millis(1300),
+        "Grbl 3.7 [FluidNC v3.7.8]\r\n",
+    ));
+    let resets = fake.resets.clone();
+    let cutter = Cutter::connect(Box::new(fake), "esp32".into(), quick()).unwrap();
+    assert_eq!(cutter.version(), "3.7");
+    assert_eq!(
+        resets.load(Ordering::Relaxed),
+        0,
+        "never reset while it talked"
+    );
+}
+
+#[test]
+fn a_silent_controller_running_a_job_is_refused_without_a_reset() {
+    // A networked controller that does not greet, busy with another client's job.
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.out.clear();
+    fake.running = true;
+    let resets = fake.resets.clone();
+    let error = Cutter::connect(Box::new(fake), "tcp".into(), quick()).unwrap_err();
+    assert!(
+        matches!(error, CutterError::NotIdle { ref state } if state == "Run"),
+        "{error}"
+    );
+    assert_eq!(resets.load(Ordering::Relaxed), 0, "its job was not aborted");
+}
+
+#[test]
+fn a_restart_that_swallows_a_status_request_is_asked_again() {
+    // GRBL forgets a pending `?` when it resets: the first request after the banner is answered
+    // by another banner (a late one, or a restart), and the driver asks once more.
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.banners_for_status = 1;
+    let cutter = Cutter::connect(Box::new(fake), "restart".into(), quick()).unwrap();
+    assert_eq!(cutter.version(), "1.1h");
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.banners_for_status = 2;
+    let error = Cutter::connect(Box::new(fake), "restarts".into(), quick()).unwrap_err();
+    assert!(matches!(error, CutterError::Restarted), "{error}");
 }
 
 #[test]

@@ -26,6 +26,11 @@ const ACCELERATION_SETTINGS: [u16; 2] = [120, 121];
 const HOLD_WAIT_MAX: Duration = Duration::from_secs(60);
 /// How long one soft reset is given to bring the banner before it is sent again.
 const RESET_RETRY: Duration = Duration::from_millis(500);
+/// While a controller talks without its banner yet (a boot log), the banner is waited for
+/// until it has been quiet this long...
+const BOOT_LOG_QUIET: Duration = Duration::from_millis(500);
+/// ...but no longer than this past the usual wait.
+const BOOT_LOG_MAX: Duration = Duration::from_secs(15);
 /// How many unrecognised lines a failed connection reports.
 const SEEN_KEPT: usize = 8;
 /// The line every program is closed with: laser off. Under M3 GRBL keeps the beam on at rest
@@ -203,6 +208,9 @@ impl Cutter {
     fn handshake(&mut self) -> Result<(), CutterError> {
         let mut seen = Vec::new();
         if !self.await_banner(self.options.banner_wait, &mut seen)? {
+            // A networked controller need not greet, and may be running another client's job:
+            // a reset would abort it, so ask first.
+            self.refuse_if_busy(&mut seen)?;
             self.write(&[SOFT_RESET])?;
             if !self.await_banner(self.options.reply_timeout, &mut seen)? {
                 let waited = self.options.banner_wait + self.options.reply_timeout;
@@ -229,6 +237,27 @@ impl Cutter {
         }
         self.read_settings()?;
         self.check_laser_mode()
+    }
+
+    /// Before waking a silent controller with a reset: refuse one that reports it is busy (a
+    /// job, a hold, homing), without resetting it.
+    fn refuse_if_busy(&mut self, seen: &mut Vec<String>) -> Result<(), CutterError> {
+        self.write(b"?")?;
+        let deadline = Instant::now() + self.options.reply_timeout;
+        while let Some(line) = self.read_line(deadline)? {
+            if let Reply::Status(status) = parse_reply(&line) {
+                return match status.state {
+                    MachineState::Idle | MachineState::Alarm | MachineState::Sleep => Ok(()),
+                    state => Err(CutterError::NotIdle {
+                        state: state.to_string(),
+                    }),
+                };
+            }
+            if seen.len() < SEEN_KEPT {
+                seen.push(line);
+            }
+        }
+        Ok(())
     }
 
     /// Why the controller is in alarm, from what it said since the banner.
@@ -275,15 +304,21 @@ impl Cutter {
         })
     }
 
-    /// Read until the banner comes (true) or `wait` passes (false); other lines go to `seen`.
+    /// Read until the banner comes (true) or `wait` passes with nothing said for
+    /// [`BOOT_LOG_QUIET`] (false): an ESP32 controller prints seconds of boot log before its
+    /// banner, so each line extends the wait (by at most [`BOOT_LOG_MAX`] in all). Other lines go
+    /// to `seen`.
     fn await_banner(
         &mut self,
         wait: Duration,
         seen: &mut Vec<String>,
     ) -> Result<bool, CutterError> {
-        let deadline = Instant::now() + wait;
+        let started = Instant::now();
+        let latest = started + wait + BOOT_LOG_MAX;
+        let mut deadline = started + wait;
         let mut alarm = None;
         while let Some(line) = self.read_line(deadline)? {
+            deadline = deadline.max((Instant::now() + BOOT_LOG_QUIET).min(latest));
             match parse_reply(&line) {
                 Reply::Banner(version) => {
                     self.version = version;
@@ -306,14 +341,24 @@ impl Cutter {
     }
 
     /// Ask for a status report and wait for it.
+    ///
+    /// A banner instead (a late one, or a restart: GRBL forgets a pending `?` when it resets)
+    /// makes it ask once more; a second banner is [`CutterError::Restarted`].
     pub fn status(&mut self) -> Result<Status, CutterError> {
-        self.write(b"?")?;
-        let deadline = Instant::now() + self.options.reply_timeout;
-        while let Some(line) = self.read_line(deadline)? {
-            match parse_reply(&line) {
-                Reply::Status(status) => return Ok(self.in_mm(status)),
-                Reply::Alarm(_) | Reply::Message(_) => self.notes.push(line),
-                _ => {}
+        for attempt in 0..2 {
+            self.write(b"?")?;
+            let deadline = Instant::now() + self.options.reply_timeout;
+            while let Some(line) = self.read_line(deadline)? {
+                match parse_reply(&line) {
+                    Reply::Status(status) => return Ok(self.in_mm(status)),
+                    Reply::Banner(_) if attempt > 0 => return Err(CutterError::Restarted),
+                    Reply::Banner(version) => {
+                        self.version = version;
+                        break;
+                    }
+                    Reply::Alarm(_) | Reply::Message(_) => self.notes.push(line),
+                    _ => {}
+                }
             }
         }
         Err(self.silent("waiting for a status report"))
@@ -332,13 +377,24 @@ impl Cutter {
     /// Send one command line of the driver's own (a `$` command: nothing else may be
     /// unanswered) and wait for its `ok`; the lines that came before it. Private: a motion line
     /// would return with the machine still moving, and `?`/`!` in the text would act at once.
+    ///
+    /// A banner instead (the controller restarted and lost the line) sends it once more: the
+    /// driver's commands do the same when repeated.
     fn command(&mut self, line: &str) -> Result<Vec<String>, CutterError> {
         self.write(format!("{line}\n").as_bytes())?;
-        let deadline = Instant::now() + self.options.reply_timeout;
+        let mut deadline = Instant::now() + self.options.reply_timeout;
         let mut said = Vec::new();
+        let mut resent = false;
         while let Some(reply) = self.read_line(deadline)? {
             match parse_reply(&reply) {
                 Reply::Ok => return Ok(said),
+                Reply::Banner(_) if resent => return Err(CutterError::Restarted),
+                Reply::Banner(_) => {
+                    resent = true;
+                    said.clear();
+                    self.write(format!("{line}\n").as_bytes())?;
+                    deadline = Instant::now() + self.options.reply_timeout;
+                }
                 Reply::Error(code) => {
                     return Err(CutterError::Protocol(format!(
                         "`{line}` was refused with error:{code}: {}",
