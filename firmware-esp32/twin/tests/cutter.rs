@@ -159,6 +159,31 @@ fn a_spindle_change_waits_for_the_planner_to_empty_and_lines_behind_it_wait_too(
 }
 
 #[test]
+fn check_mode_answers_every_line_and_moves_nothing() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    assert_eq!(line(&mut grbl, "$C"), "[MSG:Enabled]\r\nok\r\n");
+    for l in ["M4 S800", "G1 X10 F600", "M5"] {
+        assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
+    }
+    assert_eq!(line(&mut grbl, "G2 X20"), "error:35\r\n");
+    grbl.receive(b"?");
+    assert!(said(&mut grbl).starts_with("<Check|MPos:0.000,0.000,0.000|"));
+    grbl.advance_us(5_000_000);
+    let exit = line(&mut grbl, "$C");
+    assert_eq!(
+        exit,
+        "[MSG:Disabled]\r\nok\r\n\r\nGrbl 1.1h ['$' for help]\r\n"
+    );
+    let record = grbl.log().snapshot();
+    assert!(record.segments.is_empty(), "{:?}", record.segments);
+    assert_eq!((record.state.as_str(), record.alarms.len()), ("Idle", 0));
+    // Only from rest.
+    line(&mut grbl, "G1 X10 F600");
+    assert_eq!(line(&mut grbl, "$C"), "error:8\r\n");
+}
+
+#[test]
 fn without_laser_mode_the_spindle_fires_through_travels_and_that_is_recorded() {
     let mut grbl = cutter(CutterOptions {
         laser_mode: false,

@@ -99,6 +99,8 @@ pub struct Grbl {
     /// The alarm state: the code raised, or 0 when it booted locked without one.
     pub(super) alarm: Option<u8>,
     critical: bool,
+    /// Check mode (`$C`): lines are parsed and answered, nothing moves.
+    pub(super) check_mode: bool,
     gcode_lines: u32,
     motion_us: u64,
 }
@@ -123,6 +125,7 @@ impl Grbl {
             hold: Hold::None,
             alarm: options.boot_in_alarm.then_some(0),
             critical: false,
+            check_mode: false,
             gcode_lines: 0,
             motion_us: 0,
         };
@@ -318,6 +321,7 @@ impl Grbl {
     pub fn state_name(&self) -> &'static str {
         match (self.alarm, self.hold) {
             (Some(_), _) => "Alarm",
+            (None, _) if self.check_mode => "Check",
             (None, Hold::Complete) => "Hold:0",
             (None, Hold::Decelerating { .. }) => "Hold:1",
             (None, Hold::None) if self.busy() => "Run",
@@ -390,7 +394,7 @@ impl Grbl {
     }
 
     /// Ctrl-X: stop everything, laser off; an alarm when it stops motion.
-    fn soft_reset(&mut self) {
+    pub(super) fn soft_reset(&mut self) {
         let moving = matches!(self.hold, Hold::None | Hold::Decelerating { .. }) && self.busy();
         if moving && self.alarm.is_none() {
             self.raise(ALARM_ABORT_CYCLE);
@@ -402,6 +406,7 @@ impl Grbl {
         self.pending = None;
         self.hold = Hold::None;
         self.critical = false;
+        self.check_mode = false;
         self.plan_pos = self.machine_pos;
         self.modal = Modal::default();
         self.log.lock().resets += 1;
@@ -490,6 +495,14 @@ impl Grbl {
             Ok(plan) => plan,
             Err(code) => return Some(error(code)),
         };
+        if self.check_mode {
+            // Checked, and the parser's state moves on; nothing is queued.
+            self.modal = plan.modal;
+            if let Some(m) = plan.step {
+                self.plan_pos = m.end;
+            }
+            return Some(ok());
+        }
         let full = plan.step.is_some() && self.queue.len() >= PLANNER_BLOCKS;
         if full || (plan.sync && self.busy()) {
             return None;

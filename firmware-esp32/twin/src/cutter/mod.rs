@@ -19,7 +19,9 @@
 //!   M4 M5 (M7–M9 accepted), F S X Y Z I J P N. Anything else is `error:20`; the other checks
 //!   give GRBL's codes (missing feed `error:22`, arc end off its circle `error:33`, ...).
 //! - `$` commands: `$$` (settings), `$N=V`, `$X` (unlock), `$G` (parser state), `$I` (build
-//!   info), `$` (help); `$H` is `error:5` (no homing); others `error:3`.
+//!   info), `$` (help), `$C` (check mode: every line parsed and answered, state `Check`,
+//!   nothing moves; toggled off with a soft reset, as GRBL does); `$H` is `error:5` (no
+//!   homing); others `error:3`.
 //! - Motion ([`motion`]): each move at its programmed feed (travels at `$110`), no acceleration;
 //!   G4 waits for the queue to empty, then dwells as a block (real GRBL answers `ok` only after
 //!   the dwell). M2/M30 wait for the queue to empty, then reset the modal state (M5, G90).
