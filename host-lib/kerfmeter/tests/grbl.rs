@@ -91,7 +91,7 @@ fn a_greedy_sender_is_caught_by_the_twin() {
 }
 
 #[test]
-fn a_refused_line_is_reported_with_its_number_text_and_meaning_and_the_laser_is_off() {
+fn a_refused_line_is_found_by_the_check_pass_before_anything_moves() {
     // The 7th G-code line (file line 8: the first is a comment) gets error:33.
     let mut cutter = sim(SimCutterOptions {
         error_on_line: Some((7, 33)),
@@ -100,7 +100,7 @@ fn a_refused_line_is_reported_with_its_number_text_and_meaning_and_the_laser_is_
     let program = format!("; a job\n{}", squares(10, 12));
     let error = stream(&mut cutter, &program).unwrap_err();
     assert!(matches!(error, CutterError::Stopped { .. }), "{error}");
-    let CutterError::Rejected {
+    let CutterError::CheckRejected {
         line,
         ref text,
         code,
@@ -114,11 +114,89 @@ fn a_refused_line_is_reported_with_its_number_text_and_meaning_and_the_laser_is_
         message.contains("its end is not on its circle"),
         "{message}"
     );
-    assert!(message.contains("laser is off"), "{message}");
+    assert!(message.contains("Nothing was cut"), "{message}");
+    let record = log(&cutter).snapshot();
+    assert!(record.segments.is_empty(), "{:?}", record.segments);
+    assert_eq!((record.state.as_str(), record.laser_power_s), ("Idle", 0.0));
+}
+
+#[test]
+fn a_refused_line_while_cutting_is_reported_and_the_cutter_stopped() {
+    // Without the check pass the refusal comes mid-job (the 17th G-code line, a cut).
+    let mut cutter = Cutter::sim(
+        SimCutterOptions {
+            error_on_line: Some((17, 33)),
+            ..SimCutterOptions::default()
+        },
+        ConnectOptions {
+            check_first: false,
+            ..options()
+        },
+    )
+    .unwrap();
+    let error = stream(&mut cutter, &squares(10, 12)).unwrap_err();
+    let CutterError::Rejected {
+        line: 17, code: 33, ..
+    } = error.cause()
+    else {
+        panic!("{error}");
+    };
+    assert!(
+        error
+            .to_string()
+            .ends_with("The cutter was stopped and the laser is off"),
+        "{error}"
+    );
     let record = log(&cutter).snapshot();
     assert_eq!(record.laser_power_s, 0.0);
     assert!(record.resets >= 1, "stopped with a soft reset");
     assert_ne!(record.state, "Run");
+}
+
+/// A cut, a spindle change that waits for it, and a travel that is refused: the lines behind it
+/// are in GRBL's receive buffer already.
+const REFUSED_TRAVEL: &str = "G21 G90\nM4 S0\nG0 X0 Y0\nG1 X10 S800 F3000\nM5\nG0 X50 Y50\nM4\nG1 X60 Y50 S800\nG1 X60 Y60\nM5\n";
+
+#[test]
+fn a_refused_travel_cuts_from_the_old_point_unless_the_check_pass_finds_it_first() {
+    // Line 6, the travel to (50, 50), is refused.
+    let twin = SimCutterOptions {
+        error_on_line: Some((6, 20)),
+        ..SimCutterOptions::default()
+    };
+    let collateral = |record: &kerfmeter_twin::cutter::CutterRecord| {
+        record
+            .segments
+            .iter()
+            .filter(|s| s.power_s > 0.0 && s.line > 6)
+            .count()
+    };
+    // Streaming alone: GRBL parses on before the stop arrives, and the next cut starts from
+    // (10, 0), across the work. The twin reproduces the hazard.
+    let unchecked = ConnectOptions {
+        check_first: false,
+        ..options()
+    };
+    let mut cutter = Cutter::sim(twin, unchecked).unwrap();
+    let error = stream(&mut cutter, REFUSED_TRAVEL).unwrap_err();
+    assert!(
+        matches!(error.cause(), CutterError::Rejected { line: 6, .. }),
+        "{error}"
+    );
+    assert!(
+        collateral(&log(&cutter).snapshot()) > 0,
+        "the hazard is staged"
+    );
+    // With the check pass (the default) the refusal comes before anything moves.
+    let mut cutter = sim(twin);
+    let error = stream(&mut cutter, REFUSED_TRAVEL).unwrap_err();
+    assert!(
+        matches!(error.cause(), CutterError::CheckRejected { line: 6, .. }),
+        "{error}"
+    );
+    let record = log(&cutter).snapshot();
+    assert_eq!(collateral(&record), 0);
+    assert!(record.segments.is_empty(), "{:?}", record.segments);
 }
 
 #[test]
@@ -387,11 +465,12 @@ impl Read for Scripted {
     }
 }
 
-/// Quick to give up.
+/// Quick to give up; no check pass (the fake does not emulate `$C`).
 fn quick() -> ConnectOptions {
     ConnectOptions {
         reply_timeout: Duration::from_millis(200),
         silence_timeout: Duration::from_millis(300),
+        check_first: false,
         ..options()
     }
 }

@@ -38,6 +38,11 @@ pub struct CutArgs {
     /// keeps a laser on through every travel move.
     #[arg(long)]
     pub allow_without_laser_mode: bool,
+    /// Skip the check pass: by default the whole program first runs through GRBL's check mode
+    /// (`$C`: parsed and answered, nothing moves), because a line GRBL refuses mid-job is
+    /// followed by lines it has already read, which can cut from the wrong point.
+    #[arg(long)]
+    pub no_check: bool,
 }
 
 /// What `cut` did.
@@ -88,6 +93,7 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
     let options = ConnectOptions {
         unlock: args.unlock,
         allow_without_laser_mode: args.allow_without_laser_mode,
+        check_first: !args.no_check,
         ..ConnectOptions::default()
     };
     let mut cutter = Cutter::open_cancellable(&args.cutter, options, cancel.clone())?;

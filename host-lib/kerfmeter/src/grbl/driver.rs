@@ -54,6 +54,9 @@ pub struct ConnectOptions {
     pub poll_interval: Duration,
     /// How long the controller may say nothing at all while streaming before it is given up.
     pub silence_timeout: Duration,
+    /// Run the whole program through GRBL's check mode (`$C`) before cutting it, so that a line
+    /// it refuses is found before anything moves (see [`Cutter::stream`]).
+    pub check_first: bool,
 }
 
 impl Default for ConnectOptions {
@@ -65,6 +68,7 @@ impl Default for ConnectOptions {
             reply_timeout: Duration::from_secs(2),
             poll_interval: Duration::from_millis(200),
             silence_timeout: Duration::from_secs(5),
+            check_first: true,
         }
     }
 }
@@ -436,10 +440,14 @@ impl Cutter {
             number: program.lines().count() + 1,
             text: CLOSING_LINE.into(),
         });
-        let mut streamer = Streamer::new(lines);
         self.in_job = true;
-        let result = self
-            .stream_lines(&mut streamer, cancel, progress)
+        let checked = match self.options.check_first {
+            true => self.check_program(&lines, cancel),
+            false => Ok(()),
+        };
+        let mut streamer = Streamer::new(lines);
+        let result = checked
+            .and_then(|()| self.stream_lines(&mut streamer, cancel, progress))
             .and_then(|report| self.confirm_laser_off().map(|()| report));
         let result = result
             .map(|report| StreamReport {
@@ -456,6 +464,78 @@ impl Cutter {
             .map_err(|e| self.stop_after(e));
         self.in_job = false;
         result
+    }
+
+    /// The check pass: the program through check mode (`$C`), where GRBL parses and answers
+    /// every line and moves nothing; the first refused line is
+    /// [`CutterError::CheckRejected`]. Check mode is left (`$C` again: a soft reset) whatever
+    /// happened.
+    fn check_program(
+        &mut self,
+        lines: &[ProgramLine],
+        cancel: &AtomicBool,
+    ) -> Result<(), CutterError> {
+        self.command("$C")?;
+        let refused = self.check_lines(lines, cancel);
+        let left = self.leave_check_mode();
+        match (refused?, left) {
+            (Some((line, text, code)), _) => Err(CutterError::CheckRejected { line, text, code }),
+            (None, left) => left,
+        }
+    }
+
+    /// Stream `lines` in check mode by character counting; the first refused line, if any.
+    fn check_lines(
+        &mut self,
+        lines: &[ProgramLine],
+        cancel: &AtomicBool,
+    ) -> Result<Option<(usize, String, u8)>, CutterError> {
+        let mut streamer = Streamer::new(lines.to_vec());
+        let mut refused = None;
+        let mut last_heard = Instant::now();
+        while !streamer.done() {
+            if cancel.load(Ordering::Relaxed) {
+                let total = streamer.total().saturating_sub(1);
+                return Err(CutterError::Cancelled { answered: 0, total });
+            }
+            while let Some(bytes) = streamer.next_to_send() {
+                self.write(&bytes)?;
+            }
+            let replies = self.read_available()?;
+            if !replies.is_empty() {
+                last_heard = Instant::now();
+            }
+            for reply in replies {
+                let unexpected = || CutterError::Protocol(format!("`{reply}` answered no line"));
+                match parse_reply(&reply) {
+                    Reply::Ok => {
+                        streamer.answer().map_err(|_| unexpected())?;
+                    }
+                    Reply::Error(code) => {
+                        let line = streamer.answer().map_err(|_| unexpected())?;
+                        refused.get_or_insert((line.number, line.text.clone(), code));
+                    }
+                    Reply::Alarm(code) => return Err(CutterError::Alarm { code, after: None }),
+                    Reply::Banner(_) => return Err(CutterError::Restarted),
+                    _ => {}
+                }
+            }
+            if last_heard.elapsed() > self.options.silence_timeout {
+                return Err(self.silent("checking the program"));
+            }
+        }
+        Ok(refused)
+    }
+
+    /// `$C` again: GRBL answers `ok`, then resets (its banner).
+    fn leave_check_mode(&mut self) -> Result<(), CutterError> {
+        self.command("$C")?;
+        let mut seen = Vec::new();
+        if self.await_banner(self.options.reply_timeout, &mut seen)? {
+            Ok(())
+        } else {
+            Err(self.silent("waiting for the reset that leaves check mode"))
+        }
     }
 
     /// After the closing `M5`: the parser state must say M5 and the status spindle 0.

@@ -107,6 +107,19 @@ pub enum CutterError {
         /// The `error:N` code.
         code: u8,
     },
+    /// The check pass (`$C`) found a line the controller refuses; nothing moved.
+    #[error(
+        "the cutter's check pass ($C) refused line {line} ({text}) with error:{code}: {}. Nothing was cut",
+        describe_error(*code)
+    )]
+    CheckRejected {
+        /// Its line number in the file.
+        line: usize,
+        /// The line as sent.
+        text: String,
+        /// The `error:N` code.
+        code: u8,
+    },
     /// The controller raised an alarm during the job.
     #[error(
         "the cutter raised ALARM:{code} during the job: {}. {}",
@@ -191,6 +204,7 @@ impl CutterError {
             | Self::NotIdle { .. }
             | Self::LaserModeOff { .. }
             | Self::Rejected { .. }
+            | Self::CheckRejected { .. }
             | Self::Alarm { .. }
             | Self::Cancelled { .. }
             | Self::ConnectCancelled { .. }
