@@ -628,6 +628,17 @@ fn a_restart_that_swallows_a_status_request_is_asked_again() {
 }
 
 #[test]
+fn noise_without_line_ends_is_a_wrong_baud_rate_not_a_growing_buffer() {
+    let mut fake = Scripted::new(0, false);
+    fake.out = std::iter::repeat_n(b'\xfe', 10_000).collect();
+    let error = Cutter::connect(Box::new(fake), "noise".into(), quick()).unwrap_err();
+    assert!(
+        error.to_string().contains("is the baud rate right?"),
+        "{error}"
+    );
+}
+
+#[test]
 fn a_grbl_older_than_1_1_is_refused() {
     let mut fake = Scripted::new(0, false);
     fake.out = b"\r\nGrbl 0.9j ['$' for help]\r\n"

@@ -31,6 +31,12 @@ const RESET_RETRY: Duration = Duration::from_millis(500);
 const BOOT_LOG_QUIET: Duration = Duration::from_millis(500);
 /// ...but no longer than this past the usual wait.
 const BOOT_LOG_MAX: Duration = Duration::from_secs(15);
+/// A command's answer is waited for while it comes, up to this many reply timeouts.
+const COMMAND_WAIT_MAX_REPLIES: u32 = 10;
+/// Alarm and message lines kept for a later error.
+const NOTES_KEPT: usize = 32;
+/// The most bytes kept without a line end (GRBL's longest line is far shorter).
+const INCOMING_MAX: usize = 4096;
 /// How many unrecognised lines a failed connection reports.
 const SEEN_KEPT: usize = 8;
 /// The line every program is closed with: laser off. Under M3 GRBL keeps the beam on at rest
@@ -332,9 +338,9 @@ impl Cutter {
                 }
                 Reply::Alarm(code) => {
                     alarm = Some(code);
-                    self.notes.push(line.clone());
+                    self.note(line.clone());
                 }
-                Reply::Message(_) => self.notes.push(line.clone()),
+                Reply::Message(_) => self.note(line.clone()),
                 _ => {}
             }
             if seen.len() < SEEN_KEPT {
@@ -360,7 +366,7 @@ impl Cutter {
                         self.version = version;
                         break;
                     }
-                    Reply::Alarm(_) | Reply::Message(_) => self.notes.push(line),
+                    Reply::Alarm(_) | Reply::Message(_) => self.note(line),
                     _ => {}
                 }
             }
@@ -387,6 +393,7 @@ impl Cutter {
     fn command(&mut self, line: &str) -> Result<Vec<String>, CutterError> {
         self.write(format!("{line}\n").as_bytes())?;
         let mut deadline = Instant::now() + self.options.reply_timeout;
+        let latest = Instant::now() + COMMAND_WAIT_MAX_REPLIES * self.options.reply_timeout;
         let mut said = Vec::new();
         let mut resent = false;
         while let Some(reply) = self.read_line(deadline)? {
@@ -405,8 +412,20 @@ impl Cutter {
                         super::codes::describe_error(code)
                     )));
                 }
+                Reply::Alarm(code) if !self.in_job => {
+                    return Err(CutterError::AlarmAtConnect {
+                        code: Some(code),
+                        reason: super::codes::describe_alarm(code).to_owned(),
+                    });
+                }
                 Reply::Alarm(code) => return Err(CutterError::Alarm { code, after: None }),
-                _ => said.push(reply),
+                _ => {
+                    // A long answer (`$$` on grblHAL is over 150 lines) is waited for while it
+                    // comes, within bounds.
+                    deadline =
+                        deadline.max((Instant::now() + self.options.reply_timeout).min(latest));
+                    said.push(reply);
+                }
             }
         }
         Err(self.silent("waiting for a command's `ok`"))
@@ -521,7 +540,7 @@ impl Cutter {
                 }
             }
             if last_heard.elapsed() > self.options.silence_timeout {
-                return Err(self.silent("checking the program"));
+                return Err(self.silent_for("checking the program", self.options.silence_timeout));
             }
         }
         Ok(refused)
@@ -618,7 +637,7 @@ impl Cutter {
                 });
             }
             if last_heard.elapsed() > self.options.silence_timeout {
-                return Err(self.silent("streaming"));
+                return Err(self.silent_for("streaming", self.options.silence_timeout));
             }
         }
     }
@@ -778,10 +797,15 @@ impl Cutter {
         }
     }
 
+    /// The controller said nothing for the reply timeout while the driver was `doing`.
     fn silent(&self, doing: &'static str) -> CutterError {
+        self.silent_for(doing, self.options.reply_timeout)
+    }
+
+    fn silent_for(&self, doing: &'static str, waited: Duration) -> CutterError {
         CutterError::Silent {
             address: self.address.clone(),
-            waited_ms: self.options.reply_timeout.as_millis() as u64,
+            waited_ms: waited.as_millis() as u64,
             doing,
         }
     }
@@ -796,7 +820,16 @@ impl Cutter {
             })
     }
 
-    /// One read slice into the incoming bytes.
+    /// Keep an alarm or message line for a later error (the last [`NOTES_KEPT`]).
+    fn note(&mut self, line: String) {
+        if self.notes.len() >= NOTES_KEPT {
+            self.notes.remove(0);
+        }
+        self.notes.push(line);
+    }
+
+    /// One read slice into the incoming bytes. Bytes without a line end beyond
+    /// [`INCOMING_MAX`] are an error (a wrong baud rate reads as noise without newlines).
     fn fill(&mut self) -> Result<(), CutterError> {
         let mut buf = [0u8; 512];
         let io_error = |source| CutterError::Io {
@@ -807,6 +840,12 @@ impl Cutter {
             Ok(0) => Err(io_error(std::io::ErrorKind::UnexpectedEof.into())),
             Ok(n) => {
                 self.incoming.extend_from_slice(&buf[..n]);
+                if self.incoming.len() > INCOMING_MAX {
+                    self.incoming.clear();
+                    return Err(CutterError::Protocol(format!(
+                        "{INCOMING_MAX} bytes came without a line end: is the baud rate right?"
+                    )));
+                }
                 Ok(())
             }
             Err(e) if is_timeout(&e) => Ok(()),

@@ -15,6 +15,8 @@ use super::error::CutterError;
 pub const DEFAULT_BAUD: u32 = 115_200;
 /// How long one read may block.
 pub(super) const READ_SLICE: Duration = Duration::from_millis(10);
+/// How long a TCP write may block (a controller that stopped reading).
+const TCP_WRITE_TIMEOUT: Duration = Duration::from_secs(1);
 /// How long a TCP connection may take to open.
 const TCP_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -122,6 +124,7 @@ pub(super) fn open_tcp(host_port: &str, cancel: &AtomicBool) -> Result<Box<dyn L
         .map_err(|e| open_error(format!("{e}. Is the controller on the network?")))?;
     stream
         .set_read_timeout(Some(READ_SLICE))
+        .and_then(|()| stream.set_write_timeout(Some(TCP_WRITE_TIMEOUT)))
         .and_then(|()| stream.set_nodelay(true))
         .map_err(|e| open_error(e.to_string()))?;
     Ok(Box::new(stream))
