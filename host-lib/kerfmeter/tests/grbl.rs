@@ -353,6 +353,8 @@ struct Scripted {
     running: bool,
     /// Soft resets received (shared, to be read after the fake is moved into a driver).
     resets: Arc<std::sync::atomic::AtomicUsize>,
+    /// After this many program lines, the machine is held (as by its feed-hold button).
+    hold_after_lines: Option<usize>,
     /// The first this many status requests are answered by a banner (a restart).
     banners_for_status: usize,
     /// Lines said later, at their time (a boot log).
@@ -375,6 +377,7 @@ impl Scripted {
             settings: "$32=1\r\n",
             running: false,
             banners_for_status: 0,
+            hold_after_lines: None,
             resets: Arc::default(),
             timed: Default::default(),
             good_lines,
@@ -427,6 +430,9 @@ impl Write for Scripted {
                 b"$$\n" => self.say(&format!("{}ok\r\n", self.settings)),
                 _ => {
                     self.lines += 1;
+                    if Some(self.lines) == self.hold_after_lines {
+                        self.held_at = Some(std::time::Instant::now());
+                    }
                     if self.lines <= self.good_lines {
                         self.say("ok\r\n");
                     } else if self.restart {
@@ -636,6 +642,39 @@ fn noise_without_line_ends_is_a_wrong_baud_rate_not_a_growing_buffer() {
         error.to_string().contains("is the baud rate right?"),
         "{error}"
     );
+}
+
+#[test]
+fn a_machine_held_past_the_hold_timeout_is_given_up_and_stopped() {
+    // Someone pressed feed hold at the machine and walked away: the status says Hold:0 forever.
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.held_at = Some(std::time::Instant::now());
+    let mut cutter = Cutter::connect(
+        Box::new(fake),
+        "held".into(),
+        ConnectOptions {
+            hold_timeout: Some(Duration::from_millis(300)),
+            ..quick()
+        },
+    );
+    // Held from the start: the connect refuses it as not idle.
+    assert!(matches!(cutter, Err(CutterError::NotIdle { .. })));
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.hold_after_lines = Some(1);
+    cutter = Cutter::connect(
+        Box::new(fake),
+        "held".into(),
+        ConnectOptions {
+            hold_timeout: Some(Duration::from_millis(300)),
+            ..quick()
+        },
+    );
+    let error = stream(cutter.as_mut().unwrap(), "G1X1F100\nG1X2\n").unwrap_err();
+    assert!(
+        matches!(error.cause(), CutterError::HeldTooLong { state, .. } if state == "Hold:0"),
+        "{error}"
+    );
+    assert!(error.to_string().contains("laser is off"), "{error}");
 }
 
 #[test]

@@ -43,6 +43,10 @@ pub struct CutArgs {
     /// followed by lines it has already read, which can cut from the wrong point.
     #[arg(long)]
     pub no_check: bool,
+    /// Give the job up (and stop the cutter) once the machine has been held (feed hold, door
+    /// open) this long, s. By default a held job waits for cycle start or Ctrl-C.
+    #[arg(long, value_name = "SECONDS")]
+    pub hold_timeout_s: Option<f64>,
 }
 
 /// What `cut` did.
@@ -90,12 +94,7 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
     // With ctrlc's "termination" feature this also catches SIGTERM and SIGHUP.
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
         .map_err(|e| CliError::Usage(format!("cannot take over Ctrl-C: {e}")))?;
-    let options = ConnectOptions {
-        unlock: args.unlock,
-        allow_without_laser_mode: args.allow_without_laser_mode,
-        check_first: !args.no_check,
-        ..ConnectOptions::default()
-    };
+    let options = connect_options(args)?;
     let mut cutter = Cutter::open_cancellable(&args.cutter, options, cancel.clone())?;
     if !g.json {
         eprintln!(
@@ -115,6 +114,27 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         lines: report.lines,
         elapsed_s: report.elapsed.as_secs_f64(),
         max_unanswered_bytes: report.max_unanswered_bytes,
+    })
+}
+
+/// The driver's options from the flags.
+fn connect_options(args: &CutArgs) -> Result<ConnectOptions, CliError> {
+    let hold_timeout = args
+        .hold_timeout_s
+        .map(|s| {
+            Duration::try_from_secs_f64(s).map_err(|_| {
+                CliError::Usage(format!(
+                    "--hold-timeout-s {s}: give a number of seconds ≥ 0"
+                ))
+            })
+        })
+        .transpose()?;
+    Ok(ConnectOptions {
+        hold_timeout,
+        unlock: args.unlock,
+        allow_without_laser_mode: args.allow_without_laser_mode,
+        check_first: !args.no_check,
+        ..ConnectOptions::default()
     })
 }
 

@@ -63,6 +63,9 @@ pub struct ConnectOptions {
     /// Run the whole program through GRBL's check mode (`$C`) before cutting it, so that a line
     /// it refuses is found before anything moves (see [`Cutter::stream`]).
     pub check_first: bool,
+    /// Give up a job (stopping the cutter) once the machine has been held (feed hold, door
+    /// open) this long; `None`: wait for cycle start or a cancel, however long.
+    pub hold_timeout: Option<Duration>,
 }
 
 impl Default for ConnectOptions {
@@ -75,6 +78,7 @@ impl Default for ConnectOptions {
             poll_interval: Duration::from_millis(200),
             silence_timeout: Duration::from_secs(5),
             check_first: true,
+            hold_timeout: None,
         }
     }
 }
@@ -595,6 +599,7 @@ impl Cutter {
         let mut max_unanswered_bytes = 0;
         let mut idle_reports_after_done = 0;
         let mut status = None;
+        let mut held_since = None;
         loop {
             if cancel.load(Ordering::Relaxed) {
                 return Err(CutterError::Cancelled {
@@ -639,7 +644,32 @@ impl Cutter {
             if last_heard.elapsed() > self.options.silence_timeout {
                 return Err(self.silent_for("streaming", self.options.silence_timeout));
             }
+            self.check_hold(status.as_ref(), &mut held_since)?;
         }
+    }
+
+    /// A machine held (feed hold, door) for longer than [`ConnectOptions::hold_timeout`] is
+    /// [`CutterError::HeldTooLong`]; `held_since` tracks when the hold began.
+    fn check_hold(
+        &self,
+        status: Option<&Status>,
+        held_since: &mut Option<Instant>,
+    ) -> Result<(), CutterError> {
+        let held = status
+            .map(|s| &s.state)
+            .filter(|state| matches!(state, MachineState::Hold(_) | MachineState::Door(_)));
+        let (Some(state), Some(limit)) = (held, self.options.hold_timeout) else {
+            *held_since = None;
+            return Ok(());
+        };
+        let since = *held_since.get_or_insert_with(Instant::now);
+        if since.elapsed() > limit {
+            return Err(CutterError::HeldTooLong {
+                state: state.to_string(),
+                waited_ms: limit.as_millis() as u64,
+            });
+        }
+        Ok(())
     }
 
     /// Send every line that fits, and a status request when one is due; the bytes unanswered.

@@ -120,6 +120,16 @@ pub enum CutterError {
         /// The `error:N` code.
         code: u8,
     },
+    /// The machine stayed held (feed hold, door open) longer than the hold timeout.
+    #[error(
+        "the cutter stayed held ({state}) for {waited_ms} ms: nobody pressed cycle start, so the job was given up"
+    )]
+    HeldTooLong {
+        /// Its state.
+        state: String,
+        /// The hold timeout, ms.
+        waited_ms: u64,
+    },
     /// The controller raised an alarm during the job.
     #[error(
         "the cutter raised ALARM:{code} during the job: {}. {}",
@@ -205,6 +215,7 @@ impl CutterError {
             | Self::LaserModeOff { .. }
             | Self::Rejected { .. }
             | Self::CheckRejected { .. }
+            | Self::HeldTooLong { .. }
             | Self::Alarm { .. }
             | Self::Cancelled { .. }
             | Self::ConnectCancelled { .. }
