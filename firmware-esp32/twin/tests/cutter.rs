@@ -236,10 +236,24 @@ fn a_feed_hold_stops_the_laser_and_a_reset_after_it_keeps_the_position() {
     grbl.receive(b"?");
     assert!(said(&mut grbl).starts_with("<Hold:0|MPos:15.000,"));
     assert_eq!(grbl.log().snapshot().laser_power_s, 0.0);
-    grbl.receive(&[SOFT_RESET, b'?']);
+    grbl.receive(&[SOFT_RESET]);
+    grbl.receive(b"?");
     let reply = said(&mut grbl);
     assert!(!reply.contains("ALARM"), "{reply}");
     assert!(reply.contains("<Idle|MPos:15.000,"), "{reply}");
+}
+
+#[test]
+fn bytes_that_come_with_a_reset_after_it_are_lost() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    grbl.receive(b"\x18G1X10F600\n?");
+    let reply = said(&mut grbl);
+    assert_eq!(
+        reply, "\r\nGrbl 1.1h ['$' for help]\r\n",
+        "no ok, no status"
+    );
+    assert_eq!(line(&mut grbl, "G1X10F600"), "ok\r\n");
 }
 
 #[test]

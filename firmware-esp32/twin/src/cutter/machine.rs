@@ -155,7 +155,9 @@ impl Grbl {
     }
 
     /// Bytes from the sender: realtime commands act at once, the rest goes to the receive buffer
-    /// (lost, and recorded, when it is full); then whatever lines can run, run.
+    /// (lost, and recorded, when it is full); then whatever lines can run, run. Bytes that come
+    /// with a soft reset, after it, are lost, realtime ones too: GRBL flushes its receive buffer
+    /// and clears pending realtime requests when it re-initialises.
     pub fn receive(&mut self, bytes: &[u8]) {
         let mut lost_bytes = 0;
         for &b in bytes {
@@ -165,7 +167,10 @@ impl Grbl {
                 b'?' => self.status_report(),
                 b'!' => self.feed_hold(),
                 b'~' => self.resume(),
-                SOFT_RESET => self.soft_reset(),
+                SOFT_RESET => {
+                    self.soft_reset();
+                    break;
+                }
                 // GRBL's extended realtime commands (overrides): not emulated, never buffered.
                 0x80.. => {}
                 _ if self.rx.len() >= RX_BUFFER_LEN => lost_bytes += 1,

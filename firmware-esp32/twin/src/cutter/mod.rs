@@ -36,7 +36,8 @@
 //! - Feed hold, resume and soft reset. A reset during motion (running, or a hold still
 //!   decelerating) raises `ALARM:3` as GRBL does: the position may be lost. A reset at a
 //!   completed hold or at rest keeps the position. Every reset turns the laser off, empties the
-//!   queue and the buffer, prints the banner, and keeps an alarm until `$X`.
+//!   queue and the buffer (bytes sent with the reset, after it, are lost, realtime ones too, as GRBL
+//!   re-initialising loses them), prints the banner, and keeps an alarm until `$X`.
 //! - Injected faults ([`CutterOptions`]): boot in alarm (as a machine with homing enabled), a
 //!   hard limit after some motion time (`ALARM:1`, then nothing but a reset is heard, not even
 //!   `?`, as in GRBL's code), an
