@@ -253,12 +253,14 @@ fn an_alarm_mid_job_stops_and_is_reported_with_the_laser_off() {
     let CutterError::Alarm {
         code: 1,
         after: Some((line, _)),
+        last_position_mm: Some(_),
     } = error.cause()
     else {
         panic!("{error}");
     };
     assert!(*line > 3, "{error}");
     assert!(error.to_string().contains("hard limit"), "{error}");
+    assert!(error.to_string().contains("had the head at X"), "{error}");
     assert!(error.to_string().ends_with("laser is off"), "{error}");
     let record = log(&cutter).snapshot();
     assert_eq!(record.laser_power_s, 0.0);

@@ -422,7 +422,13 @@ impl Cutter {
                         reason: super::codes::describe_alarm(code).to_owned(),
                     });
                 }
-                Reply::Alarm(code) => return Err(CutterError::Alarm { code, after: None }),
+                Reply::Alarm(code) => {
+                    return Err(CutterError::Alarm {
+                        code,
+                        after: None,
+                        last_position_mm: None,
+                    });
+                }
                 _ => {
                     // A long answer (`$$` on grblHAL is over 150 lines) is waited for while it
                     // comes, within bounds.
@@ -538,7 +544,13 @@ impl Cutter {
                         let line = streamer.answer().map_err(|_| unexpected())?;
                         refused.get_or_insert((line.number, line.text.clone(), code));
                     }
-                    Reply::Alarm(code) => return Err(CutterError::Alarm { code, after: None }),
+                    Reply::Alarm(code) => {
+                        return Err(CutterError::Alarm {
+                            code,
+                            after: None,
+                            last_position_mm: None,
+                        });
+                    }
                     Reply::Banner(_) => return Err(CutterError::Restarted),
                     _ => {}
                 }
@@ -614,7 +626,8 @@ impl Cutter {
                 last_heard = Instant::now();
             }
             for line in lines {
-                let Some(s) = self.stream_reply(streamer, &line)? else {
+                let reply = self.stream_reply(streamer, &line);
+                let Some(s) = reply.map_err(|e| located(e, status.as_ref()))? else {
                     continue;
                 };
                 // Idle twice after the last `ok`: the first report may predate the last block's
@@ -709,7 +722,11 @@ impl Cutter {
             }
             Reply::Alarm(code) => {
                 let after = streamer.last_answered().map(|l| (l.number, l.text.clone()));
-                return Err(CutterError::Alarm { code, after });
+                return Err(CutterError::Alarm {
+                    code,
+                    after,
+                    last_position_mm: None,
+                });
             }
             Reply::Banner(_) => return Err(CutterError::Restarted),
             Reply::Status(status) => return Ok(Some(self.in_mm(status))),
@@ -928,6 +945,18 @@ impl Drop for Cutter {
             let _ = self.link.write_all(&[b'!', SOFT_RESET]);
             let _ = self.link.flush();
         }
+    }
+}
+
+/// An alarm with the head's position from the last status report before it.
+fn located(error: CutterError, status: Option<&Status>) -> CutterError {
+    match error {
+        CutterError::Alarm { code, after, .. } => CutterError::Alarm {
+            code,
+            after,
+            last_position_mm: status.and_then(|s| s.position_mm),
+        },
+        other => other,
     }
 }
 

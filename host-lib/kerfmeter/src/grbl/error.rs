@@ -132,15 +132,18 @@ pub enum CutterError {
     },
     /// The controller raised an alarm during the job.
     #[error(
-        "the cutter raised ALARM:{code} during the job: {}. {}",
+        "the cutter raised ALARM:{code} during the job: {}. {}{}",
         describe_alarm(*code),
-        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} ({t})")).unwrap_or_else(|| "It had accepted no line yet".into())
+        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} ({t})")).unwrap_or_else(|| "It had accepted no line yet".into()),
+        last_position_mm.map(|[x, y, z]| format!(" (lines are accepted ahead of the motion; the last status report before the alarm had the head at X{x:.2} Y{y:.2} Z{z:.2} mm)")).unwrap_or_default()
     )]
     Alarm {
         /// The alarm code.
         code: u8,
         /// The last line accepted before it: file line number and text.
         after: Option<(usize, String)>,
+        /// Where the last status report before it had the head, mm (machine position).
+        last_position_mm: Option<[f64; 3]>,
     },
     /// The controller restarted during the job.
     #[error(
