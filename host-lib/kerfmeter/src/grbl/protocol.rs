@@ -222,6 +222,15 @@ impl std::fmt::Display for MachineState {
     }
 }
 
+/// The free room a status report's `Bf` field gives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BufferFree {
+    /// Free planner blocks.
+    pub planner_blocks: u32,
+    /// Free receive-buffer bytes.
+    pub rx_bytes: u32,
+}
+
 /// A status report (`<Idle|MPos:0.000,0.000,0.000|FS:0,0>`); the fields a controller leaves out
 /// are `None`.
 #[derive(Debug, Clone, PartialEq)]
@@ -235,7 +244,7 @@ pub struct Status {
     /// The spindle (laser) value now (`FS`).
     pub spindle_s: Option<f64>,
     /// Free planner blocks and free receive-buffer bytes (`Bf`).
-    pub buffer_free: Option<(u32, u32)>,
+    pub buffer_free: Option<BufferFree>,
 }
 
 impl Status {
@@ -263,7 +272,10 @@ impl Status {
                 }
                 ("F", [feed]) => status.feed_mm_per_min = Some(*feed),
                 ("Bf", [blocks, bytes]) => {
-                    status.buffer_free = Some((*blocks as u32, *bytes as u32))
+                    status.buffer_free = Some(BufferFree {
+                        planner_blocks: *blocks as u32,
+                        rx_bytes: *bytes as u32,
+                    })
                 }
                 _ => {}
             }
@@ -409,7 +421,13 @@ mod tests {
         };
         assert_eq!(s.state, MachineState::Hold(0));
         assert_eq!(s.position_mm, Some([1.0, 2.5, 0.0]));
-        assert_eq!(s.buffer_free, Some((15, 128)));
+        assert_eq!(
+            s.buffer_free,
+            Some(BufferFree {
+                planner_blocks: 15,
+                rx_bytes: 128
+            })
+        );
     }
 
     #[test]
