@@ -85,7 +85,7 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         message: format!("cannot read the G-code program: {e}"),
     })?;
     // A line that cannot be streamed is refused before the cutter is touched.
-    prepare(&program).map_err(|bad| CutterError::BadProgram {
+    let lines = prepare(&program).map_err(|bad| CutterError::BadProgram {
         line: bad.number,
         reason: bad.reason,
     })?;
@@ -105,7 +105,7 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         );
     }
     let bar = stream_bar(g.json);
-    let report = cutter.stream(&program, &cancel, &mut |p| show(&bar, p));
+    let report = cutter.stream_prepared(lines, &cancel, &mut |p| show(&bar, p));
     bar.finish_and_clear();
     let report = report?;
     Ok(CutReport {

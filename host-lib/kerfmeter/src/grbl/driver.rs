@@ -445,7 +445,7 @@ impl Cutter {
     /// is accepted and the machine is idle again. `progress` hears of each batch of replies.
     ///
     /// The program is always closed with an `M5` of the driver's own (numbered one past the
-    /// file's last line), and the stream succeeds only once the controller confirms the laser
+    /// program's last line), and the stream succeeds only once the controller confirms the laser
     /// off (`M5` in its `$G` parser state, spindle 0 in its status): under M3 GRBL keeps the beam
     /// on at rest after a cut until M5.
     ///
@@ -460,13 +460,25 @@ impl Cutter {
         cancel: &AtomicBool,
         progress: &mut dyn FnMut(&StreamProgress),
     ) -> Result<StreamReport, CutterError> {
-        let mut lines = prepare(program).map_err(|bad| CutterError::BadProgram {
+        let lines = prepare(program).map_err(|bad| CutterError::BadProgram {
             line: bad.number,
             reason: bad.reason,
         })?;
+        self.stream_prepared(lines, cancel, progress)
+    }
+
+    /// [`Cutter::stream`] for a program already cleaned by [`prepare`] (a caller that checked
+    /// it before connecting need not clean it twice). The closing `M5` is numbered one past the
+    /// last line.
+    pub fn stream_prepared(
+        &mut self,
+        mut lines: Vec<ProgramLine>,
+        cancel: &AtomicBool,
+        progress: &mut dyn FnMut(&StreamProgress),
+    ) -> Result<StreamReport, CutterError> {
         let program_lines = lines.len();
         lines.push(ProgramLine {
-            number: program.lines().count() + 1,
+            number: lines.last().map_or(1, |l| l.number + 1),
             text: CLOSING_LINE.into(),
         });
         self.in_job = true;
