@@ -355,6 +355,8 @@ struct Scripted {
     running: bool,
     /// Soft resets received (shared, to be read after the fake is moved into a driver).
     resets: Arc<std::sync::atomic::AtomicUsize>,
+    /// This program line is refused with `error:20`.
+    refuse_line: Option<usize>,
     /// After this many program lines, the machine is held (as by its feed-hold button).
     hold_after_lines: Option<usize>,
     /// The first this many status requests are answered by a banner (a restart).
@@ -380,6 +382,7 @@ impl Scripted {
             running: false,
             banners_for_status: 0,
             hold_after_lines: None,
+            refuse_line: None,
             resets: Arc::default(),
             timed: Default::default(),
             good_lines,
@@ -435,7 +438,9 @@ impl Write for Scripted {
                     if Some(self.lines) == self.hold_after_lines {
                         self.held_at = Some(std::time::Instant::now());
                     }
-                    if self.lines <= self.good_lines {
+                    if Some(self.lines) == self.refuse_line {
+                        self.say("error:20\r\n");
+                    } else if self.lines <= self.good_lines {
                         self.say("ok\r\n");
                     } else if self.restart {
                         self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
@@ -677,6 +682,36 @@ fn a_machine_held_past_the_hold_timeout_is_given_up_and_stopped() {
         "{error}"
     );
     assert!(error.to_string().contains("laser is off"), "{error}");
+}
+
+#[test]
+fn another_firmwares_codes_are_marked_as_read_with_grbl_meanings() {
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.out = b"\r\nGrblHAL 1.1f ['$' or '$HELP' for help]\r\n"
+        .iter()
+        .copied()
+        .collect();
+    fake.refuse_line = Some(2);
+    let mut cutter = Cutter::connect(Box::new(fake), "hal".into(), quick()).unwrap();
+    assert_eq!(cutter.flavour(), "grblHAL");
+    let error = stream(&mut cutter, "G0X1\nG1X2F100\n").unwrap_err();
+    assert!(
+        matches!(
+            error.cause(),
+            CutterError::Rejected {
+                line: 2,
+                code: 20,
+                ..
+            }
+        ),
+        "{error}"
+    );
+    assert!(
+        error.to_string().contains("GRBL 1.1's; grblHAL may number"),
+        "{error}"
+    );
+    assert!(error.to_string().ends_with("laser is off"), "{error}");
+    assert_eq!(scripted(1, false).flavour(), "GRBL");
 }
 
 #[test]

@@ -119,6 +119,8 @@ pub struct Cutter {
     settings: BTreeMap<u16, f64>,
     notes: Vec<String>,
     in_job: bool,
+    /// The firmware, when its banner names one other than GRBL (`grblHAL`, `FluidNC`).
+    flavour: Option<&'static str>,
     /// The alarm that came just before the last banner (`ALARM:3` after a reset in motion).
     alarm_before_banner: Option<u8>,
     /// Set from outside (Ctrl-C): ends a connect early.
@@ -194,6 +196,7 @@ impl Cutter {
             notes: Vec::new(),
             in_job: false,
             alarm_before_banner: None,
+            flavour: None,
             cancel,
             connecting: true,
             #[cfg(feature = "sim")]
@@ -239,7 +242,7 @@ impl Cutter {
         let mut status = self.status()?;
         if status.state == MachineState::Alarm {
             if !self.options.unlock {
-                return Err(self.alarm_at_connect());
+                return Err(self.tagged(self.alarm_at_connect()));
             }
             self.command("$X")?;
             status = self.status()?;
@@ -285,6 +288,23 @@ impl Cutter {
             None => "it starts locked (homing is enabled, or it was stopped abruptly)".to_owned(),
         };
         CutterError::AlarmAtConnect { code, reason }
+    }
+
+    /// `error`, marked as read with GRBL 1.1's meanings when the controller is another
+    /// firmware and the error gives a code's meaning.
+    fn tagged(&self, error: CutterError) -> CutterError {
+        match self.flavour {
+            Some(flavour) if error.has_code() => CutterError::OtherFlavour {
+                flavour,
+                error: Box::new(error),
+            },
+            _ => error,
+        }
+    }
+
+    /// The firmware named in the banner: `GRBL` unless it is another (`grblHAL`, `FluidNC`).
+    pub fn flavour(&self) -> &'static str {
+        self.flavour.unwrap_or("GRBL")
     }
 
     /// Refuse a GRBL older than 1.1 (grblHAL and FluidNC, 1.1 and later, pass).
@@ -336,6 +356,7 @@ impl Cutter {
             match parse_reply(&line) {
                 Reply::Banner(version) => {
                     self.version = version;
+                    self.flavour = flavour_of(&line);
                     self.notes.clear();
                     self.alarm_before_banner = alarm;
                     return Ok(true);
@@ -502,6 +523,7 @@ impl Cutter {
                 },
                 other => other,
             })
+            .map_err(|e| self.tagged(e))
             .map_err(|e| self.stop_after(e));
         self.in_job = false;
         result
@@ -957,6 +979,17 @@ impl Drop for Cutter {
             let _ = self.link.write_all(&[b'!', SOFT_RESET]);
             let _ = self.link.flush();
         }
+    }
+}
+
+/// The firmware a banner names, when it is not GRBL itself.
+fn flavour_of(banner: &str) -> Option<&'static str> {
+    if banner.starts_with("GrblHAL") {
+        Some("grblHAL")
+    } else if banner.contains("FluidNC") {
+        Some("FluidNC")
+    } else {
+        None
     }
 }
 

@@ -174,6 +174,18 @@ pub enum CutterError {
         /// What it said instead (its `$G` parser state or its status report).
         said: String,
     },
+    /// A numbered error or alarm from a controller that is not GRBL itself (grblHAL, FluidNC):
+    /// the meaning given is GRBL 1.1's, which it may not share (grblHAL's `ALARM:10` is its
+    /// E-stop, not a failed homing).
+    #[error(
+        "{error} [the meaning given is GRBL 1.1's; {flavour} may number its codes otherwise: check its documentation]"
+    )]
+    OtherFlavour {
+        /// The controller's firmware (`grblHAL`, `FluidNC`).
+        flavour: &'static str,
+        /// The error with the code.
+        error: Box<CutterError>,
+    },
     /// A failure, after which the cutter was stopped (feed hold, soft reset): the laser is off.
     #[error(
         "{cause}. The cutter was stopped and the laser is off{}",
@@ -225,7 +237,19 @@ impl CutterError {
             | Self::LaserNotOff { .. }
             | Self::NotStopped { .. } => Category::Device,
             Self::Stopped { cause, .. } => cause.category(),
+            Self::OtherFlavour { error, .. } => error.category(),
         }
+    }
+
+    /// True when the message gives the meaning of a controller's numbered code.
+    pub(super) fn has_code(&self) -> bool {
+        matches!(
+            self,
+            Self::Rejected { .. }
+                | Self::CheckRejected { .. }
+                | Self::Alarm { .. }
+                | Self::AlarmAtConnect { code: Some(_), .. }
+        )
     }
 
     /// True when the cutter could not be stopped after a failure: its laser may still be on
@@ -239,6 +263,7 @@ impl CutterError {
     pub fn cause(&self) -> &CutterError {
         match self {
             Self::Stopped { cause, .. } | Self::NotStopped { cause, .. } => cause.cause(),
+            Self::OtherFlavour { error, .. } => error.cause(),
             other => other,
         }
     }
