@@ -432,6 +432,7 @@ impl Write for Scripted {
                     self.held_at = None;
                     self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
                 }
+                b"$I\n" => self.say("[VER:1.1h.20190825:]\r\n[OPT:V,15,128]\r\nok\r\n"),
                 b"$$\n" => self.say(&format!("{}ok\r\n", self.settings)),
                 _ => {
                     self.lines += 1;

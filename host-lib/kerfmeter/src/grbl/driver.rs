@@ -7,7 +7,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::error::CutterError;
-use super::protocol::{MachineState, ProgramLine, Reply, Status, Streamer, parse_reply, prepare};
+use super::protocol::{
+    MachineState, ProgramLine, Reply, Status, Streamer, parse_reply, prepare,
+    rx_buffer_from_build_info, window_for,
+};
 use super::transport::{CutterAddress, Link, READ_SLICE, open_serial, open_tcp};
 
 /// The realtime soft reset (ctrl-X): stops everything, laser off.
@@ -119,6 +122,8 @@ pub struct Cutter {
     settings: BTreeMap<u16, f64>,
     notes: Vec<String>,
     in_job: bool,
+    /// Bytes that may be unanswered at once (GRBL's 128, or less for a smaller buffer).
+    window: usize,
     /// The firmware, when its banner names one other than GRBL (`grblHAL`, `FluidNC`).
     flavour: Option<&'static str>,
     /// The alarm that came just before the last banner (`ALARM:3` after a reset in motion).
@@ -197,6 +202,7 @@ impl Cutter {
             in_job: false,
             alarm_before_banner: None,
             flavour: None,
+            window: super::protocol::RX_BUFFER_LEN,
             cancel,
             connecting: true,
             #[cfg(feature = "sim")]
@@ -253,7 +259,18 @@ impl Cutter {
             });
         }
         self.read_settings()?;
+        self.read_build_info();
         self.check_laser_mode()
+    }
+
+    /// The character-counting window from `$I`'s receive-buffer size; GRBL's 128 when it does
+    /// not say (or refuses `$I`).
+    fn read_build_info(&mut self) {
+        let rx_buffer = self
+            .command("$I")
+            .ok()
+            .and_then(|lines| lines.iter().find_map(|l| rx_buffer_from_build_info(l)));
+        self.window = window_for(rx_buffer);
     }
 
     /// Before waking a silent controller with a reset: refuse one that reports it is busy (a
@@ -507,7 +524,7 @@ impl Cutter {
             true => self.check_program(&lines, cancel),
             false => Ok(()),
         };
-        let mut streamer = Streamer::new(lines);
+        let mut streamer = Streamer::with_window(lines, self.window);
         let result = checked
             .and_then(|()| self.stream_lines(&mut streamer, cancel, progress))
             .and_then(|report| self.confirm_laser_off().map(|()| report));
@@ -553,7 +570,7 @@ impl Cutter {
         lines: &[ProgramLine],
         cancel: &AtomicBool,
     ) -> Result<Option<(usize, String, u8)>, CutterError> {
-        let mut streamer = Streamer::new(lines.to_vec());
+        let mut streamer = Streamer::with_window(lines.to_vec(), self.window);
         let mut refused = None;
         let mut last_heard = Instant::now();
         while !streamer.done() {

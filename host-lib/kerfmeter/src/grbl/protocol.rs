@@ -108,6 +108,23 @@ fn clean(raw: &str) -> Result<String, String> {
     Ok(text)
 }
 
+/// The receive buffer a `$I` build-info line reports (`[OPT:V,15,128]`: options, planner
+/// blocks, receive-buffer bytes); `None` for any other line.
+pub fn rx_buffer_from_build_info(line: &str) -> Option<usize> {
+    let options = line.strip_prefix("[OPT:")?.strip_suffix(']')?;
+    options.split(',').nth(2)?.trim().parse().ok()
+}
+
+/// The character-counting window for a controller whose `$I` reports `rx_buffer` bytes: GRBL's
+/// 128 at most (a larger buffer is not needed to keep a laser's planner fed), less when its
+/// buffer is smaller, but never below the longest line plus its newline (or no line could be
+/// sent).
+pub fn window_for(rx_buffer: Option<usize>) -> usize {
+    rx_buffer.map_or(RX_BUFFER_LEN, |rx| {
+        rx.clamp(LINE_MAX_LEN + 1, RX_BUFFER_LEN)
+    })
+}
+
 /// What a line from the controller is.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Reply {
@@ -399,6 +416,17 @@ mod tests {
         }
         assert!(prepare("M3S100\nM5\nM2\nM30\nM4\nM100\n").is_ok());
         assert!(prepare("G1 X1 (a ! in a comment is fine)\n").is_ok());
+    }
+
+    #[test]
+    fn the_window_follows_a_smaller_receive_buffer_from_build_info() {
+        assert_eq!(rx_buffer_from_build_info("[OPT:V,15,128]"), Some(128));
+        assert_eq!(rx_buffer_from_build_info("[OPT:VL,35,1024]"), Some(1024));
+        assert_eq!(rx_buffer_from_build_info("[VER:1.1h.20190825:]"), None);
+        assert_eq!(window_for(None), 128);
+        assert_eq!(window_for(Some(1024)), 128);
+        assert_eq!(window_for(Some(96)), 96);
+        assert_eq!(window_for(Some(16)), 80);
     }
 
     #[test]
