@@ -134,6 +134,7 @@ fn under_m3_the_beam_stays_on_at_rest_after_a_cut_until_m5() {
     grbl.advance_us(2_000_000);
     assert_eq!(line(&mut grbl, "M5"), "ok\r\n");
     assert_eq!(grbl.log().snapshot().laser_power_s, 0.0);
+    assert_eq!(line(&mut grbl, "M2"), "[MSG:Pgm End]\r\nok\r\n");
 }
 
 #[test]

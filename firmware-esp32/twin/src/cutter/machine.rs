@@ -523,6 +523,7 @@ impl Grbl {
             self.queue.push_back(m);
         }
         if plan.program_end {
+            self.say("[MSG:Pgm End]");
             self.modal = Modal {
                 motion: Motion::Linear,
                 absolute: true,

@@ -24,7 +24,8 @@
 //!   homing); others `error:3`.
 //! - Motion ([`motion`]): each move at its programmed feed (travels at `$110`), no acceleration;
 //!   G4 waits for the queue to empty, then dwells as a block (real GRBL answers `ok` only after
-//!   the dwell). M2/M30 wait for the queue to empty, then reset the modal state (M5, G90).
+//!   the dwell). M2/M30 wait for the queue to empty, then reset the modal state (M5, G90) and say
+//!   `[MSG:Pgm End]` before their `ok`.
 //! - The laser: with laser mode (`$32=1`) it fires only during G1/G2/G3 (M3 or M4, at `S`; M4's
 //!   scaling by speed is not modelled since the feed is constant), never on G0, and it is off
 //!   during a completed feed hold. At rest it is off under M4 or after a G0, but under M3 after
