@@ -355,6 +355,8 @@ struct Scripted {
     running: bool,
     /// Soft resets received (shared, to be read after the fake is moved into a driver).
     resets: Arc<std::sync::atomic::AtomicUsize>,
+    /// The line being received.
+    receiving: Vec<u8>,
     /// This program line is refused with `error:20`.
     refuse_line: Option<usize>,
     /// After this many program lines, the machine is held (as by its feed-hold button).
@@ -383,6 +385,7 @@ impl Scripted {
             banners_for_status: 0,
             hold_after_lines: None,
             refuse_line: None,
+            receiving: Vec::new(),
             resets: Arc::default(),
             timed: Default::default(),
             good_lines,
@@ -408,47 +411,71 @@ impl Scripted {
     }
 }
 
+impl Scripted {
+    /// A realtime byte, acted on wherever it comes, as GRBL does.
+    fn realtime(&mut self, byte: u8) -> std::io::Result<()> {
+        match byte {
+            b'?' if self.banners_for_status > 0 => {
+                self.banners_for_status -= 1;
+                self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
+            }
+            b'?' => self.say(&format!(
+                "<{}|MPos:0.000,0.000,0.000|FS:0,0>\r\n",
+                self.state()
+            )),
+            b'!' if self.refuse_hold => return Err(std::io::ErrorKind::TimedOut.into()),
+            b'!' => self.held_at = Some(std::time::Instant::now()),
+            _ => {
+                self.resets.fetch_add(1, Ordering::Relaxed);
+                let alarm = if self.state() == "Hold:1" {
+                    "ALARM:3\r\n"
+                } else {
+                    ""
+                };
+                self.held_at = None;
+                self.receiving.clear();
+                self.say(&format!("{alarm}\r\nGrbl 1.1h ['$' for help]\r\n"));
+            }
+        }
+        Ok(())
+    }
+
+    /// A whole line (without its newline).
+    fn line(&mut self, line: &[u8]) {
+        match line {
+            b"$G" => self.say("[GC:G1 G54 G17 G21 G90 G94 M5 M9 T0 F100 S0]\r\nok\r\n"),
+            b"$I" => self.say("[VER:1.1h.20190825:]\r\n[OPT:V,15,128]\r\nok\r\n"),
+            b"$$" => self.say(&format!("{}ok\r\n", self.settings)),
+            _ => {
+                self.lines += 1;
+                if Some(self.lines) == self.hold_after_lines {
+                    self.held_at = Some(std::time::Instant::now());
+                }
+                if Some(self.lines) == self.refuse_line {
+                    self.say("error:20\r\n");
+                } else if self.lines <= self.good_lines {
+                    self.say("ok\r\n");
+                } else if self.restart {
+                    self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
+                } else {
+                    self.silent = true;
+                }
+            }
+        }
+    }
+}
+
 impl Write for Scripted {
+    /// Realtime bytes act wherever they are in a write; the rest is read into lines.
     fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
-        for line in bytes.split_inclusive(|&b| b == b'\n') {
-            match line {
-                b"?" if self.banners_for_status > 0 => {
-                    self.banners_for_status -= 1;
-                    self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
+        for &byte in bytes {
+            match byte {
+                b'?' | b'!' | 0x18 => self.realtime(byte)?,
+                b'\n' => {
+                    let line = std::mem::take(&mut self.receiving);
+                    self.line(&line);
                 }
-                b"?" => self.say(&format!(
-                    "<{}|MPos:0.000,0.000,0.000|FS:0,0>\r\n",
-                    self.state()
-                )),
-                b"!" if self.refuse_hold => return Err(std::io::ErrorKind::TimedOut.into()),
-                b"!" => self.held_at = Some(std::time::Instant::now()),
-                [0x18] if self.resets.fetch_add(1, Ordering::Relaxed) == usize::MAX => {}
-                [0x18] if self.state() == "Hold:1" => {
-                    self.held_at = None;
-                    self.say("ALARM:3\r\n\r\nGrbl 1.1h ['$' for help]\r\n");
-                }
-                b"$G\n" => self.say("[GC:G1 G54 G17 G21 G90 G94 M5 M9 T0 F100 S0]\r\nok\r\n"),
-                [0x18] => {
-                    self.held_at = None;
-                    self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
-                }
-                b"$I\n" => self.say("[VER:1.1h.20190825:]\r\n[OPT:V,15,128]\r\nok\r\n"),
-                b"$$\n" => self.say(&format!("{}ok\r\n", self.settings)),
-                _ => {
-                    self.lines += 1;
-                    if Some(self.lines) == self.hold_after_lines {
-                        self.held_at = Some(std::time::Instant::now());
-                    }
-                    if Some(self.lines) == self.refuse_line {
-                        self.say("error:20\r\n");
-                    } else if self.lines <= self.good_lines {
-                        self.say("ok\r\n");
-                    } else if self.restart {
-                        self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
-                    } else {
-                        self.silent = true;
-                    }
-                }
+                _ => self.receiving.push(byte),
             }
         }
         Ok(bytes.len())
