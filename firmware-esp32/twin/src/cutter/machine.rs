@@ -203,23 +203,46 @@ impl Grbl {
 
     /// Run the current move for at most `max_us`; the time used (0 when nothing can move).
     fn step(&mut self, max_us: u64) -> u64 {
-        if self.current.is_none() {
-            let Some(next) = self.queue.pop_front() else {
-                // A hold decelerating through the last move has nothing left to stop.
-                if let Hold::Decelerating { .. } = self.hold {
-                    self.hold = Hold::Complete;
-                }
-                return 0;
-            };
-            self.start_move(next);
+        if self.current.is_none() && !self.start_next() {
+            return 0;
         }
-        let Some((m, elapsed_us)) = self.current.as_mut() else {
+        let Some((m, elapsed_us)) = &self.current else {
             return 0;
         };
-        let left_in_move_us = m.duration_us - *elapsed_us;
-        // Decelerating to a hold, the head covers its path at half its speed on average.
-        let (mut step_us, speed_divisor) = match &mut self.hold {
-            Hold::Complete => return 0,
+        let left_in_move_us = m.duration_us - elapsed_us;
+        let Some((mut step_us, speed_divisor)) = self.hold_step(max_us, left_in_move_us) else {
+            return 0;
+        };
+        if let Some(left_us) = self.hard_limit_left_us() {
+            if left_us == 0 {
+                self.hard_limit();
+                return max_us;
+            }
+            step_us = step_us.min(left_us);
+        }
+        self.advance_move(step_us, (step_us / speed_divisor).min(left_in_move_us));
+        step_us.max(1)
+    }
+
+    /// Start the next queued move; false when there is none (a hold decelerating through the
+    /// last move then has nothing left to stop, and is complete).
+    fn start_next(&mut self) -> bool {
+        let Some(next) = self.queue.pop_front() else {
+            if let Hold::Decelerating { .. } = self.hold {
+                self.hold = Hold::Complete;
+            }
+            return false;
+        };
+        self.start_move(next);
+        true
+    }
+
+    /// How much time a step may take, and by how much the head's speed is divided meanwhile
+    /// (decelerating to a hold it covers its path at half its speed on average); the hold's
+    /// deceleration moves on by the step. `None` once the hold is complete.
+    fn hold_step(&mut self, max_us: u64, left_in_move_us: u64) -> Option<(u64, u64)> {
+        match &mut self.hold {
+            Hold::Complete => None,
             Hold::Decelerating { remaining_us } => {
                 let step_us = max_us
                     .min(left_in_move_us.saturating_mul(2))
@@ -229,19 +252,23 @@ impl Grbl {
                 if *remaining_us == 0 {
                     self.hold = Hold::Complete;
                 }
-                (step_us, 2)
+                Some((step_us, 2))
             }
-            Hold::None => (max_us.min(left_in_move_us), 1),
-        };
-        if let Some(limit_ms) = self.options.hard_limit_after_ms {
-            let left_us = limit_ms.saturating_mul(1000).saturating_sub(self.motion_us);
-            if left_us == 0 {
-                self.hard_limit();
-                return max_us;
-            }
-            step_us = step_us.min(left_us);
+            Hold::None => Some((max_us.min(left_in_move_us), 1)),
         }
-        let progress_us = (step_us / speed_divisor).min(left_in_move_us);
+    }
+
+    /// Motion time left before the injected hard limit trips, µs (`None`: none injected).
+    fn hard_limit_left_us(&self) -> Option<u64> {
+        let limit_ms = self.options.hard_limit_after_ms?;
+        Some(limit_ms.saturating_mul(1000).saturating_sub(self.motion_us))
+    }
+
+    /// Move the current move on by `progress_us` over a step of `step_us`; finish it at its end.
+    fn advance_move(&mut self, step_us: u64, progress_us: u64) {
+        let Some((m, elapsed_us)) = self.current.as_mut() else {
+            return;
+        };
         *elapsed_us += progress_us;
         if m.kind != SegmentKind::Dwell {
             self.motion_us += step_us;
@@ -249,7 +276,6 @@ impl Grbl {
         if *elapsed_us >= m.duration_us {
             self.finish_move(true);
         }
-        step_us.max(1)
     }
 
     fn start_move(&mut self, m: Move) {
