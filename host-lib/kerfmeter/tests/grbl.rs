@@ -78,6 +78,21 @@ fn a_program_streams_within_the_window_and_the_laser_traces_only_the_cuts() {
 }
 
 #[test]
+fn progress_tells_the_check_pass_from_the_cut() {
+    let mut cutter = sim(SimCutterOptions::default());
+    let mut phases = Vec::new();
+    let mut on_progress = |p: &StreamProgress| {
+        if phases.last() != Some(&p.checking) {
+            phases.push(p.checking);
+        }
+    };
+    cutter
+        .stream(&squares(10, 2), &AtomicBool::new(false), &mut on_progress)
+        .unwrap();
+    assert_eq!(phases, [true, false], "checked, then cut");
+}
+
+#[test]
 fn a_greedy_sender_is_caught_by_the_twin() {
     // The check the driver passes can fail: write a program without waiting for any `ok`.
     let (server, mut port) =
@@ -273,7 +288,7 @@ fn cancelling_mid_stream_stops_the_cutter_with_the_laser_off() {
     let mut cutter = sim(SimCutterOptions::default());
     let cancel = Arc::new(AtomicBool::new(false));
     let mut on_progress = |p: &StreamProgress| {
-        if p.answered >= 20 {
+        if !p.checking && p.answered >= 20 {
             cancel.store(true, Ordering::Relaxed);
         }
     };
@@ -774,7 +789,7 @@ fn a_link_that_dies_mid_job_is_the_laser_may_still_be_on_error() {
     serialport::SerialPort::set_timeout(&mut port, Duration::from_millis(10)).unwrap();
     let mut cutter = Cutter::connect(Box::new(port), "pty".into(), quick()).unwrap();
     let mut on_progress = |p: &StreamProgress| {
-        if p.answered >= 10 {
+        if !p.checking && p.answered >= 10 {
             server.stop();
         }
     };

@@ -156,6 +156,10 @@ fn stream_bar(json: bool) -> ProgressBar {
 fn show(bar: &ProgressBar, p: &StreamProgress) {
     bar.set_length(p.total as u64);
     bar.set_position(p.answered as u64);
+    if p.checking {
+        bar.set_message("checking ($C): nothing moves");
+        return;
+    }
     if let Some(status) = &p.status {
         let at = status
             .position_mm

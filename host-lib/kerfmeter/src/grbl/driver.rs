@@ -97,6 +97,8 @@ pub struct StreamProgress {
     pub unanswered_bytes: usize,
     /// The last status report.
     pub status: Option<Status>,
+    /// True during the check pass (`$C`: answered, nothing moves), false while cutting.
+    pub checking: bool,
 }
 
 /// How a stream went.
@@ -521,7 +523,7 @@ impl Cutter {
         });
         self.in_job = true;
         let checked = match self.options.check_first {
-            true => self.check_program(&lines, cancel),
+            true => self.check_program(&lines, cancel, progress),
             false => Ok(()),
         };
         let mut streamer = Streamer::with_window(lines, self.window);
@@ -554,9 +556,10 @@ impl Cutter {
         &mut self,
         lines: &[ProgramLine],
         cancel: &AtomicBool,
+        progress: &mut dyn FnMut(&StreamProgress),
     ) -> Result<(), CutterError> {
         self.command("$C")?;
-        let refused = self.check_lines(lines, cancel);
+        let refused = self.check_lines(lines, cancel, progress);
         let left = self.leave_check_mode();
         match (refused?, left) {
             (Some((line, text, code)), _) => Err(CutterError::CheckRejected { line, text, code }),
@@ -569,6 +572,7 @@ impl Cutter {
         &mut self,
         lines: &[ProgramLine],
         cancel: &AtomicBool,
+        progress: &mut dyn FnMut(&StreamProgress),
     ) -> Result<Option<(usize, String, u8)>, CutterError> {
         let mut streamer = Streamer::with_window(lines.to_vec(), self.window);
         let mut refused = None;
@@ -606,6 +610,13 @@ impl Cutter {
                     _ => {}
                 }
             }
+            progress(&StreamProgress {
+                answered: streamer.answered(),
+                total: streamer.total(),
+                unanswered_bytes: streamer.unanswered_bytes(),
+                status: None,
+                checking: true,
+            });
             if last_heard.elapsed() > self.options.silence_timeout {
                 return Err(self.silent_for("checking the program", self.options.silence_timeout));
             }
@@ -696,6 +707,7 @@ impl Cutter {
                 total: streamer.total(),
                 unanswered_bytes: streamer.unanswered_bytes(),
                 status: status.clone(),
+                checking: false,
             });
             if idle_reports_after_done >= 2 {
                 return Ok(StreamReport {
@@ -799,16 +811,16 @@ impl Cutter {
     fn halt(&mut self) -> Result<bool, CutterError> {
         let _ = self.write(b"!");
         let deadline = Instant::now() + self.hold_wait();
-        while Instant::now() < deadline && !self.poll_stopped(deadline) {}
+        // A status request that cannot be written goes straight to the reset, which is tried
+        // again until the reply timeout.
+        while Instant::now() < deadline && self.poll_stopped(deadline) == Some(false) {}
         self.reset_checked()
     }
 
-    /// One status request while holding: true once the machine reports it has stopped.
-    fn poll_stopped(&mut self, deadline: Instant) -> bool {
-        if self.write(b"?").is_err() {
-            std::thread::sleep(READ_SLICE);
-            return false;
-        }
+    /// One status request while holding: true once the machine reports it has stopped; `None`
+    /// when the request cannot be written.
+    fn poll_stopped(&mut self, deadline: Instant) -> Option<bool> {
+        self.write(b"?").ok()?;
         let poll_end = (Instant::now() + Duration::from_millis(50)).min(deadline);
         let mut stopped = false;
         while let Ok(Some(line)) = self.read_line(poll_end) {
@@ -823,7 +835,7 @@ impl Cutter {
                 );
             }
         }
-        stopped
+        Some(stopped)
     }
 
     /// How long a feed hold may take: the fastest rate over the slowest acceleration of X and Y
