@@ -101,6 +101,18 @@ pub struct StreamProgress {
     pub checking: bool,
 }
 
+impl StreamProgress {
+    fn of(streamer: &Streamer, status: Option<Status>, checking: bool) -> Self {
+        Self {
+            answered: streamer.answered(),
+            total: streamer.total(),
+            unanswered_bytes: streamer.unanswered_bytes(),
+            status,
+            checking,
+        }
+    }
+}
+
 /// How a stream went.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StreamReport {
@@ -610,13 +622,7 @@ impl Cutter {
                     _ => {}
                 }
             }
-            progress(&StreamProgress {
-                answered: streamer.answered(),
-                total: streamer.total(),
-                unanswered_bytes: streamer.unanswered_bytes(),
-                status: None,
-                checking: true,
-            });
+            progress(&StreamProgress::of(&streamer, None, true));
             if last_heard.elapsed() > self.options.silence_timeout {
                 return Err(self.silent_for("checking the program", self.options.silence_timeout));
             }
@@ -702,13 +708,7 @@ impl Cutter {
                 };
                 status = Some(s);
             }
-            progress(&StreamProgress {
-                answered: streamer.answered(),
-                total: streamer.total(),
-                unanswered_bytes: streamer.unanswered_bytes(),
-                status: status.clone(),
-                checking: false,
-            });
+            progress(&StreamProgress::of(streamer, status.clone(), false));
             if idle_reports_after_done >= 2 {
                 return Ok(StreamReport {
                     lines: streamer.total(),
