@@ -366,6 +366,8 @@ struct Scripted {
     held_at: Option<std::time::Instant>,
     /// The `$$` listing.
     settings: &'static str,
+    /// The machine position its status reports give.
+    mpos: &'static str,
     /// Status reports say `Run` (another client's job) instead of `Idle`.
     running: bool,
     /// Soft resets received (shared, to be read after the fake is moved into a driver).
@@ -396,6 +398,7 @@ impl Scripted {
             hold_takes: Duration::ZERO,
             held_at: None,
             settings: "$32=1\r\n",
+            mpos: "0.000,0.000,0.000",
             running: false,
             banners_for_status: 0,
             hold_after_lines: None,
@@ -434,10 +437,7 @@ impl Scripted {
                 self.banners_for_status -= 1;
                 self.say("\r\nGrbl 1.1h ['$' for help]\r\n");
             }
-            b'?' => self.say(&format!(
-                "<{}|MPos:0.000,0.000,0.000|FS:0,0>\r\n",
-                self.state()
-            )),
+            b'?' => self.say(&format!("<{}|MPos:{}|FS:0,0>\r\n", self.state(), self.mpos)),
             b'!' if self.refuse_hold => return Err(std::io::ErrorKind::TimedOut.into()),
             b'!' => self.held_at = Some(std::time::Instant::now()),
             _ => {
@@ -755,6 +755,16 @@ fn another_firmwares_codes_are_marked_as_read_with_grbl_meanings() {
     );
     assert!(error.to_string().ends_with("laser is off"), "{error}");
     assert_eq!(scripted(1, false).flavour(), "GRBL");
+}
+
+#[test]
+fn reports_in_inches_are_read_in_mm() {
+    let mut fake = Scripted::new(usize::MAX, false);
+    fake.settings = "$32=1\r\n$13=1\r\n";
+    fake.mpos = "1.000,2.000,0.500";
+    let mut cutter = Cutter::connect(Box::new(fake), "inches".into(), quick()).unwrap();
+    let report = stream(&mut cutter, "G1X1F100\n").unwrap();
+    assert_eq!(report.position_mm, Some([25.4, 50.8, 12.7]));
 }
 
 #[test]
