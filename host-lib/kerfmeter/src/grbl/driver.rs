@@ -11,24 +11,17 @@ use super::protocol::{
     MachineState, ProgramLine, Reply, Status, Streamer, parse_reply, prepare,
     rx_buffer_from_build_info, window_for,
 };
-use super::transport::{CutterAddress, Link, READ_SLICE, open_serial, open_tcp};
+use super::transport::{CutterAddress, Link, open_serial, open_tcp};
+
+mod check;
+mod stop;
 
 /// The realtime soft reset (ctrl-X): stops everything, laser off.
 const SOFT_RESET: u8 = 0x18;
-/// `ALARM:3`: reset while in motion, the position may be lost.
-const ALARM_ABORT_CYCLE: u8 = 3;
 /// `$32`: laser mode.
 const LASER_MODE_SETTING: u16 = 32;
 /// `$13`: status reports in inches (1) or mm (0).
 const REPORT_INCHES_SETTING: u16 = 13;
-/// `$110`, `$111`: the X and Y maximum rates, mm/min.
-const MAX_RATE_SETTINGS: [u16; 2] = [110, 111];
-/// `$120`, `$121`: the X and Y accelerations, mm/s².
-const ACCELERATION_SETTINGS: [u16; 2] = [120, 121];
-/// The longest a feed hold is waited for, whatever the settings say.
-const HOLD_WAIT_MAX: Duration = Duration::from_secs(60);
-/// How long one soft reset is given to bring the banner before it is sent again.
-const RESET_RETRY: Duration = Duration::from_millis(500);
 /// While a controller talks without its banner yet (a boot log), the banner is waited for
 /// until it has been quiet this long...
 const BOOT_LOG_QUIET: Duration = Duration::from_millis(500);
@@ -560,113 +553,6 @@ impl Cutter {
         result
     }
 
-    /// The check pass: the program through check mode (`$C`), where GRBL parses and answers
-    /// every line and moves nothing; the first refused line is
-    /// [`CutterError::CheckRejected`]. Check mode is left (`$C` again: a soft reset) whatever
-    /// happened.
-    fn check_program(
-        &mut self,
-        lines: &[ProgramLine],
-        cancel: &AtomicBool,
-        progress: &mut dyn FnMut(&StreamProgress),
-    ) -> Result<(), CutterError> {
-        self.command("$C")?;
-        let refused = self.check_lines(lines, cancel, progress);
-        let left = self.leave_check_mode();
-        match (refused?, left) {
-            (Some((line, text, code)), _) => Err(CutterError::CheckRejected { line, text, code }),
-            (None, left) => left,
-        }
-    }
-
-    /// Stream `lines` in check mode by character counting; the first refused line, if any.
-    fn check_lines(
-        &mut self,
-        lines: &[ProgramLine],
-        cancel: &AtomicBool,
-        progress: &mut dyn FnMut(&StreamProgress),
-    ) -> Result<Option<(usize, String, u8)>, CutterError> {
-        let mut streamer = Streamer::with_window(lines.to_vec(), self.window);
-        let mut refused = None;
-        let mut last_heard = Instant::now();
-        while !streamer.done() {
-            if cancel.load(Ordering::Relaxed) {
-                let total = streamer.total().saturating_sub(1);
-                return Err(CutterError::Cancelled { answered: 0, total });
-            }
-            while let Some(bytes) = streamer.next_to_send() {
-                self.write(&bytes)?;
-            }
-            let replies = self.read_available()?;
-            if !replies.is_empty() {
-                last_heard = Instant::now();
-            }
-            for reply in replies {
-                let unexpected = || CutterError::Protocol(format!("`{reply}` answered no line"));
-                match parse_reply(&reply) {
-                    Reply::Ok => {
-                        streamer.answer().map_err(|_| unexpected())?;
-                    }
-                    Reply::Error(code) => {
-                        let line = streamer.answer().map_err(|_| unexpected())?;
-                        refused.get_or_insert((line.number, line.text.clone(), code));
-                    }
-                    Reply::Alarm(code) => {
-                        return Err(CutterError::Alarm {
-                            code,
-                            after: None,
-                            last_position_mm: None,
-                        });
-                    }
-                    Reply::Banner(_) => return Err(CutterError::Restarted),
-                    _ => {}
-                }
-            }
-            progress(&StreamProgress::of(&streamer, None, true));
-            if last_heard.elapsed() > self.options.silence_timeout {
-                return Err(self.silent_for("checking the program", self.options.silence_timeout));
-            }
-        }
-        Ok(refused)
-    }
-
-    /// `$C` again: GRBL answers `ok`, then resets (its banner).
-    fn leave_check_mode(&mut self) -> Result<(), CutterError> {
-        self.command("$C")?;
-        let mut seen = Vec::new();
-        if self.await_banner(self.options.reply_timeout, &mut seen)? {
-            Ok(())
-        } else {
-            Err(self.silent("waiting for the reset that leaves check mode"))
-        }
-    }
-
-    /// After the closing `M5`: the parser state must say M5 and the status spindle 0.
-    fn confirm_laser_off(&mut self) -> Result<(), CutterError> {
-        let said = self.command("$G")?;
-        let parser_state = said.iter().find(|l| l.starts_with("[GC:"));
-        let m5 = parser_state.is_some_and(|gc| {
-            gc.trim_end_matches(']')
-                .split([' ', ':'])
-                .any(|word| word == CLOSING_LINE)
-        });
-        if !m5 {
-            return Err(CutterError::LaserNotOff {
-                said: parser_state.map_or_else(
-                    || "no `[GC:...]` parser state came for `$G`".into(),
-                    |gc| format!("its parser state is {gc}"),
-                ),
-            });
-        }
-        let status = self.status()?;
-        match status.spindle_s {
-            Some(s) if s > 0.0 => Err(CutterError::LaserNotOff {
-                said: format!("its status reports the spindle at S{s}"),
-            }),
-            _ => Ok(()),
-        }
-    }
-
     fn stream_lines(
         &mut self,
         streamer: &mut Streamer,
@@ -796,115 +682,6 @@ impl Cutter {
             Reply::Message(_) | Reply::Setting(..) | Reply::Other(_) => {}
         }
         Ok(None)
-    }
-
-    /// Stop the cutter: feed hold (`!`) so that the machine decelerates and keeps its position,
-    /// wait (bounded by its fastest rate over its slowest acceleration) for the hold to
-    /// complete, then soft reset (ctrl-X), which empties its queue and turns the laser off.
-    /// Waits for the reset's banner. A failed write of the hold or a status request does not
-    /// keep the reset from being tried; the reset is sent again until its banner comes.
-    pub fn stop(&mut self) -> Result<(), CutterError> {
-        self.halt().map(|_| ())
-    }
-
-    /// [`Cutter::stop`]; true when the reset raised `ALARM:3` (the machine still moved).
-    fn halt(&mut self) -> Result<bool, CutterError> {
-        let _ = self.write(b"!");
-        let deadline = Instant::now() + self.hold_wait();
-        // A status request that cannot be written goes straight to the reset, which is tried
-        // again until the reply timeout.
-        while Instant::now() < deadline && self.poll_stopped(deadline) == Some(false) {}
-        self.reset_checked()
-    }
-
-    /// One status request while holding: true once the machine reports it has stopped; `None`
-    /// when the request cannot be written.
-    fn poll_stopped(&mut self, deadline: Instant) -> Option<bool> {
-        self.write(b"?").ok()?;
-        let poll_end = (Instant::now() + Duration::from_millis(50)).min(deadline);
-        let mut stopped = false;
-        while let Ok(Some(line)) = self.read_line(poll_end) {
-            if let Reply::Status(s) = parse_reply(&line) {
-                stopped = matches!(
-                    s.state,
-                    MachineState::Hold(0)
-                        | MachineState::Door(0 | 1)
-                        | MachineState::Idle
-                        | MachineState::Alarm
-                        | MachineState::Sleep
-                );
-            }
-        }
-        Some(stopped)
-    }
-
-    /// How long a feed hold may take: the fastest rate over the slowest acceleration of X and Y
-    /// (`$110`, `$111`, `$120`, `$121`), with margin, plus a reply's time.
-    fn hold_wait(&self) -> Duration {
-        let setting = |numbers: [u16; 2], pick: fn(f64, f64) -> f64| {
-            numbers
-                .iter()
-                .filter_map(|n| self.settings.get(n).copied())
-                .filter(|v| v.is_finite() && *v > 0.0)
-                .reduce(pick)
-        };
-        let stopping_s = match (
-            setting(MAX_RATE_SETTINGS, f64::max),
-            setting(ACCELERATION_SETTINGS, f64::min),
-        ) {
-            (Some(rate_mm_per_min), Some(accel)) => 1.5 * rate_mm_per_min / 60.0 / accel,
-            _ => 0.0,
-        };
-        let stopping = Duration::try_from_secs_f64(stopping_s).unwrap_or(HOLD_WAIT_MAX);
-        (self.options.reply_timeout + stopping).min(HOLD_WAIT_MAX)
-    }
-
-    /// Soft reset (ctrl-X) and wait for the banner: the queue is emptied, the laser off. A
-    /// machine in motion raises `ALARM:3` (its position may be lost); [`Cutter::stop`] holds
-    /// first to avoid that.
-    pub fn reset(&mut self) -> Result<(), CutterError> {
-        self.reset_checked().map(|_| ())
-    }
-
-    /// [`Cutter::reset`], sent again until its banner comes within the reply timeout; true when
-    /// `ALARM:3` came with it.
-    fn reset_checked(&mut self) -> Result<bool, CutterError> {
-        let deadline = Instant::now() + self.options.reply_timeout;
-        let mut seen = Vec::new();
-        loop {
-            let write_error = self.write(&[SOFT_RESET]).err();
-            let wait = RESET_RETRY.min(deadline.saturating_duration_since(Instant::now()));
-            if write_error.is_none() && self.await_banner(wait, &mut seen)? {
-                return Ok(self.alarm_before_banner == Some(ALARM_ABORT_CYCLE));
-            }
-            if Instant::now() >= deadline {
-                return Err(write_error
-                    .unwrap_or_else(|| self.silent("waiting for the banner after a soft reset")));
-            }
-            if write_error.is_some() {
-                std::thread::sleep(READ_SLICE);
-            }
-        }
-    }
-
-    /// `cause`, after stopping the cutter: [`CutterError::Stopped`] around it, or
-    /// [`CutterError::NotStopped`] when it cannot be stopped. After an alarm the machine has
-    /// stopped already and may hear nothing but a reset.
-    fn stop_after(&mut self, cause: CutterError) -> CutterError {
-        let stopped = match cause {
-            CutterError::Alarm { .. } => self.reset_checked(),
-            _ => self.halt(),
-        };
-        match stopped {
-            Ok(position_lost) => CutterError::Stopped {
-                cause: Box::new(cause),
-                position_lost,
-            },
-            Err(stop) => CutterError::NotStopped {
-                cause: Box::new(cause),
-                stop: Box::new(stop),
-            },
-        }
     }
 
     /// The controller said nothing for the reply timeout while the driver was `doing`.
