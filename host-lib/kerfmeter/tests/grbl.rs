@@ -333,6 +333,25 @@ fn a_networked_controller_is_driven_over_tcp() {
 }
 
 #[test]
+fn a_networked_controller_that_does_not_greet_is_woken_and_driven() {
+    let server =
+        CutterServer::tcp_greeting(SimCutterOptions::default(), Pace::LockStep, 0, false).unwrap();
+    let address: CutterAddress = format!("grbl+tcp://{}", server.address()).parse().unwrap();
+    let mut cutter = Cutter::open(&address, options()).unwrap();
+    assert_eq!(cutter.version(), "1.1h");
+    stream(&mut cutter, &squares(10, 1)).unwrap();
+    let record = server.log().snapshot();
+    assert_eq!(
+        record.resets, 2,
+        "asked its state, found idle, woken with a reset; then the one that leaves check mode"
+    );
+    assert_eq!(
+        record.segments.iter().filter(|s| s.power_s > 0.0).count(),
+        4
+    );
+}
+
+#[test]
 fn something_that_is_not_grbl_is_named_in_the_error() {
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let address = format!("grbl+tcp://{}", listener.local_addr().unwrap());
