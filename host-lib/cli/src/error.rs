@@ -89,3 +89,27 @@ pub fn exit_code(e: &CliError) -> u8 {
         Category::Device | Category::File => EXIT_DEVICE,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cutter_that_could_not_be_stopped_has_its_own_exit_code() {
+        let silent = || CutterError::Silent {
+            address: "grbl:/dev/ttyUSB0".into(),
+            waited_ms: 2000,
+            doing: "streaming",
+        };
+        let not_stopped = CutterError::NotStopped {
+            cause: Box::new(silent()),
+            stop: Box::new(silent()),
+        };
+        assert_eq!(exit_code(&CliError::Cutter(not_stopped)), 5);
+        let stopped = CutterError::Stopped {
+            cause: Box::new(silent()),
+            position_lost: false,
+        };
+        assert_eq!(exit_code(&CliError::Cutter(stopped)), EXIT_COMMUNICATION);
+    }
+}
