@@ -71,22 +71,20 @@ fn a_full_planner_holds_back_ok_until_a_block_is_done() {
 fn a_move_takes_its_length_over_its_feed_and_is_traced_with_its_power() {
     let mut grbl = cutter(CutterOptions::default());
     said(&mut grbl);
-    for l in [
-        "G21G90",
-        "M4 S800",
-        "G0X10",
-        "G1X10Y10F600",
-        "G2X0Y10I-5J0",
-        "M5",
-    ] {
+    for l in ["G21G90", "M4 S800", "G0X10", "G1X10Y10F600", "G2X0Y10I-5J0"] {
         assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
     }
+    assert_eq!(line(&mut grbl, "M5"), "", "M5 waits for the moves to run");
     grbl.advance_us(999_000);
     grbl.receive(b"?");
     assert!(said(&mut grbl).starts_with("<Run|MPos:"));
     grbl.advance_us(20_000_000);
     grbl.receive(b"?");
-    assert!(said(&mut grbl).starts_with("<Idle|MPos:0.000,10.000,0.000|"));
+    let said_then = said(&mut grbl);
+    assert!(
+        said_then.starts_with("ok\r\n<Idle|MPos:0.000,10.000,0.000|"),
+        "{said_then}"
+    );
     let record = grbl.log().snapshot();
     let kinds: Vec<_> = record
         .segments
@@ -108,6 +106,82 @@ fn a_move_takes_its_length_over_its_feed_and_is_traced_with_its_power() {
         ]
     );
     assert!(record.travel_firings.is_empty());
+}
+
+#[test]
+fn under_m3_the_beam_stays_on_at_rest_after_a_cut_until_m5() {
+    for (spindle, at_rest_s) in [("M3", 800.0), ("M4", 0.0)] {
+        let mut grbl = cutter(CutterOptions::default());
+        said(&mut grbl);
+        for l in [&format!("{spindle} S800"), "G1 X10 F600"] {
+            assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
+        }
+        grbl.advance_us(2_000_000);
+        let record = grbl.log().snapshot();
+        assert_eq!(record.state, "Idle");
+        assert_eq!(record.laser_power_s, at_rest_s, "{spindle} at rest");
+        grbl.receive(b"?");
+        assert!(said(&mut grbl).ends_with(&format!(",{at_rest_s:.0}>\r\n")));
+        // After a travel the beam is off even under M3.
+        line(&mut grbl, "G0 X0");
+        grbl.advance_us(1_000_000);
+        assert_eq!(grbl.log().snapshot().laser_power_s, 0.0, "{spindle}");
+    }
+    let mut grbl = cutter(CutterOptions::default());
+    for l in ["M3 S800", "G1 X10 F600"] {
+        line(&mut grbl, l);
+    }
+    grbl.advance_us(2_000_000);
+    assert_eq!(line(&mut grbl, "M5"), "ok\r\n");
+    assert_eq!(grbl.log().snapshot().laser_power_s, 0.0);
+    assert_eq!(line(&mut grbl, "M2"), "[MSG:Pgm End]\r\nok\r\n");
+}
+
+#[test]
+fn a_spindle_change_waits_for_the_planner_to_empty_and_lines_behind_it_wait_too() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    for l in ["M4 S800", "G1 X10 F600"] {
+        assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
+    }
+    grbl.receive(b"M5\nG0X0\n");
+    assert_eq!(said(&mut grbl), "", "M5 waits, and the travel behind it");
+    grbl.advance_us(500_000);
+    assert_eq!(said(&mut grbl), "");
+    grbl.advance_us(600_000);
+    assert_eq!(said(&mut grbl), "ok\r\nok\r\n");
+    grbl.advance_us(200_000);
+    // A new power with the spindle on and no motion waits too; with motion it does not.
+    for l in ["M4 S100", "G1 X5"] {
+        assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
+    }
+    assert_eq!(line(&mut grbl, "G1 X6 S200"), "ok\r\n");
+    assert_eq!(line(&mut grbl, "S300"), "");
+}
+
+#[test]
+fn check_mode_answers_every_line_and_moves_nothing() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    assert_eq!(line(&mut grbl, "$C"), "[MSG:Enabled]\r\nok\r\n");
+    for l in ["M4 S800", "G1 X10 F600", "M5"] {
+        assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
+    }
+    assert_eq!(line(&mut grbl, "G2 X20"), "error:35\r\n");
+    grbl.receive(b"?");
+    assert!(said(&mut grbl).starts_with("<Check|MPos:0.000,0.000,0.000|"));
+    grbl.advance_us(5_000_000);
+    let exit = line(&mut grbl, "$C");
+    assert_eq!(
+        exit,
+        "[MSG:Disabled]\r\nok\r\n\r\nGrbl 1.1h ['$' for help]\r\n"
+    );
+    let record = grbl.log().snapshot();
+    assert!(record.segments.is_empty(), "{:?}", record.segments);
+    assert_eq!((record.state.as_str(), record.alarms.len()), ("Idle", 0));
+    // Only from rest.
+    line(&mut grbl, "G1 X10 F600");
+    assert_eq!(line(&mut grbl, "$C"), "error:8\r\n");
 }
 
 #[test]
@@ -163,10 +237,24 @@ fn a_feed_hold_stops_the_laser_and_a_reset_after_it_keeps_the_position() {
     grbl.receive(b"?");
     assert!(said(&mut grbl).starts_with("<Hold:0|MPos:15.000,"));
     assert_eq!(grbl.log().snapshot().laser_power_s, 0.0);
-    grbl.receive(&[SOFT_RESET, b'?']);
+    grbl.receive(&[SOFT_RESET]);
+    grbl.receive(b"?");
     let reply = said(&mut grbl);
     assert!(!reply.contains("ALARM"), "{reply}");
     assert!(reply.contains("<Idle|MPos:15.000,"), "{reply}");
+}
+
+#[test]
+fn bytes_that_come_with_a_reset_after_it_are_lost() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    grbl.receive(b"\x18G1X10F600\n?");
+    let reply = said(&mut grbl);
+    assert_eq!(
+        reply, "\r\nGrbl 1.1h ['$' for help]\r\n",
+        "no ok, no status"
+    );
+    assert_eq!(line(&mut grbl, "G1X10F600"), "ok\r\n");
 }
 
 #[test]

@@ -1,8 +1,9 @@
 //! Why a command failed, and the process's exit code for it. The code comes from the error's
-//! category and from nothing else: 0 success; 2 bad arguments; 3 communication error (port,
-//! timeout, protocol, device restarted, or the same with the cutter); 4 the device refused,
-//! faulted, failed its self-test or could not finish, the cutter refused a line, raised an alarm
-//! or was stopped (Ctrl-C), or a file could not be read or written.
+//! category, except for the one outcome worse than any category: 0 success; 2 bad arguments; 3
+//! communication error (port, timeout, protocol, device restarted, or the same with the cutter);
+//! 4 the device refused, faulted, failed its self-test or could not finish, the cutter refused a
+//! line, raised an alarm or was stopped (Ctrl-C), or a file could not be read or written; 5 the
+//! cutter failed and could not be stopped: its laser may still be on.
 
 use kerfmeter::grbl::CutterError;
 use kerfmeter::{Category, Error};
@@ -14,6 +15,8 @@ const EXIT_USAGE: u8 = 2;
 const EXIT_COMMUNICATION: u8 = 3;
 /// Exit code for device refusals and faults.
 const EXIT_DEVICE: u8 = 4;
+/// Exit code for a cutter that could not be stopped: its laser may still be on.
+const EXIT_LASER_MAY_BE_ON: u8 = 5;
 
 /// Why a command failed.
 #[derive(Debug, thiserror::Error)]
@@ -72,11 +75,41 @@ impl CliError {
     }
 }
 
-/// The process's exit code for an error: from its category, and from nothing else.
+/// The process's exit code for an error: from its category, or 5 when a cutter's laser may
+/// still be on.
 pub fn exit_code(e: &CliError) -> u8 {
+    if let CliError::Cutter(cutter) = e
+        && cutter.laser_may_be_on()
+    {
+        return EXIT_LASER_MAY_BE_ON;
+    }
     match e.category() {
         Category::Usage => EXIT_USAGE,
         Category::Communication => EXIT_COMMUNICATION,
         Category::Device | Category::File => EXIT_DEVICE,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cutter_that_could_not_be_stopped_has_its_own_exit_code() {
+        let silent = || CutterError::Silent {
+            address: "grbl:/dev/ttyUSB0".into(),
+            waited_ms: 2000,
+            doing: "streaming",
+        };
+        let not_stopped = CutterError::NotStopped {
+            cause: Box::new(silent()),
+            stop: Box::new(silent()),
+        };
+        assert_eq!(exit_code(&CliError::Cutter(not_stopped)), 5);
+        let stopped = CutterError::Stopped {
+            cause: Box::new(silent()),
+            position_lost: false,
+        };
+        assert_eq!(exit_code(&CliError::Cutter(stopped)), EXIT_COMMUNICATION);
     }
 }

@@ -11,7 +11,8 @@
 //! both its text (`Display`) and its JSON (`Serialize`); [`output::emit`] prints it either way.
 //! Exit codes follow the error's category ([`error::exit_code`]): 0 success; 2 bad arguments;
 //! 3 communication error (port, timeout, protocol, device restarted); 4 the device refused,
-//! faulted, failed its self-test or could not finish, or a file could not be read or written.
+//! faulted, failed its self-test or could not finish, or a file could not be read or written;
+//! 5 a cutter failed and could not be stopped (its laser may still be on).
 
 use std::process::ExitCode;
 

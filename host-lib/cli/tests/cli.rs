@@ -606,9 +606,20 @@ fn cut_refuses_an_unstreamable_program_and_reports_a_refused_line() {
 
 #[test]
 fn ctrl_c_during_cut_stops_the_cutter_and_fails() {
+    interrupting_a_cut_stops_the_cutter("-INT");
+}
+
+#[test]
+fn sigterm_and_sighup_during_cut_stop_the_cutter_too() {
+    // Without ctrlc's "termination" feature these killed the process with the laser running.
+    interrupting_a_cut_stops_the_cutter("-TERM");
+    interrupting_a_cut_stops_the_cutter("-HUP");
+}
+
+fn interrupting_a_cut_stops_the_cutter(signal: &str) {
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
-    // Long enough (hours of simulated motion) that only Ctrl-C ends it.
+    // Long enough (hours of simulated motion) that only the signal ends it.
     let long: String = (0..2000)
         .map(|i| format!("G1 X{} Y0 S500 F600\n", 100 * (i % 2)))
         .collect();
@@ -624,16 +635,72 @@ fn ctrl_c_during_cut_stops_the_cutter_and_fails() {
     stderr.read_line(&mut first).unwrap();
     assert!(first.starts_with("streaming"), "{first}");
     let interrupted = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
+        .args([signal, &child.id().to_string()])
         .status()
         .unwrap();
     assert!(interrupted.success());
     let mut rest = String::new();
     std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
     let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(4), "{rest}");
-    assert!(rest.contains("cancelled after"), "{rest}");
-    assert!(rest.contains("laser is off"), "{rest}");
+    assert_eq!(status.code(), Some(4), "{signal}: {rest}");
+    assert!(rest.contains("cancelled after"), "{signal}: {rest}");
+    assert!(rest.contains("laser is off"), "{signal}: {rest}");
+}
+
+#[test]
+fn ctrl_c_mid_cut_leaves_the_machine_idle_with_the_laser_off() {
+    use std::io::{BufRead, BufReader, Read, Write};
+    use std::process::Stdio;
+    // The cutter twin in a process of its own, so that its state can be asked afterwards.
+    let mut twin = Command::new(env!("CARGO_BIN_EXE_kerfmeter-twin"))
+        .args(["--cutter", "--tcp", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut url = String::new();
+    BufReader::new(twin.stdout.take().unwrap())
+        .read_line(&mut url)
+        .unwrap();
+    let url = url.trim().to_owned();
+    // Under M3, whose beam GRBL leaves on at rest after a cut.
+    let long: String = (0..2000)
+        .map(|i| format!("G1 X{} Y0 S500 F600\n", 100 * (i % 2)))
+        .collect();
+    let (_dir, file) = gcode_file(&format!("M3\n{long}"));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+        .args(["cut", path(&file), "--cutter", &url, "--no-check"])
+        .stderr(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut first = String::new();
+    stderr.read_line(&mut first).unwrap();
+    assert!(first.starts_with("streaming"), "{first}");
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let interrupted = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(interrupted.success());
+    let mut rest = String::new();
+    stderr.read_to_string(&mut rest).unwrap();
+    assert_eq!(child.wait().unwrap().code(), Some(4), "{rest}");
+    // Ask the machine itself.
+    let mut link = std::net::TcpStream::connect(url.trim_start_matches("grbl+tcp://")).unwrap();
+    link.set_read_timeout(Some(std::time::Duration::from_secs(3)))
+        .unwrap();
+    link.write_all(b"?").unwrap();
+    let status = BufReader::new(link)
+        .lines()
+        .map_while(Result::ok)
+        .find(|l| l.starts_with('<'))
+        .unwrap_or_default();
+    twin.kill().unwrap();
+    twin.wait().unwrap();
+    assert!(status.starts_with("<Idle|"), "{status}");
+    assert!(status.ends_with(",0>"), "the laser is off: {status}");
 }
 
 #[test]

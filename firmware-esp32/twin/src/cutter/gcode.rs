@@ -45,8 +45,9 @@ pub mod codes {
     pub const UNUSED_VALUE_WORDS: u8 = 36;
 }
 
-/// GRBL 1.1's line buffer: longer lines are refused with `error:11`.
-pub const LINE_BUFFER_LEN: usize = 80;
+/// The longest line GRBL 1.1 takes (without spaces and comments): its line buffer is 80 bytes
+/// with one kept for the terminating NUL, so 79 characters; longer lines are `error:11`.
+pub const LINE_BUFFER_LEN: usize = 79;
 
 /// A motion command (modal group 1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -261,5 +262,9 @@ mod tests {
         assert_eq!(parse("G1 X1 X2"), Err(codes::REPEATED_WORD));
         assert_eq!(parse("S-1"), Err(codes::NEGATIVE_VALUE));
         assert_eq!(parse(&"G1X1".repeat(30)), Err(codes::LINE_OVERFLOW));
+        let longest = format!("G1X{}", "1".repeat(LINE_BUFFER_LEN - 3));
+        assert_eq!(longest.len(), 79);
+        assert!(parse(&longest).is_ok(), "79 characters fit");
+        assert_eq!(parse(&format!("{longest}1")), Err(codes::LINE_OVERFLOW));
     }
 }

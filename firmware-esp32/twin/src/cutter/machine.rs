@@ -105,6 +105,8 @@ pub struct Grbl {
     /// The alarm state: the code raised, or 0 when it booted locked without one.
     pub(super) alarm: Option<u8>,
     critical: bool,
+    /// Check mode (`$C`): lines are parsed and answered, nothing moves.
+    pub(super) check_mode: bool,
     gcode_lines: u32,
     motion_us: u64,
 }
@@ -129,6 +131,7 @@ impl Grbl {
             hold: Hold::None,
             alarm: options.boot_in_alarm.then_some(0),
             critical: false,
+            check_mode: false,
             gcode_lines: 0,
             motion_us: 0,
         };
@@ -158,7 +161,9 @@ impl Grbl {
     }
 
     /// Bytes from the sender: realtime commands act at once, the rest goes to the receive buffer
-    /// (lost, and recorded, when it is full); then whatever lines can run, run.
+    /// (lost, and recorded, when it is full); then whatever lines can run, run. Bytes that come
+    /// with a soft reset, after it, are lost, realtime ones too: GRBL flushes its receive buffer
+    /// and clears pending realtime requests when it re-initialises.
     pub fn receive(&mut self, bytes: &[u8]) {
         let mut lost_bytes = 0;
         for &b in bytes {
@@ -168,7 +173,10 @@ impl Grbl {
                 b'?' => self.status_report(),
                 b'!' => self.feed_hold(),
                 b'~' => self.resume(),
-                SOFT_RESET => self.soft_reset(),
+                SOFT_RESET => {
+                    self.soft_reset();
+                    break;
+                }
                 // GRBL's extended realtime commands (overrides): not emulated, never buffered.
                 0x80.. => {}
                 _ if self.rx.len() >= RX_BUFFER_LEN => lost_bytes += 1,
@@ -201,23 +209,46 @@ impl Grbl {
 
     /// Run the current move for at most `max_us`; the time used (0 when nothing can move).
     fn step(&mut self, max_us: u64) -> u64 {
-        if self.current.is_none() {
-            let Some(next) = self.queue.pop_front() else {
-                // A hold decelerating through the last move has nothing left to stop.
-                if let Hold::Decelerating { .. } = self.hold {
-                    self.hold = Hold::Complete;
-                }
-                return 0;
-            };
-            self.start_move(next);
+        if self.current.is_none() && !self.start_next() {
+            return 0;
         }
-        let Some((m, elapsed_us)) = self.current.as_mut() else {
+        let Some((m, elapsed_us)) = &self.current else {
             return 0;
         };
-        let left_in_move_us = m.duration_us - *elapsed_us;
-        // Decelerating to a hold, the head covers its path at half its speed on average.
-        let (mut step_us, speed_divisor) = match &mut self.hold {
-            Hold::Complete => return 0,
+        let left_in_move_us = m.duration_us - elapsed_us;
+        let Some((mut step_us, speed_divisor)) = self.hold_step(max_us, left_in_move_us) else {
+            return 0;
+        };
+        if let Some(left_us) = self.hard_limit_left_us() {
+            if left_us == 0 {
+                self.hard_limit();
+                return max_us;
+            }
+            step_us = step_us.min(left_us);
+        }
+        self.advance_move(step_us, (step_us / speed_divisor).min(left_in_move_us));
+        step_us.max(1)
+    }
+
+    /// Start the next queued move; false when there is none (a hold decelerating through the
+    /// last move then has nothing left to stop, and is complete).
+    fn start_next(&mut self) -> bool {
+        let Some(next) = self.queue.pop_front() else {
+            if let Hold::Decelerating { .. } = self.hold {
+                self.hold = Hold::Complete;
+            }
+            return false;
+        };
+        self.start_move(next);
+        true
+    }
+
+    /// How much time a step may take, and by how much the head's speed is divided meanwhile
+    /// (decelerating to a hold it covers its path at half its speed on average); the hold's
+    /// deceleration moves on by the step. `None` once the hold is complete.
+    fn hold_step(&mut self, max_us: u64, left_in_move_us: u64) -> Option<(u64, u64)> {
+        match &mut self.hold {
+            Hold::Complete => None,
             Hold::Decelerating { remaining_us } => {
                 let step_us = max_us
                     .min(left_in_move_us.saturating_mul(2))
@@ -227,19 +258,23 @@ impl Grbl {
                 if *remaining_us == 0 {
                     self.hold = Hold::Complete;
                 }
-                (step_us, 2)
+                Some((step_us, 2))
             }
-            Hold::None => (max_us.min(left_in_move_us), 1),
-        };
-        if let Some(limit_ms) = self.options.hard_limit_after_ms {
-            let left_us = limit_ms.saturating_mul(1000).saturating_sub(self.motion_us);
-            if left_us == 0 {
-                self.hard_limit();
-                return max_us;
-            }
-            step_us = step_us.min(left_us);
+            Hold::None => Some((max_us.min(left_in_move_us), 1)),
         }
-        let progress_us = (step_us / speed_divisor).min(left_in_move_us);
+    }
+
+    /// Motion time left before the injected hard limit trips, µs (`None`: none injected).
+    fn hard_limit_left_us(&self) -> Option<u64> {
+        let limit_ms = self.options.hard_limit_after_ms?;
+        Some(limit_ms.saturating_mul(1000).saturating_sub(self.motion_us))
+    }
+
+    /// Move the current move on by `progress_us` over a step of `step_us`; finish it at its end.
+    fn advance_move(&mut self, step_us: u64, progress_us: u64) {
+        let Some((m, elapsed_us)) = self.current.as_mut() else {
+            return;
+        };
         *elapsed_us += progress_us;
         if m.kind != SegmentKind::Dwell {
             self.motion_us += step_us;
@@ -247,7 +282,6 @@ impl Grbl {
         if *elapsed_us >= m.duration_us {
             self.finish_move(true);
         }
-        step_us.max(1)
     }
 
     fn start_move(&mut self, m: Move) {
@@ -303,8 +337,20 @@ impl Grbl {
         match (&self.current, self.hold) {
             (_, Hold::Complete) if laser_mode => 0.0,
             (Some((m, _)), _) => m.power_s,
-            (None, _) if laser_mode => 0.0,
+            (None, _) if laser_mode => self.laser_idle_output(),
             (None, _) => self.spindle_output(&self.modal),
+        }
+    }
+
+    /// The laser's output at rest in laser mode: GRBL turns the beam off when motion stops only
+    /// under M4 (dynamic power) or after a travel; under M3 after a G1/G2/G3 its PWM stays at `S`
+    /// until M5, a stationary beam burning one spot.
+    fn laser_idle_output(&self) -> f64 {
+        match (self.modal.spindle, self.modal.motion) {
+            (Spindle::Constant, Motion::Linear | Motion::Arc { .. }) => {
+                self.spindle_output(&self.modal)
+            }
+            _ => 0.0,
         }
     }
 
@@ -312,6 +358,7 @@ impl Grbl {
     pub fn state_name(&self) -> &'static str {
         match (self.alarm, self.hold) {
             (Some(_), _) => "Alarm",
+            (None, _) if self.check_mode => "Check",
             (None, Hold::Complete) => "Hold:0",
             (None, Hold::Decelerating { .. }) => "Hold:1",
             (None, Hold::None) if self.busy() => "Run",
@@ -384,7 +431,7 @@ impl Grbl {
     }
 
     /// Ctrl-X: stop everything, laser off; an alarm when it stops motion.
-    fn soft_reset(&mut self) {
+    pub(super) fn soft_reset(&mut self) {
         let moving = matches!(self.hold, Hold::None | Hold::Decelerating { .. }) && self.busy();
         if moving && self.alarm.is_none() {
             self.raise(ALARM_ABORT_CYCLE);
@@ -396,6 +443,7 @@ impl Grbl {
         self.pending = None;
         self.hold = Hold::None;
         self.critical = false;
+        self.check_mode = false;
         self.plan_pos = self.machine_pos;
         self.modal = Modal::default();
         self.log.lock().resets += 1;
@@ -484,6 +532,14 @@ impl Grbl {
             Ok(plan) => plan,
             Err(code) => return Some(error(code)),
         };
+        if self.check_mode {
+            // Checked, and the parser's state moves on; nothing is queued.
+            self.modal = plan.modal;
+            if let Some(m) = plan.step {
+                self.plan_pos = m.end;
+            }
+            return Some(ok());
+        }
         let full = plan.step.is_some() && self.queue.len() >= PLANNER_BLOCKS;
         if full || (plan.sync && self.busy()) {
             return None;
@@ -499,6 +555,7 @@ impl Grbl {
             self.queue.push_back(m);
         }
         if plan.program_end {
+            self.say("[MSG:Pgm End]");
             self.modal = Modal {
                 motion: Motion::Linear,
                 absolute: true,
@@ -533,7 +590,7 @@ impl Grbl {
         let mut plan = Plan {
             modal,
             step: None,
-            sync: block.program_end,
+            sync: block.program_end || self.spindle_sync(block, &modal),
             program_end: block.program_end,
         };
         match (block.dwell, block.p) {
@@ -556,6 +613,18 @@ impl Grbl {
             return Err(codes::UNUSED_VALUE_WORDS);
         }
         Ok(plan)
+    }
+
+    /// True when `block` changes the spindle the way GRBL synchronises: it waits for the
+    /// planner to empty before parsing on (its `spindle_sync`), so the `ok` comes only once
+    /// every earlier move has run: a change of M3/M4/M5, or a new `S` with the spindle on and no
+    /// motion on the line.
+    fn spindle_sync(&self, block: &Block, modal: &Modal) -> bool {
+        let state_changed = modal.spindle != self.modal.spindle;
+        let power_changed = modal.power_s != self.modal.power_s
+            && modal.spindle != Spindle::Off
+            && !block.has_axes();
+        state_changed || power_changed
     }
 
     /// The move a block with axis words makes (`None` when it goes nowhere).

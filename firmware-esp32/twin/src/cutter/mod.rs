@@ -11,25 +11,34 @@
 //!   out of the stream as they arrive and never occupy the buffer.
 //! - Lines: `ok` or `error:N` for each, in order; `ok` is delayed while the planner queue
 //!   ([`PLANNER_BLOCKS`] blocks, as GRBL's) is full, which is how a real controller paces a
-//!   sender. Lines over 80 characters are refused (`error:11`).
+//!   sender. Lines over 79 characters (GRBL's 80-byte line buffer less its terminator) are
+//!   refused (`error:11`). A line that changes the spindle (M3/M4/M5, or a new `S` with the
+//!   spindle on and no motion) waits for the planner to empty before its `ok`, as GRBL's
+//!   `spindle_sync` does; lines behind it wait in the receive buffer.
 //! - G-code ([`gcode`]): G0 G1 G2 G3 (I/J arcs in XY) G4 G17 G20 G21 G54 G90 G91 G94, M2 M30 M3
 //!   M4 M5 (M7–M9 accepted), F S X Y Z I J P N. Anything else is `error:20`; the other checks
 //!   give GRBL's codes (missing feed `error:22`, arc end off its circle `error:33`, ...).
 //! - `$` commands: `$$` (settings), `$N=V`, `$X` (unlock), `$G` (parser state), `$I` (build
-//!   info), `$` (help); `$H` is `error:5` (no homing); others `error:3`.
+//!   info), `$` (help), `$C` (check mode: every line parsed and answered, state `Check`,
+//!   nothing moves; toggled off with a soft reset, as GRBL does); `$H` is `error:5` (no
+//!   homing); others `error:3`.
 //! - Motion ([`motion`]): each move at its programmed feed (travels at `$110`), no acceleration;
 //!   G4 waits for the queue to empty, then dwells as a block (real GRBL answers `ok` only after
-//!   the dwell). M2/M30 wait for the queue to empty, then reset the modal state (M5, G90).
+//!   the dwell). M2/M30 wait for the queue to empty, then reset the modal state (M5, G90) and say
+//!   `[MSG:Pgm End]` before their `ok`.
 //! - The laser: with laser mode (`$32=1`) it fires only during G1/G2/G3 (M3 or M4, at `S`; M4's
-//!   scaling by speed is not modelled since the feed is constant), never on G0 nor while idle,
-//!   and it is off during a completed feed hold. Without laser mode it is a spindle: on from M3
+//!   scaling by speed is not modelled since the feed is constant), never on G0, and it is off
+//!   during a completed feed hold. At rest it is off under M4 or after a G0, but under M3 after
+//!   a G1/G2/G3 it stays on at `S` until M5, as GRBL's constant-power mode does (a program that
+//!   ends without M5 leaves a stationary beam burning). Without laser mode it is a spindle: on from M3
 //!   or M4 with S > 0 until M5, travels included (each such travel is a [`TravelFiring`]).
 //! - Status reports: `<State|MPos:x,y,z|Bf:blocks,bytes|FS:feed,S>`, the states Idle, Run,
 //!   Hold:1 (decelerating at `$120` along the path), Hold:0, Alarm.
 //! - Feed hold, resume and soft reset. A reset during motion (running, or a hold still
 //!   decelerating) raises `ALARM:3` as GRBL does: the position may be lost. A reset at a
 //!   completed hold or at rest keeps the position. Every reset turns the laser off, empties the
-//!   queue and the buffer, prints the banner, and keeps an alarm until `$X`.
+//!   queue and the buffer (bytes sent with the reset, after it, are lost, realtime ones too, as GRBL
+//!   re-initialising loses them), prints the banner, and keeps an alarm until `$X`.
 //! - Injected faults ([`CutterOptions`]): boot in alarm (as a machine with homing enabled), a
 //!   hard limit after some motion time (`ALARM:1`, then nothing but a reset is heard, not even
 //!   `?`, as in GRBL's code), an

@@ -60,11 +60,22 @@ impl CutterServer {
     /// Serve a new cutter on `127.0.0.1:port` (0: any free port), one client at a time; the
     /// machine keeps its state between clients, and greets each with its banner.
     pub fn tcp(options: CutterOptions, pace: Pace, port: u16) -> Result<Self, ServeError> {
+        Self::tcp_greeting(options, pace, port, true)
+    }
+
+    /// [`CutterServer::tcp`], greeting each client with the banner or (`greet` false) saying
+    /// nothing until spoken to, as many networked controllers do.
+    pub fn tcp_greeting(
+        options: CutterOptions,
+        pace: Pace,
+        port: u16,
+        greet: bool,
+    ) -> Result<Self, ServeError> {
         let listener = TcpListener::bind((Ipv4Addr::LOCALHOST, port))?;
         listener.set_nonblocking(true)?;
         let address = listener.local_addr()?.to_string();
         Ok(Self::spawn(address, options, move |grbl, stop| {
-            accept_loop(&listener, grbl, stop, pace)
+            accept_loop(&listener, grbl, stop, pace, greet)
         })?)
     }
 
@@ -130,10 +141,11 @@ fn accept_loop(
     grbl: &mut Grbl,
     stop: &AtomicBool,
     pace: Pace,
+    greet: bool,
 ) -> io::Result<()> {
     while !stop.load(Ordering::Relaxed) {
         match listener.accept() {
-            Ok((stream, _)) => serve_client(stream, grbl, stop, pace)?,
+            Ok((stream, _)) => serve_client(stream, grbl, stop, pace, greet)?,
             Err(e) if is_timeout(&e) => std::thread::sleep(READ_TIMEOUT),
             Err(e) => return Err(e),
         }
@@ -146,11 +158,17 @@ fn serve_client(
     grbl: &mut Grbl,
     stop: &AtomicBool,
     pace: Pace,
+    greet: bool,
 ) -> io::Result<()> {
     stream.set_nonblocking(false)?;
     stream.set_read_timeout(Some(READ_TIMEOUT))?;
     stream.set_nodelay(true)?;
-    grbl.greet();
+    if greet {
+        grbl.greet();
+    } else {
+        // What it said before this client came (its boot banner) is not this client's.
+        grbl.take_output();
+    }
     match serve_cutter(&mut stream, grbl, stop, pace) {
         Err(e) if e.kind() == io::ErrorKind::ConnectionReset => Ok(()),
         other => other,

@@ -143,8 +143,24 @@ impl Grbl {
                 "[VER:{VERSION}.kerfmeter-twin:]\r\n[OPT:V,{PLANNER_BLOCKS},{RX_BUFFER_LEN}]\r\nok\r\n"
             ),
             "$H" => error(codes::SETTING_DISABLED),
+            "$C" => self.toggle_check_mode(),
             _ => self.set_setting(&command),
         }
+    }
+
+    /// `$C`: into check mode from rest (`error:8` otherwise); out of it with a soft reset,
+    /// as GRBL does (its `ok`, then the banner).
+    fn toggle_check_mode(&mut self) -> String {
+        if self.check_mode {
+            self.out.extend_from_slice(b"[MSG:Disabled]\r\nok\r\n");
+            self.soft_reset();
+            return String::new();
+        }
+        if self.alarm.is_some() || self.is_busy() {
+            return error(codes::NOT_IDLE);
+        }
+        self.check_mode = true;
+        "[MSG:Enabled]\r\nok\r\n".into()
     }
 
     /// `$N=V`.

@@ -64,6 +64,10 @@ struct Args {
     /// Cutter twin: without laser mode ($32=0), a spindle machine that fires on travels.
     #[arg(long, requires = "cutter")]
     cutter_no_laser_mode: bool,
+    /// Cutter twin on TCP: greet no client with the banner (many networked controllers say
+    /// nothing until spoken to).
+    #[arg(long, requires = "tcp")]
+    cutter_no_greeting: bool,
 }
 
 fn main() -> ExitCode {
@@ -140,7 +144,8 @@ fn serve_cutter(args: &Args) -> ExitCode {
     };
     // The pseudo-terminal's client side stays open here so that senders may come and go.
     let started = match args.tcp {
-        Some(port) => CutterServer::tcp(options, pace, port).map(|server| (server, None)),
+        Some(port) => CutterServer::tcp_greeting(options, pace, port, !args.cutter_no_greeting)
+            .map(|server| (server, None)),
         None => CutterServer::pty(options, pace).map(|(server, client)| (server, Some(client))),
     };
     let (server, _client) = match started {

@@ -1,6 +1,8 @@
 //! `kerfmeter cut`: stream a G-code file to a laser cutter's GRBL controller (or the simulated
-//! cutter) with a progress bar. Ctrl-C stops the cutter (feed hold, then soft reset: the laser
-//! goes off) and the command fails; so does any refused line or alarm, with its meaning.
+//! cutter) with a progress bar. Ctrl-C, SIGTERM and SIGHUP stop the cutter (feed hold, then soft
+//! reset: the laser goes off) and the command fails, also while it connects; so does any refused
+//! line or alarm, with its meaning. SIGKILL and a power loss of the computer cannot be caught:
+//! then only the machine's own safety (its E-stop, its interlock) stops the laser.
 
 use std::fmt;
 use std::io::IsTerminal;
@@ -10,7 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use kerfmeter::grbl::protocol::prepare;
+use kerfmeter::grbl::protocol::{MachineState, prepare};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, CutterError, StreamProgress};
 use serde::Serialize;
 
@@ -36,6 +38,15 @@ pub struct CutArgs {
     /// keeps a laser on through every travel move.
     #[arg(long)]
     pub allow_without_laser_mode: bool,
+    /// Skip the check pass: by default the whole program first runs through GRBL's check mode
+    /// (`$C`: parsed and answered, nothing moves), because a line GRBL refuses mid-job is
+    /// followed by lines it has already read, which can cut from the wrong point.
+    #[arg(long)]
+    pub no_check: bool,
+    /// Give the job up (and stop the cutter) once the machine has been held (feed hold, door
+    /// open) this long, s. By default a held job waits for cycle start or Ctrl-C.
+    #[arg(long, value_name = "SECONDS")]
+    pub hold_timeout_s: Option<f64>,
 }
 
 /// What `cut` did.
@@ -74,20 +85,17 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         message: format!("cannot read the G-code program: {e}"),
     })?;
     // A line that cannot be streamed is refused before the cutter is touched.
-    prepare(&program).map_err(|bad| CutterError::BadProgram {
+    let lines = prepare(&program).map_err(|bad| CutterError::BadProgram {
         line: bad.number,
         reason: bad.reason,
     })?;
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
+    // With ctrlc's "termination" feature this also catches SIGTERM and SIGHUP.
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
         .map_err(|e| CliError::Usage(format!("cannot take over Ctrl-C: {e}")))?;
-    let options = ConnectOptions {
-        unlock: args.unlock,
-        allow_without_laser_mode: args.allow_without_laser_mode,
-        ..ConnectOptions::default()
-    };
-    let mut cutter = Cutter::open(&args.cutter, options)?;
+    let options = connect_options(args)?;
+    let mut cutter = Cutter::open_cancellable(&args.cutter, options, cancel.clone())?;
     if !g.json {
         eprintln!(
             "streaming {} to {} (GRBL {}); Ctrl-C stops the cutter",
@@ -97,7 +105,7 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         );
     }
     let bar = stream_bar(g.json);
-    let report = cutter.stream(&program, &cancel, &mut |p| show(&bar, p));
+    let report = cutter.stream_prepared(lines, &cancel, &mut |p| show(&bar, p));
     bar.finish_and_clear();
     let report = report?;
     Ok(CutReport {
@@ -106,6 +114,27 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         lines: report.lines,
         elapsed_s: report.elapsed.as_secs_f64(),
         max_unanswered_bytes: report.max_unanswered_bytes,
+    })
+}
+
+/// The driver's options from the flags.
+fn connect_options(args: &CutArgs) -> Result<ConnectOptions, CliError> {
+    let hold_timeout = args
+        .hold_timeout_s
+        .map(|s| {
+            Duration::try_from_secs_f64(s).map_err(|_| {
+                CliError::Usage(format!(
+                    "--hold-timeout-s {s}: give a number of seconds ≥ 0"
+                ))
+            })
+        })
+        .transpose()?;
+    Ok(ConnectOptions {
+        hold_timeout,
+        unlock: args.unlock,
+        allow_without_laser_mode: args.allow_without_laser_mode,
+        check_first: !args.no_check,
+        ..ConnectOptions::default()
     })
 }
 
@@ -127,11 +156,24 @@ fn stream_bar(json: bool) -> ProgressBar {
 fn show(bar: &ProgressBar, p: &StreamProgress) {
     bar.set_length(p.total as u64);
     bar.set_position(p.answered as u64);
+    if p.checking {
+        bar.set_message("checking ($C): nothing moves");
+        return;
+    }
     if let Some(status) = &p.status {
         let at = status
             .position_mm
             .map(|[x, y, _]| format!(" at X{x:.1} Y{y:.1}"))
             .unwrap_or_default();
-        bar.set_message(format!("{}{at}", status.state));
+        let state = match status.state {
+            MachineState::Hold(_) | MachineState::Door(_) => {
+                format!(
+                    "{}: held, press cycle start at the machine or Ctrl-C",
+                    status.state
+                )
+            }
+            ref other => other.to_string(),
+        };
+        bar.set_message(format!("{state}{at}"));
     }
 }

@@ -51,6 +51,14 @@ pub enum CutterError {
         /// What the driver was waiting for.
         doing: &'static str,
     },
+    /// The banner names a GRBL older than 1.1, whose protocol differs.
+    #[error(
+        "the controller runs GRBL {version}; this program speaks GRBL 1.1 (status reports, realtime commands and laser mode differ before it): update its firmware"
+    )]
+    OldVersion {
+        /// The version in its banner.
+        version: String,
+    },
     /// The controller is in alarm and was not to be unlocked.
     #[error(
         "the cutter is in alarm{}: {reason}. Check the machine, then home it or unlock it (`--unlock` sends $X)",
@@ -86,9 +94,9 @@ pub enum CutterError {
         /// Why.
         reason: String,
     },
-    /// The controller refused a line; the cutter was stopped.
+    /// The controller refused a line.
     #[error(
-        "the cutter refused line {line} ({text}) with error:{code}: {}. The cutter was stopped and the laser is off",
+        "the cutter refused line {line} ({text}) with error:{code}: {}",
         describe_error(*code)
     )]
     Rejected {
@@ -99,27 +107,51 @@ pub enum CutterError {
         /// The `error:N` code.
         code: u8,
     },
-    /// The controller raised an alarm during the job; the cutter was stopped.
+    /// The check pass (`$C`) found a line the controller refuses; nothing moved.
     #[error(
-        "the cutter raised ALARM:{code} during the job: {}. The laser is off. {}",
+        "the cutter's check pass ($C) refused line {line} ({text}) with error:{code}: {}. Nothing was cut",
+        describe_error(*code)
+    )]
+    CheckRejected {
+        /// Its line number in the file.
+        line: usize,
+        /// The line as sent.
+        text: String,
+        /// The `error:N` code.
+        code: u8,
+    },
+    /// The machine stayed held (feed hold, door open) longer than the hold timeout.
+    #[error(
+        "the cutter stayed held ({state}) for {waited_ms} ms: nobody pressed cycle start, so the job was given up"
+    )]
+    HeldTooLong {
+        /// Its state.
+        state: String,
+        /// The hold timeout, ms.
+        waited_ms: u64,
+    },
+    /// The controller raised an alarm during the job.
+    #[error(
+        "the cutter raised ALARM:{code} during the job: {}. {}{}",
         describe_alarm(*code),
-        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} ({t})")).unwrap_or_else(|| "It had accepted no line yet".into())
+        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} ({t})")).unwrap_or_else(|| "It had accepted no line yet".into()),
+        last_position_mm.map(|[x, y, z]| format!(" (lines are accepted ahead of the motion; the last status report before the alarm had the head at X{x:.2} Y{y:.2} Z{z:.2} mm)")).unwrap_or_default()
     )]
     Alarm {
         /// The alarm code.
         code: u8,
         /// The last line accepted before it: file line number and text.
         after: Option<(usize, String)>,
+        /// Where the last status report before it had the head, mm (machine position).
+        last_position_mm: Option<[f64; 3]>,
     },
     /// The controller restarted during the job.
     #[error(
         "the cutter restarted during the job (its banner came again); the job is lost. Check its power and cable"
     )]
     Restarted,
-    /// The job was cancelled (Ctrl-C); the cutter was stopped.
-    #[error(
-        "cancelled after {answered} of {total} lines: the cutter was stopped and the laser is off"
-    )]
+    /// The job was cancelled (Ctrl-C, a termination signal).
+    #[error("cancelled after {answered} of {total} lines")]
     Cancelled {
         /// Lines the controller had accepted.
         answered: usize,
@@ -129,9 +161,45 @@ pub enum CutterError {
     /// The controller said something the protocol does not allow here.
     #[error("the cutter broke the GRBL protocol: {0}")]
     Protocol(String),
-    /// A failure, and then the cutter could not be stopped.
+    /// Cancelled (Ctrl-C, a termination signal) while connecting, before any program line was
+    /// sent.
+    #[error("cancelled while connecting to the cutter at {address}; no program line was sent")]
+    ConnectCancelled {
+        /// The address.
+        address: String,
+    },
+    /// The program ran, but the controller does not confirm the laser off at its end.
+    #[error("the job ran, but the cutter does not confirm the laser off afterwards ({said})")]
+    LaserNotOff {
+        /// What it said instead (its `$G` parser state or its status report).
+        said: String,
+    },
+    /// A numbered error or alarm from a controller that is not GRBL itself (grblHAL, FluidNC):
+    /// the meaning given is GRBL 1.1's, which it may not share (grblHAL's `ALARM:10` is its
+    /// E-stop, not a failed homing).
     #[error(
-        "{cause}; AND the cutter could not be stopped ({stop}): switch the laser off at the machine"
+        "{error} [the meaning given is GRBL 1.1's; {flavour} may number its codes otherwise: check its documentation]"
+    )]
+    OtherFlavour {
+        /// The controller's firmware (`grblHAL`, `FluidNC`).
+        flavour: &'static str,
+        /// The error with the code.
+        error: Box<CutterError>,
+    },
+    /// A failure, after which the cutter was stopped (feed hold, soft reset): the laser is off.
+    #[error(
+        "{cause}. The cutter was stopped and the laser is off{}",
+        if *position_lost { "; the reset came while it moved (ALARM:3): its position may be lost, home it before the next job" } else { "" }
+    )]
+    Stopped {
+        /// The failure.
+        cause: Box<CutterError>,
+        /// The reset raised `ALARM:3`: it came while the machine still moved.
+        position_lost: bool,
+    },
+    /// A failure, and then the cutter could not be stopped: the most dangerous outcome.
+    #[error(
+        "THE LASER MAY STILL BE ON: switch it off at the machine now. {cause}; then the cutter could not be stopped ({stop})"
     )]
     NotStopped {
         /// The first failure.
@@ -157,12 +225,46 @@ impl CutterError {
             | Self::Restarted
             | Self::Sim(_) => Category::Communication,
             Self::AlarmAtConnect { .. }
+            | Self::OldVersion { .. }
             | Self::NotIdle { .. }
             | Self::LaserModeOff { .. }
             | Self::Rejected { .. }
+            | Self::CheckRejected { .. }
+            | Self::HeldTooLong { .. }
             | Self::Alarm { .. }
-            | Self::Cancelled { .. } => Category::Device,
-            Self::NotStopped { cause, .. } => cause.category(),
+            | Self::Cancelled { .. }
+            | Self::ConnectCancelled { .. }
+            | Self::LaserNotOff { .. }
+            | Self::NotStopped { .. } => Category::Device,
+            Self::Stopped { cause, .. } => cause.category(),
+            Self::OtherFlavour { error, .. } => error.category(),
+        }
+    }
+
+    /// True when the message gives the meaning of a controller's numbered code.
+    pub(super) fn has_code(&self) -> bool {
+        matches!(
+            self,
+            Self::Rejected { .. }
+                | Self::CheckRejected { .. }
+                | Self::Alarm { .. }
+                | Self::AlarmAtConnect { code: Some(_), .. }
+        )
+    }
+
+    /// True when the cutter could not be stopped after a failure: its laser may still be on
+    /// (the command-line tool gives this its own exit code).
+    pub fn laser_may_be_on(&self) -> bool {
+        matches!(self, Self::NotStopped { .. })
+    }
+
+    /// The first failure, without the stop that followed it ([`CutterError::Stopped`],
+    /// [`CutterError::NotStopped`]).
+    pub fn cause(&self) -> &CutterError {
+        match self {
+            Self::Stopped { cause, .. } | Self::NotStopped { cause, .. } => cause.cause(),
+            Self::OtherFlavour { error, .. } => error.cause(),
+            other => other,
         }
     }
 }

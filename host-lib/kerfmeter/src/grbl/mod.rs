@@ -9,9 +9,12 @@
 //!
 //! # Connecting
 //!
-//! [`Cutter::open`] waits for GRBL's banner (`Grbl 1.1h ['$' for help]`); a controller that says
-//! nothing (one that does not reset when its port opens, a TCP controller) is woken with a soft
-//! reset. The banner's absence is an error naming what came instead. It then asks for the state:
+//! [`Cutter::open`] waits for GRBL's banner (`Grbl 1.1h ['$' for help]`), longer while the
+//! controller prints a boot log (ESP32 boards); a controller that says nothing (one that does
+//! not reset when its port opens, a TCP controller) is asked its state and, unless it is busy
+//! (another client's job: refused, not reset), woken with a soft reset. The banner's absence is
+//! an error naming what came instead; a GRBL older than 1.1 is refused. It then asks for the
+//! state:
 //! a controller in alarm is refused with the alarm's meaning unless unlocking was asked for
 //! (`$X`); one that is not idle is refused. Finally it reads the settings (`$$`) and refuses a
 //! controller without laser mode (`$32=1`): without it GRBL keeps the beam on through travel
@@ -19,15 +22,27 @@
 //!
 //! # Streaming
 //!
-//! [`Cutter::stream`] sends a program with character counting: never more than GRBL's 128-byte
-//! receive buffer unanswered, each `ok`/`error:N` matched to its line in order. It polls the
-//! state (`?`) meanwhile, and returns once every line is accepted and the machine reports Idle
-//! twice. Every failure stops the cutter before it is returned ([`Cutter::stop`]: feed hold `!`,
-//! then soft reset ctrl-X, which empties the queue and turns the laser off; after an alarm, which
-//! has stopped the machine already, the reset alone): a refused line
-//! (reported with its line number in the file, its text and the code's meaning), an alarm (with
-//! the last line accepted), silence, a restart, and a cancel flag set (Ctrl-C). If even stopping
-//! fails, the error says so and asks for the laser to be switched off at the machine.
+//! [`Cutter::stream`] first runs the program through GRBL's check mode (`$C`, unless
+//! [`ConnectOptions::check_first`] is off): every line parsed and answered, nothing moving. GRBL
+//! keeps reading the lines already in its receive buffer after it refuses one, before any stop
+//! can arrive, so a refused travel mid-job would let the next cut start from the wrong point;
+//! the check pass finds the refusal before anything moves (GRBL's own remedy).
+//!
+//! It then sends the program with character counting: never more than GRBL's 128-byte
+//! receive buffer unanswered, each `ok`/`error:N` matched to its line in order, closed by an
+//! `M5` of its own (under M3 GRBL keeps the beam on at rest after a cut). It polls the state
+//! (`?`) meanwhile, and returns once every line is accepted, the machine reports Idle twice and
+//! the controller confirms the laser off (`$G` says M5, the status spindle 0). Every failure
+//! stops the cutter before it is returned ([`Cutter::stop`]: feed hold `!`, waited for as long
+//! as the machine's rates and accelerations say, then soft reset ctrl-X, sent again until the
+//! banner comes, which empties the queue and turns the laser off; after an alarm, which has
+//! stopped the machine already, the reset alone): a refused line (reported with its line
+//! number in the file, its text and the code's meaning), an alarm (with the last line
+//! accepted), silence, a restart, and a cancel flag set (Ctrl-C). The error then says that the
+//! cutter was stopped and the laser is off ([`CutterError::Stopped`], also when the reset found
+//! the machine still moving: `ALARM:3`, home it). If even stopping fails, the error starts with
+//! THE LASER MAY STILL BE ON ([`CutterError::NotStopped`]) and asks for the laser to be switched
+//! off at the machine.
 
 pub mod codes;
 mod driver;

@@ -11,8 +11,9 @@ use std::collections::VecDeque;
 
 /// GRBL's serial receive buffer, bytes.
 pub const RX_BUFFER_LEN: usize = 128;
-/// GRBL 1.1's line buffer: longer lines (without spaces and comments) are refused.
-pub const LINE_MAX_LEN: usize = 80;
+/// The longest line GRBL 1.1 takes, without spaces and comments: its line buffer is 80 bytes
+/// and one is kept for the terminator, so 79 characters; longer lines are refused.
+pub const LINE_MAX_LEN: usize = 79;
 
 /// One line of a program, ready to stream.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -52,13 +53,36 @@ pub fn prepare(program: &str) -> Result<Vec<ProgramLine>, BadLine> {
         }
         if text.len() > LINE_MAX_LEN {
             return Err(bad(format!(
-                "{} characters without spaces and comments; GRBL's line buffer holds {LINE_MAX_LEN}",
+                "{} characters without spaces and comments; GRBL takes at most {LINE_MAX_LEN}",
                 text.len()
+            )));
+        }
+        if let Some(pause) = program_pause(&text) {
+            return Err(bad(format!(
+                "`{pause}` pauses the program until cycle start is pressed at the machine, with the job half done; remove it"
             )));
         }
         lines.push(ProgramLine { number, text });
     }
     Ok(lines)
+}
+
+/// The program pause (`M0`, `M1`) on a cleaned line, if any.
+fn program_pause(text: &str) -> Option<String> {
+    let mut rest = text;
+    while let Some(at) = rest.find('M') {
+        let digits = &rest[at + 1..];
+        let end = digits
+            .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .unwrap_or(digits.len());
+        if let Ok(number) = digits[..end].parse::<f64>()
+            && (number == 0.0 || number == 1.0)
+        {
+            return Some(format!("M{}", &digits[..end]));
+        }
+        rest = &digits[end..];
+    }
+    None
 }
 
 /// One line without comments and spaces, or why it cannot be sent.
@@ -82,6 +106,23 @@ fn clean(raw: &str) -> Result<String, String> {
         }
     }
     Ok(text)
+}
+
+/// The receive buffer a `$I` build-info line reports (`[OPT:V,15,128]`: options, planner
+/// blocks, receive-buffer bytes); `None` for any other line.
+pub fn rx_buffer_from_build_info(line: &str) -> Option<usize> {
+    let options = line.strip_prefix("[OPT:")?.strip_suffix(']')?;
+    options.split(',').nth(2)?.trim().parse().ok()
+}
+
+/// The character-counting window for a controller whose `$I` reports `rx_buffer` bytes: GRBL's
+/// 128 at most (a larger buffer is not needed to keep a laser's planner fed), less when its
+/// buffer is smaller, but never below the longest line plus its newline (or no line could be
+/// sent).
+pub fn window_for(rx_buffer: Option<usize>) -> usize {
+    rx_buffer.map_or(RX_BUFFER_LEN, |rx| {
+        rx.clamp(LINE_MAX_LEN + 1, RX_BUFFER_LEN)
+    })
 }
 
 /// What a line from the controller is.
@@ -198,6 +239,15 @@ impl std::fmt::Display for MachineState {
     }
 }
 
+/// The free room a status report's `Bf` field gives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BufferFree {
+    /// Free planner blocks.
+    pub planner_blocks: u32,
+    /// Free receive-buffer bytes.
+    pub rx_bytes: u32,
+}
+
 /// A status report (`<Idle|MPos:0.000,0.000,0.000|FS:0,0>`); the fields a controller leaves out
 /// are `None`.
 #[derive(Debug, Clone, PartialEq)]
@@ -211,7 +261,7 @@ pub struct Status {
     /// The spindle (laser) value now (`FS`).
     pub spindle_s: Option<f64>,
     /// Free planner blocks and free receive-buffer bytes (`Bf`).
-    pub buffer_free: Option<(u32, u32)>,
+    pub buffer_free: Option<BufferFree>,
 }
 
 impl Status {
@@ -239,7 +289,10 @@ impl Status {
                 }
                 ("F", [feed]) => status.feed_mm_per_min = Some(*feed),
                 ("Bf", [blocks, bytes]) => {
-                    status.buffer_free = Some((*blocks as u32, *bytes as u32))
+                    status.buffer_free = Some(BufferFree {
+                        planner_blocks: *blocks as u32,
+                        rx_bytes: *bytes as u32,
+                    })
                 }
                 _ => {}
             }
@@ -348,13 +401,32 @@ mod tests {
                 .reason
                 .contains("system command")
         );
-        assert!(
-            prepare(&"G1X1".repeat(25))
-                .unwrap_err()
-                .reason
-                .contains("80")
-        );
+        let longest = format!("G1X{}", "1".repeat(LINE_MAX_LEN - 3));
+        assert_eq!(longest.len(), 79);
+        assert!(prepare(&longest).is_ok(), "79 characters fit");
+        let error = prepare(&format!("{longest}1")).unwrap_err();
+        assert!(error.reason.contains("at most 79"), "{}", error.reason);
+        for pause in ["M0", "G0X1M1", "M00", "m1 (pause)"] {
+            let error = prepare(pause).unwrap_err();
+            assert!(
+                error.reason.contains("cycle start"),
+                "{pause}: {}",
+                error.reason
+            );
+        }
+        assert!(prepare("M3S100\nM5\nM2\nM30\nM4\nM100\n").is_ok());
         assert!(prepare("G1 X1 (a ! in a comment is fine)\n").is_ok());
+    }
+
+    #[test]
+    fn the_window_follows_a_smaller_receive_buffer_from_build_info() {
+        assert_eq!(rx_buffer_from_build_info("[OPT:V,15,128]"), Some(128));
+        assert_eq!(rx_buffer_from_build_info("[OPT:VL,35,1024]"), Some(1024));
+        assert_eq!(rx_buffer_from_build_info("[VER:1.1h.20190825:]"), None);
+        assert_eq!(window_for(None), 128);
+        assert_eq!(window_for(Some(1024)), 128);
+        assert_eq!(window_for(Some(96)), 96);
+        assert_eq!(window_for(Some(16)), 80);
     }
 
     #[test]
@@ -377,7 +449,13 @@ mod tests {
         };
         assert_eq!(s.state, MachineState::Hold(0));
         assert_eq!(s.position_mm, Some([1.0, 2.5, 0.0]));
-        assert_eq!(s.buffer_free, Some((15, 128)));
+        assert_eq!(
+            s.buffer_free,
+            Some(BufferFree {
+                planner_blocks: 15,
+                rx_bytes: 128
+            })
+        );
     }
 
     #[test]

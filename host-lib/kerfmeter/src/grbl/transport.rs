@@ -3,9 +3,11 @@
 //! slices so that the driver's deadlines hold.
 
 use std::io::{Read, Write};
-use std::net::{TcpStream, ToSocketAddrs};
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
 use std::str::FromStr;
-use std::time::Duration;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
 
 use super::error::CutterError;
 
@@ -13,6 +15,8 @@ use super::error::CutterError;
 pub const DEFAULT_BAUD: u32 = 115_200;
 /// How long one read may block.
 pub(super) const READ_SLICE: Duration = Duration::from_millis(10);
+/// How long a TCP write may block (a controller that stopped reading).
+const TCP_WRITE_TIMEOUT: Duration = Duration::from_secs(1);
 /// How long a TCP connection may take to open.
 const TCP_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -106,24 +110,58 @@ pub(super) fn open_serial(path: &str, baud: u32) -> Result<Box<dyn Link>, Cutter
     Ok(Box::new(port))
 }
 
-/// Connect to `host:port`.
-pub(super) fn open_tcp(host_port: &str) -> Result<Box<dyn Link>, CutterError> {
+/// Connect to `host:port`; the name is resolved within [`TCP_CONNECT_TIMEOUT`] and given up
+/// as soon as `cancel` is set.
+pub(super) fn open_tcp(host_port: &str, cancel: &AtomicBool) -> Result<Box<dyn Link>, CutterError> {
     let open_error = |reason: String| CutterError::Open {
         address: format!("grbl+tcp://{host_port}"),
         reason,
     };
-    let addr = host_port
-        .to_socket_addrs()
+    let addr = resolve(host_port, cancel)?
         .map_err(|e| open_error(format!("cannot resolve it: {e}")))?
-        .next()
         .ok_or_else(|| open_error("it resolves to no address".into()))?;
     let stream = TcpStream::connect_timeout(&addr, TCP_CONNECT_TIMEOUT)
         .map_err(|e| open_error(format!("{e}. Is the controller on the network?")))?;
     stream
         .set_read_timeout(Some(READ_SLICE))
+        .and_then(|()| stream.set_write_timeout(Some(TCP_WRITE_TIMEOUT)))
         .and_then(|()| stream.set_nodelay(true))
         .map_err(|e| open_error(e.to_string()))?;
     Ok(Box::new(stream))
+}
+
+/// Resolve `host_port` on a thread of its own (the system's resolver has no timeout): its first
+/// address, or the resolver's error; [`CutterError::ConnectCancelled`] when `cancel` is set
+/// first, [`CutterError::Open`] when it takes longer than [`TCP_CONNECT_TIMEOUT`].
+fn resolve(
+    host_port: &str,
+    cancel: &AtomicBool,
+) -> Result<std::io::Result<Option<SocketAddr>>, CutterError> {
+    let (tx, rx) = mpsc::channel();
+    let name = host_port.to_owned();
+    std::thread::spawn(move || {
+        let _ = tx.send(name.to_socket_addrs().map(|mut a| a.next()));
+    });
+    let deadline = Instant::now() + TCP_CONNECT_TIMEOUT;
+    let address = format!("grbl+tcp://{host_port}");
+    loop {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(CutterError::ConnectCancelled { address });
+        }
+        match rx.recv_timeout(READ_SLICE) {
+            Ok(resolved) => return Ok(resolved),
+            Err(mpsc::RecvTimeoutError::Timeout) if Instant::now() < deadline => {}
+            Err(_) => {
+                return Err(CutterError::Open {
+                    address,
+                    reason: format!(
+                        "its name did not resolve within {} s; check the name or use an IP address",
+                        TCP_CONNECT_TIMEOUT.as_secs()
+                    ),
+                });
+            }
+        }
+    }
 }
 
 #[cfg(test)]
