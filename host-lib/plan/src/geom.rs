@@ -90,6 +90,21 @@ impl Affine {
         }
     }
 
+    /// Map a vector (the linear part alone: a direction, a tangent).
+    pub fn apply_vector(&self, v: V2) -> V2 {
+        v2(self.a * v.x + self.c * v.y, self.b * v.x + self.d * v.y)
+    }
+
+    /// Whether the map is a similarity (rotation, uniform scale, translation, perhaps a mirror),
+    /// which keeps circles circles, to a relative 10⁻⁹.
+    pub fn is_similarity(&self) -> bool {
+        let size = self.a.abs() + self.b.abs() + self.c.abs() + self.d.abs();
+        let tol = 1e-9 * size;
+        let rotation = (self.a - self.d).abs() <= tol && (self.b + self.c).abs() <= tol;
+        let mirrored = (self.a + self.d).abs() <= tol && (self.b - self.c).abs() <= tol;
+        size > 0.0 && (rotation || mirrored)
+    }
+
     /// Determinant of the linear part (negative: the map mirrors).
     pub fn det(&self) -> f64 {
         self.a * self.d - self.b * self.c

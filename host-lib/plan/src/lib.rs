@@ -51,6 +51,7 @@ mod error;
 pub mod file;
 pub mod gauge;
 pub mod geom;
+mod nurbs;
 pub mod outcome;
 mod pipeline;
 pub mod progress;
