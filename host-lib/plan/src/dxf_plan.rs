@@ -849,7 +849,7 @@ fn write_cut(
     removed: &mut [bool],
     added: &mut Vec<Entity>,
 ) {
-    let to_units = |x: f64| x / scale;
+    let to_units = |x: f64| units(x, scale);
     match origin {
         Origin::Circle(i) => {
             let entity = &mut *slots[*i];
@@ -1071,12 +1071,31 @@ fn as_circle(p: &Pline) -> Option<(V2, f64)> {
     found
 }
 
+/// Decimal places of the numbers written: a step of at most 0.01 µm (so a coordinate is within
+/// 0.005 µm), and bulges to 10⁻¹⁰ (a 10 m chord's arc within 0.001 µm). The `dxf` crate prints
+/// 12 decimals and drops trailing zeros, so rounded numbers print short.
+const STEP_MM: f64 = 1e-5;
+const BULGE_DIGITS: i32 = 10;
+
+/// `v` rounded to `digits` decimals.
+fn rounded(v: f64, digits: i32) -> f64 {
+    let m = 10f64.powi(digits);
+    let r = (v * m).round() / m;
+    if r.is_finite() { r } else { v }
+}
+
+/// `mm` in drawing units (`scale` mm each), rounded to the step written (see [`STEP_MM`]).
+fn units(mm: f64, scale: f64) -> f64 {
+    let digits = (-(STEP_MM / scale).log10()).ceil().clamp(0.0, 12.0) as i32;
+    rounded(mm / scale, digits)
+}
+
 fn lw_vertices(p: &Pline, scale: f64) -> Vec<LwPolylineVertex> {
     p.iter_vertexes()
         .map(|v| LwPolylineVertex {
-            x: v.x / scale,
-            y: v.y / scale,
-            bulge: v.bulge,
+            x: units(v.x, scale),
+            y: units(v.y, scale),
+            bulge: rounded(v.bulge, BULGE_DIGITS),
             ..LwPolylineVertex::default()
         })
         .collect()
