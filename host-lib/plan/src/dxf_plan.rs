@@ -24,8 +24,8 @@
 //!
 //! Entities drawn with a mirrored extrusion direction (0, 0, −1), as some CAD programs write
 //! mirrored arcs, are handled; other non-planar entities are refused, as are points more than
-//! 10 km from the origin (a unit mistake or a damaged file) and blocks nested more than 16 deep
-//! (a block that inserts itself). Every refusal names the entity by type, handle and layer (and
+//! 10 km from the origin (a unit mistake or a damaged file), a block that inserts itself, blocks
+//! nested more than 16 deep and more than 100,000 block instances. Every refusal names the entity by type, handle and layer (and
 //! the block and `INSERT` it is reached through) and says what to do.
 //!
 //! **Writing.** A closed `LWPOLYLINE` gets its new vertices in place (handle, layer, colour,
@@ -161,13 +161,9 @@ pub fn dilate_dxf(
     Ok((out, summary))
 }
 
-/// mm per drawing unit.
-fn units_mm(
-    drawing: &Drawing,
-    assume: Option<AssumedUnits>,
-    summary: &mut PlanSummary,
-) -> Result<f64> {
-    let known = match drawing.header.default_drawing_units {
+/// mm per drawing unit, when `$INSUNITS` says.
+fn units_known(drawing: &Drawing) -> Option<f64> {
+    match drawing.header.default_drawing_units {
         Units::Millimeters => Some(1.0),
         Units::Centimeters => Some(10.0),
         Units::Decimeters => Some(100.0),
@@ -178,7 +174,16 @@ fn units_mm(
         Units::Microinches => Some(25.4e-6),
         Units::Microns => Some(1e-3),
         _ => None,
-    };
+    }
+}
+
+/// mm per drawing unit.
+fn units_mm(
+    drawing: &Drawing,
+    assume: Option<AssumedUnits>,
+    summary: &mut PlanSummary,
+) -> Result<f64> {
+    let known = units_known(drawing);
     match (known, assume) {
         (Some(mm), Some(_)) => {
             summary
@@ -277,6 +282,7 @@ fn dilate_loaded(
             found,
             retargets: Vec::new(),
             rest_blocks: Vec::new(),
+            assumed: None,
         },
         kerf,
         opts.if_compensated,
@@ -298,6 +304,8 @@ struct DxfPlan<'o> {
     retargets: Vec<(usize, String)>,
     /// Those copies, to add to the drawing (set by `read`).
     rest_blocks: Vec<dxf::Block>,
+    /// The units assumed for a drawing that did not say, to write into it (set by `read`).
+    assumed: Option<Units>,
 }
 
 /// What reading one cut entity gives.
@@ -311,13 +319,26 @@ enum Read {
 }
 
 impl Read {
-    /// The read geometry's vertices.
-    fn vertices(&self) -> Vec<V2> {
-        match self {
-            Read::Closed(pl, _) => pl.iter_vertexes().map(|v| v2(v.x, v.y)).collect(),
-            Read::Piece(p) => p.vertices.iter().map(|v| v2(v.x, v.y)).collect(),
-            Read::Nothing => Vec::new(),
-        }
+    /// Whether the read geometry is usable: finite coordinates within [`MAX_COORDINATE_MM`] of
+    /// the origin, and arcs of finite bulge no larger than that in radius.
+    fn is_usable(&self) -> bool {
+        let (vertices, closed): (Vec<PlineVertex<f64>>, bool) = match self {
+            Read::Closed(pl, _) => (pl.iter_vertexes().collect(), true),
+            Read::Piece(p) => (p.vertices.clone(), false),
+            Read::Nothing => return true,
+        };
+        let n = vertices.len();
+        let near =
+            |v: &PlineVertex<f64>| v.x.abs() <= MAX_COORDINATE_MM && v.y.abs() <= MAX_COORDINATE_MM;
+        vertices.iter().enumerate().all(|(k, v)| {
+            let next = if k + 1 < n || closed {
+                Some(vertices[(k + 1) % n])
+            } else {
+                None
+            };
+            let arc = next.and_then(|w| arc_geom(v2(v.x, v.y), v2(w.x, w.y), v.bulge));
+            near(v) && v.bulge.is_finite() && arc.is_none_or(|g| g.radius <= MAX_COORDINATE_MM)
+        })
     }
 }
 
@@ -349,6 +370,14 @@ impl Format for DxfPlan<'_> {
         self.scale = units_mm(&self.drawing, self.opts.assume_units, &mut plan.summary)?;
         plan.summary.mm_per_unit = self.scale;
         plan.summary.compensation_found = self.found.take();
+        if units_known(&self.drawing).is_none() {
+            self.assumed = self.opts.assume_units.and_then(|u| match u {
+                AssumedUnits::Mm => Some(Units::Millimeters),
+                AssumedUnits::Cm => Some(Units::Centimeters),
+                AssumedUnits::In => Some(Units::Inches),
+                _ => None,
+            });
+        }
         let mut blocks = blocks::Expansion::new(&self.drawing);
         let entities: Vec<&Entity> = self.drawing.entities().collect();
         let pieces = self.read_entities(&entities, &mut blocks, &mut plan)?;
@@ -391,11 +420,15 @@ impl Format for DxfPlan<'_> {
         for e in added {
             self.drawing.add_entity(e);
         }
-        if self.drawing.header.version < AcadVersion::R14 {
+        if self.drawing.header.version < AcadVersion::R2000 {
             self.drawing.header.version = AcadVersion::R2000;
-            plan.summary
-                .notes
-                .push("the drawing was older than R14 (no LWPOLYLINE); written as R2000".into());
+            plan.summary.notes.push(
+                "the drawing was older than R2000 (no LWPOLYLINE before R14, no $INSUNITS before R2000); written as R2000"
+                    .into(),
+            );
+        }
+        if let Some(units) = self.assumed.take() {
+            self.drawing.header.default_drawing_units = units;
         }
         Ok(self.drawing)
     }
@@ -511,13 +544,9 @@ impl DxfPlan<'_> {
         summary: &mut PlanSummary,
     ) -> Result<Read, String> {
         let read = self.read_cut(e, place, index, frame, summary)?;
-        let far = read
-            .vertices()
-            .iter()
-            .any(|p| !(p.x.abs() <= MAX_COORDINATE_MM && p.y.abs() <= MAX_COORDINATE_MM));
-        if far {
+        if !read.is_usable() {
             return Err(format!(
-                "{} has a point that is not a number or lies more than 10 km from the origin; check the drawing and its units",
+                "{} has a point or an arc that is not a number or reaches more than 10 km from the origin; check the drawing and its units",
                 label(e)
             ));
         }
@@ -592,6 +621,10 @@ impl DxfPlan<'_> {
         }
     }
 }
+
+/// Points of a curve closer than this (mm) are one point (cavalier_contours takes points within
+/// 10⁻⁸ for the same).
+const CURVE_JOIN_MM: f64 = 1e-7;
 
 /// Coordinates further from the origin than this (mm) are refused: 10 km is no laser bed, and
 /// such numbers are a unit mistake or a damaged file.
@@ -745,7 +778,7 @@ fn ellipse(el: &dxf::entities::Ellipse, frame: &Affine, place: Place, i: usize) 
         let d = (mn.scale(t.cos()) - mj.scale(t.sin())).scale(t1 - t0);
         (frame.apply(pos), frame.apply_vector(d))
     };
-    let mut sink = PathSink::new(1e-9, 1e-12);
+    let mut sink = PathSink::new(CURVE_JOIN_MM, 1e-12);
     sink.move_to(f(0.0).0);
     sink.curve(&f, f(1.0).0);
     if full {
@@ -775,7 +808,7 @@ fn spline(
         &sp.weight_values,
         &sp.knot_values,
     )?;
-    let mut sink = PathSink::new(1e-9, 1e-12);
+    let mut sink = PathSink::new(CURVE_JOIN_MM, 1e-12);
     sink.move_to(frame.apply(curve.start()));
     for k in curve.spans() {
         let piece = curve.span_curve(k);
@@ -1251,8 +1284,9 @@ mod tests {
         assert_eq!(s.contours_dilated, 2);
         let pl = lwpolylines(&out);
         assert_eq!(pl.len(), 1);
+        // Within 0.01 µm: the numbers are written to 0.01 µm.
         for r in radii(pl[0]) {
-            assert!((r - 10.1).abs() < 1e-7, "{r}");
+            assert!((r - 10.1).abs() < 1e-5, "{r} {:?}", pl[0].vertices);
         }
         assert!(
             s.notes.iter().any(|n| n.contains("SPLINE")),
@@ -1436,7 +1470,7 @@ mod tests {
         let e = dilate_drawing(d, &KerfSource::Uniform(100.0), &DxfOptions::default())
             .unwrap_err()
             .to_string();
-        assert!(e.contains("nested more than"), "{e}");
+        assert!(e.contains("\"LOOP\" inside itself"), "{e}");
         assert!(e.contains("\"GONE\", which is not in the file"), "{e}");
     }
 }

@@ -13,6 +13,11 @@ use crate::geom::{V2, v2};
 /// The highest degree accepted (CAD programs write 2 or 3; a high degree is a damaged file).
 const MAX_DEGREE: usize = 25;
 
+/// The range of weights accepted (CAD programs write weights near 1; a weight near 0 or huge
+/// makes a curve that no cutter follows, and numbers that lose their precision).
+const MIN_WEIGHT: f64 = 1e-9;
+const MAX_WEIGHT: f64 = 1e9;
+
 /// A checked spline in drawing coordinates.
 #[derive(Debug, Clone)]
 pub(crate) struct Nurbs {
@@ -59,11 +64,14 @@ impl Nurbs {
         }
         let finite = points.iter().all(|&(x, y)| x.is_finite() && y.is_finite())
             && knots.iter().all(|k| k.is_finite());
-        if !finite || weights.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
-            return Err(
-                "a control point, weight or knot is not a finite number (weights must be positive)"
-                    .into(),
-            );
+        if !finite
+            || weights
+                .iter()
+                .any(|w| !(MIN_WEIGHT..=MAX_WEIGHT).contains(w))
+        {
+            return Err(format!(
+                "a control point, weight or knot is not a finite number, or a weight is not between {MIN_WEIGHT:e} and {MAX_WEIGHT:e}"
+            ));
         }
         if knots.windows(2).any(|w| w[1] < w[0]) {
             return Err("its knots are not in increasing order".into());

@@ -24,11 +24,11 @@ use crate::geom::{Affine, v2};
 use crate::outcome::PlanSummary;
 use crate::pipeline::Plan;
 
-/// Blocks nested deeper than this are refused (a block that inserts itself never ends).
+/// Blocks nested deeper than this are refused.
 const MAX_NESTING: usize = 16;
 
 /// More block instances than this in one drawing are refused (a damaged array count).
-const MAX_INSTANCES: usize = 1_000_000;
+const MAX_INSTANCES: usize = 100_000;
 
 /// What a block's copy changes: entity `k` removed (`None`, a cut) or its `INSERT` pointed at
 /// another block (`Some(name)`).
@@ -48,6 +48,8 @@ pub(super) struct Expansion<'d> {
     retargets: Vec<(usize, String)>,
     /// Block instances seen.
     instances: usize,
+    /// The blocks being expanded, outermost first (upper-case names).
+    stack: Vec<String>,
 }
 
 impl<'d> Expansion<'d> {
@@ -65,6 +67,7 @@ impl<'d> Expansion<'d> {
             rest: Vec::new(),
             retargets: Vec::new(),
             instances: 0,
+            stack: Vec::new(),
         }
     }
 
@@ -174,6 +177,12 @@ fn cell_frames(ins: &Insert, block: &Block, parent: &Affine) -> Result<Vec<Affin
         return Err("has a zero scale".into());
     }
     let (cols, rows) = (ins.column_count.max(1), ins.row_count.max(1));
+    let cells = usize::from(cols.unsigned_abs()) * usize::from(rows.unsigned_abs());
+    if cells > MAX_INSTANCES {
+        return Err(format!(
+            "is an array of {cells} copies, more than {MAX_INSTANCES}"
+        ));
+    }
     let (sin, cos) = ins.rotation.to_radians().sin_cos();
     let rotate = |x: f64, y: f64| v2(cos * x - sin * y, sin * x + cos * y);
     let (sx, sy) = (ins.x_scale_factor, ins.y_scale_factor);
@@ -181,8 +190,7 @@ fn cell_frames(ins: &Insert, block: &Block, parent: &Affine) -> Result<Vec<Affin
         a: if mirrored { -1.0 } else { 1.0 },
         ..Affine::IDENTITY
     };
-    let mut frames =
-        Vec::with_capacity(usize::from(cols.unsigned_abs()) * usize::from(rows.unsigned_abs()));
+    let mut frames = Vec::with_capacity(cells);
     for r in 0..rows {
         for c in 0..cols {
             let at = v2(ins.location.x, ins.location.y)
@@ -222,6 +230,18 @@ impl DxfPlan<'_> {
         plan: &mut Plan<Origin>,
         problems: &mut Problems,
     ) -> Option<String> {
+        if st.instances > MAX_INSTANCES {
+            // Said once, when the count was passed.
+            return None;
+        }
+        let key = ins.name.to_uppercase();
+        if st.stack.contains(&key) {
+            problems.push(format!(
+                "{via} inserts block \"{}\" inside itself; fix the block in the CAD program",
+                ins.name
+            ));
+            return None;
+        }
         if depth >= MAX_NESTING {
             problems.push(format!(
                 "{via}: blocks nested more than {MAX_NESTING} deep (a block that inserts itself?); explode the blocks in the CAD program"
@@ -255,12 +275,14 @@ impl DxfPlan<'_> {
             return None;
         }
         let mut edits: BlockEdits = Vec::new();
+        st.stack.push(key);
         for (cell, frame) in frames.iter().enumerate() {
             let cell_edits = self.expand_cell(by, block, frame, via, depth, st, plan, problems);
             if cell == 0 {
                 edits = cell_edits;
             }
         }
+        st.stack.pop();
         if edits.is_empty() {
             return None;
         }
