@@ -1119,7 +1119,7 @@ fn rounded(v: f64, digits: i32) -> f64 {
 
 /// `mm` in drawing units (`scale` mm each), rounded to the step written (see [`STEP_MM`]).
 fn units(mm: f64, scale: f64) -> f64 {
-    let digits = (-(STEP_MM / scale).log10()).ceil().clamp(0.0, 12.0) as i32;
+    let digits = (-(STEP_MM / scale).log10() - 1e-6).ceil().clamp(0.0, 12.0) as i32;
     rounded(mm / scale, digits)
 }
 

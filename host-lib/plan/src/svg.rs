@@ -809,7 +809,8 @@ fn coordinate_eps(inst: &Instance) -> f64 {
 fn digits_for(to_doc: &Affine) -> usize {
     let local_per_mm = 1.0 / to_doc.mean_scale().max(1e-300);
     let step = 1e-5 * local_per_mm;
-    (-step.log10()).ceil().clamp(0.0, 12.0) as usize
+    // A scale that is 1 but for rounding must not cost a sixth decimal everywhere.
+    (-step.log10() - 1e-6).ceil().clamp(0.0, 12.0) as usize
 }
 
 /// `v` with at most `digits` decimals, trailing zeros dropped (`-0` is `0`).
