@@ -566,15 +566,10 @@ impl DxfPlan<'_> {
     ) -> Result<Read, String> {
         match &e.specific {
             EntityType::LwPolyline(lw) => {
-                let f = in_plane(e, &lw.extrusion_direction, frame)?;
                 let verts: Vec<_> = lw.vertices.iter().map(|v| (v.x, v.y, v.bulge)).collect();
-                let closed = lw.is_closed();
-                Ok(polyline_read(
-                    map_vertices(&f, &verts, closed),
-                    closed,
-                    place.origin(Origin::LwPolyline),
-                    index,
-                ))
+                let f = in_plane(e, &lw.extrusion_direction, frame)?;
+                let origin = place.origin(Origin::LwPolyline);
+                Ok(polyline_entity(&verts, lw.is_closed(), &f, origin, index))
             }
             EntityType::Polyline(pl) => {
                 if pl.is_3d_polyline() || pl.is_3d_polygon_mesh() || pl.is_polyface_mesh() {
@@ -583,18 +578,13 @@ impl DxfPlan<'_> {
                         label(e)
                     ));
                 }
-                let f = in_plane(e, &pl.normal, frame)?;
                 let verts: Vec<_> = pl
                     .vertices()
                     .map(|v| (v.location.x, v.location.y, v.bulge))
                     .collect();
-                let closed = pl.is_closed();
-                Ok(polyline_read(
-                    map_vertices(&f, &verts, closed),
-                    closed,
-                    place.origin(|i| Origin::Replace(vec![i])),
-                    index,
-                ))
+                let f = in_plane(e, &pl.normal, frame)?;
+                let origin = place.origin(|i| Origin::Replace(vec![i]));
+                Ok(polyline_entity(&verts, pl.is_closed(), &f, origin, index))
             }
             EntityType::Line(l) => Ok(line(l, frame, index)),
             EntityType::Arc(a) => Ok(arc(a, &in_plane(e, &a.normal, frame)?, place, index)),
@@ -608,18 +598,34 @@ impl DxfPlan<'_> {
             EntityType::Spline(sp) => {
                 let read = spline(sp, frame, place, index)
                     .map_err(|why| format!("{} cannot be read: {why}", label(e)))?;
-                const NOTE: &str = "SPLINEs were approximated by circular arcs";
-                if !summary.notes.iter().any(|n| n.starts_with(NOTE)) {
-                    summary.notes.push(format!(
-                        "{NOTE} within {} µm of the curve",
-                        CURVE_TOLERANCE_MM * 1e3
-                    ));
-                }
+                note_splines(summary);
                 Ok(read)
             }
             _ => Ok(Read::Nothing),
         }
     }
+}
+
+/// Say once that splines were approximated.
+fn note_splines(summary: &mut PlanSummary) {
+    const NOTE: &str = "SPLINEs were approximated by circular arcs";
+    if !summary.notes.iter().any(|n| n.starts_with(NOTE)) {
+        summary.notes.push(format!(
+            "{NOTE} within {} µm of the curve",
+            CURVE_TOLERANCE_MM * 1e3
+        ));
+    }
+}
+
+/// A polyline entity's vertices (x, y, bulge, drawn in `frame`) read as a contour or a piece.
+fn polyline_entity(
+    verts: &[(f64, f64, f64)],
+    closed: bool,
+    frame: &Affine,
+    origin: Origin,
+    index: usize,
+) -> Read {
+    polyline_read(map_vertices(frame, verts, closed), closed, origin, index)
 }
 
 /// Points of a curve closer than this (mm) are one point (cavalier_contours takes points within
