@@ -163,7 +163,9 @@ pub struct ArcGeom {
 
 /// The circle an arc segment lies on, or `None` for a straight segment.
 pub fn arc_geom(p0: V2, p1: V2, bulge: f64) -> Option<ArcGeom> {
-    if bulge.abs() < 1e-12 {
+    // cavalier_contours takes a bulge under 10⁻⁸ for a straight segment (the arc's sagitta is
+    // then under 0.005 µm per metre of chord), and asserts so in its arc functions.
+    if bulge.abs() < 1e-8 || ((p1.x - p0.x).abs() < 1e-8 && (p1.y - p0.y).abs() < 1e-8) {
         return None;
     }
     let (radius, center) = seg_arc_radius_and_center(

@@ -242,6 +242,15 @@ fn damaged_corpus_files_never_panic_the_readers() {
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
     let mut panics = Vec::new();
     let mut fed = 0;
+    // Inputs that once panicked a reader under the fuzzer, fed to both readers.
+    let regressions = tests_dir().join("corpus/fuzz-regressions");
+    for entry in std::fs::read_dir(regressions).unwrap() {
+        let path = entry.unwrap().path();
+        let bytes = std::fs::read(&path).unwrap();
+        for format in [PlanFormat::Svg, PlanFormat::Dxf] {
+            assert!(feed(format, &bytes).is_ok(), "{} panicked", path.display());
+        }
+    }
     for path in plan_files() {
         let format = PlanFormat::of(&path).unwrap();
         let bytes = std::fs::read(&path).unwrap();
