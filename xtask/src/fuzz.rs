@@ -1,5 +1,6 @@
-//! `cargo xtask fuzz`: the protocol's coverage-guided fuzz targets (`fuzz/`), run with cargo-fuzz
-//! on the nightly toolchain. Installs cargo-fuzz when it is missing.
+//! `cargo xtask fuzz`: the coverage-guided fuzz targets of the protocol and the plan readers
+//! (`fuzz/`), run with cargo-fuzz on the nightly toolchain. Installs cargo-fuzz when it is
+//! missing.
 
 use std::process::Command;
 
@@ -8,7 +9,7 @@ use anyhow::{Context, Result, bail};
 use crate::{root, run_cmd, tools};
 
 /// The fuzz targets in `fuzz/fuzz_targets`.
-pub const TARGETS: [&str; 2] = ["deframe", "link"];
+pub const TARGETS: [&str; 3] = ["deframe", "link", "plan_readers"];
 
 #[derive(clap::Args)]
 pub struct FuzzArgs {

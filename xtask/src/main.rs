@@ -39,7 +39,7 @@ enum Cmd {
     Firmware(firmware::FirmwareArgs),
     /// Build the firmware and write it to a board (real hardware: needs --port).
     Flash(firmware::FlashArgs),
-    /// Run the protocol fuzz targets (cargo-fuzz on the nightly toolchain).
+    /// Run the fuzz targets: protocol and plan readers (cargo-fuzz on the nightly toolchain).
     Fuzz(fuzz::FuzzArgs),
     /// The twin's accuracy table: kerf 50–430 µm × stock 3–6 mm, 20 seeds per point.
     Accuracy(AccuracyArgs),

@@ -12,79 +12,59 @@ use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
 use criterion::{Criterion, criterion_group, criterion_main};
 use kerfmeter_plan::dilate::{Contour, KerfSource, dilate};
 
-/// One part at (`x`, `y`): 40 × 40 mm, seven 2.5 mm fingers (3 mm long) on each side, three
-/// holes.
+mod common;
+
+use common::finger_part::{HOLE, SLOT, WINDOW, outline};
+
+/// A closed polyline through `points` (x, y, bulge) moved by (`x`, `y`).
+fn closed(x: f64, y: f64, points: impl IntoIterator<Item = (f64, f64, f64)>) -> Polyline<f64> {
+    let mut p = Polyline::new_closed();
+    for (px, py, bulge) in points {
+        p.add(x + px, y + py, bulge);
+    }
+    p
+}
+
+/// One part at (`x`, `y`) (see `common::finger_part`): its outline and three holes.
 fn part(x: f64, y: f64, contours: &mut Vec<Contour>) {
-    let mut outline = Polyline::new_closed();
-    // Each side: 16 segments of 2.5 mm, alternating plain edge and finger (3 mm out); the first
-    // and last segments are plain, so the corners stay square.
-    let step = 40.0 / 16.0;
-    // (start corner, direction along the side, outward normal) of each side.
-    type Side = ((f64, f64), (f64, f64), (f64, f64));
-    let sides: [Side; 4] = [
-        ((0.0, 0.0), (1.0, 0.0), (0.0, -1.0)),
-        ((40.0, 0.0), (0.0, 1.0), (1.0, 0.0)),
-        ((40.0, 40.0), (-1.0, 0.0), (0.0, 1.0)),
-        ((0.0, 40.0), (0.0, -1.0), (-1.0, 0.0)),
-    ];
-    for (start, dir, out) in sides {
-        for k in 0..16 {
-            let (px, py) = (
-                start.0 + dir.0 * step * k as f64,
-                start.1 + dir.1 * step * k as f64,
-            );
-            if k % 2 == 1 && k < 15 {
-                // A finger: out, along, back in.
-                outline.add(x + px, y + py, 0.0);
-                outline.add(x + px + 3.0 * out.0, y + py + 3.0 * out.1, 0.0);
-                let (qx, qy) = (px + dir.0 * step, py + dir.1 * step);
-                outline.add(x + qx + 3.0 * out.0, y + qy + 3.0 * out.1, 0.0);
-                outline.add(x + qx, y + qy, 0.0);
-            } else if k == 0 {
-                outline.add(x + px, y + py, 0.0);
-            }
-        }
-    }
-    contours.push(Contour {
-        pline: outline,
-        label: format!("part at ({x}, {y})"),
-    });
-    // A slot.
-    let mut slot = Polyline::new_closed();
-    for (sx, sy) in [(8.0, 8.0), (14.0, 8.0), (14.0, 30.0), (8.0, 30.0)] {
-        slot.add(x + sx, y + sy, 0.0);
-    }
-    contours.push(Contour {
-        pline: slot,
-        label: "slot".into(),
-    });
-    // A round hole (two half circles).
-    let mut hole = Polyline::new_closed();
-    hole.add(x + 32.0, y + 12.0, 1.0);
-    hole.add(x + 24.0, y + 12.0, 1.0);
-    contours.push(Contour {
-        pline: hole,
-        label: "hole".into(),
-    });
-    // A rounded rectangle (quarter arcs at the corners).
+    let ((cx, cy), r) = HOLE;
+    let ((wx, wy), (ww, wh), wr) = WINDOW;
+    // A quarter turn.
     let b = (FRAC_PI_4 / 2.0).tan();
-    let mut rr = Polyline::new_closed();
-    for (rx, ry, bulge) in [
-        (22.0, 22.0, 0.0),
-        (32.0, 22.0, b),
-        (34.0, 24.0, 0.0),
-        (34.0, 30.0, b),
-        (32.0, 32.0, 0.0),
-        (22.0, 32.0, b),
-        (20.0, 30.0, 0.0),
-        (20.0, 24.0, b),
-    ] {
-        rr.add(x + rx, y + ry, bulge);
+    let shapes = [
+        (
+            format!("part at ({x}, {y})"),
+            closed(x, y, outline().into_iter().map(|(px, py)| (px, py, 0.0))),
+        ),
+        (
+            "slot".into(),
+            closed(x, y, SLOT.map(|(px, py)| (px, py, 0.0))),
+        ),
+        (
+            "hole".into(),
+            closed(x, y, [(cx + r, cy, 1.0), (cx - r, cy, 1.0)]),
+        ),
+        (
+            "rounded window".into(),
+            closed(
+                x,
+                y,
+                [
+                    (wx + wr, wy, 0.0),
+                    (wx + ww - wr, wy, b),
+                    (wx + ww, wy + wr, 0.0),
+                    (wx + ww, wy + wh - wr, b),
+                    (wx + ww - wr, wy + wh, 0.0),
+                    (wx + wr, wy + wh, b),
+                    (wx, wy + wh - wr, 0.0),
+                    (wx, wy + wr, b),
+                ],
+            ),
+        ),
+    ];
+    for (label, pline) in shapes {
+        contours.push(Contour { pline, label });
     }
-    contours.push(Contour {
-        pline: rr,
-        label: "rounded window".into(),
-    });
 }
 
 fn plan() -> Vec<Contour> {

@@ -29,6 +29,10 @@ use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_plan::progress::{Progress, Stage};
 use kerfmeter_plan::{DilateOptions, dilate_file};
 
+#[path = "../benches/common/finger_part.rs"]
+mod finger_part;
+use finger_part::{HOLE, SLOT, WINDOW, outline};
+
 /// Distance between parts, mm.
 const PITCH_MM: f64 = 50.0;
 
@@ -80,47 +84,6 @@ fn generate(args: &[String]) -> Result<(), String> {
     write("wkt", wkt(&origins).as_bytes())?;
     Ok(())
 }
-
-/// The outline of a part with its corner at the origin: 16 steps of 2.5 mm a side, every other
-/// one (but the first and last) a finger 3 mm out. Counter-clockwise with y up.
-fn outline() -> Vec<(f64, f64)> {
-    let step = 40.0 / 16.0;
-    type Side = ((f64, f64), (f64, f64), (f64, f64));
-    let sides: [Side; 4] = [
-        ((0.0, 0.0), (1.0, 0.0), (0.0, -1.0)),
-        ((40.0, 0.0), (0.0, 1.0), (1.0, 0.0)),
-        ((40.0, 40.0), (-1.0, 0.0), (0.0, 1.0)),
-        ((0.0, 40.0), (0.0, -1.0), (-1.0, 0.0)),
-    ];
-    let mut pts = Vec::with_capacity(116);
-    for (start, dir, out) in sides {
-        for k in 0..16 {
-            let at = |k: usize| {
-                (
-                    start.0 + dir.0 * step * k as f64,
-                    start.1 + dir.1 * step * k as f64,
-                )
-            };
-            let (p, q) = (at(k), at(k + 1));
-            if k == 0 {
-                pts.push(p);
-            } else if k % 2 == 1 && k < 15 {
-                pts.push(p);
-                pts.push((p.0 + 3.0 * out.0, p.1 + 3.0 * out.1));
-                pts.push((q.0 + 3.0 * out.0, q.1 + 3.0 * out.1));
-                pts.push(q);
-            }
-        }
-    }
-    pts
-}
-
-/// The slot's corners.
-const SLOT: [(f64, f64); 4] = [(8.0, 8.0), (14.0, 8.0), (14.0, 30.0), (8.0, 30.0)];
-/// The round hole: centre and radius.
-const HOLE: ((f64, f64), f64) = ((28.0, 12.0), 4.0);
-/// The rounded window: corner, size, corner radius.
-const WINDOW: ((f64, f64), (f64, f64), f64) = ((20.0, 22.0), (14.0, 10.0), 2.0);
 
 fn svg(side: usize, origins: &[(f64, f64)]) -> String {
     let page = side as f64 * PITCH_MM + 10.0;

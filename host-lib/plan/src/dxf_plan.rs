@@ -5,22 +5,35 @@
 //! unit is ([`AssumedUnits`], `--units`). Document space is the drawing's own frame (y up), in mm;
 //! a kerf map is looked up at those coordinates.
 //!
-//! **Cut geometry** (model space only; which entities are cuts: [`super::rules`]):
+//! **Cut geometry** (model space, and blocks through `INSERT`; which entities are cuts:
+//! [`super::rules`]):
 //!
 //! * `LWPOLYLINE` and 2-D `POLYLINE` with bulges (closed by flag, or by ending where they start),
-//! * `CIRCLE`, `ARC`, `LINE`, and `ELLIPSE` (a circular one exactly, others by biarcs),
-//! * open pieces (`LINE`, `ARC`, open polylines) whose ends meet within 0.1 µm are joined into
-//!   closed chains, in either direction.
+//! * `CIRCLE`, `ARC`, `LINE`, and `ELLIPSE` (full or partial; a circular one exactly, others by
+//!   biarcs),
+//! * `SPLINE` by its control points, weights and knots (rational or not, any degree up to 25; see
+//!   the crate-private `nurbs` module), turned into biarcs within
+//!   [`CURVE_TOLERANCE_MM`] (0.05 µm) of the curve at the points checked; a
+//!   spline given by fit points alone is refused (convert it to a polyline),
+//! * open pieces (`LINE`, `ARC`, open polylines and splines) whose ends meet within 0.1 µm are
+//!   joined into closed chains, in either direction,
+//! * block references (`INSERT`, and `MINSERT` arrays): the cuts inside the block, read through
+//!   the insertion's scale, rotation, mirror and position, nested blocks too (the crate-private
+//!   `blocks` submodule).
+//!   A block scaled unequally in x and y turns its arcs into elliptical arcs, which become biarcs.
 //!
 //! Entities drawn with a mirrored extrusion direction (0, 0, −1), as some CAD programs write
-//! mirrored arcs, are handled; other non-planar entities are refused. A cut `SPLINE` is refused
-//! (convert it to a polyline first); block references (`INSERT`) pass through undilated (explode
-//! blocks to dilate their contents).
+//! mirrored arcs, are handled; other non-planar entities are refused, as are points more than
+//! 10 km from the origin (a unit mistake or a damaged file), a block that inserts itself, blocks
+//! nested more than 16 deep and more than 100,000 block instances. Every refusal names the entity by type, handle and layer (and
+//! the block and `INSERT` it is reached through) and says what to do.
 //!
 //! **Writing.** A closed `LWPOLYLINE` gets its new vertices in place (handle, layer, colour,
 //! extended data kept); a `CIRCLE` stays a `CIRCLE` with the new radius; a chain of pieces (and an
-//! old-style `POLYLINE` or an `ELLIPSE`) is replaced by one closed `LWPOLYLINE` with bulges that
-//! takes over the first piece's layer, colour, linetype and lineweight. Everything else is written
+//! old-style `POLYLINE`, an `ELLIPSE` or a `SPLINE`) is replaced by one closed `LWPOLYLINE` with
+//! bulges that takes over the first piece's layer, colour, linetype and lineweight. A cut inside
+//! a block becomes a new model-space `LWPOLYLINE`, and its `INSERT` shows a copy of the block
+//! without the cuts. Everything else is written
 //! back as read. A drawing older than R14 (which has no `LWPOLYLINE`) is written as R2000. What was
 //! applied is recorded in `999` comments at the top of the file (see
 //! [`compensation`]).
@@ -28,19 +41,22 @@
 use std::collections::HashMap;
 use std::io::Cursor;
 
-use cavalier_contours::polyline::{PlineSource, PlineSourceMut, PlineVertex};
-use dxf::entities::{Entity, EntityType, LwPolyline};
+use cavalier_contours::polyline::{PlineCreation, PlineSource, PlineSourceMut, PlineVertex};
+use dxf::entities::{Entity, EntityCommon, EntityType, LwPolyline};
 use dxf::enums::{AcadVersion, Units};
 use dxf::{Drawing, LwPolylineVertex, Point, Vector};
 
 use super::compensation::{self, FoundCompensation, IfCompensated};
 use super::dilate::KerfSource;
-use super::geom::{PathSink, Pline, V2, arc_geom, v2};
+use super::geom::{Affine, CURVE_TOLERANCE_MM, PathSink, Pline, V2, arc_geom, fit_biarcs, v2};
+use super::nurbs::Nurbs;
 use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
 use super::pipeline::{self, Format, Plan};
 use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
 use crate::error::{PlanError, Problems, Result};
+
+mod blocks;
 
 /// Ends closer than this join (mm).
 const JOIN_MM: f64 = 1e-4;
@@ -69,8 +85,10 @@ enum Origin {
     LwPolyline(usize),
     /// One `CIRCLE`, edited in place.
     Circle(usize),
-    /// Replaced by a new `LWPOLYLINE` (chains, `POLYLINE`, `ELLIPSE`).
+    /// Replaced by a new `LWPOLYLINE` (chains, `POLYLINE`, `ELLIPSE`, `SPLINE`).
     Replace(Vec<usize>),
+    /// Drawn inside a block: a new model-space `LWPOLYLINE` with these properties.
+    Added(Box<EntityCommon>),
 }
 
 /// An open piece of a cut: vertices in mm (the last one's bulge unused), its entity.
@@ -143,13 +161,9 @@ pub fn dilate_dxf(
     Ok((out, summary))
 }
 
-/// mm per drawing unit.
-fn units_mm(
-    drawing: &Drawing,
-    assume: Option<AssumedUnits>,
-    summary: &mut PlanSummary,
-) -> Result<f64> {
-    let known = match drawing.header.default_drawing_units {
+/// mm per drawing unit, when `$INSUNITS` says.
+fn units_known(drawing: &Drawing) -> Option<f64> {
+    match drawing.header.default_drawing_units {
         Units::Millimeters => Some(1.0),
         Units::Centimeters => Some(10.0),
         Units::Decimeters => Some(100.0),
@@ -160,7 +174,16 @@ fn units_mm(
         Units::Microinches => Some(25.4e-6),
         Units::Microns => Some(1e-3),
         _ => None,
-    };
+    }
+}
+
+/// mm per drawing unit.
+fn units_mm(
+    drawing: &Drawing,
+    assume: Option<AssumedUnits>,
+    summary: &mut PlanSummary,
+) -> Result<f64> {
+    let known = units_known(drawing);
     match (known, assume) {
         (Some(mm), Some(_)) => {
             summary
@@ -257,6 +280,9 @@ fn dilate_loaded(
             opts,
             scale: 1.0,
             found,
+            retargets: Vec::new(),
+            rest_blocks: Vec::new(),
+            assumed: None,
         },
         kerf,
         opts.if_compensated,
@@ -281,6 +307,9 @@ pub(crate) fn dilate_dxf_cuts(
         opts,
         scale: 1.0,
         found,
+        retargets: Vec::new(),
+        rest_blocks: Vec::new(),
+        assumed: None,
     };
     pipeline::dilate_plan_cuts(plan, kerf, opts.if_compensated, &opts.rules, &opts.progress)
 }
@@ -293,6 +322,13 @@ struct DxfPlan<'o> {
     scale: f64,
     /// The compensation the file records (read from its comments before loading).
     found: Option<FoundCompensation>,
+    /// Model-space `INSERT`s (by entity index) to point at the copy of their block without its
+    /// cuts (set by `read`, see the `blocks` submodule).
+    retargets: Vec<(usize, String)>,
+    /// Those copies, to add to the drawing (set by `read`).
+    rest_blocks: Vec<dxf::Block>,
+    /// The units assumed for a drawing that did not say, to write into it (set by `read`).
+    assumed: Option<Units>,
 }
 
 /// What reading one cut entity gives.
@@ -305,6 +341,49 @@ enum Read {
     Nothing,
 }
 
+impl Read {
+    /// Whether the read geometry is usable: finite coordinates within [`MAX_COORDINATE_MM`] of
+    /// the origin, and arcs of finite bulge no larger than that in radius.
+    fn is_usable(&self) -> bool {
+        let (vertices, closed): (Vec<PlineVertex<f64>>, bool) = match self {
+            Read::Closed(pl, _) => (pl.iter_vertexes().collect(), true),
+            Read::Piece(p) => (p.vertices.clone(), false),
+            Read::Nothing => return true,
+        };
+        let n = vertices.len();
+        let near =
+            |v: &PlineVertex<f64>| v.x.abs() <= MAX_COORDINATE_MM && v.y.abs() <= MAX_COORDINATE_MM;
+        vertices.iter().enumerate().all(|(k, v)| {
+            let next = if k + 1 < n || closed {
+                Some(vertices[(k + 1) % n])
+            } else {
+                None
+            };
+            let arc = next.and_then(|w| arc_geom(v2(v.x, v.y), v2(w.x, w.y), v.bulge));
+            near(v) && v.bulge.is_finite() && arc.is_none_or(|g| g.radius <= MAX_COORDINATE_MM)
+        })
+    }
+}
+
+/// Where a cut entity sits: in model space (index into its entities; edited in place there),
+/// or inside a block reached through an `INSERT` (written as a new model-space `LWPOLYLINE`
+/// styled by the given properties, the block's own `0`-layer and `BYBLOCK` ones resolved).
+#[derive(Clone, Copy)]
+enum Place<'t> {
+    Model(usize),
+    Block(&'t EntityCommon),
+}
+
+impl Place<'_> {
+    /// The origin of a closed contour read here: `in_model` of the index in model space.
+    fn origin(&self, in_model: impl FnOnce(usize) -> Origin) -> Origin {
+        match self {
+            Place::Model(i) => in_model(*i),
+            Place::Block(common) => Origin::Added(Box::new((*common).clone())),
+        }
+    }
+}
+
 impl Format for DxfPlan<'_> {
     type Origin = Origin;
     type Output = Drawing;
@@ -314,9 +393,23 @@ impl Format for DxfPlan<'_> {
         self.scale = units_mm(&self.drawing, self.opts.assume_units, &mut plan.summary)?;
         plan.summary.mm_per_unit = self.scale;
         plan.summary.compensation_found = self.found.take();
+        if units_known(&self.drawing).is_none() {
+            self.assumed = self.opts.assume_units.and_then(|u| match u {
+                AssumedUnits::Mm => Some(Units::Millimeters),
+                AssumedUnits::Cm => Some(Units::Centimeters),
+                AssumedUnits::In => Some(Units::Inches),
+                _ => None,
+            });
+        }
+        let mut blocks = blocks::Expansion::new(&self.drawing);
         let entities: Vec<&Entity> = self.drawing.entities().collect();
-        let pieces = self.read_entities(&entities, &mut plan)?;
-        self.close_chains(&entities, pieces, &mut plan);
+        let pieces = self.read_entities(&entities, &mut blocks, &mut plan)?;
+        let name_of = |k: usize| label(entities[k]);
+        let origin_of = |list: &[usize]| Origin::Replace(list.to_vec());
+        close_chains(pieces, &name_of, &origin_of, &mut plan);
+        let (retargets, rest_blocks) = blocks.finish(&mut plan.summary);
+        self.retargets = retargets;
+        self.rest_blocks = rest_blocks;
         Ok(plan)
     }
 
@@ -330,14 +423,14 @@ impl Format for DxfPlan<'_> {
         plan.cuts
             .iter()
             .map(|cut| {
-                let first = match &cut.origin {
-                    Origin::LwPolyline(i) | Origin::Circle(i) => *i,
-                    Origin::Replace(list) => list[0],
+                let common = match &cut.origin {
+                    Origin::LwPolyline(i) | Origin::Circle(i) => &entities[*i].common,
+                    Origin::Replace(list) => &entities[list[0]].common,
+                    Origin::Added(common) => common.as_ref(),
                 };
-                let e = entities[first];
                 CutGroup {
-                    color: resolve_color(e, &layer_colors),
-                    layer: Some(e.common.layer.clone()),
+                    color: resolve_color(common, &layer_colors),
+                    layer: Some(common.layer.clone()),
                 }
             })
             .collect()
@@ -360,58 +453,74 @@ impl Format for DxfPlan<'_> {
                     &mut added,
                 );
             }
+            for (i, name) in std::mem::take(&mut self.retargets) {
+                if let EntityType::Insert(ins) = &mut slots[i].specific {
+                    ins.name = name;
+                }
+            }
         }
         remove_entities(&mut self.drawing, &removed);
+        for block in std::mem::take(&mut self.rest_blocks) {
+            self.drawing.add_block(block);
+        }
         for e in added {
             self.drawing.add_entity(e);
         }
-        if self.drawing.header.version < AcadVersion::R14 {
+        if self.drawing.header.version < AcadVersion::R2000 {
             self.drawing.header.version = AcadVersion::R2000;
-            plan.summary
-                .notes
-                .push("the drawing was older than R14 (no LWPOLYLINE); written as R2000".into());
+            plan.summary.notes.push(
+                "the drawing was older than R2000 (no LWPOLYLINE before R14, no $INSUNITS before R2000); written as R2000"
+                    .into(),
+            );
+        }
+        if let Some(units) = self.assumed.take() {
+            self.drawing.header.default_drawing_units = units;
         }
         Ok(self.drawing)
     }
 }
 
 impl DxfPlan<'_> {
-    /// Classify every entity; read the cuts into `plan` (closed ones) or the returned open pieces.
-    fn read_entities(&self, entities: &[&Entity], plan: &mut Plan<Origin>) -> Result<Vec<Piece>> {
-        let layer_colors: HashMap<String, dxf::Color> = self
-            .drawing
-            .layers()
-            .map(|l| (l.name.to_uppercase(), l.color.clone()))
-            .collect();
+    /// Classify every entity; read the cuts into `plan` (closed ones) or the returned open pieces;
+    /// expand block references (`INSERT`) into `blocks`.
+    fn read_entities<'d>(
+        &self,
+        entities: &[&'d Entity],
+        blocks: &mut blocks::Expansion<'d>,
+        plan: &mut Plan<Origin>,
+    ) -> Result<Vec<Piece>> {
         let mut pieces: Vec<Piece> = Vec::new();
         let mut problems = Problems::default();
+        let model = Affine::scale(self.scale);
         for (i, &e) in entities.iter().enumerate() {
-            if !self.is_cut(e, &layer_colors, &mut plan.summary) {
+            if !self.drawn(&e.common, &mut plan.summary) {
                 continue;
             }
-            let read = match &e.specific {
-                EntityType::Insert(_) => {
-                    plan.summary
-                        .pass("INSERT (block contents are not dilated: explode blocks first)");
-                    continue;
+            if let EntityType::Insert(ins) = &e.specific {
+                let rest = self.expand_insert(
+                    &e.common,
+                    ins,
+                    &model,
+                    &label(e),
+                    0,
+                    blocks,
+                    plan,
+                    &mut problems,
+                );
+                if let Some(rest) = rest {
+                    blocks.retarget(i, rest);
                 }
-                EntityType::LwPolyline(_)
-                | EntityType::Polyline(_)
-                | EntityType::Line(_)
-                | EntityType::Arc(_)
-                | EntityType::Circle(_)
-                | EntityType::Ellipse(_)
-                | EntityType::Spline(_) => {
-                    plan.summary.cut_elements += 1;
-                    self.read_cut(i, e)
-                }
-                other => {
-                    plan.summary
-                        .pass(format!("{} (not a cut geometry)", type_name(other)));
-                    continue;
-                }
-            };
-            match read {
+                continue;
+            }
+            if !self.is_cut(
+                &e.common,
+                &e.specific,
+                blocks.layer_colors(),
+                &mut plan.summary,
+            ) {
+                continue;
+            }
+            match self.read_checked(e, Place::Model(i), i, &model, &mut plan.summary) {
                 Ok(Read::Closed(pl, origin)) => plan.cut(pl, label(e), origin),
                 Ok(Read::Piece(piece)) => pieces.push(piece),
                 Ok(Read::Nothing) => {}
@@ -422,38 +531,91 @@ impl DxfPlan<'_> {
         Ok(pieces)
     }
 
-    /// Whether an entity is a cut by the rules; counts it as passed through when not.
-    fn is_cut(
-        &self,
-        e: &Entity,
-        layer_colors: &HashMap<String, dxf::Color>,
-        summary: &mut PlanSummary,
-    ) -> bool {
-        if e.common.is_in_paper_space {
+    /// Whether an entity is drawn in model space at all; counts it as passed through when not.
+    fn drawn(&self, common: &EntityCommon, summary: &mut PlanSummary) -> bool {
+        if common.is_in_paper_space {
             summary.pass("paper space");
             return false;
         }
-        if !e.common.is_visible {
+        if !common.is_visible {
             summary.pass("invisible");
-            return false;
-        }
-        let color = resolve_color(e, layer_colors);
-        let lw = (e.common.lineweight_enum_value > 0)
-            .then(|| f64::from(e.common.lineweight_enum_value) / 100.0);
-        if let Verdict::Keep(reason) = self.opts.rules.classify_dxf(color, &e.common.layer, lw) {
-            summary.pass(format!("{} ({reason})", type_name(&e.specific)));
             return false;
         }
         true
     }
 
-    /// Read one cut entity (`i` in the entity list); a problem when it cannot be dilated.
-    fn read_cut(&self, i: usize, e: &Entity) -> Result<Read, String> {
+    /// Whether an entity (its common properties, block inheritance resolved, and its kind) is a
+    /// cut by the rules: a cut geometry in a cut colour, layer and width. Counts it as passed
+    /// through when not.
+    fn is_cut(
+        &self,
+        common: &EntityCommon,
+        specific: &EntityType,
+        layer_colors: &HashMap<String, dxf::Color>,
+        summary: &mut PlanSummary,
+    ) -> bool {
+        let color = resolve_color(common, layer_colors);
+        let lw = (common.lineweight_enum_value > 0)
+            .then(|| f64::from(common.lineweight_enum_value) / 100.0);
+        if let Verdict::Keep(reason) = self.opts.rules.classify_dxf(color, &common.layer, lw) {
+            summary.pass(format!("{} ({reason})", type_name(specific)));
+            return false;
+        }
+        let geometry = matches!(
+            specific,
+            EntityType::LwPolyline(_)
+                | EntityType::Polyline(_)
+                | EntityType::Line(_)
+                | EntityType::Arc(_)
+                | EntityType::Circle(_)
+                | EntityType::Ellipse(_)
+                | EntityType::Spline(_)
+        );
+        if !geometry {
+            summary.pass(format!("{} (not a cut geometry)", type_name(specific)));
+            return false;
+        }
+        summary.cut_elements += 1;
+        true
+    }
+
+    /// Read one cut entity ([`Self::read_cut`]) and check that what it gives is usable: finite
+    /// coordinates within 10 km of the origin.
+    fn read_checked(
+        &self,
+        e: &Entity,
+        place: Place,
+        index: usize,
+        frame: &Affine,
+        summary: &mut PlanSummary,
+    ) -> Result<Read, String> {
+        let read = self.read_cut(e, place, index, frame, summary)?;
+        if !read.is_usable() {
+            return Err(format!(
+                "{} has a point or an arc that is not a number or reaches more than 10 km from the origin; check the drawing and its units",
+                label(e)
+            ));
+        }
+        Ok(read)
+    }
+
+    /// Read one cut entity at `place` (`index`: its index in model space or in its block),
+    /// `frame` mapping the coordinates it is drawn in to document mm; a problem when it cannot be
+    /// dilated.
+    fn read_cut(
+        &self,
+        e: &Entity,
+        place: Place,
+        index: usize,
+        frame: &Affine,
+        summary: &mut PlanSummary,
+    ) -> Result<Read, String> {
         match &e.specific {
             EntityType::LwPolyline(lw) => {
-                let m = plane(e, &lw.extrusion_direction)?;
-                let verts = lw.vertices.iter().map(|v| (v.x, v.y, v.bulge));
-                Ok(self.polyline(verts, m, lw.is_closed(), Origin::LwPolyline(i), i))
+                let verts: Vec<_> = lw.vertices.iter().map(|v| (v.x, v.y, v.bulge)).collect();
+                let f = in_plane(e, &lw.extrusion_direction, frame)?;
+                let origin = place.origin(Origin::LwPolyline);
+                Ok(polyline_entity(&verts, lw.is_closed(), &f, origin, index))
             }
             EntityType::Polyline(pl) => {
                 if pl.is_3d_polyline() || pl.is_3d_polygon_mesh() || pl.is_polyface_mesh() {
@@ -462,168 +624,303 @@ impl DxfPlan<'_> {
                         label(e)
                     ));
                 }
-                let m = plane(e, &pl.normal)?;
-                let verts = pl.vertices().map(|v| (v.location.x, v.location.y, v.bulge));
-                Ok(self.polyline(verts, m, pl.is_closed(), Origin::Replace(vec![i]), i))
+                let verts: Vec<_> = pl
+                    .vertices()
+                    .map(|v| (v.location.x, v.location.y, v.bulge))
+                    .collect();
+                let f = in_plane(e, &pl.normal, frame)?;
+                let origin = place.origin(|i| Origin::Replace(vec![i]));
+                Ok(polyline_entity(&verts, pl.is_closed(), &f, origin, index))
             }
-            EntityType::Line(l) => Ok(self.line(l, i)),
-            EntityType::Arc(a) => Ok(self.arc(a, plane(e, &a.normal)?, i)),
-            EntityType::Circle(c) => Ok(self.circle(c, plane(e, &c.normal)?, i)),
+            EntityType::Line(l) => Ok(line(l, frame, index)),
+            EntityType::Arc(a) => Ok(arc(a, &in_plane(e, &a.normal, frame)?, place, index)),
+            EntityType::Circle(c) => Ok(circle(c, &in_plane(e, &c.normal, frame)?, place)),
             EntityType::Ellipse(el) => {
-                if plane(e, &el.normal).is_err() {
+                if mirrored(&el.normal).is_none() {
                     return Err(format!("{} is not drawn in the XY plane", label(e)));
                 }
-                Ok(self.ellipse(el, i))
+                Ok(ellipse(el, frame, place, index))
             }
-            EntityType::Spline(_) => Err(format!(
-                "{} is a cut, but splines cannot be dilated here: convert it to a polyline in the CAD program, or put it on a layer or colour that is not a cut",
-                label(e)
-            )),
+            EntityType::Spline(sp) => {
+                let read = spline(sp, frame, place, index)
+                    .map_err(|why| format!("{} cannot be read: {why}", label(e)))?;
+                note_splines(summary);
+                Ok(read)
+            }
             _ => Ok(Read::Nothing),
         }
     }
+}
 
-    /// A drawing point in document mm, mirrored in x when the entity's OCS is.
-    fn point(&self, x: f64, y: f64, mirrored: bool) -> V2 {
-        v2(if mirrored { -x } else { x } * self.scale, y * self.scale)
+/// Say once that splines were approximated.
+fn note_splines(summary: &mut PlanSummary) {
+    const NOTE: &str = "SPLINEs were approximated by circular arcs";
+    if !summary.notes.iter().any(|n| n.starts_with(NOTE)) {
+        summary.notes.push(format!(
+            "{NOTE} within {} µm of the curve",
+            CURVE_TOLERANCE_MM * 1e3
+        ));
     }
+}
 
-    /// A `LWPOLYLINE` or 2-D `POLYLINE` from its vertices (x, y, bulge in drawing units).
-    fn polyline(
-        &self,
-        verts: impl Iterator<Item = (f64, f64, f64)>,
-        m: bool,
-        closed_flag: bool,
-        origin: Origin,
-        index: usize,
-    ) -> Read {
-        let verts = verts
-            .map(|(x, y, bulge)| {
-                let q = self.point(x, y, m);
-                PlineVertex::new(q.x, q.y, if m { -bulge } else { bulge })
-            })
-            .collect();
-        polyline_read(verts, closed_flag, origin, index)
-    }
+/// A polyline entity's vertices (x, y, bulge, drawn in `frame`) read as a contour or a piece.
+fn polyline_entity(
+    verts: &[(f64, f64, f64)],
+    closed: bool,
+    frame: &Affine,
+    origin: Origin,
+    index: usize,
+) -> Read {
+    polyline_read(map_vertices(frame, verts, closed), closed, origin, index)
+}
 
-    fn line(&self, l: &dxf::entities::Line, i: usize) -> Read {
-        let (a, b) = (
-            self.point(l.p1.x, l.p1.y, false),
-            self.point(l.p2.x, l.p2.y, false),
-        );
-        if (a - b).length() <= JOIN_MM {
-            return Read::Nothing;
-        }
-        Read::Piece(Piece {
-            vertices: vec![
-                PlineVertex::new(a.x, a.y, 0.0),
-                PlineVertex::new(b.x, b.y, 0.0),
-            ],
-            entities: vec![i],
+/// Points of a curve closer than this (mm) are one point (cavalier_contours takes points within
+/// 10⁻⁸ for the same).
+const CURVE_JOIN_MM: f64 = 1e-7;
+
+/// Coordinates further from the origin than this (mm) are refused: 10 km is no laser bed, and
+/// such numbers are a unit mistake or a damaged file.
+const MAX_COORDINATE_MM: f64 = 1e7;
+
+/// The frame of an entity drawn in the plane with OCS normal `n`, inside `frame`: mirrored in x
+/// when the normal is −z; a problem when it is neither +z nor −z.
+fn in_plane(e: &Entity, n: &Vector, frame: &Affine) -> Result<Affine, String> {
+    let m = plane(e, n)?;
+    Ok(if m {
+        frame.then_after(&Affine {
+            a: -1.0,
+            ..Affine::IDENTITY
         })
-    }
+    } else {
+        *frame
+    })
+}
 
-    fn arc(&self, a: &dxf::entities::Arc, m: bool, i: usize) -> Read {
-        let (s, t) = (a.start_angle.to_radians(), a.end_angle.to_radians());
-        let mut sweep = (t - s).rem_euclid(std::f64::consts::TAU);
-        if sweep < 1e-12 {
-            sweep = std::f64::consts::TAU;
-        }
-        let at = |ang: f64| {
-            self.point(
-                a.center.x + a.radius * ang.cos(),
-                a.center.y + a.radius * ang.sin(),
-                m,
-            )
-        };
-        let (q0, q1) = (at(s), at(s + sweep));
-        let bulge = (sweep / 4.0).tan() * if m { -1.0 } else { 1.0 };
-        if sweep >= std::f64::consts::TAU - 1e-9 {
-            // A full-circle arc: a circle.
-            let qm = at(s + sweep / 2.0);
-            let mut pl = Pline::new_closed();
-            pl.add(q0.x, q0.y, bulge.signum());
-            pl.add(qm.x, qm.y, bulge.signum());
-            Read::Closed(pl, Origin::Replace(vec![i]))
+/// Polyline vertices (x, y, bulge in the entity's own coordinates) mapped by `frame` into
+/// document mm. Under a similarity an arc stays one arc (its bulge negated by a mirror); under
+/// any other map (a block inserted with unequal x and y scales) it becomes an elliptical arc,
+/// approximated by biarcs within [`CURVE_TOLERANCE_MM`].
+fn map_vertices(frame: &Affine, verts: &[(f64, f64, f64)], closed: bool) -> Vec<PlineVertex<f64>> {
+    let n = verts.len();
+    let similar = frame.is_similarity();
+    let flip = if frame.det() < 0.0 { -1.0 } else { 1.0 };
+    let mut out = Vec::with_capacity(n);
+    for (i, &(x, y, bulge)) in verts.iter().enumerate() {
+        let p = v2(x, y);
+        let next = if i + 1 < n {
+            Some(verts[i + 1])
+        } else if closed {
+            verts.first().copied()
         } else {
-            Read::Piece(Piece {
-                vertices: vec![
-                    PlineVertex::new(q0.x, q0.y, bulge),
-                    PlineVertex::new(q1.x, q1.y, 0.0),
-                ],
-                entities: vec![i],
-            })
-        }
-    }
-
-    fn circle(&self, c: &dxf::entities::Circle, m: bool, i: usize) -> Read {
-        let q0 = self.point(c.center.x + c.radius, c.center.y, m);
-        let q1 = self.point(c.center.x - c.radius, c.center.y, m);
-        let mut pl = Pline::new_closed();
-        pl.add(q0.x, q0.y, 1.0);
-        pl.add(q1.x, q1.y, 1.0);
-        Read::Closed(pl, Origin::Circle(i))
-    }
-
-    /// An `ELLIPSE` (or elliptic arc), by biarcs.
-    fn ellipse(&self, el: &dxf::entities::Ellipse, i: usize) -> Read {
-        let scale = self.scale;
-        let mj = v2(el.major_axis.x, el.major_axis.y);
-        // Minor axis = ratio · (normal × major).
-        let mn = v2(-mj.y, mj.x).scale(el.minor_axis_ratio * el.normal.z.signum());
-        let c = v2(el.center.x, el.center.y);
-        let (t0, mut t1) = (el.start_parameter, el.end_parameter);
-        if t1 <= t0 {
-            t1 += std::f64::consts::TAU;
-        }
-        let full = (t1 - t0 - std::f64::consts::TAU).abs() < 1e-9;
-        let f = |u: f64| {
-            let t = t0 + (t1 - t0) * u;
-            let pos = c + mj.scale(t.cos()) + mn.scale(t.sin());
-            let d = (mn.scale(t.cos()) - mj.scale(t.sin())).scale(t1 - t0);
-            (pos.scale(scale), d.scale(scale))
+            None
         };
-        let mut sink = PathSink::new(1e-9, 1e-12);
-        sink.move_to(f(0.0).0);
-        sink.curve(&f, f(1.0).0);
-        if full {
-            sink.close();
-        }
-        match sink.finish().into_iter().next() {
-            Some(sub) if sub.pline.is_closed() => Read::Closed(sub.pline, Origin::Replace(vec![i])),
-            Some(sub) => Read::Piece(Piece {
-                vertices: sub.pline.iter_vertexes().collect(),
-                entities: vec![i],
-            }),
-            None => Read::Nothing,
-        }
-    }
-
-    /// Join the open pieces into chains: the closed ones are cuts, the rest open paths.
-    fn close_chains(&self, entities: &[&Entity], pieces: Vec<Piece>, plan: &mut Plan<Origin>) {
-        for chain in join_pieces(pieces) {
-            let first = entities[chain.entities[0]];
-            let name = if chain.entities.len() == 1 {
-                label(first)
-            } else {
-                format!(
-                    "chain of {} entities from {}",
-                    chain.entities.len(),
-                    label(first)
-                )
-            };
-            if (chain.start() - chain.end()).length() <= JOIN_MM && chain.vertices.len() > 2 {
-                let mut pl = Pline::new_closed();
-                let n = chain.vertices.len();
-                for v in &chain.vertices[..n - 1] {
-                    pl.add_vertex(*v);
-                }
-                plan.cut(pl, name, Origin::Replace(chain.entities.clone()));
-            } else {
-                plan.open_path(name, chain.start(), chain.end());
+        let arc = next.and_then(|(nx, ny, _)| arc_geom(p, v2(nx, ny), bulge));
+        match arc {
+            Some(g) if !similar && g.radius.is_finite() => {
+                let f = |t: f64| {
+                    let (s, c) = (g.start_angle + g.sweep * t).sin_cos();
+                    (
+                        frame.apply(g.center + v2(c, s).scale(g.radius)),
+                        frame.apply_vector(v2(-s, c).scale(g.radius * g.sweep)),
+                    )
+                };
+                fit_biarcs(&f, 0.0, 1.0, CURVE_TOLERANCE_MM, &mut out);
+            }
+            _ => {
+                let q = frame.apply(p);
+                let b = if next.is_some() { bulge * flip } else { 0.0 };
+                out.push(PlineVertex::new(q.x, q.y, b));
             }
         }
     }
+    out
+}
+
+fn line(l: &dxf::entities::Line, frame: &Affine, i: usize) -> Read {
+    let (a, b) = (
+        frame.apply(v2(l.p1.x, l.p1.y)),
+        frame.apply(v2(l.p2.x, l.p2.y)),
+    );
+    let length = (a - b).length();
+    if length.is_nan() || length <= JOIN_MM {
+        return Read::Nothing;
+    }
+    Read::Piece(Piece {
+        vertices: vec![
+            PlineVertex::new(a.x, a.y, 0.0),
+            PlineVertex::new(b.x, b.y, 0.0),
+        ],
+        entities: vec![i],
+    })
+}
+
+fn arc(a: &dxf::entities::Arc, frame: &Affine, place: Place, i: usize) -> Read {
+    let (s, t) = (a.start_angle.to_radians(), a.end_angle.to_radians());
+    let mut sweep = (t - s).rem_euclid(std::f64::consts::TAU);
+    if sweep.is_nan() || sweep < 1e-12 {
+        sweep = std::f64::consts::TAU;
+    }
+    let at = |ang: f64| {
+        (
+            a.center.x + a.radius * ang.cos(),
+            a.center.y + a.radius * ang.sin(),
+        )
+    };
+    if a.radius.is_nan() || a.radius <= 0.0 {
+        return Read::Nothing;
+    }
+    if sweep >= std::f64::consts::TAU - 1e-9 {
+        // A full-circle arc: a circle.
+        let (q0, qm) = (at(s), at(s + sweep / 2.0));
+        let verts = [(q0.0, q0.1, 1.0), (qm.0, qm.1, 1.0)];
+        let pl = closed_pline(map_vertices(frame, &verts, true));
+        Read::Closed(pl, place.origin(|i| Origin::Replace(vec![i])))
+    } else {
+        let (q0, q1) = (at(s), at(s + sweep));
+        let verts = [(q0.0, q0.1, (sweep / 4.0).tan()), (q1.0, q1.1, 0.0)];
+        Read::Piece(Piece {
+            vertices: map_vertices(frame, &verts, false),
+            entities: vec![i],
+        })
+    }
+}
+
+fn circle(c: &dxf::entities::Circle, frame: &Affine, place: Place) -> Read {
+    if c.radius.is_nan() || c.radius <= 0.0 {
+        return Read::Nothing;
+    }
+    let verts = [
+        (c.center.x + c.radius, c.center.y, 1.0),
+        (c.center.x - c.radius, c.center.y, 1.0),
+    ];
+    let pl = closed_pline(map_vertices(frame, &verts, true));
+    Read::Closed(pl, place.origin(Origin::Circle))
+}
+
+fn closed_pline(verts: Vec<PlineVertex<f64>>) -> Pline {
+    let mut pl = Pline::with_capacity(verts.len(), true);
+    for v in verts {
+        pl.add_vertex(v);
+    }
+    pl
+}
+
+/// An `ELLIPSE` (or elliptic arc), by biarcs. Its centre and axis are in the coordinates of its
+/// block (or model space), whatever its normal; a −z normal reverses its sense.
+fn ellipse(el: &dxf::entities::Ellipse, frame: &Affine, place: Place, i: usize) -> Read {
+    let mj = v2(el.major_axis.x, el.major_axis.y);
+    // Minor axis = ratio · (normal × major).
+    let mn = v2(-mj.y, mj.x).scale(el.minor_axis_ratio * el.normal.z.signum());
+    let c = v2(el.center.x, el.center.y);
+    let (t0, mut t1) = (el.start_parameter, el.end_parameter);
+    if !(t0.is_finite() && t1.is_finite() && mj.length() > 0.0) {
+        return Read::Nothing;
+    }
+    let tau = std::f64::consts::TAU;
+    if t1 - t0 > tau {
+        t1 = t0 + tau;
+    }
+    while t1 <= t0 {
+        t1 += tau;
+    }
+    let full = (t1 - t0 - tau).abs() < 1e-9;
+    let f = |u: f64| {
+        let t = t0 + (t1 - t0) * u;
+        let pos = c + mj.scale(t.cos()) + mn.scale(t.sin());
+        let d = (mn.scale(t.cos()) - mj.scale(t.sin())).scale(t1 - t0);
+        (frame.apply(pos), frame.apply_vector(d))
+    };
+    let mut sink = PathSink::new(CURVE_JOIN_MM, 1e-12);
+    sink.move_to(f(0.0).0);
+    sink.curve(&f, f(1.0).0);
+    if full {
+        sink.close();
+    }
+    curve_read(sink, full, place, i)
+}
+
+/// A `SPLINE` (its control points, weights and knots; see [`nurbs`]), by biarcs within
+/// [`CURVE_TOLERANCE_MM`]. A spline given by fit points alone is refused.
+fn spline(
+    sp: &dxf::entities::Spline,
+    frame: &Affine,
+    place: Place,
+    i: usize,
+) -> Result<Read, String> {
+    if sp.control_points.is_empty() && !sp.fit_points.is_empty() {
+        return Err(
+            "it is given by fit points only (no control points); convert it to a polyline in the CAD program, or save it with control points"
+                .into(),
+        );
+    }
+    let points: Vec<(f64, f64)> = sp.control_points.iter().map(|p| (p.x, p.y)).collect();
+    let curve = Nurbs::new(
+        sp.degree_of_curve,
+        &points,
+        &sp.weight_values,
+        &sp.knot_values,
+    )?;
+    let mut sink = PathSink::new(CURVE_JOIN_MM, 1e-12);
+    sink.move_to(frame.apply(curve.start()));
+    for k in curve.spans() {
+        let piece = curve.span_curve(k);
+        let f = |t: f64| {
+            let (p, d) = piece(t);
+            (frame.apply(p), frame.apply_vector(d))
+        };
+        sink.curve(&f, f(1.0).0);
+    }
+    if sp.is_closed() {
+        sink.close();
+    }
+    Ok(curve_read(sink, sp.is_closed(), place, i))
+}
+
+/// A curve drawn into `sink` as a closed contour (when `closed`, or when it ends where it
+/// starts) or an open piece.
+fn curve_read(sink: PathSink, closed: bool, place: Place, i: usize) -> Read {
+    match sink.finish().into_iter().next() {
+        Some(sub) => {
+            let is_closed = closed || sub.pline.is_closed();
+            let verts = sub.pline.iter_vertexes().collect();
+            polyline_read(
+                verts,
+                is_closed,
+                place.origin(|i| Origin::Replace(vec![i])),
+                i,
+            )
+        }
+        None => Read::Nothing,
+    }
+}
+
+/// Join the open pieces into chains: the closed ones are cuts (named by `name_of` their first
+/// entity, their origin made by `origin_of` their entities), the rest open paths. Returns the
+/// entities of the closed chains.
+fn close_chains(
+    pieces: Vec<Piece>,
+    name_of: &dyn Fn(usize) -> String,
+    origin_of: &dyn Fn(&[usize]) -> Origin,
+    plan: &mut Plan<Origin>,
+) -> Vec<usize> {
+    let mut closed = Vec::new();
+    for chain in join_pieces(pieces) {
+        let first = name_of(chain.entities[0]);
+        let name = if chain.entities.len() == 1 {
+            first
+        } else {
+            format!("chain of {} entities from {first}", chain.entities.len())
+        };
+        if (chain.start() - chain.end()).length() <= JOIN_MM && chain.vertices.len() > 2 {
+            let n = chain.vertices.len();
+            let pl = closed_pline(chain.vertices[..n - 1].to_vec());
+            plan.cut(pl, name, origin_of(&chain.entities));
+            closed.extend_from_slice(&chain.entities);
+        } else {
+            plan.open_path(name, chain.start(), chain.end());
+        }
+    }
+    closed
 }
 
 /// Put one dilated contour back (`slots`: the drawing's entities by index, `scale`: mm per
@@ -637,7 +934,7 @@ fn write_cut(
     removed: &mut [bool],
     added: &mut Vec<Entity>,
 ) {
-    let to_units = |x: f64| x / scale;
+    let to_units = |x: f64| units(x, scale);
     match origin {
         Origin::Circle(i) => {
             let entity = &mut *slots[*i];
@@ -651,7 +948,7 @@ fn write_cut(
                 }
                 _ => {
                     removed[*i] = true;
-                    added.push(new_lwpolyline(entity, d, scale));
+                    added.push(new_lwpolyline(&entity.common, d, scale));
                 }
             }
         }
@@ -666,8 +963,9 @@ fn write_cut(
             for &i in list {
                 removed[i] = true;
             }
-            added.push(new_lwpolyline(slots[list[0]], d, scale));
+            added.push(new_lwpolyline(&slots[list[0]].common, d, scale));
         }
+        Origin::Added(like) => added.push(new_lwpolyline(like, d, scale)),
     }
 }
 
@@ -705,15 +1003,15 @@ fn plane(e: &Entity, n: &Vector) -> Result<bool, String> {
     })
 }
 
-fn resolve_color(e: &Entity, layers: &HashMap<String, dxf::Color>) -> Option<Rgb> {
-    if e.common.color_24_bit != 0 {
-        let c = e.common.color_24_bit;
+fn resolve_color(e: &EntityCommon, layers: &HashMap<String, dxf::Color>) -> Option<Rgb> {
+    if e.color_24_bit != 0 {
+        let c = e.color_24_bit;
         return Some(Rgb((c >> 16) as u8, (c >> 8) as u8, c as u8));
     }
-    let c = if e.common.color.is_by_layer() || e.common.color.is_by_block() {
-        layers.get(&e.common.layer.to_uppercase()).cloned()?
+    let c = if e.color.is_by_layer() || e.color.is_by_block() {
+        layers.get(&e.layer.to_uppercase()).cloned()?
     } else {
-        e.common.color.clone()
+        e.color.clone()
     };
     Rgb::from_aci(c.index()?)
 }
@@ -858,36 +1156,55 @@ fn as_circle(p: &Pline) -> Option<(V2, f64)> {
     found
 }
 
+/// Decimal places of the numbers written: a step of at most 0.01 µm (so a coordinate is within
+/// 0.005 µm), and bulges to 10⁻¹⁰ (a 10 m chord's arc within 0.001 µm). The `dxf` crate prints
+/// 12 decimals and drops trailing zeros, so rounded numbers print short.
+const STEP_MM: f64 = 1e-5;
+const BULGE_DIGITS: i32 = 10;
+
+/// `v` rounded to `digits` decimals.
+fn rounded(v: f64, digits: i32) -> f64 {
+    let m = 10f64.powi(digits);
+    let r = (v * m).round() / m;
+    if r.is_finite() { r } else { v }
+}
+
+/// `mm` in drawing units (`scale` mm each), rounded to the step written (see [`STEP_MM`]).
+fn units(mm: f64, scale: f64) -> f64 {
+    let digits = (-(STEP_MM / scale).log10() - 1e-6).ceil().clamp(0.0, 12.0) as i32;
+    rounded(mm / scale, digits)
+}
+
 fn lw_vertices(p: &Pline, scale: f64) -> Vec<LwPolylineVertex> {
     p.iter_vertexes()
         .map(|v| LwPolylineVertex {
-            x: v.x / scale,
-            y: v.y / scale,
-            bulge: v.bulge,
+            x: units(v.x, scale),
+            y: units(v.y, scale),
+            bulge: rounded(v.bulge, BULGE_DIGITS),
             ..LwPolylineVertex::default()
         })
         .collect()
 }
 
-fn new_lwpolyline(like: &Entity, p: &Pline, scale: f64) -> Entity {
+fn new_lwpolyline(like: &EntityCommon, p: &Pline, scale: f64) -> Entity {
     let mut lw = LwPolyline {
         vertices: lw_vertices(p, scale),
         ..LwPolyline::default()
     };
     lw.set_is_closed(true);
     let mut e = Entity::new(EntityType::LwPolyline(lw));
-    e.common.layer = like.common.layer.clone();
-    e.common.color = like.common.color.clone();
-    e.common.color_24_bit = like.common.color_24_bit;
-    e.common.line_type_name = like.common.line_type_name.clone();
-    e.common.lineweight_enum_value = like.common.lineweight_enum_value;
+    e.common.layer = like.layer.clone();
+    e.common.color = like.color.clone();
+    e.common.color_24_bit = like.color_24_bit;
+    e.common.line_type_name = like.line_type_name.clone();
+    e.common.lineweight_enum_value = like.lineweight_enum_value;
     e
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dxf::entities::{Circle, Line};
+    use dxf::entities::{Circle, Insert, Line};
 
     fn drawing(units: Units) -> Drawing {
         let mut d = Drawing::new();
@@ -950,7 +1267,7 @@ mod tests {
     }
 
     #[test]
-    fn a_cut_spline_is_refused() {
+    fn a_spline_that_cannot_be_a_curve_is_refused_with_the_reason() {
         let mut d = drawing(Units::Millimeters);
         let mut sp = Entity::new(EntityType::Spline(dxf::entities::Spline::default()));
         sp.common.color = dxf::Color::from_index(1);
@@ -958,6 +1275,254 @@ mod tests {
         let e = dilate_drawing(d, &KerfSource::Uniform(100.0), &DxfOptions::default())
             .unwrap_err()
             .to_string();
-        assert!(e.contains("SPLINE") && e.contains("polyline"), "{e}");
+        assert!(e.contains("SPLINE") && e.contains("control points"), "{e}");
+    }
+
+    /// A closed rational quadratic spline: the circle of radius 10 about (50, 50), four arcs.
+    fn circle_spline() -> dxf::entities::Spline {
+        let w = std::f64::consts::FRAC_1_SQRT_2;
+        let pts = [
+            (60.0, 50.0),
+            (60.0, 60.0),
+            (50.0, 60.0),
+            (40.0, 60.0),
+            (40.0, 50.0),
+            (40.0, 40.0),
+            (50.0, 40.0),
+            (60.0, 40.0),
+            (60.0, 50.0),
+        ];
+        let mut sp = dxf::entities::Spline {
+            degree_of_curve: 2,
+            control_points: pts.iter().map(|&(x, y)| Point::new(x, y, 0.0)).collect(),
+            weight_values: (0..9).map(|k| if k % 2 == 1 { w } else { 1.0 }).collect(),
+            knot_values: vec![0., 0., 0., 1., 1., 2., 2., 3., 3., 4., 4., 4.],
+            ..Default::default()
+        };
+        sp.set_is_closed(true);
+        sp.set_is_rational(true);
+        sp
+    }
+
+    /// Every vertex's distance from (50, 50), and every arc's radius about it.
+    fn radii(p: &LwPolyline) -> Vec<f64> {
+        let n = p.vertices.len();
+        (0..n)
+            .map(|k| {
+                let (a, b) = (&p.vertices[k], &p.vertices[(k + 1) % n]);
+                let mid = crate::geom::segment_point(v2(a.x, a.y), v2(b.x, b.y), a.bulge, 0.5);
+                (mid - v2(50.0, 50.0)).length()
+            })
+            .collect()
+    }
+
+    fn lwpolylines(d: &Drawing) -> Vec<&LwPolyline> {
+        d.entities()
+            .filter_map(|e| match &e.specific {
+                EntityType::LwPolyline(p) => Some(p),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_spline_is_read_as_arcs_and_dilated() {
+        let mut d = drawing(Units::Millimeters);
+        let mut sp = Entity::new(EntityType::Spline(circle_spline()));
+        sp.common.color = dxf::Color::from_index(1);
+        d.add_entity(sp);
+        let (out, s) =
+            dilate_drawing(d, &KerfSource::Uniform(200.0), &DxfOptions::default()).unwrap();
+        assert_eq!(s.contours_dilated, 2);
+        let pl = lwpolylines(&out);
+        assert_eq!(pl.len(), 1);
+        // Within 0.01 µm: the numbers are written to 0.01 µm.
+        for r in radii(pl[0]) {
+            assert!((r - 10.1).abs() < 1e-5, "{r} {:?}", pl[0].vertices);
+        }
+        assert!(
+            s.notes.iter().any(|n| n.contains("SPLINE")),
+            "{:?}",
+            s.notes
+        );
+    }
+
+    /// A block `PART` (base point (1, 1)): a red square 0..10 drawn on layer 0 in BYBLOCK colour,
+    /// a text, and an open red line; inserted by `insert`.
+    fn with_block(insert: Insert) -> Drawing {
+        let mut d = Drawing::new();
+        d.header.version = AcadVersion::R2000;
+        d.header.default_drawing_units = Units::Millimeters;
+        let mut square = LwPolyline::default();
+        for (x, y) in [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)] {
+            square.vertices.push(LwPolylineVertex {
+                x,
+                y,
+                ..Default::default()
+            });
+        }
+        square.set_is_closed(true);
+        let mut sq = Entity::new(EntityType::LwPolyline(square));
+        sq.common.color = dxf::Color::by_block();
+        let text = Entity::new(EntityType::Text(dxf::entities::Text {
+            value: "label".into(),
+            ..Default::default()
+        }));
+        let mut slit = Entity::new(EntityType::Line(Line::new(
+            Point::new(2.0, 5.0, 0.0),
+            Point::new(8.0, 5.0, 0.0),
+        )));
+        slit.common.color = dxf::Color::from_index(1);
+        let block = dxf::Block {
+            name: "PART".into(),
+            base_point: Point::new(1.0, 1.0, 0.0),
+            entities: vec![sq, text, slit],
+            ..Default::default()
+        };
+        d.add_block(block);
+        let mut ins = Entity::new(EntityType::Insert(insert));
+        ins.common.color = dxf::Color::from_index(1);
+        d.add_entity(ins);
+        d
+    }
+
+    fn bounds(p: &LwPolyline) -> (f64, f64, f64, f64) {
+        let xs = p.vertices.iter().map(|v| v.x);
+        let ys = p.vertices.iter().map(|v| v.y);
+        (
+            xs.clone().fold(f64::INFINITY, f64::min),
+            ys.clone().fold(f64::INFINITY, f64::min),
+            xs.fold(f64::NEG_INFINITY, f64::max),
+            ys.fold(f64::NEG_INFINITY, f64::max),
+        )
+    }
+
+    #[test]
+    fn cuts_inside_a_rotated_scaled_block_are_dilated_and_the_rest_is_kept() {
+        let insert = Insert {
+            name: "PART".into(),
+            location: Point::new(100.0, 0.0, 0.0),
+            x_scale_factor: 2.0,
+            y_scale_factor: 2.0,
+            rotation: 90.0,
+            ..Default::default()
+        };
+        let (out, s) = dilate_drawing(
+            with_block(insert),
+            &KerfSource::Uniform(200.0),
+            &DxfOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(s.contours_dilated, 1);
+        assert_eq!(s.open_paths.len(), 1, "{:?}", s.open_paths);
+        // The square (0..10 about base (1, 1)), doubled and turned a quarter: x 100−18 … 100+2,
+        // y −2 … 18; then dilated by 0.1 mm.
+        let pl = lwpolylines(&out);
+        assert_eq!(pl.len(), 1);
+        let (x0, y0, x1, y1) = bounds(pl[0]);
+        for (got, want) in [(x0, 81.9), (y0, -2.1), (x1, 102.1), (y1, 18.1)] {
+            assert!((got - want).abs() < 1e-9, "{got} vs {want}");
+        }
+        // The INSERT now shows a copy of the block with the text and the open line alone.
+        let name = out
+            .entities()
+            .find_map(|e| match &e.specific {
+                EntityType::Insert(i) => Some(i.name.clone()),
+                _ => None,
+            })
+            .unwrap();
+        assert_eq!(name, "PART_KERF1");
+        let copy = out.blocks().find(|b| b.name == name).unwrap();
+        assert_eq!(copy.entities.len(), 2);
+        let original = out.blocks().find(|b| b.name == "PART").unwrap();
+        assert_eq!(original.entities.len(), 3);
+    }
+
+    #[test]
+    fn unequal_block_scales_make_circles_ellipses_and_nested_blocks_compose() {
+        let mut d = with_block(Insert {
+            name: "PART".into(),
+            ..Default::default()
+        });
+        // A block OUTER inserting PART stretched 3 × 1, itself inserted mirrored in x.
+        let inner = Entity::new(EntityType::Insert(Insert {
+            name: "PART".into(),
+            location: Point::new(1.0, 1.0, 0.0),
+            x_scale_factor: 3.0,
+            ..Default::default()
+        }));
+        let mut circle = Entity::new(EntityType::Circle(Circle::new(
+            Point::new(0.0, 20.0, 0.0),
+            2.0,
+        )));
+        circle.common.color = dxf::Color::from_index(5);
+        d.add_block(dxf::Block {
+            name: "OUTER".into(),
+            entities: vec![inner, circle],
+            ..Default::default()
+        });
+        let mut outer = Entity::new(EntityType::Insert(Insert {
+            name: "OUTER".into(),
+            location: Point::new(50.0, 0.0, 0.0),
+            x_scale_factor: -1.0,
+            y_scale_factor: 2.0,
+            ..Default::default()
+        }));
+        outer.common.color = dxf::Color::from_index(1);
+        d.add_entity(outer);
+        let (out, s) =
+            dilate_drawing(d, &KerfSource::Uniform(200.0), &DxfOptions::default()).unwrap();
+        // The first INSERT's square, the nested one, and the circle (now an ellipse 2 × 4).
+        assert_eq!(s.contours_dilated, 3);
+        let boxes: Vec<_> = lwpolylines(&out).into_iter().map(bounds).collect();
+        let near = |a: (f64, f64, f64, f64), b: (f64, f64, f64, f64)| {
+            [(a.0, b.0), (a.1, b.1), (a.2, b.2), (a.3, b.3)]
+                .iter()
+                .all(|(p, q)| (p - q).abs() < 1e-4)
+        };
+        // Nested: PART's x, y ∈ 0…10 about its base (1, 1), placed at (1, 1) in OUTER:
+        // x ↦ 1 + 3·(x − 1) ∈ −2…28, y ∈ 0…10; OUTER at (50, 0) scaled (−1, 2): x 22…52, y 0…20.
+        assert!(
+            boxes.iter().any(|b| near(*b, (21.9, -0.1, 52.1, 20.1))),
+            "{boxes:?}"
+        );
+        // The ellipse about (50, 40): semi-axes 2 (x) and 4 (y), dilated by 0.1.
+        assert!(
+            boxes.iter().any(|b| near(*b, (47.9, 35.9, 52.1, 44.1))),
+            "{boxes:?}"
+        );
+        // OUTER's copy points at PART's copy.
+        let outer_copy = out.blocks().find(|b| b.name == "OUTER_KERF1").unwrap();
+        assert!(outer_copy.entities.iter().any(|e| matches!(
+            &e.specific,
+            EntityType::Insert(i) if i.name == "PART_KERF1"
+        )));
+    }
+
+    #[test]
+    fn a_block_that_inserts_itself_or_is_missing_is_refused() {
+        let mut d = drawing(Units::Millimeters);
+        let me = Entity::new(EntityType::Insert(Insert {
+            name: "LOOP".into(),
+            ..Default::default()
+        }));
+        d.add_block(dxf::Block {
+            name: "LOOP".into(),
+            entities: vec![me],
+            ..Default::default()
+        });
+        d.add_entity(Entity::new(EntityType::Insert(Insert {
+            name: "LOOP".into(),
+            ..Default::default()
+        })));
+        d.add_entity(Entity::new(EntityType::Insert(Insert {
+            name: "GONE".into(),
+            ..Default::default()
+        })));
+        let e = dilate_drawing(d, &KerfSource::Uniform(100.0), &DxfOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("\"LOOP\" inside itself"), "{e}");
+        assert!(e.contains("\"GONE\", which is not in the file"), "{e}");
     }
 }

@@ -90,6 +90,21 @@ impl Affine {
         }
     }
 
+    /// Map a vector (the linear part alone: a direction, a tangent).
+    pub fn apply_vector(&self, v: V2) -> V2 {
+        v2(self.a * v.x + self.c * v.y, self.b * v.x + self.d * v.y)
+    }
+
+    /// Whether the map is a similarity (rotation, uniform scale, translation, perhaps a mirror),
+    /// which keeps circles circles, to a relative 10⁻⁹.
+    pub fn is_similarity(&self) -> bool {
+        let size = self.a.abs() + self.b.abs() + self.c.abs() + self.d.abs();
+        let tol = 1e-9 * size;
+        let rotation = (self.a - self.d).abs() <= tol && (self.b + self.c).abs() <= tol;
+        let mirrored = (self.a + self.d).abs() <= tol && (self.b - self.c).abs() <= tol;
+        size > 0.0 && (rotation || mirrored)
+    }
+
     /// Determinant of the linear part (negative: the map mirrors).
     pub fn det(&self) -> f64 {
         self.a * self.d - self.b * self.c
@@ -148,7 +163,9 @@ pub struct ArcGeom {
 
 /// The circle an arc segment lies on, or `None` for a straight segment.
 pub fn arc_geom(p0: V2, p1: V2, bulge: f64) -> Option<ArcGeom> {
-    if bulge.abs() < 1e-12 {
+    // cavalier_contours takes a bulge under 10⁻⁸ for a straight segment (the arc's sagitta is
+    // then under 0.005 µm per metre of chord), and asserts so in its arc functions.
+    if bulge.abs() < 1e-8 || ((p1.x - p0.x).abs() < 1e-8 && (p1.y - p0.y).abs() < 1e-8) {
         return None;
     }
     let (radius, center) = seg_arc_radius_and_center(

@@ -55,6 +55,7 @@ pub mod file;
 pub mod gauge;
 pub mod gcode;
 pub mod geom;
+mod nurbs;
 pub mod outcome;
 mod pipeline;
 pub mod profile;

@@ -113,9 +113,10 @@ pub(crate) trait Format {
     /// Read the document's cuts, and any compensation it records (in the summary).
     fn read(&mut self) -> Result<Plan<Self::Origin>>;
 
-    /// Write the dilated contours (`dilated[k]` replaces `plan.cuts[k]`) back into the document;
-    /// counts the elements changed and adds notes to `plan.summary`. The contours are given, so
-    /// that a format can free them as soon as they are in the document.
+    /// Write the dilated contours (`dilated[k]` replaces `plan.cuts[k]`, whose drawn geometry is
+    /// gone by then: only its origin and label are left) back into the document; counts the
+    /// elements changed and adds notes to `plan.summary`. The contours are given, so that a
+    /// format can free them as soon as they are in the document.
     fn write(self, plan: &mut Plan<Self::Origin>, dilated: Vec<Pline>) -> Result<Self::Output>;
 
     /// The colour and layer each cut was drawn with (`plan.cuts` order), which choose its cut
@@ -196,10 +197,18 @@ fn read_and_dilate<F: Format>(
         .map(|c| (c.contour, c.origin))
         .unzip();
     let dilation = dilate::dilate_with_progress(&contours, kerf, treatment.offsetting, progress)?;
+    // Writing needs each cut's origin and label, not its drawn geometry: that goes now, before
+    // the document is written (it was a sixth of the peak memory).
     plan.cuts = contours
         .into_iter()
         .zip(origins)
-        .map(|(contour, origin)| Cut { contour, origin })
+        .map(|(contour, origin)| Cut {
+            contour: Contour {
+                pline: Pline::new_closed(),
+                label: contour.label,
+            },
+            origin,
+        })
         .collect();
     plan.summary.record_parts(&dilation);
     plan.summary.compensation_applied = Some(compensation::applied(

@@ -89,13 +89,24 @@ pub struct SvgOptions {
     pub progress: Progress,
 }
 
+/// A point as `usvg` gives it, single precision: half the memory of a [`V2`] (the segments of a
+/// large plan, until traced, are most of the memory it takes).
+#[derive(Debug, Clone, Copy)]
+struct P32(f32, f32);
+
+impl P32 {
+    fn v2(self) -> V2 {
+        v2(f64::from(self.0), f64::from(self.1))
+    }
+}
+
 /// One drawing command of a subpath, in the element's own coordinates.
 #[derive(Debug, Clone, Copy)]
 enum Seg {
-    M(V2),
-    L(V2),
-    Q(V2, V2),
-    C(V2, V2, V2),
+    M(P32),
+    L(P32),
+    Q(P32, P32),
+    C(P32, P32, P32),
     Z,
 }
 
@@ -398,16 +409,13 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         for (si, segs) in inst.subpaths.iter().enumerate() {
             // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
             let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
+            let doc = |p: P32| inst.to_doc.apply(p.v2());
             for s in segs {
                 match *s {
-                    Seg::M(p) => sink.move_to(inst.to_doc.apply(p)),
-                    Seg::L(p) => sink.line_to(inst.to_doc.apply(p)),
-                    Seg::Q(a, b) => sink.quad_to(inst.to_doc.apply(a), inst.to_doc.apply(b)),
-                    Seg::C(a, b, c) => sink.cubic_to(
-                        inst.to_doc.apply(a),
-                        inst.to_doc.apply(b),
-                        inst.to_doc.apply(c),
-                    ),
+                    Seg::M(p) => sink.move_to(doc(p)),
+                    Seg::L(p) => sink.line_to(doc(p)),
+                    Seg::Q(a, b) => sink.quad_to(doc(a), doc(b)),
+                    Seg::C(a, b, c) => sink.cubic_to(doc(a), doc(b), doc(c)),
                     Seg::Z => sink.close(),
                 }
             }
@@ -783,7 +791,7 @@ impl Walk<'_> {
                     return;
                 }
                 let mut subpaths: Vec<Vec<Seg>> = Vec::new();
-                let pt = |q: usvg::tiny_skia_path::Point| v2(f64::from(q.x), f64::from(q.y));
+                let pt = |q: usvg::tiny_skia_path::Point| P32(q.x, q.y);
                 for seg in p.data().segments() {
                     let s = match seg {
                         PathSegment::MoveTo(a) => {
@@ -800,6 +808,12 @@ impl Walk<'_> {
                     }
                     subpaths.last_mut().expect("pushed").push(s);
                 }
+                // Until traced, these segments are most of the memory a large plan takes: no
+                // room to spare (a growing vector keeps up to half again).
+                for sub in &mut subpaths {
+                    sub.shrink_to_fit();
+                }
+                subpaths.shrink_to_fit();
                 self.instances.push(Instance {
                     element: element - 1,
                     via_use,
@@ -840,15 +854,15 @@ fn coordinate_eps(inst: &Instance) -> f64 {
     let mut local = 0.0f64;
     let mut doc = 0.0f64;
     for s in inst.subpaths.iter().flatten() {
-        let pts: &[V2] = match s {
+        let pts: &[P32] = match s {
             Seg::M(a) | Seg::L(a) => std::slice::from_ref(a),
             Seg::Q(a, _) => std::slice::from_ref(a),
             Seg::C(a, _, _) => std::slice::from_ref(a),
             Seg::Z => &[],
         };
-        for p in pts {
+        for p in pts.iter().map(|p| p.v2()) {
             local = local.max(p.x.abs()).max(p.y.abs());
-            let q = inst.to_doc.apply(*p);
+            let q = inst.to_doc.apply(p);
             doc = doc.max(q.x.abs()).max(q.y.abs());
         }
     }
@@ -859,7 +873,8 @@ fn coordinate_eps(inst: &Instance) -> f64 {
 fn digits_for(to_doc: &Affine) -> usize {
     let local_per_mm = 1.0 / to_doc.mean_scale().max(1e-300);
     let step = 1e-5 * local_per_mm;
-    (-step.log10()).ceil().clamp(0.0, 12.0) as usize
+    // A scale that is 1 but for rounding must not cost a sixth decimal everywhere.
+    (-step.log10() - 1e-6).ceil().clamp(0.0, 12.0) as usize
 }
 
 /// `v` with at most `digits` decimals, trailing zeros dropped (`-0` is `0`).
@@ -969,25 +984,25 @@ fn write_segs(segs: &[Seg], digits: usize, out: &mut String) {
         match *s {
             Seg::M(a) => {
                 out.push('M');
-                point(a, digits, out);
+                point(a.v2(), digits, out);
             }
             Seg::L(a) => {
                 out.push('L');
-                point(a, digits, out);
+                point(a.v2(), digits, out);
             }
             Seg::Q(a, b) => {
                 out.push('Q');
-                point(a, digits, out);
+                point(a.v2(), digits, out);
                 out.push(' ');
-                point(b, digits, out);
+                point(b.v2(), digits, out);
             }
             Seg::C(a, b, c) => {
                 out.push('C');
-                point(a, digits, out);
+                point(a.v2(), digits, out);
                 out.push(' ');
-                point(b, digits, out);
+                point(b.v2(), digits, out);
                 out.push(' ');
-                point(c, digits, out);
+                point(c.v2(), digits, out);
             }
             Seg::Z => out.push('Z'),
         }

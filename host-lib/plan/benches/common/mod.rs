@@ -1,0 +1,3 @@
+//! What the plan benchmarks share (see each module).
+
+pub mod finger_part;

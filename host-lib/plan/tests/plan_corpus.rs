@@ -1,0 +1,284 @@
+//! The corpus (`tests/corpus/`, and the plans in `tests/fixtures/`): plans as CAD and vector
+//! programs write them. Every file dilates, or is refused with a clear message (what, where, what
+//! to do), never a panic; what is written is clean (read again, it has no crossing, overlapping or
+//! duplicated loops) and keeps arcs as arcs. Then every file, truncated and with bytes changed,
+//! is fed to the readers: an error or a result, never a panic (the `plan_readers` fuzz target
+//! does the same with coverage guidance, on nightly).
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+
+use kerfmeter_plan::compensation::IfCompensated;
+use kerfmeter_plan::dilate::KerfSource;
+use kerfmeter_plan::dxf_plan::{DxfOptions, dilate_dxf};
+use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
+use kerfmeter_plan::svg::{SvgOptions, dilate_svg};
+use kerfmeter_plan::{DilateOptions, PlanFormat, dilate_file};
+
+/// What a corpus file must give with the default options.
+enum Expect {
+    /// Dilated: this many closed contours.
+    Dilates(usize),
+    /// Dilated when told what one unit is (refused without, for unknown units): contours.
+    DilatesWithUnits(AssumedUnits, usize),
+    /// Refused, the message containing all of these.
+    Refused(&'static [&'static str]),
+}
+
+/// Every file of the corpus and the fixtures, with what it must give.
+fn expectations() -> Vec<(&'static str, Expect)> {
+    use Expect::*;
+    vec![
+        ("corpus/inkscape_1x_layers_use_mm.svg", Dilates(5)),
+        ("corpus/illustrator_pt_units.svg", Dilates(4)),
+        (
+            "corpus/illustrator_px_style_classes.svg",
+            DilatesWithUnits(AssumedUnits::Px72, 4),
+        ),
+        ("corpus/lightburn_export.svg", Dilates(3)),
+        (
+            "corpus/refused_nested_clones.svg",
+            Refused(&["rect \"r\"", "nested <use>", "Unlink Clone"]),
+        ),
+        (
+            "corpus/refused_crossing_path.svg",
+            Refused(&["path \"bowtie\"", "(10.000, 10.000) mm", "crosses itself"]),
+        ),
+        (
+            "corpus/r12_polyline_unitless.dxf",
+            DilatesWithUnits(AssumedUnits::Mm, 3),
+        ),
+        ("corpus/librecad_r2000_lwpolyline.dxf", Dilates(4)),
+        ("corpus/freecad_r2004_ellipse_spline_cm.dxf", Dilates(4)),
+        ("corpus/fusion_r2018_blocks_inch.dxf", Dilates(13)),
+        ("corpus/inkscape_r14_spline.dxf", Dilates(2)),
+        (
+            "corpus/refused_fit_point_spline.dxf",
+            Refused(&["SPLINE 33 on layer CUT", "fit points only", "polyline"]),
+        ),
+        (
+            "corpus/refused_missing_block.dxf",
+            Refused(&["INSERT 33", "\"MISSING\"", "not in the file"]),
+        ),
+        ("fixtures/box_generator.svg", Dilates(4)),
+        ("fixtures/inkscape_layers.svg", Dilates(6)),
+        ("fixtures/cad_plate.dxf", Dilates(6)),
+    ]
+}
+
+fn tests_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests")
+}
+
+/// Every plan file in the corpus and fixture folders.
+fn plan_files() -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = ["corpus", "fixtures"]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(tests_dir().join(d)).unwrap())
+        .map(|e| e.unwrap().path())
+        .filter(|p| PlanFormat::of(p).is_ok())
+        .collect();
+    files.sort();
+    files
+}
+
+fn kerf() -> KerfSource {
+    KerfSource::Uniform(150.0)
+}
+
+fn options(units: Option<AssumedUnits>) -> DilateOptions {
+    DilateOptions {
+        assume_units: units,
+        ..DilateOptions::default()
+    }
+}
+
+/// Dilate a file, a panic turned into a test failure that names the file.
+fn dilate(path: &Path, opts: &DilateOptions) -> Result<(Vec<u8>, PlanSummary), String> {
+    catch_unwind(AssertUnwindSafe(|| dilate_file(path, &kerf(), opts)))
+        .unwrap_or_else(|_| panic!("{}: the reader panicked", path.display()))
+        .map_err(|e| e.to_string())
+}
+
+/// What was written, read again: it parses, and dilating it once more (by 1 µm, its own record of
+/// compensation waved through) finds no crossing, overlapping or duplicated loops, and as many
+/// contours.
+fn check_clean(path: &Path, out: &[u8], contours: usize, units: Option<AssumedUnits>) {
+    let dir = tempfile::tempdir().unwrap();
+    let again = dir.path().join(path.file_name().unwrap());
+    std::fs::write(&again, out).unwrap();
+    let opts = DilateOptions {
+        if_compensated: IfCompensated::DilateAnyway,
+        ..options(units)
+    };
+    let (_, s) = dilate_file(&again, &KerfSource::Uniform(1.0), &opts)
+        .unwrap_or_else(|e| panic!("{}: the output is not clean: {e}", path.display()));
+    assert_eq!(s.contours_dilated, contours, "{}", path.display());
+}
+
+/// Whether the output keeps arcs as arcs: SVG `A` commands, DXF bulges or circles.
+fn has_arcs(path: &Path, out: &[u8]) -> bool {
+    let text = String::from_utf8_lossy(out);
+    match PlanFormat::of(path).unwrap() {
+        PlanFormat::Svg => text.contains(" A"),
+        PlanFormat::Dxf => text.lines().any(|l| l.trim() == "42") || text.contains("CIRCLE"),
+    }
+}
+
+#[test]
+fn every_corpus_file_dilates_cleanly_or_is_refused_with_a_clear_message() {
+    let expected = expectations();
+    let files = plan_files();
+    for path in &files {
+        let name = path.strip_prefix(tests_dir()).unwrap().to_string_lossy();
+        let Some((_, expect)) = expected.iter().find(|(n, _)| *n == name) else {
+            panic!("{name}: a corpus file without an expectation; add it to the table");
+        };
+        let units = match expect {
+            Expect::DilatesWithUnits(u, _) => {
+                let e = dilate(path, &options(None)).unwrap_err();
+                assert!(
+                    e.contains("unknown units") && e.contains("--units"),
+                    "{name}: {e}"
+                );
+                Some(*u)
+            }
+            _ => None,
+        };
+        match (expect, dilate(path, &options(units))) {
+            (Expect::Dilates(n) | Expect::DilatesWithUnits(_, n), Ok((out, s))) => {
+                assert_eq!(s.contours_dilated, *n, "{name}: {s:?}");
+                assert!(has_arcs(path, &out), "{name}: the round joins are not arcs");
+                check_clean(path, &out, *n, units);
+            }
+            (Expect::Refused(words), Err(e)) => {
+                for w in *words {
+                    assert!(e.contains(w), "{name}: {w:?} not in {e}");
+                }
+            }
+            (_, Ok((_, s))) => panic!("{name}: dilated, expected a refusal: {s:?}"),
+            (_, Err(e)) => panic!("{name}: refused: {e}"),
+        }
+    }
+    assert_eq!(files.len(), expected.len(), "a listed file is missing");
+}
+
+/// A small deterministic generator (xorshift), so that every run feeds the same mutations.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// `bytes` damaged in one of the ways files get damaged: cut short, a byte changed, a run of
+/// bytes removed or repeated, a number replaced by an extreme one.
+fn mutate(bytes: &[u8], rng: &mut Rng) -> Vec<u8> {
+    let mut b = bytes.to_vec();
+    let at = rng.below(b.len());
+    match rng.below(5) {
+        0 => b.truncate(at),
+        1 => b[at] = rng.next() as u8,
+        2 => {
+            let end = (at + 1 + rng.below(64)).min(b.len());
+            b.drain(at..end);
+        }
+        3 => {
+            let end = (at + 1 + rng.below(64)).min(b.len());
+            let run = b[at..end].to_vec();
+            b.splice(at..at, run);
+        }
+        _ => {
+            let extreme: &[&[u8]] = &[
+                b"1e308", b"-1e308", b"NaN", b"0", b"-1", b"1e-320", b"99999",
+            ];
+            let digit = b[at..].iter().position(u8::is_ascii_digit).map(|k| at + k);
+            if let Some(s) = digit {
+                let e = s + b[s..]
+                    .iter()
+                    .take_while(|c| c.is_ascii_digit() || **c == b'.')
+                    .count();
+                b.splice(s..e, extreme[rng.below(extreme.len())].iter().copied());
+            }
+        }
+    }
+    b
+}
+
+/// Feed bytes to the reader of `format`, as `kerfmeter dilate` would (units assumed, so that the
+/// geometry is reached too): `Err` for a panic.
+fn feed(format: PlanFormat, bytes: &[u8]) -> Result<(), ()> {
+    catch_unwind(AssertUnwindSafe(|| match format {
+        PlanFormat::Svg => {
+            if let Ok(text) = std::str::from_utf8(bytes) {
+                let opts = SvgOptions {
+                    assume_units: Some(AssumedUnits::Mm),
+                    ..SvgOptions::default()
+                };
+                let _ = dilate_svg(text, &kerf(), &opts);
+            }
+        }
+        PlanFormat::Dxf => {
+            let opts = DxfOptions {
+                assume_units: Some(AssumedUnits::Mm),
+                ..DxfOptions::default()
+            };
+            let _ = dilate_dxf(bytes, &kerf(), &opts);
+        }
+    }))
+    .map_err(|_| ())
+}
+
+#[test]
+fn damaged_corpus_files_never_panic_the_readers() {
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let mut panics = Vec::new();
+    let mut fed = 0;
+    // Inputs that once panicked a reader under the fuzzer, fed to both readers.
+    let regressions = tests_dir().join("corpus/fuzz-regressions");
+    for entry in std::fs::read_dir(regressions).unwrap() {
+        let path = entry.unwrap().path();
+        let bytes = std::fs::read(&path).unwrap();
+        for format in [PlanFormat::Svg, PlanFormat::Dxf] {
+            assert!(feed(format, &bytes).is_ok(), "{} panicked", path.display());
+        }
+    }
+    for path in plan_files() {
+        let format = PlanFormat::of(&path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        // Cut short at 16 places, then 150 random damages (some twice over).
+        let cuts = (1..=16).map(|k| bytes[..bytes.len() * k / 17].to_vec());
+        let damaged = (0..150).map(|k| {
+            let once = mutate(&bytes, &mut rng);
+            if k % 3 == 0 {
+                mutate(&once, &mut rng)
+            } else {
+                once
+            }
+        });
+        for input in cuts.chain(damaged.collect::<Vec<_>>()) {
+            fed += 1;
+            if feed(format, &input).is_err() {
+                let keep = std::env::temp_dir().join(format!(
+                    "kerfmeter-panic-{fed}.{}",
+                    path.extension().unwrap().to_string_lossy()
+                ));
+                std::fs::write(&keep, &input).unwrap();
+                panics.push(keep.display().to_string());
+            }
+        }
+    }
+    assert!(
+        panics.is_empty(),
+        "{} of {fed} damaged files panicked a reader; kept as {panics:?}",
+        panics.len()
+    );
+}
