@@ -5,6 +5,7 @@
 //! or was stopped (Ctrl-C), or a file could not be read or written.
 
 use kerfmeter::grbl::CutterError;
+use kerfmeter::job::JobError;
 use kerfmeter::{Category, Error};
 use kerfmeter_plan::PlanError;
 
@@ -30,6 +31,9 @@ pub enum CliError {
     /// The cutter failed, refused or was stopped.
     #[error(transparent)]
     Cutter(#[from] CutterError),
+    /// The automatic loop stopped (the cutter stopped, the laser off, unless it says otherwise).
+    #[error(transparent)]
+    Job(#[from] JobError),
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
@@ -46,17 +50,21 @@ impl CliError {
             CliError::Plan(_) => Category::Usage,
             CliError::SelfTestFailed => Category::Device,
             CliError::Cutter(e) => e.category(),
+            CliError::Job(e) => e.category(),
         }
     }
 
     /// The device fault behind the error, if any (named as in the protocol).
     pub fn fault(&self) -> Option<String> {
         match self {
-            CliError::Meter(m) => m.fault().map(|f| format!("{f:?}")),
+            CliError::Meter(m) | CliError::Job(JobError::Device { source: m, .. }) => {
+                m.fault().map(|f| format!("{f:?}"))
+            }
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
-            | CliError::Cutter(_) => None,
+            | CliError::Cutter(_)
+            | CliError::Job(_) => None,
         }
     }
 
@@ -67,7 +75,8 @@ impl CliError {
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
-            | CliError::Cutter(_) => Vec::new(),
+            | CliError::Cutter(_)
+            | CliError::Job(_) => Vec::new(),
         }
     }
 }

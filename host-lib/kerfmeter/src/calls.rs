@@ -10,6 +10,7 @@
 //! A run starts only with the hub at its zero position: [`Kerfmeter::prepare_for_run`] resets it
 //! first when it is further from zero than the firmware's own start tolerance.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 // The device refuses to start a run further than this from zero; the host resets beyond it.
@@ -118,8 +119,21 @@ impl Kerfmeter {
     pub fn run_kerfmeter(
         &mut self,
         params: &RunParams,
-        mut progress: impl FnMut(&Progress),
+        progress: impl FnMut(&Progress),
     ) -> Result<KerfResult> {
+        let never = AtomicBool::new(false);
+        self.run_kerfmeter_until(params, &never, progress)?
+            .ok_or(Error::RunInterrupted)
+    }
+
+    /// [`Kerfmeter::run_kerfmeter`] that also watches `cancel`: once it is set, the device is told
+    /// to abort (the motor stops within a control tick) and the call returns `Ok(None)`.
+    pub fn run_kerfmeter_until(
+        &mut self,
+        params: &RunParams,
+        cancel: &AtomicBool,
+        mut progress: impl FnMut(&Progress),
+    ) -> Result<Option<KerfResult>> {
         crate::params::check(params)?;
         match self.call(Request::Run(*params))? {
             Response::Ok => {}
@@ -129,10 +143,14 @@ impl Kerfmeter {
         let mut run_id = None;
         self.poll_until(limit, |meter, status| {
             progress(&Progress::from(status));
+            if cancel.load(Ordering::Relaxed) {
+                meter.abort()?;
+                return Ok(Some(None));
+            }
             let id = *run_id.get_or_insert(status.run_id);
             match status.state {
                 RunState::Done => match meter.get_kerf_value()? {
-                    Some(result) if result.run_id == id => Ok(Some(result)),
+                    Some(result) if result.run_id == id => Ok(Some(Some(result))),
                     _ => Err(Error::RunInterrupted),
                 },
                 RunState::Fault(fault) => Err(Error::Fault { fault }),
