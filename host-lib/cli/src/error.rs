@@ -6,6 +6,7 @@
 //! cutter failed and could not be stopped: its laser may still be on.
 
 use kerfmeter::grbl::CutterError;
+use kerfmeter::job::JobError;
 use kerfmeter::{Category, Error};
 use kerfmeter_plan::PlanError;
 
@@ -33,6 +34,9 @@ pub enum CliError {
     /// The cutter failed, refused or was stopped.
     #[error(transparent)]
     Cutter(#[from] CutterError),
+    /// The automatic loop stopped (the cutter stopped, the laser off, unless it says otherwise).
+    #[error(transparent)]
+    Job(#[from] JobError),
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
@@ -49,17 +53,21 @@ impl CliError {
             CliError::Plan(_) => Category::Usage,
             CliError::SelfTestFailed => Category::Device,
             CliError::Cutter(e) => e.category(),
+            CliError::Job(e) => e.category(),
         }
     }
 
     /// The device fault behind the error, if any (named as in the protocol).
     pub fn fault(&self) -> Option<String> {
         match self {
-            CliError::Meter(m) => m.fault().map(|f| format!("{f:?}")),
+            CliError::Meter(m) | CliError::Job(JobError::Device { source: m, .. }) => {
+                m.fault().map(|f| format!("{f:?}"))
+            }
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
-            | CliError::Cutter(_) => None,
+            | CliError::Cutter(_)
+            | CliError::Job(_) => None,
         }
     }
 
@@ -70,7 +78,8 @@ impl CliError {
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
-            | CliError::Cutter(_) => Vec::new(),
+            | CliError::Cutter(_)
+            | CliError::Job(_) => Vec::new(),
         }
     }
 }
@@ -78,9 +87,12 @@ impl CliError {
 /// The process's exit code for an error: from its category, or 5 when a cutter's laser may
 /// still be on.
 pub fn exit_code(e: &CliError) -> u8 {
-    if let CliError::Cutter(cutter) = e
-        && cutter.laser_may_be_on()
-    {
+    let laser_may_be_on = match e {
+        CliError::Cutter(cutter) => cutter.laser_may_be_on(),
+        CliError::Job(job) => job.laser_may_be_on(),
+        _ => false,
+    };
+    if laser_may_be_on {
         return EXIT_LASER_MAY_BE_ON;
     }
     match e.category() {

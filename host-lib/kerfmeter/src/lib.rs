@@ -9,7 +9,8 @@
 //! Beside the client: the calls ([`Kerfmeter::run_kerfmeter`], [`Kerfmeter::get_kerf_value`],
 //! [`Kerfmeter::reset_kerfmeter`] and the rest), run parameters from a joint ([`params`]),
 //! statistics over repeated runs ([`stats`]), the bed map ([`map`]), safe output files
-//! ([`files`]), the laser cutter's GRBL driver ([`grbl`]) and, with the `sim` feature (on by
+//! ([`files`]), the laser cutter's GRBL driver ([`grbl`]), the automatic loop that cuts a gauge, measures
+//! it and cuts the job dilated ([`job`]) and, with the `sim` feature (on by
 //! default), the digital twin in-process ([`sim`]).
 //!
 //! This crate is not the command-line tool (that is `kerfmeter-cli`, which also draws the plots)
@@ -30,6 +31,7 @@ mod client;
 mod error;
 pub mod files;
 pub mod grbl;
+pub mod job;
 pub mod map;
 pub mod params;
 #[cfg(feature = "sim")]

@@ -6,6 +6,8 @@
 //! more than 100 ms ahead of the host's last request); [`SimOptions::realtime`] makes it follow
 //! the wall clock instead.
 
+use kerfmeter_twin::cutter::Segment;
+use kerfmeter_twin::plant::CutterKerf;
 use kerfmeter_twin::{PtyTwin, StartError};
 use serialport::SerialPort;
 
@@ -53,6 +55,28 @@ impl SimDevice {
     /// The options the twin was started with.
     pub fn options(&self) -> &SimOptions {
         &self.options
+    }
+
+    /// The gauge a simulated cutter's laser traced around `at_mm` (`segments`, from
+    /// [`Cutter::sim_log`](crate::grbl::Cutter::sim_log)) goes under the prongs, which came down
+    /// over `at_mm`: the following runs measure it, cut with `kerf` (the cutter twin's kerf
+    /// model; `None`: this twin's own). The gauge's kerf, or why no measurable gauge was cut
+    /// there.
+    pub fn place_traced_gauge(
+        &self,
+        segments: &[Segment],
+        at_mm: [f64; 2],
+        kerf: Option<CutterKerf>,
+    ) -> Result<f64> {
+        let cutter = kerf
+            .map(|k| k.cutter(self.options.plant, self.options.seed))
+            .transpose()
+            .map_err(|e| Error::InvalidArgument(e.to_string()))?;
+        let cut = self
+            .twin
+            .place_traced_gauge(segments, at_mm, cutter.as_ref())
+            .map_err(|e| Error::Sim(format!("the traced gauge cannot be measured: {e}")))?;
+        Ok(cut.kerf_um)
     }
 
     /// Path of the pseudo-terminal's client side.

@@ -186,6 +186,25 @@ impl Mapping {
     }
 }
 
+/// The bounding box `[[min_x, min_y], [max_x, max_y]]` of `plines` (arcs included) once mapped
+/// by `mapping`, mm; `None` when they have no extent.
+pub fn placed_box<'a>(
+    plines: impl IntoIterator<Item = &'a Pline>,
+    mapping: &Mapping,
+) -> Option<[[f64; 2]; 2]> {
+    let mut out: Option<[[f64; 2]; 2]> = None;
+    for p in plines {
+        let Some(e) = p.extents() else { continue };
+        for corner in [v2(e.min_x, e.min_y), v2(e.max_x, e.max_y)] {
+            let q = mapping.apply(corner);
+            let [lo, hi] = out.get_or_insert([[q.x, q.y], [q.x, q.y]]);
+            *lo = [lo[0].min(q.x), lo[1].min(q.y)];
+            *hi = [hi[0].max(q.x), hi[1].max(q.y)];
+        }
+    }
+    out
+}
+
 /// A contour to cut: machine mm, closed.
 #[derive(Debug, Clone)]
 pub struct Job {

@@ -25,7 +25,7 @@ use crate::progress::plan_progress;
 type Result<T, E = CliError> = std::result::Result<T, E>;
 
 /// `--units`: the names of [`AssumedUnits`], each with its description in `--help`.
-fn units_parser() -> impl TypedValueParser<Value = AssumedUnits> {
+pub fn units_parser() -> impl TypedValueParser<Value = AssumedUnits> {
     PossibleValuesParser::new(
         AssumedUnits::ALL.map(|u| PossibleValue::new(u.name()).help(u.describe())),
     )

@@ -9,6 +9,7 @@ pub mod dilate;
 pub mod gauge;
 pub mod gcode;
 pub mod info;
+pub mod job;
 pub mod kerf;
 pub mod map;
 pub mod reset;

@@ -1,0 +1,563 @@
+//! `kerfmeter job`: the paper's whole loop on a GRBL laser cutter: cut the gauge beside the plan,
+//! lower the prongs into it, measure, lift, dilate the plan by the kerf measured and cut it
+//! ([`kerfmeter::job`] runs the loop; this module turns the arguments into its inputs, makes the
+//! gauge's and the job's G-code with `kerfmeter_plan`, and writes the dilated plan and the job's
+//! G-code atomically, never over the input).
+//!
+//! The plan is read (and checked) before anything moves, and the gauge's place chosen: at
+//! `--gauge-at-mm`, or on a free spot of the `--bed-mm` bed beside the plan's placed bounding
+//! box. The gauge is cut with the job's own settings (the kerf depends on them).
+//!
+//! # Simulated and real machines
+//!
+//! `--sim` with `--cutter sim` closes the loop in simulation: the cutter twin's trace of the
+//! gauge goes under the device twin's prongs, where the lowered head put them, so the device
+//! measures the gauge the cutter cut. Mixing is refused: a simulated device cannot measure a
+//! gauge a real cutter cut (and a real job would then be cut by a made-up kerf), and a real
+//! device lowered onto a simulated cutter's bed would turn in nothing. `--dry-run` moves
+//! nothing and opens neither: it prints every stage's G-code (the job's at `--dry-run-kerf-um`).
+
+use std::fmt;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use kerfmeter::JointSpec;
+use kerfmeter::files::{ensure_not_input, write_atomically};
+use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, SimCutterOptions};
+use kerfmeter::job::{
+    Devices, JobError, JobEvent, JobRequest, Placement, SimLink, Stage, StageTime, free_spot_mm,
+    run_job,
+};
+use kerfmeter::protocol::{GaugeGeometry, RunParams};
+use kerfmeter_plan::gauge::{GaugeOptions, build};
+use kerfmeter_plan::gcode::{
+    GcodeOptions, Mapping, Provenance, gauge_cuts, gauge_program, placed_box, plan_program,
+};
+use kerfmeter_plan::outcome::AssumedUnits;
+use kerfmeter_plan::profile::Profile;
+use kerfmeter_plan::{PlanError, PlanFormat, dilate_file, dilate_file_cuts};
+use serde::Serialize;
+
+use super::dilate::{DilationArgs, units_parser};
+use super::gauge::GAUGE_SETTINGS;
+use super::gcode::{CutArgs, parse_xy};
+use crate::connection::Global;
+use crate::error::CliError;
+use crate::output::{JsonLayout, Report};
+use crate::progress::show;
+
+type Result<T, E = CliError> = std::result::Result<T, E>;
+
+/// Space kept between the plan and the gauge, mm.
+const GAUGE_MARGIN_MM: f64 = 5.0;
+
+/// `kerfmeter job`: cut the gauge, measure, dilate and cut the plan.
+#[derive(Debug, Clone, clap::Args)]
+pub struct JobArgs {
+    /// The plan: an .svg or .dxf file.
+    #[arg(value_name = "PLAN")]
+    pub input: PathBuf,
+    /// The cutter: `sim`, `grbl:/dev/ttyUSB0[?baud=N]` or `grbl+tcp://HOST:PORT`. Also from
+    /// KERFMETER_CUTTER.
+    #[arg(long, env = "KERFMETER_CUTTER", value_name = "ADDRESS")]
+    pub cutter: CutterAddress,
+    /// The dilated plan, same format as the input (never the input itself).
+    #[arg(short, long, value_name = "DILATED")]
+    pub output: PathBuf,
+    /// The job's G-code as streamed [default: the output with the extension .gcode].
+    #[arg(long, value_name = "FILE.gcode")]
+    pub gcode_out: Option<PathBuf>,
+    /// Sheet thickness, mm.
+    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_THICKNESS_MM)]
+    pub thickness_mm: f64,
+    /// Assembly force of the joint, N (default: 18.3 N per finger).
+    #[arg(long)]
+    pub force_n: Option<f64>,
+    /// Where the gauge's spiral centre goes on the bed, mm [default: a free spot beside the plan
+    /// on the --bed-mm bed].
+    #[arg(long, value_name = "X,Y", value_parser = parse_xy)]
+    pub gauge_at_mm: Option<[f64; 2]>,
+    /// The bed's size, mm, from the machine origin (to find a free spot for the gauge).
+    #[arg(long, value_name = "W,H", value_parser = parse_xy, default_value = "600,400")]
+    pub bed_mm: [f64; 2],
+    /// The prongs' axis relative to the laser nozzle, mm (see the README to calibrate it).
+    #[arg(long, value_name = "DX,DY", value_parser = parse_xy, default_value = "0,0")]
+    pub prong_offset_mm: [f64; 2],
+    /// Z that lowers the prongs into the gauge's holes, mm.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub insert_z_mm: f64,
+    /// Z that keeps the prongs clear of the work while the head travels, mm.
+    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
+    pub travel_z_mm: f64,
+    /// Feed of the plunge into the gauge, mm/min.
+    #[arg(long, default_value_t = 300.0)]
+    pub plunge_feed_mm_per_min: f64,
+    /// Where the lower-left corner of the plan's cuts goes on the machine, mm.
+    #[arg(long, value_name = "X,Y", value_parser = parse_xy, default_value = "0,0")]
+    pub origin_mm: [f64; 2],
+    /// Cut settings by colour or layer (TOML), for the job; the gauge takes its default.
+    #[arg(long, value_name = "PROFILE.toml")]
+    pub profile: Option<PathBuf>,
+    /// Cut settings [default: 300 mm/min, 100 %, 1 pass, for the gauge and the job].
+    #[command(flatten)]
+    pub cut: CutArgs,
+    /// Colours that mean "cut" [default: red, blue, black].
+    #[arg(long = "cut-color", value_name = "COLOR", value_delimiter = ',')]
+    pub cut_colors: Vec<String>,
+    /// Widest stroke (SVG) or lineweight (DXF) that is still a cut line, mm.
+    #[arg(long, default_value_t = 0.3)]
+    pub cut_max_width_mm: f64,
+    /// DXF: the entities on these layers are the cuts.
+    #[arg(long = "cut-layer", value_name = "LAYER", value_delimiter = ',')]
+    pub cut_layers: Vec<String>,
+    /// What one drawing unit is, for files that do not say (unitless SVG, DXF without
+    /// $INSUNITS).
+    #[arg(long, value_parser = units_parser())]
+    pub units: Option<AssumedUnits>,
+    /// Print every stage's G-code to stdout; move nothing, open neither machine.
+    #[arg(long)]
+    pub dry_run: bool,
+    /// With --dry-run: the kerf the job's G-code is shown dilated by, µm.
+    #[arg(long, default_value_t = 0.0, requires = "dry_run")]
+    pub dry_run_kerf_um: f64,
+    /// Unlock a cutter that is in alarm (`$X`) instead of refusing it.
+    #[arg(long)]
+    pub unlock: bool,
+}
+
+/// What the loop did.
+#[derive(Debug, Clone, Serialize)]
+pub struct JobCliReport {
+    /// The plan read.
+    pub input: PathBuf,
+    /// The dilated plan written.
+    pub output: PathBuf,
+    /// The job's G-code written (and streamed).
+    pub gcode_out: PathBuf,
+    /// The cutter's address.
+    pub cutter: String,
+    /// The kerf measured, µm.
+    pub kerf_um: f32,
+    /// Each stage's wall-clock time, s.
+    pub stages: Vec<StageTime>,
+    /// All stages, s.
+    pub total_s: f64,
+    /// Where the gauge was cut, mm.
+    pub gauge_at_mm: [f64; 2],
+    /// Where the prongs came down, mm.
+    pub landing_mm: [f64; 2],
+    /// Lines of the job streamed.
+    pub job_lines: usize,
+    /// On the simulated device: what an ideal device reads on the gauge the cutter twin cut, µm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sim_truth_um: Option<f64>,
+}
+
+impl fmt::Display for JobCliReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "kerf {:.1} µm", self.kerf_um)?;
+        if let Some(t) = self.sim_truth_um {
+            write!(f, " (simulated truth {t:.1} µm)")?;
+        }
+        writeln!(
+            f,
+            "; gauge cut at ({:.1}, {:.1}) mm on {}",
+            self.gauge_at_mm[0], self.gauge_at_mm[1], self.cutter
+        )?;
+        for s in &self.stages {
+            writeln!(f, "  {:<12} {:8.2} s", s.stage.name(), s.elapsed_s)?;
+        }
+        writeln!(f, "  {:<12} {:8.2} s", "total", self.total_s)?;
+        write!(
+            f,
+            "wrote {} and {} ({} lines streamed); the laser is off",
+            self.output.display(),
+            self.gcode_out.display(),
+            self.job_lines
+        )
+    }
+}
+
+impl Report for JobCliReport {
+    const JSON: JsonLayout = JsonLayout::Pretty;
+}
+
+/// One stage's G-code, for `--dry-run`.
+#[derive(Debug, Clone, Serialize)]
+pub struct StageGcode {
+    /// The stage.
+    pub stage: Stage,
+    /// Its program.
+    pub gcode: String,
+}
+
+/// What `--dry-run` prints.
+#[derive(Debug, Clone, Serialize)]
+pub struct DryRunReport {
+    /// Where the gauge would be cut, mm.
+    pub gauge_at_mm: [f64; 2],
+    /// The kerf the job is shown dilated by, µm.
+    pub kerf_um: f64,
+    /// The programs, in order.
+    pub stages: Vec<StageGcode>,
+}
+
+impl fmt::Display for DryRunReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for s in &self.stages {
+            writeln!(f, "; ==== stage {}: {}", s.stage, s.stage.describe())?;
+            if s.stage == Stage::StreamJob {
+                writeln!(
+                    f,
+                    "; (dilated by {} um here; the job uses the kerf measured)",
+                    self.kerf_um
+                )?;
+            }
+            f.write_str(&s.gcode)?;
+        }
+        Ok(())
+    }
+}
+
+impl Report for DryRunReport {
+    const JSON: JsonLayout = JsonLayout::Pretty;
+}
+
+/// What `job` prints: the loop's report, or the dry run's programs.
+pub enum JobOutcome {
+    /// The loop ran.
+    Done(Box<JobCliReport>),
+    /// `--dry-run`.
+    DryRun(DryRunReport),
+}
+
+/// Run the loop as `args` say (or print its programs with `--dry-run`).
+pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
+    let setup = Setup::new(args)?;
+    if args.dry_run {
+        return Ok(JobOutcome::DryRun(setup.dry_run(args)?));
+    }
+    ensure_not_input(&args.input, &args.output)?;
+    ensure_not_input(&args.input, &setup.gcode_out)?;
+    check_machines(g, args)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    let flag = cancel.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
+        .map_err(|e| CliError::Usage(format!("cannot take over Ctrl-C: {e}")))?;
+    let mut session = g.connect()?;
+    let (mut cutter, sim_kerf) = open_cutter(g, args)?;
+    if !g.json {
+        eprintln!(
+            "job on {} (GRBL {}); gauge at ({:.1}, {:.1}) mm; Ctrl-C stops the cutter and the device",
+            cutter.address(),
+            cutter.version(),
+            setup.placement.gauge_at_mm[0],
+            setup.placement.gauge_at_mm[1]
+        );
+    }
+    let request = JobRequest {
+        gauge_gcode: &setup.gauge_gcode,
+        placement: setup.placement,
+        params: setup.params,
+    };
+    let devices = Devices {
+        cutter: &mut cutter,
+        meter: &mut session.meter,
+        sim: session.sim.as_ref().map(|device| SimLink {
+            device,
+            kerf: sim_kerf,
+        }),
+    };
+    let bar = stage_bar(g.json);
+    let mut dilate = |kerf_um: f64| setup.dilate_and_write(args, kerf_um);
+    let report = run_job(devices, &request, &mut dilate, &cancel, &mut |e| {
+        show_event(&bar, e)
+    });
+    bar.finish_and_clear();
+    let report = report.map_err(job_error)?;
+    let sim_truth_um = session
+        .sim
+        .as_ref()
+        .and_then(|s| s.truth_um(report.kerf.run_id));
+    Ok(JobOutcome::Done(Box::new(JobCliReport {
+        input: args.input.clone(),
+        output: args.output.clone(),
+        gcode_out: setup.gcode_out.clone(),
+        cutter: cutter.address().to_owned(),
+        kerf_um: report.kerf.kerf_um,
+        total_s: report.stages.iter().map(|s| s.elapsed_s).sum(),
+        stages: report.stages,
+        gauge_at_mm: setup.placement.gauge_at_mm,
+        landing_mm: report.landing_mm,
+        job_lines: report.job_lines,
+        sim_truth_um,
+    })))
+}
+
+/// Refuse a simulated device with a real cutter, and the other way round (see the module doc).
+fn check_machines(g: &Global, args: &JobArgs) -> Result<()> {
+    let sim_cutter = args.cutter == CutterAddress::Sim;
+    match (g.sim, sim_cutter) {
+        (true, false) => Err(CliError::Usage(
+            "--sim with a real cutter is refused: the simulated device cannot measure the gauge \
+             a real laser cut, and the job would be cut by a made-up kerf. Use --cutter sim, or \
+             a real device (--port)"
+                .into(),
+        )),
+        (false, true) => Err(CliError::Usage(
+            "--cutter sim with a real device is refused: the simulated cutter cuts no gauge for \
+             the real prongs to measure. Use --sim with --cutter sim, or a real cutter"
+                .into(),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Open the cutter; the simulated one cuts with `--sim-kerf-um` and `--sim-kerf-sd-um`, and its
+/// kerf model is handed back for the device twin.
+fn open_cutter(
+    g: &Global,
+    args: &JobArgs,
+) -> Result<(Cutter, Option<kerfmeter_twin::plant::CutterKerf>)> {
+    let options = ConnectOptions {
+        unlock: args.unlock,
+        ..ConnectOptions::default()
+    };
+    if args.cutter != CutterAddress::Sim {
+        return Ok((Cutter::open(&args.cutter, options)?, None));
+    }
+    let mut twin = SimCutterOptions::default();
+    twin.kerf.kerf_um = g.sim_kerf_um;
+    twin.kerf.kerf_sd_um = g.sim_kerf_sd_um;
+    let kerf = twin.kerf;
+    Ok((Cutter::sim(twin, options)?, Some(kerf)))
+}
+
+/// What the loop needs, made from the arguments before anything moves.
+struct Setup {
+    placement: Placement,
+    params: RunParams,
+    gauge_gcode: String,
+    gcode_out: PathBuf,
+    profile: Profile,
+    gcode_options: GcodeOptions,
+}
+
+impl Setup {
+    /// Check the plan (read at kerf 0) before anything moves, choose the gauge's place and write
+    /// its G-code.
+    fn new(args: &JobArgs) -> Result<Setup> {
+        let format = PlanFormat::of(&args.input)?;
+        let gcode_out = match &args.gcode_out {
+            Some(p) => p.clone(),
+            None => args.output.with_extension("gcode"),
+        };
+        if PlanFormat::of(&args.output)? != format {
+            return Err(CliError::Usage(format!(
+                "{}: the dilated plan is written in the input's format ({format})",
+                args.output.display()
+            )));
+        }
+        let profile = job_profile(args)?;
+        let gcode_options = GcodeOptions {
+            s_max: args.cut.s_max,
+            origin_mm: args.origin_mm,
+        };
+        gcode_options.check()?;
+        let params = JointSpec {
+            thickness_mm: args.thickness_mm,
+            force_n: args.force_n,
+            ..JointSpec::default()
+        }
+        .run_params(GaugeGeometry::PAPER)?;
+        let drawing = build(&GaugeGeometry::PAPER, &GaugeOptions::default())?;
+        let plan_box = placed_plan_box(args, &gcode_options)?;
+        let gauge_at_mm = match args.gauge_at_mm {
+            Some(at) => at,
+            None => free_spot(args, &drawing, plan_box)?,
+        };
+        let placement = Placement {
+            gauge_at_mm,
+            prong_offset_mm: args.prong_offset_mm,
+            insert_z_mm: args.insert_z_mm,
+            travel_z_mm: args.travel_z_mm,
+            plunge_feed_mm_per_min: args.plunge_feed_mm_per_min,
+        };
+        placement.check().map_err(job_error)?;
+        let settings = profile.default.unwrap_or(GAUGE_SETTINGS);
+        let provenance = Provenance {
+            source: "gauge for kerfmeter job".into(),
+            kerf: "none: the gauge measures it".into(),
+        };
+        let options = GcodeOptions {
+            origin_mm: gauge_at_mm,
+            ..gcode_options
+        };
+        let (program, _) = gauge_program(&drawing, &settings, &options, &provenance)?;
+        Ok(Setup {
+            placement,
+            params,
+            gauge_gcode: program.to_text(),
+            gcode_out,
+            profile,
+            gcode_options,
+        })
+    }
+
+    /// The job's dilated plan (the file's bytes) and G-code at `kerf_um`.
+    fn dilated(&self, args: &JobArgs, kerf_um: f64) -> Result<(Vec<u8>, String)> {
+        let dilation = dilation_args(args, kerf_um);
+        let (_, kerf) = dilation.kerf()?;
+        let options = dilation.options(true, Default::default())?;
+        let (bytes, _) = dilate_file(&args.input, &kerf, &options)?;
+        let (format, cuts, _) = dilate_file_cuts(&args.input, &kerf, &options)?;
+        let provenance = Provenance {
+            source: args.input.display().to_string(),
+            kerf: format!("{kerf_um:.1} um, measured by kerfmeter job"),
+        };
+        let (program, _) = plan_program(
+            &cuts,
+            format == PlanFormat::Svg,
+            &self.profile,
+            &self.gcode_options,
+            &provenance,
+        )
+        .map_err(|e| e.in_file(&args.input))?;
+        Ok((bytes, program.to_text()))
+    }
+
+    /// The loop's dilate stage: dilate, write the plan and the G-code, hand the G-code back.
+    fn dilate_and_write(&self, args: &JobArgs, kerf_um: f64) -> Result<String, String> {
+        let (bytes, gcode) = self.dilated(args, kerf_um).map_err(|e| e.to_string())?;
+        write_atomically(&args.output, &bytes).map_err(|e| e.to_string())?;
+        write_atomically(&self.gcode_out, gcode.as_bytes()).map_err(|e| e.to_string())?;
+        Ok(gcode)
+    }
+
+    /// Every stage's program, the job's dilated by `--dry-run-kerf-um`.
+    fn dry_run(&self, args: &JobArgs) -> Result<DryRunReport> {
+        let (_, job) = self.dilated(args, args.dry_run_kerf_um)?;
+        let p = &self.placement;
+        let programs = [
+            (Stage::CutGauge, self.gauge_gcode.clone()),
+            (Stage::Lower, p.lower_program()),
+            (Stage::Lift, p.lift_program()),
+            (Stage::StreamJob, job),
+        ];
+        Ok(DryRunReport {
+            gauge_at_mm: p.gauge_at_mm,
+            kerf_um: args.dry_run_kerf_um,
+            stages: programs
+                .into_iter()
+                .map(|(stage, gcode)| StageGcode { stage, gcode })
+                .collect(),
+        })
+    }
+}
+
+/// The job's cut settings: the profile, the flags, or the gauge's defaults.
+fn job_profile(args: &JobArgs) -> Result<Profile> {
+    if args.profile.is_none() && args.cut.settings()?.is_none() {
+        return Ok(Profile::uniform(GAUGE_SETTINGS)?);
+    }
+    args.cut.profile(args.profile.as_deref())
+}
+
+/// The `dilate` options from the job's flags, at `kerf_um`.
+fn dilation_args(args: &JobArgs, kerf_um: f64) -> DilationArgs {
+    DilationArgs {
+        kerf_um,
+        map: None,
+        cut_colors: args.cut_colors.clone(),
+        cut_max_width_mm: args.cut_max_width_mm,
+        cut_layers: args.cut_layers.clone(),
+        units: args.units,
+        already_compensated_ok: false,
+        recompensate: false,
+    }
+}
+
+/// Read and check the plan (its cuts at kerf 0, as `gcode` would refuse them) and give back the
+/// bounding box of its cuts as placed on the machine, mm.
+fn placed_plan_box(args: &JobArgs, options: &GcodeOptions) -> Result<[[f64; 2]; 2]> {
+    let dilation = dilation_args(args, 0.0);
+    let (_, kerf) = dilation.kerf()?;
+    let dilate_options = dilation.options(true, Default::default())?;
+    let (format, cuts, _) = dilate_file_cuts(&args.input, &kerf, &dilate_options)?;
+    let plines = || cuts.iter().map(|c| &c.pline);
+    let mapping = Mapping::for_plan(plines(), format == PlanFormat::Svg, options.origin_mm);
+    placed_box(plines(), &mapping).ok_or_else(|| {
+        PlanError::InvalidArgument("the plan has no closed cut contours: nothing to cut".into())
+            .in_file(&args.input)
+            .into()
+    })
+}
+
+/// A free spot on the bed for the gauge, beside the plan's cuts (`plan_box`, as placed).
+fn free_spot(
+    args: &JobArgs,
+    drawing: &kerfmeter_plan::gauge::GaugeDrawing,
+    plan_box: [[f64; 2]; 2],
+) -> Result<[f64; 2]> {
+    let gauge = gauge_cuts(drawing);
+    let centred = Mapping {
+        flip_y: false,
+        offset_mm: [-drawing.center.x, -drawing.center.y],
+    };
+    let gauge_box = placed_box(gauge.iter().map(|(_, p)| p), &centred)
+        .ok_or_else(|| CliError::Usage("the gauge drawing has no cuts".into()))?;
+    free_spot_mm(plan_box, gauge_box, args.bed_mm, GAUGE_MARGIN_MM).ok_or_else(|| {
+        CliError::Usage(format!(
+            "no room for the gauge ({:.0} × {:.0} mm) on the {} × {} mm bed beside the plan, which fills ({:.1}, {:.1})–({:.1}, {:.1}) mm: give --gauge-at-mm X,Y, or --bed-mm W,H if the bed is larger",
+            gauge_box[1][0] - gauge_box[0][0],
+            gauge_box[1][1] - gauge_box[0][1],
+            args.bed_mm[0],
+            args.bed_mm[1],
+            plan_box[0][0],
+            plan_box[0][1],
+            plan_box[1][0],
+            plan_box[1][1]
+        ))
+    })
+}
+
+/// A loop error as the CLI's; its exit code follows its category.
+fn job_error(e: JobError) -> CliError {
+    match e.category() {
+        kerfmeter::Category::Usage => CliError::Usage(e.to_string()),
+        _ => CliError::Job(e),
+    }
+}
+
+/// A spinner naming the stage, on stderr when it is a terminal and `json` is off.
+fn stage_bar(json: bool) -> ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new_spinner();
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {prefix} {msg}").expect("valid template"),
+    );
+    bar.enable_steady_tick(Duration::from_millis(100));
+    bar
+}
+
+fn show_event(bar: &ProgressBar, e: JobEvent<'_>) {
+    match e {
+        JobEvent::Started(stage) => bar.set_prefix(stage.describe()),
+        JobEvent::Cutter(_, p) => bar.set_message(format!("{}/{} lines", p.answered, p.total)),
+        JobEvent::Device(p) => show(bar, p),
+        JobEvent::Finished(stage, elapsed) => {
+            bar.println(format!(
+                "{:<12} {:8.2} s",
+                stage.name(),
+                elapsed.as_secs_f64()
+            ));
+            bar.set_message("");
+        }
+    }
+}

@@ -1,0 +1,223 @@
+//! `kerfmeter job` as a user runs it: the whole loop on the twins (`--sim --cutter sim`), its
+//! JSON, the files it writes, the dry run, a failed measurement that stops before the job, and
+//! the machine combinations it refuses.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn kerfmeter(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+        .args(args)
+        .env_remove("KERFMETER_PORT")
+        .env_remove("KERFMETER_CUTTER")
+        .output()
+        .expect("the kerfmeter binary runs")
+}
+
+fn code(out: &Output) -> i32 {
+    out.status.code().expect("exited, not killed")
+}
+
+fn stdout(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A 40 × 30 mm plate with a round hole, in mm.
+fn plate_plan() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let to = dir.path().join("plate.svg");
+    std::fs::write(
+        &to,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
+  <rect x="5" y="5" width="40" height="30" fill="none" stroke="red" stroke-width="0.01"/>
+  <circle cx="25" cy="20" r="5" fill="none" stroke="red" stroke-width="0.01"/>
+</svg>"#,
+    )
+    .unwrap();
+    (dir, to)
+}
+
+#[test]
+fn the_whole_job_on_the_twins_prints_the_kerf_and_the_stage_times_and_writes_the_plan() {
+    let (dir, plan) = plate_plan();
+    let out_svg = dir.path().join("out.svg");
+    let out = kerfmeter(&[
+        "--sim",
+        "--json",
+        "--sim-kerf-um",
+        "180",
+        "job",
+        path(&plan),
+        "--cutter",
+        "sim",
+        "-o",
+        path(&out_svg),
+        "--prong-offset-mm",
+        "30,-10",
+    ]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let kerf = json["kerf_um"].as_f64().unwrap();
+    let truth = json["sim_truth_um"].as_f64().unwrap();
+    assert!((kerf - truth).abs() < 3.0, "{kerf} vs {truth}");
+    assert!(truth > 175.0 && truth < 200.0, "{truth}");
+    let stages: Vec<&str> = json["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["stage"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        stages,
+        [
+            "cut-gauge",
+            "wait-motion",
+            "lower",
+            "measure",
+            "lift",
+            "dilate",
+            "stream-job"
+        ]
+    );
+    assert!(json["stages"][0]["elapsed_s"].as_f64().unwrap() > 0.0);
+    // The gauge went beside the plate (right of it), not on it.
+    assert!(json["gauge_at_mm"][0].as_f64().unwrap() > 40.0);
+    let dilated = std::fs::read_to_string(&out_svg).unwrap();
+    assert!(dilated.contains("<svg"));
+    let gcode = std::fs::read_to_string(dir.path().join("out.gcode")).unwrap();
+    assert!(
+        gcode.contains(&format!("{kerf:.1} um, measured by kerfmeter job")),
+        "{gcode}"
+    );
+    assert!(std::fs::read_to_string(&plan).unwrap().contains("<rect"));
+}
+
+#[test]
+fn a_failed_measurement_stops_before_the_job_and_writes_nothing() {
+    let (dir, plan) = plate_plan();
+    let out_svg = dir.path().join("out.svg");
+    let out = kerfmeter(&[
+        "--sim",
+        "--sim-fault",
+        "prong-slip",
+        "job",
+        path(&plan),
+        "--cutter",
+        "sim",
+        "-o",
+        path(&out_svg),
+    ]);
+    assert_eq!(code(&out), 4, "{}", stderr(&out));
+    let message = stderr(&out);
+    assert!(message.contains("measuring the kerf"), "{message}");
+    assert!(
+        message.contains("the job was not cut and the laser is off"),
+        "{message}"
+    );
+    assert!(!out_svg.exists());
+    assert!(!dir.path().join("out.gcode").exists());
+}
+
+#[test]
+fn the_dry_run_prints_every_stage_and_opens_nothing() {
+    let (dir, plan) = plate_plan();
+    let out_svg = dir.path().join("out.svg");
+    // A real device and cutter that do not exist: a dry run must not try them.
+    let out = kerfmeter(&[
+        "--port",
+        "/dev/nonexistent-kerfmeter",
+        "job",
+        path(&plan),
+        "--cutter",
+        "grbl:/dev/nonexistent-cutter",
+        "-o",
+        path(&out_svg),
+        "--gauge-at-mm",
+        "150,40",
+        "--prong-offset-mm",
+        "20,5",
+        "--insert-z-mm",
+        "-2",
+        "--dry-run",
+        "--dry-run-kerf-um",
+        "200",
+    ]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let text = stdout(&out);
+    for stage in ["cut-gauge", "lower", "lift", "stream-job"] {
+        assert!(text.contains(&format!("stage {stage}")), "{text}");
+    }
+    assert!(text.contains("spiral centre at X150 Y40"), "{text}");
+    assert!(
+        text.contains("G0 X130.0000 Y35.0000\nG1 Z-2.0000"),
+        "{text}"
+    );
+    assert!(text.contains("kerf applied: 200.0 um"), "{text}");
+    assert!(!out_svg.exists());
+}
+
+#[test]
+fn mixed_simulated_and_real_machines_and_a_full_bed_are_refused() {
+    let (dir, plan) = plate_plan();
+    let out_svg = dir.path().join("out.svg");
+    let o = path(&out_svg);
+    let out = kerfmeter(&[
+        "--sim",
+        "job",
+        path(&plan),
+        "--cutter",
+        "grbl:/dev/null",
+        "-o",
+        o,
+    ]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    assert!(stderr(&out).contains("--sim with a real cutter is refused"));
+    let out = kerfmeter(&[
+        "--port",
+        "/dev/null",
+        "job",
+        path(&plan),
+        "--cutter",
+        "sim",
+        "-o",
+        o,
+    ]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    assert!(stderr(&out).contains("--cutter sim with a real device is refused"));
+    let out = kerfmeter(&[
+        "--sim",
+        "job",
+        path(&plan),
+        "--cutter",
+        "sim",
+        "-o",
+        o,
+        "--bed-mm",
+        "60,50",
+    ]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("no room for the gauge"),
+        "{}",
+        stderr(&out)
+    );
+    let out = kerfmeter(&[
+        "--sim",
+        "job",
+        path(&plan),
+        "--cutter",
+        "sim",
+        "-o",
+        path(&plan),
+    ]);
+    assert_ne!(code(&out), 0);
+    assert!(std::fs::read_to_string(&plan).unwrap().contains("<rect"));
+}

@@ -1,0 +1,663 @@
+//! The paper's automatic loop, driven from the host: cut the gauge beside the job, wait for the
+//! motion to end, move the prongs over the gauge and lower them (Z), measure, lift, dilate the
+//! plan by the kerf measured and stream the job ([`run_job`]).
+//!
+//! # Design
+//!
+//! - The cutter is the GRBL driver ([`Cutter`]): every program here is streamed with its
+//!   character counting and its stop on every failure. The device is the [`Kerfmeter`] client.
+//! - The plan is the caller's: [`run_job`] gets the gauge's G-code and a `dilate` function that
+//!   turns the measured kerf into the job's G-code (the command-line tool's uses the plan crate's
+//!   dilation and G-code writer), so this crate stays free of SVG/DXF code.
+//! - Each stage is timed ([`StageTime`]) and reported to a progress callback ([`JobEvent`]).
+//! - Safety: a measurement that fails or is flagged (any quality flag but `decimated`) stops
+//!   before the job: the device's run is aborted (motor safe), the prongs lifted and the cutter
+//!   stopped ([`Cutter::stop`]: feed hold, soft reset, laser off). The `cancel` flag is watched in
+//!   every stage: a stream stops the cutter itself, a device run is aborted, and the cutter is
+//!   stopped. The laser is never on during the Z and XY moves of the prongs: they are `G0`
+//!   travels and a `G1` Z plunge after `M5` with `S0`.
+//! - The prongs' axis is at `prong_offset_mm` from the nozzle: the head goes to the gauge's
+//!   centre minus the offset ([`Placement::head_over_gauge_mm`]). Where the head ended (the
+//!   controller's reported position) plus the offset is where the prongs landed, which the
+//!   simulated device is told ([`SimLink`]).
+//! - A gauge position can be chosen on a free spot of the bed beside the plan ([`free_spot_mm`]).
+
+use std::fmt;
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use kerfmeter_protocol::{KerfResult, QualityFlags, RunParams};
+use serde::Serialize;
+
+use crate::client::Kerfmeter;
+use crate::error::Error;
+use crate::grbl::{Cutter, CutterError, StreamProgress};
+use crate::{Category, Progress};
+
+/// The loop's stages, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stage {
+    /// Stream the gauge's G-code.
+    CutGauge,
+    /// Wait until the controller reports the motion finished.
+    WaitMotion,
+    /// Move the prongs over the gauge and lower them into its holes.
+    Lower,
+    /// Run the device.
+    Measure,
+    /// Lift the prongs clear.
+    Lift,
+    /// Dilate the plan by the kerf measured and write its G-code.
+    Dilate,
+    /// Stream the job.
+    StreamJob,
+}
+
+impl Stage {
+    /// Every stage, in order.
+    pub const ALL: [Stage; 7] = [
+        Stage::CutGauge,
+        Stage::WaitMotion,
+        Stage::Lower,
+        Stage::Measure,
+        Stage::Lift,
+        Stage::Dilate,
+        Stage::StreamJob,
+    ];
+
+    /// Its name in JSON and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::CutGauge => "cut-gauge",
+            Stage::WaitMotion => "wait-motion",
+            Stage::Lower => "lower",
+            Stage::Measure => "measure",
+            Stage::Lift => "lift",
+            Stage::Dilate => "dilate",
+            Stage::StreamJob => "stream-job",
+        }
+    }
+
+    /// What it does, for a progress display.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Stage::CutGauge => "cutting the gauge",
+            Stage::WaitMotion => "waiting for the motion to end",
+            Stage::Lower => "lowering the prongs into the gauge",
+            Stage::Measure => "measuring the kerf",
+            Stage::Lift => "lifting the prongs",
+            Stage::Dilate => "dilating the plan",
+            Stage::StreamJob => "cutting the job",
+        }
+    }
+}
+
+impl fmt::Display for Stage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Where the gauge is cut and how the prongs reach it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Placement {
+    /// The gauge's spiral centre on the bed, mm.
+    pub gauge_at_mm: [f64; 2],
+    /// The prongs' axis relative to the laser nozzle, mm.
+    pub prong_offset_mm: [f64; 2],
+    /// Z that puts the prongs into the gauge's holes, mm (machine coordinates).
+    pub insert_z_mm: f64,
+    /// Z that keeps the prongs clear of the work, mm.
+    pub travel_z_mm: f64,
+    /// Feed of the plunge to `insert_z_mm`, mm/min.
+    pub plunge_feed_mm_per_min: f64,
+}
+
+/// Largest coordinate accepted, mm (as the plan crate's G-code writer).
+const MAX_COORDINATE_MM: f64 = 100_000.0;
+
+impl Placement {
+    /// Where the head goes so that the prongs stand over the gauge's centre, mm.
+    pub fn head_over_gauge_mm(&self) -> [f64; 2] {
+        [
+            self.gauge_at_mm[0] - self.prong_offset_mm[0],
+            self.gauge_at_mm[1] - self.prong_offset_mm[1],
+        ]
+    }
+
+    /// Check the numbers: finite, on a plausible machine, a positive plunge feed.
+    pub fn check(&self) -> Result<(), JobError> {
+        let coordinates = [
+            self.gauge_at_mm[0],
+            self.gauge_at_mm[1],
+            self.prong_offset_mm[0],
+            self.prong_offset_mm[1],
+            self.insert_z_mm,
+            self.travel_z_mm,
+        ];
+        if !coordinates
+            .iter()
+            .all(|x| x.is_finite() && x.abs() < MAX_COORDINATE_MM)
+        {
+            return Err(JobError::Invalid(format!(
+                "the gauge position, prong offset and Z heights must be finite mm within ±100000, got {self:?}"
+            )));
+        }
+        let feed = self.plunge_feed_mm_per_min;
+        if !(feed.is_finite() && feed > 0.0 && feed <= 100_000.0) {
+            return Err(JobError::Invalid(format!(
+                "the plunge feed must be above 0 and at most 100000 mm/min, got {feed}"
+            )));
+        }
+        Ok(())
+    }
+
+    /// The program that lifts to the travel height, moves the prongs over the gauge and lowers
+    /// them (laser off throughout).
+    pub fn lower_program(&self) -> String {
+        let [x, y] = self.head_over_gauge_mm();
+        format!(
+            "G21 G90\nM5 S0\nG0 Z{:.4}\nG0 X{x:.4} Y{y:.4}\nG1 Z{:.4} F{:.1}\n",
+            self.travel_z_mm, self.insert_z_mm, self.plunge_feed_mm_per_min
+        )
+    }
+
+    /// The program that lifts the prongs clear (laser off).
+    pub fn lift_program(&self) -> String {
+        format!("G21 G90\nM5 S0\nG0 Z{:.4}\n", self.travel_z_mm)
+    }
+}
+
+/// A free spot on a bed of `bed_mm` (from 0,0) for a gauge whose cuts reach `gauge_extent_mm`
+/// (`[[min_x, min_y], [max_x, max_y]]`, relative to its centre) beside a plan whose cuts fill
+/// `plan_box_mm` on the machine, `margin_mm` apart: to the right of the plan, above, left or
+/// below, in that order, aligned with the plan's lower-left corner. `None` when none fits.
+pub fn free_spot_mm(
+    plan_box_mm: [[f64; 2]; 2],
+    gauge_extent_mm: [[f64; 2]; 2],
+    bed_mm: [f64; 2],
+    margin_mm: f64,
+) -> Option<[f64; 2]> {
+    let [[px0, py0], [px1, py1]] = plan_box_mm;
+    let [[gx0, gy0], [gx1, gy1]] = gauge_extent_mm;
+    let candidates = [
+        [px1 + margin_mm - gx0, py0 - gy0],
+        [px0 - gx0, py1 + margin_mm - gy0],
+        [px0 - margin_mm - gx1, py0 - gy0],
+        [px0 - gx0, py0 - margin_mm - gy1],
+    ];
+    let fits = |[cx, cy]: [f64; 2]| {
+        cx + gx0 >= 0.0 && cy + gy0 >= 0.0 && cx + gx1 <= bed_mm[0] && cy + gy1 <= bed_mm[1]
+    };
+    candidates.into_iter().find(|c| fits(*c))
+}
+
+/// What the loop reports as it goes.
+#[derive(Debug)]
+pub enum JobEvent<'a> {
+    /// A stage began.
+    Started(Stage),
+    /// A stream of the stage went on.
+    Cutter(Stage, &'a StreamProgress),
+    /// The device run went on.
+    Device(&'a Progress),
+    /// A stage ended, after `elapsed`.
+    Finished(Stage, Duration),
+}
+
+/// How long a stage took.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StageTime {
+    /// The stage.
+    pub stage: Stage,
+    /// Its wall-clock time, s.
+    pub elapsed_s: f64,
+}
+
+/// What the loop did.
+#[derive(Debug, Clone, Serialize)]
+pub struct JobReport {
+    /// The measurement.
+    pub kerf: KerfResult,
+    /// Each stage's time, in order.
+    pub stages: Vec<StageTime>,
+    /// The job's G-code as streamed.
+    #[serde(skip)]
+    pub job_gcode: String,
+    /// Lines of the job streamed.
+    pub job_lines: usize,
+    /// Where the prongs came down, mm (the head's reported position plus the prong offset).
+    pub landing_mm: [f64; 2],
+}
+
+/// Why the loop stopped. Every error is returned with the cutter stopped (laser off) and any
+/// device run aborted, unless it says otherwise.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// A setting is out of range.
+    #[error("{0}")]
+    Invalid(String),
+    /// The cutter failed (it stopped itself, or says it could not).
+    #[error("{stage} ({}): {source}", stage.describe())]
+    Cutter {
+        /// The stage.
+        stage: Stage,
+        /// The driver's error.
+        source: CutterError,
+    },
+    /// The device failed or refused.
+    #[error("{stage} ({}): {source}; the job was not cut and the laser is off", stage.describe())]
+    Device {
+        /// The stage.
+        stage: Stage,
+        /// The client's error.
+        source: Error,
+    },
+    /// The motion did not end as it should.
+    #[error("{0}; the laser is off")]
+    Motion(String),
+    /// The measurement carries a reason to distrust it.
+    #[error(
+        "the measurement ({kerf_um:.1} µm) was flagged {flags}: the job was not cut and the laser is off; check the gauge and the prongs, then run the job again"
+    )]
+    Flagged {
+        /// The kerf read, µm.
+        kerf_um: f32,
+        /// The flags' names.
+        flags: String,
+    },
+    /// The plan could not be dilated or written as G-code.
+    #[error("dilating the plan by {kerf_um:.1} µm failed: {reason}; the job was not cut")]
+    Dilate {
+        /// The kerf measured, µm.
+        kerf_um: f32,
+        /// Why.
+        reason: String,
+    },
+    /// The cancel flag was set.
+    #[error(
+        "cancelled while {}: the cutter was stopped (laser off) and the device run aborted",
+        stage.describe()
+    )]
+    Cancelled {
+        /// The stage it was in.
+        stage: Stage,
+    },
+    /// Stopping the cutter after an error failed too.
+    #[error(
+        "THE LASER MAY STILL BE ON: switch it off at the machine now. {cause}; then stopping the \
+         cutter failed ({stop})"
+    )]
+    NotStopped {
+        /// The first error.
+        cause: Box<JobError>,
+        /// The stop's error.
+        stop: CutterError,
+    },
+}
+
+impl JobError {
+    /// What kind of failure this is (the command-line tool's exit code follows from it).
+    pub fn category(&self) -> Category {
+        match self {
+            JobError::Invalid(_) => Category::Usage,
+            JobError::Cutter { source, .. } => source.category(),
+            JobError::Device { source, .. } => source.category(),
+            JobError::Flagged { .. } | JobError::Cancelled { .. } | JobError::Motion(_) => {
+                Category::Device
+            }
+            JobError::Dilate { .. } => Category::File,
+            JobError::NotStopped { cause, .. } => cause.category(),
+        }
+    }
+
+    /// True when the cutter could not be stopped after a failure: its laser may still be on (the
+    /// command-line tool gives this its own exit code, as for [`CutterError::laser_may_be_on`]).
+    pub fn laser_may_be_on(&self) -> bool {
+        match self {
+            JobError::NotStopped { .. } => true,
+            JobError::Cutter { source, .. } => source.laser_may_be_on(),
+            _ => false,
+        }
+    }
+}
+
+/// The quality flags that stop the job (all but `decimated`, which only coarsens the log).
+pub fn stopping_flags(flags: QualityFlags) -> QualityFlags {
+    QualityFlags(flags.0 & !QualityFlags::DECIMATED.0)
+}
+
+/// The simulated device behind `--sim`, told where the prongs landed on the gauge the simulated
+/// cutter traced.
+#[cfg(feature = "sim")]
+pub struct SimLink<'a> {
+    /// The device twin.
+    pub device: &'a crate::sim::SimDevice,
+    /// The cutter twin's kerf model (`None`: the device twin's own).
+    pub kerf: Option<kerfmeter_twin::plant::CutterKerf>,
+}
+
+/// The machines the loop drives.
+pub struct Devices<'a> {
+    /// The laser cutter.
+    pub cutter: &'a mut Cutter,
+    /// The Kerfmeter.
+    pub meter: &'a mut Kerfmeter,
+    /// With `--sim`: the device twin, which must measure the gauge the cutter twin cut.
+    #[cfg(feature = "sim")]
+    pub sim: Option<SimLink<'a>>,
+}
+
+/// What to cut and measure.
+#[derive(Debug, Clone, Copy)]
+pub struct JobRequest<'a> {
+    /// The gauge's G-code, with its spiral centre at `placement.gauge_at_mm`.
+    pub gauge_gcode: &'a str,
+    /// Where the gauge is and how the prongs reach it.
+    pub placement: Placement,
+    /// The device run's parameters.
+    pub params: RunParams,
+}
+
+/// The job's G-code for the kerf measured (µm), or why it cannot be made.
+pub type Dilate<'a> = dyn FnMut(f64) -> Result<String, String> + 'a;
+
+/// Run the loop (see the [module docs](self)). `progress` hears of every stage.
+pub fn run_job(
+    devices: Devices<'_>,
+    request: &JobRequest<'_>,
+    dilate: &mut Dilate<'_>,
+    cancel: &AtomicBool,
+    progress: &mut dyn FnMut(JobEvent<'_>),
+) -> Result<JobReport, JobError> {
+    request.placement.check()?;
+    crate::params::check(&request.params).map_err(|e| JobError::Invalid(e.to_string()))?;
+    let mut run = Loop {
+        devices,
+        request,
+        cancel,
+        progress,
+        stages: Vec::new(),
+    };
+    let result = run.all(dilate);
+    result.map_err(|e| run.make_safe(e))
+}
+
+/// The loop's state while it runs.
+struct Loop<'a, 'r> {
+    devices: Devices<'a>,
+    request: &'r JobRequest<'r>,
+    cancel: &'r AtomicBool,
+    progress: &'r mut dyn FnMut(JobEvent<'_>),
+    stages: Vec<StageTime>,
+}
+
+impl Loop<'_, '_> {
+    fn all(&mut self, dilate: &mut Dilate<'_>) -> Result<JobReport, JobError> {
+        self.devices
+            .meter
+            .prepare_for_run()
+            .map_err(|source| JobError::Device {
+                stage: Stage::CutGauge,
+                source,
+            })?;
+        let gauge = self.request.gauge_gcode;
+        self.timed(Stage::CutGauge, |l| l.stream(Stage::CutGauge, gauge))?;
+        self.timed(Stage::WaitMotion, Self::wait_idle)?;
+        let lower = self.request.placement.lower_program();
+        let at = self.timed(Stage::Lower, |l| l.stream(Stage::Lower, &lower))?;
+        let landing_mm = self.landing_mm(at);
+        let kerf = self.timed(Stage::Measure, |l| l.measure(landing_mm))?;
+        let lift = self.request.placement.lift_program();
+        self.timed(Stage::Lift, |l| l.stream(Stage::Lift, &lift))?;
+        let kerf_um = kerf.kerf_um;
+        let job_gcode = self.timed(Stage::Dilate, |_| {
+            dilate(f64::from(kerf_um)).map_err(|reason| JobError::Dilate { kerf_um, reason })
+        })?;
+        self.check_cancel(Stage::StreamJob)?;
+        let report = self.timed(Stage::StreamJob, |l| l.stream_report(&job_gcode))?;
+        Ok(JobReport {
+            kerf,
+            stages: std::mem::take(&mut self.stages),
+            job_gcode,
+            job_lines: report.lines,
+            landing_mm,
+        })
+    }
+
+    /// Run `stage`, timing it and telling the progress callback.
+    fn timed<T>(
+        &mut self,
+        stage: Stage,
+        body: impl FnOnce(&mut Self) -> Result<T, JobError>,
+    ) -> Result<T, JobError> {
+        self.check_cancel(stage)?;
+        (self.progress)(JobEvent::Started(stage));
+        let start = Instant::now();
+        let out = body(self)?;
+        let elapsed = start.elapsed();
+        self.stages.push(StageTime {
+            stage,
+            elapsed_s: elapsed.as_secs_f64(),
+        });
+        (self.progress)(JobEvent::Finished(stage, elapsed));
+        Ok(out)
+    }
+
+    fn check_cancel(&self, stage: Stage) -> Result<(), JobError> {
+        if self.cancel.load(Ordering::Relaxed) {
+            return Err(JobError::Cancelled { stage });
+        }
+        Ok(())
+    }
+
+    /// Stream `program`; the head's position at the end, when reported.
+    fn stream(&mut self, stage: Stage, program: &str) -> Result<Option<[f64; 3]>, JobError> {
+        let progress = &mut *self.progress;
+        let report = self
+            .devices
+            .cutter
+            .stream(program, self.cancel, &mut |p| {
+                progress(JobEvent::Cutter(stage, p))
+            })
+            .map_err(|e| cutter_error(stage, e))?;
+        Ok(report.position_mm)
+    }
+
+    fn stream_report(&mut self, program: &str) -> Result<crate::grbl::StreamReport, JobError> {
+        let progress = &mut *self.progress;
+        self.devices
+            .cutter
+            .stream(program, self.cancel, &mut |p| {
+                progress(JobEvent::Cutter(Stage::StreamJob, p))
+            })
+            .map_err(|e| cutter_error(Stage::StreamJob, e))
+    }
+
+    /// Poll the controller until it reports Idle (a stream already waits for it; this checks it
+    /// again, and is where a controller that reports motion late is waited for).
+    fn wait_idle(&mut self) -> Result<(), JobError> {
+        use crate::grbl::protocol::MachineState;
+        let deadline = Instant::now() + Duration::from_secs(600);
+        loop {
+            self.check_cancel(Stage::WaitMotion)?;
+            let status = self
+                .devices
+                .cutter
+                .status()
+                .map_err(|e| cutter_error(Stage::WaitMotion, e))?;
+            match status.state {
+                MachineState::Idle => return Ok(()),
+                MachineState::Alarm => {
+                    return Err(JobError::Motion(
+                        "the cutter went into alarm after the gauge was cut".into(),
+                    ));
+                }
+                _ if Instant::now() > deadline => {
+                    return Err(JobError::Motion(format!(
+                        "the cutter was still {} 10 minutes after the gauge was streamed",
+                        status.state
+                    )));
+                }
+                _ => std::thread::sleep(Duration::from_millis(50)),
+            }
+        }
+    }
+
+    /// Where the prongs came down: the head's reported position plus the offset, or the gauge's
+    /// centre when the controller does not report its machine position.
+    fn landing_mm(&self, head: Option<[f64; 3]>) -> [f64; 2] {
+        let p = &self.request.placement;
+        match head {
+            Some([x, y, _]) => [x + p.prong_offset_mm[0], y + p.prong_offset_mm[1]],
+            None => p.gauge_at_mm,
+        }
+    }
+
+    /// Run the device on the gauge under the prongs; a failed, flagged or cancelled run lifts
+    /// the prongs (unless cancelled) before the error goes up.
+    fn measure(&mut self, landing_mm: [f64; 2]) -> Result<KerfResult, JobError> {
+        let result = self
+            .place_sim_gauge(landing_mm)
+            .and_then(|()| self.device_run());
+        if let Err(e) = &result {
+            let _ = self.devices.meter.abort();
+            if !matches!(e, JobError::Cancelled { .. }) {
+                // A failed lift has stopped the cutter itself; the first error is the one to tell.
+                let lift = self.request.placement.lift_program();
+                let _ = self.stream(Stage::Lift, &lift);
+            }
+        }
+        result
+    }
+
+    fn device_run(&mut self) -> Result<KerfResult, JobError> {
+        let progress = &mut *self.progress;
+        let cancel = self.cancel;
+        let run = self
+            .devices
+            .meter
+            .run_kerfmeter_until(&self.request.params, |p| {
+                progress(JobEvent::Device(p));
+                if cancel.load(Ordering::Relaxed) {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
+                }
+            });
+        let stage = Stage::Measure;
+        let kerf = match run {
+            Ok(kerf) => kerf,
+            Err(Error::Cancelled) => return Err(JobError::Cancelled { stage }),
+            Err(source) => return Err(JobError::Device { stage, source }),
+        };
+        let flags = stopping_flags(kerf.flags);
+        if !flags.is_empty() {
+            return Err(JobError::Flagged {
+                kerf_um: kerf.kerf_um,
+                flags: flags.names().collect::<Vec<_>>().join(", "),
+            });
+        }
+        Ok(kerf)
+    }
+
+    /// With `--sim`: the gauge the cutter twin traced goes under the device twin's prongs.
+    #[cfg(feature = "sim")]
+    fn place_sim_gauge(&mut self, landing_mm: [f64; 2]) -> Result<(), JobError> {
+        let Some(link) = &self.devices.sim else {
+            return Ok(());
+        };
+        let Some(log) = self.devices.cutter.sim_log() else {
+            return Err(JobError::Invalid(
+                "the simulated device measures only a gauge the simulated cutter cut".into(),
+            ));
+        };
+        let segments = log.snapshot().segments;
+        link.device
+            .place_traced_gauge(&segments, landing_mm, link.kerf)
+            .map(|_| ())
+            .map_err(|source| JobError::Device {
+                stage: Stage::Measure,
+                source,
+            })
+    }
+
+    #[cfg(not(feature = "sim"))]
+    fn place_sim_gauge(&mut self, _landing_mm: [f64; 2]) -> Result<(), JobError> {
+        Ok(())
+    }
+
+    /// Stop the cutter after `e` (the laser off), unless the stream already did.
+    fn make_safe(&mut self, e: JobError) -> JobError {
+        let _ = self.devices.meter.abort();
+        if matches!(e, JobError::Cutter { .. }) {
+            return e;
+        }
+        match self.devices.cutter.stop() {
+            Ok(()) => e,
+            Err(stop) => JobError::NotStopped {
+                cause: Box::new(e),
+                stop,
+            },
+        }
+    }
+}
+
+/// A stream's error in `stage`; a cancelled stream is the loop's cancel.
+fn cutter_error(stage: Stage, e: CutterError) -> JobError {
+    match e.cause() {
+        CutterError::Cancelled { .. } if !e.laser_may_be_on() => JobError::Cancelled { stage },
+        _ => JobError::Cutter { stage, source: e },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GAUGE: [[f64; 2]; 2] = [[-30.0, -30.0], [30.0, 30.0]];
+
+    #[test]
+    fn the_gauge_goes_beside_the_plan_where_the_bed_has_room() {
+        let bed = [400.0, 300.0];
+        // Room on the right.
+        let at = free_spot_mm([[0.0, 0.0], [100.0, 80.0]], GAUGE, bed, 5.0).unwrap();
+        assert_eq!(at, [135.0, 30.0]);
+        // A plan as wide as the bed: above it.
+        let at = free_spot_mm([[0.0, 0.0], [400.0, 80.0]], GAUGE, bed, 5.0).unwrap();
+        assert_eq!(at, [30.0, 115.0]);
+        // No room anywhere.
+        assert!(free_spot_mm([[0.0, 0.0], [390.0, 290.0]], GAUGE, bed, 5.0).is_none());
+    }
+
+    #[test]
+    fn the_prong_moves_never_fire_the_laser_and_put_the_prongs_over_the_gauge() {
+        let p = Placement {
+            gauge_at_mm: [100.0, 50.0],
+            prong_offset_mm: [30.0, -5.0],
+            insert_z_mm: -2.0,
+            travel_z_mm: 10.0,
+            plunge_feed_mm_per_min: 300.0,
+        };
+        assert_eq!(p.head_over_gauge_mm(), [70.0, 55.0]);
+        let lower = p.lower_program();
+        assert!(lower.contains("M5 S0\nG0 Z10.0000\nG0 X70.0000 Y55.0000\nG1 Z-2.0000"));
+        assert!(!lower.contains("M3") && !lower.contains("M4"));
+        assert!(p.lift_program().ends_with("M5 S0\nG0 Z10.0000\n"));
+        let bad = Placement {
+            insert_z_mm: f64::NAN,
+            ..p
+        };
+        assert!(bad.check().is_err());
+    }
+
+    #[test]
+    fn only_decimation_lets_a_flagged_measurement_through() {
+        assert!(stopping_flags(QualityFlags::DECIMATED).is_empty());
+        let mut f = QualityFlags::DECIMATED;
+        f.insert(QualityFlags::NOISY_HOLD);
+        assert_eq!(stopping_flags(f), QualityFlags::NOISY_HOLD);
+    }
+}
