@@ -249,7 +249,9 @@ fn a_cutter_alarm_mid_job_stops_the_loop_with_the_laser_off() {
 fn cancel_mid_job_stops_the_cutter_with_the_laser_off() {
     let mut rig = rig(SimOptions::default(), SimCutterOptions::default());
     let (result, _) = run(&mut rig, 40, &mut |e, cancel| {
+        // Past the check pass ($C), into the cutting.
         if let JobEvent::Cutter(Stage::StreamJob, p) = e
+            && !p.checking
             && p.answered > 20
         {
             cancel.store(true, Ordering::Relaxed);
