@@ -5,7 +5,9 @@
 //! without parsing text ([`Program::traced`]); [`Program::to_text`] then writes it out.
 //!
 //! **What the text looks like.** Header comments (tool and version, source, kerf applied,
-//! profile, placement), then `G21` (mm), `G90` (absolute) and `M5` (laser off). Each contour is:
+//! profile, the `S` of full power as `(S_MAX=…)`, GRBL settings needed, placement), then
+//! `G17 G21 G90 G94` (XY plane, mm, absolute, feed per minute: whatever a startup block or an
+//! interrupted job left) and `M5` (laser off). Each contour is:
 //! a comment with its settings and name, `G0` to its start, `F` (its feed), `M4 S…` (laser on,
 //! dynamic power), its `G1` lines and `G2`/`G3` arcs (`I`/`J` centre offsets, relative to the
 //! arc's start as GRBL's default `G91.1` says) — every pass in a row, the contour being closed —
@@ -17,9 +19,15 @@
 //! speed, so corners and accelerations are not over-burnt) is given only right before a
 //! contour's first cut move.
 //!
-//! **GRBL settings assumed.** `$32=1` (laser mode: `M4` and `S` changes do not stop motion,
-//! `G0` is laser-off) and `$30` = the `S` of full power (1000 by default; `--s-max` when the
-//! controller differs). Power is written as `S = power_percent / 100 · $30`.
+//! **GRBL settings assumed.** `$32=1` (laser mode: `S` changes do not stop motion — `M3`/`M4`/
+//! `M5` do wait for it —, `G0` is laser-off) and `$30` = the `S` of full power (1000 by default;
+//! `--s-max` when the controller differs). Power is written as `S = power_percent / 100 · $30`;
+//! the header declares that `S` max (`(S_MAX=1000 …)`, [`S_MAX_TAG`]) and the GRBL driver
+//! refuses the program on a controller whose `$30` differs (on `$30=255`, "25 %" would be 98 %).
+//!
+//! **Accuracy.** The 5 µm criterion below is about the *commanded* path. GRBL cuts each arc as
+//! chords that stay within `$12` (0.002 mm by default) inside the curve, and a real machine moves
+//! in steps of `1/$100` mm: keep `$12` at most 0.002 mm (0.001 recommended).
 //!
 //! **Coordinates.** Plan units are mm. The machine's y axis points up (away from the operator on
 //! most cutters, origin front-left). [`Mapping::for_plan`] puts the lower-left corner of the
@@ -73,7 +81,15 @@ const UNITS_PER_MM: f64 = 10_000.0;
 /// Arcs whose sagitta is below this are written as lines, mm.
 const MIN_SAGITTA_MM: f64 = 5e-5;
 /// Comments are cut to this many characters (the line stays within GRBL's buffer).
-const MAX_COMMENT: usize = 60;
+const MAX_COMMENT_CHARS: usize = 60;
+/// The modal state every program sets before it moves: XY plane (`G17`: a `G18`/`G19` left by a
+/// startup block or an interrupted job would cut arcs in another plane), mm, absolute, feed in
+/// units per minute (`G94`: under `G93` every `G1` is refused).
+const PREAMBLE: &str = "G17 G21 G90 G94\n";
+/// The header comment that declares the `S` of full power a program assumes:
+/// `(S_MAX=1000 must equal GRBL setting 30)`. The GRBL driver reads it and refuses a program
+/// whose value differs from the controller's `$30`.
+pub const S_MAX_TAG: &str = "S_MAX=";
 
 /// One operation of a program. Coordinates are machine mm.
 #[derive(Debug, Clone, PartialEq)]
@@ -120,7 +136,7 @@ pub enum Op {
 pub struct Program {
     /// Header comment lines.
     pub header: Vec<String>,
-    /// The operations, after `G21` and `G90`.
+    /// The operations, after the preamble (`G17 G21 G90 G94`).
     pub ops: Vec<Op>,
 }
 
@@ -369,9 +385,11 @@ fn header_lines(
         format!("kerf applied: {}", provenance.kerf),
         format!("settings: {profile}"),
         format!(
-            "S max {} is $30; needs $32=1 laser mode",
+            "{S_MAX_TAG}{} must equal GRBL setting 30",
             fmt_plain(options.s_max)
         ),
+        "needs GRBL setting 32=1 laser mode".into(),
+        "arc tolerance setting 12 at most 0.002 mm, 0.001 better".into(),
         format!(
             "{placed} X{} Y{} mm",
             fmt_plain(options.origin_mm[0]),
@@ -572,7 +590,9 @@ fn fmt_units(u: i64) -> String {
     format!("{sign}{int}.{}", digits.trim_end_matches('0'))
 }
 
-/// A comment's text as GRBL takes it: printable ASCII, no parentheses, not too long.
+/// A comment's text as GRBL takes it: printable ASCII, no parentheses, not too long. GRBL acts
+/// on its realtime characters (`?`, `!`, `~`) even inside a comment, and a sender may stop at `;`
+/// or take `$` for a system command: those, and anything not ASCII, become `_`.
 fn comment_text(s: &str) -> String {
     s.replace('%', "pct")
         .chars()
@@ -580,10 +600,11 @@ fn comment_text(s: &str) -> String {
             '(' => '[',
             ')' => ']',
             'µ' => 'u',
+            '?' | '!' | '~' | ';' | '$' => '_',
             c if c.is_ascii_graphic() || c == ' ' => c,
-            _ => '?',
+            _ => '_',
         })
-        .take(MAX_COMMENT)
+        .take(MAX_COMMENT_CHARS)
         .collect()
 }
 
@@ -636,7 +657,7 @@ impl Program {
         for h in &self.header {
             let _ = writeln!(out, "({})", comment_text(h));
         }
-        out.push_str("G21\nG90\n");
+        out.push_str(PREAMBLE);
         let mut head = (0i64, 0i64);
         for op in &self.ops {
             match op {

@@ -172,9 +172,9 @@ fn an_svg_with_arcs_is_cut_on_its_dilated_contours_with_the_laser_off_on_every_t
     let first: Vec<&str> = text
         .lines()
         .filter(|l| !l.starts_with('('))
-        .take(3)
+        .take(2)
         .collect();
-    assert_eq!(first, ["G21", "G90", "M5"]);
+    assert_eq!(first, ["G17 G21 G90 G94", "M5"]);
     assert!(text.ends_with("M5\nM2\n"));
 }
 
@@ -314,10 +314,11 @@ const GOLDEN: &str = r#"
 (source: test)
 (kerf applied: 200 um)
 (settings: default: 600 mm/min, 80 pct, 1 pass)
-(S max 1000 is $30; needs $32=1 laser mode)
+(S_MAX=1000 must equal GRBL setting 30)
+(needs GRBL setting 32=1 laser mode)
+(arc tolerance setting 12 at most 0.002 mm, 0.001 better)
 (SVG y flipped, box lower-left at X0 Y0 mm)
-G21
-G90
+G17 G21 G90 G94
 M5
 (600 mm/min, 80 pct, 1 pass: circle "hole" [colour #FF0000])
 G0 X10.1 Y6.2
@@ -429,6 +430,34 @@ fn numbers_are_written_on_a_tenth_of_a_micron() {
     assert_eq!(fmt_units(to_units(-3.00015)), "-3.0002");
     assert_eq!(fmt_units(to_units(7.0)), "7");
     assert_eq!(comment_text("path (a) 5 µm 80 %"), "path [a] 5 um 80 pct");
+}
+
+#[test]
+fn comments_carry_no_realtime_or_sender_characters() {
+    // GRBL acts on ? ! ~ even inside a comment; ; and $ confuse senders.
+    assert_eq!(comment_text("why? stop! ~x; $30 é"), "why_ stop_ _x_ _30 _");
+    let cuts = svg_cuts(ARCS, 0.0);
+    let (prog, _) = program(&cuts, true, &Profile::uniform(SETTINGS).unwrap()).unwrap();
+    let text = prog.to_text();
+    for c in ['?', '!', '~', ';', '$'] {
+        assert!(!text.contains(c), "{c} in\n{text}");
+    }
+    assert!(text.is_ascii());
+}
+
+#[test]
+fn the_header_declares_the_s_max_the_powers_assume() {
+    let options = GcodeOptions {
+        s_max: 255.0,
+        ..GcodeOptions::default()
+    };
+    let cuts = svg_cuts(ARCS, 0.0);
+    let profile = Profile::uniform(SETTINGS).unwrap();
+    let (prog, _) = plan_program(&cuts, true, &profile, &options, &provenance()).unwrap();
+    let text = prog.to_text();
+    let declared = format!("({S_MAX_TAG}255 must equal GRBL setting 30)");
+    assert!(text.lines().any(|l| l == declared), "{text}");
+    assert!(text.contains("M4 S204\n"), "80 % of 255:\n{text}");
 }
 
 #[test]
