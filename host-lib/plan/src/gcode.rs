@@ -43,8 +43,10 @@
 //! the written centre: the written geometry is within 0.2 µm of the typed one, and an arc's end
 //! radius matches its start radius far inside GRBL's 5 µm check (error 33). A segment whose
 //! written ends coincide is dropped (GRBL would read an arc with equal ends as a full circle),
-//! an arc of more than half a turn is split in two, and an arc whose sagitta is under 0.05 µm is
-//! written as a line. Lines stay under 70 characters (GRBL's line buffer is 80, and a
+//! an arc of more than half a turn is split in two, an arc whose sagitta is under 0.05 µm is
+//! written as a line, and an arc of radius over 2 m (near-straight biarcs from splines, Béziers
+//! or DXF bulges) as lines whose sagitta is at most 0.25 µm: GRBL's float32 arc maths loses
+//! micrometres at such radii. Coordinates beyond 10 m are refused. Lines stay under 70 characters (GRBL's line buffer is 80, and a
 //! character-counting streamer needs lines well under its 128-byte receive buffer); comments are
 //! plain ASCII without parentheses.
 //!
@@ -70,7 +72,7 @@ use serde::Serialize;
 use crate::dilate::{self, Contour};
 use crate::error::{PlanError, Result};
 use crate::gauge::GaugeDrawing;
-use crate::geom::{Pline, V2, arc_geom, area_and_centroid, v2};
+use crate::geom::{ArcGeom, Pline, V2, arc_geom, area_and_centroid, v2};
 use crate::outcome::CutPath;
 use crate::profile::{CutSettings, Profile};
 
@@ -80,6 +82,11 @@ pub const DEFAULT_S_MAX: f64 = 1000.0;
 const UNITS_PER_MM: f64 = 10_000.0;
 /// Arcs whose sagitta is below this are written as lines, mm.
 const MIN_SAGITTA_MM: f64 = 5e-5;
+/// Arcs of a larger radius are written as chords (GRBL computes arcs in float32: at 125 m
+/// radius its angle step alone moves the path by ~8 µm), mm.
+const MAX_ARC_RADIUS_MM: f64 = 2_000.0;
+/// The largest sagitta of those chords, mm (0.25 µm).
+const CHORD_SAGITTA_MM: f64 = 2.5e-4;
 /// Comments are cut to this many characters (the line stays within GRBL's buffer).
 const MAX_COMMENT_CHARS: usize = 60;
 /// The modal state every program sets before it moves: XY plane (`G17`: a `G18`/`G19` left by a
@@ -252,10 +259,10 @@ impl GcodeOptions {
         if !self
             .origin_mm
             .iter()
-            .all(|x| x.is_finite() && x.abs() < 1e5)
+            .all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE_MM)
         {
             return Err(PlanError::InvalidArgument(format!(
-                "the placement must be finite mm within ±100000, got {:?}",
+                "the placement must be finite mm within ±{MAX_COORDINATE_MM}, got {:?}",
                 self.origin_mm
             )));
         }
@@ -299,8 +306,8 @@ pub fn plan_program(
     Ok((build(cut_order(jobs)?, header, options.s_max), mapping))
 }
 
-/// Largest machine coordinate accepted, mm (a sanity bound: 100 m).
-const MAX_COORDINATE_MM: f64 = 100_000.0;
+/// Largest machine coordinate accepted, mm (a sanity bound: 10 m, beyond any laser's bed).
+const MAX_COORDINATE_MM: f64 = 10_000.0;
 
 /// Refuse a plan that does not fit any cutter once placed (it would also overflow the written
 /// numbers).
@@ -560,12 +567,32 @@ fn segment_ops(from: V2, to: V2, bulge: f64, ops: &mut Vec<Op>) {
     let sagitta = arc.radius * (1.0 - (arc.sweep / 2.0).cos());
     if sagitta < MIN_SAGITTA_MM {
         ops.push(Op::Line { to });
+    } else if arc.radius > MAX_ARC_RADIUS_MM {
+        chord_ops(from, to, &arc, ops);
     } else {
         ops.push(Op::Arc {
             to,
             center: arc.center,
             clockwise: bulge < 0.0,
         });
+    }
+}
+
+/// A large-radius arc as chords whose sagitta is at most [`CHORD_SAGITTA_MM`].
+fn chord_ops(from: V2, to: V2, arc: &ArcGeom, ops: &mut Vec<Op>) {
+    let max_sweep = 2.0 * (1.0 - CHORD_SAGITTA_MM / arc.radius).acos();
+    let n = (arc.sweep.abs() / max_sweep).ceil().clamp(1.0, 1e6) as usize;
+    let mut last = grid(from);
+    for k in 1..n {
+        let angle = arc.start_angle + arc.sweep * k as f64 / n as f64;
+        let p = arc.center + v2(angle.cos(), angle.sin()).scale(arc.radius);
+        if grid(p) != last {
+            ops.push(Op::Line { to: p });
+            last = grid(p);
+        }
+    }
+    if grid(to) != last {
+        ops.push(Op::Line { to });
     }
 }
 

@@ -464,7 +464,8 @@ fn the_header_declares_the_s_max_the_powers_assume() {
 fn a_plan_beyond_any_bed_is_refused() {
     let mut huge = svg_cuts(ARCS, 0.0);
     let mut far = Pline::new_closed();
-    for (x, y) in [(0.0, 0.0), (1e6, 0.0), (1e6, 1.0)] {
+    // 20 m: beyond any laser's bed (and GRBL's float32 precision there).
+    for (x, y) in [(0.0, 0.0), (2e4, 0.0), (2e4, 1.0)] {
         far.add(x, y, 0.0);
     }
     huge[0].pline = far;
@@ -472,6 +473,40 @@ fn a_plan_beyond_any_bed_is_refused() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("beyond any cutter's bed"), "{e}");
+    let far_origin = GcodeOptions {
+        origin_mm: [2e4, 0.0],
+        ..GcodeOptions::default()
+    };
+    assert!(far_origin.check().is_err());
+}
+
+#[test]
+fn large_radius_arcs_are_written_as_fine_chords() {
+    // A 100 mm chord with a 10 µm sagitta: radius 125 m, where GRBL's float32 arc maths is off
+    // by micrometres.
+    let (from, to) = (v2(0.0, 0.0), v2(100.0, 0.0));
+    let sweep = 2.0 * (50.0f64 / 125_000.0).asin();
+    let bulge = (sweep / 4.0).tan();
+    let arc = arc_geom(from, to, bulge).unwrap();
+    let mut ops = Vec::new();
+    segment_ops(from, to, bulge, &mut ops);
+    assert!(ops.len() > 2, "{ops:?}");
+    let mut head = from;
+    for op in &ops {
+        let Op::Line { to: p } = op else {
+            panic!("not a chord: {op:?}")
+        };
+        assert!(((*p - arc.center).length() - arc.radius).abs() < 1e-4);
+        let mid = (head + *p).scale(0.5);
+        let sagitta = arc.radius - (mid - arc.center).length();
+        assert!(sagitta <= CHORD_SAGITTA_MM + 1e-7, "{sagitta}");
+        head = *p;
+    }
+    assert_eq!(head, to);
+    // A small arc stays an arc.
+    let mut ops = Vec::new();
+    segment_ops(from, v2(2.0, 0.0), 0.5, &mut ops);
+    assert!(matches!(ops[..], [Op::Arc { .. }]), "{ops:?}");
 }
 
 #[test]
