@@ -808,6 +808,46 @@ fn gcode_writes_the_dilated_plan_with_settings_per_colour_and_refuses_what_it_ca
 }
 
 #[test]
+fn gcode_says_what_it_left_out_and_which_profile_entries_set_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("two.svg");
+    std::fs::write(
+        &input,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
+  <rect x="5" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
+  <rect x="60" y="5" width="20" height="20" fill="none" stroke="green" stroke-width="0.01"/>
+</svg>"#,
+    )
+    .unwrap();
+    // Green is no cut under the default rules: a [color.green] entry does not make it one.
+    let profile = dir.path().join("cut.toml");
+    std::fs::write(
+        &profile,
+        "[color.red]\nfeed_mm_per_min = 400\npower_percent = 90\n\n[color.green]\nfeed_mm_per_min = 300\npower_percent = 100\n",
+    )
+    .unwrap();
+    let out = dir.path().join("two.gcode");
+    let done = kerfmeter(&[
+        "gcode",
+        path(&input),
+        "--kerf-um",
+        "200",
+        "-o",
+        path(&out),
+        "--profile",
+        path(&profile),
+    ]);
+    assert_eq!(code(&done), 0, "{}", stderr(&done));
+    let said = format!("{}{}", stdout(&done), stderr(&done));
+    assert!(said.contains("not cut: 1 ×"), "{said}");
+    assert!(
+        said.contains("[color.\"#008000\"] sets no contour"),
+        "{said}"
+    );
+    assert!(!said.contains("[color.\"#FF0000\"]"), "{said}");
+}
+
+#[test]
 fn gauge_writes_g_code_with_its_spiral_centre_where_asked() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("gauge.gcode");

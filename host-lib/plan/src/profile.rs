@@ -214,6 +214,41 @@ impl Profile {
         Ok(settings.into_iter().flatten().collect())
     }
 
+    /// The entries that choose the settings of none of `cuts`, as written in a profile file
+    /// (`[layer."…"]`, `[color."#…"]`): a misspelt layer, a colour the cut rules leave out (a
+    /// profile entry does not make its colour a cut), or a colour every contour of which a layer
+    /// entry takes.
+    pub fn unused(&self, cuts: &[CutPath]) -> Vec<String> {
+        let layer_entry = |layer: Option<&str>| {
+            layer.and_then(|l| {
+                self.by_layer
+                    .iter()
+                    .position(|(n, _)| n.eq_ignore_ascii_case(l))
+            })
+        };
+        let mut unused = Vec::new();
+        for (i, (name, _)) in self.by_layer.iter().enumerate() {
+            if !cuts
+                .iter()
+                .any(|c| layer_entry(c.group.layer.as_deref()) == Some(i))
+            {
+                unused.push(format!("[layer.\"{name}\"]"));
+            }
+        }
+        for (i, (rgb, _)) in self.by_color.iter().enumerate() {
+            let chosen = |c: &CutPath| {
+                layer_entry(c.group.layer.as_deref()).is_none()
+                    && c.group.color.is_some_and(|cc| {
+                        self.by_color.iter().position(|(r, _)| *r == cc) == Some(i)
+                    })
+            };
+            if !cuts.iter().any(chosen) {
+                unused.push(format!("[color.\"{rgb}\"]"));
+            }
+        }
+        unused
+    }
+
     /// The profile in a few words (for the G-code header).
     pub fn describe(&self) -> String {
         let mut parts: Vec<String> = Vec::new();
@@ -268,6 +303,32 @@ power_percent = 90
             .unwrap();
         assert_eq!(inner.feed_mm_per_min, 400.0);
         assert_eq!(p.settings_for(&group(Some(Rgb::BLACK), None)), None);
+    }
+
+    #[test]
+    fn entries_that_choose_no_contour_are_reported() {
+        let p = Profile::from_toml(PROFILE).unwrap();
+        let cut = |color, layer| CutPath {
+            pline: crate::geom::Pline::new_closed(),
+            label: "c".into(),
+            group: group(color, layer),
+        };
+        // Red on layer "inner" takes the layer entry; blue on a misspelt layer takes blue's.
+        let cuts = [
+            cut(Some(Rgb::RED), Some("inner")),
+            cut(Some(Rgb::BLUE), Some("Iner")),
+        ];
+        assert_eq!(p.unused(&cuts), ["[color.\"#FF0000\"]"]);
+        assert_eq!(
+            p.unused(&cuts[1..]),
+            ["[layer.\"Inner\"]", "[color.\"#FF0000\"]"]
+        );
+        let all = [
+            cut(Some(Rgb::RED), None),
+            cut(Some(Rgb::BLUE), None),
+            cuts[0].clone(),
+        ];
+        assert!(p.unused(&all).is_empty(), "{:?}", p.unused(&all));
     }
 
     #[test]
