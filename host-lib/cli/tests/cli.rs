@@ -851,7 +851,27 @@ fn gcode_says_what_it_left_out_and_which_profile_entries_set_nothing() {
 fn gauge_writes_g_code_with_its_spiral_centre_where_asked() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("gauge.gcode");
-    let done = kerfmeter(&["--json", "gauge", "-o", path(&out), "--at-mm", "120,40"]);
+    // Without cut settings it is refused: the kerf it measures depends on them.
+    let refused = kerfmeter(&["gauge", "-o", path(&out), "--at-mm", "120,40"]);
+    assert_eq!(code(&refused), 2, "{}", stderr(&refused));
+    assert!(
+        stderr(&refused).contains("--feed-mm-per-min"),
+        "{}",
+        stderr(&refused)
+    );
+    assert!(!out.exists());
+    let done = kerfmeter(&[
+        "--json",
+        "gauge",
+        "-o",
+        path(&out),
+        "--at-mm",
+        "120,40",
+        "--feed-mm-per-min",
+        "400",
+        "--power-percent",
+        "90",
+    ]);
     assert_eq!(code(&done), 0, "{}", stderr(&done));
     let report: serde_json::Value = serde_json::from_str(&stdout(&done)).unwrap();
     assert_eq!(report["format"], "gcode");

@@ -199,7 +199,7 @@ impl fmt::Display for GcodeReport {
         for entry in &self.unused_profile_entries {
             writeln!(
                 f,
-                "  warning: the profile's {entry} sets no contour: misspelt, a layer entry takes its contours, or the cut rules leave that colour out (--cut-colors)"
+                "  warning: the profile's {entry} sets no contour: misspelt, a layer entry takes its contours, or the cut rules leave that colour out (--cut-color)"
             )?;
         }
         for n in &self.summary.notes {
