@@ -250,9 +250,9 @@ impl Default for GcodeOptions {
 impl GcodeOptions {
     /// Check the values.
     pub fn check(&self) -> Result<()> {
-        if !(self.s_max.is_finite() && self.s_max > 0.0 && self.s_max <= 100_000.0) {
+        if !(self.s_max.is_finite() && self.s_max >= 1.0 && self.s_max <= 100_000.0) {
             return Err(PlanError::InvalidArgument(format!(
-                "the maximum S ($30) must be above 0 and at most 100000, got {}",
+                "the maximum S ($30) must be 1 to 100000, got {}",
                 self.s_max
             )));
         }
@@ -413,6 +413,12 @@ fn fmt_plain(x: f64) -> String {
 /// The order to cut `jobs` in (see the module doc), each closed contour starting at its chosen
 /// vertex; the head starts at the machine origin.
 pub fn cut_order(jobs: Vec<Job>) -> Result<Vec<Job>> {
+    if let Some(empty) = jobs.iter().find(|j| j.pline.extents().is_none()) {
+        return Err(PlanError::InvalidArgument(format!(
+            "{} has no extent: it cannot be cut",
+            empty.label
+        )));
+    }
     let parent = parents(&jobs)?;
     let mut waiting = vec![0usize; jobs.len()];
     for p in parent.iter().flatten() {
@@ -441,6 +447,18 @@ pub fn cut_order(jobs: Vec<Job>) -> Result<Vec<Job>> {
                 tree.insert(entry);
             }
         }
+    }
+    if order.len() != jobs.len() {
+        let left: Vec<&str> = (0..jobs.len())
+            .filter(|i| !order.iter().any(|(j, _)| j == i))
+            .map(|i| jobs[i].label.as_str())
+            .collect();
+        return Err(PlanError::InvalidArgument(format!(
+            "{} contour{} could not be placed in the cutting order (empty or degenerate): {}",
+            left.len(),
+            if left.len() == 1 { "" } else { "s" },
+            left.join(", ")
+        )));
     }
     let mut slots: Vec<Option<Job>> = jobs.into_iter().map(Some).collect();
     Ok(order

@@ -39,6 +39,10 @@ use crate::rules::Rgb;
 
 /// Largest feed accepted, mm/min (a sanity bound well above any laser cutter's).
 pub const MAX_FEED_MM_PER_MIN: f64 = 100_000.0;
+/// Smallest feed accepted, mm/min (smaller feeds would be written as `F0`).
+pub const MIN_FEED_MM_PER_MIN: f64 = 1.0;
+/// Smallest power accepted, percent (with `S` max at least 1, `S` is never written as `S0`).
+pub const MIN_POWER_PERCENT: f64 = 0.01;
 /// Largest number of passes accepted.
 pub const MAX_PASSES: u32 = 100;
 
@@ -64,20 +68,20 @@ impl CutSettings {
     pub fn check(&self, what: &str) -> Result<()> {
         let bad = |m: String| Err(PlanError::InvalidArgument(format!("{what}: {m}")));
         if !(self.feed_mm_per_min.is_finite()
-            && self.feed_mm_per_min > 0.0
+            && self.feed_mm_per_min >= MIN_FEED_MM_PER_MIN
             && self.feed_mm_per_min <= MAX_FEED_MM_PER_MIN)
         {
             return bad(format!(
-                "the feed must be above 0 and at most {MAX_FEED_MM_PER_MIN} mm/min, got {}",
+                "the feed must be {MIN_FEED_MM_PER_MIN} to {MAX_FEED_MM_PER_MIN} mm/min, got {}",
                 self.feed_mm_per_min
             ));
         }
         if !(self.power_percent.is_finite()
-            && self.power_percent > 0.0
+            && self.power_percent >= MIN_POWER_PERCENT
             && self.power_percent <= 100.0)
         {
             return bad(format!(
-                "the power must be above 0 and at most 100 %, got {}",
+                "the power must be {MIN_POWER_PERCENT} to 100 %, got {}",
                 self.power_percent
             ));
         }
@@ -337,6 +341,13 @@ power_percent = 90
             .unwrap_err()
             .to_string();
         assert!(e.contains("[color.\"red\"]") && e.contains("feed"), "{e}");
+        // A feed that would be written as F0 is refused.
+        let tiny = CutSettings {
+            feed_mm_per_min: 0.00004,
+            power_percent: 50.0,
+            passes: 1,
+        };
+        assert!(tiny.check("x").is_err());
         let e = Profile::from_toml("[color.red]\nfeed = 10\n")
             .unwrap_err()
             .to_string();

@@ -481,6 +481,23 @@ fn a_plan_beyond_any_bed_is_refused() {
 }
 
 #[test]
+fn a_contour_the_order_cannot_place_is_an_error_not_dropped() {
+    let job = |pline: Pline, label: &str| Job {
+        pline,
+        label: label.into(),
+        settings: SETTINGS,
+    };
+    let mut square = Pline::new_closed();
+    for (x, y) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+        square.add(x, y, 0.0);
+    }
+    let e = cut_order(vec![job(square, "ok"), job(Pline::new_closed(), "empty")])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("empty"), "{e}");
+}
+
+#[test]
 fn large_radius_arcs_are_written_as_fine_chords() {
     // A 100 mm chord with a 10 µm sagitta: radius 125 m, where GRBL's float32 arc maths is off
     // by micrometres.
