@@ -784,7 +784,9 @@ fn gcode_writes_the_dilated_plan_with_settings_per_colour_and_refuses_what_it_ca
     ]);
     let done = kerfmeter(&with_default);
     assert_eq!(code(&done), 0, "{}", stderr(&done));
+    assert_eq!(stdout(&done).matches("\"format\"").count(), 1);
     let report: serde_json::Value = serde_json::from_str(&stdout(&done)).unwrap();
+    assert_eq!(report["format"], "svg");
     assert_eq!(report["program"]["contours"], 3);
     assert_eq!(report["mapping"]["flip_y"], true);
     let text = std::fs::read_to_string(&out).unwrap();

@@ -25,7 +25,9 @@
 //! `passes` is 1 when not given. Power is a percentage of the controller's maximum `S` (GRBL's
 //! `$30`, see [`crate::gcode`]). A contour whose colour and layer no entry names, with no
 //! `[default]`, is refused: the message lists every such colour and layer, so that nothing is
-//! cut with settings the user did not choose.
+//! cut with settings the user did not choose. Two entries naming the same colour (`red` and
+//! `"#ff0000"`) or layer (`Inner` and `inner`) are refused, and [`Profile::unused`] lists the
+//! entries that set no contour.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -147,13 +149,23 @@ impl Profile {
         if let Some(d) = &file.default {
             d.check("[default]")?;
         }
-        let mut by_color = Vec::new();
+        let mut by_color: Vec<(Rgb, CutSettings)> = Vec::new();
+        let mut color_names: Vec<String> = Vec::new();
         for (name, s) in file.color {
             s.check(&format!("[color.\"{name}\"]"))?;
-            by_color.push((Rgb::parse(&name)?, s));
+            let rgb = Rgb::parse(&name)?;
+            if let Some(i) = by_color.iter().position(|(c, _)| *c == rgb) {
+                return Err(same_entry("color", &color_names[i], &name));
+            }
+            by_color.push((rgb, s));
+            color_names.push(name);
         }
-        for (name, s) in &file.layer {
+        let names: Vec<&String> = file.layer.keys().collect();
+        for (i, (name, s)) in file.layer.iter().enumerate() {
             s.check(&format!("[layer.\"{name}\"]"))?;
+            if let Some(other) = names[..i].iter().find(|n| n.eq_ignore_ascii_case(name)) {
+                return Err(same_entry("layer", other, name));
+            }
         }
         Ok(Profile {
             default: file.default,
@@ -269,6 +281,14 @@ impl Profile {
     }
 }
 
+/// Two entries that name the same colour or layer (`red` and `#ff0000`, `Inner` and `inner`):
+/// which one applies would be a guess.
+fn same_entry(table: &str, a: &str, b: &str) -> PlanError {
+    PlanError::InvalidArgument(format!(
+        "[{table}.\"{a}\"] and [{table}.\"{b}\"] name the same {table}: keep one"
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -341,6 +361,13 @@ power_percent = 90
             .unwrap_err()
             .to_string();
         assert!(e.contains("[color.\"red\"]") && e.contains("feed"), "{e}");
+        for twice in [
+            "[color.red]\nfeed_mm_per_min = 1\npower_percent = 5\n[color.\"#ff0000\"]\nfeed_mm_per_min = 2\npower_percent = 5\n",
+            "[layer.Inner]\nfeed_mm_per_min = 1\npower_percent = 5\n[layer.inner]\nfeed_mm_per_min = 2\npower_percent = 5\n",
+        ] {
+            let e = Profile::from_toml(twice).unwrap_err().to_string();
+            assert!(e.contains("name the same"), "{e}");
+        }
         // A feed that would be written as F0 is refused.
         let tiny = CutSettings {
             feed_mm_per_min: 0.00004,

@@ -142,7 +142,8 @@ pub struct GcodeReport {
     pub input: PathBuf,
     /// The G-code written.
     pub output: PathBuf,
-    /// The plan's format.
+    /// The plan's format (in JSON: the summary's `format`, not written twice).
+    #[serde(skip)]
     pub format: PlanFormat,
     /// The kerf given, µm (with a map: at the reference cell).
     pub kerf_um: f64,
