@@ -885,4 +885,8 @@ fn gauge_writes_g_code_with_its_spiral_centre_where_asked() {
     let svg = dir.path().join("gauge.svg");
     let refused = kerfmeter(&["gauge", "-o", path(&svg), "--at-mm", "1,2"]);
     assert_eq!(code(&refused), 2);
+    // Nor --s-max: silently ignoring it would hide a mistake.
+    let refused = kerfmeter(&["gauge", "-o", path(&svg), "--s-max", "255"]);
+    assert_eq!(code(&refused), 2, "{}", stderr(&refused));
+    assert!(!svg.exists());
 }

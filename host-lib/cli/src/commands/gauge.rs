@@ -13,7 +13,7 @@ use std::path::PathBuf;
 
 use kerfmeter::files::write_atomically;
 use kerfmeter_plan::gauge::{self, GaugeDrawing, GaugeOptions, TestPieceSpec};
-use kerfmeter_plan::gcode::{GcodeOptions, ProgramStats, Provenance, gauge_program};
+use kerfmeter_plan::gcode::{DEFAULT_S_MAX, GcodeOptions, ProgramStats, Provenance, gauge_program};
 use kerfmeter_plan::profile::CutSettings;
 use kerfmeter_plan::{PlanError, PlanFormat};
 use kerfmeter_protocol::{GaugeGeometry, JamDirection};
@@ -273,14 +273,17 @@ fn clean(x: f32) -> f64 {
 /// Write the gauge described by `args`.
 pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
     let geometry = args.geometry();
-    let drawing = gauge::build(&geometry, &args.options()?)?;
+    let options = args.options()?;
+    let drawing = gauge::build(&geometry, &options)?;
     let (format, bytes, gcode) = if is_gcode(&args.output) {
         let (text, gcode) = gauge_gcode(args, &drawing)?;
         (GaugeFormat::Gcode, text.into_bytes(), Some(gcode))
     } else {
-        if args.at_mm.is_some() || args.cut.settings()?.is_some() {
+        if args.at_mm.is_some() || args.cut.settings()?.is_some() || args.cut.s_max != DEFAULT_S_MAX
+        {
             return Err(PlanError::InvalidArgument(
-                "--at-mm and the cut settings are for G-code output (a .gcode file)".into(),
+                "--at-mm, --s-max and the cut settings are for G-code output (a .gcode file)"
+                    .into(),
             )
             .into());
         }
@@ -309,7 +312,7 @@ pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
         hole_radius_mm: clean(geometry.hole_radius_mm),
         hole_distance_mm: clean(geometry.hole_distance_mm),
         jam_direction: args.jam_direction,
-        test_piece: args.options()?.test_piece,
+        test_piece: options.test_piece,
         label: args.label,
         gcode,
     })
