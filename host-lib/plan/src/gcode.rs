@@ -48,7 +48,8 @@
 //! or DXF bulges) as lines whose sagitta is at most 0.25 µm: GRBL's float32 arc maths loses
 //! micrometres at such radii. Coordinates beyond 10 m are refused. Lines stay under 70 characters (GRBL's line buffer is 80, and a
 //! character-counting streamer needs lines well under its 128-byte receive buffer); comments are
-//! plain ASCII without parentheses.
+//! plain ASCII without parentheses, GRBL's realtime characters (`?`, `!`, `~`), `;` or `$`, and
+//! long header text is wrapped onto more lines rather than cut off.
 //!
 //! **Cutting order** ([`cut_order`]): a contour is cut only after every contour inside it, so a
 //! part's holes (and any island in a hole, and the island's own holes) are cut before the outline
@@ -57,7 +58,9 @@
 //! and it starts at that vertex. The candidates' bounding boxes are kept in an R-tree (`rstar`),
 //! updated as contours are cut and become free, and searched in order of distance until a box is
 //! farther than the best vertex found: about O(n log n + V) for n contours of V vertices in all
-//! (`cargo bench -p kerfmeter-plan --bench gcode`).
+//! (`cargo bench -p kerfmeter-plan --bench gcode`). The worst case is a large contour whose box
+//! holds the head at every step (a comb part with many holes): its V vertices are scanned each
+//! time, O(n·V).
 //!
 //! The cutter twin (a GRBL-speaking simulated cutter, written separately) is to replay this text
 //! end to end; the tests here check the typed program and the written numbers.
@@ -302,7 +305,7 @@ pub fn plan_program(
     } else {
         "box lower-left at"
     };
-    let header = header_lines(provenance, &profile.describe(), placed, options);
+    let header = header_lines(provenance, &profile.entries(), placed, options);
     Ok((build(cut_order(jobs)?, header, options.s_max), mapping))
 }
 
@@ -369,28 +372,31 @@ pub fn gauge_program(
         .collect();
     let header = header_lines(
         provenance,
-        &settings.to_string(),
+        &[settings.to_string()],
         "spiral centre at",
         options,
     );
     Ok((build(cut_order(jobs)?, header, options.s_max), mapping))
 }
 
-/// The header comments; `placed` says what goes to `options.origin_mm`.
+/// The header comments; `placed` says what goes to `options.origin_mm`. A long source name and
+/// each settings entry get lines of their own, so that nothing is cut off.
 fn header_lines(
     provenance: &Provenance,
-    profile: &str,
+    settings: &[String],
     placed: &str,
     options: &GcodeOptions,
 ) -> Vec<String> {
-    vec![
-        format!(
-            "kerfmeter {} G-code for GRBL 1.1 laser mode",
-            env!("CARGO_PKG_VERSION")
-        ),
-        format!("source: {}", provenance.source),
-        format!("kerf applied: {}", provenance.kerf),
-        format!("settings: {profile}"),
+    let mut lines = vec![format!(
+        "kerfmeter {} G-code for GRBL 1.1 laser mode",
+        env!("CARGO_PKG_VERSION")
+    )];
+    lines.extend(wrapped("source: ", &provenance.source));
+    lines.extend(wrapped("kerf applied: ", &provenance.kerf));
+    for entry in settings {
+        lines.extend(wrapped("settings: ", entry));
+    }
+    lines.extend([
         format!(
             "{S_MAX_TAG}{} must equal GRBL setting 30",
             fmt_plain(options.s_max)
@@ -402,7 +408,23 @@ fn header_lines(
             fmt_plain(options.origin_mm[0]),
             fmt_plain(options.origin_mm[1])
         ),
-    ]
+    ]);
+    lines
+}
+
+/// `prefix` and `text` as comment lines of at most [`MAX_COMMENT_CHARS`], continued lines
+/// indented.
+fn wrapped(prefix: &str, text: &str) -> Vec<String> {
+    let chars: Vec<char> = format!("{prefix}{text}").chars().collect();
+    let mut lines = vec![chars.iter().take(MAX_COMMENT_CHARS).collect::<String>()];
+    for chunk in chars
+        .get(MAX_COMMENT_CHARS..)
+        .unwrap_or_default()
+        .chunks(MAX_COMMENT_CHARS - 2)
+    {
+        lines.push(format!("  {}", chunk.iter().collect::<String>()));
+    }
+    lines
 }
 
 /// `x` with up to 4 decimals, trailing zeros dropped.

@@ -265,8 +265,13 @@ impl Profile {
         unused
     }
 
-    /// The profile in a few words (for the G-code header).
+    /// The profile in a few words.
     pub fn describe(&self) -> String {
+        self.entries().join("; ")
+    }
+
+    /// Each entry in a few words (one G-code header line each).
+    pub fn entries(&self) -> Vec<String> {
         let mut parts: Vec<String> = Vec::new();
         for (name, s) in &self.by_layer {
             parts.push(format!("layer {name}: {s}"));
@@ -277,7 +282,7 @@ impl Profile {
         if let Some(d) = &self.default {
             parts.push(format!("default: {d}"));
         }
-        parts.join("; ")
+        parts
     }
 }
 

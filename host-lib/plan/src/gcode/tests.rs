@@ -498,6 +498,40 @@ fn a_contour_the_order_cannot_place_is_an_error_not_dropped() {
 }
 
 #[test]
+fn long_header_text_is_wrapped_not_cut_off() {
+    let source = format!(
+        "/home/someone/{}/plan.svg",
+        "very-long-folder-name".repeat(6)
+    );
+    let provenance = Provenance {
+        source: source.clone(),
+        kerf: "200 um".into(),
+    };
+    let profile = Profile::from_toml(
+        "[default]\nfeed_mm_per_min = 600\npower_percent = 80\n\n[color.blue]\nfeed_mm_per_min = 900\npower_percent = 40\n\n[layer.\"A rather long layer name for inner cuts\"]\nfeed_mm_per_min = 400\npower_percent = 90\n",
+    )
+    .unwrap();
+    let cuts = svg_cuts(ARCS, 0.0);
+    let options = GcodeOptions::default();
+    let (prog, _) = plan_program(&cuts, true, &profile, &options, &provenance).unwrap();
+    let text = prog.to_text();
+    let comments: Vec<&str> = text.lines().filter(|l| l.starts_with('(')).collect();
+    assert!(
+        comments.iter().all(|l| l.len() <= MAX_COMMENT_CHARS + 2),
+        "{text}"
+    );
+    let joined: String = comments
+        .iter()
+        .map(|l| l.trim_matches(['(', ')']).trim_start())
+        .collect();
+    assert!(joined.contains(&source), "{text}");
+    assert!(joined.contains("inner cuts: 400"), "{text}");
+    assert!(joined.contains("mm/min, 90 pct"), "{text}");
+    assert!(joined.contains("#0000FF: 900 mm/min"), "{text}");
+    assert!(joined.contains("default: 600 mm/min"), "{text}");
+}
+
+#[test]
 fn large_radius_arcs_are_written_as_fine_chords() {
     // A 100 mm chord with a 10 µm sagitta: radius 125 m, where GRBL's float32 arc maths is off
     // by micrometres.
