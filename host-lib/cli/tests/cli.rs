@@ -605,6 +605,21 @@ fn cut_refuses_an_unstreamable_program_and_reports_a_refused_line() {
 }
 
 #[test]
+fn cut_refuses_a_program_written_for_another_s_max() {
+    // The simulated cutter has GRBL's default $30=1000.
+    let program = format!("(S_MAX=255 must equal GRBL setting 30)\n{SQUARE_GCODE}");
+    let (_dir, file) = gcode_file(&program);
+    let out = kerfmeter(&["cut", path(&file), "--cutter", "sim"]);
+    assert_eq!(code(&out), 4, "{}", stderr(&out));
+    let message = stderr(&out);
+    assert!(
+        message.contains("S max 255") && message.contains("$30 is 1000"),
+        "{message}"
+    );
+    assert!(message.contains("Nothing was sent"), "{message}");
+}
+
+#[test]
 fn ctrl_c_during_cut_stops_the_cutter_and_fails() {
     interrupting_a_cut_stops_the_cutter("-INT");
 }
