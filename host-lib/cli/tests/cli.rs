@@ -605,6 +605,21 @@ fn cut_refuses_an_unstreamable_program_and_reports_a_refused_line() {
 }
 
 #[test]
+fn cut_refuses_a_program_written_for_another_s_max() {
+    // The simulated cutter has GRBL's default $30=1000.
+    let program = format!("(S_MAX=255 must equal GRBL setting 30)\n{SQUARE_GCODE}");
+    let (_dir, file) = gcode_file(&program);
+    let out = kerfmeter(&["cut", path(&file), "--cutter", "sim"]);
+    assert_eq!(code(&out), 4, "{}", stderr(&out));
+    let message = stderr(&out);
+    assert!(
+        message.contains("S max 255") && message.contains("$30 is 1000"),
+        "{message}"
+    );
+    assert!(message.contains("Nothing was sent"), "{message}");
+}
+
+#[test]
 fn ctrl_c_during_cut_stops_the_cutter_and_fails() {
     interrupting_a_cut_stops_the_cutter("-INT");
 }
@@ -784,7 +799,9 @@ fn gcode_writes_the_dilated_plan_with_settings_per_colour_and_refuses_what_it_ca
     ]);
     let done = kerfmeter(&with_default);
     assert_eq!(code(&done), 0, "{}", stderr(&done));
+    assert_eq!(stdout(&done).matches("\"format\"").count(), 1);
     let report: serde_json::Value = serde_json::from_str(&stdout(&done)).unwrap();
+    assert_eq!(report["format"], "svg");
     assert_eq!(report["program"]["contours"], 3);
     assert_eq!(report["mapping"]["flip_y"], true);
     let text = std::fs::read_to_string(&out).unwrap();
@@ -808,10 +825,70 @@ fn gcode_writes_the_dilated_plan_with_settings_per_colour_and_refuses_what_it_ca
 }
 
 #[test]
+fn gcode_says_what_it_left_out_and_which_profile_entries_set_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("two.svg");
+    std::fs::write(
+        &input,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
+  <rect x="5" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
+  <rect x="60" y="5" width="20" height="20" fill="none" stroke="green" stroke-width="0.01"/>
+</svg>"#,
+    )
+    .unwrap();
+    // Green is no cut under the default rules: a [color.green] entry does not make it one.
+    let profile = dir.path().join("cut.toml");
+    std::fs::write(
+        &profile,
+        "[color.red]\nfeed_mm_per_min = 400\npower_percent = 90\n\n[color.green]\nfeed_mm_per_min = 300\npower_percent = 100\n",
+    )
+    .unwrap();
+    let out = dir.path().join("two.gcode");
+    let done = kerfmeter(&[
+        "gcode",
+        path(&input),
+        "--kerf-um",
+        "200",
+        "-o",
+        path(&out),
+        "--profile",
+        path(&profile),
+    ]);
+    assert_eq!(code(&done), 0, "{}", stderr(&done));
+    let said = format!("{}{}", stdout(&done), stderr(&done));
+    assert!(said.contains("not cut: 1 ×"), "{said}");
+    assert!(
+        said.contains("[color.\"#008000\"] sets no contour"),
+        "{said}"
+    );
+    assert!(!said.contains("[color.\"#FF0000\"]"), "{said}");
+}
+
+#[test]
 fn gauge_writes_g_code_with_its_spiral_centre_where_asked() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("gauge.gcode");
-    let done = kerfmeter(&["--json", "gauge", "-o", path(&out), "--at-mm", "120,40"]);
+    // Without cut settings it is refused: the kerf it measures depends on them.
+    let refused = kerfmeter(&["gauge", "-o", path(&out), "--at-mm", "120,40"]);
+    assert_eq!(code(&refused), 2, "{}", stderr(&refused));
+    assert!(
+        stderr(&refused).contains("--feed-mm-per-min"),
+        "{}",
+        stderr(&refused)
+    );
+    assert!(!out.exists());
+    let done = kerfmeter(&[
+        "--json",
+        "gauge",
+        "-o",
+        path(&out),
+        "--at-mm",
+        "120,40",
+        "--feed-mm-per-min",
+        "400",
+        "--power-percent",
+        "90",
+    ]);
     assert_eq!(code(&done), 0, "{}", stderr(&done));
     let report: serde_json::Value = serde_json::from_str(&stdout(&done)).unwrap();
     assert_eq!(report["format"], "gcode");
@@ -823,4 +900,8 @@ fn gauge_writes_g_code_with_its_spiral_centre_where_asked() {
     let svg = dir.path().join("gauge.svg");
     let refused = kerfmeter(&["gauge", "-o", path(&svg), "--at-mm", "1,2"]);
     assert_eq!(code(&refused), 2);
+    // Nor --s-max: silently ignoring it would hide a mistake.
+    let refused = kerfmeter(&["gauge", "-o", path(&svg), "--s-max", "255"]);
+    assert_eq!(code(&refused), 2, "{}", stderr(&refused));
+    assert!(!svg.exists());
 }

@@ -106,6 +106,37 @@ fn a_greedy_sender_is_caught_by_the_twin() {
 }
 
 #[test]
+fn a_program_for_another_s_max_is_refused_before_anything_is_sent() {
+    // A diode laser with $30=255: a program written for S max 1000 would fire "25 %" at 98 %.
+    let mut cutter = sim(SimCutterOptions {
+        max_power_s: 255.0,
+        ..SimCutterOptions::default()
+    });
+    assert_eq!(cutter.settings().get(&30), Some(&255.0));
+    let program = format!(
+        "(S_MAX=1000 must equal GRBL setting 30)\n{}",
+        squares(10, 1)
+    );
+    let error = stream(&mut cutter, &program).unwrap_err();
+    let CutterError::SMaxMismatch {
+        program: 1000.0,
+        ref controller,
+    } = error
+    else {
+        panic!("{error}");
+    };
+    assert_eq!(controller, "255");
+    let message = error.to_string();
+    assert!(message.contains("--s-max 255"), "{message}");
+    let record = log(&cutter).snapshot();
+    assert!(record.segments.is_empty(), "{:?}", record.segments);
+    // The same program declaring the controller's S max is cut.
+    let program = program.replace("S_MAX=1000", "S_MAX=255");
+    stream(&mut cutter, &program).unwrap();
+    assert!(!log(&cutter).snapshot().segments.is_empty());
+}
+
+#[test]
 fn a_refused_line_is_found_by_the_check_pass_before_anything_moves() {
     // The 7th G-code line (file line 8: the first is a comment) gets error:33.
     let mut cutter = sim(SimCutterOptions {

@@ -5,7 +5,9 @@
 //! without parsing text ([`Program::traced`]); [`Program::to_text`] then writes it out.
 //!
 //! **What the text looks like.** Header comments (tool and version, source, kerf applied,
-//! profile, placement), then `G21` (mm), `G90` (absolute) and `M5` (laser off). Each contour is:
+//! profile, the `S` of full power as `(S_MAX=…)`, GRBL settings needed, placement), then
+//! `G17 G21 G90 G94` (XY plane, mm, absolute, feed per minute: whatever a startup block or an
+//! interrupted job left) and `M5` (laser off). Each contour is:
 //! a comment with its settings and name, `G0` to its start, `F` (its feed), `M4 S…` (laser on,
 //! dynamic power), its `G1` lines and `G2`/`G3` arcs (`I`/`J` centre offsets, relative to the
 //! arc's start as GRBL's default `G91.1` says) — every pass in a row, the contour being closed —
@@ -17,9 +19,15 @@
 //! speed, so corners and accelerations are not over-burnt) is given only right before a
 //! contour's first cut move.
 //!
-//! **GRBL settings assumed.** `$32=1` (laser mode: `M4` and `S` changes do not stop motion,
-//! `G0` is laser-off) and `$30` = the `S` of full power (1000 by default; `--s-max` when the
-//! controller differs). Power is written as `S = power_percent / 100 · $30`.
+//! **GRBL settings assumed.** `$32=1` (laser mode: `S` changes do not stop motion — `M3`/`M4`/
+//! `M5` do wait for it —, `G0` is laser-off) and `$30` = the `S` of full power (1000 by default;
+//! `--s-max` when the controller differs). Power is written as `S = power_percent / 100 · $30`;
+//! the header declares that `S` max (`(S_MAX=1000 …)`, [`S_MAX_TAG`]) and the GRBL driver
+//! refuses the program on a controller whose `$30` differs (on `$30=255`, "25 %" would be 98 %).
+//!
+//! **Accuracy.** The 5 µm criterion below is about the *commanded* path. GRBL cuts each arc as
+//! chords that stay within `$12` (0.002 mm by default) inside the curve, and a real machine moves
+//! in steps of `1/$100` mm: keep `$12` at most 0.002 mm (0.001 recommended).
 //!
 //! **Coordinates.** Plan units are mm. The machine's y axis points up (away from the operator on
 //! most cutters, origin front-left). [`Mapping::for_plan`] puts the lower-left corner of the
@@ -35,10 +43,13 @@
 //! the written centre: the written geometry is within 0.2 µm of the typed one, and an arc's end
 //! radius matches its start radius far inside GRBL's 5 µm check (error 33). A segment whose
 //! written ends coincide is dropped (GRBL would read an arc with equal ends as a full circle),
-//! an arc of more than half a turn is split in two, and an arc whose sagitta is under 0.05 µm is
-//! written as a line. Lines stay under 70 characters (GRBL's line buffer is 80, and a
+//! an arc of more than half a turn is split in two, an arc whose sagitta is under 0.05 µm is
+//! written as a line, and an arc of radius over 2 m (near-straight biarcs from splines, Béziers
+//! or DXF bulges) as lines whose sagitta is at most 0.25 µm: GRBL's float32 arc maths loses
+//! micrometres at such radii. Coordinates beyond 10 m are refused. Lines stay under 70 characters (GRBL's line buffer is 80, and a
 //! character-counting streamer needs lines well under its 128-byte receive buffer); comments are
-//! plain ASCII without parentheses.
+//! plain ASCII without parentheses, GRBL's realtime characters (`?`, `!`, `~`), `;` or `$`, and
+//! long header text is wrapped onto more lines rather than cut off.
 //!
 //! **Cutting order** ([`cut_order`]): a contour is cut only after every contour inside it, so a
 //! part's holes (and any island in a hole, and the island's own holes) are cut before the outline
@@ -47,7 +58,9 @@
 //! and it starts at that vertex. The candidates' bounding boxes are kept in an R-tree (`rstar`),
 //! updated as contours are cut and become free, and searched in order of distance until a box is
 //! farther than the best vertex found: about O(n log n + V) for n contours of V vertices in all
-//! (`cargo bench -p kerfmeter-plan --bench gcode`).
+//! (`cargo bench -p kerfmeter-plan --bench gcode`). The worst case is a large contour whose box
+//! holds the head at every step (a comb part with many holes): its V vertices are scanned each
+//! time, O(n·V).
 //!
 //! The cutter twin (a GRBL-speaking simulated cutter, written separately) is to replay this text
 //! end to end; the tests here check the typed program and the written numbers.
@@ -62,7 +75,7 @@ use serde::Serialize;
 use crate::dilate::{self, Contour};
 use crate::error::{PlanError, Result};
 use crate::gauge::GaugeDrawing;
-use crate::geom::{Pline, V2, arc_geom, area_and_centroid, v2};
+use crate::geom::{ArcGeom, Pline, V2, arc_geom, area_and_centroid, v2};
 use crate::outcome::CutPath;
 use crate::profile::{CutSettings, Profile};
 
@@ -72,8 +85,21 @@ pub const DEFAULT_S_MAX: f64 = 1000.0;
 const UNITS_PER_MM: f64 = 10_000.0;
 /// Arcs whose sagitta is below this are written as lines, mm.
 const MIN_SAGITTA_MM: f64 = 5e-5;
+/// Arcs of a larger radius are written as chords (GRBL computes arcs in float32: at 125 m
+/// radius its angle step alone moves the path by ~8 µm), mm.
+const MAX_ARC_RADIUS_MM: f64 = 2_000.0;
+/// The largest sagitta of those chords, mm (0.25 µm).
+const CHORD_SAGITTA_MM: f64 = 2.5e-4;
 /// Comments are cut to this many characters (the line stays within GRBL's buffer).
-const MAX_COMMENT: usize = 60;
+const MAX_COMMENT_CHARS: usize = 60;
+/// The modal state every program sets before it moves: XY plane (`G17`: a `G18`/`G19` left by a
+/// startup block or an interrupted job would cut arcs in another plane), mm, absolute, feed in
+/// units per minute (`G94`: under `G93` every `G1` is refused).
+const PREAMBLE: &str = "G17 G21 G90 G94\n";
+/// The header comment that declares the `S` of full power a program assumes:
+/// `(S_MAX=1000 must equal GRBL setting 30)`. The GRBL driver reads it and refuses a program
+/// whose value differs from the controller's `$30`.
+pub const S_MAX_TAG: &str = "S_MAX=";
 
 /// One operation of a program. Coordinates are machine mm.
 #[derive(Debug, Clone, PartialEq)]
@@ -120,7 +146,7 @@ pub enum Op {
 pub struct Program {
     /// Header comment lines.
     pub header: Vec<String>,
-    /// The operations, after `G21` and `G90`.
+    /// The operations, after the preamble (`G17 G21 G90 G94`).
     pub ops: Vec<Op>,
 }
 
@@ -246,19 +272,19 @@ impl Default for GcodeOptions {
 impl GcodeOptions {
     /// Check the values.
     pub fn check(&self) -> Result<()> {
-        if !(self.s_max.is_finite() && self.s_max > 0.0 && self.s_max <= 100_000.0) {
+        if !(self.s_max.is_finite() && self.s_max >= 1.0 && self.s_max <= 100_000.0) {
             return Err(PlanError::InvalidArgument(format!(
-                "the maximum S ($30) must be above 0 and at most 100000, got {}",
+                "the maximum S ($30) must be 1 to 100000, got {}",
                 self.s_max
             )));
         }
         if !self
             .origin_mm
             .iter()
-            .all(|x| x.is_finite() && x.abs() < 1e5)
+            .all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE_MM)
         {
             return Err(PlanError::InvalidArgument(format!(
-                "the placement must be finite mm within ±100000, got {:?}",
+                "the placement must be finite mm within ±{MAX_COORDINATE_MM}, got {:?}",
                 self.origin_mm
             )));
         }
@@ -298,12 +324,12 @@ pub fn plan_program(
     } else {
         "box lower-left at"
     };
-    let header = header_lines(provenance, &profile.describe(), placed, options);
+    let header = header_lines(provenance, &profile.entries(), placed, options);
     Ok((build(cut_order(jobs)?, header, options.s_max), mapping))
 }
 
-/// Largest machine coordinate accepted, mm (a sanity bound: 100 m).
-const MAX_COORDINATE_MM: f64 = 100_000.0;
+/// Largest machine coordinate accepted, mm (a sanity bound: 10 m, beyond any laser's bed).
+const MAX_COORDINATE_MM: f64 = 10_000.0;
 
 /// Refuse a plan that does not fit any cutter once placed (it would also overflow the written
 /// numbers).
@@ -365,38 +391,59 @@ pub fn gauge_program(
         .collect();
     let header = header_lines(
         provenance,
-        &settings.to_string(),
+        &[settings.to_string()],
         "spiral centre at",
         options,
     );
     Ok((build(cut_order(jobs)?, header, options.s_max), mapping))
 }
 
-/// The header comments; `placed` says what goes to `options.origin_mm`.
+/// The header comments; `placed` says what goes to `options.origin_mm`. A long source name and
+/// each settings entry get lines of their own, so that nothing is cut off.
 fn header_lines(
     provenance: &Provenance,
-    profile: &str,
+    settings: &[String],
     placed: &str,
     options: &GcodeOptions,
 ) -> Vec<String> {
-    vec![
+    let mut lines = vec![format!(
+        "kerfmeter {} G-code for GRBL 1.1 laser mode",
+        env!("CARGO_PKG_VERSION")
+    )];
+    lines.extend(wrapped("source: ", &provenance.source));
+    lines.extend(wrapped("kerf applied: ", &provenance.kerf));
+    for entry in settings {
+        lines.extend(wrapped("settings: ", entry));
+    }
+    lines.extend([
         format!(
-            "kerfmeter {} G-code for GRBL 1.1 laser mode",
-            env!("CARGO_PKG_VERSION")
-        ),
-        format!("source: {}", provenance.source),
-        format!("kerf applied: {}", provenance.kerf),
-        format!("settings: {profile}"),
-        format!(
-            "S max {} is $30; needs $32=1 laser mode",
+            "{S_MAX_TAG}{} must equal GRBL setting 30",
             fmt_plain(options.s_max)
         ),
+        "needs GRBL setting 32=1 laser mode".into(),
+        "arc tolerance setting 12 at most 0.002 mm, 0.001 better".into(),
         format!(
             "{placed} X{} Y{} mm",
             fmt_plain(options.origin_mm[0]),
             fmt_plain(options.origin_mm[1])
         ),
-    ]
+    ]);
+    lines
+}
+
+/// `prefix` and `text` as comment lines of at most [`MAX_COMMENT_CHARS`], continued lines
+/// indented.
+fn wrapped(prefix: &str, text: &str) -> Vec<String> {
+    let chars: Vec<char> = format!("{prefix}{text}").chars().collect();
+    let mut lines = vec![chars.iter().take(MAX_COMMENT_CHARS).collect::<String>()];
+    for chunk in chars
+        .get(MAX_COMMENT_CHARS..)
+        .unwrap_or_default()
+        .chunks(MAX_COMMENT_CHARS - 2)
+    {
+        lines.push(format!("  {}", chunk.iter().collect::<String>()));
+    }
+    lines
 }
 
 /// `x` with up to 4 decimals, trailing zeros dropped.
@@ -407,6 +454,12 @@ fn fmt_plain(x: f64) -> String {
 /// The order to cut `jobs` in (see the module doc), each closed contour starting at its chosen
 /// vertex; the head starts at the machine origin.
 pub fn cut_order(jobs: Vec<Job>) -> Result<Vec<Job>> {
+    if let Some(empty) = jobs.iter().find(|j| j.pline.extents().is_none()) {
+        return Err(PlanError::InvalidArgument(format!(
+            "{} has no extent: it cannot be cut",
+            empty.label
+        )));
+    }
     let parent = parents(&jobs)?;
     let mut waiting = vec![0usize; jobs.len()];
     for p in parent.iter().flatten() {
@@ -435,6 +488,18 @@ pub fn cut_order(jobs: Vec<Job>) -> Result<Vec<Job>> {
                 tree.insert(entry);
             }
         }
+    }
+    if order.len() != jobs.len() {
+        let left: Vec<&str> = (0..jobs.len())
+            .filter(|i| !order.iter().any(|(j, _)| j == i))
+            .map(|i| jobs[i].label.as_str())
+            .collect();
+        return Err(PlanError::InvalidArgument(format!(
+            "{} contour{} could not be placed in the cutting order (empty or degenerate): {}",
+            left.len(),
+            if left.len() == 1 { "" } else { "s" },
+            left.join(", ")
+        )));
     }
     let mut slots: Vec<Option<Job>> = jobs.into_iter().map(Some).collect();
     Ok(order
@@ -561,12 +626,32 @@ fn segment_ops(from: V2, to: V2, bulge: f64, ops: &mut Vec<Op>) {
     let sagitta = arc.radius * (1.0 - (arc.sweep / 2.0).cos());
     if sagitta < MIN_SAGITTA_MM {
         ops.push(Op::Line { to });
+    } else if arc.radius > MAX_ARC_RADIUS_MM {
+        chord_ops(from, to, &arc, ops);
     } else {
         ops.push(Op::Arc {
             to,
             center: arc.center,
             clockwise: bulge < 0.0,
         });
+    }
+}
+
+/// A large-radius arc as chords whose sagitta is at most [`CHORD_SAGITTA_MM`].
+fn chord_ops(from: V2, to: V2, arc: &ArcGeom, ops: &mut Vec<Op>) {
+    let max_sweep = 2.0 * (1.0 - CHORD_SAGITTA_MM / arc.radius).acos();
+    let n = (arc.sweep.abs() / max_sweep).ceil().clamp(1.0, 1e6) as usize;
+    let mut last = grid(from);
+    for k in 1..n {
+        let angle = arc.start_angle + arc.sweep * k as f64 / n as f64;
+        let p = arc.center + v2(angle.cos(), angle.sin()).scale(arc.radius);
+        if grid(p) != last {
+            ops.push(Op::Line { to: p });
+            last = grid(p);
+        }
+    }
+    if grid(to) != last {
+        ops.push(Op::Line { to });
     }
 }
 
@@ -591,7 +676,9 @@ fn fmt_units(u: i64) -> String {
     format!("{sign}{int}.{}", digits.trim_end_matches('0'))
 }
 
-/// A comment's text as GRBL takes it: printable ASCII, no parentheses, not too long.
+/// A comment's text as GRBL takes it: printable ASCII, no parentheses, not too long. GRBL acts
+/// on its realtime characters (`?`, `!`, `~`) even inside a comment, and a sender may stop at `;`
+/// or take `$` for a system command: those, and anything not ASCII, become `_`.
 fn comment_text(s: &str) -> String {
     s.replace('%', "pct")
         .chars()
@@ -599,10 +686,11 @@ fn comment_text(s: &str) -> String {
             '(' => '[',
             ')' => ']',
             'µ' => 'u',
+            '?' | '!' | '~' | ';' | '$' => '_',
             c if c.is_ascii_graphic() || c == ' ' => c,
-            _ => '?',
+            _ => '_',
         })
-        .take(MAX_COMMENT)
+        .take(MAX_COMMENT_CHARS)
         .collect()
 }
 
@@ -655,7 +743,7 @@ impl Program {
         for h in &self.header {
             let _ = writeln!(out, "({})", comment_text(h));
         }
-        out.push_str("G21\nG90\n");
+        out.push_str(PREAMBLE);
         let mut head = (0i64, 0i64);
         for op in &self.ops {
             match op {

@@ -25,7 +25,9 @@
 //! `passes` is 1 when not given. Power is a percentage of the controller's maximum `S` (GRBL's
 //! `$30`, see [`crate::gcode`]). A contour whose colour and layer no entry names, with no
 //! `[default]`, is refused: the message lists every such colour and layer, so that nothing is
-//! cut with settings the user did not choose.
+//! cut with settings the user did not choose. Two entries naming the same colour (`red` and
+//! `"#ff0000"`) or layer (`Inner` and `inner`) are refused, and [`Profile::unused`] lists the
+//! entries that set no contour.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -39,6 +41,10 @@ use crate::rules::Rgb;
 
 /// Largest feed accepted, mm/min (a sanity bound well above any laser cutter's).
 pub const MAX_FEED_MM_PER_MIN: f64 = 100_000.0;
+/// Smallest feed accepted, mm/min (smaller feeds would be written as `F0`).
+pub const MIN_FEED_MM_PER_MIN: f64 = 1.0;
+/// Smallest power accepted, percent (with `S` max at least 1, `S` is never written as `S0`).
+pub const MIN_POWER_PERCENT: f64 = 0.01;
 /// Largest number of passes accepted.
 pub const MAX_PASSES: u32 = 100;
 
@@ -64,20 +70,20 @@ impl CutSettings {
     pub fn check(&self, what: &str) -> Result<()> {
         let bad = |m: String| Err(PlanError::InvalidArgument(format!("{what}: {m}")));
         if !(self.feed_mm_per_min.is_finite()
-            && self.feed_mm_per_min > 0.0
+            && self.feed_mm_per_min >= MIN_FEED_MM_PER_MIN
             && self.feed_mm_per_min <= MAX_FEED_MM_PER_MIN)
         {
             return bad(format!(
-                "the feed must be above 0 and at most {MAX_FEED_MM_PER_MIN} mm/min, got {}",
+                "the feed must be {MIN_FEED_MM_PER_MIN} to {MAX_FEED_MM_PER_MIN} mm/min, got {}",
                 self.feed_mm_per_min
             ));
         }
         if !(self.power_percent.is_finite()
-            && self.power_percent > 0.0
+            && self.power_percent >= MIN_POWER_PERCENT
             && self.power_percent <= 100.0)
         {
             return bad(format!(
-                "the power must be above 0 and at most 100 %, got {}",
+                "the power must be {MIN_POWER_PERCENT} to 100 %, got {}",
                 self.power_percent
             ));
         }
@@ -143,13 +149,23 @@ impl Profile {
         if let Some(d) = &file.default {
             d.check("[default]")?;
         }
-        let mut by_color = Vec::new();
+        let mut by_color: Vec<(Rgb, CutSettings)> = Vec::new();
+        let mut color_names: Vec<String> = Vec::new();
         for (name, s) in file.color {
             s.check(&format!("[color.\"{name}\"]"))?;
-            by_color.push((Rgb::parse(&name)?, s));
+            let rgb = Rgb::parse(&name)?;
+            if let Some(i) = by_color.iter().position(|(c, _)| *c == rgb) {
+                return Err(same_entry("color", &color_names[i], &name));
+            }
+            by_color.push((rgb, s));
+            color_names.push(name);
         }
-        for (name, s) in &file.layer {
+        let names: Vec<&String> = file.layer.keys().collect();
+        for (i, (name, s)) in file.layer.iter().enumerate() {
             s.check(&format!("[layer.\"{name}\"]"))?;
+            if let Some(other) = names[..i].iter().find(|n| n.eq_ignore_ascii_case(name)) {
+                return Err(same_entry("layer", other, name));
+            }
         }
         Ok(Profile {
             default: file.default,
@@ -214,8 +230,48 @@ impl Profile {
         Ok(settings.into_iter().flatten().collect())
     }
 
-    /// The profile in a few words (for the G-code header).
+    /// The entries that choose the settings of none of `cuts`, as written in a profile file
+    /// (`[layer."…"]`, `[color."#…"]`): a misspelt layer, a colour the cut rules leave out (a
+    /// profile entry does not make its colour a cut), or a colour every contour of which a layer
+    /// entry takes.
+    pub fn unused(&self, cuts: &[CutPath]) -> Vec<String> {
+        let layer_entry = |layer: Option<&str>| {
+            layer.and_then(|l| {
+                self.by_layer
+                    .iter()
+                    .position(|(n, _)| n.eq_ignore_ascii_case(l))
+            })
+        };
+        let mut unused = Vec::new();
+        for (i, (name, _)) in self.by_layer.iter().enumerate() {
+            if !cuts
+                .iter()
+                .any(|c| layer_entry(c.group.layer.as_deref()) == Some(i))
+            {
+                unused.push(format!("[layer.\"{name}\"]"));
+            }
+        }
+        for (i, (rgb, _)) in self.by_color.iter().enumerate() {
+            let chosen = |c: &CutPath| {
+                layer_entry(c.group.layer.as_deref()).is_none()
+                    && c.group.color.is_some_and(|cc| {
+                        self.by_color.iter().position(|(r, _)| *r == cc) == Some(i)
+                    })
+            };
+            if !cuts.iter().any(chosen) {
+                unused.push(format!("[color.\"{rgb}\"]"));
+            }
+        }
+        unused
+    }
+
+    /// The profile in a few words.
     pub fn describe(&self) -> String {
+        self.entries().join("; ")
+    }
+
+    /// Each entry in a few words (one G-code header line each).
+    pub fn entries(&self) -> Vec<String> {
         let mut parts: Vec<String> = Vec::new();
         for (name, s) in &self.by_layer {
             parts.push(format!("layer {name}: {s}"));
@@ -226,8 +282,16 @@ impl Profile {
         if let Some(d) = &self.default {
             parts.push(format!("default: {d}"));
         }
-        parts.join("; ")
+        parts
     }
+}
+
+/// Two entries that name the same colour or layer (`red` and `#ff0000`, `Inner` and `inner`):
+/// which one applies would be a guess.
+fn same_entry(table: &str, a: &str, b: &str) -> PlanError {
+    PlanError::InvalidArgument(format!(
+        "[{table}.\"{a}\"] and [{table}.\"{b}\"] name the same {table}: keep one"
+    ))
 }
 
 #[cfg(test)]
@@ -271,11 +335,51 @@ power_percent = 90
     }
 
     #[test]
+    fn entries_that_choose_no_contour_are_reported() {
+        let p = Profile::from_toml(PROFILE).unwrap();
+        let cut = |color, layer| CutPath {
+            pline: crate::geom::Pline::new_closed(),
+            label: "c".into(),
+            group: group(color, layer),
+        };
+        // Red on layer "inner" takes the layer entry; blue on a misspelt layer takes blue's.
+        let cuts = [
+            cut(Some(Rgb::RED), Some("inner")),
+            cut(Some(Rgb::BLUE), Some("Iner")),
+        ];
+        assert_eq!(p.unused(&cuts), ["[color.\"#FF0000\"]"]);
+        assert_eq!(
+            p.unused(&cuts[1..]),
+            ["[layer.\"Inner\"]", "[color.\"#FF0000\"]"]
+        );
+        let all = [
+            cut(Some(Rgb::RED), None),
+            cut(Some(Rgb::BLUE), None),
+            cuts[0].clone(),
+        ];
+        assert!(p.unused(&all).is_empty(), "{:?}", p.unused(&all));
+    }
+
+    #[test]
     fn bad_profiles_are_refused_with_the_entry_named() {
         let e = Profile::from_toml("[color.red]\nfeed_mm_per_min = 0\npower_percent = 50\n")
             .unwrap_err()
             .to_string();
         assert!(e.contains("[color.\"red\"]") && e.contains("feed"), "{e}");
+        for twice in [
+            "[color.red]\nfeed_mm_per_min = 1\npower_percent = 5\n[color.\"#ff0000\"]\nfeed_mm_per_min = 2\npower_percent = 5\n",
+            "[layer.Inner]\nfeed_mm_per_min = 1\npower_percent = 5\n[layer.inner]\nfeed_mm_per_min = 2\npower_percent = 5\n",
+        ] {
+            let e = Profile::from_toml(twice).unwrap_err().to_string();
+            assert!(e.contains("name the same"), "{e}");
+        }
+        // A feed that would be written as F0 is refused.
+        let tiny = CutSettings {
+            feed_mm_per_min: 0.00004,
+            power_percent: 50.0,
+            passes: 1,
+        };
+        assert!(tiny.check("x").is_err());
         let e = Profile::from_toml("[color.red]\nfeed = 10\n")
             .unwrap_err()
             .to_string();

@@ -24,6 +24,8 @@ pub struct CutterOptions {
     pub laser_mode: bool,
     /// Boot in the alarm state, as a machine with homing enabled does (`$X` unlocks it).
     pub boot_in_alarm: bool,
+    /// `$30` at boot: the `S` of full power (GRBL's default 1000; many diode lasers use 255).
+    pub max_power_s: f64,
     /// Trip a hard limit (`ALARM:1`) after this much motion time, ms.
     pub hard_limit_after_ms: Option<u64>,
     /// Answer the Nth G-code line since boot (1 = the first) with `error:` this code.
@@ -39,6 +41,7 @@ impl Default for CutterOptions {
         Self {
             laser_mode: true,
             boot_in_alarm: false,
+            max_power_s: 1000.0,
             hard_limit_after_ms: None,
             error_on_line: None,
             kerf: CutterKerf::default(),
@@ -122,7 +125,7 @@ impl Grbl {
             rx: VecDeque::with_capacity(RX_BUFFER_LEN),
             raw_line: String::new(),
             pending: None,
-            settings: Settings::new(options.laser_mode),
+            settings: Settings::new(options.laser_mode, options.max_power_s),
             modal: Modal::default(),
             plan_pos: [0.0; 3],
             queue: VecDeque::new(),

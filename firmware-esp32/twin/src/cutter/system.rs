@@ -60,10 +60,11 @@ const DEFAULTS: [(u16, f64); 34] = [
 pub(super) struct Settings(BTreeMap<u16, f64>);
 
 impl Settings {
-    /// Stock settings, with laser mode as given.
-    pub fn new(laser_mode: bool) -> Self {
+    /// Stock settings, with laser mode and the `S` of full power as given.
+    pub fn new(laser_mode: bool, max_power_s: f64) -> Self {
         let mut map: BTreeMap<u16, f64> = DEFAULTS.into_iter().collect();
         map.insert(LASER_MODE, if laser_mode { 1.0 } else { 0.0 });
+        map.insert(MAX_POWER, max_power_s);
         Self(map)
     }
 

@@ -104,6 +104,7 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
             cutter.version()
         );
     }
+    cutter.check_s_max(&program)?;
     let bar = stream_bar(g.json);
     let report = cutter.stream_prepared(lines, &cancel, &mut |p| show(&bar, p));
     bar.finish_and_clear();

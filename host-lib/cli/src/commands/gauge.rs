@@ -3,16 +3,17 @@
 //! the arguments into their options, writes the file atomically and reports what it drew.
 //!
 //! As G-code the gauge is not dilated (the kerf is what it measures), its spiral centre is put at
-//! `--at-mm` (default: the drawing's lower-left corner at the machine origin), and it is cut with
-//! [`GAUGE_SETTINGS`] unless the cut-setting flags say otherwise. Cut it with the job's own
-//! settings: the kerf depends on them.
+//! `--at-mm` (default: the drawing's lower-left corner at the machine origin), and the cut-setting
+//! flags are required: the kerf it measures depends on them, so it must be cut with the job's own
+//! settings, and a silent default would measure another kerf than the job's. The refusal suggests
+//! [`GAUGE_SETTINGS`] as a first try when no job settings exist yet.
 
 use std::fmt;
 use std::path::PathBuf;
 
 use kerfmeter::files::write_atomically;
 use kerfmeter_plan::gauge::{self, GaugeDrawing, GaugeOptions, TestPieceSpec};
-use kerfmeter_plan::gcode::{GcodeOptions, ProgramStats, Provenance, gauge_program};
+use kerfmeter_plan::gcode::{DEFAULT_S_MAX, GcodeOptions, ProgramStats, Provenance, gauge_program};
 use kerfmeter_plan::profile::CutSettings;
 use kerfmeter_plan::{PlanError, PlanFormat};
 use kerfmeter_protocol::{GaugeGeometry, JamDirection};
@@ -24,7 +25,8 @@ use crate::output::{JsonLayout, Report};
 
 type Result<T, E = CliError> = std::result::Result<T, E>;
 
-/// How the gauge is cut when the flags do not say: slow and at full power, one pass.
+/// A first try for cutting the gauge when no job settings exist yet (suggested, never used
+/// silently): slow and at full power, one pass.
 pub const GAUGE_SETTINGS: CutSettings = CutSettings {
     feed_mm_per_min: 300.0,
     power_percent: 100.0,
@@ -75,7 +77,7 @@ impl From<JamDirectionArg> for JamDirection {
 /// `kerfmeter gauge`: write the spiral gauge to cut.
 #[derive(Debug, Clone, clap::Args)]
 pub struct GaugeArgs {
-    /// Output file: .svg or .dxf.
+    /// Output file: .svg, .dxf or .gcode.
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Spiral pitch c, µm of radius per degree of turn.
@@ -119,7 +121,8 @@ pub struct GaugeArgs {
     /// lower-left corner at 0,0].
     #[arg(long, value_name = "X,Y", value_parser = parse_xy)]
     pub at_mm: Option<[f64; 2]>,
-    /// G-code: how to cut the gauge [default: 300 mm/min, 100 %, 1 pass].
+    /// G-code: how to cut the gauge (required: the job's own settings, since the kerf depends on
+    /// them).
     #[command(flatten)]
     pub cut: CutArgs,
 }
@@ -270,14 +273,17 @@ fn clean(x: f32) -> f64 {
 /// Write the gauge described by `args`.
 pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
     let geometry = args.geometry();
-    let drawing = gauge::build(&geometry, &args.options()?)?;
+    let options = args.options()?;
+    let drawing = gauge::build(&geometry, &options)?;
     let (format, bytes, gcode) = if is_gcode(&args.output) {
         let (text, gcode) = gauge_gcode(args, &drawing)?;
         (GaugeFormat::Gcode, text.into_bytes(), Some(gcode))
     } else {
-        if args.at_mm.is_some() || args.cut.settings()?.is_some() {
+        if args.at_mm.is_some() || args.cut.settings()?.is_some() || args.cut.s_max != DEFAULT_S_MAX
+        {
             return Err(PlanError::InvalidArgument(
-                "--at-mm and the cut settings are for G-code output (a .gcode file)".into(),
+                "--at-mm, --s-max and the cut settings are for G-code output (a .gcode file)"
+                    .into(),
             )
             .into());
         }
@@ -306,7 +312,7 @@ pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
         hole_radius_mm: clean(geometry.hole_radius_mm),
         hole_distance_mm: clean(geometry.hole_distance_mm),
         jam_direction: args.jam_direction,
-        test_piece: args.options()?.test_piece,
+        test_piece: options.test_piece,
         label: args.label,
         gcode,
     })
@@ -314,7 +320,13 @@ pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
 
 /// The gauge's G-code text, and what it cuts where.
 fn gauge_gcode(args: &GaugeArgs, drawing: &GaugeDrawing) -> Result<(String, GaugeGcode)> {
-    let settings = args.cut.settings()?.unwrap_or(GAUGE_SETTINGS);
+    let Some(settings) = args.cut.settings()? else {
+        return Err(PlanError::InvalidArgument(format!(
+            "say how to cut the gauge: --feed-mm-per-min and --power-percent (and --passes) as the job will be cut, since the kerf it measures depends on them (a first try: --feed-mm-per-min {} --power-percent {})",
+            GAUGE_SETTINGS.feed_mm_per_min, GAUGE_SETTINGS.power_percent
+        ))
+        .into());
+    };
     let at_mm = args.at_mm.unwrap_or([drawing.center.x, drawing.center.y]);
     let options = GcodeOptions {
         s_max: args.cut.s_max,

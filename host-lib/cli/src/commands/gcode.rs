@@ -142,7 +142,8 @@ pub struct GcodeReport {
     pub input: PathBuf,
     /// The G-code written.
     pub output: PathBuf,
-    /// The plan's format.
+    /// The plan's format (in JSON: the summary's `format`, not written twice).
+    #[serde(skip)]
     pub format: PlanFormat,
     /// The kerf given, µm (with a map: at the reference cell).
     pub kerf_um: f64,
@@ -156,6 +157,8 @@ pub struct GcodeReport {
     pub mapping: Mapping,
     /// What the program cuts and travels.
     pub program: ProgramStats,
+    /// Profile entries that chose no contour's settings (see `Profile::unused`).
+    pub unused_profile_entries: Vec<String>,
     /// What the dilation found and did.
     #[serde(flatten)]
     pub summary: PlanSummary,
@@ -191,6 +194,15 @@ impl fmt::Display for GcodeReport {
             self.s_max
         )?;
         write_compensation(f, &self.summary)?;
+        for (reason, n) in &self.summary.passed_through {
+            writeln!(f, "  not cut: {n} × {reason}")?;
+        }
+        for entry in &self.unused_profile_entries {
+            writeln!(
+                f,
+                "  warning: the profile's {entry} sets no contour: misspelt, a layer entry takes its contours, or the cut rules leave that colour out (--cut-color)"
+            )?;
+        }
         for n in &self.summary.notes {
             writeln!(f, "  note: {n}")?;
         }
@@ -237,6 +249,7 @@ pub fn run(g: &Global, args: &GcodeArgs) -> Result<GcodeReport> {
     )
     .map_err(|e| e.in_file(&args.input))?;
     write_atomically(&args.output, program.to_text().as_bytes())?;
+    let unused_profile_entries = profile.unused(&cuts);
     Ok(GcodeReport {
         input: args.input.clone(),
         output: args.output.clone(),
@@ -247,6 +260,7 @@ pub fn run(g: &Global, args: &GcodeArgs) -> Result<GcodeReport> {
         s_max: options.s_max,
         mapping,
         program: program.stats(),
+        unused_profile_entries,
         summary,
     })
 }

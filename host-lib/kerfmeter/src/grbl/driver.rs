@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use super::error::CutterError;
 use super::protocol::{
-    MachineState, ProgramLine, Reply, Status, Streamer, parse_reply, prepare,
+    MachineState, ProgramLine, Reply, Status, Streamer, declared_s_max, parse_reply, prepare,
     rx_buffer_from_build_info, window_for,
 };
 use super::transport::{CutterAddress, Link, open_serial, open_tcp};
@@ -20,6 +20,8 @@ mod stop;
 const SOFT_RESET: u8 = 0x18;
 /// `$32`: laser mode.
 const LASER_MODE_SETTING: u16 = 32;
+/// `$30`: the `S` of full power.
+const MAX_POWER_SETTING: u16 = 30;
 /// `$13`: status reports in inches (1) or mm (0).
 const REPORT_INCHES_SETTING: u16 = 13;
 /// While a controller talks without its banner yet (a boot log), the banner is waited for
@@ -352,6 +354,27 @@ impl Cutter {
         Ok(())
     }
 
+    /// Refuse a program that declares ([`declared_s_max`]) another `S` of full power than this
+    /// controller's `$30` (as read at connect): every power in it would be scaled wrong. A
+    /// program that declares none is not checked.
+    pub fn check_s_max(&self, program: &str) -> Result<(), CutterError> {
+        let declared = declared_s_max(program).map_err(|bad| CutterError::BadProgram {
+            line: bad.number,
+            reason: bad.reason,
+        })?;
+        let Some(program_s_max) = declared else {
+            return Ok(());
+        };
+        let controller = self.settings.get(&MAX_POWER_SETTING).copied();
+        if controller.is_some_and(|c| (c - program_s_max).abs() <= 1e-6 * c.abs().max(1.0)) {
+            return Ok(());
+        }
+        Err(CutterError::SMaxMismatch {
+            program: program_s_max,
+            controller: controller.map_or("?".into(), |v| v.to_string()),
+        })
+    }
+
     fn check_laser_mode(&self) -> Result<(), CutterError> {
         let laser_mode = self.settings.get(&LASER_MODE_SETTING);
         if laser_mode == Some(&1.0) || self.options.allow_without_laser_mode {
@@ -505,6 +528,7 @@ impl Cutter {
         cancel: &AtomicBool,
         progress: &mut dyn FnMut(&StreamProgress),
     ) -> Result<StreamReport, CutterError> {
+        self.check_s_max(program)?;
         let lines = prepare(program).map_err(|bad| CutterError::BadProgram {
             line: bad.number,
             reason: bad.reason,
@@ -513,7 +537,8 @@ impl Cutter {
     }
 
     /// [`Cutter::stream`] for a program already cleaned by [`prepare`] (a caller that checked
-    /// it before connecting need not clean it twice). The closing `M5` is numbered one past the
+    /// it before connecting need not clean it twice); the caller checks the raw program with
+    /// [`Cutter::check_s_max`] first, since cleaning drops its header. The closing `M5` is numbered one past the
     /// last line.
     pub fn stream_prepared(
         &mut self,

@@ -86,6 +86,16 @@ pub enum CutterError {
         /// `$32` as read (`?` when absent).
         value: String,
     },
+    /// The program's powers assume another `S` of full power than the controller's `$30`.
+    #[error(
+        "the program was written for S max {program} but the controller's $30 is {controller}: its powers would be wrong (on $30=255, 25 % would fire at 98 %). Write the G-code again with --s-max {controller}, or set $30={program}. Nothing was sent"
+    )]
+    SMaxMismatch {
+        /// The `S` of full power the program declares.
+        program: f64,
+        /// `$30` as read (`?` when absent).
+        controller: String,
+    },
     /// The program has a line that cannot be streamed; nothing was sent.
     #[error("line {line} of the program cannot be sent: {reason}. Nothing was sent")]
     BadProgram {
@@ -228,6 +238,7 @@ impl CutterError {
             | Self::OldVersion { .. }
             | Self::NotIdle { .. }
             | Self::LaserModeOff { .. }
+            | Self::SMaxMismatch { .. }
             | Self::Rejected { .. }
             | Self::CheckRejected { .. }
             | Self::HeldTooLong { .. }

@@ -33,6 +33,42 @@ pub struct BadLine {
     pub reason: String,
 }
 
+/// The header comment by which a program declares the `S` of full power (GRBL's `$30`) its
+/// powers assume: `(S_MAX=1000 must equal GRBL setting 30)`, as `kerfmeter gcode` and
+/// `kerfmeter gauge` write it (kerfmeter-plan's `gcode::S_MAX_TAG`).
+pub const S_MAX_TAG: &str = "(S_MAX=";
+
+/// The `S` of full power a program declares ([`S_MAX_TAG`]), if it declares one. A declaration
+/// without a positive number, or two that disagree, make a bad line.
+pub fn declared_s_max(program: &str) -> Result<Option<f64>, BadLine> {
+    let mut found: Option<f64> = None;
+    for (index, raw) in program.lines().enumerate() {
+        let Some(rest) = raw.trim().strip_prefix(S_MAX_TAG) else {
+            continue;
+        };
+        let number = index + 1;
+        let end = rest
+            .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .unwrap_or(rest.len());
+        let value = rest[..end]
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .ok_or_else(|| BadLine {
+                number,
+                reason: format!("`{}` declares no readable S max", raw.trim()),
+            })?;
+        if let Some(before) = found.filter(|&before| before != value) {
+            return Err(BadLine {
+                number,
+                reason: format!("declares S max {value} after declaring {before}"),
+            });
+        }
+        found = Some(value);
+    }
+    Ok(found)
+}
+
 /// Clean a G-code program into the lines to stream: comments (`;...`, `(...)`), spaces, `%`
 /// delimiters and empty lines go. Refused: characters GRBL would take as realtime commands or
 /// cannot read, `$` system commands (run them on their own, not inside a job), and lines longer
@@ -391,6 +427,12 @@ mod tests {
 
     #[test]
     fn a_program_is_cleaned_and_what_cannot_be_streamed_is_named() {
+        assert_eq!(declared_s_max("G1X1\n"), Ok(None));
+        let header = "(kerfmeter)\n(S_MAX=255 must equal GRBL setting 30)\nG1X1\n";
+        assert_eq!(declared_s_max(header), Ok(Some(255.0)));
+        let twice = format!("{header}(S_MAX=1000)\n");
+        assert_eq!(declared_s_max(&twice).unwrap_err().number, 4);
+        assert_eq!(declared_s_max("(S_MAX=x)").unwrap_err().number, 1);
         let lines = prepare("%\n; header\nG21 G90 (mm)\n\ng1 x1 f600 ; cut\n").unwrap();
         let texts: Vec<_> = lines.iter().map(|l| (l.number, l.text.as_str())).collect();
         assert_eq!(texts, [(3, "G21G90"), (5, "G1X1F600")]);

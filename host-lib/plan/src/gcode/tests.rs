@@ -172,9 +172,9 @@ fn an_svg_with_arcs_is_cut_on_its_dilated_contours_with_the_laser_off_on_every_t
     let first: Vec<&str> = text
         .lines()
         .filter(|l| !l.starts_with('('))
-        .take(3)
+        .take(2)
         .collect();
-    assert_eq!(first, ["G21", "G90", "M5"]);
+    assert_eq!(first, ["G17 G21 G90 G94", "M5"]);
     assert!(text.ends_with("M5\nM2\n"));
 }
 
@@ -314,10 +314,11 @@ const GOLDEN: &str = r#"
 (source: test)
 (kerf applied: 200 um)
 (settings: default: 600 mm/min, 80 pct, 1 pass)
-(S max 1000 is $30; needs $32=1 laser mode)
+(S_MAX=1000 must equal GRBL setting 30)
+(needs GRBL setting 32=1 laser mode)
+(arc tolerance setting 12 at most 0.002 mm, 0.001 better)
 (SVG y flipped, box lower-left at X0 Y0 mm)
-G21
-G90
+G17 G21 G90 G94
 M5
 (600 mm/min, 80 pct, 1 pass: circle "hole" [colour #FF0000])
 G0 X10.1 Y6.2
@@ -432,10 +433,39 @@ fn numbers_are_written_on_a_tenth_of_a_micron() {
 }
 
 #[test]
+fn comments_carry_no_realtime_or_sender_characters() {
+    // GRBL acts on ? ! ~ even inside a comment; ; and $ confuse senders.
+    assert_eq!(comment_text("why? stop! ~x; $30 é"), "why_ stop_ _x_ _30 _");
+    let cuts = svg_cuts(ARCS, 0.0);
+    let (prog, _) = program(&cuts, true, &Profile::uniform(SETTINGS).unwrap()).unwrap();
+    let text = prog.to_text();
+    for c in ['?', '!', '~', ';', '$'] {
+        assert!(!text.contains(c), "{c} in\n{text}");
+    }
+    assert!(text.is_ascii());
+}
+
+#[test]
+fn the_header_declares_the_s_max_the_powers_assume() {
+    let options = GcodeOptions {
+        s_max: 255.0,
+        ..GcodeOptions::default()
+    };
+    let cuts = svg_cuts(ARCS, 0.0);
+    let profile = Profile::uniform(SETTINGS).unwrap();
+    let (prog, _) = plan_program(&cuts, true, &profile, &options, &provenance()).unwrap();
+    let text = prog.to_text();
+    let declared = format!("({S_MAX_TAG}255 must equal GRBL setting 30)");
+    assert!(text.lines().any(|l| l == declared), "{text}");
+    assert!(text.contains("M4 S204\n"), "80 % of 255:\n{text}");
+}
+
+#[test]
 fn a_plan_beyond_any_bed_is_refused() {
     let mut huge = svg_cuts(ARCS, 0.0);
     let mut far = Pline::new_closed();
-    for (x, y) in [(0.0, 0.0), (1e6, 0.0), (1e6, 1.0)] {
+    // 20 m: beyond any laser's bed (and GRBL's float32 precision there).
+    for (x, y) in [(0.0, 0.0), (2e4, 0.0), (2e4, 1.0)] {
         far.add(x, y, 0.0);
     }
     huge[0].pline = far;
@@ -443,6 +473,91 @@ fn a_plan_beyond_any_bed_is_refused() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("beyond any cutter's bed"), "{e}");
+    let far_origin = GcodeOptions {
+        origin_mm: [2e4, 0.0],
+        ..GcodeOptions::default()
+    };
+    assert!(far_origin.check().is_err());
+}
+
+#[test]
+fn a_contour_the_order_cannot_place_is_an_error_not_dropped() {
+    let job = |pline: Pline, label: &str| Job {
+        pline,
+        label: label.into(),
+        settings: SETTINGS,
+    };
+    let mut square = Pline::new_closed();
+    for (x, y) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+        square.add(x, y, 0.0);
+    }
+    let e = cut_order(vec![job(square, "ok"), job(Pline::new_closed(), "empty")])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("empty"), "{e}");
+}
+
+#[test]
+fn long_header_text_is_wrapped_not_cut_off() {
+    let source = format!(
+        "/home/someone/{}/plan.svg",
+        "very-long-folder-name".repeat(6)
+    );
+    let provenance = Provenance {
+        source: source.clone(),
+        kerf: "200 um".into(),
+    };
+    let profile = Profile::from_toml(
+        "[default]\nfeed_mm_per_min = 600\npower_percent = 80\n\n[color.blue]\nfeed_mm_per_min = 900\npower_percent = 40\n\n[layer.\"A rather long layer name for inner cuts\"]\nfeed_mm_per_min = 400\npower_percent = 90\n",
+    )
+    .unwrap();
+    let cuts = svg_cuts(ARCS, 0.0);
+    let options = GcodeOptions::default();
+    let (prog, _) = plan_program(&cuts, true, &profile, &options, &provenance).unwrap();
+    let text = prog.to_text();
+    let comments: Vec<&str> = text.lines().filter(|l| l.starts_with('(')).collect();
+    assert!(
+        comments.iter().all(|l| l.len() <= MAX_COMMENT_CHARS + 2),
+        "{text}"
+    );
+    let joined: String = comments
+        .iter()
+        .map(|l| l.trim_matches(['(', ')']).trim_start())
+        .collect();
+    assert!(joined.contains(&source), "{text}");
+    assert!(joined.contains("inner cuts: 400"), "{text}");
+    assert!(joined.contains("mm/min, 90 pct"), "{text}");
+    assert!(joined.contains("#0000FF: 900 mm/min"), "{text}");
+    assert!(joined.contains("default: 600 mm/min"), "{text}");
+}
+
+#[test]
+fn large_radius_arcs_are_written_as_fine_chords() {
+    // A 100 mm chord with a 10 µm sagitta: radius 125 m, where GRBL's float32 arc maths is off
+    // by micrometres.
+    let (from, to) = (v2(0.0, 0.0), v2(100.0, 0.0));
+    let sweep = 2.0 * (50.0f64 / 125_000.0).asin();
+    let bulge = (sweep / 4.0).tan();
+    let arc = arc_geom(from, to, bulge).unwrap();
+    let mut ops = Vec::new();
+    segment_ops(from, to, bulge, &mut ops);
+    assert!(ops.len() > 2, "{ops:?}");
+    let mut head = from;
+    for op in &ops {
+        let Op::Line { to: p } = op else {
+            panic!("not a chord: {op:?}")
+        };
+        assert!(((*p - arc.center).length() - arc.radius).abs() < 1e-4);
+        let mid = (head + *p).scale(0.5);
+        let sagitta = arc.radius - (mid - arc.center).length();
+        assert!(sagitta <= CHORD_SAGITTA_MM + 1e-7, "{sagitta}");
+        head = *p;
+    }
+    assert_eq!(head, to);
+    // A small arc stays an arc.
+    let mut ops = Vec::new();
+    segment_ops(from, v2(2.0, 0.0), 0.5, &mut ops);
+    assert!(matches!(ops[..], [Op::Arc { .. }]), "{ops:?}");
 }
 
 #[test]
