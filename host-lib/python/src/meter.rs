@@ -119,8 +119,13 @@ pub struct PyMeasurement {
 impl PyMeasurement {
     fn __repr__(&self) -> String {
         format!(
-            "Measurement(n={}, mean_um={:.2}, sd_um={:.2}, ci95_um={:?}, outliers={:?})",
-            self.n, self.mean_um, self.sd_um, self.ci95_um, self.outliers
+            "Measurement(n={}, mean_um={:.2}, sd_um={:.2}, ci95_um={}, outliers={:?})",
+            self.n,
+            self.mean_um,
+            self.sd_um,
+            self.ci95_um
+                .map_or_else(|| "None".to_owned(), |ci| format!("{ci:.2}")),
+            self.outliers
         )
     }
 }
