@@ -52,6 +52,11 @@ def test_a_fault_names_itself_with_the_librarys_message():
 def test_bad_arguments_are_refused_before_anything_moves(meter):
     with pytest.raises(kerfmeter.BadArgumentError, match="thickness"):
         meter.run_kerfmeter(thickness_mm=-1)
+    # Also a ValueError, as Python's own functions raise for a bad value.
+    with pytest.raises(ValueError, match="thickness") as caught:
+        meter.run_kerfmeter(thickness_mm=-1)
+    assert isinstance(caught.value, kerfmeter.KerfmeterError)
+    assert kerfmeter.BadArgumentError.__module__ == "kerfmeter"
     with pytest.raises(kerfmeter.BadArgumentError):
         kerfmeter.Kerfmeter.sim(fault="no-such-fault")
     with pytest.raises(kerfmeter.BadArgumentError):

@@ -22,7 +22,7 @@ class DeviceFaultError(DeviceError):
     fault: str
     """The fault's name, e.g. "NoMotion"."""
 
-class BadArgumentError(KerfmeterError):
+class BadArgumentError(KerfmeterError, ValueError):
     """A bad argument or parameter; the message names it and its allowed range."""
 
 class PlanError(KerfmeterError):
