@@ -32,6 +32,10 @@ def test_the_three_calls(meter):
     assert meter.get_kerf_value() is None
 
 
+def test_the_package_says_its_version():
+    assert kerfmeter.__version__.count(".") == 2, kerfmeter.__version__
+
+
 def test_info_and_status_are_dicts(meter):
     assert meter.status()["state"] == "Idle"
     assert "boot_id" in meter.info()
