@@ -18,7 +18,7 @@ use crate::{root, run_cmd};
 /// What the environment is made with.
 const PYTHON: &str = "python3";
 /// The build backend and the test runner; pinned below the next major versions.
-const TOOLS: [&str; 2] = ["maturin>=1.9,<2", "pytest>=7,<10"];
+const TOOLS: [&str; 2] = ["maturin>=1.9.4,<2", "pytest>=7,<10"];
 
 /// The environment's directory.
 fn venv_dir() -> PathBuf {
@@ -34,20 +34,8 @@ pub fn venv_bin(name: &str) -> PathBuf {
 /// already satisfied). Returns its `python`.
 pub fn ensure_venv(packages: &[&str]) -> Result<PathBuf> {
     let python = venv_bin("python");
-    if !python.exists() {
-        let made = Command::new(PYTHON)
-            .arg("-m")
-            .arg("venv")
-            .arg(venv_dir())
-            .status();
-        match made {
-            Ok(s) if s.success() => {}
-            Ok(s) => bail!(
-                "`{PYTHON} -m venv {}` failed ({s}): install Python 3.9+ with its venv module (Debian: apt-get install python3-venv)",
-                venv_dir().display()
-            ),
-            Err(e) => bail!("cannot run {PYTHON} ({e}): install Python 3.9 or later"),
-        }
+    if !has_pip(&python) {
+        make_venv()?;
     }
     if !packages.is_empty() {
         run_cmd(
@@ -64,6 +52,42 @@ pub fn ensure_venv(packages: &[&str]) -> Result<PathBuf> {
         .context("pip could not install the packages (is PyPI reachable?)")?;
     }
     Ok(python)
+}
+
+/// Whether `python` runs and has pip: false for a missing environment and for one left half
+/// made (without Debian's python3-venv, `python3 -m venv` fails after creating `bin/python`).
+fn has_pip(python: &std::path::Path) -> bool {
+    Command::new(python)
+        .args(["-m", "pip", "--version"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// Make the environment afresh (removing a half-made one first); on failure remove what was
+/// made, so that the next run tries again instead of using it.
+fn make_venv() -> Result<()> {
+    let dir = venv_dir();
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir)
+            .with_context(|| format!("cannot remove the broken {}", dir.display()))?;
+    }
+    let made = Command::new(PYTHON)
+        .arg("-m")
+        .arg("venv")
+        .arg(&dir)
+        .status();
+    let failed = match made {
+        Ok(s) if s.success() && has_pip(&venv_bin("python")) => return Ok(()),
+        Ok(s) => format!(
+            "`{PYTHON} -m venv {}` failed ({s}) or made no pip: install Python 3.9+ with its venv module (Debian: apt-get install python3-venv)",
+            dir.display()
+        ),
+        Err(e) => format!("cannot run {PYTHON} ({e}): install Python 3.9 or later"),
+    };
+    let _ = std::fs::remove_dir_all(&dir);
+    bail!(failed)
 }
 
 /// The PATH with the environment's programs first.

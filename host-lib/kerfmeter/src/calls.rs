@@ -156,10 +156,7 @@ impl Kerfmeter {
         let limit = Duration::from_millis(u64::from(params.max_time_ms)) + RUN_SLACK;
         let mut run_id = None;
         self.poll_until(limit, |meter, status| {
-            if progress(&Progress::from(status)).is_break() {
-                meter.abort()?;
-                return Err(Error::Cancelled);
-            }
+            meter.stop_if(status, &mut progress)?;
             let id = *run_id.get_or_insert(status.run_id);
             match status.state {
                 RunState::Done => match meter.get_kerf_value()? {
@@ -193,6 +190,15 @@ impl Kerfmeter {
     /// # Ok::<(), kerfmeter::Error>(())
     /// ```
     pub fn prepare_for_run(&mut self) -> Result<()> {
+        self.prepare_for_run_until(|_| ControlFlow::Continue(()))
+    }
+
+    /// [`Kerfmeter::prepare_for_run`] that the caller can stop during its reset, like
+    /// [`Kerfmeter::reset_kerfmeter_until`].
+    pub fn prepare_for_run_until(
+        &mut self,
+        progress: impl FnMut(&Progress) -> ControlFlow<()>,
+    ) -> Result<()> {
         let status = self.status()?;
         if let RunState::Fault(fault) = status.state {
             return Err(Error::Fault { fault });
@@ -206,7 +212,22 @@ impl Kerfmeter {
             });
         }
         if status.angle_deg.abs() > START_TOLERANCE_DEG || status.state != RunState::Idle {
-            self.reset_kerfmeter()?;
+            self.reset_kerfmeter_until(progress)?;
+        }
+        Ok(())
+    }
+
+    /// When `progress` asks to stop at this `status`: tell the device to abort (its motor
+    /// stops) and end the call with [`Error::Cancelled`], or with the abort's own error if the
+    /// abort failed.
+    fn stop_if(
+        &mut self,
+        status: &Status,
+        progress: &mut impl FnMut(&Progress) -> ControlFlow<()>,
+    ) -> Result<()> {
+        if progress(&Progress::from(status)).is_break() {
+            self.abort()?;
+            return Err(Error::Cancelled);
         }
         Ok(())
     }
@@ -298,15 +319,28 @@ impl Kerfmeter {
     /// # Ok::<(), kerfmeter::Error>(())
     /// ```
     pub fn reset_kerfmeter(&mut self) -> Result<()> {
+        self.reset_kerfmeter_until(|_| ControlFlow::Continue(()))
+    }
+
+    /// [`Kerfmeter::reset_kerfmeter`] that the caller can stop: when `progress` returns
+    /// [`ControlFlow::Break`] the device is told to abort and the call ends with
+    /// [`Error::Cancelled`], as in [`Kerfmeter::run_kerfmeter_until`].
+    pub fn reset_kerfmeter_until(
+        &mut self,
+        mut progress: impl FnMut(&Progress) -> ControlFlow<()>,
+    ) -> Result<()> {
         match self.call(Request::Reset)? {
             Response::Ok => {}
             other => return Err(unexpected("Reset", &other)),
         }
-        self.poll_until(RESET_DEADLINE, |_, status| match status.state {
-            RunState::Idle => Ok(Some(())),
-            RunState::Fault(fault) => Err(Error::Fault { fault }),
-            RunState::Resetting => Ok(None),
-            _ => Err(Error::RunInterrupted),
+        self.poll_until(RESET_DEADLINE, |meter, status| {
+            meter.stop_if(status, &mut progress)?;
+            match status.state {
+                RunState::Idle => Ok(Some(())),
+                RunState::Fault(fault) => Err(Error::Fault { fault }),
+                RunState::Resetting => Ok(None),
+                _ => Err(Error::RunInterrupted),
+            }
         })
     }
 
@@ -351,12 +385,25 @@ impl Kerfmeter {
     /// # Ok::<(), kerfmeter::Error>(())
     /// ```
     pub fn self_test(&mut self, mut progress: impl FnMut(&Progress)) -> Result<SelfTestReport> {
+        self.self_test_until(|p| {
+            progress(p);
+            ControlFlow::Continue(())
+        })
+    }
+
+    /// [`Kerfmeter::self_test`] that the caller can stop: when `progress` returns
+    /// [`ControlFlow::Break`] the device is told to abort and the call ends with
+    /// [`Error::Cancelled`], as in [`Kerfmeter::run_kerfmeter_until`].
+    pub fn self_test_until(
+        &mut self,
+        mut progress: impl FnMut(&Progress) -> ControlFlow<()>,
+    ) -> Result<SelfTestReport> {
         match self.call(Request::SelfTest)? {
             Response::Ok => {}
             other => return Err(unexpected("SelfTest", &other)),
         }
-        self.poll_until(SELF_TEST_DEADLINE, |_, status| {
-            progress(&Progress::from(status));
+        self.poll_until(SELF_TEST_DEADLINE, |meter, status| {
+            meter.stop_if(status, &mut progress)?;
             match status.state {
                 RunState::SelfTest => Ok(None),
                 RunState::Fault(fault) => Err(Error::Fault { fault }),

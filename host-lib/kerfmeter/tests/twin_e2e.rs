@@ -220,6 +220,40 @@ fn a_run_stopped_by_its_caller_is_aborted_and_the_motor_left_safe() {
     assert_eq!(meter.get_kerf_value().unwrap(), None);
 }
 
+/// A `progress` that stops the call once the device is in `state`.
+fn stop_in(state: RunState) -> impl FnMut(&kerfmeter::Progress) -> std::ops::ControlFlow<()> {
+    move |p| {
+        if p.state == state {
+            std::ops::ControlFlow::Break(())
+        } else {
+            std::ops::ControlFlow::Continue(())
+        }
+    }
+}
+
+#[test]
+fn a_reset_or_self_test_stopped_by_its_caller_is_aborted() {
+    let (_sim, mut meter) = SimDevice::connect(SimOptions::default(), options()).unwrap();
+    meter.reset_kerfmeter().unwrap();
+    meter.run_kerfmeter(&params(), |_| {}).unwrap();
+    // The hub is far from zero after a run: the reset takes many polls.
+    let err = meter
+        .reset_kerfmeter_until(stop_in(RunState::Resetting))
+        .unwrap_err();
+    assert!(matches!(err, Error::Cancelled), "{err:?}");
+    assert_eq!(meter.status().unwrap().state, RunState::Idle);
+    let err = meter
+        .prepare_for_run_until(stop_in(RunState::Resetting))
+        .unwrap_err();
+    assert!(matches!(err, Error::Cancelled), "{err:?}");
+    meter.reset_kerfmeter().unwrap();
+    let err = meter
+        .self_test_until(stop_in(RunState::SelfTest))
+        .unwrap_err();
+    assert!(matches!(err, Error::Cancelled), "{err:?}");
+    assert_eq!(meter.status().unwrap().state, RunState::Idle);
+}
+
 #[test]
 fn garbage_on_the_line_is_skipped() {
     let (bench, mut meter) = Bench::start(TwinOptions::default());

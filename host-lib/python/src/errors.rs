@@ -1,11 +1,15 @@
 //! The Python exceptions: one base, `KerfmeterError`, and a subclass per kind of failure, each
-//! carrying the library's own message (which says what to do).
+//! carrying the library's own message (which says what to do). `BadArgumentError` is also a
+//! `ValueError`, as Python's own functions raise for a bad value: PyO3's `create_exception!`
+//! takes one base, so that class is made with `type()` when the module is imported.
 
 use kerfmeter::Category;
 use kerfmeter_plan::PlanError as RustPlanError;
 use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyKeyboardInterrupt};
+use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyDict, PyTuple, PyType};
 
 create_exception!(
     kerfmeter,
@@ -31,12 +35,46 @@ create_exception!(
     DeviceError,
     "The device stopped on a fault and latched it; `fault` names it (e.g. \"NoMotion\")."
 );
-create_exception!(
-    kerfmeter,
-    BadArgumentError,
-    KerfmeterError,
-    "A bad argument or parameter; the message names it and its allowed range."
-);
+/// `kerfmeter.BadArgumentError`, a subclass of both `KerfmeterError` and `ValueError`.
+pub struct BadArgumentError;
+
+/// The class, made once.
+static BAD_ARGUMENT: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+
+impl BadArgumentError {
+    /// The class object.
+    fn type_object(py: Python<'_>) -> PyResult<Bound<'_, PyType>> {
+        let ty = BAD_ARGUMENT.get_or_try_init(py, || {
+            let bases = PyTuple::new(
+                py,
+                [
+                    py.get_type::<KerfmeterError>(),
+                    py.get_type::<PyValueError>(),
+                ],
+            )?;
+            let namespace = PyDict::new(py);
+            namespace.set_item(
+                "__doc__",
+                "A bad argument or parameter; the message names it and its allowed range.",
+            )?;
+            namespace.set_item("__module__", "kerfmeter")?;
+            let class = py
+                .get_type::<PyType>()
+                .call1(("BadArgumentError", bases, namespace))?;
+            Ok::<_, PyErr>(class.cast_into::<PyType>()?.unbind())
+        })?;
+        Ok(ty.bind(py).clone())
+    }
+
+    /// The exception with `message`.
+    pub fn new_err(message: impl Into<String>) -> PyErr {
+        let message = message.into();
+        Python::attach(|py| match Self::type_object(py) {
+            Ok(ty) => PyErr::from_type(ty, message),
+            Err(e) => e,
+        })
+    }
+}
 create_exception!(
     kerfmeter,
     PlanError,
@@ -51,7 +89,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("CommunicationError", py.get_type::<CommunicationError>())?;
     m.add("DeviceError", py.get_type::<DeviceError>())?;
     m.add("DeviceFaultError", py.get_type::<DeviceFaultError>())?;
-    m.add("BadArgumentError", py.get_type::<BadArgumentError>())?;
+    m.add("BadArgumentError", BadArgumentError::type_object(py)?)?;
     m.add("PlanError", py.get_type::<PlanError>())?;
     Ok(())
 }

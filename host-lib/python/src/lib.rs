@@ -9,7 +9,9 @@
 //! * **Workspace member.** The crate is built by `cargo build/clippy/doc --workspace` like the
 //!   others, so it cannot drift from the library it binds and shares the workspace's lock file
 //!   and target directory (the wheel build reuses them). PyO3's build script needs a `python3`
-//!   on the PATH (any CPython 3.9 or later; with the stable ABI it links to no libpython). The
+//!   on the PATH for its build configuration (any CPython 3.9 or later). The workspace's
+//!   `.cargo/config.toml` sets `PYO3_BUILD_EXTENSION_MODULE`, as maturin does, so every cargo
+//!   build links the module as an extension, to no libpython (no python3-dev needed). The
 //!   library target has no Rust tests (`test = false`): a test harness would have to link
 //!   libpython; the tests are pytest's, in `host-lib/python/tests/`, run by `cargo xtask test`.
 //! * **The GIL** is released (`Python::detach`) for every call that waits on the device. A long

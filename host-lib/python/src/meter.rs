@@ -4,9 +4,22 @@
 //! Every call that talks to the device runs with the GIL released; the device is behind a mutex
 //! that is only taken with the GIL released, so a thread waiting for it never blocks one that
 //! needs the GIL to report progress.
+//!
+//! A call made on the same meter from inside its own `progress` callback would wait for a mutex
+//! its own thread holds: the meter remembers which thread holds it and refuses such a call
+//! with `KerfmeterError` (`abort()` is the exception: it asks the running call to stop). A call
+//! from another thread waits for the running one, except `abort()`, which raises a stop flag
+//! that the running call sees at its next status poll (and then tells the device to abort).
+//! The port's path is kept outside the mutex so that `repr()` never waits.
+//!
+//! `progress` runs between two status polls, which are also the device's sign that the host is
+//! alive: a callback (or another thread holding the GIL) that takes longer than the device's
+//! host timeout (1 s) makes it stop its motor on the `HostSilent` fault.
 
 use std::ops::ControlFlow;
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::ThreadId;
 use std::time::Duration;
 
 use kerfmeter::protocol::{GaugeGeometry, KerfResult};
@@ -15,7 +28,7 @@ use kerfmeter::{JointSpec, Options, Progress};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::errors::{self, BadArgumentError, CommunicationError};
+use crate::errors::{self, BadArgumentError, CommunicationError, DeviceError, KerfmeterError};
 use crate::to_py;
 
 /// Add the classes to the module.
@@ -106,8 +119,13 @@ pub struct PyMeasurement {
 impl PyMeasurement {
     fn __repr__(&self) -> String {
         format!(
-            "Measurement(n={}, mean_um={:.2}, sd_um={:.2}, ci95_um={:?}, outliers={:?})",
-            self.n, self.mean_um, self.sd_um, self.ci95_um, self.outliers
+            "Measurement(n={}, mean_um={:.2}, sd_um={:.2}, ci95_um={}, outliers={:?})",
+            self.n,
+            self.mean_um,
+            self.sd_um,
+            self.ci95_um
+                .map_or_else(|| "None".to_owned(), |ci| format!("{ci:.2}")),
+            self.outliers
         )
     }
 }
@@ -120,11 +138,40 @@ struct Connected {
 }
 
 /// A Kerfmeter: on a serial port, or the digital twin in this process.
-#[pyclass(name = "Kerfmeter", module = "kerfmeter")]
+#[pyclass(name = "Kerfmeter", module = "kerfmeter", frozen)]
 pub struct PyKerfmeter {
     /// `None` once closed.
     inner: Mutex<Option<Connected>>,
+    /// The thread inside a call (holding `inner`), if any: a call from that same thread is one
+    /// made from a `progress` callback.
+    holder: Mutex<Option<ThreadId>>,
+    /// Raised by `abort()`: the running call stops at its next status poll.
+    stop: AtomicBool,
+    /// The port's path, for `repr()`.
+    path: String,
+    /// Set by `close()`, for `repr()`.
+    closed: AtomicBool,
 }
+
+/// Marks the meter as held by this thread while a call runs; unmarks it when dropped.
+struct Holding<'a>(&'a Mutex<Option<ThreadId>>);
+
+impl<'a> Holding<'a> {
+    fn new(holder: &'a Mutex<Option<ThreadId>>) -> Self {
+        *holder.lock().unwrap_or_else(|e| e.into_inner()) = Some(std::thread::current().id());
+        Self(holder)
+    }
+}
+
+impl Drop for Holding<'_> {
+    fn drop(&mut self) {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner()) = None;
+    }
+}
+
+/// What ended a call that reports progress before the library did: a Python error (Ctrl-C, or
+/// raised by `progress`), or `abort()` from elsewhere.
+type Pending = Option<PyErr>;
 
 /// Client options with a request timeout of `timeout_ms`.
 fn client_options(timeout_ms: u64) -> Options {
@@ -150,19 +197,44 @@ fn run_params(
     joint.run_params(GaugeGeometry::PAPER)
 }
 
-/// Call `progress(state, torque_nm, angle_deg)` if given, after checking for signals (Ctrl-C).
-/// An error (KeyboardInterrupt, or what `progress` raised) stops the run.
+/// Whether the call must stop now: `abort()` was called, or a signal (Ctrl-C) is pending. The
+/// reason goes to `pending`.
+fn interrupted(stop: &AtomicBool, pending: &mut Pending) -> bool {
+    let outcome = if stop.load(Ordering::SeqCst) {
+        Err(Python::attach(|_| {
+            DeviceError::new_err(
+                "stopped by Kerfmeter.abort(); the device aborted it and its motor is stopped",
+            )
+        }))
+    } else {
+        Python::attach(|py| py.check_signals())
+    };
+    match outcome {
+        Ok(()) => false,
+        Err(e) => {
+            *pending = Some(e);
+            true
+        }
+    }
+}
+
+/// Call `progress(state, torque_nm, angle_deg)` if given, after checking for `abort()` and
+/// signals (Ctrl-C). Any of these, or an error raised by `progress`, stops the call.
 fn report(
     progress: Option<&Py<PyAny>>,
+    stop: &AtomicBool,
     p: &Progress,
-    pending: &mut Option<PyErr>,
+    pending: &mut Pending,
 ) -> ControlFlow<()> {
+    if interrupted(stop, pending) {
+        return ControlFlow::Break(());
+    }
+    let Some(f) = progress else {
+        return ControlFlow::Continue(());
+    };
     let outcome = Python::attach(|py| {
-        py.check_signals()?;
-        if let Some(f) = progress {
-            f.call1(py, (format!("{:?}", p.state), p.torque_nm, p.angle_deg))?;
-        }
-        Ok::<(), PyErr>(())
+        f.call1(py, (format!("{:?}", p.state), p.torque_nm, p.angle_deg))
+            .map(drop)
     });
     match outcome {
         Ok(()) => ControlFlow::Continue(()),
@@ -210,48 +282,98 @@ fn sim_options(
 impl PyKerfmeter {
     fn new(meter: kerfmeter::Kerfmeter, sim: Option<SimDevice>) -> Self {
         Self {
+            path: meter.path().to_owned(),
             inner: Mutex::new(Some(Connected { meter, _sim: sim })),
+            holder: Mutex::new(None),
+            stop: AtomicBool::new(false),
+            closed: AtomicBool::new(false),
         }
     }
 
-    /// Run `f` on the client with the GIL released; library errors become Python exceptions.
+    /// Whether this thread is inside a call on this meter (so a new call comes from `progress`).
+    fn held_by_this_thread(&self) -> bool {
+        *self.holder.lock().unwrap_or_else(|e| e.into_inner()) == Some(std::thread::current().id())
+    }
+
+    /// Run `f` on the client with the GIL released and the stop flag cleared. The library's
+    /// result is returned as it is; the outer error is a meter that is closed, or a call made
+    /// from this meter's own `progress` callback (which would otherwise wait for ever).
+    fn with_raw<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut kerfmeter::Kerfmeter) -> kerfmeter::Result<T> + Send,
+    ) -> PyResult<kerfmeter::Result<T>> {
+        if self.held_by_this_thread() {
+            return Err(KerfmeterError::new_err(
+                "a Kerfmeter cannot be called from its own progress callback (only abort() can); \
+                 return from the callback, or raise an exception to stop the run",
+            ));
+        }
+        let outcome = py.detach(|| {
+            let mut guard = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+            let _holding = Holding::new(&self.holder);
+            self.stop.store(false, Ordering::SeqCst);
+            guard.as_mut().map(|c| f(&mut c.meter))
+        });
+        outcome
+            .ok_or_else(|| CommunicationError::new_err("this Kerfmeter is closed; open it again"))
+    }
+
+    /// [`Self::with_raw`] with library errors turned into Python exceptions.
     fn with<T: Send>(
         &self,
         py: Python<'_>,
         f: impl FnOnce(&mut kerfmeter::Kerfmeter) -> kerfmeter::Result<T> + Send,
     ) -> PyResult<T> {
-        let outcome = py.detach(|| {
-            let mut guard = self.inner.lock().unwrap_or_else(|e| e.into_inner());
-            guard.as_mut().map(|c| f(&mut c.meter))
-        });
-        match outcome {
-            None => Err(CommunicationError::new_err(
-                "this Kerfmeter is closed; open it again",
-            )),
-            Some(result) => result.map_err(|e| errors::device(py, e)),
-        }
+        self.with_raw(py, f)?.map_err(|e| errors::device(py, e))
     }
 
-    /// Like [`Self::with`] for a call that reports progress: a Python error raised while it ran
-    /// (Ctrl-C, or from `progress`) wins over the library's "cancelled".
+    /// Like [`Self::with`] for a call that reports progress and can be stopped (Ctrl-C,
+    /// `abort()`, an error raised by `progress`): that reason wins over the library's
+    /// "cancelled". If stopping failed too (the abort request could not be sent), the library's
+    /// error is attached to it as its `__cause__`.
     fn with_progress<T: Send>(
         &self,
         py: Python<'_>,
-        progress: Option<Py<PyAny>>,
-        f: impl FnOnce(
-            &mut kerfmeter::Kerfmeter,
-            &mut dyn FnMut(&Progress) -> ControlFlow<()>,
-        ) -> kerfmeter::Result<T>
-        + Send,
+        progress: Option<&Py<PyAny>>,
+        f: impl FnOnce(&mut kerfmeter::Kerfmeter, &mut Stopper<'_>) -> kerfmeter::Result<T> + Send,
     ) -> PyResult<T> {
-        let mut pending = None;
-        let result = self.with(py, |meter| {
-            f(meter, &mut |p| report(progress.as_ref(), p, &mut pending))
-        });
-        match pending {
-            Some(e) => Err(e),
-            None => result,
+        let mut stopper = Stopper {
+            progress,
+            stop: &self.stop,
+            pending: None,
+        };
+        let result = self.with_raw(py, |meter| f(meter, &mut stopper))?;
+        match (stopper.pending, result) {
+            (None, result) => result.map_err(|e| errors::device(py, e)),
+            (Some(reason), Err(e)) if !matches!(e, kerfmeter::Error::Cancelled) => {
+                reason.set_cause(py, Some(errors::device(py, e)));
+                Err(reason)
+            }
+            (Some(reason), _) => Err(reason),
         }
+    }
+}
+
+/// What a stoppable call checks between its steps and at every status poll.
+struct Stopper<'a> {
+    progress: Option<&'a Py<PyAny>>,
+    stop: &'a AtomicBool,
+    pending: Pending,
+}
+
+impl Stopper<'_> {
+    /// The `progress` for the library's `..._until` calls.
+    fn report(&mut self, p: &Progress) -> ControlFlow<()> {
+        report(self.progress, self.stop, p, &mut self.pending)
+    }
+
+    /// Check for `abort()` and Ctrl-C between two steps of a call (no status to report).
+    fn check(&mut self) -> kerfmeter::Result<()> {
+        if interrupted(self.stop, &mut self.pending) {
+            return Err(kerfmeter::Error::Cancelled);
+        }
+        Ok(())
     }
 }
 
@@ -302,9 +424,11 @@ impl PyKerfmeter {
     }
 
     /// Measure the kerf: reset the hub if needed, run, and return the result. `progress`, if
-    /// given, is called with (state, torque_nm, angle_deg) at every status poll. Ctrl-C aborts
-    /// the run (the motor stops) and raises KeyboardInterrupt. `force_n=None` is 18.3 N per
-    /// finger (55 N for three).
+    /// given, is called with (state, torque_nm, angle_deg) at every status poll (every 20 ms)
+    /// and must return quickly: the device stops on a HostSilent fault when it hears nothing
+    /// for 1 s. Ctrl-C (on the main thread) aborts the run (the motor stops) and raises
+    /// KeyboardInterrupt; so does an exception raised by `progress`, which propagates.
+    /// `force_n=None` is 18.3 N per finger (55 N for three).
     #[pyo3(signature = (thickness_mm = 4.0, force_n = None, fingers = 3, finger_length_mm = 6.3, progress = None))]
     fn run_kerfmeter(
         &self,
@@ -317,9 +441,8 @@ impl PyKerfmeter {
     ) -> PyResult<PyKerfResult> {
         let params = run_params(thickness_mm, force_n, fingers, finger_length_mm)
             .map_err(|e| errors::device(py, e))?;
-        let result = self.with_progress(py, progress, |meter, report| {
-            meter.prepare_for_run()?;
-            meter.run_kerfmeter_until(&params, report)
+        let result = self.with_progress(py, progress.as_ref(), |meter, stopper| {
+            prepare_and_run(meter, &params, stopper)
         })?;
         Ok(PyKerfResult::from(&result))
     }
@@ -333,11 +456,15 @@ impl PyKerfmeter {
     /// Turn the hub back to zero (prongs aligned for the next gauge), clear the result and any
     /// latched fault; returns when the hub is there.
     fn reset_kerfmeter(&self, py: Python<'_>) -> PyResult<()> {
-        self.with(py, |meter| meter.reset_kerfmeter())
+        self.with_progress(py, None, |meter, stopper| {
+            meter.reset_kerfmeter_until(|p| stopper.report(p))
+        })
     }
 
     /// Measure `n` gauges and summarise them (mean, SD, 95 % CI, outliers). Before each gauge
-    /// the hub is reset and `before_gauge(i)` is called (place gauge i).
+    /// the hub is reset if it is away from zero and `before_gauge(i)` is called (place gauge
+    /// i). A latched fault stops it (clear it knowingly first). `progress` is as in
+    /// `run_kerfmeter`.
     #[pyo3(signature = (n, thickness_mm = 4.0, force_n = None, fingers = 3, finger_length_mm = 6.3, before_gauge = None, progress = None))]
     #[allow(clippy::too_many_arguments)]
     fn measure(
@@ -354,25 +481,25 @@ impl PyKerfmeter {
         if n == 0 {
             return Err(BadArgumentError::new_err("measure at least one gauge"));
         }
+        let params = run_params(thickness_mm, force_n, fingers, finger_length_mm)
+            .map_err(|e| errors::device(py, e))?;
         let mut runs = Vec::with_capacity(n);
         for i in 0..n {
-            self.reset_kerfmeter(py)?;
+            self.with_progress(py, None, |meter, stopper| {
+                meter.prepare_for_run_until(|p| stopper.report(p))
+            })?;
             if let Some(f) = &before_gauge {
                 f.call1(py, (i,))?;
             }
-            runs.push(self.run_kerfmeter(
-                py,
-                thickness_mm,
-                force_n,
-                fingers,
-                finger_length_mm,
-                progress.as_ref().map(|p| p.clone_ref(py)),
-            )?);
+            runs.push(self.with_progress(py, progress.as_ref(), |meter, stopper| {
+                prepare_and_run(meter, &params, stopper)
+            })?);
         }
-        let kerfs: Vec<f64> = runs.iter().map(|r| r.kerf_um).collect();
+        // The library's statistics, over the device's own numbers (as `Kerfmeter::measure`).
+        let kerfs: Vec<f64> = runs.iter().map(|r| f64::from(r.kerf_um)).collect();
         let s = kerfmeter::stats::summarize(&kerfs);
         Ok(PyMeasurement {
-            runs,
+            runs: runs.iter().map(PyKerfResult::from).collect(),
             n: s.n,
             mean_um: s.mean_um,
             sd_um: s.sd_um,
@@ -395,9 +522,29 @@ impl PyKerfmeter {
         to_py(py, &status)
     }
 
-    /// Stop the motor now, ending any run, reset or self-test.
+    /// Stop the motor now, ending any run, reset or self-test. From another thread (or from a
+    /// `progress` callback) while a call runs, it asks that call to stop: the call tells the
+    /// device to abort at its next status poll (within 20 ms) and raises DeviceError.
     fn abort(&self, py: Python<'_>) -> PyResult<()> {
-        self.with(py, |meter| meter.abort())
+        self.stop.store(true, Ordering::SeqCst);
+        if self.held_by_this_thread() {
+            return Ok(());
+        }
+        let idle = py.detach(|| match self.inner.try_lock() {
+            Ok(mut guard) => Some(guard.as_mut().map(|c| c.meter.abort())),
+            Err(std::sync::TryLockError::Poisoned(e)) => {
+                Some(e.into_inner().as_mut().map(|c| c.meter.abort()))
+            }
+            // A call is running: it sees the stop flag at its next poll.
+            Err(std::sync::TryLockError::WouldBlock) => None,
+        });
+        match idle {
+            None => Ok(()),
+            Some(None) => Err(CommunicationError::new_err(
+                "this Kerfmeter is closed; open it again",
+            )),
+            Some(Some(result)) => result.map_err(|e| errors::device(py, e)),
+        }
     }
 
     /// Leave a latched fault (fix its cause first).
@@ -407,14 +554,28 @@ impl PyKerfmeter {
 
     /// Run the self-test (no gauge under the prongs) and return its report as a dict.
     fn self_test<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let report = self.with(py, |meter| meter.self_test(|_| {}))?;
+        let report = self.with_progress(py, None, |meter, stopper| {
+            meter.self_test_until(|p| stopper.report(p))
+        })?;
         to_py(py, &report)
     }
 
     /// Close the port (and stop the twin); later calls raise CommunicationError.
-    fn close(&self, py: Python<'_>) {
-        let connected = py.detach(|| self.inner.lock().unwrap_or_else(|e| e.into_inner()).take());
-        py.detach(move || drop(connected));
+    fn close(&self, py: Python<'_>) -> PyResult<()> {
+        let closed = self.with_raw(py, |_| Ok(()));
+        if closed.is_ok() {
+            let connected =
+                py.detach(|| self.inner.lock().unwrap_or_else(|e| e.into_inner()).take());
+            self.closed.store(true, Ordering::SeqCst);
+            py.detach(move || drop(connected));
+        }
+        closed.map(drop).or_else(|e| {
+            if e.is_instance_of::<CommunicationError>(py) {
+                Ok(()) // closing a closed meter is fine
+            } else {
+                Err(e)
+            }
+        })
     }
 
     fn __enter__(slf: Py<Self>) -> Py<Self> {
@@ -422,19 +583,26 @@ impl PyKerfmeter {
     }
 
     #[pyo3(signature = (*_args))]
-    fn __exit__(&self, py: Python<'_>, _args: &Bound<'_, pyo3::types::PyTuple>) -> bool {
-        self.close(py);
-        false
+    fn __exit__(&self, py: Python<'_>, _args: &Bound<'_, pyo3::types::PyTuple>) -> PyResult<()> {
+        self.close(py)
     }
 
-    fn __repr__(&self, py: Python<'_>) -> String {
-        let path = py.detach(|| {
-            let guard = self.inner.lock().unwrap_or_else(|e| e.into_inner());
-            guard.as_ref().map(|c| c.meter.path().to_owned())
-        });
-        match path {
-            Some(p) => format!("Kerfmeter({p:?})"),
-            None => "Kerfmeter(closed)".into(),
+    fn __repr__(&self) -> String {
+        if self.closed.load(Ordering::SeqCst) {
+            "Kerfmeter(closed)".into()
+        } else {
+            format!("Kerfmeter({:?})", self.path)
         }
     }
+}
+
+/// Make the device ready (a reset if needed), check for a stop, and run: every step stoppable.
+fn prepare_and_run(
+    meter: &mut kerfmeter::Kerfmeter,
+    params: &kerfmeter::protocol::RunParams,
+    stopper: &mut Stopper<'_>,
+) -> kerfmeter::Result<KerfResult> {
+    meter.prepare_for_run_until(|p| stopper.report(p))?;
+    stopper.check()?;
+    meter.run_kerfmeter_until(params, |p| stopper.report(p))
 }

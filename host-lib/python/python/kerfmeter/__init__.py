@@ -13,6 +13,8 @@ Every error is a :class:`KerfmeterError` (``CommunicationError``, ``DeviceError`
 The work is done by the Rust library ``kerfmeter`` and the plan crate ``kerfmeter-plan``.
 """
 
+from importlib.metadata import PackageNotFoundError, version
+
 from ._kerfmeter import (
     BadArgumentError,
     CommunicationError,
@@ -26,6 +28,11 @@ from ._kerfmeter import (
     dilate,
     gauge,
 )
+
+try:
+    __version__ = version("kerfmeter")
+except PackageNotFoundError:  # imported from a source tree, not installed
+    __version__ = "unknown"
 
 __all__ = [
     "BadArgumentError",

@@ -22,7 +22,7 @@ class DeviceFaultError(DeviceError):
     fault: str
     """The fault's name, e.g. "NoMotion"."""
 
-class BadArgumentError(KerfmeterError):
+class BadArgumentError(KerfmeterError, ValueError):
     """A bad argument or parameter; the message names it and its allowed range."""
 
 class PlanError(KerfmeterError):
@@ -96,7 +96,13 @@ class Kerfmeter:
         fingers: int = 3,
         finger_length_mm: float = 6.3,
         progress: Optional[_Progress] = None,
-    ) -> KerfResult: ...
+    ) -> KerfResult:
+        """Reset the hub if needed, run and return the result. `progress(state, torque_nm,
+        angle_deg)` is called at every 20 ms status poll, during the reset too, and must return
+        quickly (the device stops on HostSilent after 1 s without a poll); it must not call
+        this meter (KerfmeterError) except `abort()`. Ctrl-C on the main thread, or an exception
+        from `progress`, aborts the run (motor stopped) and is raised. `force_n=None` is
+        18.3 N per finger."""
     def get_kerf_value(self) -> Optional[KerfResult]: ...
     def reset_kerfmeter(self) -> None: ...
     def measure(
@@ -111,7 +117,9 @@ class Kerfmeter:
     ) -> Measurement: ...
     def info(self) -> Dict[str, Any]: ...
     def status(self) -> Dict[str, Any]: ...
-    def abort(self) -> None: ...
+    def abort(self) -> None:
+        """Stop the motor now. While a call runs (in another thread, or from its `progress`),
+        that call stops at its next poll and raises DeviceError."""
     def clear_fault(self) -> None: ...
     def self_test(self) -> Dict[str, Any]: ...
     def close(self) -> None: ...
@@ -121,7 +129,7 @@ class Kerfmeter:
         exc_type: Optional[Type[BaseException]],
         exc: Optional[BaseException],
         tb: Optional[TracebackType],
-    ) -> bool: ...
+    ) -> None: ...
 
 def dilate(
     in_path: _Path,
