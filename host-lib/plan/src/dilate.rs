@@ -387,13 +387,41 @@ fn group_parts(
     }
     for i in 0..n {
         if roles[i] == Role::Hole {
-            let owner = parent[i].expect("a hole has an enclosing contour");
-            let p = part_index[owner];
-            part_index[i] = p;
-            parts[p].holes.push(i);
+            match enclosing_part(i, parent, &part_index) {
+                Some(p) => {
+                    part_index[i] = p;
+                    parts[p].holes.push(i);
+                }
+                // No outer contour encloses it (degenerate input the checks let through): it
+                // is cut as a part of its own rather than trusted to one.
+                None => {
+                    part_index[i] = parts.len();
+                    parts.push(Part {
+                        outer: i,
+                        holes: Vec::new(),
+                        depth: depth[i],
+                        centroid_mm: [0.0; 2],
+                        area_mm2: 0.0,
+                        kerf_um: 0.0,
+                    });
+                }
+            }
         }
     }
     (parts, part_index)
+}
+
+/// The part of the nearest enclosing outer contour of hole `i`, walking up its parents (each
+/// strictly larger, so the walk ends).
+fn enclosing_part(i: usize, parent: &[Option<usize>], part_index: &[usize]) -> Option<usize> {
+    let mut at = parent[i];
+    while let Some(j) = at {
+        if part_index[j] != usize::MAX {
+            return Some(part_index[j]);
+        }
+        at = parent[j];
+    }
+    None
 }
 
 /// Each part's area, centroid and kerf (the kerf at its centroid), which must be ≥ 0.
