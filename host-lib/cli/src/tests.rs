@@ -15,8 +15,8 @@ fn cli(args: &[&str]) -> (Cli, tempfile::TempDir) {
     let db = dir.path().join("history.sqlite3");
     let db = db.to_str().expect("temporary paths are UTF-8");
     let all = ["kerfmeter", "--sim", "--json", "--db", db]
-        .iter()
-        .chain(args);
+        .into_iter()
+        .chain(args.iter().copied());
     let cli = Cli::try_parse_from(all).expect("valid arguments");
     (cli, dir)
 }
