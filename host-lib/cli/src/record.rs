@@ -6,6 +6,10 @@
 //! measured it: the device's board with its USB serial number (the ESP32-C3's is its MAC
 //! address), or with its port when the system tells no serial number, and `twin` on the
 //! simulated device, whose records are kept apart (`simulated`).
+//!
+//! For other callers in this package (the server): build a [`Measured`] from a run and call
+//! [`record`]; the [`Recorded`] it hands back serializes as a report's `history` key. Listing is
+//! `kerfmeter_history::History::listing`, whose JSON is the `history` method's result.
 
 use std::fmt;
 use std::path::PathBuf;

@@ -930,6 +930,14 @@ fn sim_run(db: &Path, label: &str, kerf_um: &str) -> serde_json::Value {
 fn runs_are_recorded_listed_newest_first_and_a_drift_is_warned() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("history.sqlite3");
+    // Listing an empty history creates nothing.
+    let out = kerfmeter(&["--db", path(&db), "history"]);
+    assert!(
+        stdout(&out).contains("no real measurements"),
+        "{}",
+        stdout(&out)
+    );
+    assert!(!db.exists());
     for (i, kerf) in ["150", "152", "148"].into_iter().enumerate() {
         let json = sim_run(&db, "birch", kerf);
         assert_eq!(json["history"]["id"], i + 1, "{json}");

@@ -39,12 +39,19 @@ pub struct HistoryReport {
 /// List the history as `args` say.
 pub fn run(g: &Global, args: &HistoryArgs) -> Result<HistoryReport, CliError> {
     let db = g.db_path()?;
-    let history = History::open(&db)?;
-    let listing = history.listing(&Query {
-        label: args.label.clone(),
-        limit: Some(args.limit as usize),
-        simulated: g.sim,
-    })?;
+    // Listing creates nothing: no file yet is an empty history.
+    let listing = if db.exists() {
+        History::open(&db)?.listing(&Query {
+            label: args.label.clone(),
+            limit: Some(args.limit as usize),
+            simulated: g.sim,
+        })?
+    } else {
+        Listing {
+            records: Vec::new(),
+            drift: Vec::new(),
+        }
+    };
     Ok(HistoryReport {
         db,
         simulated: g.sim,
