@@ -1,5 +1,6 @@
-//! The global flags (port, simulated device and its plant, `--json`, timeout) and the connection they open: a
-//! real port, found by its USB ids or named, or the in-process digital twin.
+//! The global flags (port, simulated device and its plant, `--json`, timeout, the history's
+//! database) and the connection they open: a real port, found by its USB ids or named, or the
+//! in-process digital twin.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -50,6 +51,10 @@ pub struct Global {
     /// Print one JSON object instead of text.
     #[arg(long, global = true)]
     pub json: bool,
+    /// The measurement history's SQLite file [default: kerfmeter/history.sqlite3 in the user's
+    /// data directory]. Also from KERFMETER_DB.
+    #[arg(long, global = true, env = "KERFMETER_DB", value_name = "FILE")]
+    pub db: Option<PathBuf>,
     /// Per-attempt response timeout, ms.
     #[arg(long, global = true, default_value_t = 300, value_parser = clap::value_parser!(u64).range(10..=60_000))]
     pub timeout_ms: u64,
@@ -64,6 +69,14 @@ pub struct Session {
 }
 
 impl Global {
+    /// The history's database: `--db` (or `KERFMETER_DB`), else the user's data directory's.
+    pub fn db_path(&self) -> Result<PathBuf, kerfmeter_history::Error> {
+        match &self.db {
+            Some(db) => Ok(db.clone()),
+            None => kerfmeter_history::History::default_path(),
+        }
+    }
+
     /// The client's options.
     fn client_options(&self) -> Options {
         Options {

@@ -37,6 +37,9 @@ pub enum CliError {
     /// The automatic loop stopped (the cutter stopped, the laser off, unless it says otherwise).
     #[error(transparent)]
     Job(#[from] JobError),
+    /// The measurement history could not be read.
+    #[error(transparent)]
+    History(#[from] kerfmeter_history::Error),
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
@@ -54,6 +57,9 @@ impl CliError {
             CliError::SelfTestFailed => Category::Device,
             CliError::Cutter(e) => e.category(),
             CliError::Job(e) => e.category(),
+            CliError::History(kerfmeter_history::Error::Invalid(_))
+            | CliError::History(kerfmeter_history::Error::NoDataDir) => Category::Usage,
+            CliError::History(_) => Category::File,
         }
     }
 
@@ -67,7 +73,8 @@ impl CliError {
             | CliError::Plan(_)
             | CliError::SelfTestFailed
             | CliError::Cutter(_)
-            | CliError::Job(_) => None,
+            | CliError::Job(_)
+            | CliError::History(_) => None,
         }
     }
 
@@ -79,7 +86,8 @@ impl CliError {
             | CliError::Plan(_)
             | CliError::SelfTestFailed
             | CliError::Cutter(_)
-            | CliError::Job(_) => Vec::new(),
+            | CliError::Job(_)
+            | CliError::History(_) => Vec::new(),
         }
     }
 }

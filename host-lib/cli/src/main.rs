@@ -13,6 +13,9 @@
 //! 3 communication error (port, timeout, protocol, device restarted); 4 the device refused,
 //! faulted, failed its self-test or could not finish, or a file could not be read or written;
 //! 5 a cutter failed and could not be stopped (its laser may still be on).
+//!
+//! Every measurement `run` and `job` make is recorded in the history ([`record`]; `--db`),
+//! which `kerfmeter history` lists.
 
 use std::process::ExitCode;
 
@@ -24,13 +27,14 @@ mod error;
 mod output;
 mod plot;
 mod progress;
+mod record;
 #[cfg(test)]
 mod tests;
 
 use commands::config::ConfigCommand;
 use commands::map::MapArgs;
 use commands::run::RunArgs;
-use commands::{cut, dilate, gauge, gcode, job};
+use commands::{cut, dilate, gauge, gcode, history, job};
 use connection::Global;
 use error::{CliError, exit_code};
 use output::{ErrorReport, JsonLayout, emit, print_line, to_json};
@@ -88,6 +92,9 @@ enum Command {
     /// The whole job: cut the gauge beside the plan, lower the prongs into it, measure, lift,
     /// dilate the plan by the kerf measured and cut it (--sim --cutter sim: all simulated).
     Job(job::JobArgs),
+    /// List the measurements recorded by run and job (the real ones; with --sim the simulated
+    /// ones), newest first, with a warning for each label whose kerf left its usual spread.
+    History(history::HistoryArgs),
 }
 
 fn main() -> ExitCode {
@@ -130,6 +137,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Dilate(args) => emit(json, &dilate::run(g, args)?),
         Command::Cut(args) => emit(json, &cut::run(g, args)?),
         Command::Gcode(args) => emit(json, &gcode::run(g, args)?),
+        Command::History(args) => emit(json, &history::run(g, args)?),
         Command::Job(args) => match job::run(g, args)? {
             job::JobOutcome::Done(report) => emit(json, report.as_ref()),
             job::JobOutcome::DryRun(report) => emit(json, &report),

@@ -8,10 +8,17 @@ use crate::commands::{kerf, run, self_test};
 use crate::output::{Report, to_json};
 use crate::{Cli, Command};
 
-/// The command line `args` (after `kerfmeter --sim --json`), parsed.
-fn cli(args: &[&str]) -> Cli {
-    let all = ["kerfmeter", "--sim", "--json"].iter().chain(args);
-    Cli::try_parse_from(all).expect("valid arguments")
+/// The command line `args` (after `kerfmeter --sim --json --db D`), parsed, and the folder of D:
+/// a history of the test's own, never the user's, removed when the folder is dropped.
+fn cli(args: &[&str]) -> (Cli, tempfile::TempDir) {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let db = dir.path().join("history.sqlite3");
+    let db = db.to_str().expect("temporary paths are UTF-8");
+    let all = ["kerfmeter", "--sim", "--json", "--db", db]
+        .into_iter()
+        .chain(args.iter().copied());
+    let cli = Cli::try_parse_from(all).expect("valid arguments");
+    (cli, dir)
 }
 
 /// `report`'s text and its JSON.
@@ -27,7 +34,7 @@ fn one_decimal(x: &Value) -> String {
 
 #[test]
 fn run_prints_the_kerfs_its_json_holds() {
-    let cli = cli(&["run", "--samples", "3", "--also-at-force-n", "20,500"]);
+    let (cli, _history) = cli(&["run", "--samples", "3", "--also-at-force-n", "20,500"]);
     let Command::Run(args) = &cli.command else {
         unreachable!("parsed as run")
     };
@@ -66,7 +73,7 @@ fn run_prints_the_kerfs_its_json_holds() {
 
 #[test]
 fn kerf_prints_the_kerf_its_json_holds() {
-    let cli = cli(&["kerf"]);
+    let (cli, _history) = cli(&["kerf"]);
     let mut session = cli.global.connect().expect("the twin answers");
     let before = kerf::KerfReport::new(session.meter.get_kerf_value().unwrap());
     let (text, json) = both(&before);
@@ -95,7 +102,7 @@ fn self_test_prints_the_items_its_json_holds() {
         if let Some(f) = fault {
             args.extend(["--sim-fault", f]);
         }
-        let cli = cli(&args);
+        let (cli, _history) = cli(&args);
         let report = self_test::run(&cli.global).expect("the twin tests itself");
         let (text, json) = both(&report);
         let lines: Vec<&str> = text.lines().collect();

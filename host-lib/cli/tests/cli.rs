@@ -8,11 +8,14 @@ use std::process::{Command, Output};
 
 use kerfmeter::map::{Grid, KerfMap};
 
-/// Run `kerfmeter` with `args`.
+/// Run `kerfmeter` with `args`, recording into a history of its own (never the user's; a test
+/// that reads the history back passes its own `--db`).
 fn kerfmeter(args: &[&str]) -> Output {
+    let history = tempfile::tempdir().unwrap();
     Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
         .args(args)
         .env_remove("KERFMETER_PORT")
+        .env("KERFMETER_DB", history.path().join("history.sqlite3"))
         .output()
         .expect("the kerfmeter binary runs")
 }
@@ -904,4 +907,128 @@ fn gauge_writes_g_code_with_its_spiral_centre_where_asked() {
     let refused = kerfmeter(&["gauge", "-o", path(&svg), "--s-max", "255"]);
     assert_eq!(code(&refused), 2, "{}", stderr(&refused));
     assert!(!svg.exists());
+}
+
+/// `kerfmeter --sim --json --db DB run` at the twin's `kerf_um`, labelled `label`: its JSON.
+fn sim_run(db: &Path, label: &str, kerf_um: &str) -> serde_json::Value {
+    let out = kerfmeter(&[
+        "--sim",
+        "--json",
+        "--db",
+        path(db),
+        "--sim-kerf-um",
+        kerf_um,
+        "run",
+        "--label",
+        label,
+    ]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    serde_json::from_str(&stdout(&out)).expect("JSON")
+}
+
+#[test]
+fn runs_are_recorded_listed_newest_first_and_a_drift_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("history.sqlite3");
+    // Listing an empty history creates nothing.
+    let out = kerfmeter(&["--db", path(&db), "history"]);
+    assert!(
+        stdout(&out).contains("no real measurements"),
+        "{}",
+        stdout(&out)
+    );
+    assert!(!db.exists());
+    for (i, kerf) in ["150", "152", "148"].into_iter().enumerate() {
+        let json = sim_run(&db, "birch", kerf);
+        assert_eq!(json["history"]["id"], i + 1, "{json}");
+        assert_eq!(json["history"]["db"], path(&db));
+        assert_eq!(json["history"]["drift"], serde_json::Value::Null);
+        assert_eq!(json["label"], "birch");
+    }
+    sim_run(&db, "mdf", "300");
+    // Birch's kerf jumps: the run warns, as text and in its JSON.
+    let out = kerfmeter(&[
+        "--sim",
+        "--db",
+        path(&db),
+        "--sim-kerf-um",
+        "230",
+        "run",
+        "--label",
+        "birch",
+    ]);
+    let text = stdout(&out);
+    assert!(text.contains("recorded as #5 in"), "{text}");
+    assert!(text.contains("warning: drift: birch measured"), "{text}");
+    assert!(text.contains("dirty lens"), "{text}");
+    // The history, from another process: newest first, the drift with it.
+    let out = kerfmeter(&["--sim", "--json", "--db", path(&db), "history"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let listed: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let labels: Vec<&str> = listed["records"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["label"].as_str().unwrap())
+        .collect();
+    assert_eq!(labels, ["birch", "mdf", "birch", "birch", "birch"]);
+    assert_eq!(listed["records"][0]["device_id"], "twin");
+    assert_eq!(listed["records"][0]["simulated"], true);
+    assert_eq!(listed["drift"][0]["label"], "birch", "{listed}");
+    let usual = listed["drift"][0]["usual_mean_um"].as_f64().unwrap();
+    let newest = listed["records"][0]["kerf_um"].as_f64().unwrap();
+    assert!(newest - usual > 50.0, "{newest} vs {usual}");
+    let out = kerfmeter(&[
+        "--sim",
+        "--db",
+        path(&db),
+        "history",
+        "--label",
+        "mdf",
+        "--limit",
+        "5",
+    ]);
+    let text = stdout(&out);
+    assert!(text.starts_with("1 simulated measurements"), "{text}");
+    assert!(!text.contains("warning"), "{text}");
+    // The simulated records are not among the real ones.
+    let out = kerfmeter(&["--db", path(&db), "history"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("no real measurements"),
+        "{}",
+        stdout(&out)
+    );
+}
+
+#[test]
+fn a_history_that_cannot_be_written_warns_and_keeps_the_measurement() {
+    let dir = tempfile::tempdir().unwrap();
+    let not_a_db = dir.path().join("notes.txt");
+    let text = "these are notes, not a database; they must survive";
+    std::fs::write(&not_a_db, text).unwrap();
+    let json = sim_run(&not_a_db, "birch", "150");
+    assert!(json["kerf_um"].as_f64().unwrap() > 100.0);
+    assert_eq!(json["history"]["id"], serde_json::Value::Null);
+    let error = json["history"]["error"].as_str().unwrap();
+    assert!(error.contains("notes.txt"), "{error}");
+    assert_eq!(std::fs::read_to_string(&not_a_db).unwrap(), text);
+    // A database from a newer kerfmeter: `history` refuses it, `run` still measures.
+    let db = dir.path().join("history.sqlite3");
+    sim_run(&db, "birch", "150");
+    let mut bytes = std::fs::read(&db).unwrap();
+    // SQLite's header keeps `PRAGMA user_version` at bytes 60..64, big-endian.
+    bytes[60..64].copy_from_slice(&99u32.to_be_bytes());
+    std::fs::write(&db, &bytes).unwrap();
+    let out = kerfmeter(&["--sim", "--db", path(&db), "history"]);
+    assert_eq!(code(&out), 4);
+    let message = stderr(&out);
+    assert!(message.contains("schema version 99"), "{message}");
+    assert!(message.contains("Upgrade kerfmeter"), "{message}");
+    let json = sim_run(&db, "birch", "150");
+    assert!(json["history"]["error"].as_str().unwrap().contains("newer"));
+    assert_eq!(std::fs::read(&db).unwrap(), bytes);
+    // A bad label is refused before anything is measured.
+    let out = kerfmeter(&["--sim", "--db", path(&db), "run", "--label", " "]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
 }

@@ -5,11 +5,15 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+/// Run `kerfmeter` with `args`, recording into a history of its own (never the user's; a test
+/// that reads the history back passes its own `--db`).
 fn kerfmeter(args: &[&str]) -> Output {
+    let history = tempfile::tempdir().unwrap();
     Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
         .args(args)
         .env_remove("KERFMETER_PORT")
         .env_remove("KERFMETER_CUTTER")
+        .env("KERFMETER_DB", history.path().join("history.sqlite3"))
         .output()
         .expect("the kerfmeter binary runs")
 }
@@ -49,11 +53,14 @@ fn plate_plan() -> (tempfile::TempDir, PathBuf) {
 fn the_whole_job_on_the_twins_prints_the_kerf_and_the_stage_times_and_writes_the_plan() {
     let (dir, plan) = plate_plan();
     let out_svg = dir.path().join("out.svg");
+    let db = dir.path().join("history.sqlite3");
     let out = kerfmeter(&[
         "--sim",
         "--json",
         "--sim-kerf-um",
         "180",
+        "--db",
+        path(&db),
         "job",
         path(&plan),
         "--cutter",
@@ -62,10 +69,20 @@ fn the_whole_job_on_the_twins_prints_the_kerf_and_the_stage_times_and_writes_the
         path(&out_svg),
         "--prong-offset-mm",
         "30,-10",
+        "--label",
+        "plywood 3 mm",
     ]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));
     let json: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
     let kerf = json["kerf_um"].as_f64().unwrap();
+    // The measurement is in the history, under its label.
+    assert_eq!(json["history"]["id"], 1, "{json}");
+    assert_eq!(json["history"]["db"], path(&db));
+    let listed = kerfmeter(&["--sim", "--json", "--db", path(&db), "history"]);
+    let listed: serde_json::Value = serde_json::from_str(&stdout(&listed)).unwrap();
+    let record = &listed["records"][0];
+    assert_eq!(record["label"], "plywood 3 mm", "{listed}");
+    assert!((record["kerf_um"].as_f64().unwrap() - kerf).abs() < 1e-3);
     let truth = json["sim_truth_um"].as_f64().unwrap();
     assert!((kerf - truth).abs() < 3.0, "{kerf} vs {truth}");
     assert!(truth > 175.0 && truth < 200.0, "{truth}");
@@ -98,6 +115,26 @@ fn the_whole_job_on_the_twins_prints_the_kerf_and_the_stage_times_and_writes_the
         "{gcode}"
     );
     assert!(std::fs::read_to_string(&plan).unwrap().contains("<rect"));
+}
+
+#[test]
+fn a_job_that_fails_after_its_measurement_still_records_it() {
+    let (dir, plan) = plate_plan();
+    // The dilated plan cannot be written: the job fails at its dilate stage.
+    let out_svg = dir.path().join("no such folder/out.svg");
+    let db = dir.path().join("history.sqlite3");
+    let args = ["--sim", "--db", path(&db), "job", path(&plan)];
+    let out = kerfmeter(&[&args[..], &["--cutter", "sim", "-o", path(&out_svg)]].concat());
+    assert_eq!(code(&out), 4, "{}", stderr(&out));
+    let message = stderr(&out);
+    assert!(message.contains("dilat"), "{message}");
+    assert!(
+        message.contains("the job failed after its measurement; recorded as #1"),
+        "{message}"
+    );
+    let listed = kerfmeter(&["--sim", "--json", "--db", path(&db), "history"]);
+    let listed: serde_json::Value = serde_json::from_str(&stdout(&listed)).unwrap();
+    assert_eq!(listed["records"].as_array().unwrap().len(), 1, "{listed}");
 }
 
 #[test]

@@ -16,6 +16,12 @@
 //! gauge a real cutter cut (and a real job would then be cut by a made-up kerf), and a real
 //! device lowered onto a simulated cutter's bed would turn in nothing. `--dry-run` moves
 //! nothing and opens neither: it prints every stage's G-code (the job's at `--dry-run-kerf-um`).
+//!
+//! # History
+//!
+//! The measurement is recorded in the history under `--label` ([`crate::record`]), also when the
+//! job fails after it was measured (the device's last result is read back for it; the error
+//! still fails the command).
 
 use std::fmt;
 use std::io::IsTerminal;
@@ -32,7 +38,7 @@ use kerfmeter::job::{
     Devices, JobError, JobEvent, JobRequest, Placement, SimLink, Stage, StageTime, free_spot_mm,
     run_job,
 };
-use kerfmeter::protocol::{GaugeGeometry, RunParams};
+use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
 use kerfmeter_plan::gauge::{GaugeOptions, build};
 use kerfmeter_plan::gcode::{
     GcodeOptions, Mapping, Provenance, gauge_cuts, gauge_program, placed_box, plan_program,
@@ -45,10 +51,11 @@ use serde::Serialize;
 use super::dilate::{DilationArgs, units_parser};
 use super::gauge::GAUGE_SETTINGS;
 use super::gcode::{CutArgs, parse_xy};
-use crate::connection::Global;
+use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 use crate::progress::show;
+use crate::record::{Measured, Recorded, parse_label, record};
 
 type Result<T, E = CliError> = std::result::Result<T, E>;
 
@@ -127,6 +134,9 @@ pub struct JobArgs {
     /// Unlock a cutter that is in alarm (`$X`) instead of refusing it.
     #[arg(long)]
     pub unlock: bool,
+    /// What is measured, for the history (material, cutter), e.g. "birch 3 mm, CO2 40 W".
+    #[arg(long, value_parser = parse_label)]
+    pub label: Option<String>,
 }
 
 /// What the loop did.
@@ -155,6 +165,10 @@ pub struct JobCliReport {
     /// On the simulated device: what an ideal device reads on the gauge the cutter twin cut, µm.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sim_truth_um: Option<f64>,
+    /// What was measured (`--label`).
+    pub label: Option<String>,
+    /// Where the measurement was recorded, or why not, and its drift.
+    pub history: Recorded,
 }
 
 impl fmt::Display for JobCliReport {
@@ -172,13 +186,14 @@ impl fmt::Display for JobCliReport {
             writeln!(f, "  {:<12} {:8.2} s", s.stage.name(), s.elapsed_s)?;
         }
         writeln!(f, "  {:<12} {:8.2} s", "total", self.total_s)?;
-        write!(
+        writeln!(
             f,
             "wrote {} and {} ({} lines streamed); the laser is off",
             self.output.display(),
             self.gcode_out.display(),
             self.job_lines
-        )
+        )?;
+        write!(f, "{}", self.history)
     }
 }
 
@@ -274,11 +289,22 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
     };
     let bar = stage_bar(g.json);
     let mut dilate = |kerf_um: f64| setup.dilate_and_write(args, kerf_um);
+    let mut measured = false;
     let report = run_job(devices, &request, &mut dilate, &cancel, &mut |e| {
+        measured |= matches!(e, JobEvent::Finished(Stage::Measure, _));
         show_event(&bar, e)
     });
     bar.finish_and_clear();
-    let report = report.map_err(job_error)?;
+    let report = match report {
+        Ok(report) => report,
+        Err(e) => {
+            if measured {
+                record_after_failure(g, args, &setup, &mut session);
+            }
+            return Err(job_error(e));
+        }
+    };
+    let history = record_kerf(g, args, &setup, &session, &report.kerf);
     let sim_truth_um = session
         .sim
         .as_ref()
@@ -295,7 +321,39 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
         landing_mm: report.landing_mm,
         job_lines: report.job_lines,
         sim_truth_um,
+        label: args.label.clone(),
+        history,
     })))
+}
+
+/// Record the job's measurement `kerf` in the history.
+fn record_kerf(
+    g: &Global,
+    args: &JobArgs,
+    setup: &Setup,
+    session: &Session,
+    kerf: &KerfResult,
+) -> Recorded {
+    let measured = Measured {
+        label: args.label.as_deref(),
+        thickness_mm: f64::from(setup.params.thickness_mm),
+        force_n: f64::from(setup.params.target_force_n),
+        kerf_um: f64::from(kerf.kerf_um),
+        ci95_um: None,
+        runs: std::slice::from_ref(kerf),
+    };
+    record(g, &session.meter, session.sim.is_some(), &measured)
+}
+
+/// A job that failed after its measurement: record the device's last result, saying so on
+/// stderr (the command fails with the job's error).
+fn record_after_failure(g: &Global, args: &JobArgs, setup: &Setup, session: &mut Session) {
+    let note = match session.meter.get_kerf_value() {
+        Ok(Some(kerf)) => record_kerf(g, args, setup, session, &kerf).to_string(),
+        Ok(None) => "warning: not recorded in the history: the device kept no result".into(),
+        Err(e) => format!("warning: not recorded in the history: cannot read the result: {e}"),
+    };
+    eprintln!("the job failed after its measurement; {note}");
 }
 
 /// Refuse a simulated device with a real cutter, and the other way round (see the module doc).

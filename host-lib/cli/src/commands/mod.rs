@@ -8,6 +8,7 @@ pub mod cut;
 pub mod dilate;
 pub mod gauge;
 pub mod gcode;
+pub mod history;
 pub mod info;
 pub mod job;
 pub mod kerf;

@@ -1,6 +1,8 @@
 //! `kerfmeter run`: measure the kerf (the hub is reset to zero first). With `--samples N`, N
 //! gauges are measured and the mean with its 95 % confidence interval is reported; `--plot` draws
-//! the last run's torque–angle curve and `--also-at-force-n` reads other forces off it.
+//! the last run's torque–angle curve and `--also-at-force-n` reads other forces off it. The
+//! measurement is recorded in the history (under `--label`), and a drift warning printed when the
+//! label's kerf left its usual spread ([`crate::record`]).
 
 use std::fmt;
 use std::path::PathBuf;
@@ -16,6 +18,7 @@ use crate::error::CliError;
 use crate::output::{JsonLayout, Report, ResultsTable};
 use crate::plot;
 use crate::progress::{ask, progress_bar, show};
+use crate::record::{Measured, Recorded, parse_label, record};
 
 #[derive(Args)]
 pub struct RunArgs {
@@ -43,6 +46,9 @@ pub struct RunArgs {
     /// Also read the kerf at these other assembly forces (N) off the last run's curve.
     #[arg(long, value_name = "N", value_delimiter = ',')]
     also_at_force_n: Vec<f32>,
+    /// What is measured, for the history (material, cutter), e.g. "birch 3 mm, CO2 40 W".
+    #[arg(long, value_parser = parse_label)]
+    label: Option<String>,
 }
 
 /// The kerf at another force, read off the last run's curve.
@@ -78,6 +84,10 @@ pub struct RunReport {
     pub plot: Option<PathBuf>,
     /// Every run, in order.
     pub runs: Vec<KerfResult>,
+    /// What was measured (`--label`).
+    pub label: Option<String>,
+    /// Where the measurement was recorded, or why not, and its drift.
+    pub history: Recorded,
     /// True on the simulated device.
     pub simulated: bool,
     /// Mean, spread, confidence interval and outliers.
@@ -110,6 +120,20 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
     }
     let mut s = g.connect()?;
     let Measurement { runs, summary } = measure(g, args, &mut s, &params)?;
+    // Recorded before anything else can fail: the measurement is made.
+    let history = record(
+        g,
+        &s.meter,
+        s.sim.is_some(),
+        &Measured {
+            label: args.label.as_deref(),
+            thickness_mm: f64::from(params.thickness_mm),
+            force_n: f64::from(params.target_force_n),
+            kerf_um: summary.mean_um,
+            ci95_um: summary.ci95_um,
+            runs: &runs,
+        },
+    );
     let kerf_at_force_um = read_curve(&mut s, args, &params, runs.last())?;
     let sim_truths_um: Vec<f64> = match &s.sim {
         Some(sim) => runs.iter().filter_map(|r| sim.truth_um(r.run_id)).collect(),
@@ -128,6 +152,8 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
         kerf_um: summary.mean_um,
         plot: args.plot.clone(),
         runs,
+        label: args.label.clone(),
+        history,
         simulated: s.sim.is_some(),
         summary,
         thickness_mm: params.thickness_mm,
@@ -231,7 +257,7 @@ impl fmt::Display for RunReport {
         if let Some(sim) = &self.sim {
             write!(f, "\n{sim}")?;
         }
-        Ok(())
+        write!(f, "\n{}", self.history)
     }
 }
 

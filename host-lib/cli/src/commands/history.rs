@@ -1,0 +1,125 @@
+//! `kerfmeter history`: the measurements recorded by `run` and `job`, newest first, with the
+//! drift warning of each label whose newest kerf left its usual spread. The real measurements,
+//! or with `--sim` the simulated ones (they are never mixed). The device is not opened.
+
+use std::fmt;
+use std::path::PathBuf;
+
+use clap::Args;
+use kerfmeter_history::{History, Listing, Query, Record};
+use serde::Serialize;
+
+use crate::connection::Global;
+use crate::error::CliError;
+use crate::output::{JsonLayout, Report};
+use crate::record::parse_label;
+
+#[derive(Args)]
+pub struct HistoryArgs {
+    /// Only this label's measurements.
+    #[arg(long, value_parser = parse_label)]
+    label: Option<String>,
+    /// The newest this many.
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    limit: u32,
+}
+
+/// The records and drift warnings; its JSON is the server's `history` result plus `db`.
+#[derive(Serialize)]
+pub struct HistoryReport {
+    /// The database read.
+    pub db: PathBuf,
+    /// The simulated records (`--sim`) rather than the real ones.
+    pub simulated: bool,
+    /// The records and the drift warnings.
+    #[serde(flatten)]
+    pub listing: Listing,
+}
+
+/// List the history as `args` say.
+pub fn run(g: &Global, args: &HistoryArgs) -> Result<HistoryReport, CliError> {
+    let db = g.db_path()?;
+    // Listing creates nothing: no file yet is an empty history.
+    let listing = if db.exists() {
+        History::open(&db)?.listing(&Query {
+            label: args.label.clone(),
+            limit: Some(args.limit as usize),
+            simulated: g.sim,
+        })?
+    } else {
+        Listing {
+            records: Vec::new(),
+            drift: Vec::new(),
+        }
+    };
+    Ok(HistoryReport {
+        db,
+        simulated: g.sim,
+        listing,
+    })
+}
+
+impl fmt::Display for HistoryReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let kind = if self.simulated { "simulated" } else { "real" };
+        let records = &self.listing.records;
+        if records.is_empty() {
+            write!(f, "no {kind} measurements in {}", self.db.display())?;
+            if !self.simulated {
+                write!(f, " (simulated ones are listed with --sim)")?;
+            }
+            return Ok(());
+        }
+        writeln!(
+            f,
+            "{} {kind} measurements in {}, newest first",
+            records.len(),
+            self.db.display()
+        )?;
+        write!(
+            f,
+            "{:>5}  {:<20}  {:>8} {:>7} {:>6} {:>6}  {:<20}  {:<16}  flags",
+            "id", "time (UTC)", "kerf µm", "± CI", "mm", "N", "label", "device"
+        )?;
+        for r in records {
+            write!(f, "\n{}", Row(r))?;
+        }
+        for d in &self.listing.drift {
+            write!(f, "\nwarning: {}", d.message)?;
+        }
+        Ok(())
+    }
+}
+
+/// One record as a table row.
+struct Row<'a>(&'a Record);
+
+impl fmt::Display for Row<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = self.0;
+        // 2026-12-02T04:40:12.345Z → 2026-12-02 04:40:12
+        let time: String = r.time.replace('T', " ").chars().take(19).collect();
+        let ci = r.ci95_um.map_or("-".into(), |c| format!("{c:.1}"));
+        let flags = if r.flags.is_empty() {
+            "ok".into()
+        } else {
+            r.flags.join(",")
+        };
+        write!(
+            f,
+            "{:>5}  {:<20}  {:>8.1} {:>7} {:>6.2} {:>6.1}  {:<20}  {:<16}  {flags}",
+            r.id,
+            time,
+            r.kerf_um,
+            ci,
+            r.thickness_mm,
+            r.force_n,
+            r.label.as_deref().unwrap_or("-"),
+            r.device_id,
+        )
+    }
+}
+
+impl Report for HistoryReport {
+    const JSON: JsonLayout = JsonLayout::Pretty;
+}

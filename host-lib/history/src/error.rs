@@ -1,0 +1,64 @@
+//! What can go wrong with the history, each with a message that says what to do.
+
+use std::path::{Path, PathBuf};
+
+/// A history error.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The database was written by a newer kerfmeter; it is left untouched.
+    #[error(
+        "{}: the history database has schema version {found}, but this kerfmeter knows versions up to {known}: it was written by a newer kerfmeter. Upgrade kerfmeter to read it, or give another file with --db (the database was left untouched)",
+        path.display()
+    )]
+    NewerSchema {
+        /// The database.
+        path: PathBuf,
+        /// Its version.
+        found: i64,
+        /// The newest version this build knows.
+        known: i64,
+    },
+    /// The file is an SQLite database of something else.
+    #[error(
+        "{}: this SQLite database is not a kerfmeter history (it has tables but no history schema); give another file with --db (it was left untouched)",
+        path.display()
+    )]
+    Foreign {
+        /// The database.
+        path: PathBuf,
+    },
+    /// SQLite failed (the file is not a database, the disk is full, it is locked too long, ...).
+    #[error("{}: history database: {source}", path.display())]
+    Sqlite {
+        /// The database.
+        path: PathBuf,
+        /// What SQLite said.
+        source: rusqlite::Error,
+    },
+    /// The database's folder could not be made.
+    #[error("{}: cannot create the history's folder: {source}", path.display())]
+    Folder {
+        /// The folder.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The system names no data directory for this user.
+    #[error(
+        "this system names no data directory for the history (no HOME?); give a file with --db or KERFMETER_DB"
+    )]
+    NoDataDir,
+    /// A record or a query is out of range.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+impl Error {
+    /// An SQLite error on the database at `path`.
+    pub(crate) fn sqlite(path: &Path, source: rusqlite::Error) -> Self {
+        Error::Sqlite {
+            path: path.to_owned(),
+            source,
+        }
+    }
+}

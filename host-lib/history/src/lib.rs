@@ -1,0 +1,379 @@
+//! The Kerfmeter's measurement history: every kerf measured, kept in an SQLite file, listed
+//! newest first, with a drift warning when a label's kerf moves beyond its usual spread.
+//!
+//! ```no_run
+//! use kerfmeter_history::{History, NewRecord, Query};
+//!
+//! let mut history = History::open(&History::default_path()?)?;
+//! let id = history.record(&NewRecord {
+//!     device_id: "esp32c3:A0:76:4E:12:34:56".into(),
+//!     firmware: "0.1.0".into(),
+//!     label: Some("birch 3 mm, CO2 40 W".into()),
+//!     thickness_mm: 3.0,
+//!     force_n: 36.6,
+//!     kerf_um: 152.3,
+//!     ci95_um: None,
+//!     flags: vec![],
+//!     simulated: false,
+//! })?;
+//! if let Some(drift) = history.drift_at(id)? {
+//!     eprintln!("warning: {}", drift.message);
+//! }
+//! let listing = history.listing(&Query { label: None, limit: Some(20), simulated: false })?;
+//! println!("{}", serde_json::to_string(&listing).unwrap());
+//! # Ok::<(), kerfmeter_history::Error>(())
+//! ```
+//!
+//! # Design
+//!
+//! - Where: [`History::default_path`] is `history.sqlite3` in a `kerfmeter` folder of the user's
+//!   data directory (`~/.local/share` on Linux, `~/Library/Application Support` on macOS,
+//!   `%APPDATA%` on Windows); the command-line tool's `--db` or `KERFMETER_DB` overrides it.
+//! - Crash safety: every write is one transaction. The journal is SQLite's default rollback
+//!   journal with `synchronous = FULL`: a committed record is on disk when [`History::record`]
+//!   returns, and a process killed mid-write leaves the database as of its last commit (the
+//!   journal is rolled back at the next open). The rollback journal rather than WAL: at rest the
+//!   history is one file, safe to copy, and it works on any file system (WAL needs shared
+//!   memory, which network file systems lack). Writers wait for each other up to 5 s.
+//! - Versions: the schema's version is `PRAGMA user_version`, its migrations are in one place
+//!   (`schema`), and a database from a newer build is refused untouched ([`Error::NewerSchema`]).
+//! - Order: records are listed newest first by their id (the order they were committed in), not
+//!   by their time, which a clock set back would reorder.
+//! - Simulated measurements are kept apart: each record says whether it was `simulated`, and
+//!   a [`Query`] and the drift rule see one population at a time (real ones by default), so a
+//!   twin's results never shift a real label's baseline, nor appear among real results unless
+//!   asked for.
+//! - Drift: see [`drift`] for the rule and why.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use rusqlite::{Connection, OptionalExtension, Row, params};
+use serde::Serialize;
+
+pub mod drift;
+mod error;
+mod schema;
+
+pub use drift::Drift;
+pub use error::Error;
+pub use schema::SCHEMA_VERSION;
+
+/// Longest label, characters.
+pub const MAX_LABEL_CHARS: usize = 200;
+
+/// The flag that does not make a measurement untrusted (the curve is only coarser).
+const HARMLESS_FLAG: &str = "decimated";
+
+/// A measurement to record.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NewRecord {
+    /// What identifies the device (its board and serial number, or `twin`).
+    pub device_id: String,
+    /// Its firmware version, `major.minor.patch`.
+    pub firmware: String,
+    /// What was measured: material, cutter, settings ([`check_label`]).
+    pub label: Option<String>,
+    /// Sheet thickness, mm.
+    pub thickness_mm: f64,
+    /// Joint force the kerf is for, N.
+    pub force_n: f64,
+    /// The kerf (the mean of the runs), µm.
+    pub kerf_um: f64,
+    /// Half-width of its 95 % confidence interval, µm (`None` for one run).
+    pub ci95_um: Option<f64>,
+    /// The quality flags of its runs, by name.
+    pub flags: Vec<String>,
+    /// Measured by the simulated device.
+    pub simulated: bool,
+}
+
+/// A recorded measurement; its JSON is the server's `history` record.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Record {
+    /// Its id in the database (increasing in commit order).
+    pub id: i64,
+    /// When it was recorded, RFC 3339 in UTC.
+    pub time: String,
+    /// What identifies the device.
+    pub device_id: String,
+    /// Its firmware version.
+    pub firmware: String,
+    /// What was measured.
+    pub label: Option<String>,
+    /// Sheet thickness, mm.
+    pub thickness_mm: f64,
+    /// Joint force, N.
+    pub force_n: f64,
+    /// The kerf, µm.
+    pub kerf_um: f64,
+    /// Half-width of the 95 % confidence interval, µm.
+    pub ci95_um: Option<f64>,
+    /// Quality flags, by name.
+    pub flags: Vec<String>,
+    /// Measured by the simulated device.
+    pub simulated: bool,
+}
+
+/// Which records to list.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Query {
+    /// Only this label's.
+    pub label: Option<String>,
+    /// At most this many, newest first (`None`: all).
+    pub limit: Option<usize>,
+    /// The simulated records instead of the real ones.
+    pub simulated: bool,
+}
+
+/// What `kerfmeter history --json` prints and the server's `history` method returns.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Listing {
+    /// The records, newest first.
+    pub records: Vec<Record>,
+    /// The drift of each listed label's newest measurement, where it drifts.
+    pub drift: Vec<Drift>,
+}
+
+/// An open history database.
+#[derive(Debug)]
+pub struct History {
+    conn: Connection,
+    path: PathBuf,
+}
+
+/// Check a label: not blank, at most [`MAX_LABEL_CHARS`] characters, no control characters.
+pub fn check_label(label: &str) -> Result<(), Error> {
+    if label.trim().is_empty() {
+        return Err(Error::Invalid("a label must not be blank".into()));
+    }
+    if label.chars().count() > MAX_LABEL_CHARS {
+        return Err(Error::Invalid(format!(
+            "a label has at most {MAX_LABEL_CHARS} characters"
+        )));
+    }
+    if label.chars().any(char::is_control) {
+        return Err(Error::Invalid(
+            "a label must not hold control characters (new lines, tabs, ...)".into(),
+        ));
+    }
+    Ok(())
+}
+
+impl History {
+    /// The default database: `kerfmeter/history.sqlite3` in the user's data directory.
+    pub fn default_path() -> Result<PathBuf, Error> {
+        let dir = dirs::data_dir().ok_or(Error::NoDataDir)?;
+        Ok(dir.join("kerfmeter").join("history.sqlite3"))
+    }
+
+    /// Open (or create, with its folder) the database at `path` and bring its schema up to date.
+    pub fn open(path: &Path) -> Result<History, Error> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|source| Error::Folder {
+                path: dir.to_owned(),
+                source,
+            })?;
+        }
+        let sql = |source| Error::sqlite(path, source);
+        let mut conn = Connection::open(path).map_err(sql)?;
+        conn.busy_timeout(Duration::from_secs(5)).map_err(sql)?;
+        conn.pragma_update(None, "synchronous", "FULL")
+            .map_err(sql)?;
+        schema::migrate(&mut conn, path)?;
+        Ok(History {
+            conn,
+            path: path.to_owned(),
+        })
+    }
+
+    /// The database's file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn sql(&self, source: rusqlite::Error) -> Error {
+        Error::sqlite(&self.path, source)
+    }
+
+    /// Record `record` now (one transaction); its id.
+    pub fn record(&mut self, record: &NewRecord) -> Result<i64, Error> {
+        check_record(record)?;
+        let time = jiff::Timestamp::now()
+            .round(jiff::Unit::Millisecond)
+            .map_err(|e| Error::Invalid(format!("the clock: {e}")))?
+            .to_string();
+        let flags = serde_json::to_string(&record.flags).expect("strings serialize");
+        let path = &self.path;
+        let tx = self
+            .conn
+            .transaction()
+            .map_err(|e| Error::sqlite(path, e))?;
+        tx.execute(
+            "INSERT INTO measurements (time, device_id, firmware, label, thickness_mm, force_n,
+                 kerf_um, ci95_um, flags, simulated)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+            params![
+                time,
+                record.device_id,
+                record.firmware,
+                record.label,
+                record.thickness_mm,
+                record.force_n,
+                record.kerf_um,
+                record.ci95_um,
+                flags,
+                record.simulated
+            ],
+        )
+        .map_err(|e| Error::sqlite(path, e))?;
+        let id = tx.last_insert_rowid();
+        tx.commit().map_err(|e| Error::sqlite(path, e))?;
+        Ok(id)
+    }
+
+    /// The records `query` asks for, newest first.
+    pub fn list(&self, query: &Query) -> Result<Vec<Record>, Error> {
+        let limit = query
+            .limit
+            .map_or(-1, |n| i64::try_from(n).unwrap_or(i64::MAX));
+        let mut stmt = self
+            .conn
+            .prepare_cached(&format!(
+                "SELECT {COLUMNS} FROM measurements
+                 WHERE simulated = ?1 AND (?2 IS NULL OR label = ?2)
+                 ORDER BY id DESC LIMIT ?3"
+            ))
+            .map_err(|e| self.sql(e))?;
+        let rows = stmt
+            .query_map(params![query.simulated, query.label, limit], read_record)
+            .map_err(|e| self.sql(e))?;
+        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+    }
+
+    /// One record by its id.
+    pub fn get(&self, id: i64) -> Result<Option<Record>, Error> {
+        self.conn
+            .query_row(
+                &format!("SELECT {COLUMNS} FROM measurements WHERE id = ?1"),
+                [id],
+                read_record,
+            )
+            .optional()
+            .map_err(|e| self.sql(e))
+    }
+
+    /// The records and the drift of each listed label's newest measurement.
+    pub fn listing(&self, query: &Query) -> Result<Listing, Error> {
+        let records = self.list(query)?;
+        let mut drift = Vec::new();
+        let mut seen: Vec<&str> = Vec::new();
+        for r in &records {
+            let Some(label) = r.label.as_deref() else {
+                continue;
+            };
+            if seen.contains(&label) {
+                continue;
+            }
+            seen.push(label);
+            if let Some(d) = self.drift(label, query.simulated)? {
+                drift.push(d);
+            }
+        }
+        Ok(Listing { records, drift })
+    }
+
+    /// The drift of `label`'s newest measurement (real, or `simulated`), if it drifts.
+    pub fn drift(&self, label: &str, simulated: bool) -> Result<Option<Drift>, Error> {
+        let newest = self.list(&Query {
+            label: Some(label.to_owned()),
+            limit: Some(1),
+            simulated,
+        })?;
+        match newest.first() {
+            Some(r) => self.drift_of(r),
+            None => Ok(None),
+        }
+    }
+
+    /// The drift of record `id` from its label's measurements before it, if it drifts (an
+    /// unlabelled record has no baseline: only a label says two measurements are alike).
+    pub fn drift_at(&self, id: i64) -> Result<Option<Drift>, Error> {
+        match self.get(id)? {
+            Some(r) => self.drift_of(&r),
+            None => Ok(None),
+        }
+    }
+
+    fn drift_of(&self, record: &Record) -> Result<Option<Drift>, Error> {
+        let Some(label) = record.label.as_deref() else {
+            return Ok(None);
+        };
+        let mut stmt = self
+            .conn
+            .prepare_cached(&format!(
+                "SELECT {COLUMNS} FROM measurements
+                 WHERE simulated = ?1 AND label = ?2 AND id < ?3 ORDER BY id DESC"
+            ))
+            .map_err(|e| self.sql(e))?;
+        let mut baseline = Vec::with_capacity(drift::BASELINE_RECORDS);
+        let rows = stmt
+            .query_map(params![record.simulated, label, record.id], read_record)
+            .map_err(|e| self.sql(e))?;
+        for row in rows {
+            let r = row.map_err(|e| self.sql(e))?;
+            if r.flags.iter().all(|f| f == HARMLESS_FLAG) {
+                baseline.push(r.kerf_um);
+                if baseline.len() == drift::BASELINE_RECORDS {
+                    break;
+                }
+            }
+        }
+        Ok(drift::drift(label, record.kerf_um, &baseline))
+    }
+}
+
+/// The columns [`read_record`] reads, in its order.
+const COLUMNS: &str = "id, time, device_id, firmware, label, thickness_mm, force_n, kerf_um, \
+                       ci95_um, flags, simulated";
+
+fn read_record(row: &Row<'_>) -> rusqlite::Result<Record> {
+    let flags: String = row.get(9)?;
+    let flags = serde_json::from_str(&flags).map_err(|e| {
+        rusqlite::Error::FromSqlConversionFailure(9, rusqlite::types::Type::Text, Box::new(e))
+    })?;
+    Ok(Record {
+        id: row.get(0)?,
+        time: row.get(1)?,
+        device_id: row.get(2)?,
+        firmware: row.get(3)?,
+        label: row.get(4)?,
+        thickness_mm: row.get(5)?,
+        force_n: row.get(6)?,
+        kerf_um: row.get(7)?,
+        ci95_um: row.get(8)?,
+        flags,
+        simulated: row.get(10)?,
+    })
+}
+
+/// Refuse a record SQLite would store wrongly (a NaN becomes NULL) or that means nothing.
+fn check_record(r: &NewRecord) -> Result<(), Error> {
+    if let Some(label) = &r.label {
+        check_label(label)?;
+    }
+    let numbers = [
+        ("thickness_mm", Some(r.thickness_mm)),
+        ("force_n", Some(r.force_n)),
+        ("kerf_um", Some(r.kerf_um)),
+        ("ci95_um", r.ci95_um),
+    ];
+    for (name, value) in numbers {
+        if value.is_some_and(|v| !v.is_finite()) {
+            return Err(Error::Invalid(format!(
+                "{name} must be a finite number to be recorded"
+            )));
+        }
+    }
+    Ok(())
+}
