@@ -643,3 +643,57 @@ fn ctrl_c_during_a_run_aborts_it_leaves_the_motor_safe_and_stops_the_server() {
     let _ = twin.kill();
     let _ = twin.wait();
 }
+
+#[test]
+fn a_plan_is_dilated_by_the_last_kerf_from_its_text() {
+    let server = Server::sim(false);
+    let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../plan/tests/fixtures/box_generator.svg");
+    let plan = std::fs::read_to_string(fixture).unwrap();
+    let mut ws = server.ws();
+    let last = json!({ "plan": plan, "format": "svg", "kerf_um": "last" });
+    let none = ws.call("dilate", last.clone());
+    assert_eq!(code(&none), -32602, "{none}");
+    assert!(
+        none["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("measure first")
+    );
+    let run = ws.call("run_kerfmeter", json!({}));
+    let kerf_um = result(&run)["kerf_um"].as_f64().unwrap();
+    let (status, dilated) = server.post("/api/dilate", &last.to_string());
+    assert_eq!(status, 200, "{dilated}");
+    assert!(
+        (dilated["kerf_um"].as_f64().unwrap() - kerf_um).abs() < 0.01,
+        "{dilated}"
+    );
+    assert_eq!(dilated["format"], "svg");
+    let content = dilated["content"].as_str().unwrap();
+    assert!(content.contains("kerfmeter:compensation") && content != plan);
+    assert!(dilated["report"]["cut_rules"].is_string(), "{dilated}");
+    let bad = ws.call(
+        "dilate",
+        json!({ "plan": "<svg", "format": "svg", "kerf_um": 150 }),
+    );
+    assert_eq!(code(&bad), -32005, "{bad}");
+    let no_format = ws.call("dilate", json!({ "plan": plan, "kerf_um": 150 }));
+    assert!(
+        no_format["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("format"),
+        "{no_format}"
+    );
+    let dxf = ws.call(
+        "dilate",
+        json!({ "plan_base64": "%%%", "format": "dxf", "kerf_um": 150 }),
+    );
+    assert!(
+        dxf["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("plan_base64"),
+        "{dxf}"
+    );
+}
