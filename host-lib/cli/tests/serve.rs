@@ -697,3 +697,32 @@ fn a_plan_is_dilated_by_the_last_kerf_from_its_text() {
         "{dxf}"
     );
 }
+
+#[test]
+fn the_gauge_is_drawn_as_the_gauge_command_draws_it() {
+    let server = Server::sim(false);
+    let mut ws = server.ws();
+    let svg = ws.call("gauge", json!({ "label": true, "radius_mm": 12 }));
+    let svg = result(&svg);
+    assert_eq!(svg["format"], "svg");
+    assert!(svg["content"].as_str().unwrap().contains("<svg"), "{svg}");
+    assert!(svg["report"]["spiral_arcs"].as_u64().unwrap() > 10, "{svg}");
+    assert!(svg["report"].get("output").is_none(), "{svg}");
+    let dxf = ws.call("gauge", json!({ "format": "dxf", "jam_direction": "ccw" }));
+    assert!(
+        result(&dxf)["content"]
+            .as_str()
+            .unwrap()
+            .contains("SECTION")
+    );
+    let bad = ws.call("gauge", json!({ "radius_mm": "big" }));
+    assert_eq!(code(&bad), -32602, "{bad}");
+    let unknown = ws.call("gauge", json!({ "output": "/etc/passwd" }));
+    assert!(
+        unknown["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("`output`"),
+        "{unknown}"
+    );
+}

@@ -1,7 +1,9 @@
 //! The server's plan methods: `dilate` takes a plan as text (or base64) in the request, never a
 //! path, dilates it with the same options and library call as `kerfmeter dilate`, and gives the
-//! dilated plan back as text. The work runs on a blocking thread of its own, so it neither holds
-//! the device nor stalls the other clients.
+//! dilated plan back as text; `gauge` draws the gauge as `kerfmeter gauge` does (its options are
+//! the command's flags, read by the command's own parser, so the defaults and checks are the
+//! same) and gives the drawing back instead of writing a file. The work runs on a blocking
+//! thread of its own, so it neither holds the device nor stalls the other clients.
 
 use base64::Engine as _;
 use base64::engine::general_purpose::STANDARD as BASE64;
@@ -14,6 +16,7 @@ use serde_json::{Value, json};
 use super::rpc::{Caller, INVALID_PARAMS, Params, RpcError};
 use super::worker::{Call, Device};
 use crate::commands::dilate::DilationArgs;
+use crate::commands::gauge::{GaugeArgs, draw};
 use crate::error::CliError;
 
 /// What `dilate` reports beside the plan: the kerf, the cut rules, and what was found and done
@@ -155,4 +158,100 @@ async fn kerf_um(device: &Device, p: &mut Params, by: Caller) -> Result<f64, Rpc
             format!("a number (µm) or \"last\", not {other}"),
         )),
     }
+}
+
+/// The `gauge` parameters: those of `kerfmeter gauge`'s flags that make sense without a file
+/// (the G-code flags are left out: the gauge's G-code is cut by `job`).
+const GAUGE_PARAMS: &[&str] = &[
+    "pitch_um_per_deg",
+    "radius_mm",
+    "prong_radius_mm",
+    "hole_radius_mm",
+    "hole_distance_mm",
+    "jam_direction",
+    "disengage_deg",
+    "test_piece",
+    "thickness_mm",
+    "finger_width_mm",
+    "test_piece_kerf_um",
+    "label",
+];
+
+/// `gauge` {format: "svg"|"dxf", ... `kerfmeter gauge`'s options}: `{"format", "content",
+/// "report"}`, the report being `gauge --json`'s without the file name.
+pub async fn gauge(p: Params) -> Result<Value, RpcError> {
+    let args = gauge_args(p)?;
+    let format = if args.output.extension().is_some_and(|e| e == "dxf") {
+        "dxf"
+    } else {
+        "svg"
+    };
+    let work = move || draw(&args);
+    let (content, report) = tokio::task::spawn_blocking(work)
+        .await
+        .map_err(|e| RpcError::new(super::rpc::PLAN_ERROR, format!("the drawing failed: {e}")))?
+        .map_err(|e| RpcError::from(&e))?;
+    let mut report = serde_json::to_value(&report).expect("reports serialize");
+    if let Some(fields) = report.as_object_mut() {
+        fields.remove("output");
+    }
+    let mut answer = json!({ "format": format, "report": report });
+    match String::from_utf8(content) {
+        Ok(text) => answer["content"] = Value::String(text),
+        Err(binary) => answer["content_base64"] = BASE64.encode(binary.into_bytes()).into(),
+    }
+    Ok(answer)
+}
+
+/// The gauge's options, read by `kerfmeter gauge`'s own parser from the params turned into flags.
+fn gauge_args(mut p: Params) -> Result<GaugeArgs, RpcError> {
+    /// `kerfmeter gauge`'s flags alone.
+    #[derive(clap::Parser)]
+    struct Gauge {
+        #[command(flatten)]
+        args: GaugeArgs,
+    }
+    let format = match p.string("format")?.as_deref() {
+        None | Some("svg") => "svg",
+        Some("dxf") => "dxf",
+        Some(other) => {
+            return Err(RpcError::param(
+                "format",
+                format!("\"svg\" or \"dxf\", not {other:?}"),
+            ));
+        }
+    };
+    // The name only chooses the format: nothing is written.
+    let mut argv = vec![
+        "gauge".to_owned(),
+        "-o".to_owned(),
+        format!("gauge.{format}"),
+    ];
+    for name in GAUGE_PARAMS {
+        let flag = format!("--{}", name.replace('_', "-"));
+        match p.0.remove(*name) {
+            None | Some(Value::Null) | Some(Value::Bool(false)) => {}
+            Some(Value::Bool(true)) => argv.push(flag),
+            Some(Value::Number(n)) => argv.extend([flag, n.to_string()]),
+            Some(Value::String(s)) => argv.extend([flag, s]),
+            Some(other) => return Err(RpcError::param(name, format!("not {other}"))),
+        }
+    }
+    p.finish()?;
+    <Gauge as clap::Parser>::try_parse_from(argv)
+        .map(|g| g.args)
+        .map_err(|e| {
+            let why = e.render().to_string();
+            let first = why
+                .lines()
+                .next()
+                .unwrap_or_default()
+                .trim_start_matches("error: ");
+            RpcError::new(
+                INVALID_PARAMS,
+                format!(
+                    "gauge: {first} (the params are the flags of `kerfmeter gauge`, written with _)"
+                ),
+            )
+        })
 }

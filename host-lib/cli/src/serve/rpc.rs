@@ -314,6 +314,7 @@ pub async fn dispatch(
             return device.abort().await;
         }
         "dilate" => return super::plans::dilate(device, params, by).await,
+        "gauge" => return super::plans::gauge(params).await,
         "job" => {
             let why = "no cutter configured: start the server with `kerfmeter serve --cutter ...`";
             return Err(RpcError::new(NO_CUTTER, why));
