@@ -726,3 +726,26 @@ fn the_gauge_is_drawn_as_the_gauge_command_draws_it() {
         "{unknown}"
     );
 }
+
+#[test]
+fn self_test_and_clear_fault_answer_as_the_cli_does() {
+    let server = Server::start(&["--sim", "--sim-fault", "motor-disconnected"], &[]);
+    let mut ws = server.ws();
+    let failed = ws.call("self_test", json!({}));
+    let failed = result(&failed);
+    assert_eq!(failed["passed"], false, "{failed}");
+    let reasons: Vec<&str> = failed["failures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["item"].as_str().unwrap())
+        .collect();
+    assert!(reasons.contains(&"direction"), "{failed}");
+    assert_eq!(
+        result(&ws.call("clear_fault", json!({}))),
+        &json!({ "ok": true })
+    );
+    let healthy = Server::sim(false);
+    let passed = healthy.ws().call("self_test", json!({}));
+    assert_eq!(result(&passed)["passed"], true, "{passed}");
+}
