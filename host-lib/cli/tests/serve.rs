@@ -2,6 +2,9 @@
 //! notifications, one run at a time, abort, a client that leaves mid-run, a device that
 //! vanishes and comes back, and the security rules (token, origin, host, body size, malformed
 //! requests). Each test starts its own server on a free loopback port (`--listen 127.0.0.1:0`).
+//! Unix only: the vanishing device is a pseudo-terminal behind a symbolic link, and Ctrl-C is
+//! sent with `kill -INT`.
+#![cfg(unix)]
 
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read, Write};

@@ -62,6 +62,16 @@
 //!
 //! See [`security`]: loopback by default, a token off loopback, no cross-site requests.
 //!
+//! # Notes for clients
+//!
+//! * While a run, reset, self-test or job goes, every other device call (`status`, `info`,
+//!   `get_kerf_value`, ...) is refused with -32001 rather than made to wait for it: a page
+//!   follows the run through `progress`, `stage` and `run_finished`, and asks for the status
+//!   after. `abort`, `gauge` and `dilate` (with a number for `kerf_um`) are always answered.
+//! * `progress.state` is the device state's name as the library spells it: `Engaging`,
+//!   `Ramping`, `Jammed`, `Releasing`, `Done`, ..., `Fault(NoMotion)`.
+//! * The token, origin and body-size refusals are -32600 with HTTP 401, 403 and 413.
+//!
 //! # Adding a method
 //!
 //! A method is one arm of [`rpc::dispatch`] (and, for a device call, of the worker's `Call`);
