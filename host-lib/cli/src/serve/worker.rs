@@ -117,6 +117,8 @@ struct Shared {
     connected: AtomicBool,
     /// The server is stopping: the thread ends after the call it is doing.
     quit: AtomicBool,
+    /// The device's state was logged once.
+    logged: AtomicBool,
     /// Notifications to every client, as JSON-RPC text.
     events: broadcast::Sender<Arc<str>>,
     /// The cutter `job` runs on (`serve --cutter`), if any.
@@ -129,9 +131,13 @@ impl Shared {
         let _ = self.events.send(notification(method, params).into());
     }
 
-    /// Record whether the device answers; tell every client when that changes.
+    /// Record whether the device answers; tell every client, and the server's log (stderr),
+    /// when that changes (a device that cannot be opened at startup is logged too).
     fn set_connected(&self, connected: bool, message: &str) {
-        if self.connected.swap(connected, Ordering::SeqCst) != connected {
+        let first = !self.logged.swap(true, Ordering::SeqCst);
+        let changed = self.connected.swap(connected, Ordering::SeqCst) != connected;
+        if changed || first {
+            eprintln!("device: {message}");
             let params = json!({ "connected": connected, "message": message });
             self.notify("device", params);
         }
@@ -164,6 +170,7 @@ impl Device {
             stop: AtomicBool::new(false),
             connected: AtomicBool::new(false),
             quit: AtomicBool::new(false),
+            logged: AtomicBool::new(false),
             events,
             cutter,
         });
