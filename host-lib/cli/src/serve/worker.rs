@@ -16,8 +16,8 @@
 //! * A link error (the port vanished, the device stopped answering or restarted) drops the
 //!   session and tells every client (`device`, `connected: false`); the thread then re-opens the
 //!   device every [`WATCH_INTERVAL`] until it answers again (`device`, `connected: true`). An idle
-//!   device is asked for its status every [`WATCH_INTERVAL`], so a vanished one is noticed
-//!   without a client asking.
+//!   device is asked who it is every [`WATCH_INTERVAL`], so a vanished or restarted one (a new
+//!   boot id) is noticed without a client asking.
 
 use std::ops::ControlFlow;
 use std::sync::Arc;
@@ -299,11 +299,12 @@ impl Worker {
         }
     }
 
-    /// An idle moment: check that the device still answers, or look for it again.
+    /// An idle moment: check that the device still answers and has not restarted (its boot id,
+    /// from `GetInfo`), or look for it again.
     fn watch(&mut self) {
         match &mut self.session {
             Some(s) => {
-                if let Err(e) = s.meter.status() {
+                if let Err(e) = s.meter.info() {
                     self.lost(&CliError::from(e));
                 }
             }
