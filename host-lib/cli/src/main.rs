@@ -28,6 +28,7 @@ mod output;
 mod plot;
 mod progress;
 mod record;
+mod serve;
 #[cfg(test)]
 mod tests;
 
@@ -95,6 +96,9 @@ enum Command {
     /// List the measurements recorded by run and job (the real ones; with --sim the simulated
     /// ones), newest first, with a warning for each label whose kerf left its usual spread.
     History(history::HistoryArgs),
+    /// Serve the device to other programs and browsers: JSON-RPC over a WebSocket (/rpc), HTTP
+    /// JSON (/api/...) and a page (/), on loopback by default (see the README's "Server").
+    Serve(commands::serve::ServeArgs),
 }
 
 fn main() -> ExitCode {
@@ -138,6 +142,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Cut(args) => emit(json, &cut::run(g, args)?),
         Command::Gcode(args) => emit(json, &gcode::run(g, args)?),
         Command::History(args) => emit(json, &history::run(g, args)?),
+        Command::Serve(args) => emit(json, &commands::serve::run(g, args)?),
         Command::Job(args) => match job::run(g, args)? {
             job::JobOutcome::Done(report) => emit(json, report.as_ref()),
             job::JobOutcome::DryRun(report) => emit(json, &report),

@@ -38,12 +38,18 @@ pub struct HistoryReport {
 
 /// List the history as `args` say.
 pub fn run(g: &Global, args: &HistoryArgs) -> Result<HistoryReport, CliError> {
+    list(g, args.label.clone(), args.limit)
+}
+
+/// The newest `limit` records of the history `g` names (of `label` only, if given), real or
+/// simulated as `g.sim` says, with the drift warnings (`kerfmeter serve`'s `history` too).
+pub fn list(g: &Global, label: Option<String>, limit: u32) -> Result<HistoryReport, CliError> {
     let db = g.db_path()?;
     // Listing creates nothing: no file yet is an empty history.
     let listing = if db.exists() {
         History::open(&db)?.listing(&Query {
-            label: args.label.clone(),
-            limit: Some(args.limit as usize),
+            label,
+            limit: Some(limit as usize),
             simulated: g.sim,
         })?
     } else {

@@ -264,6 +264,26 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
         .map_err(|e| CliError::Usage(format!("cannot take over Ctrl-C: {e}")))?;
     let mut session = g.connect()?;
+    let bar = stage_bar(g.json);
+    let report = run_on(g, args, &setup, &mut session, &cancel, &mut |e| {
+        show_event(&bar, e)
+    });
+    bar.finish_and_clear();
+    Ok(JobOutcome::Done(Box::new(report?)))
+}
+
+/// Run the loop as `args` say with `setup` on the device of `session` (the cutter is opened
+/// here), until done or `cancel` is raised; `on_event` hears of every stage (`kerfmeter serve`
+/// shares it).
+pub fn run_on(
+    g: &Global,
+    args: &JobArgs,
+    setup: &Setup,
+    session: &mut Session,
+    cancel: &AtomicBool,
+    on_event: &mut dyn FnMut(JobEvent<'_>),
+) -> Result<JobCliReport> {
+    check_machines(g, args)?;
     let (mut cutter, sim_kerf) = open_cutter(g, args)?;
     if !g.json {
         eprintln!(
@@ -287,29 +307,27 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
             kerf: sim_kerf,
         }),
     };
-    let bar = stage_bar(g.json);
     let mut dilate = |kerf_um: f64| setup.dilate_and_write(args, kerf_um);
     let mut measured = false;
-    let report = run_job(devices, &request, &mut dilate, &cancel, &mut |e| {
+    let report = run_job(devices, &request, &mut dilate, cancel, &mut |e| {
         measured |= matches!(e, JobEvent::Finished(Stage::Measure, _));
-        show_event(&bar, e)
+        on_event(e)
     });
-    bar.finish_and_clear();
     let report = match report {
         Ok(report) => report,
         Err(e) => {
             if measured {
-                record_after_failure(g, args, &setup, &mut session);
+                record_after_failure(g, args, setup, session);
             }
             return Err(job_error(e));
         }
     };
-    let history = record_kerf(g, args, &setup, &session, &report.kerf);
+    let history = record_kerf(g, args, setup, session, &report.kerf);
     let sim_truth_um = session
         .sim
         .as_ref()
         .and_then(|s| s.truth_um(report.kerf.run_id));
-    Ok(JobOutcome::Done(Box::new(JobCliReport {
+    Ok(JobCliReport {
         input: args.input.clone(),
         output: args.output.clone(),
         gcode_out: setup.gcode_out.clone(),
@@ -323,7 +341,7 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
         sim_truth_um,
         label: args.label.clone(),
         history,
-    })))
+    })
 }
 
 /// Record the job's measurement `kerf` in the history.
@@ -396,7 +414,7 @@ fn open_cutter(
 }
 
 /// What the loop needs, made from the arguments before anything moves.
-struct Setup {
+pub struct Setup {
     placement: Placement,
     params: RunParams,
     gauge_gcode: String,
@@ -408,7 +426,7 @@ struct Setup {
 impl Setup {
     /// Check the plan (read at kerf 0) before anything moves, choose the gauge's place and write
     /// its G-code.
-    fn new(args: &JobArgs) -> Result<Setup> {
+    pub fn new(args: &JobArgs) -> Result<Setup> {
         let format = PlanFormat::of(&args.input)?;
         let gcode_out = match &args.gcode_out {
             Some(p) => p.clone(),
