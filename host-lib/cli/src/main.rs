@@ -77,7 +77,8 @@ enum Command {
     /// Draw the spiral gauge to cut before a measurement (SVG, DXF or G-code by extension).
     Gauge(gauge::GaugeArgs),
     /// Dilate a cutting plan (SVG or DXF) by the measured kerf: cuts grow by half the kerf on
-    /// each side, so parts come out at their drawn size.
+    /// each side, so parts come out at their drawn size. A LightBurn project (.lbrn2) gets the
+    /// Kerf Offset of its Line layers set to half the kerf instead.
     Dilate(dilate::DilateArgs),
     /// Stream a G-code file to a laser cutter's GRBL controller (--cutter sim for the simulated
     /// one). Refuses a cutter in alarm (--unlock) or without laser mode; Ctrl-C stops the cutter.

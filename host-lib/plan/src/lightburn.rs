@@ -130,7 +130,11 @@ pub fn set_kerf_offset_file(
     let text = String::from_utf8(bytes).map_err(|_| {
         PlanError::LightBurn("not a LightBurn project (not UTF-8 text)".into()).in_file(input)
     })?;
-    let (out, summary) = set_kerf_offset(&text, kerf_um, options).map_err(|e| e.in_file(input))?;
+    // A bad argument (the kerf, --layers) is the command's, not the file's.
+    let (out, summary) = set_kerf_offset(&text, kerf_um, options).map_err(|e| match e {
+        PlanError::InvalidArgument(_) => e,
+        e => e.in_file(input),
+    })?;
     Ok((out.into_bytes(), summary))
 }
 

@@ -11,6 +11,7 @@ pub mod gcode;
 pub mod info;
 pub mod job;
 pub mod kerf;
+pub mod lightburn;
 pub mod map;
 pub mod reset;
 pub mod run;
