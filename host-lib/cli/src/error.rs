@@ -7,6 +7,7 @@
 
 use kerfmeter::grbl::CutterError;
 use kerfmeter::job::JobError;
+use kerfmeter::lightburn::LightBurnError;
 use kerfmeter::{Category, Error};
 use kerfmeter_plan::PlanError;
 
@@ -37,6 +38,9 @@ pub enum CliError {
     /// The automatic loop stopped (the cutter stopped, the laser off, unless it says otherwise).
     #[error(transparent)]
     Job(#[from] JobError),
+    /// LightBurn's REST API refused or could not be reached.
+    #[error(transparent)]
+    LightBurn(#[from] LightBurnError),
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
@@ -54,6 +58,7 @@ impl CliError {
             CliError::SelfTestFailed => Category::Device,
             CliError::Cutter(e) => e.category(),
             CliError::Job(e) => e.category(),
+            CliError::LightBurn(e) => e.category(),
         }
     }
 
@@ -67,6 +72,7 @@ impl CliError {
             | CliError::Plan(_)
             | CliError::SelfTestFailed
             | CliError::Cutter(_)
+            | CliError::LightBurn(_)
             | CliError::Job(_) => None,
         }
     }
@@ -79,6 +85,7 @@ impl CliError {
             | CliError::Plan(_)
             | CliError::SelfTestFailed
             | CliError::Cutter(_)
+            | CliError::LightBurn(_)
             | CliError::Job(_) => Vec::new(),
         }
     }

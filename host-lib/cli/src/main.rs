@@ -30,7 +30,7 @@ mod tests;
 use commands::config::ConfigCommand;
 use commands::map::MapArgs;
 use commands::run::RunArgs;
-use commands::{cut, dilate, gauge, gcode, job};
+use commands::{cut, dilate, gauge, gcode, job, lightburn};
 use connection::Global;
 use error::{CliError, exit_code};
 use output::{ErrorReport, JsonLayout, emit, print_line, to_json};
@@ -86,6 +86,10 @@ enum Command {
     /// Dilate a cutting plan by the kerf and write it as G-code for a GRBL 1.1 laser (laser
     /// mode, M4 dynamic power), with speed, power and passes per colour or layer.
     Gcode(gcode::GcodeArgs),
+    /// LightBurn (2.2 or later) over its local REST API: pair with it, and write the kerf into
+    /// the Kerf Offset of its Line layers.
+    #[command(subcommand)]
+    Lightburn(lightburn::LightBurnCommand),
     /// The whole job: cut the gauge beside the plan, lower the prongs into it, measure, lift,
     /// dilate the plan by the kerf measured and cut it (--sim --cutter sim: all simulated).
     Job(job::JobArgs),
@@ -131,6 +135,12 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Dilate(args) => emit(json, &dilate::run(g, args)?),
         Command::Cut(args) => emit(json, &cut::run(g, args)?),
         Command::Gcode(args) => emit(json, &gcode::run(g, args)?),
+        Command::Lightburn(lightburn::LightBurnCommand::Pair(args)) => {
+            emit(json, &lightburn::pair(args)?)
+        }
+        Command::Lightburn(lightburn::LightBurnCommand::Apply(args)) => {
+            emit(json, &lightburn::apply(args)?)
+        }
         Command::Job(args) => match job::run(g, args)? {
             job::JobOutcome::Done(report) => emit(json, report.as_ref()),
             job::JobOutcome::DryRun(report) => emit(json, &report),

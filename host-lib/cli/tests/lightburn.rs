@@ -44,16 +44,33 @@ fn dilate_sets_the_kerf_offset_of_a_lightburn_project_and_reports_it() {
     let out = kerfmeter(&["dilate", s(&input), "--kerf-um", "150", "-o", s(&out_path)]);
     assert_eq!(code(&out), 0, "{}", text(&out.stderr));
     let report = text(&out.stdout);
-    assert!(report.contains("Kerf Offset 0.075 mm (half the kerf"), "{report}");
-    assert!(report.contains("layer 1 \"Engrave\" (Scan): left alone"), "{report}");
-    assert_eq!(std::fs::read(&input).unwrap(), before, "the input is untouched");
+    assert!(
+        report.contains("Kerf Offset 0.075 mm (half the kerf"),
+        "{report}"
+    );
+    assert!(
+        report.contains("layer 1 \"Engrave\" (Scan): left alone"),
+        "{report}"
+    );
+    assert_eq!(
+        std::fs::read(&input).unwrap(),
+        before,
+        "the input is untouched"
+    );
     let written = std::fs::read_to_string(&out_path).unwrap();
     assert_eq!(written.matches("<kerf Value=\"0.075\"/>").count(), 3);
     // Nothing but the project and its output in the folder: no temporary file left.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
 
     let out = kerfmeter(&[
-        "--json", "dilate", s(&input), "--kerf-um", "200", "--layers", "Score", "--dry-run",
+        "--json",
+        "dilate",
+        s(&input),
+        "--kerf-um",
+        "200",
+        "--layers",
+        "Score",
+        "--dry-run",
     ]);
     assert_eq!(code(&out), 0, "{}", text(&out.stderr));
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -72,11 +89,25 @@ fn dilate_refuses_what_does_not_fit_a_lightburn_project() {
     let out = kerfmeter(&["dilate", s(&input), "--kerf-um", "150", "-o", s(&input)]);
     assert_ne!(code(&out), 0);
     let out = kerfmeter(&[
-        "dilate", s(&input), "--kerf-um", "150", "--dry-run", "--cut-color", "red",
+        "dilate",
+        s(&input),
+        "--kerf-um",
+        "150",
+        "--dry-run",
+        "--cut-color",
+        "red",
     ]);
     assert_eq!(code(&out), 2);
     assert!(text(&out.stderr).contains("--cut-color does not apply to a LightBurn project"));
-    let out = kerfmeter(&["dilate", s(&input), "--kerf-um", "150", "--dry-run", "--layers", "Engrave"]);
+    let out = kerfmeter(&[
+        "dilate",
+        s(&input),
+        "--kerf-um",
+        "150",
+        "--dry-run",
+        "--layers",
+        "Engrave",
+    ]);
     assert_eq!(code(&out), 2, "{}", text(&out.stderr));
     assert!(text(&out.stderr).contains("not a Line (cut) layer"));
     assert!(!svg.exists());
@@ -84,8 +115,17 @@ fn dilate_refuses_what_does_not_fit_a_lightburn_project() {
 
 #[test]
 fn layers_is_for_lightburn_projects_only() {
-    let plan = Path::new(env!("CARGO_MANIFEST_DIR")).join("../plan/tests/fixtures/box_generator.svg");
-    let out = kerfmeter(&["dilate", s(&plan), "--kerf-um", "150", "--dry-run", "--layers", "0"]);
+    let plan =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../plan/tests/fixtures/box_generator.svg");
+    let out = kerfmeter(&[
+        "dilate",
+        s(&plan),
+        "--kerf-um",
+        "150",
+        "--dry-run",
+        "--layers",
+        "0",
+    ]);
     assert_eq!(code(&out), 2);
     assert!(text(&out.stderr).contains("--cut-layer"));
 }
@@ -99,7 +139,13 @@ fn a_compensated_project_is_refused_until_told_to_replace_its_offsets() {
     assert!(text(&out.stderr).contains("--recompensate"));
     assert!(!output.exists());
     let out = kerfmeter(&[
-        "dilate", s(&input), "--kerf-um", "150", "-o", s(&output), "--recompensate",
+        "dilate",
+        s(&input),
+        "--kerf-um",
+        "150",
+        "-o",
+        s(&output),
+        "--recompensate",
     ]);
     assert_eq!(code(&out), 0, "{}", text(&out.stderr));
     assert!(text(&out.stdout).contains("line pass 0.08 → 0.075 mm"));

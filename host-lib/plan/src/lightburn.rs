@@ -262,7 +262,11 @@ fn read_layers<'a, 'i>(doc: &'a Document<'i>) -> Result<Vec<Layer<'a, 'i>>> {
     {
         match read_layer(e) {
             Ok(layer) => layers.push(layer),
-            Err(why) => problems.push(format!("cut setting {} (line {}): {why}", n + 1, line_of(doc, e))),
+            Err(why) => problems.push(format!(
+                "cut setting {} (line {}): {why}",
+                n + 1,
+                line_of(doc, e)
+            )),
         }
     }
     problems.into_error(PlanError::LightBurn)?;
@@ -280,7 +284,11 @@ fn read_layer<'a, 'i>(e: Node<'a, 'i>) -> std::result::Result<Layer<'a, 'i>, Str
     if mode == "Cut" {
         passes.push(line_pass(e, None)?);
     }
-    for (n, sub) in e.children().filter(|c| c.has_tag_name("SubLayer")).enumerate() {
+    for (n, sub) in e
+        .children()
+        .filter(|c| c.has_tag_name("SubLayer"))
+        .enumerate()
+    {
         if sub.attribute("type") == Some("Cut") {
             let idx = sub.attribute("index").and_then(|i| i.trim().parse().ok());
             passes.push(line_pass(sub, Some(idx.unwrap_or(n as i64 + 1)))?);
@@ -323,7 +331,10 @@ fn line_pass<'a, 'i>(
                 .parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())
-                .ok_or(format!("{whose}its Kerf Offset \"{}\" is not a number", a.value()))?;
+                .ok_or(format!(
+                    "{whose}its Kerf Offset \"{}\" is not a number",
+                    a.value()
+                ))?;
             Some(KerfValue {
                 range: a.range_value(),
                 mm,
@@ -345,7 +356,9 @@ fn line_of(doc: &Document, n: Node) -> u32 {
 /// The positions (in `layers`) of the layers to set: those `selectors` name, or every cut layer.
 fn choose(layers: &[Layer], selectors: &[String]) -> Result<Vec<usize>> {
     if selectors.is_empty() {
-        let all: Vec<usize> = (0..layers.len()).filter(|&i| !layers[i].passes.is_empty()).collect();
+        let all: Vec<usize> = (0..layers.len())
+            .filter(|&i| !layers[i].passes.is_empty())
+            .collect();
         if all.is_empty() {
             return Err(PlanError::LightBurn(
                 "the project has no Line (cut) layer to set a Kerf Offset on; nothing was written"
@@ -423,9 +436,8 @@ fn set_layer(
                 range: k.range.clone(),
                 text: value,
             },
-            None => insert_kerf(text, pass, &value).map_err(|why| {
-                PlanError::LightBurn(format!("{}: {why}", layer.describe()))
-            })?,
+            None => insert_kerf(text, pass, &value)
+                .map_err(|why| PlanError::LightBurn(format!("{}: {why}", layer.describe())))?,
         });
         changes.push(PassChange {
             sub_layer: pass.sub_layer,
@@ -467,9 +479,11 @@ fn applied(
 ) -> AppliedCompensation {
     let passes = || outcomes.iter().flat_map(|o| o.set.iter());
     let span = |f: &dyn Fn(&PassChange) -> f64| {
-        passes().map(f).fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], v| {
-            [lo.min(v), hi.max(v)]
-        })
+        passes()
+            .map(f)
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], v| {
+                [lo.min(v), hi.max(v)]
+            })
     };
     let net = span(&|p| (p.after_mm - p.before_mm.unwrap_or(0.0)) * 1000.0);
     let total = span(&|p| p.after_mm * 1000.0);

@@ -65,7 +65,13 @@ fn every_line_pass_gets_half_the_kerf_and_nothing_else_changes() {
     assert_eq!(set, [(0, 1), (1, 0), (2, 1), (3, 1)]);
     assert_eq!(summary.layers[3].set[0].sub_layer, Some(1));
     assert_eq!(summary.layers[2].set[0].before_mm, Some(0.0));
-    assert!(summary.layers[1].left_alone.as_deref().unwrap().contains("not a Line layer"));
+    assert!(
+        summary.layers[1]
+            .left_alone
+            .as_deref()
+            .unwrap()
+            .contains("not a Line layer")
+    );
     assert!(summary.compensation_found.is_none());
 }
 
@@ -107,7 +113,11 @@ fn a_layer_that_is_not_a_cut_layer_or_not_there_is_refused() {
     let input = read("lightburn_2x_layers.lbrn2");
     let e = set_kerf_offset(&input, 150.0, &layers(&["Engrave"])).unwrap_err();
     assert!(matches!(e, PlanError::InvalidArgument(_)), "{e}");
-    assert!(e.to_string().contains("layer 1 \"Engrave\" (Scan) is not a Line"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("layer 1 \"Engrave\" (Scan) is not a Line"),
+        "{e}"
+    );
     let e = set_kerf_offset(&input, 150.0, &layers(&["Photo", "7"])).unwrap_err();
     let msg = e.to_string();
     assert!(msg.contains("\"Photo\"") && msg.contains("\"7\""), "{msg}");
@@ -119,7 +129,11 @@ fn a_project_already_compensated_is_refused_replaced_or_added_to() {
     let e = set_kerf_offset(&input, 150.0, &LightBurnOptions::default()).unwrap_err();
     assert!(matches!(e, PlanError::AlreadyCompensated(_)), "{e}");
     let msg = e.to_string();
-    for needle in ["layer 0 \"C00\" (Cut): 0.08 mm", "--recompensate", "--already-compensated-ok"] {
+    for needle in [
+        "layer 0 \"C00\" (Cut): 0.08 mm",
+        "--recompensate",
+        "--already-compensated-ok",
+    ] {
         assert!(msg.contains(needle), "{msg}");
     }
     let replace = LightBurnOptions {
@@ -153,7 +167,10 @@ fn an_output_is_refused_again_and_recompensating_it_keeps_one_record() {
     let (twice, _) = set_kerf_offset(&once, 180.0, &replace).unwrap();
     assert_eq!(twice.matches("kerfmeter-compensation").count(), 1);
     assert_eq!(twice.matches("<kerf Value=\"0.09\"/>").count(), 3);
-    assert_eq!(without_record(&twice), without_record(&once).replace("0.075", "0.09"));
+    assert_eq!(
+        without_record(&twice),
+        without_record(&once).replace("0.075", "0.09")
+    );
 }
 
 #[test]
@@ -166,7 +183,10 @@ fn hostile_and_broken_projects_are_refused_with_a_clear_error() {
     .unwrap_err();
     assert!(e.to_string().contains("document type declaration"), "{e}");
     let cases = [
-        ("<LightBurnProject><CutSetting type=\"Cut\">", "not well-formed XML"),
+        (
+            "<LightBurnProject><CutSetting type=\"Cut\">",
+            "not well-formed XML",
+        ),
         ("<svg/>", "the root element is <svg>"),
         ("<LightBurnProject/>", "no Line (cut) layer"),
         (

@@ -351,4 +351,3 @@ fn plan(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
         summary,
     })
 }
-
