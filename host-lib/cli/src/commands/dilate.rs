@@ -278,9 +278,9 @@ pub(crate) fn plural(n: usize) -> &'static str {
 #[serde(untagged)]
 pub enum DilateOutcome {
     /// An SVG or DXF plan.
-    Plan(DilateReport),
+    Plan(Box<DilateReport>),
     /// A LightBurn project.
-    LightBurn(LightBurnReport),
+    LightBurn(Box<LightBurnReport>),
 }
 
 impl fmt::Display for DilateOutcome {
@@ -300,7 +300,7 @@ impl Report for DilateOutcome {
 /// Offset (the same arguments, the same never-over-the-input atomic write).
 pub fn run(g: &Global, args: &DilateArgs) -> Result<DilateOutcome> {
     if is_project_path(&args.input) {
-        return lightburn::run_offline(args).map(DilateOutcome::LightBurn);
+        return lightburn::run_offline(args).map(|r| DilateOutcome::LightBurn(Box::new(r)));
     }
     if !args.layers.is_empty() {
         return Err(CliError::Usage(
@@ -308,7 +308,7 @@ pub fn run(g: &Global, args: &DilateArgs) -> Result<DilateOutcome> {
                 .into(),
         ));
     }
-    plan(g, args).map(DilateOutcome::Plan)
+    plan(g, args).map(|r| DilateOutcome::Plan(Box::new(r)))
 }
 
 /// Dilate an SVG or DXF plan, with a progress bar on a terminal (not with `--json`).
