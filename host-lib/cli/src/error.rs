@@ -7,6 +7,7 @@
 
 use kerfmeter::grbl::CutterError;
 use kerfmeter::job::JobError;
+use kerfmeter::lightburn::LightBurnError;
 use kerfmeter::{Category, Error};
 use kerfmeter_plan::PlanError;
 
@@ -40,6 +41,9 @@ pub enum CliError {
     /// The measurement history could not be read.
     #[error(transparent)]
     History(#[from] kerfmeter_history::Error),
+    /// LightBurn's REST API refused or could not be reached.
+    #[error(transparent)]
+    LightBurn(#[from] LightBurnError),
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
@@ -60,6 +64,7 @@ impl CliError {
             CliError::History(kerfmeter_history::Error::Invalid(_))
             | CliError::History(kerfmeter_history::Error::NoDataDir) => Category::Usage,
             CliError::History(_) => Category::File,
+            CliError::LightBurn(e) => e.category(),
         }
     }
 
@@ -74,7 +79,8 @@ impl CliError {
             | CliError::SelfTestFailed
             | CliError::Cutter(_)
             | CliError::Job(_)
-            | CliError::History(_) => None,
+            | CliError::History(_)
+            | CliError::LightBurn(_) => None,
         }
     }
 
@@ -87,7 +93,8 @@ impl CliError {
             | CliError::SelfTestFailed
             | CliError::Cutter(_)
             | CliError::Job(_)
-            | CliError::History(_) => Vec::new(),
+            | CliError::History(_)
+            | CliError::LightBurn(_) => Vec::new(),
         }
     }
 }

@@ -35,7 +35,7 @@ mod tests;
 use commands::config::ConfigCommand;
 use commands::map::MapArgs;
 use commands::run::RunArgs;
-use commands::{cut, dilate, gauge, gcode, history, job};
+use commands::{cut, dilate, gauge, gcode, history, job, lightburn};
 use connection::Global;
 use error::{CliError, exit_code};
 use output::{ErrorReport, JsonLayout, emit, print_line, to_json};
@@ -82,7 +82,8 @@ enum Command {
     /// Draw the spiral gauge to cut before a measurement (SVG, DXF or G-code by extension).
     Gauge(gauge::GaugeArgs),
     /// Dilate a cutting plan (SVG or DXF) by the measured kerf: cuts grow by half the kerf on
-    /// each side, so parts come out at their drawn size.
+    /// each side, so parts come out at their drawn size. A LightBurn project (.lbrn2) gets the
+    /// Kerf Offset of its Line layers set to half the kerf instead.
     Dilate(dilate::DilateArgs),
     /// Stream a G-code file to a laser cutter's GRBL controller (--cutter sim for the simulated
     /// one). Refuses a cutter in alarm (--unlock) or without laser mode; Ctrl-C stops the cutter.
@@ -90,6 +91,10 @@ enum Command {
     /// Dilate a cutting plan by the kerf and write it as G-code for a GRBL 1.1 laser (laser
     /// mode, M4 dynamic power), with speed, power and passes per colour or layer.
     Gcode(gcode::GcodeArgs),
+    /// LightBurn (2.2 or later) over its local REST API: pair with it, and write the kerf into
+    /// the Kerf Offset of its Line layers.
+    #[command(subcommand)]
+    Lightburn(lightburn::LightBurnCommand),
     /// The whole job: cut the gauge beside the plan, lower the prongs into it, measure, lift,
     /// dilate the plan by the kerf measured and cut it (--sim --cutter sim: all simulated).
     Job(job::JobArgs),
@@ -143,6 +148,12 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Gcode(args) => emit(json, &gcode::run(g, args)?),
         Command::History(args) => emit(json, &history::run(g, args)?),
         Command::Serve(args) => emit(json, &commands::serve::run(g, args)?),
+        Command::Lightburn(lightburn::LightBurnCommand::Pair(args)) => {
+            emit(json, &lightburn::pair(args)?)
+        }
+        Command::Lightburn(lightburn::LightBurnCommand::Apply(args)) => {
+            emit(json, &lightburn::apply(args)?)
+        }
         Command::Job(args) => match job::run(g, args)? {
             job::JobOutcome::Done(report) => emit(json, report.as_ref()),
             job::JobOutcome::DryRun(report) => emit(json, &report),

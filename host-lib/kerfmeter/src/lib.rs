@@ -10,8 +10,9 @@
 //! [`Kerfmeter::reset_kerfmeter`] and the rest), run parameters from a joint ([`params`]),
 //! statistics over repeated runs ([`stats`]), the bed map ([`map`]), safe output files
 //! ([`files`]), the laser cutter's GRBL driver ([`grbl`]), the automatic loop that cuts a gauge, measures
-//! it and cuts the job dilated ([`job`]) and, with the `sim` feature (on by
-//! default), the digital twin in-process ([`sim`]).
+//! it and cuts the job dilated ([`job`]), LightBurn's local REST API to write the kerf into its
+//! layers ([`lightburn`]) and, with the `sim` feature (on by default), the digital twin in-process
+//! ([`sim`]).
 //!
 //! This crate is not the command-line tool (that is `kerfmeter-cli`, which also draws the plots)
 //! and does not read or write cutting plans (that is `kerfmeter-plan`): it has no argument parser,
@@ -32,6 +33,7 @@ mod error;
 pub mod files;
 pub mod grbl;
 pub mod job;
+pub mod lightburn;
 pub mod map;
 pub mod params;
 #[cfg(feature = "sim")]

@@ -220,6 +220,48 @@ impl AppliedCompensation {
     }
 }
 
+impl AppliedCompensation {
+    /// The record as one XML comment (the record line, then `what` in words), for formats that
+    /// keep it nowhere else (LightBurn projects).
+    pub(crate) fn xml_comment(&self, what: &str) -> String {
+        format!(
+            "<!-- {} -->",
+            comment_safe(&format!(
+                "{}: {what}; kerf {} µm, offset now {} µm",
+                self.record_line(),
+                self.kerf_um,
+                self.offset_um
+            ))
+        )
+    }
+}
+
+/// Whether a comment's text is a record of this tool's.
+pub(crate) fn is_record(comment: &str) -> bool {
+    comment.trim_start().starts_with(MARKER)
+}
+
+/// The record of a compensation set as a setting rather than drawn (LightBurn's Kerf Offset):
+/// `net_um` this run's change, `total_um` the offset now, both as ranges over the layers set.
+pub(crate) fn applied_setting(
+    action: &str,
+    kerf_um: f64,
+    net_um: [f64; 2],
+    total_um: [f64; 2],
+    rules: String,
+) -> AppliedCompensation {
+    AppliedCompensation {
+        action: action.into(),
+        kerf_um: RangeUm::one(kerf_um),
+        net_offset_um: RangeUm(net_um),
+        offset_um: RangeUm(total_um),
+        rules,
+        corner_loops_removed: 0,
+        tool: TOOL.into(),
+        version: env!("CARGO_PKG_VERSION").into(),
+    }
+}
+
 /// A comment's text made safe for XML (`--` is not allowed in a comment).
 fn comment_safe(s: &str) -> String {
     let mut out = s.replace("--", "- -");

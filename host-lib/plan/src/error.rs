@@ -29,6 +29,10 @@ pub enum PlanError {
     /// and the two ways on (`--recompensate`, `--already-compensated-ok`).
     #[error("{0}")]
     AlreadyCompensated(String),
+    /// A LightBurn project that cannot be read or set (not its XML, a layer without an index, a
+    /// Kerf Offset that is not a number, too large a file).
+    #[error("{0}")]
+    LightBurn(String),
     /// Open cut paths, which cannot be dilated, where the caller refuses them.
     #[error("{0}")]
     OpenPaths(String),

@@ -21,6 +21,8 @@
 //! * [`gcode`] turns a dilated plan (or the gauge drawing) into G-code for GRBL 1.1 laser mode:
 //!   a typed program first (checked without parsing text), then its text; holes before the
 //!   outline that holds them, short travels, per-colour or per-layer settings from a [`profile`].
+//! * [`lightburn`] sets the Kerf Offset of a LightBurn project's cut layers to the measured kerf
+//!   (half of it, LightBurn's convention), editing the file's text so everything else survives.
 //! * [`file`](mod@file) reads a plan file and dilates it into bytes; [`PlanError`] says what went wrong,
 //!   by kind. [`progress`] tells a caller how far a long dilation has got (the work on contours is
 //!   spread over the cores; the result does not depend on how many).
@@ -55,6 +57,7 @@ pub mod file;
 pub mod gauge;
 pub mod gcode;
 pub mod geom;
+pub mod lightburn;
 mod nurbs;
 pub mod outcome;
 mod pipeline;

@@ -1,6 +1,7 @@
 //! `kerfmeter dilate`: dilate a cutting plan (SVG or DXF) by the measured kerf, uniformly or per
-//! part from a kerf map. The plan work is `kerfmeter_plan`'s; this module turns the arguments into
-//! its options and writes the output atomically, never over the input.
+//! part from a kerf map, or set a LightBurn project's Kerf Offset (the [`lightburn`] module). The
+//! plan work is `kerfmeter_plan`'s; this module turns the arguments into its options and writes
+//! the output atomically, never over the input.
 
 use std::fmt;
 use std::path::PathBuf;
@@ -11,12 +12,14 @@ use kerfmeter::files::{ensure_not_input, write_atomically};
 use kerfmeter::map::KerfMap;
 use kerfmeter_plan::compensation::IfCompensated;
 use kerfmeter_plan::dilate::KerfSource;
+use kerfmeter_plan::lightburn::is_project_path;
 use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
 use kerfmeter_plan::progress::Progress;
 use kerfmeter_plan::rules::CutRules;
 use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file};
 use serde::Serialize;
 
+use super::lightburn::{self, LightBurnReport};
 use crate::connection::Global;
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
@@ -35,7 +38,8 @@ pub fn units_parser() -> impl TypedValueParser<Value = AssumedUnits> {
 /// `kerfmeter dilate`: offset every closed cut of a plan by half the kerf.
 #[derive(Debug, Clone, clap::Args)]
 pub struct DilateArgs {
-    /// The plan to dilate: an .svg or .dxf file.
+    /// The plan to dilate: an .svg or .dxf file, or a LightBurn project (.lbrn2, .lbrn), whose
+    /// Line layers get a Kerf Offset of half the kerf instead.
     #[arg(value_name = "IN")]
     pub input: PathBuf,
     /// Output file, same format as the input (never the input itself).
@@ -47,6 +51,10 @@ pub struct DilateArgs {
     /// Report what would change; write nothing.
     #[arg(long)]
     pub dry_run: bool,
+    /// LightBurn projects: set only these layers, each by index (0, 1, …) or name (repeat or
+    /// separate by commas) [default: every Line layer].
+    #[arg(long = "layers", value_name = "LAYER", value_delimiter = ',')]
+    pub layers: Vec<String>,
     /// The kerf, the cut rules and what to do with a compensated plan.
     #[command(flatten)]
     pub dilation: DilationArgs,
@@ -107,15 +115,20 @@ impl DilationArgs {
             rules: CutRules::new(&self.cut_colors, self.cut_max_width_mm, &self.cut_layers)?,
             assume_units: self.units,
             strict,
-            if_compensated: if self.recompensate {
-                IfCompensated::Recompensate
-            } else if self.already_compensated_ok {
-                IfCompensated::DilateAnyway
-            } else {
-                IfCompensated::Refuse
-            },
+            if_compensated: self.if_compensated(),
             progress,
         })
+    }
+
+    /// What to do with a plan already compensated, from the flags.
+    pub fn if_compensated(&self) -> IfCompensated {
+        if self.recompensate {
+            IfCompensated::Recompensate
+        } else if self.already_compensated_ok {
+            IfCompensated::DilateAnyway
+        } else {
+            IfCompensated::Refuse
+        }
     }
 }
 
@@ -260,9 +273,46 @@ pub(crate) fn plural(n: usize) -> &'static str {
     if n == 1 { "" } else { "s" }
 }
 
-/// Dilate the plan named by `args` (see [`DilateArgs`]), with a progress bar on a terminal
-/// (not with `--json`).
-pub fn run(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
+/// What `dilate` reports: a dilated plan, or a LightBurn project whose Kerf Offset was set.
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+pub enum DilateOutcome {
+    /// An SVG or DXF plan.
+    Plan(Box<DilateReport>),
+    /// A LightBurn project.
+    LightBurn(Box<LightBurnReport>),
+}
+
+impl fmt::Display for DilateOutcome {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DilateOutcome::Plan(r) => r.fmt(f),
+            DilateOutcome::LightBurn(r) => r.fmt(f),
+        }
+    }
+}
+
+impl Report for DilateOutcome {
+    const JSON: JsonLayout = JsonLayout::Pretty;
+}
+
+/// Dilate the plan named by `args` (see [`DilateArgs`]), or set a LightBurn project's Kerf
+/// Offset (the same arguments, the same never-over-the-input atomic write).
+pub fn run(g: &Global, args: &DilateArgs) -> Result<DilateOutcome> {
+    if is_project_path(&args.input) {
+        return lightburn::run_offline(args).map(|r| DilateOutcome::LightBurn(Box::new(r)));
+    }
+    if !args.layers.is_empty() {
+        return Err(CliError::Usage(
+            "--layers chooses the layers of a LightBurn project; for a DXF's layers use --cut-layer"
+                .into(),
+        ));
+    }
+    plan(g, args).map(|r| DilateOutcome::Plan(Box::new(r)))
+}
+
+/// Dilate an SVG or DXF plan, with a progress bar on a terminal (not with `--json`).
+fn plan(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
     let format = PlanFormat::of(&args.input)?;
     if let Some(out) = &args.output {
         let out_format = PlanFormat::of(out)?;
@@ -300,8 +350,4 @@ pub fn run(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
         cut_rules: options.rules.describe(),
         summary,
     })
-}
-
-impl Report for DilateReport {
-    const JSON: JsonLayout = JsonLayout::Pretty;
 }

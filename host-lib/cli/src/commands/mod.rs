@@ -12,6 +12,7 @@ pub mod history;
 pub mod info;
 pub mod job;
 pub mod kerf;
+pub mod lightburn;
 pub mod map;
 pub mod reset;
 pub mod run;

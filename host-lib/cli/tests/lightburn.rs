@@ -1,0 +1,153 @@
+//! `kerfmeter dilate project.lbrn2`: a LightBurn project's Line layers get a Kerf Offset of half
+//! the kerf, written atomically beside the input (never over it), reported as text and JSON;
+//! options that mean nothing for a project, and a project already compensated, are refused.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn kerfmeter(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+        .args(args)
+        .env_remove("KERFMETER_PORT")
+        .output()
+        .expect("the kerfmeter binary runs")
+}
+
+fn code(out: &Output) -> i32 {
+    out.status.code().expect("exited, not killed")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// A project of `kerfmeter-plan`'s corpus, copied into a fresh folder.
+fn project(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let from = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../plan/tests/corpus")
+        .join(name);
+    let dir = tempfile::tempdir().unwrap();
+    let to = dir.path().join(name);
+    std::fs::copy(from, &to).unwrap();
+    (dir, to)
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn dilate_sets_the_kerf_offset_of_a_lightburn_project_and_reports_it() {
+    let (dir, input) = project("lightburn_2x_layers.lbrn2");
+    let before = std::fs::read(&input).unwrap();
+    let out_path = dir.path().join("out.lbrn2");
+    let out = kerfmeter(&["dilate", s(&input), "--kerf-um", "150", "-o", s(&out_path)]);
+    assert_eq!(code(&out), 0, "{}", text(&out.stderr));
+    let report = text(&out.stdout);
+    assert!(
+        report.contains("Kerf Offset 0.075 mm (half the kerf"),
+        "{report}"
+    );
+    assert!(
+        report.contains("layer 1 \"Engrave\" (Scan): left alone"),
+        "{report}"
+    );
+    assert_eq!(
+        std::fs::read(&input).unwrap(),
+        before,
+        "the input is untouched"
+    );
+    let written = std::fs::read_to_string(&out_path).unwrap();
+    assert_eq!(written.matches("<kerf Value=\"0.075\"/>").count(), 3);
+    // Nothing but the project and its output in the folder: no temporary file left.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+
+    let out = kerfmeter(&[
+        "--json",
+        "dilate",
+        s(&input),
+        "--kerf-um",
+        "200",
+        "--layers",
+        "Score",
+        "--dry-run",
+    ]);
+    assert_eq!(code(&out), 0, "{}", text(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["format"], "lightburn");
+    assert_eq!(json["kerf_offset_mm"], 0.1);
+    assert_eq!(json["layers"][2]["set"][0]["after_mm"], 0.1);
+    assert!(json["output"].is_null());
+}
+
+#[test]
+fn dilate_refuses_what_does_not_fit_a_lightburn_project() {
+    let (dir, input) = project("lightburn_2x_layers.lbrn2");
+    let svg = dir.path().join("out.svg");
+    let out = kerfmeter(&["dilate", s(&input), "--kerf-um", "150", "-o", s(&svg)]);
+    assert_eq!(code(&out), 2, "{}", text(&out.stderr));
+    let out = kerfmeter(&["dilate", s(&input), "--kerf-um", "150", "-o", s(&input)]);
+    assert_ne!(code(&out), 0);
+    let out = kerfmeter(&[
+        "dilate",
+        s(&input),
+        "--kerf-um",
+        "150",
+        "--dry-run",
+        "--cut-color",
+        "red",
+    ]);
+    assert_eq!(code(&out), 2);
+    assert!(text(&out.stderr).contains("--cut-color does not apply to a LightBurn project"));
+    let out = kerfmeter(&[
+        "dilate",
+        s(&input),
+        "--kerf-um",
+        "150",
+        "--dry-run",
+        "--layers",
+        "Engrave",
+    ]);
+    assert_eq!(code(&out), 2, "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("not a Line (cut) layer"));
+    assert!(!svg.exists());
+}
+
+#[test]
+fn layers_is_for_lightburn_projects_only() {
+    let plan =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../plan/tests/fixtures/box_generator.svg");
+    let out = kerfmeter(&[
+        "dilate",
+        s(&plan),
+        "--kerf-um",
+        "150",
+        "--dry-run",
+        "--layers",
+        "0",
+    ]);
+    assert_eq!(code(&out), 2);
+    assert!(text(&out.stderr).contains("--cut-layer"));
+}
+
+#[test]
+fn a_compensated_project_is_refused_until_told_to_replace_its_offsets() {
+    let (dir, input) = project("lightburn_compensated.lbrn2");
+    let output = dir.path().join("out.lbrn2");
+    let out = kerfmeter(&["dilate", s(&input), "--kerf-um", "150", "-o", s(&output)]);
+    assert_eq!(code(&out), 4, "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("--recompensate"));
+    assert!(!output.exists());
+    let out = kerfmeter(&[
+        "dilate",
+        s(&input),
+        "--kerf-um",
+        "150",
+        "-o",
+        s(&output),
+        "--recompensate",
+    ]);
+    assert_eq!(code(&out), 0, "{}", text(&out.stderr));
+    assert!(text(&out.stdout).contains("line pass 0.08 → 0.075 mm"));
+    assert!(text(&out.stdout).contains("replaced by this kerf's"));
+}
