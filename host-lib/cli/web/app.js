@@ -51,7 +51,9 @@ const rpc = {
     if (this.ws !== ws) return;
     this.ws = null;
     for (const { reject } of this.pending.values()) {
-      reject(new RpcError({ message: "the connection to the server was lost" }));
+      const err = new RpcError({ message: "the connection to the server was lost" });
+      err.lost = true;
+      reject(err);
     }
     this.pending.clear();
     setLink("disconnected", `Server unreachable: retrying in ${(this.retryMs / 1000).toFixed(1)} s`);
@@ -128,6 +130,16 @@ async function guarded(action) {
   }
 }
 
+/** Run a refresh nobody asked for: its errors are shown, but not a lost connection (the
+ * header says so already, and everything is fetched again on reconnecting). */
+async function background(action) {
+  try {
+    await action();
+  } catch (err) {
+    if (!err.lost) showError(err);
+  }
+}
+
 /** Fill a <dl> with [term, value] pairs. */
 function fillFacts(dl, pairs) {
   dl.replaceChildren();
@@ -177,7 +189,7 @@ function showStatus(s) {
 function pollStatus() {
   if (!running && rpc.ws?.readyState === WebSocket.OPEN) {
     rpc.call("status").then(showStatus, (err) => {
-      if (err.code !== BUSY && err.code != null) showError(err);
+      if (err.code !== BUSY && !err.lost) showError(err);
     });
   }
 }
@@ -332,11 +344,15 @@ async function loadHistory() {
   try {
     history = await rpc.call("history", params);
   } catch (err) {
-    $("history-note").textContent = err.code === METHOD_NOT_FOUND
+    if (err.lost) return;
+    const missing = err.code === METHOD_NOT_FOUND;
+    $("history-note").textContent = missing
       ? "This server keeps no history (it has no `history` method)."
       : `History unavailable: ${err.message}`;
+    $("history-data").hidden = missing;
     return;
   }
+  $("history-data").hidden = false;
   const records = history.records ?? [];
   $("history-note").textContent = records.length ? "" : "No measurements recorded yet.";
   showDrift(history.drift ?? []);
@@ -422,7 +438,13 @@ function extent(values) {
   return [lo, hi];
 }
 
-function tickText(v, xTime) {
+const DAY_MS = 86400e3;
+
+/** A tick's text; on a time axis, clock times for a span under two days, else dates. */
+function tickText(v, xTime, span) {
+  if (xTime && span < 2 * DAY_MS) {
+    return new Date(v).toLocaleTimeString(undefined, { hour: "2-digit", minute: "2-digit" });
+  }
   if (xTime) return new Date(v).toLocaleDateString(undefined, { month: "short", day: "numeric" });
   return Math.abs(v) >= 100 ? v.toFixed(0) : String(Number(v.toPrecision(3)));
 }
@@ -431,10 +453,17 @@ function tickText(v, xTime) {
 function plot(canvas, series, { xLabel, yLabel, xTime = false, markers = false }) {
   const ctx = canvas.getContext("2d");
   const { width: w, height: h } = canvas;
-  const m = { left: 56, right: 12, top: series.length > 1 ? 26 : 12, bottom: 40 };
+  const m = { left: 64, right: 16, top: series.length > 1 ? 26 : 12, bottom: 40 };
   ctx.clearRect(0, 0, w, h);
   ctx.font = "12px system-ui, sans-serif";
   const all = series.flatMap((s) => s.points);
+  if (!all.length) {
+    ctx.fillStyle = "#5c6670";
+    ctx.textAlign = "center";
+    ctx.fillText("no data yet", w / 2, h / 2);
+    ctx.textAlign = "left";
+    return;
+  }
   const [x0, x1] = extent(all.map((p) => p[0]));
   const [y0, y1] = extent(all.map((p) => p[1]).concat(xTime ? [] : [0]));
   const sx = (x) => m.left + ((x - x0) / (x1 - x0)) * (w - m.left - m.right);
@@ -449,32 +478,30 @@ function plot(canvas, series, { xLabel, yLabel, xTime = false, markers = false }
     if (markers) for (const [x, y] of s.points) ctx.fillRect(sx(x) - 2, sy(y) - 2, 4, 4);
     if (series.length > 1) ctx.fillText(`■ ${s.name}`, m.left + 4 + i * 130, 16);
   });
-  if (!all.length) {
-    ctx.fillStyle = "#5c6670";
-    ctx.fillText("no data yet", w / 2 - 30, h / 2);
-  }
 }
 
 function drawAxes(ctx, a) {
   ctx.strokeStyle = "#d5d9de";
   ctx.fillStyle = "#5c6670";
   ctx.lineWidth = 1;
+  ctx.textAlign = "right";
   for (const v of ticks(a.y0, a.y1)) {
     ctx.beginPath();
     ctx.moveTo(a.m.left, a.sy(v));
     ctx.lineTo(a.w - a.m.right, a.sy(v));
     ctx.stroke();
-    ctx.fillText(tickText(v, false), 4, a.sy(v) + 4);
+    ctx.fillText(tickText(v, false, 0), a.m.left - 6, a.sy(v) + 4);
   }
-  for (const v of ticks(a.x0, a.x1)) {
-    ctx.fillText(tickText(v, a.xTime), a.sx(v) - 12, a.h - a.m.bottom + 16);
-  }
-  ctx.fillText(a.xLabel, a.w - a.m.right - ctx.measureText(a.xLabel).width, a.h - 6);
+  ctx.textAlign = "center";
+  for (const v of ticks(a.x0, a.x1)) ctx.fillText(tickText(v, a.xTime, a.x1 - a.x0), a.sx(v), a.h - a.m.bottom + 16);
+  ctx.textAlign = "right";
+  ctx.fillText(a.xLabel, a.w - a.m.right, a.h - 6);
   ctx.save();
-  ctx.translate(12, a.m.top + 60);
+  ctx.translate(16, a.m.top);
   ctx.rotate(-Math.PI / 2);
-  ctx.fillText(a.yLabel, -60, 0);
+  ctx.fillText(a.yLabel, 0, 0);
   ctx.restore();
+  ctx.textAlign = "left";
 }
 
 /* ---------- Bed map ---------- */
@@ -608,7 +635,7 @@ rpc.handlers = {
   run_finished(p) {
     setRunning(false);
     if (p.error) $("progress").textContent = `The run ended: ${p.error.message}`;
-    else if (!ownRun) guarded(showLastKerf);
+    else if (!ownRun) background(showLastKerf);
     if (!ownRun) loadHistory();
     pollStatus();
   },
@@ -619,15 +646,15 @@ rpc.handlers = {
     banner.textContent = p.connected
       ? `Device back: ${p.message ?? "reconnected"}`
       : `Device gone: ${p.message ?? "disconnected"}`;
-    if (p.connected) guarded(refreshInfo);
+    if (p.connected) background(refreshInfo);
   },
 };
 
 /** On every (re)connection: fetch everything afresh. */
 function onConnected() {
-  guarded(refreshInfo);
-  guarded(refreshStatus);
-  guarded(showLastKerf);
+  background(refreshInfo);
+  background(refreshStatus);
+  background(showLastKerf);
   loadHistory();
 }
 
