@@ -101,3 +101,45 @@ fn is_root() -> bool {
     // SAFETY: geteuid has no preconditions and cannot fail.
     unsafe { libc::geteuid() == 0 }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bodies of the README's fenced code blocks.
+    fn code_blocks(markdown: &str) -> Vec<String> {
+        let mut blocks = Vec::new();
+        let mut open: Option<String> = None;
+        for line in markdown.split_inclusive('\n') {
+            match (&mut open, line.starts_with("```")) {
+                (None, true) => open = Some(String::new()),
+                (Some(_), true) => blocks.extend(open.take()),
+                (Some(body), false) => body.push_str(line),
+                (None, false) => {}
+            }
+        }
+        blocks
+    }
+
+    /// The README shows the clients the web step runs, verbatim: what a reader copies works.
+    #[test]
+    fn readme_shows_the_clients_verbatim() {
+        let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+        let blocks = code_blocks(&readme);
+        for name in ["client.py", "client.mjs"] {
+            let path = root().join("examples").join("clients").join(name);
+            let client = std::fs::read_to_string(&path).unwrap();
+            assert!(
+                blocks.contains(&client),
+                "README.md has no code block equal to {}: copy the file into it",
+                path.display()
+            );
+        }
+    }
+
+    #[test]
+    fn code_blocks_are_read_whole() {
+        let text = "a\n```python\nx = 1\n\ny = 2\n```\nb\n```\nz\n```\n";
+        assert_eq!(code_blocks(text), ["x = 1\n\ny = 2\n", "z\n"]);
+    }
+}

@@ -30,7 +30,8 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// The whole check suite, as CI runs it: formatting, clippy (host and firmware targets), all
-    /// host tests, the Python package's tests, a short robustness sweep, docs, the firmware
+    /// host tests, the Python package's tests, the web page in headless Chromium and the
+    /// README's WebSocket clients, a short robustness sweep, docs, the firmware
     /// images for the C3 and C6 with their sizes, a short fuzz run.
     Test(TestArgs),
     /// The Python package's step of `test` alone: build and install `host-lib/python` into the
