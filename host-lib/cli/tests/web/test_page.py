@@ -161,7 +161,35 @@ def test_plan_is_dilated_by_the_last_kerf_and_downloaded(browser, server, downlo
     wait(browser, lambda d: saved.exists() and saved.stat().st_size > 0, message="no download")
     content = saved.read_text()
     assert "<svg" in content and content != plan.read_text()
-    assert plan.read_text() == (ROOT / "examples" / "box-parts.svg").read_text()
+
+    # The same plan dropped onto the page (a drop event carrying the file) is dilated too.
+    browser.execute_script(
+        "const file = new File([arguments[0]], 'dropped.svg', {type: 'image/svg+xml'});"
+        "const data = new DataTransfer(); data.items.add(file);"
+        "document.getElementById('drop').dispatchEvent("
+        "  new DragEvent('drop', {dataTransfer: data, bubbles: true, cancelable: true}));",
+        plan.read_text(),
+    )
+    dropped = downloads / f"dropped-k{round(kerf_um)}.svg"
+    wait(browser, lambda d: dropped.exists() and dropped.stat().st_size > 0, message="no drop")
+    assert dropped.read_text() == content
+    assert text(browser, "errors").count("Dismiss") == 1  # the error before the measurement
+    assert js_errors(browser) == []
+
+
+def test_abort_stops_a_run_and_says_so(browser, server):
+    open_page(browser, server)
+    samples_box = browser.find_element(By.ID, "samples")
+    samples_box.clear()
+    samples_box.send_keys("5")
+    browser.find_element(By.ID, "measure").click()
+    wait(browser, lambda d: int(attr(d, "curve", "data-live-points")) > 0, message="no progress")
+    assert not browser.find_element(By.ID, "measure").is_enabled()
+    browser.find_element(By.ID, "abort").click()
+    wait(browser, lambda d: "error -32002" in text(d, "errors"), message="no aborted error")
+    wait(browser, lambda d: browser.find_element(By.ID, "measure").is_enabled(), message="stuck")
+    assert not browser.find_elements(By.ID, "kerf")
+    assert js_errors(browser) == []
 
 
 def test_bed_map_is_drawn_and_a_bad_file_refused(browser, fast_server, tmp_path):
