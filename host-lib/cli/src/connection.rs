@@ -10,8 +10,8 @@ use kerfmeter::{Kerfmeter, Options};
 
 use crate::error::CliError;
 
-/// Flags every command takes.
-#[derive(Args)]
+/// Flags every command takes (cloned by `kerfmeter serve`, which re-opens the device with them).
+#[derive(Args, Clone)]
 pub struct Global {
     /// Serial port of the device (e.g. /dev/ttyACM0). Also from KERFMETER_PORT.
     #[arg(long, global = true, env = "KERFMETER_PORT", conflicts_with = "sim")]

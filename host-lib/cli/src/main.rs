@@ -24,6 +24,7 @@ mod error;
 mod output;
 mod plot;
 mod progress;
+mod serve;
 #[cfg(test)]
 mod tests;
 
@@ -88,6 +89,9 @@ enum Command {
     /// The whole job: cut the gauge beside the plan, lower the prongs into it, measure, lift,
     /// dilate the plan by the kerf measured and cut it (--sim --cutter sim: all simulated).
     Job(job::JobArgs),
+    /// Serve the device to other programs and browsers: JSON-RPC over a WebSocket (/rpc), HTTP
+    /// JSON (/api/...) and a page (/), on loopback by default (see the README's "Server").
+    Serve(commands::serve::ServeArgs),
 }
 
 fn main() -> ExitCode {
@@ -130,6 +134,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Dilate(args) => emit(json, &dilate::run(g, args)?),
         Command::Cut(args) => emit(json, &cut::run(g, args)?),
         Command::Gcode(args) => emit(json, &gcode::run(g, args)?),
+        Command::Serve(args) => emit(json, &commands::serve::run(g, args)?),
         Command::Job(args) => match job::run(g, args)? {
             job::JobOutcome::Done(report) => emit(json, report.as_ref()),
             job::JobOutcome::DryRun(report) => emit(json, &report),

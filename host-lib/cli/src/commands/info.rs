@@ -7,7 +7,7 @@ use std::fmt;
 use kerfmeter::protocol::DeviceInfo;
 use serde::Serialize;
 
-use crate::connection::Global;
+use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 
@@ -28,7 +28,11 @@ pub struct InfoReport {
 
 /// Ask the device who it is, and what supply it measures.
 pub fn run(g: &Global) -> Result<InfoReport, CliError> {
-    let mut s = g.connect()?;
+    report(&mut g.connect()?)
+}
+
+/// The info report of the device behind an open session (`kerfmeter serve` shares it).
+pub fn report(s: &mut Session) -> Result<InfoReport, CliError> {
     let info = s.meter.info()?;
     let supply_v = s.meter.status()?.supply_v;
     Ok(InfoReport {

@@ -15,6 +15,7 @@ pub mod map;
 pub mod reset;
 pub mod run;
 pub mod self_test;
+pub mod serve;
 pub mod status;
 
 use std::fmt;

@@ -3,12 +3,13 @@
 //! the last run's torque–angle curve and `--also-at-force-n` reads other forces off it.
 
 use std::fmt;
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use clap::Args;
 use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
 use kerfmeter::stats::Summary;
-use kerfmeter::{Error, JointSpec, Measurement};
+use kerfmeter::{Error, JointSpec, Measurement, Progress};
 use serde::Serialize;
 
 use crate::connection::{Global, Session};
@@ -109,31 +110,76 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
         plot::PlotFormat::for_path(plot)?;
     }
     let mut s = g.connect()?;
-    let Measurement { runs, summary } = measure(g, args, &mut s, &params)?;
-    let kerf_at_force_um = read_curve(&mut s, args, &params, runs.last())?;
-    let sim_truths_um: Vec<f64> = match &s.sim {
-        Some(sim) => runs.iter().filter_map(|r| sim.truth_um(r.run_id)).collect(),
-        None => Vec::new(),
-    };
-    let sim_truth_um = (!sim_truths_um.is_empty())
-        .then(|| sim_truths_um.iter().sum::<f64>() / sim_truths_um.len() as f64);
-    let sim = sim_truth_um.map(|truth_um| SimNote {
-        kerf_um: g.sim_kerf_um,
-        kerf_sd_um: g.sim_kerf_sd_um,
-        ideal_reading_um: truth_um,
-    });
-    Ok(RunReport {
-        force_n: params.target_force_n,
-        kerf_at_force_um,
-        kerf_um: summary.mean_um,
-        plot: args.plot.clone(),
+    let measurement = measure(g, args, &mut s, &params)?;
+    let last = measurement.runs.last().copied();
+    let kerf_at_force_um = read_curve(&mut s, args, &params, last.as_ref())?;
+    let mut report = RunReport::new(&s, &params, measurement);
+    report.kerf_at_force_um = kerf_at_force_um;
+    report.plot.clone_from(&args.plot);
+    Ok(report)
+}
+
+impl RunReport {
+    /// The report of `measurement`, made with `params` on the device of `s` (on the twin, with
+    /// its truth); no readings at other forces, no plot.
+    pub fn new(s: &Session, params: &RunParams, measurement: Measurement) -> Self {
+        let Measurement { runs, summary } = measurement;
+        let sim_truths_um: Vec<f64> = match &s.sim {
+            Some(sim) => runs.iter().filter_map(|r| sim.truth_um(r.run_id)).collect(),
+            None => Vec::new(),
+        };
+        let sim_truth_um = (!sim_truths_um.is_empty())
+            .then(|| sim_truths_um.iter().sum::<f64>() / sim_truths_um.len() as f64);
+        let sim = s
+            .sim
+            .as_ref()
+            .zip(sim_truth_um)
+            .map(|(sim, truth_um)| SimNote {
+                kerf_um: sim.options().kerf_um,
+                kerf_sd_um: sim.options().kerf_sd_um,
+                ideal_reading_um: truth_um,
+            });
+        RunReport {
+            force_n: params.target_force_n,
+            kerf_at_force_um: Vec::new(),
+            kerf_um: summary.mean_um,
+            plot: None,
+            runs,
+            simulated: s.sim.is_some(),
+            summary,
+            thickness_mm: params.thickness_mm,
+            sim_truth_um,
+            sim_truths_um,
+            sim,
+        }
+    }
+}
+
+/// Measure `n` gauges on the device of `s` (a fresh gauge each, the hub reset to zero before
+/// each) and summarise them. `before_gauge(i)` is called before gauge `i` (a prompt on
+/// hardware); `progress(i, …)` after every status poll, and stops the runs (and resets) when it
+/// returns [`ControlFlow::Break`]: the device aborts, its motor is safe, and the call ends with
+/// [`Error::Cancelled`]. The library's `measure` cannot be stopped; `kerfmeter serve` needs to.
+pub fn measure_on(
+    s: &mut Session,
+    params: &RunParams,
+    n: usize,
+    mut before_gauge: impl FnMut(usize) -> Result<(), Error>,
+    mut progress: impl FnMut(usize, &Progress) -> ControlFlow<()>,
+) -> Result<Measurement, Error> {
+    if n == 0 {
+        return Err(Error::InvalidArgument("measure at least one gauge".into()));
+    }
+    let mut runs = Vec::with_capacity(n);
+    for i in 0..n {
+        s.meter.prepare_for_run_until(|p| progress(i, p))?;
+        before_gauge(i)?;
+        runs.push(s.meter.run_kerfmeter_until(params, |p| progress(i, p))?);
+    }
+    let kerfs: Vec<f64> = runs.iter().map(|r| f64::from(r.kerf_um)).collect();
+    Ok(Measurement {
+        summary: kerfmeter::stats::summarize(&kerfs),
         runs,
-        simulated: s.sim.is_some(),
-        summary,
-        thickness_mm: params.thickness_mm,
-        sim_truth_um,
-        sim_truths_um,
-        sim,
     })
 }
 
@@ -147,7 +193,8 @@ fn measure(
     let sim = s.sim.is_some();
     let samples = args.samples as usize;
     let bar = progress_bar(g, "gauge 1");
-    let measured = s.meter.measure(
+    let measured = measure_on(
+        s,
         params,
         samples,
         |i| {
@@ -163,7 +210,10 @@ fn measure(
             bar.set_prefix(format!("gauge {}/{samples}", i + 1));
             Ok(())
         },
-        |_, p| show(&bar, p),
+        |_, p| {
+            show(&bar, p);
+            ControlFlow::Continue(())
+        },
     );
     bar.finish_and_clear();
     Ok(measured?)

@@ -3,11 +3,14 @@
 //! each failed one explained in words (what its value means, what to check).
 
 use std::fmt;
+use std::ops::ControlFlow;
 
 use kerfmeter::protocol::{SelfTestItem, SelfTestReport, TestOutcome};
 use serde::Serialize;
 
-use crate::connection::Global;
+use kerfmeter::Progress;
+
+use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 use crate::progress::{progress_bar, show};
@@ -114,9 +117,21 @@ fn items(r: &SelfTestReport) -> [(&'static str, SelfTestItem, &'static str); 4] 
 pub fn run(g: &Global) -> Result<SelfTestOutcome, CliError> {
     let mut s = g.connect()?;
     let bar = progress_bar(g, "self-test");
-    let report = s.meter.self_test(|p| show(&bar, p));
+    let outcome = test(&mut s, |p| {
+        show(&bar, p);
+        ControlFlow::Continue(())
+    });
     bar.finish_and_clear();
-    let report = report?;
+    outcome
+}
+
+/// Run the self-test of the device behind an open session, reporting to `progress`, which can
+/// stop it (`kerfmeter serve` shares it).
+pub fn test(
+    s: &mut Session,
+    progress: impl FnMut(&Progress) -> ControlFlow<()>,
+) -> Result<SelfTestOutcome, CliError> {
+    let report = s.meter.self_test_until(progress)?;
     // Only to explain a failed torque constant: a device that cannot answer still has its report.
     let configured = s.meter.config().ok().map(|c| c.config.torque_per_duty_nm);
     Ok(SelfTestOutcome::new(report, configured))

@@ -1,0 +1,35 @@
+//! `kerfmeter serve`: the Kerfmeter server (WebSocket JSON-RPC and HTTP JSON, with a page);
+//! see [`crate::serve`] for the API and the security rules. This module holds its flags.
+
+use std::net::SocketAddr;
+
+use clap::Args;
+
+use super::Done;
+use crate::connection::Global;
+use crate::error::CliError;
+use crate::serve::{Security, serve};
+
+/// `kerfmeter serve`'s flags.
+#[derive(Args)]
+pub struct ServeArgs {
+    /// Address and port to listen on (port 0: any free one, printed at startup). Any address
+    /// but loopback needs --token.
+    #[arg(long, default_value = "127.0.0.1:7878", value_name = "IP:PORT")]
+    listen: SocketAddr,
+    /// Secret that clients must send (`Authorization: Bearer TOKEN`, or `?token=TOKEN`):
+    /// letters, digits and - . _ ~. Also from KERFMETER_TOKEN.
+    #[arg(long, env = "KERFMETER_TOKEN", hide_env_values = true)]
+    token: Option<String>,
+    /// Also accept WebSocket connections and POSTs from pages of this origin
+    /// (e.g. http://localhost:5173); repeatable.
+    #[arg(long = "allow-origin", value_name = "ORIGIN")]
+    allow_origins: Vec<String>,
+}
+
+/// Serve until Ctrl-C.
+pub fn run(g: &Global, args: &ServeArgs) -> Result<Done, CliError> {
+    let security = Security::new(args.listen, args.token.clone(), &args.allow_origins)?;
+    serve(g, args.listen, security)?;
+    Ok(Done::new("server stopped; the motor is stopped"))
+}

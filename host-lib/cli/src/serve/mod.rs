@@ -1,0 +1,142 @@
+//! `kerfmeter serve`: the Kerfmeter server. It runs on the computer wired to the device and lets
+//! any program (a browser page, a design tool, a Python or Node script) drive it: the paper's
+//! three calls and the rest of what the CLI does, over a WebSocket speaking JSON-RPC 2.0 and
+//! over plain HTTP JSON. The results are built by the same code as the CLI's `--json` reports.
+//!
+//! # Transport
+//!
+//! * `GET /rpc`: a WebSocket; JSON-RPC 2.0 requests and responses in text frames, and
+//!   notifications pushed to every client. A message is at most [`MAX_BODY_BYTES`].
+//! * HTTP JSON: `GET /api/info`, `GET /api/status`, `GET /api/kerf`, `POST /api/run`,
+//!   `POST /api/reset`, `POST /api/abort` (a POST's body is the method's params, a JSON object,
+//!   at most [`MAX_BODY_BYTES`]; an empty body is `{}`). Success is `200` with the result as
+//!   the body; a failure is 4xx/5xx with `{"error": {"code", "message", "data"}}`.
+//! * `GET /`: the page, embedded in the binary.
+//!
+//! # Methods
+//!
+//! Params are objects; every field is optional. An unknown field is refused (-32602, naming it).
+//!
+//! | method | params | result |
+//! |---|---|---|
+//! | `info` | | `kerfmeter info --json` |
+//! | `status` | | `kerfmeter status --json` |
+//! | `run_kerfmeter` | `thickness_mm`, `force_n`, `fingers`, `finger_length_mm`, `samples` (1..=50), `label` | `kerfmeter run --json` (`kerf_um` at the top level, `summary`, `runs`, `force_n`, `thickness_mm`, ...) plus `label` and `curve`: `{"run_id", "points": [[torque_nm, angle_deg], ...]}` of the last run |
+//! | `get_kerf_value` | | the device's last result (`kerf_um` at its top level), or `null` |
+//! | `reset_kerfmeter` | | `{"reset": true}` |
+//! | `abort` | | `{"aborted": true}`, at any time, also during another client's run |
+//! | `clear_fault` | | `kerfmeter clear-fault --json` (`{"ok": true}`) |
+//! | `self_test` | | `kerfmeter self-test --json` (a failed item is `passed: false`, not an error) |
+//! | `job` | | error -32004: this server has no cutter |
+//!
+//! With `samples` above 1 the gauges are measured one after the other without a prompt, as
+//! `kerfmeter run --yes` does: on hardware, something must place each fresh gauge.
+//!
+//! # Notifications
+//!
+//! * `progress` `{sample, samples, state, torque_nm, angle_deg, elapsed_ms}` while a run goes
+//!   (at most one per 50 ms, and at every change of state);
+//! * `run_started` `{label, by: "rpc"|"http"}`, `run_finished` `{kerf_um|null, error|null}`;
+//! * `device` `{connected, message}` when the device vanishes or comes back.
+//!
+//! # Errors
+//!
+//! -32700 not JSON; -32600 not a JSON-RPC request (also: body too large, token or origin
+//! refused, with HTTP 413, 401 or 403); -32601 no such method; -32602 bad params (the message
+//! names the field); -32000 the device refused or failed (`data.kind`, `data.fault`,
+//! `data.conditions`); -32001 busy: a run, reset or self-test is going; -32002 aborted; -32003
+//! the device is not connected; -32004 no cutter configured; -32005 a plan error.
+//!
+//! # One device, one run
+//!
+//! See [`worker`]: one thread owns the device; a second run is refused at once; `abort` is
+//! heard within one status poll; a client that disconnects mid-run aborts it; a vanished device
+//! is re-opened when it answers again. Ctrl-C (or SIGTERM) aborts whatever runs, waits for the
+//! device to be safe, and stops the server.
+//!
+//! # Security
+//!
+//! See [`security`]: loopback by default, a token off loopback, no cross-site requests.
+//!
+//! # Adding a method
+//!
+//! A method is one arm of [`rpc::dispatch`] (and, for a device call, of the worker's `Call`);
+//! its HTTP route is one line of the table in [`http`].
+
+mod http;
+mod rpc;
+mod security;
+mod worker;
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use crate::connection::Global;
+use crate::error::CliError;
+use crate::output::print_line;
+pub use security::Security;
+use worker::Device;
+
+/// The largest request body or WebSocket message, bytes (16 MiB: room for a large plan as
+/// text or base64).
+pub const MAX_BODY_BYTES: usize = 16 * 1024 * 1024;
+
+/// How long stopping waits for the clients' tasks to end.
+const SHUTDOWN_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// Serve until Ctrl-C (or SIGTERM): open the device as `g` says, listen on `listen` under
+/// `security`'s rules, print the address, and answer.
+pub fn serve(g: &Global, listen: SocketAddr, security: Security) -> Result<(), CliError> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(|e| CliError::Usage(format!("cannot start the server's runtime: {e}")))?;
+    let (device, thread) = Device::start(g.clone());
+    let served = runtime.block_on(listen_and_serve(device.clone(), listen, security));
+    // Whatever ended the serving, nothing may keep the motor turning: stop the call going and
+    // let the device thread finish it (it aborts the device) before the process ends.
+    device.shut_down();
+    drop(device);
+    runtime.shutdown_timeout(SHUTDOWN_WAIT);
+    let _ = thread.join();
+    served
+}
+
+/// Bind, print the URL, and serve until a stop signal.
+async fn listen_and_serve(
+    device: Device,
+    listen: SocketAddr,
+    security: Security,
+) -> Result<(), CliError> {
+    let listener = tokio::net::TcpListener::bind(listen)
+        .await
+        .map_err(|e| CliError::Usage(format!("cannot listen on {listen}: {e}")))?;
+    let bound = listener
+        .local_addr()
+        .map_err(|e| CliError::Usage(format!("cannot listen on {listen}: {e}")))?;
+    let security = Arc::new(security.bound_to(bound));
+    print_line(&format!("Listening on http://{bound}/"));
+    let app = http::router(device, security);
+    tokio::select! {
+        served = axum::serve(listener, app) => served
+            .map_err(|e| CliError::Usage(format!("the server stopped: {e}"))),
+        () = stop_signal() => Ok(()),
+    }
+}
+
+/// Ctrl-C, or SIGTERM where there is one.
+async fn stop_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        if let Ok(mut term) = signal(SignalKind::terminate()) {
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => {}
+                _ = term.recv() => {}
+            }
+            return;
+        }
+    }
+    let _ = tokio::signal::ctrl_c().await;
+}

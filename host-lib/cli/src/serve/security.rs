@@ -1,0 +1,246 @@
+//! Who may talk to `kerfmeter serve`: it can turn a motor and, with a cutter, fire a laser, so
+//! any web page the user visits must not be able to, nor anyone else on the network.
+//!
+//! * **Loopback by default.** Listening on any other address needs `--token`; without one the
+//!   server refuses to start ([`Security::new`]).
+//! * **Token.** With `--token T`, `/rpc` and every `/api/...` route need
+//!   `Authorization: Bearer T` or `?token=T` (browsers cannot set headers on a WebSocket), else
+//!   401. The comparison takes the same time wherever the tokens differ. The page's own files
+//!   (`/`, `/app.js`, ...) hold no secret and are served without it; the page takes the token
+//!   from its own address (`/?token=T`).
+//! * **Origin.** A WebSocket upgrade and every POST whose `Origin` is not the server's own, nor
+//!   one given with `--allow-origin`, is refused (403): browsers send `Origin` with both, so
+//!   another site's page cannot start a run. The server's own origins: `http://` + the address
+//!   listened on, and, on loopback, `http://` + the `Host` header when that names a loopback
+//!   host (`localhost`, `127.0.0.1`, `[::1]`, with any port). A request without `Origin` comes
+//!   from a program, not a browser: it is let through (on loopback it is local; elsewhere it
+//!   carries the token).
+//! * **Host.** On loopback, a request whose `Host` is not a loopback name is refused (403): a
+//!   DNS-rebinding page (`evil.example` re-pointed at 127.0.0.1) is same-origin for the browser
+//!   and sends no `Origin` with a GET, but it sends its own `Host`.
+//! * Bodies are bounded (see [`super::MAX_BODY_BYTES`]) and no request names a file: plans
+//!   travel as text, results as JSON.
+
+use std::net::SocketAddr;
+
+use axum::extract::{Request, State};
+use axum::http::{HeaderMap, Method, StatusCode, header};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+use subtle::ConstantTimeEq;
+
+use super::http::error_response;
+use super::rpc::{INVALID_REQUEST, RpcError};
+use crate::error::CliError;
+
+/// The rules, fixed at startup.
+#[derive(Debug, Clone)]
+pub struct Security {
+    /// The address listened on (with the port actually bound).
+    listen: SocketAddr,
+    /// The token, if one was given.
+    token: Option<String>,
+    /// Origins allowed besides the server's own, lower-case, without a trailing `/`.
+    allowed_origins: Vec<String>,
+}
+
+impl Security {
+    /// The rules for listening on `listen`; refuses a non-loopback address without a token, and
+    /// an empty token.
+    pub fn new(
+        listen: SocketAddr,
+        token: Option<String>,
+        allow_origins: &[String],
+    ) -> Result<Self, CliError> {
+        let url_safe = |c: char| c.is_ascii_alphanumeric() || "-._~".contains(c);
+        if token
+            .as_deref()
+            .is_some_and(|t| t.is_empty() || !t.chars().all(url_safe))
+        {
+            return Err(CliError::Usage(
+                "--token must be non-empty and made of letters, digits and - . _ ~ (it travels \
+                 in URLs as ?token=)"
+                    .into(),
+            ));
+        }
+        if !listen.ip().is_loopback() && token.is_none() {
+            return Err(CliError::Usage(format!(
+                "refusing to listen on {listen} without --token: anyone who can reach that \
+                 address could turn the motor (and fire the laser). Give --token SECRET (clients \
+                 send `Authorization: Bearer SECRET` or `?token=SECRET`), or listen on \
+                 127.0.0.1"
+            )));
+        }
+        Ok(Security {
+            listen,
+            token,
+            allowed_origins: allow_origins.iter().map(|o| normalize(o)).collect(),
+        })
+    }
+
+    /// The same rules, once the port is bound (`--listen ...:0` picks one).
+    pub fn bound_to(mut self, listen: SocketAddr) -> Self {
+        self.listen = listen;
+        self
+    }
+
+    /// Whether the request carries the token (always, without one).
+    fn token_ok(&self, headers: &HeaderMap, query: Option<&str>) -> bool {
+        let Some(token) = &self.token else {
+            return true;
+        };
+        let bearer = headers
+            .get(header::AUTHORIZATION)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.strip_prefix("Bearer "));
+        let in_query = query
+            .into_iter()
+            .flat_map(|q| q.split('&'))
+            .find_map(|pair| pair.strip_prefix("token="));
+        [bearer, in_query]
+            .into_iter()
+            .flatten()
+            .any(|given| bool::from(given.as_bytes().ct_eq(token.as_bytes())))
+    }
+
+    /// Whether a request with `Host: host` may be served (anything, off loopback).
+    fn host_ok(&self, host: Option<&str>) -> bool {
+        if !self.listen.ip().is_loopback() {
+            return true;
+        }
+        host.is_some_and(is_loopback_host)
+    }
+
+    /// Whether `origin` is the server's own or an allowed one.
+    fn origin_ok(&self, origin: &str, host: Option<&str>) -> bool {
+        let origin = normalize(origin);
+        let own = format!("http://{}", self.listen);
+        let via_host = host
+            .filter(|h| self.listen.ip().is_loopback() && is_loopback_host(h))
+            .map(|h| format!("http://{}", h.to_ascii_lowercase()));
+        origin == own
+            || via_host.is_some_and(|o| o == origin)
+            || self.allowed_origins.contains(&origin)
+    }
+}
+
+/// `origin` in lower case, without a trailing `/`.
+fn normalize(origin: &str) -> String {
+    origin.trim().trim_end_matches('/').to_ascii_lowercase()
+}
+
+/// Whether a `Host` header (`name[:port]`) names this machine's loopback.
+fn is_loopback_host(host: &str) -> bool {
+    let name = match host.strip_prefix('[') {
+        Some(v6) => v6.split(']').next().unwrap_or_default(),
+        None => host.rsplit_once(':').map_or(host, |(name, _)| name),
+    };
+    let name = name.to_ascii_lowercase();
+    name == "localhost"
+        || name.ends_with(".localhost")
+        || name
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
+}
+
+/// The middleware: host, token and origin, in that order, before any route.
+pub async fn guard(
+    State(security): State<std::sync::Arc<Security>>,
+    request: Request,
+    next: Next,
+) -> Response {
+    let headers = request.headers();
+    let host = headers.get(header::HOST).and_then(|v| v.to_str().ok());
+    let path = request.uri().path();
+    let refuse = |status: StatusCode, why: &str| {
+        error_response(status, &RpcError::new(INVALID_REQUEST, why)).into_response()
+    };
+    if !security.host_ok(host) {
+        let why = "this server answers only to loopback host names (localhost, 127.0.0.1, [::1])";
+        return refuse(StatusCode::FORBIDDEN, why);
+    }
+    let api = path == "/rpc" || path.starts_with("/api/");
+    if api && !security.token_ok(headers, request.uri().query()) {
+        let why = "missing or wrong token: send `Authorization: Bearer TOKEN` or `?token=TOKEN`";
+        return refuse(StatusCode::UNAUTHORIZED, why);
+    }
+    let needs_origin = request.method() == Method::POST || path == "/rpc";
+    let origin = headers
+        .get(header::ORIGIN)
+        .map(|v| v.to_str().unwrap_or("?"));
+    if needs_origin && origin.is_some_and(|o| !security.origin_ok(o, host)) {
+        let why = "cross-site request refused: this Origin is not the server's own; start the \
+                   server with --allow-origin ORIGIN to allow it";
+        return refuse(StatusCode::FORBIDDEN, why);
+    }
+    next.run(request).await
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn loopback() -> Security {
+        Security::new(
+            "127.0.0.1:7878".parse().unwrap(),
+            None,
+            &["http://Tool.example/".into()],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn loopback_host_names_are_recognised() {
+        for host in [
+            "localhost:7878",
+            "127.0.0.1:7878",
+            "[::1]:7878",
+            "LOCALHOST",
+            "127.1.2.3",
+        ] {
+            assert!(is_loopback_host(host), "{host}");
+        }
+        for host in [
+            "evil.example:7878",
+            "192.168.1.2:7878",
+            "[2001:db8::1]:80",
+            "",
+        ] {
+            assert!(!is_loopback_host(host), "{host}");
+        }
+    }
+
+    #[test]
+    fn only_the_servers_own_and_the_allowed_origins_pass() {
+        let s = loopback();
+        assert!(s.origin_ok("http://127.0.0.1:7878", Some("127.0.0.1:7878")));
+        assert!(s.origin_ok("http://localhost:7878", Some("localhost:7878")));
+        assert!(s.origin_ok("http://tool.example", None));
+        assert!(!s.origin_ok("http://evil.example", Some("127.0.0.1:7878")));
+        assert!(!s.origin_ok("http://localhost:9999", Some("localhost:7878")));
+        assert!(!s.origin_ok("null", Some("127.0.0.1:7878")));
+    }
+
+    #[test]
+    fn a_non_loopback_listen_needs_a_token() {
+        let any = "0.0.0.0:7878".parse().unwrap();
+        let e = Security::new(any, None, &[]).unwrap_err();
+        assert!(e.to_string().contains("without --token"), "{e}");
+        assert!(Security::new(any, Some("s3cret".into()), &[]).is_ok());
+        assert!(Security::new(any, Some(" ".into()), &[]).is_err());
+    }
+
+    #[test]
+    fn the_token_is_taken_from_the_header_or_the_query() {
+        let s = Security::new("127.0.0.1:1".parse().unwrap(), Some("abc".into()), &[]).unwrap();
+        let mut headers = HeaderMap::new();
+        assert!(!s.token_ok(&headers, None));
+        assert!(s.token_ok(&headers, Some("x=1&token=abc")));
+        assert!(!s.token_ok(&headers, Some("token=abd")));
+        assert!(!s.token_ok(&headers, Some("token=ab")));
+        headers.insert(header::AUTHORIZATION, "Bearer abc".parse().unwrap());
+        assert!(s.token_ok(&headers, None));
+        headers.insert(header::AUTHORIZATION, "Bearer abcd".parse().unwrap());
+        assert!(!s.token_ok(&headers, None));
+    }
+}

@@ -1,0 +1,462 @@
+//! The device worker: the one thread that owns the device's [`Session`] (the library is
+//! blocking), and the [`Device`] handle through which every client reaches it.
+//!
+//! * Requests reach the thread over a channel, one at a time, each with a reply channel.
+//! * A *long* call (a run, a reset, a self-test) holds the device: while it goes, every other
+//!   device call is refused at once with "busy" (-32001), never queued behind it. Short calls
+//!   (info, status, ...) from several clients queue and are answered in turn.
+//! * `abort` never waits: it raises a flag that the running call's progress closure checks at
+//!   every status poll (about every 20 ms), so the device is told to abort and its motor stops;
+//!   with nothing running it sends the device an `Abort` itself.
+//! * A long call whose caller goes away (a WebSocket closed mid-run, an HTTP client that hung
+//!   up) is aborted the same way: its future's drop raises the flag.
+//! * While a run goes, its progress is broadcast to every client (`progress`, at most one per
+//!   [`PROGRESS_INTERVAL`], and at every change of state), and every client hears of runs
+//!   started and finished elsewhere (`run_started`, `run_finished`).
+//! * A link error (the port vanished, the device stopped answering or restarted) drops the
+//!   session and tells every client (`device`, `connected: false`); the thread then re-opens the
+//!   device every [`WATCH_INTERVAL`] until it answers again (`device`, `connected: true`). An idle
+//!   device is asked for its status every [`WATCH_INTERVAL`], so a vanished one is noticed
+//!   without a client asking.
+
+use std::ops::ControlFlow;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use kerfmeter::Progress;
+use kerfmeter::protocol::RunParams;
+use serde::Serialize;
+use serde_json::{Value, json};
+use tokio::sync::{broadcast, oneshot};
+
+use super::rpc::{Caller, NOT_CONNECTED, RpcError, notification};
+use crate::commands::run::{RunReport, measure_on};
+use crate::commands::{Done, info, self_test, status};
+use crate::connection::{Global, Session};
+use crate::error::CliError;
+
+/// The shortest time between two `progress` notifications of the same state.
+pub const PROGRESS_INTERVAL: Duration = Duration::from_millis(50);
+/// How often an idle device is checked, and a vanished one looked for.
+pub const WATCH_INTERVAL: Duration = Duration::from_secs(1);
+/// How many notifications a slow client may fall behind before it misses some.
+const EVENTS_BACKLOG: usize = 256;
+
+/// What a client asks of the device.
+#[derive(Debug)]
+pub enum Call {
+    /// `info`: the `kerfmeter info --json` report.
+    Info,
+    /// `status`: the `kerfmeter status --json` report.
+    Status,
+    /// `get_kerf_value`: the last result, or null.
+    Kerf,
+    /// `reset_kerfmeter` (long).
+    Reset,
+    /// `clear_fault`.
+    ClearFault,
+    /// `self_test` (long).
+    SelfTest,
+    /// Stop the motor (sent only when nothing long runs; see [`Device::abort`]).
+    Abort,
+    /// `run_kerfmeter` (long).
+    Run(RunCall),
+}
+
+impl Call {
+    /// Whether the call holds the device while it goes.
+    fn is_long(&self) -> bool {
+        matches!(self, Call::Run(_) | Call::Reset | Call::SelfTest)
+    }
+}
+
+/// A checked `run_kerfmeter` request.
+#[derive(Debug)]
+pub struct RunCall {
+    /// The device's run parameters, from the joint asked for.
+    pub params: RunParams,
+    /// Gauges to measure (1..=50).
+    pub samples: usize,
+    /// The caller's label (material, cutter), returned with the result.
+    pub label: Option<String>,
+}
+
+/// What a call answers.
+pub type Reply = Result<Value, RpcError>;
+
+/// A call on its way to the worker.
+struct Job {
+    call: Call,
+    by: Caller,
+    reply: oneshot::Sender<Reply>,
+}
+
+/// What the worker and the clients share.
+struct Shared {
+    /// A long call holds the device.
+    busy: AtomicBool,
+    /// The long call going should stop.
+    stop: AtomicBool,
+    /// The device answered last time it was asked.
+    connected: AtomicBool,
+    /// The server is stopping: the thread ends after the call it is doing.
+    quit: AtomicBool,
+    /// Notifications to every client, as JSON-RPC text.
+    events: broadcast::Sender<Arc<str>>,
+}
+
+impl Shared {
+    /// Send a notification to every client (none listening is fine).
+    fn notify(&self, method: &str, params: Value) {
+        let _ = self.events.send(notification(method, params).into());
+    }
+
+    /// Record whether the device answers; tell every client when that changes.
+    fn set_connected(&self, connected: bool, message: &str) {
+        if self.connected.swap(connected, Ordering::SeqCst) != connected {
+            let params = json!({ "connected": connected, "message": message });
+            self.notify("device", params);
+        }
+    }
+
+    /// The progress closure of a long call: stops it when asked to.
+    fn stop_requested(&self) -> ControlFlow<()> {
+        if self.stop.load(Ordering::SeqCst) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    }
+}
+
+/// The handle every client uses to reach the device.
+#[derive(Clone)]
+pub struct Device {
+    shared: Arc<Shared>,
+    jobs: mpsc::Sender<Job>,
+}
+
+impl Device {
+    /// Open the device as `g` says and start its thread; the thread ends when every handle is
+    /// dropped, after the call it is doing.
+    pub fn start(g: Global) -> (Device, JoinHandle<()>) {
+        let (events, _) = broadcast::channel(EVENTS_BACKLOG);
+        let shared = Arc::new(Shared {
+            busy: AtomicBool::new(false),
+            stop: AtomicBool::new(false),
+            connected: AtomicBool::new(false),
+            quit: AtomicBool::new(false),
+            events,
+        });
+        let (jobs, queue) = mpsc::channel();
+        let worker = Worker {
+            g,
+            session: None,
+            shared: Arc::clone(&shared),
+        };
+        let thread = std::thread::Builder::new()
+            .name("kerfmeter-device".into())
+            .spawn(move || worker.work(queue))
+            .expect("a thread can be started");
+        (Device { shared, jobs }, thread)
+    }
+
+    /// The notifications, from now on.
+    pub fn subscribe(&self) -> broadcast::Receiver<Arc<str>> {
+        self.shared.events.subscribe()
+    }
+
+    /// Carry out `call`. A long call while another goes is refused at once ("busy"); a long
+    /// call whose future is dropped before its answer (the client went away) is aborted.
+    pub async fn call(&self, call: Call, by: Caller) -> Reply {
+        let long = call.is_long();
+        let shared = &self.shared;
+        if long {
+            let taken =
+                shared
+                    .busy
+                    .compare_exchange(false, true, Ordering::SeqCst, Ordering::SeqCst);
+            if taken.is_err() {
+                return Err(RpcError::busy());
+            }
+            shared.stop.store(false, Ordering::SeqCst);
+        } else if shared.busy.load(Ordering::SeqCst) {
+            return Err(RpcError::busy());
+        }
+        let guard = long.then(|| AbortOnDrop(Arc::clone(shared)));
+        let (reply, answer) = oneshot::channel();
+        if self.jobs.send(Job { call, by, reply }).is_err() {
+            // The worker is gone (the server is stopping): the device is not held.
+            std::mem::forget(guard);
+            shared.busy.store(false, Ordering::SeqCst);
+            return Err(RpcError::new(NOT_CONNECTED, "the server is stopping"));
+        }
+        let outcome = answer.await;
+        std::mem::forget(guard);
+        outcome.unwrap_or_else(|_| Err(RpcError::new(NOT_CONNECTED, "the server is stopping")))
+    }
+
+    /// Stop the motor: the long call going is told to stop (its caller gets "aborted"); with
+    /// none going, the device is sent an abort.
+    pub async fn abort(&self) -> Reply {
+        self.stop_running();
+        if !self.shared.busy.load(Ordering::SeqCst) {
+            self.call(Call::Abort, Caller::Rpc).await?;
+        }
+        Ok(json!({ "aborted": true }))
+    }
+
+    /// Tell the long call going, if any, to stop (without waiting).
+    pub fn stop_running(&self) {
+        self.shared.stop.store(true, Ordering::SeqCst);
+    }
+
+    /// Stop the call going and end the thread after it (the device is told to abort).
+    pub fn shut_down(&self) {
+        self.stop_running();
+        self.shared.quit.store(true, Ordering::SeqCst);
+    }
+}
+
+/// Raises the stop flag when a long call's future is dropped before its answer came.
+struct AbortOnDrop(Arc<Shared>);
+
+impl Drop for AbortOnDrop {
+    fn drop(&mut self) {
+        self.0.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+/// The thread's state: the flags to open the device with, and the open session.
+struct Worker {
+    g: Global,
+    session: Option<Session>,
+    shared: Arc<Shared>,
+}
+
+impl Worker {
+    /// Serve jobs until the server stops (or every [`Device`] is dropped); watch the device in
+    /// between.
+    fn work(mut self, queue: mpsc::Receiver<Job>) {
+        self.reconnect();
+        while !self.shared.quit.load(Ordering::SeqCst) {
+            match queue.recv_timeout(WATCH_INTERVAL) {
+                Ok(job) => self.serve(job),
+                Err(mpsc::RecvTimeoutError::Timeout) => self.watch(),
+                Err(mpsc::RecvTimeoutError::Disconnected) => break,
+            }
+        }
+        if let Some(s) = &mut self.session {
+            // Leaving: whatever the device does, its motor stops.
+            let _ = s.meter.abort();
+        }
+    }
+
+    /// Open the device if it is not open; say so when that changes.
+    fn reconnect(&mut self) {
+        if self.session.is_some() {
+            return;
+        }
+        match self.g.connect() {
+            Ok(s) => {
+                let message = format!("the device answers on {}", s.meter.path());
+                self.session = Some(s);
+                self.shared.set_connected(true, &message);
+            }
+            Err(e) => self.shared.set_connected(false, &e.to_string()),
+        }
+    }
+
+    /// An idle moment: check that the device still answers, or look for it again.
+    fn watch(&mut self) {
+        match &mut self.session {
+            Some(s) => {
+                if let Err(e) = s.meter.status() {
+                    self.lost(&CliError::from(e));
+                }
+            }
+            None => self.reconnect(),
+        }
+    }
+
+    /// Drop the session after a link error, so that the device is re-opened.
+    fn lost(&mut self, e: &CliError) {
+        if e.category() == kerfmeter::Category::Communication {
+            self.session = None;
+            self.shared.set_connected(false, &e.to_string());
+        }
+    }
+
+    /// Carry out one job and answer it (the device is free again before the answer leaves).
+    /// A run's `run_finished` is sent once the device is free, so that a client hearing it can
+    /// start the next call at once.
+    fn serve(&mut self, job: Job) {
+        let long = job.call.is_long();
+        let run = matches!(job.call, Call::Run(_));
+        let reply = self.reply(job.call, job.by);
+        if long {
+            self.shared.busy.store(false, Ordering::SeqCst);
+        }
+        if run {
+            let (kerf_um, error) = match &reply {
+                Ok(served) => (served["kerf_um"].clone(), None),
+                Err(e) => (Value::Null, Some(e)),
+            };
+            let finished = json!({ "kerf_um": kerf_um, "error": error });
+            self.shared.notify("run_finished", finished);
+        }
+        let _ = job.reply.send(reply);
+    }
+
+    /// The answer to `call`.
+    fn reply(&mut self, call: Call, by: Caller) -> Reply {
+        self.reconnect();
+        let Some(s) = &mut self.session else {
+            let why = "the device is not connected; the server opens it again when it answers";
+            return Err(RpcError::new(NOT_CONNECTED, why));
+        };
+        let outcome = match call {
+            Call::Run(run) => return self.run(run, by),
+            other => do_call(s, other, &self.shared),
+        };
+        outcome.map_err(|e| {
+            self.lost(&e);
+            RpcError::from(&e)
+        })
+    }
+
+    /// A run: announced to every client, its progress broadcast.
+    fn run(&mut self, run: RunCall, by: Caller) -> Reply {
+        let label = run.label.clone();
+        let params = json!({ "label": label, "by": by.name() });
+        self.shared.notify("run_started", params);
+        let Some(s) = &mut self.session else {
+            return Err(RpcError::new(NOT_CONNECTED, "the device is not connected"));
+        };
+        match measure_and_report(s, &run, &self.shared) {
+            Ok(served) => Ok(to_value(&served)),
+            Err(e) => {
+                self.lost(&e);
+                Err(RpcError::from(&e))
+            }
+        }
+    }
+}
+
+/// A short call, a reset or a self-test on the open session.
+fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliError> {
+    Ok(match call {
+        Call::Info => to_value(&info::report(s)?),
+        Call::Status => to_value(&status::StatusReport::from(s.meter.status()?)),
+        Call::Kerf => to_value(&s.meter.get_kerf_value()?),
+        Call::Reset => {
+            s.meter.reset_kerfmeter_until(|_| shared.stop_requested())?;
+            json!({ "reset": true })
+        }
+        Call::ClearFault => {
+            s.meter.clear_fault()?;
+            to_value(&Done::new("fault cleared"))
+        }
+        Call::SelfTest => to_value(&self_test::test(s, |_| shared.stop_requested())?),
+        Call::Abort => {
+            s.meter.abort()?;
+            json!({ "aborted": true })
+        }
+        Call::Run(_) => unreachable!("runs are served by Worker::run"),
+    })
+}
+
+/// What `run_kerfmeter` answers: `kerfmeter run --json`'s report, with the caller's label and
+/// the last run's torque–angle curve.
+#[derive(Serialize)]
+pub struct ServedRun {
+    /// The report, its fields at the top level (`kerf_um`, `summary`, `runs`, ...).
+    #[serde(flatten)]
+    pub report: RunReport,
+    /// The caller's label.
+    pub label: Option<String>,
+    /// The last run's curve.
+    pub curve: CurvePoints,
+}
+
+/// A run's curve as `[torque_nm, angle_deg]` pairs, oldest first.
+#[derive(Serialize)]
+pub struct CurvePoints {
+    /// The run.
+    pub run_id: u32,
+    /// The samples.
+    pub points: Vec<[f32; 2]>,
+}
+
+/// Measure as `run` says, broadcasting progress, then fetch the last run's curve.
+fn measure_and_report(
+    s: &mut Session,
+    run: &RunCall,
+    shared: &Shared,
+) -> Result<ServedRun, CliError> {
+    let mut throttle = Throttle::default();
+    let measurement = measure_on(
+        s,
+        &run.params,
+        run.samples,
+        |_| Ok(()),
+        |i, p| {
+            if let Some(params) = throttle.progress(i, run.samples, p) {
+                shared.notify("progress", params);
+            }
+            shared.stop_requested()
+        },
+    )?;
+    let curve = s.meter.curve()?;
+    let points = curve
+        .samples
+        .iter()
+        .map(|x| [x.torque_nm, x.angle_deg])
+        .collect();
+    Ok(ServedRun {
+        report: RunReport::new(s, &run.params, measurement),
+        label: run.label.clone(),
+        curve: CurvePoints {
+            run_id: curve.run_id,
+            points,
+        },
+    })
+}
+
+/// Lets a `progress` notification through at most once per [`PROGRESS_INTERVAL`], and at every
+/// change of state or gauge.
+#[derive(Default)]
+struct Throttle {
+    last: Option<(Instant, usize, String)>,
+}
+
+impl Throttle {
+    /// The notification's params for `p` of gauge `i` of `n`, if one is due.
+    fn progress(&mut self, i: usize, n: usize, p: &Progress) -> Option<Value> {
+        let state = format!("{:?}", p.state);
+        let now = Instant::now();
+        let due = match &self.last {
+            None => true,
+            Some((at, gauge, last_state)) => {
+                *gauge != i || *last_state != state || now - *at >= PROGRESS_INTERVAL
+            }
+        };
+        if !due {
+            return None;
+        }
+        let params = json!({
+            "sample": i, "samples": n, "state": state, "torque_nm": p.torque_nm,
+            "angle_deg": p.angle_deg, "elapsed_ms": p.elapsed_ms,
+        });
+        self.last = Some((now, i, state));
+        Some(params)
+    }
+}
+
+/// A report as JSON.
+fn to_value(report: &impl Serialize) -> Value {
+    serde_json::to_value(report).expect("reports serialize")
+}
