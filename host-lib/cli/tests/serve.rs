@@ -643,3 +643,109 @@ fn ctrl_c_during_a_run_aborts_it_leaves_the_motor_safe_and_stops_the_server() {
     let _ = twin.kill();
     let _ = twin.wait();
 }
+
+#[test]
+fn a_plan_is_dilated_by_the_last_kerf_from_its_text() {
+    let server = Server::sim(false);
+    let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../plan/tests/fixtures/box_generator.svg");
+    let plan = std::fs::read_to_string(fixture).unwrap();
+    let mut ws = server.ws();
+    let last = json!({ "plan": plan, "format": "svg", "kerf_um": "last" });
+    let none = ws.call("dilate", last.clone());
+    assert_eq!(code(&none), -32602, "{none}");
+    assert!(
+        none["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("measure first")
+    );
+    let run = ws.call("run_kerfmeter", json!({}));
+    let kerf_um = result(&run)["kerf_um"].as_f64().unwrap();
+    let (status, dilated) = server.post("/api/dilate", &last.to_string());
+    assert_eq!(status, 200, "{dilated}");
+    assert!(
+        (dilated["kerf_um"].as_f64().unwrap() - kerf_um).abs() < 0.01,
+        "{dilated}"
+    );
+    assert_eq!(dilated["format"], "svg");
+    let content = dilated["content"].as_str().unwrap();
+    assert!(content.contains("kerfmeter:compensation") && content != plan);
+    assert!(dilated["report"]["cut_rules"].is_string(), "{dilated}");
+    let bad = ws.call(
+        "dilate",
+        json!({ "plan": "<svg", "format": "svg", "kerf_um": 150 }),
+    );
+    assert_eq!(code(&bad), -32005, "{bad}");
+    let no_format = ws.call("dilate", json!({ "plan": plan, "kerf_um": 150 }));
+    assert!(
+        no_format["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("format"),
+        "{no_format}"
+    );
+    let dxf = ws.call(
+        "dilate",
+        json!({ "plan_base64": "%%%", "format": "dxf", "kerf_um": 150 }),
+    );
+    assert!(
+        dxf["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("plan_base64"),
+        "{dxf}"
+    );
+}
+
+#[test]
+fn the_gauge_is_drawn_as_the_gauge_command_draws_it() {
+    let server = Server::sim(false);
+    let mut ws = server.ws();
+    let svg = ws.call("gauge", json!({ "label": true, "radius_mm": 12 }));
+    let svg = result(&svg);
+    assert_eq!(svg["format"], "svg");
+    assert!(svg["content"].as_str().unwrap().contains("<svg"), "{svg}");
+    assert!(svg["report"]["spiral_arcs"].as_u64().unwrap() > 10, "{svg}");
+    assert!(svg["report"].get("output").is_none(), "{svg}");
+    let dxf = ws.call("gauge", json!({ "format": "dxf", "jam_direction": "ccw" }));
+    assert!(
+        result(&dxf)["content"]
+            .as_str()
+            .unwrap()
+            .contains("SECTION")
+    );
+    let bad = ws.call("gauge", json!({ "radius_mm": "big" }));
+    assert_eq!(code(&bad), -32602, "{bad}");
+    let unknown = ws.call("gauge", json!({ "output": "/etc/passwd" }));
+    assert!(
+        unknown["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("`output`"),
+        "{unknown}"
+    );
+}
+
+#[test]
+fn self_test_and_clear_fault_answer_as_the_cli_does() {
+    let server = Server::start(&["--sim", "--sim-fault", "motor-disconnected"], &[]);
+    let mut ws = server.ws();
+    let failed = ws.call("self_test", json!({}));
+    let failed = result(&failed);
+    assert_eq!(failed["passed"], false, "{failed}");
+    let reasons: Vec<&str> = failed["failures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["item"].as_str().unwrap())
+        .collect();
+    assert!(reasons.contains(&"direction"), "{failed}");
+    assert_eq!(
+        result(&ws.call("clear_fault", json!({}))),
+        &json!({ "ok": true })
+    );
+    let healthy = Server::sim(false);
+    let passed = healthy.ws().call("self_test", json!({}));
+    assert_eq!(result(&passed)["passed"], true, "{passed}");
+}

@@ -82,13 +82,23 @@ pub fn dilate_file(
         path: input.to_owned(),
         source,
     })?;
+    dilate_bytes(bytes, format, kerf, options).map_err(|e| e.in_file(input))
+}
+
+/// Dilate a plan held in memory (`bytes`, in `format`), like [`dilate_file`]: for plans that
+/// come from no file (the server's clients send them as text).
+pub fn dilate_bytes(
+    bytes: Vec<u8>,
+    format: PlanFormat,
+    kerf: &KerfSource,
+    options: &DilateOptions,
+) -> Result<(Vec<u8>, PlanSummary)> {
     let (output, summary) = match format {
         PlanFormat::Svg => dilate_svg_bytes(bytes, kerf, options),
         PlanFormat::Dxf => dilate_dxf(&bytes, kerf, &dxf_options(options)),
-    }
-    .map_err(|e| e.in_file(input))?;
+    }?;
     if options.strict {
-        refuse_open_paths(&summary, "--strict").map_err(|e| e.in_file(input))?;
+        refuse_open_paths(&summary, "--strict")?;
     }
     Ok((output, summary))
 }

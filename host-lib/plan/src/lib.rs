@@ -65,4 +65,4 @@ pub mod rules;
 pub mod svg;
 
 pub use error::{PlanError, Result};
-pub use file::{DilateOptions, PlanFormat, dilate_file, dilate_file_cuts};
+pub use file::{DilateOptions, PlanFormat, dilate_bytes, dilate_file, dilate_file_cuts};

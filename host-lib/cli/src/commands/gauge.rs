@@ -272,6 +272,14 @@ fn clean(x: f32) -> f64 {
 
 /// Write the gauge described by `args`.
 pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
+    let (bytes, report) = draw(args)?;
+    write_atomically(&args.output, &bytes)?;
+    Ok(report)
+}
+
+/// Draw the gauge described by `args` in the format `args.output` names, without writing it:
+/// the file's content and the report (`kerfmeter serve` sends the content to its client).
+pub fn draw(args: &GaugeArgs) -> Result<(Vec<u8>, GaugeReport)> {
     let geometry = args.geometry();
     let options = args.options()?;
     let drawing = gauge::build(&geometry, &options)?;
@@ -292,14 +300,13 @@ pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
             PlanFormat::Dxf => (GaugeFormat::Dxf, gauge::to_dxf(&drawing)?, None),
         }
     };
-    write_atomically(&args.output, &bytes)?;
     let arcs = drawing
         .spiral
         .vertex_data
         .iter()
         .filter(|v| v.bulge != 0.0)
         .count();
-    Ok(GaugeReport {
+    let report = GaugeReport {
         output: args.output.clone(),
         format,
         page_mm: drawing.page_mm,
@@ -315,7 +322,8 @@ pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
         test_piece: options.test_piece,
         label: args.label,
         gcode,
-    })
+    };
+    Ok((bytes, report))
 }
 
 /// The gauge's G-code text, and what it cuts where.

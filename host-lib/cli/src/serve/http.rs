@@ -161,16 +161,21 @@ fn no_route(name: &str) -> Response {
     error_response(StatusCode::NOT_FOUND, &e)
 }
 
-/// `GET /rpc`: become a WebSocket speaking JSON-RPC (messages up to [`MAX_BODY_BYTES`]).
+/// `GET /rpc`: become a WebSocket speaking JSON-RPC (messages up to [`MAX_BODY_BYTES`]). The
+/// client hears every notification sent once its handshake is answered: it subscribes before.
 async fn upgrade(State(state): State<AppState>, ws: WebSocketUpgrade) -> Response {
+    let events = state.device.subscribe();
     ws.max_message_size(MAX_BODY_BYTES)
         .max_frame_size(MAX_BODY_BYTES)
-        .on_upgrade(move |socket| connection(socket, state.device))
+        .on_upgrade(move |socket| connection(socket, state.device, events))
 }
 
 /// One WebSocket client: its requests in, their answers and every notification out.
-async fn connection(mut socket: WebSocket, device: Device) {
-    let mut events = device.subscribe();
+async fn connection(
+    mut socket: WebSocket,
+    device: Device,
+    mut events: broadcast::Receiver<Arc<str>>,
+) {
     let (answers, mut to_send) = mpsc::unbounded_channel::<String>();
     let mut tasks = JoinSet::new();
     loop {

@@ -8,7 +8,7 @@
 //! * `GET /rpc`: a WebSocket; JSON-RPC 2.0 requests and responses in text frames, and
 //!   notifications pushed to every client. A message is at most [`MAX_BODY_BYTES`].
 //! * HTTP JSON: `GET /api/info`, `GET /api/status`, `GET /api/kerf`, `POST /api/run`,
-//!   `POST /api/reset`, `POST /api/abort` (a POST's body is the method's params, a JSON object,
+//!   `POST /api/reset`, `POST /api/abort`, `POST /api/dilate` (a POST's body is the method's params, a JSON object,
 //!   at most [`MAX_BODY_BYTES`]; an empty body is `{}`). Success is `200` with the result as
 //!   the body; a failure is 4xx/5xx with `{"error": {"code", "message", "data"}}`.
 //! * `GET /`: the page, embedded in the binary.
@@ -27,6 +27,8 @@
 //! | `abort` | | `{"aborted": true}`, at any time, also during another client's run |
 //! | `clear_fault` | | `kerfmeter clear-fault --json` (`{"ok": true}`) |
 //! | `self_test` | | `kerfmeter self-test --json` (a failed item is `passed: false`, not an error) |
+//! | `dilate` | `plan` (text) or `plan_base64`, `format` (`"svg"`/`"dxf"`, required), `kerf_um` (µm, or `"last"`: the device's last result; required), and `kerfmeter dilate`'s rules: `cut_colors`, `cut_max_width_mm`, `cut_layers`, `units`, `strict`, `already_compensated_ok`, `recompensate` | `{"kerf_um", "format", "content": the dilated plan's text, "report": {"kerf_um", "cut_rules", ... what `dilate --json` says was found and done}}` |
+//! | `gauge` | `format` (`"svg"` default, `"dxf"`), and `kerfmeter gauge`'s options with `_` for `-`: `pitch_um_per_deg`, `radius_mm`, `prong_radius_mm`, `hole_radius_mm`, `hole_distance_mm`, `jam_direction` (`"cw"`/`"ccw"`), `disengage_deg`, `test_piece`, `thickness_mm`, `finger_width_mm`, `test_piece_kerf_um`, `label` | `{"format", "content": the drawing's text, "report": gauge --json's report without the file}` |
 //! | `job` | | error -32004: this server has no cutter |
 //!
 //! With `samples` above 1 the gauges are measured one after the other without a prompt, as
@@ -64,6 +66,7 @@
 //! its HTTP route is one line of the table in [`http`].
 
 mod http;
+mod plans;
 mod rpc;
 mod security;
 mod worker;

@@ -231,6 +231,41 @@ impl Params {
         }
     }
 
+    /// The boolean `name`.
+    pub fn bool(&mut self, name: &str) -> Result<Option<bool>, RpcError> {
+        match self.0.remove(name) {
+            None | Some(Value::Null) => Ok(None),
+            Some(Value::Bool(b)) => Ok(Some(b)),
+            Some(other) => Err(RpcError::param(
+                name,
+                format!("expected true or false, got {other}"),
+            )),
+        }
+    }
+
+    /// The strings `name`: an array of strings, or one string.
+    pub fn strings(&mut self, name: &str) -> Result<Option<Vec<String>>, RpcError> {
+        match self.0.remove(name) {
+            None | Some(Value::Null) => Ok(None),
+            Some(Value::String(s)) => Ok(Some(vec![s])),
+            Some(Value::Array(items)) => items
+                .into_iter()
+                .map(|item| match item {
+                    Value::String(s) => Ok(s),
+                    other => Err(RpcError::param(
+                        name,
+                        format!("expected strings, got {other}"),
+                    )),
+                })
+                .collect::<Result<_, _>>()
+                .map(Some),
+            Some(other) => Err(RpcError::param(
+                name,
+                format!("expected strings, got {other}"),
+            )),
+        }
+    }
+
     /// Refuse any parameter not taken yet.
     pub fn finish(self) -> Result<(), RpcError> {
         match self.0.keys().next() {
@@ -278,6 +313,8 @@ pub async fn dispatch(
             params.finish()?;
             return device.abort().await;
         }
+        "dilate" => return super::plans::dilate(device, params, by).await,
+        "gauge" => return super::plans::gauge(params).await,
         "job" => {
             let why = "no cutter configured: start the server with `kerfmeter serve --cutter ...`";
             return Err(RpcError::new(NO_CUTTER, why));

@@ -183,7 +183,8 @@ impl Device {
                 return Err(RpcError::busy());
             }
             shared.stop.store(false, Ordering::SeqCst);
-        } else if shared.busy.load(Ordering::SeqCst) {
+        } else if shared.busy.load(Ordering::SeqCst) && !matches!(call, Call::Abort) {
+            // An abort is never refused: one that meets a run just started queues behind it.
             return Err(RpcError::busy());
         }
         let guard = long.then(|| AbortOnDrop(Arc::clone(shared)));

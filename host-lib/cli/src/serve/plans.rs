@@ -1,0 +1,257 @@
+//! The server's plan methods: `dilate` takes a plan as text (or base64) in the request, never a
+//! path, dilates it with the same options and library call as `kerfmeter dilate`, and gives the
+//! dilated plan back as text; `gauge` draws the gauge as `kerfmeter gauge` does (its options are
+//! the command's flags, read by the command's own parser, so the defaults and checks are the
+//! same) and gives the drawing back instead of writing a file. The work runs on a blocking
+//! thread of its own, so it neither holds the device nor stalls the other clients.
+
+use base64::Engine as _;
+use base64::engine::general_purpose::STANDARD as BASE64;
+use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
+use kerfmeter_plan::progress::Progress;
+use kerfmeter_plan::{PlanFormat, dilate_bytes};
+use serde::Serialize;
+use serde_json::{Value, json};
+
+use super::rpc::{Caller, INVALID_PARAMS, Params, RpcError};
+use super::worker::{Call, Device};
+use crate::commands::dilate::DilationArgs;
+use crate::commands::gauge::{GaugeArgs, draw};
+use crate::error::CliError;
+
+/// What `dilate` reports beside the plan: the kerf, the cut rules, and what was found and done
+/// (the fields of `kerfmeter dilate --json` that are not about files).
+#[derive(Serialize)]
+struct PlanReport {
+    /// The kerf applied, µm.
+    kerf_um: f64,
+    /// The cut rules, in words.
+    cut_rules: String,
+    /// What was found and done.
+    #[serde(flatten)]
+    summary: PlanSummary,
+}
+
+/// `dilate` {plan | plan_base64, format, kerf_um: number | "last", cut_colors, cut_max_width_mm,
+/// cut_layers, units, strict, already_compensated_ok, recompensate}.
+pub async fn dilate(device: &Device, mut p: Params, by: Caller) -> Result<Value, RpcError> {
+    let plan = plan_bytes(&mut p)?;
+    let format = format(&mut p)?;
+    let kerf_um = kerf_um(device, &mut p, by).await?;
+    let defaults = DilationArgs {
+        kerf_um,
+        map: None,
+        cut_colors: Vec::new(),
+        cut_max_width_mm: 0.3,
+        cut_layers: Vec::new(),
+        units: None,
+        already_compensated_ok: false,
+        recompensate: false,
+    };
+    let args = DilationArgs {
+        cut_colors: p.strings("cut_colors")?.unwrap_or_default(),
+        cut_max_width_mm: p
+            .f64("cut_max_width_mm")?
+            .unwrap_or(defaults.cut_max_width_mm),
+        cut_layers: p.strings("cut_layers")?.unwrap_or_default(),
+        units: units(&mut p)?,
+        already_compensated_ok: p.bool("already_compensated_ok")?.unwrap_or(false),
+        recompensate: p.bool("recompensate")?.unwrap_or(false),
+        ..defaults
+    };
+    let strict = p.bool("strict")?.unwrap_or(false);
+    p.finish()?;
+    let work = move || dilate_plan(plan, format, &args, strict);
+    let outcome = tokio::task::spawn_blocking(work)
+        .await
+        .map_err(|e| RpcError::new(super::rpc::PLAN_ERROR, format!("the dilation failed: {e}")))?;
+    outcome.map_err(|e| RpcError::from(&e))
+}
+
+/// Dilate `plan` as `args` say: the answer of `dilate`.
+fn dilate_plan(
+    plan: Vec<u8>,
+    format: PlanFormat,
+    args: &DilationArgs,
+    strict: bool,
+) -> Result<Value, CliError> {
+    let (kerf_um, kerf) = args.kerf()?;
+    let options = args.options(strict, Progress::default())?;
+    let (output, summary) = dilate_bytes(plan, format, &kerf, &options)?;
+    let report = PlanReport {
+        kerf_um,
+        cut_rules: options.rules.describe(),
+        summary,
+    };
+    let mut answer = json!({ "kerf_um": kerf_um, "format": format, "report": report });
+    match String::from_utf8(output) {
+        Ok(text) => answer["content"] = Value::String(text),
+        Err(binary) => answer["content_base64"] = BASE64.encode(binary.into_bytes()).into(),
+    }
+    Ok(answer)
+}
+
+/// The plan: `plan` (text) or `plan_base64`, exactly one.
+fn plan_bytes(p: &mut Params) -> Result<Vec<u8>, RpcError> {
+    match (p.string("plan")?, p.string("plan_base64")?) {
+        (Some(text), None) => Ok(text.into_bytes()),
+        (None, Some(b64)) => BASE64
+            .decode(b64.trim())
+            .map_err(|e| RpcError::param("plan_base64", format!("not base64: {e}"))),
+        (Some(_), Some(_)) => Err(RpcError::param(
+            "plan",
+            "give `plan` or `plan_base64`, not both",
+        )),
+        (None, None) => Err(RpcError::param(
+            "plan",
+            "missing: the plan's text (or `plan_base64`)",
+        )),
+    }
+}
+
+/// `format`: "svg" or "dxf" (required: there is no file name to tell).
+fn format(p: &mut Params) -> Result<PlanFormat, RpcError> {
+    match p.string("format")?.as_deref() {
+        Some("svg") => Ok(PlanFormat::Svg),
+        Some("dxf") => Ok(PlanFormat::Dxf),
+        Some(other) => Err(RpcError::param(
+            "format",
+            format!("\"svg\" or \"dxf\", not {other:?}"),
+        )),
+        None => Err(RpcError::param("format", "missing: \"svg\" or \"dxf\"")),
+    }
+}
+
+/// `units`: one of the names of [`AssumedUnits`].
+fn units(p: &mut Params) -> Result<Option<AssumedUnits>, RpcError> {
+    let Some(name) = p.string("units")? else {
+        return Ok(None);
+    };
+    name.parse().map(Some).map_err(|_| {
+        let names: Vec<&str> = AssumedUnits::ALL.iter().map(|u| u.name()).collect();
+        RpcError::param("units", format!("one of {}", names.join(", ")))
+    })
+}
+
+/// `kerf_um`: a number, or "last": the device's last result.
+async fn kerf_um(device: &Device, p: &mut Params, by: Caller) -> Result<f64, RpcError> {
+    let value = p.0.remove("kerf_um").unwrap_or(Value::Null);
+    match value {
+        Value::Number(n) => n
+            .as_f64()
+            .ok_or_else(|| RpcError::param("kerf_um", "not a finite number")),
+        Value::String(s) if s == "last" => {
+            let last = device.call(Call::Kerf, by).await?;
+            last["kerf_um"].as_f64().ok_or_else(|| {
+                RpcError::new(
+                    INVALID_PARAMS,
+                    "parameter `kerf_um`: \"last\", but the device has no result: measure first",
+                )
+            })
+        }
+        Value::Null => Err(RpcError::param(
+            "kerf_um",
+            "missing: a number (µm) or \"last\"",
+        )),
+        other => Err(RpcError::param(
+            "kerf_um",
+            format!("a number (µm) or \"last\", not {other}"),
+        )),
+    }
+}
+
+/// The `gauge` parameters: those of `kerfmeter gauge`'s flags that make sense without a file
+/// (the G-code flags are left out: the gauge's G-code is cut by `job`).
+const GAUGE_PARAMS: &[&str] = &[
+    "pitch_um_per_deg",
+    "radius_mm",
+    "prong_radius_mm",
+    "hole_radius_mm",
+    "hole_distance_mm",
+    "jam_direction",
+    "disengage_deg",
+    "test_piece",
+    "thickness_mm",
+    "finger_width_mm",
+    "test_piece_kerf_um",
+    "label",
+];
+
+/// `gauge` {format: "svg"|"dxf", ... `kerfmeter gauge`'s options}: `{"format", "content",
+/// "report"}`, the report being `gauge --json`'s without the file name.
+pub async fn gauge(p: Params) -> Result<Value, RpcError> {
+    let args = gauge_args(p)?;
+    let format = if args.output.extension().is_some_and(|e| e == "dxf") {
+        "dxf"
+    } else {
+        "svg"
+    };
+    let work = move || draw(&args);
+    let (content, report) = tokio::task::spawn_blocking(work)
+        .await
+        .map_err(|e| RpcError::new(super::rpc::PLAN_ERROR, format!("the drawing failed: {e}")))?
+        .map_err(|e| RpcError::from(&e))?;
+    let mut report = serde_json::to_value(&report).expect("reports serialize");
+    if let Some(fields) = report.as_object_mut() {
+        fields.remove("output");
+    }
+    let mut answer = json!({ "format": format, "report": report });
+    match String::from_utf8(content) {
+        Ok(text) => answer["content"] = Value::String(text),
+        Err(binary) => answer["content_base64"] = BASE64.encode(binary.into_bytes()).into(),
+    }
+    Ok(answer)
+}
+
+/// The gauge's options, read by `kerfmeter gauge`'s own parser from the params turned into flags.
+fn gauge_args(mut p: Params) -> Result<GaugeArgs, RpcError> {
+    /// `kerfmeter gauge`'s flags alone.
+    #[derive(clap::Parser)]
+    struct Gauge {
+        #[command(flatten)]
+        args: GaugeArgs,
+    }
+    let format = match p.string("format")?.as_deref() {
+        None | Some("svg") => "svg",
+        Some("dxf") => "dxf",
+        Some(other) => {
+            return Err(RpcError::param(
+                "format",
+                format!("\"svg\" or \"dxf\", not {other:?}"),
+            ));
+        }
+    };
+    // The name only chooses the format: nothing is written.
+    let mut argv = vec![
+        "gauge".to_owned(),
+        "-o".to_owned(),
+        format!("gauge.{format}"),
+    ];
+    for name in GAUGE_PARAMS {
+        let flag = format!("--{}", name.replace('_', "-"));
+        match p.0.remove(*name) {
+            None | Some(Value::Null) | Some(Value::Bool(false)) => {}
+            Some(Value::Bool(true)) => argv.push(flag),
+            Some(Value::Number(n)) => argv.extend([flag, n.to_string()]),
+            Some(Value::String(s)) => argv.extend([flag, s]),
+            Some(other) => return Err(RpcError::param(name, format!("not {other}"))),
+        }
+    }
+    p.finish()?;
+    <Gauge as clap::Parser>::try_parse_from(argv)
+        .map(|g| g.args)
+        .map_err(|e| {
+            let why = e.render().to_string();
+            let first = why
+                .lines()
+                .next()
+                .unwrap_or_default()
+                .trim_start_matches("error: ");
+            RpcError::new(
+                INVALID_PARAMS,
+                format!(
+                    "gauge: {first} (the params are the flags of `kerfmeter gauge`, written with _)"
+                ),
+            )
+        })
+}
