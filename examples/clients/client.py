@@ -1,4 +1,4 @@
-# Measure a kerf through `kerfmeter serve` (pip install websockets, 13 or later); argv[1]: its /rpc URL.
+# Measure a kerf through `kerfmeter serve` (needs websockets 13+); argv[1]: the server's /rpc URL.
 import asyncio, json, sys
 from websockets.asyncio.client import connect
 
