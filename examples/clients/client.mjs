@@ -6,7 +6,8 @@ const call = (method, params = {}) => new Promise((resolve, reject) => {
   waiting.set(nextId, (m) => (m.error ? reject(new Error(m.error.message)) : resolve(m.result)));
   ws.send(JSON.stringify({ jsonrpc: "2.0", id: nextId++, method, params }));
 });
-ws.onmessage = (e) => { const m = JSON.parse(e.data); waiting.get(m.id)?.(m); };  // not notifications
+// Answers go to their caller; notifications (progress, run_started, ...) have no id.
+ws.onmessage = (e) => { const m = JSON.parse(e.data); waiting.get(m.id)?.(m); };
 ws.onerror = () => { console.error("cannot reach the server"); process.exitCode = 1; };
 ws.onopen = async () => {
   const result = await call("run_kerfmeter", { thickness_mm: 3.0, label: "birch-3mm" });
