@@ -125,6 +125,11 @@ def test_page_shows_the_device_and_measures(browser, server):
     assert "Torque–angle curve," in attr(browser, "curve", "aria-label")
     assert text(browser, "errors") == ""
     assert js_errors(browser) == []
+    # Everything the page loaded came from the server itself: it works offline.
+    loaded = browser.execute_script(
+        "return performance.getEntriesByType('resource').map((e) => e.name)"
+    )
+    assert loaded and all(url.startswith(server.url) for url in loaded), loaded
 
 
 def test_history_lists_the_measurement(browser, server):
