@@ -440,13 +440,15 @@ function extent(values) {
 
 const DAY_MS = 86400e3;
 
-/** A tick's text; on a time axis, clock times for a span under two days, else dates. */
+/** A tick's text; on a time axis, clock times within a day, dates with times within a week,
+ * else dates. */
 function tickText(v, xTime, span) {
-  if (xTime && span < 2 * DAY_MS) {
-    return new Date(v).toLocaleTimeString(undefined, { hour: "2-digit", minute: "2-digit" });
-  }
-  if (xTime) return new Date(v).toLocaleDateString(undefined, { month: "short", day: "numeric" });
-  return Math.abs(v) >= 100 ? v.toFixed(0) : String(Number(v.toPrecision(3)));
+  if (!xTime) return Math.abs(v) >= 100 ? v.toFixed(0) : String(Number(v.toPrecision(3)));
+  const date = new Date(v);
+  const time = date.toLocaleTimeString(undefined, { hour: "2-digit", minute: "2-digit" });
+  const day = date.toLocaleDateString(undefined, { month: "short", day: "numeric" });
+  if (span < DAY_MS) return time;
+  return span < 7 * DAY_MS ? `${day} ${time}` : day;
 }
 
 /** Draw line series ({name, color, points: [[x, y]]}) with axes, ticks and a legend. */
@@ -465,7 +467,8 @@ function plot(canvas, series, { xLabel, yLabel, xTime = false, markers = false }
     return;
   }
   const [x0, x1] = extent(all.map((p) => p[0]));
-  const [y0, y1] = extent(all.map((p) => p[1]).concat(xTime ? [] : [0]));
+  const [ylo, yhi] = extent(all.map((p) => p[1]).concat(xTime ? [] : [0]));
+  const [y0, y1] = [ylo - (yhi - ylo) * 0.05, yhi + (yhi - ylo) * 0.05];
   const sx = (x) => m.left + ((x - x0) / (x1 - x0)) * (w - m.left - m.right);
   const sy = (y) => h - m.bottom - ((y - y0) / (y1 - y0)) * (h - m.top - m.bottom);
   drawAxes(ctx, { w, h, m, x0, x1, y0, y1, sx, sy, xLabel, yLabel, xTime });
@@ -543,14 +546,16 @@ function drawMap(map) {
     ctx.fillRect(x, y, cw, ch);
     ctx.strokeStyle = "#fff";
     ctx.strokeRect(x, y, cw, ch);
-    ctx.fillStyle = "#1d2125";
+    ctx.fillStyle = Math.abs(c.compensation_um) > span / 2 ? "#fff" : "#1d2125";
     const ref = map.reference?.[0] === c.col && map.reference?.[1] === c.row;
     ctx.fillText(`${c.compensation_um >= 0 ? "+" : ""}${fmt(c.compensation_um)} µm${ref ? " (ref)" : ""}`,
       x + cw / 2, y + ch / 2 + 4);
   }
   ctx.textAlign = "left";
-  ctx.fillText(`reference ${fmt(map.reference_kerf_um)} µm · bed ${map.bed_width_mm} × ${map.bed_depth_mm} mm · ` +
-    `blue narrower, red wider (±${fmt(span)} µm)`, 4, h - 7);
+  ctx.font = "12px system-ui, sans-serif";
+  ctx.fillStyle = "#1d2125";
+  ctx.fillText(`reference ${fmt(map.reference_kerf_um)} µm · ${map.bed_width_mm} × ${map.bed_depth_mm} mm bed · ` +
+    `red wider, blue narrower`, 4, h - 7);
   canvas.dataset.cells = String(map.cells.length);
   canvas.setAttribute("aria-label", `Bed map, ${map.cols} × ${map.rows} cells: ` +
     map.cells.map((c) => `(${c.col}, ${c.row}) ${fmt(c.compensation_um)} µm`).join("; "));
