@@ -2,6 +2,9 @@
 //! notifications, one run at a time, abort, a client that leaves mid-run, a device that
 //! vanishes and comes back, and the security rules (token, origin, host, body size, malformed
 //! requests). Each test starts its own server on a free loopback port (`--listen 127.0.0.1:0`).
+//! Unix only: the vanishing device is a pseudo-terminal behind a symbolic link, and Ctrl-C is
+//! sent with `kill -INT`.
+#![cfg(unix)]
 
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -748,4 +751,68 @@ fn self_test_and_clear_fault_answer_as_the_cli_does() {
     let healthy = Server::sim(false);
     let passed = healthy.ws().call("self_test", json!({}));
     assert_eq!(result(&passed)["passed"], true, "{passed}");
+}
+
+/// A small plan: a plate with a hole.
+const PLATE: &str = r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
+  <rect x="5" y="5" width="40" height="30" fill="none" stroke="red" stroke-width="0.01"/>
+  <circle cx="25" cy="20" r="5" fill="none" stroke="red" stroke-width="0.01"/>
+</svg>"#;
+
+#[test]
+fn a_job_runs_on_the_servers_cutter_with_its_stages_told() {
+    let server = Server::start(&["--sim", "--sim-kerf-um", "180"], &["--cutter", "sim"]);
+    let mut ws = server.ws();
+    let params = json!({
+        "plan": PLATE, "format": "svg", "label": "plate", "prong_offset_mm": [30, -10],
+    });
+    let id = ws.send("job", params);
+    let first = ws.notification("stage");
+    assert_eq!(first["stage"], "cut-gauge");
+    assert_eq!(first["state"], "started");
+    let response = ws.response(id);
+    let job = result(&response);
+    let kerf_um = job["kerf_um"].as_f64().unwrap();
+    assert!((170.0..200.0).contains(&kerf_um), "{job}");
+    assert_eq!(job["label"], "plate");
+    assert!(job["content"].as_str().unwrap().contains("<svg"), "{job}");
+    assert!(
+        job["gcode"]
+            .as_str()
+            .unwrap()
+            .contains("measured by kerfmeter job")
+    );
+    assert!(job["report"].get("input").is_none(), "{job}");
+    let stages: Vec<&str> = job["report"]["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["stage"].as_str().unwrap())
+        .collect();
+    assert_eq!(stages.len(), 7, "{job}");
+    let mut done = Vec::new();
+    while done.len() < 7 {
+        let stage = ws.notification("stage");
+        if stage["state"] == "done" {
+            done.push(stage["stage"].as_str().unwrap().to_owned());
+        }
+    }
+    assert_eq!(done, stages);
+    // Without --cutter, and with a bad plan, it is refused before anything moves.
+    let plain = Server::sim(false);
+    let refused = plain
+        .ws()
+        .call("job", json!({ "plan": PLATE, "format": "svg" }));
+    assert_eq!(code(&refused), -32004, "{refused}");
+    let bad = ws.call(
+        "job",
+        json!({ "plan": PLATE, "format": "svg", "profile": "/etc/x" }),
+    );
+    assert!(
+        bad["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("`profile`"),
+        "{bad}"
+    );
 }

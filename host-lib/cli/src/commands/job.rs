@@ -45,7 +45,7 @@ use serde::Serialize;
 use super::dilate::{DilationArgs, units_parser};
 use super::gauge::GAUGE_SETTINGS;
 use super::gcode::{CutArgs, parse_xy};
-use crate::connection::Global;
+use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 use crate::progress::show;
@@ -249,6 +249,26 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
         .map_err(|e| CliError::Usage(format!("cannot take over Ctrl-C: {e}")))?;
     let mut session = g.connect()?;
+    let bar = stage_bar(g.json);
+    let report = run_on(g, args, &setup, &mut session, &cancel, &mut |e| {
+        show_event(&bar, e)
+    });
+    bar.finish_and_clear();
+    Ok(JobOutcome::Done(Box::new(report?)))
+}
+
+/// Run the loop as `args` say with `setup` on the device of `session` (the cutter is opened
+/// here), until done or `cancel` is raised; `on_event` hears of every stage (`kerfmeter serve`
+/// shares it).
+pub fn run_on(
+    g: &Global,
+    args: &JobArgs,
+    setup: &Setup,
+    session: &mut Session,
+    cancel: &AtomicBool,
+    on_event: &mut dyn FnMut(JobEvent<'_>),
+) -> Result<JobCliReport> {
+    check_machines(g, args)?;
     let (mut cutter, sim_kerf) = open_cutter(g, args)?;
     if !g.json {
         eprintln!(
@@ -272,18 +292,13 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
             kerf: sim_kerf,
         }),
     };
-    let bar = stage_bar(g.json);
     let mut dilate = |kerf_um: f64| setup.dilate_and_write(args, kerf_um);
-    let report = run_job(devices, &request, &mut dilate, &cancel, &mut |e| {
-        show_event(&bar, e)
-    });
-    bar.finish_and_clear();
-    let report = report.map_err(job_error)?;
+    let report = run_job(devices, &request, &mut dilate, cancel, on_event).map_err(job_error)?;
     let sim_truth_um = session
         .sim
         .as_ref()
         .and_then(|s| s.truth_um(report.kerf.run_id));
-    Ok(JobOutcome::Done(Box::new(JobCliReport {
+    Ok(JobCliReport {
         input: args.input.clone(),
         output: args.output.clone(),
         gcode_out: setup.gcode_out.clone(),
@@ -295,7 +310,7 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
         landing_mm: report.landing_mm,
         job_lines: report.job_lines,
         sim_truth_um,
-    })))
+    })
 }
 
 /// Refuse a simulated device with a real cutter, and the other way round (see the module doc).
@@ -338,7 +353,7 @@ fn open_cutter(
 }
 
 /// What the loop needs, made from the arguments before anything moves.
-struct Setup {
+pub struct Setup {
     placement: Placement,
     params: RunParams,
     gauge_gcode: String,
@@ -350,7 +365,7 @@ struct Setup {
 impl Setup {
     /// Check the plan (read at kerf 0) before anything moves, choose the gauge's place and write
     /// its G-code.
-    fn new(args: &JobArgs) -> Result<Setup> {
+    pub fn new(args: &JobArgs) -> Result<Setup> {
         let format = PlanFormat::of(&args.input)?;
         let gcode_out = match &args.gcode_out {
             Some(p) => p.clone(),

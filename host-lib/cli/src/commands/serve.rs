@@ -4,6 +4,7 @@
 use std::net::SocketAddr;
 
 use clap::Args;
+use kerfmeter::grbl::CutterAddress;
 
 use super::Done;
 use crate::connection::Global;
@@ -25,11 +26,22 @@ pub struct ServeArgs {
     /// (e.g. http://localhost:5173); repeatable.
     #[arg(long = "allow-origin", value_name = "ORIGIN")]
     allow_origins: Vec<String>,
+    /// The laser cutter `job` runs on: `sim` (with --sim), `grbl:/dev/ttyUSB0` or
+    /// `grbl+tcp://HOST:PORT`. Without it, `job` is refused.
+    #[arg(long, value_name = "ADDRESS", value_parser = cutter_address)]
+    cutter: Option<String>,
+}
+
+/// A cutter address, checked as `kerfmeter job` checks it.
+fn cutter_address(text: &str) -> Result<String, String> {
+    text.parse::<CutterAddress>()
+        .map(|_| text.to_owned())
+        .map_err(|e| e.to_string())
 }
 
 /// Serve until Ctrl-C.
 pub fn run(g: &Global, args: &ServeArgs) -> Result<Done, CliError> {
     let security = Security::new(args.listen, args.token.clone(), &args.allow_origins)?;
-    serve(g, args.listen, security)?;
+    serve(g, args.listen, security, args.cutter.clone())?;
     Ok(Done::new("server stopped; the motor is stopped"))
 }

@@ -29,7 +29,7 @@
 //! | `self_test` | | `kerfmeter self-test --json` (a failed item is `passed: false`, not an error) |
 //! | `dilate` | `plan` (text) or `plan_base64`, `format` (`"svg"`/`"dxf"`, required), `kerf_um` (µm, or `"last"`: the device's last result; required), and `kerfmeter dilate`'s rules: `cut_colors`, `cut_max_width_mm`, `cut_layers`, `units`, `strict`, `already_compensated_ok`, `recompensate` | `{"kerf_um", "format", "content": the dilated plan's text, "report": {"kerf_um", "cut_rules", ... what `dilate --json` says was found and done}}` |
 //! | `gauge` | `format` (`"svg"` default, `"dxf"`), and `kerfmeter gauge`'s options with `_` for `-`: `pitch_um_per_deg`, `radius_mm`, `prong_radius_mm`, `hole_radius_mm`, `hole_distance_mm`, `jam_direction` (`"cw"`/`"ccw"`), `disengage_deg`, `test_piece`, `thickness_mm`, `finger_width_mm`, `test_piece_kerf_um`, `label` | `{"format", "content": the drawing's text, "report": gauge --json's report without the file}` |
-//! | `job` | | error -32004: this server has no cutter |
+//! | `job` | `plan` or `plan_base64`, `format` (required), `label`, and `kerfmeter job`'s flags with `_`: `thickness_mm`, `force_n`, `gauge_at_mm` (`[x, y]`), `bed_mm`, `prong_offset_mm`, `insert_z_mm`, `travel_z_mm`, `plunge_feed_mm_per_min`, `origin_mm`, `feed_mm_per_min`, `power_percent`, `passes`, `s_max`, `cut_color`, `cut_max_width_mm`, `cut_layer`, `units`, `unlock` | the whole loop on the cutter given to `serve --cutter` (else -32004): `{"kerf_um", "label", "report": job --json's report without file names, "content": the dilated plan, "gcode": the job as streamed}`; `stage` notifications as it goes |
 //!
 //! With `samples` above 1 the gauges are measured one after the other without a prompt, as
 //! `kerfmeter run --yes` does: on hardware, something must place each fresh gauge.
@@ -38,7 +38,9 @@
 //!
 //! * `progress` `{sample, samples, state, torque_nm, angle_deg, elapsed_ms}` while a run goes
 //!   (at most one per 50 ms, and at every change of state);
-//! * `run_started` `{label, by: "rpc"|"http"}`, `run_finished` `{kerf_um|null, error|null}`;
+//! * `stage` `{stage, state: "started"|"done"|"failed", elapsed_ms}` during a job;
+//! * `run_started` `{label, by: "rpc"|"http"}`, `run_finished` `{kerf_um|null, error|null}`
+//!   (for runs and jobs);
 //! * `device` `{connected, message}` when the device vanishes or comes back.
 //!
 //! # Errors
@@ -59,6 +61,16 @@
 //! # Security
 //!
 //! See [`security`]: loopback by default, a token off loopback, no cross-site requests.
+//!
+//! # Notes for clients
+//!
+//! * While a run, reset, self-test or job goes, every other device call (`status`, `info`,
+//!   `get_kerf_value`, ...) is refused with -32001 rather than made to wait for it: a page
+//!   follows the run through `progress`, `stage` and `run_finished`, and asks for the status
+//!   after. `abort`, `gauge` and `dilate` (with a number for `kerf_um`) are always answered.
+//! * `progress.state` is the device state's name as the library spells it: `Engaging`,
+//!   `Ramping`, `Jammed`, `Releasing`, `Done`, ..., `Fault(NoMotion)`.
+//! * The token, origin and body-size refusals are -32600 with HTTP 401, 403 and 413.
 //!
 //! # Adding a method
 //!
@@ -88,14 +100,19 @@ pub const MAX_BODY_BYTES: usize = 16 * 1024 * 1024;
 const SHUTDOWN_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// Serve until Ctrl-C (or SIGTERM): open the device as `g` says, listen on `listen` under
-/// `security`'s rules, print the address, and answer.
-pub fn serve(g: &Global, listen: SocketAddr, security: Security) -> Result<(), CliError> {
+/// `security`'s rules, print the address, and answer; `job` runs on `cutter`.
+pub fn serve(
+    g: &Global,
+    listen: SocketAddr,
+    security: Security,
+    cutter: Option<String>,
+) -> Result<(), CliError> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
         .map_err(|e| CliError::Usage(format!("cannot start the server's runtime: {e}")))?;
-    let (device, thread) = Device::start(g.clone());
+    let (device, thread) = Device::start(g.clone(), cutter);
     let served = runtime.block_on(listen_and_serve(device.clone(), listen, security));
     // Whatever ended the serving, nothing may keep the motor turning: stop the call going and
     // let the device thread finish it (it aborts the device) before the process ends.

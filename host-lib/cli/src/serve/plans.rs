@@ -13,10 +13,11 @@ use kerfmeter_plan::{PlanFormat, dilate_bytes};
 use serde::Serialize;
 use serde_json::{Value, json};
 
-use super::rpc::{Caller, INVALID_PARAMS, Params, RpcError};
+use super::rpc::{Caller, INVALID_PARAMS, PLAN_ERROR, Params, RpcError};
 use super::worker::{Call, Device};
 use crate::commands::dilate::DilationArgs;
 use crate::commands::gauge::{GaugeArgs, draw};
+use crate::commands::job::{JobArgs, JobCliReport, Setup};
 use crate::error::CliError;
 
 /// What `dilate` reports beside the plan: the kerf, the cut rules, and what was found and done
@@ -227,31 +228,164 @@ fn gauge_args(mut p: Params) -> Result<GaugeArgs, RpcError> {
         "-o".to_owned(),
         format!("gauge.{format}"),
     ];
-    for name in GAUGE_PARAMS {
-        let flag = format!("--{}", name.replace('_', "-"));
-        match p.0.remove(*name) {
-            None | Some(Value::Null) | Some(Value::Bool(false)) => {}
-            Some(Value::Bool(true)) => argv.push(flag),
-            Some(Value::Number(n)) => argv.extend([flag, n.to_string()]),
-            Some(Value::String(s)) => argv.extend([flag, s]),
-            Some(other) => return Err(RpcError::param(name, format!("not {other}"))),
-        }
-    }
+    argv.extend(flags(&mut p, GAUGE_PARAMS)?);
     p.finish()?;
     <Gauge as clap::Parser>::try_parse_from(argv)
         .map(|g| g.args)
-        .map_err(|e| {
-            let why = e.render().to_string();
-            let first = why
-                .lines()
-                .next()
-                .unwrap_or_default()
-                .trim_start_matches("error: ");
-            RpcError::new(
-                INVALID_PARAMS,
-                format!(
-                    "gauge: {first} (the params are the flags of `kerfmeter gauge`, written with _)"
-                ),
-            )
+        .map_err(|e| clap_error("gauge", &e))
+}
+
+/// The params named in `allowed` as the command-line flags they stand for (`radius_mm: 12` is
+/// `--radius-mm 12`, `true` a bare flag, `[x, y]` `x,y`).
+fn flags(p: &mut Params, allowed: &[&str]) -> Result<Vec<String>, RpcError> {
+    let mut argv = Vec::new();
+    for name in allowed {
+        let flag = format!("--{}", name.replace('_', "-"));
+        let item = |v: &Value| match v {
+            Value::Number(n) => Ok(n.to_string()),
+            Value::String(s) => Ok(s.clone()),
+            other => Err(RpcError::param(name, format!("not {other}"))),
+        };
+        match p.0.remove(*name) {
+            None | Some(Value::Null) | Some(Value::Bool(false)) => {}
+            Some(Value::Bool(true)) => argv.push(flag),
+            Some(Value::Array(items)) => {
+                let items: Result<Vec<String>, RpcError> = items.iter().map(item).collect();
+                argv.extend([flag, items?.join(",")]);
+            }
+            Some(other) => argv.extend([flag, item(&other)?]),
+        }
+    }
+    Ok(argv)
+}
+
+/// A clap refusal of the params of `command`, as -32602.
+fn clap_error(command: &str, e: &clap::Error) -> RpcError {
+    let why = e.render().to_string();
+    let first = why
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .trim_start_matches("error: ");
+    let why = format!(
+        "{command}: {first} (the params are the flags of `kerfmeter {command}`, written with _)"
+    );
+    RpcError::new(INVALID_PARAMS, why)
+}
+
+/// The `job` parameters besides the plan: those of `kerfmeter job`'s flags that name no file.
+const JOB_PARAMS: &[&str] = &[
+    "thickness_mm",
+    "force_n",
+    "gauge_at_mm",
+    "bed_mm",
+    "prong_offset_mm",
+    "insert_z_mm",
+    "travel_z_mm",
+    "plunge_feed_mm_per_min",
+    "origin_mm",
+    "feed_mm_per_min",
+    "power_percent",
+    "passes",
+    "s_max",
+    "cut_color",
+    "cut_max_width_mm",
+    "cut_layer",
+    "units",
+    "unlock",
+];
+
+/// A checked `job` request: its arguments, as `kerfmeter job` reads them, pointing into a
+/// folder of the server's own that holds the plan and receives the outputs.
+pub struct JobCall {
+    /// The arguments.
+    pub args: JobArgs,
+    /// What the loop needs, made before anything moves.
+    pub setup: Setup,
+    /// The folder (removed when the call is dropped).
+    pub dir: tempfile::TempDir,
+    /// The caller's label.
+    pub label: Option<String>,
+}
+
+impl std::fmt::Debug for JobCall {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let input = &self.args.input;
+        f.debug_struct("JobCall")
+            .field("input", input)
+            .finish_non_exhaustive()
+    }
+}
+
+/// `job` {plan | plan_base64, format, label, ... `kerfmeter job`'s flags}: checked (the plan is
+/// read, the gauge placed) before the device is asked for.
+pub async fn job_call(mut p: Params, cutter: &str) -> Result<JobCall, RpcError> {
+    let plan = plan_bytes(&mut p)?;
+    let format = format(&mut p)?;
+    let label = p.string("label")?;
+    let ext = if format == PlanFormat::Dxf {
+        "dxf"
+    } else {
+        "svg"
+    };
+    let no_room =
+        |e: std::io::Error| RpcError::new(PLAN_ERROR, format!("no room for the plan: {e}"));
+    let dir = tempfile::tempdir().map_err(no_room)?;
+    let path = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    std::fs::write(dir.path().join(format!("plan.{ext}")), &plan).map_err(no_room)?;
+    let mut argv = vec![
+        "job".to_owned(),
+        path(&format!("plan.{ext}")),
+        "--cutter".to_owned(),
+        cutter.to_owned(),
+        "-o".to_owned(),
+        path(&format!("dilated.{ext}")),
+        "--gcode-out".to_owned(),
+        path("job.gcode"),
+    ];
+    argv.extend(flags(&mut p, JOB_PARAMS)?);
+    p.finish()?;
+    /// `kerfmeter job`'s flags alone.
+    #[derive(clap::Parser)]
+    struct Job {
+        #[command(flatten)]
+        args: JobArgs,
+    }
+    let args = <Job as clap::Parser>::try_parse_from(argv)
+        .map(|j| j.args)
+        .map_err(|e| clap_error("job", &e))?;
+    let (args, setup) = tokio::task::spawn_blocking(move || Setup::new(&args).map(|s| (args, s)))
+        .await
+        .map_err(|e| RpcError::new(PLAN_ERROR, format!("the plan could not be read: {e}")))?
+        .map_err(|e| RpcError::from(&e))?;
+    Ok(JobCall {
+        args,
+        setup,
+        dir,
+        label,
+    })
+}
+
+/// What `job` answers: the loop's report (without the server's file names), the dilated plan
+/// and the job's G-code as text.
+pub fn job_answer(call: &JobCall, report: &JobCliReport) -> Result<Value, CliError> {
+    let mut report = serde_json::to_value(report).expect("reports serialize");
+    if let Some(fields) = report.as_object_mut() {
+        for name in ["input", "output", "gcode_out"] {
+            fields.remove(name);
+        }
+    }
+    let read = |path: &std::path::Path| {
+        std::fs::read(path).map_err(|e| kerfmeter::Error::File {
+            path: path.to_owned(),
+            message: e.to_string(),
         })
+    };
+    let content = String::from_utf8_lossy(&read(&call.args.output)?).into_owned();
+    let gcode = String::from_utf8_lossy(&read(&call.dir.path().join("job.gcode"))?).into_owned();
+    let kerf_um = report["kerf_um"].clone();
+    Ok(json!({
+        "kerf_um": kerf_um, "label": call.label, "report": report, "content": content,
+        "gcode": gcode,
+    }))
 }

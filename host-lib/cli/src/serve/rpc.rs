@@ -316,8 +316,13 @@ pub async fn dispatch(
         "dilate" => return super::plans::dilate(device, params, by).await,
         "gauge" => return super::plans::gauge(params).await,
         "job" => {
-            let why = "no cutter configured: start the server with `kerfmeter serve --cutter ...`";
-            return Err(RpcError::new(NO_CUTTER, why));
+            let Some(cutter) = device.cutter() else {
+                let why =
+                    "no cutter configured: start the server with `kerfmeter serve --cutter ...`";
+                return Err(RpcError::new(NO_CUTTER, why));
+            };
+            let job = super::plans::job_call(params, cutter).await?;
+            return device.call(Call::Job(Box::new(job)), by).await;
         }
         _ => {
             let why = format!("no method `{method}`");

@@ -16,8 +16,8 @@
 //! * A link error (the port vanished, the device stopped answering or restarted) drops the
 //!   session and tells every client (`device`, `connected: false`); the thread then re-opens the
 //!   device every [`WATCH_INTERVAL`] until it answers again (`device`, `connected: true`). An idle
-//!   device is asked for its status every [`WATCH_INTERVAL`], so a vanished one is noticed
-//!   without a client asking.
+//!   device is asked who it is every [`WATCH_INTERVAL`], so a vanished or restarted one (a new
+//!   boot id) is noticed without a client asking.
 
 use std::ops::ControlFlow;
 use std::sync::Arc;
@@ -32,9 +32,12 @@ use serde::Serialize;
 use serde_json::{Value, json};
 use tokio::sync::{broadcast, oneshot};
 
+use kerfmeter::job::{JobEvent, Stage};
+
+use super::plans::{JobCall, job_answer};
 use super::rpc::{Caller, NOT_CONNECTED, RpcError, notification};
 use crate::commands::run::{RunReport, measure_on};
-use crate::commands::{Done, info, self_test, status};
+use crate::commands::{Done, info, job, self_test, status};
 use crate::connection::{Global, Session};
 use crate::error::CliError;
 
@@ -64,12 +67,22 @@ pub enum Call {
     Abort,
     /// `run_kerfmeter` (long).
     Run(RunCall),
+    /// `job`: the whole loop on the server's cutter (long).
+    Job(Box<JobCall>),
 }
 
 impl Call {
     /// Whether the call holds the device while it goes.
     fn is_long(&self) -> bool {
-        matches!(self, Call::Run(_) | Call::Reset | Call::SelfTest)
+        matches!(
+            self,
+            Call::Run(_) | Call::Job(_) | Call::Reset | Call::SelfTest
+        )
+    }
+
+    /// Whether the call measures (announced with `run_started` and `run_finished`).
+    fn measures(&self) -> bool {
+        matches!(self, Call::Run(_) | Call::Job(_))
     }
 }
 
@@ -104,8 +117,12 @@ struct Shared {
     connected: AtomicBool,
     /// The server is stopping: the thread ends after the call it is doing.
     quit: AtomicBool,
+    /// The device's state was logged once.
+    logged: AtomicBool,
     /// Notifications to every client, as JSON-RPC text.
     events: broadcast::Sender<Arc<str>>,
+    /// The cutter `job` runs on (`serve --cutter`), if any.
+    cutter: Option<String>,
 }
 
 impl Shared {
@@ -114,9 +131,13 @@ impl Shared {
         let _ = self.events.send(notification(method, params).into());
     }
 
-    /// Record whether the device answers; tell every client when that changes.
+    /// Record whether the device answers; tell every client, and the server's log (stderr),
+    /// when that changes (a device that cannot be opened at startup is logged too).
     fn set_connected(&self, connected: bool, message: &str) {
-        if self.connected.swap(connected, Ordering::SeqCst) != connected {
+        let first = !self.logged.swap(true, Ordering::SeqCst);
+        let changed = self.connected.swap(connected, Ordering::SeqCst) != connected;
+        if changed || first {
+            eprintln!("device: {message}");
             let params = json!({ "connected": connected, "message": message });
             self.notify("device", params);
         }
@@ -142,14 +163,16 @@ pub struct Device {
 impl Device {
     /// Open the device as `g` says and start its thread; the thread ends when every handle is
     /// dropped, after the call it is doing.
-    pub fn start(g: Global) -> (Device, JoinHandle<()>) {
+    pub fn start(g: Global, cutter: Option<String>) -> (Device, JoinHandle<()>) {
         let (events, _) = broadcast::channel(EVENTS_BACKLOG);
         let shared = Arc::new(Shared {
             busy: AtomicBool::new(false),
             stop: AtomicBool::new(false),
             connected: AtomicBool::new(false),
             quit: AtomicBool::new(false),
+            logged: AtomicBool::new(false),
             events,
+            cutter,
         });
         let (jobs, queue) = mpsc::channel();
         let worker = Worker {
@@ -162,6 +185,11 @@ impl Device {
             .spawn(move || worker.work(queue))
             .expect("a thread can be started");
         (Device { shared, jobs }, thread)
+    }
+
+    /// The cutter `job` runs on, if the server was given one.
+    pub fn cutter(&self) -> Option<&str> {
+        self.shared.cutter.as_deref()
     }
 
     /// The notifications, from now on.
@@ -271,11 +299,12 @@ impl Worker {
         }
     }
 
-    /// An idle moment: check that the device still answers, or look for it again.
+    /// An idle moment: check that the device still answers and has not restarted (its boot id,
+    /// from `GetInfo`), or look for it again.
     fn watch(&mut self) {
         match &mut self.session {
             Some(s) => {
-                if let Err(e) = s.meter.status() {
+                if let Err(e) = s.meter.info() {
                     self.lost(&CliError::from(e));
                 }
             }
@@ -296,7 +325,7 @@ impl Worker {
     /// start the next call at once.
     fn serve(&mut self, job: Job) {
         let long = job.call.is_long();
-        let run = matches!(job.call, Call::Run(_));
+        let run = job.call.measures();
         let reply = self.reply(job.call, job.by);
         if long {
             self.shared.busy.store(false, Ordering::SeqCst);
@@ -321,6 +350,7 @@ impl Worker {
         };
         let outcome = match call {
             Call::Run(run) => return self.run(run, by),
+            Call::Job(job) => return self.job(&job, by),
             other => do_call(s, other, &self.shared),
         };
         outcome.map_err(|e| {
@@ -347,6 +377,71 @@ impl Worker {
     }
 }
 
+impl Worker {
+    /// A job: announced like a run, each stage told to every client (`stage`), the device's
+    /// progress too. An error ends the stage going as `failed`.
+    fn job(&mut self, job: &JobCall, by: Caller) -> Reply {
+        let params = json!({ "label": job.label, "by": by.name() });
+        self.shared.notify("run_started", params);
+        let Some(s) = &mut self.session else {
+            return Err(RpcError::new(NOT_CONNECTED, "the device is not connected"));
+        };
+        let shared = Arc::clone(&self.shared);
+        let mut stages = Stages::default();
+        let outcome = job::run_on(&self.g, &job.args, &job.setup, s, &shared.stop, &mut |e| {
+            stages.event(&shared, e)
+        })
+        .and_then(|report| job_answer(job, &report));
+        outcome.map_err(|e| {
+            stages.failed(&shared);
+            self.lost(&e);
+            RpcError::from(&e)
+        })
+    }
+}
+
+/// The stage a job is in, for its `stage` and `progress` notifications.
+#[derive(Default)]
+struct Stages {
+    going: Option<(Stage, Instant)>,
+    throttle: Throttle,
+}
+
+impl Stages {
+    /// Tell every client of `e`.
+    fn event(&mut self, shared: &Shared, e: JobEvent<'_>) {
+        let stage = |stage: Stage, state: &str, elapsed: Duration| {
+            let elapsed_ms = elapsed.as_millis() as u64;
+            json!({ "stage": stage.name(), "state": state, "elapsed_ms": elapsed_ms })
+        };
+        match e {
+            JobEvent::Started(s) => {
+                self.going = Some((s, Instant::now()));
+                shared.notify("stage", stage(s, "started", Duration::ZERO));
+            }
+            JobEvent::Finished(s, elapsed) => {
+                self.going = None;
+                shared.notify("stage", stage(s, "done", elapsed));
+            }
+            JobEvent::Device(p) => {
+                if let Some(params) = self.throttle.progress(0, 1, p) {
+                    shared.notify("progress", params);
+                }
+            }
+            JobEvent::Cutter(..) => {}
+        }
+    }
+
+    /// The job failed: the stage going failed.
+    fn failed(&mut self, shared: &Shared) {
+        if let Some((s, since)) = self.going.take() {
+            let elapsed_ms = since.elapsed().as_millis() as u64;
+            let params = json!({ "stage": s.name(), "state": "failed", "elapsed_ms": elapsed_ms });
+            shared.notify("stage", params);
+        }
+    }
+}
+
 /// A short call, a reset or a self-test on the open session.
 fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliError> {
     Ok(match call {
@@ -366,7 +461,7 @@ fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliErr
             s.meter.abort()?;
             json!({ "aborted": true })
         }
-        Call::Run(_) => unreachable!("runs are served by Worker::run"),
+        Call::Run(_) | Call::Job(_) => unreachable!("runs and jobs are served by the worker"),
     })
 }
 
