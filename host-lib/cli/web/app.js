@@ -131,12 +131,13 @@ async function guarded(action) {
 }
 
 /** Run a refresh nobody asked for: its errors are shown, but not a lost connection (the
- * header says so already, and everything is fetched again on reconnecting). */
+ * header says so already, and everything is fetched again on reconnecting) nor "busy" (the
+ * device answers nothing else while a run goes; run_finished fetches again). */
 async function background(action) {
   try {
     await action();
   } catch (err) {
-    if (!err.lost) showError(err);
+    if (!err.lost && err.code !== BUSY) showError(err);
   }
 }
 
@@ -642,6 +643,7 @@ rpc.handlers = {
     if (p.error) $("progress").textContent = `The run ended: ${p.error.message}`;
     else if (!ownRun) background(showLastKerf);
     if (!ownRun) loadHistory();
+    if ($("info").dataset.loaded !== "true") background(refreshInfo);
     pollStatus();
   },
   device(p) {
