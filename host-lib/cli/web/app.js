@@ -637,6 +637,7 @@ rpc.handlers = {
     if (!running) startCurve();
     setRunning(true);
     $("progress").textContent = `Measuring${p.label ? ` “${p.label}”` : ""} (started by ${p.by ?? "a client"})…`;
+    $("progress").dataset.startedBy = p.by ?? "";
   },
   run_finished(p) {
     setRunning(false);

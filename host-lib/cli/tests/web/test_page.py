@@ -6,9 +6,10 @@ reaches the console."""
 
 import json
 import os
-import pathlib
 import subprocess
+import threading
 import time
+import urllib.request
 
 import pytest
 from selenium import webdriver
@@ -206,6 +207,26 @@ def test_abort_stops_a_run_and_says_so(browser, server):
     wait(browser, lambda d: "error -32002" in text(d, "errors"), message="no aborted error")
     wait(browser, lambda d: browser.find_element(By.ID, "measure").is_enabled(), message="stuck")
     assert not browser.find_elements(By.ID, "kerf")
+    assert js_errors(browser) == []
+
+
+def test_a_run_started_elsewhere_shows_on_the_page(browser, server):
+    """Every page follows every run: one started over HTTP by another program draws its curve
+    here and ends with its kerf."""
+    open_page(browser, server)
+    request = urllib.request.Request(server.url + "api/run", data=b'{"label": "http"}')
+    answer = {}
+    post = threading.Thread(
+        target=lambda: answer.update(json.load(urllib.request.urlopen(request, timeout=120)))
+    )
+    post.start()
+    wait(browser, lambda d: int(attr(d, "curve", "data-live-points")) > 0, message="no curve")
+    assert attr(browser, "progress", "data-started-by") == "http"
+    assert not browser.find_element(By.ID, "measure").is_enabled()
+    kerf = wait(browser, lambda d: d.find_elements(By.ID, "kerf"), timeout=RUN_TIMEOUT_S)[0]
+    post.join()
+    assert abs(float(kerf.get_attribute("data-kerf-um")) - answer["kerf_um"]) < 0.01
+    assert text(browser, "errors") == ""
     assert js_errors(browser) == []
 
 
