@@ -36,14 +36,33 @@ const rpc = {
   connect() {
     setLink("connecting", "Connecting…");
     const ws = new WebSocket(this.url());
+    let opened = false;
     this.ws = ws;
     ws.onopen = () => {
+      opened = true;
       this.retryMs = 500;
       setLink("connected", "Connected");
       onConnected();
     };
     ws.onmessage = (event) => this.receive(event.data);
-    ws.onclose = () => this.lost(ws);
+    ws.onclose = () => {
+      this.lost(ws);
+      if (!opened) this.explainRefusal();
+    };
+  },
+
+  /** A browser does not say why a WebSocket was refused: ask over HTTP whether a token is
+   * missing, and say so instead of only "unreachable". */
+  async explainRefusal() {
+    const token = new URLSearchParams(location.search).get("token");
+    try {
+      const reply = await fetch(`/api/status${token ? `?token=${encodeURIComponent(token)}` : ""}`);
+      if (reply.status === 401) {
+        setLink("disconnected", "Refused: this server wants a token (open the page as /?token=TOKEN)");
+      }
+    } catch {
+      // The server is down: "unreachable" says it.
+    }
   },
 
   /** The connection closed: fail what waits on it and try again, backing off up to 5 s. */
@@ -646,6 +665,9 @@ rpc.handlers = {
     if (!ownRun) loadHistory();
     if ($("info").dataset.loaded !== "true") background(refreshInfo);
     pollStatus();
+  },
+  stage(p) {
+    $("progress").textContent = `Job: ${p.stage} ${p.state} (${fmt((p.elapsed_ms ?? 0) / 1000)} s)`;
   },
   device(p) {
     const banner = $("device-banner");

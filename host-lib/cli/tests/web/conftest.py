@@ -42,9 +42,10 @@ class Server:
     """One `kerfmeter --sim serve` process; `start()` again after `stop()` restarts it on the
     same port (the page must reconnect by itself)."""
 
-    def __init__(self, tmp_path, realtime):
+    def __init__(self, tmp_path, realtime, extra=()):
         self.db = tmp_path / "history.sqlite"
         self.realtime = realtime
+        self.extra = list(extra)
         self.port = 0
         self.proc = None
         self.output = []
@@ -64,7 +65,7 @@ class Server:
         cmd += ["serve", "--listen", f"127.0.0.1:{self.port}"]
         if "--db" in serve_flags():
             cmd += ["--db", str(self.db)]
-        return cmd
+        return cmd + self.extra
 
     def start(self):
         found = threading.Event()
@@ -121,3 +122,15 @@ def fast_server(tmp_path):
     s.start()
     yield s
     s.stop()
+
+
+@pytest.fixture
+def token_server(tmp_path):
+    """A server that wants a token from its clients."""
+    s = Server(tmp_path, realtime=False, extra=["--token", TOKEN])
+    s.start()
+    yield s
+    s.stop()
+
+
+TOKEN = "page-test-token"

@@ -18,7 +18,7 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
-from conftest import ROOT, kerfmeter_bin
+from conftest import ROOT, TOKEN, kerfmeter_bin
 
 # Flags that let Debian's Chromium run headless as root in a container, without reaching out.
 CHROMIUM_FLAGS = [
@@ -79,14 +79,20 @@ def attr(driver, element_id, name):
     return driver.find_element(By.ID, element_id).get_attribute(name)
 
 
-def js_errors(driver):
-    """The console's errors since the last call (Chromium logs uncaught exceptions and
-    unhandled rejections as SEVERE)."""
+def console_errors(driver):
+    """The console's errors since the last call: uncaught exceptions, unhandled rejections,
+    console.error, and failed loads (source "network")."""
     return [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
 
 
-def open_page(driver, server):
-    driver.get(server.url)
+def js_errors(driver):
+    """The console's errors since the last call but failed loads (a server that is down or
+    refuses a token makes those on purpose)."""
+    return [e for e in console_errors(driver) if e.get("source") != "network"]
+
+
+def open_page(driver, server, query=""):
+    driver.get(server.url + query)
     wait(driver, lambda d: attr(d, "link", "data-state") == "connected", message="no connection")
     wait(driver, lambda d: attr(d, "info", "data-loaded") == "true", message="no device info")
 
@@ -125,7 +131,7 @@ def test_page_shows_the_device_and_measures(browser, server):
     assert int(attr(browser, "curve", "data-points")) > 10
     assert "Torque–angle curve," in attr(browser, "curve", "aria-label")
     assert text(browser, "errors") == ""
-    assert js_errors(browser) == []
+    assert console_errors(browser) == []
     # Everything the page loaded came from the server itself: it works offline.
     loaded = browser.execute_script(
         "return performance.getEntriesByType('resource').map((e) => e.name)"
@@ -283,5 +289,14 @@ def test_page_reconnects_after_the_server_restarts(browser, fast_server):
     wait(browser, lambda d: attr(d, "info", "data-loaded") == "true", message="no info again")
     assert text(browser, "errors") == ""
     # While the server was down Chromium logged the refused connections; nothing else.
-    others = [e for e in js_errors(browser) if "WebSocket connection" not in e["message"]]
-    assert others == []
+    assert js_errors(browser) == []
+
+
+def test_page_passes_its_token_on(browser, token_server):
+    """With a token, the page's files load without it and the page hands its own `?token=` to
+    the WebSocket; without the token in its address the page says it cannot connect."""
+    open_page(browser, token_server, f"?token={TOKEN}")
+    assert "Firmware" in text(browser, "info")
+    browser.get(token_server.url)
+    wait(browser, lambda d: "wants a token" in text(d, "link"), message="no word of the token")
+    assert attr(browser, "info", "data-loaded") is None
