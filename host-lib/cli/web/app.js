@@ -315,16 +315,18 @@ function showMeasurement(r) {
   if (s.outliers?.length) lines.push(`Outliers: gauge ${s.outliers.map((i) => i + 1).join(", ")}.`);
   const flagged = (r.runs ?? []).filter((run) => flagNames(run.flags).length);
   for (const run of flagged) lines.push(`Run ${run.run_id}: ${flagNames(run.flags).join(", ")}.`);
-  showKerf(r.kerf_um, lines);
+  showKerf(r.kerf_um, lines, r.runs?.at(-1)?.run_id);
 }
 
-function showKerf(kerfUm, lines) {
+/** Show a kerf and lines about it; `runId` is the device's last run behind it. */
+function showKerf(kerfUm, lines, runId) {
   const out = $("result");
   out.replaceChildren();
   const kerf = document.createElement("p");
   kerf.className = "kerf";
   kerf.id = "kerf";
   kerf.dataset.kerfUm = String(kerfUm);
+  if (runId != null) kerf.dataset.runId = String(runId);
   kerf.textContent = `${fmt(kerfUm)} µm`;
   out.append(kerf);
   for (const line of lines) {
@@ -344,7 +346,10 @@ function flagNames(flags) {
 
 async function showLastKerf() {
   const last = await rpc.call("get_kerf_value");
-  if (last) showKerf(last.kerf_um, [`Last result on the device (run ${last.run_id}).`]);
+  // A run's own result (with its CI) already shown stays: run_finished may follow it.
+  if (last && $("kerf")?.dataset.runId !== String(last.run_id)) {
+    showKerf(last.kerf_um, [`Last result on the device (run ${last.run_id}).`], last.run_id);
+  }
 }
 
 function abort() {
