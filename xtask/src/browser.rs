@@ -22,9 +22,9 @@ const CHROMIUM: &str = "/usr/bin/chromium";
 const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 /// The Debian packages that hold them.
 const PACKAGES: [&str; 2] = ["chromium", "chromium-driver"];
-/// The Python packages the tests use, pinned: the browser driver and the README client's
-/// WebSocket library.
-const PYTHON_PACKAGES: [&str; 2] = ["selenium==4.51.0", "websockets==17.4"];
+/// The Python packages the tests use, pinned: the browser driver (needs Python 3.10 or later)
+/// and the README client's WebSocket library (the newest that still runs on Python 3.9).
+const PYTHON_PACKAGES: [&str; 2] = ["selenium==4.51.0", "websockets==15.0.1"];
 
 /// Build the CLI, make sure the browser is there, and run the web tests.
 pub fn test_web() -> Result<()> {
