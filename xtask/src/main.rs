@@ -7,6 +7,7 @@
 
 mod bench;
 mod bench_plan;
+mod browser;
 mod firmware;
 mod fuzz;
 mod python;
@@ -29,12 +30,17 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// The whole check suite, as CI runs it: formatting, clippy (host and firmware targets), all
-    /// host tests, the Python package's tests, a short robustness sweep, docs, the firmware
+    /// host tests, the Python package's tests, the web page in headless Chromium and the
+    /// README's WebSocket clients, a short robustness sweep, docs, the firmware
     /// images for the C3 and C6 with their sizes, a short fuzz run.
     Test(TestArgs),
     /// The Python package's step of `test` alone: build and install `host-lib/python` into the
     /// project's venv (`target/python-venv`) and run its pytest suite on the twin.
     TestPython,
+    /// The web step of `test` alone: the server's page in headless Chromium (Debian's chromium
+    /// and chromium-driver, installed when missing) and the README's WebSocket clients, against
+    /// `kerfmeter --sim serve`.
+    TestBrowser,
     /// Build the firmware image for a chip (release) and print its flash and RAM use.
     Firmware(firmware::FirmwareArgs),
     /// Build the firmware and write it to a board (real hardware: needs --port).
@@ -159,6 +165,7 @@ fn main() -> Result<()> {
     match Cli::parse().command {
         Cmd::Test(args) => test(&args),
         Cmd::TestPython => python::test_package(),
+        Cmd::TestBrowser => browser::test_web(),
         Cmd::Firmware(args) => firmware::run(&args),
         Cmd::Flash(args) => firmware::flash(&args),
         Cmd::Fuzz(args) => fuzz::run(&args),
@@ -378,6 +385,10 @@ fn test(args: &TestArgs) -> Result<()> {
         (
             "python package (pip install ./host-lib/python, pytest)",
             Box::new(python::test_package),
+        ),
+        (
+            "web page in headless Chromium, WebSocket clients",
+            Box::new(browser::test_web),
         ),
         (
             "robustness sweep (short)",

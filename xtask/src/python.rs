@@ -17,8 +17,10 @@ use crate::{root, run_cmd};
 
 /// What the environment is made with.
 const PYTHON: &str = "python3";
+/// The test runner (also of the web step); pinned below the next major version.
+pub const PYTEST: &str = "pytest>=7,<10";
 /// The build backend and the test runner; pinned below the next major versions.
-const TOOLS: [&str; 2] = ["maturin>=1.9.4,<2", "pytest>=7,<10"];
+const TOOLS: [&str; 2] = ["maturin>=1.9.4,<2", PYTEST];
 
 /// The environment's directory.
 fn venv_dir() -> PathBuf {

@@ -29,11 +29,23 @@ use super::security::{Security, guard};
 use super::worker::Device;
 
 /// The page's files: path, content type, content. The page is built in `web/`.
-const PAGE_FILES: &[(&str, &str, &str)] = &[(
-    "/",
-    "text/html; charset=utf-8",
-    include_str!("../../web/index.html"),
-)];
+const PAGE_FILES: &[(&str, &str, &str)] = &[
+    (
+        "/",
+        "text/html; charset=utf-8",
+        include_str!("../../web/index.html"),
+    ),
+    (
+        "/app.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../../web/app.js"),
+    ),
+    (
+        "/style.css",
+        "text/css; charset=utf-8",
+        include_str!("../../web/style.css"),
+    ),
+];
 
 /// Requests one WebSocket client may have going at once; more are answered "busy".
 const MAX_IN_FLIGHT: usize = 16;
