@@ -106,7 +106,24 @@ enum Command {
     Serve(commands::serve::ServeArgs),
 }
 
+/// Keep glibc's allocator to one arena. By default every thread that allocates while another
+/// does gets an arena of its own (up to 8 a core), and what the dilation's worker threads free
+/// stays in theirs: on a 10,000-contour plan the peak resident set was 71 MB (SVG, 2.8 MB file)
+/// and 183 MB (DXF, 12.8 MB), 60 MB and 171 MB with one arena, for no more CPU time (two
+/// cores; the threads allocate little beside their offsets).
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn one_malloc_arena() {
+    // SAFETY: mallopt only sets a parameter of the allocator, before any other thread exists.
+    unsafe {
+        libc::mallopt(libc::M_ARENA_MAX, 1);
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn one_malloc_arena() {}
+
 fn main() -> ExitCode {
+    one_malloc_arena();
     let cli = Cli::parse();
     match run(&cli) {
         Ok(()) => ExitCode::SUCCESS,

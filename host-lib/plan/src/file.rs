@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use crate::compensation::IfCompensated;
 use crate::dilate::KerfSource;
-use crate::dxf_plan::{DxfOptions, dilate_dxf, dilate_dxf_cuts};
+use crate::dxf_plan::{DxfOptions, dilate_dxf_cuts, dilate_dxf_owned};
 use crate::error::{PlanError, Result};
 use crate::outcome::{AssumedUnits, CutPath, PlanSummary};
 use crate::progress::Progress;
@@ -95,7 +95,7 @@ pub fn dilate_bytes(
 ) -> Result<(Vec<u8>, PlanSummary)> {
     let (output, summary) = match format {
         PlanFormat::Svg => dilate_svg_bytes(bytes, kerf, options),
-        PlanFormat::Dxf => dilate_dxf(&bytes, kerf, &dxf_options(options)),
+        PlanFormat::Dxf => dilate_dxf_owned(bytes, kerf, &dxf_options(options)),
     }?;
     if options.strict {
         refuse_open_paths(&summary, "--strict")?;
