@@ -532,16 +532,21 @@ fn a_non_loopback_listen_needs_a_token() {
 
 #[test]
 fn with_a_token_only_the_right_token_is_served() {
-    let server = Server::start(&["--sim"], &["--token", "s3cret-T0ken"]);
+    let server = Server::start(&["--sim"], &["--token", "s3cret-T0ken-long-enough"]);
     assert_eq!(server.get("/api/status").0, 401);
-    let wrong = [("Authorization", "Bearer s3cret-T0kem")];
+    let wrong = [("Authorization", "Bearer s3cret-T0ken-long-enougj")];
     assert_eq!(server.http("GET", "/api/status", &wrong, b"").0, 401);
-    let right = [("Authorization", "Bearer s3cret-T0ken")];
+    let right = [("Authorization", "Bearer s3cret-T0ken-long-enough")];
     assert_eq!(server.http("GET", "/api/status", &right, b"").0, 200);
-    assert_eq!(server.get("/api/status?token=s3cret-T0ken").0, 200);
+    assert_eq!(
+        server.get("/api/status?token=s3cret-T0ken-long-enough").0,
+        200
+    );
     assert!(server.ws_with("/rpc", &[]).is_err());
     assert!(server.ws_with("/rpc?token=nope", &[]).is_err());
-    let mut ws = server.ws_with("/rpc?token=s3cret-T0ken", &[]).unwrap();
+    let mut ws = server
+        .ws_with("/rpc?token=s3cret-T0ken-long-enough", &[])
+        .unwrap();
     assert!(result(&ws.call("info", json!({})))["boot_id"].is_u64());
     // The page itself holds no secret.
     assert_eq!(server.get("/").0, 200);
@@ -559,11 +564,42 @@ fn the_page_is_served() {
     let mut page = String::new();
     stream.read_to_string(&mut page).unwrap();
     assert!(page.starts_with("HTTP/1.1 200"), "{page}");
-    assert!(
-        page.to_ascii_lowercase()
-            .contains("content-type: text/html"),
-        "{page}"
-    );
+    let lower = page.to_ascii_lowercase();
+    assert!(lower.contains("content-type: text/html"), "{page}");
+    // No other site may frame the page (a click on Measure through an invisible frame).
+    assert!(lower.contains("x-frame-options: deny"), "{page}");
+    assert!(lower.contains("frame-ancestors 'none'"), "{page}");
+    assert!(lower.contains("x-content-type-options: nosniff"), "{page}");
+}
+
+#[test]
+fn a_short_token_is_refused_at_startup() {
+    let out = Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+        .args([
+            "--sim",
+            "serve",
+            "--listen",
+            "127.0.0.1:0",
+            "--token",
+            "abc123",
+        ])
+        .env_remove("KERFMETER_TOKEN")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("at least 16 characters"), "{stderr}");
+}
+
+#[test]
+fn a_label_the_history_would_refuse_is_refused_before_the_motor_moves() {
+    let server = Server::sim(false);
+    let mut ws = server.ws();
+    let bad = ws.call("run_kerfmeter", json!({ "label": "birch\n4mm" }));
+    assert_eq!(code(&bad), -32602, "{bad}");
+    assert!(bad["error"]["message"].as_str().unwrap().contains("label"));
+    let status = ws.call("status", json!({}));
+    assert_eq!(result(&status)["state"], "idle", "nothing ran: {status}");
 }
 
 /// `kerfmeter-twin` serving the simulated device on a pseudo-terminal, and its path.
@@ -843,6 +879,10 @@ fn measurements_are_recorded_and_the_history_survives_a_restart() {
         let params = json!({ "label": "birch 4mm" });
         let run = result(&ws.call("run_kerfmeter", params)).clone();
         assert!(run["history"]["id"].is_i64(), "{run}");
+        assert!(
+            run["history"].get("db").is_none(),
+            "no file path is given out: {run}"
+        );
         assert!(run["history"]["error"].is_null(), "{run}");
         let (code, _) = server.post("/api/run", r#"{"label": "mdf"}"#);
         assert_eq!(code, 200);
@@ -868,4 +908,20 @@ fn measurements_are_recorded_and_the_history_survives_a_restart() {
     let bad = ws.call("history", json!({ "limit": 0 }));
     assert_eq!(code(&bad), -32602);
     assert_eq!(server.get("/api/history?limit=many").0, 400);
+}
+
+#[test]
+fn a_client_that_vanishes_without_closing_has_its_run_aborted() {
+    let server = Server::sim(true);
+    let mut gone = server.ws();
+    let mut watcher = server.ws();
+    // Fifty gauges in real time: far longer than the server waits for a silent client.
+    gone.send("run_kerfmeter", json!({ "samples": 50 }));
+    watcher.notification("run_started");
+    // `gone` never reads again, so it answers no ping: as a laptop that went to sleep.
+    let finished = watcher.notification("run_finished");
+    assert_eq!(finished["error"]["code"], -32002, "{finished}");
+    let status = watcher.call("status", json!({}));
+    assert_eq!(result(&status)["torque_nm"], 0.0, "{status}");
+    drop(gone);
 }

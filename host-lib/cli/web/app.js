@@ -613,9 +613,12 @@ async function dilatePlan(file) {
   const out = await rpc.call("dilate", { plan: await file.text(), format, kerf_um: "last" });
   const stem = file.name.replace(/\.[^.]*$/, "");
   const name = `${stem}-k${Math.round(out.kerf_um)}.${out.format ?? format}`;
-  const type = format === "svg" ? "image/svg+xml" : "application/dxf";
+  // A download, never a document: an SVG opened from a blob: URL would run any script the plan
+  // holds with this page's origin (and could reach the device).
   const link = document.createElement("a");
-  link.href = URL.createObjectURL(new Blob([out.content], { type }));
+  const previous = $("plan-download");
+  if (previous) URL.revokeObjectURL(previous.href);
+  link.href = URL.createObjectURL(new Blob([out.content], { type: "application/octet-stream" }));
   link.download = name;
   link.id = "plan-download";
   link.textContent = `Download ${name}`;

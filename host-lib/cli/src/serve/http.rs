@@ -7,9 +7,13 @@
 //!
 //! On the WebSocket each request is carried out in its own task, so a client can `abort` its
 //! own run while it goes; the tasks end with the connection, and a run whose client went away
-//! is aborted (see [`super::worker`]).
+//! is aborted (see [`super::worker`]). A client that answers no ping for [`SILENCE_LIMIT`] has
+//! gone away, even if its connection was never closed.
 
 use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::time::Instant;
 
 use axum::Json;
 use axum::Router;
@@ -46,6 +50,14 @@ const PAGE_FILES: &[(&str, &str, &str)] = &[
         include_str!("../../web/style.css"),
     ),
 ];
+
+/// How often the server pings each WebSocket client (browsers and WebSocket libraries answer by
+/// themselves).
+const PING_INTERVAL: Duration = Duration::from_secs(5);
+
+/// A WebSocket client heard from (a message or a pong) less recently than this has gone: its
+/// connection is closed and a run it started is aborted.
+const SILENCE_LIMIT: Duration = Duration::from_secs(15);
 
 /// Requests one WebSocket client may have going at once; more are answered "busy".
 const MAX_IN_FLIGHT: usize = 16;
@@ -191,19 +203,35 @@ async fn connection(
 ) {
     let (answers, mut to_send) = mpsc::unbounded_channel::<String>();
     let mut tasks = JoinSet::new();
+    let mut ping = tokio::time::interval(PING_INTERVAL);
+    let mut heard = Instant::now();
     loop {
         let out: String = tokio::select! {
-            message = socket.recv() => match message {
-                Some(Ok(Message::Text(text))) => {
-                    request(&device, text.as_bytes(), &answers, &mut tasks);
-                    continue;
+            message = socket.recv() => {
+                heard = Instant::now();
+                match message {
+                    Some(Ok(Message::Text(text))) => {
+                        request(&device, text.as_bytes(), &answers, &mut tasks);
+                        continue;
+                    }
+                    Some(Ok(Message::Binary(_))) => rpc::response(Value::Null, Err(RpcError::new(
+                        rpc::INVALID_REQUEST, "send JSON-RPC requests as text frames",
+                    ))),
+                    Some(Ok(_)) => continue,
+                    None | Some(Err(_)) => break,
                 }
-                Some(Ok(Message::Binary(_))) => rpc::response(Value::Null, Err(RpcError::new(
-                    rpc::INVALID_REQUEST, "send JSON-RPC requests as text frames",
-                ))),
-                Some(Ok(_)) => continue,
-                None | Some(Err(_)) => break,
-            },
+            }
+            _ = ping.tick() => {
+                // A client that vanished without closing (Wi-Fi gone, laptop asleep) answers no
+                // ping: it is gone, and so is any run it started.
+                if heard.elapsed() > SILENCE_LIMIT {
+                    break;
+                }
+                if !sent(&mut socket, Message::Ping(Default::default())).await {
+                    break;
+                }
+                continue;
+            }
             Some(answer) = to_send.recv() => answer,
             event = events.recv() => match event {
                 Ok(text) => text.to_string(),
@@ -212,12 +240,21 @@ async fn connection(
             },
             Some(_) = tasks.join_next() => continue,
         };
-        if socket.send(Message::Text(out.into())).await.is_err() {
+        if !sent(&mut socket, Message::Text(out.into())).await {
             break;
         }
     }
     // Dropping the tasks drops a run this client started: it is aborted, its motor stops.
     tasks.abort_all();
+}
+
+/// Send `message`; false when the client is gone, or reads nothing for [`SILENCE_LIMIT`] (its
+/// buffers full: a client that vanished without closing).
+async fn sent(socket: &mut WebSocket, message: Message) -> bool {
+    matches!(
+        tokio::time::timeout(SILENCE_LIMIT, socket.send(message)).await,
+        Ok(Ok(()))
+    )
 }
 
 /// Start carrying out one request from a WebSocket client; its answer goes to `answers`.

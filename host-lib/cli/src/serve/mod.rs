@@ -58,7 +58,7 @@
 //!
 //! See [`worker`]: one thread owns the device; a second run is refused at once; `abort` is
 //! heard within one status poll; a client that disconnects mid-run aborts it; a vanished device
-//! is re-opened when it answers again. Ctrl-C (or SIGTERM) aborts whatever runs, waits for the
+//! is re-opened when it answers again. Ctrl-C (or SIGTERM, or SIGHUP) aborts whatever runs, waits for the
 //! device to be safe, and stops the server.
 //!
 //! # Security
@@ -102,7 +102,7 @@ pub const MAX_BODY_BYTES: usize = 16 * 1024 * 1024;
 /// How long stopping waits for the clients' tasks to end.
 const SHUTDOWN_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 
-/// Serve until Ctrl-C (or SIGTERM): open the device as `g` says, listen on `listen` under
+/// Serve until Ctrl-C (or SIGTERM, or SIGHUP): open the device as `g` says, listen on `listen` under
 /// `security`'s rules, print the address, and answer; `job` runs on `cutter`.
 pub fn serve(
     g: &Global,
@@ -148,15 +148,20 @@ async fn listen_and_serve(
     }
 }
 
-/// Ctrl-C, or SIGTERM where there is one.
+/// Ctrl-C, or SIGTERM or SIGHUP (the terminal closed) where there are such: each stops the
+/// server safely rather than killing it mid-run.
 async fn stop_signal() {
     #[cfg(unix)]
     {
         use tokio::signal::unix::{SignalKind, signal};
-        if let Ok(mut term) = signal(SignalKind::terminate()) {
+        if let (Ok(mut term), Ok(mut hup)) = (
+            signal(SignalKind::terminate()),
+            signal(SignalKind::hangup()),
+        ) {
             tokio::select! {
                 _ = tokio::signal::ctrl_c() => {}
                 _ = term.recv() => {}
+                _ = hup.recv() => {}
             }
             return;
         }

@@ -20,7 +20,6 @@ use crate::commands::gauge::{GaugeArgs, draw};
 use crate::commands::history;
 use crate::commands::job::{JobArgs, JobCliReport, Setup};
 use crate::error::CliError;
-use crate::record::parse_label;
 
 /// What `dilate` reports beside the plan: the kerf, the cut rules, and what was found and done
 /// (the fields of `kerfmeter dilate --json` that are not about files).
@@ -210,10 +209,7 @@ pub async fn gauge(p: Params) -> Result<Value, RpcError> {
 /// database (the simulated ones when the server runs the twin), newest first, with the drift
 /// warnings; the same listing as `kerfmeter history --json`, without the database's path.
 pub async fn history(device: &Device, mut p: Params) -> Result<Value, RpcError> {
-    let label = p.string("label")?;
-    if let Some(label) = &label {
-        parse_label(label).map_err(|why| RpcError::param("label", why))?;
-    }
+    let label = p.label()?;
     let limit = p.u32_in("limit", 1..=100_000)?.unwrap_or(50);
     p.finish()?;
     let g = device.global().clone();
@@ -352,7 +348,7 @@ impl std::fmt::Debug for JobCall {
 pub async fn job_call(mut p: Params, cutter: &str) -> Result<JobCall, RpcError> {
     let plan = plan_bytes(&mut p)?;
     let format = format(&mut p)?;
-    let label = p.string("label")?;
+    let label = p.label()?;
     let ext = if format == PlanFormat::Dxf {
         "dxf"
     } else {
@@ -381,9 +377,11 @@ pub async fn job_call(mut p: Params, cutter: &str) -> Result<JobCall, RpcError> 
         #[command(flatten)]
         args: JobArgs,
     }
-    let args = <Job as clap::Parser>::try_parse_from(argv)
+    let mut args = <Job as clap::Parser>::try_parse_from(argv)
         .map(|j| j.args)
         .map_err(|e| clap_error("job", &e))?;
+    // The measurement is recorded in the history under the job's label.
+    args.label.clone_from(&label);
     let (args, setup) = tokio::task::spawn_blocking(move || Setup::new(&args).map(|s| (args, s)))
         .await
         .map_err(|e| RpcError::new(PLAN_ERROR, format!("the plan could not be read: {e}")))?
@@ -403,6 +401,9 @@ pub fn job_answer(call: &JobCall, report: &JobCliReport) -> Result<Value, CliErr
     if let Some(fields) = report.as_object_mut() {
         for name in ["input", "output", "gcode_out"] {
             fields.remove(name);
+        }
+        if let Some(history) = fields.get_mut("history").and_then(Value::as_object_mut) {
+            history.remove("db");
         }
     }
     let read = |path: &std::path::Path| {

@@ -236,6 +236,16 @@ impl Params {
         }
     }
 
+    /// The label (`label`: what is measured), checked as `--label` is, before anything moves:
+    /// a label the history would refuse is refused here.
+    pub fn label(&mut self) -> Result<Option<String>, RpcError> {
+        let label = self.string("label")?;
+        if let Some(label) = &label {
+            crate::record::parse_label(label).map_err(|why| RpcError::param("label", why))?;
+        }
+        Ok(label)
+    }
+
     /// The boolean `name`.
     pub fn bool(&mut self, name: &str) -> Result<Option<bool>, RpcError> {
         match self.0.remove(name) {
@@ -353,7 +363,7 @@ fn run_call(p: &mut Params) -> Result<RunCall, RpcError> {
         force_n: p.f64("force_n")?,
     };
     let samples = p.u32_in("samples", 1..=MAX_SAMPLES)?.unwrap_or(1);
-    let label = p.string("label")?;
+    let label = p.label()?;
     let params = joint
         .run_params(GaugeGeometry::PAPER)
         .map_err(|e| RpcError::new(INVALID_PARAMS, e.to_string()))?;

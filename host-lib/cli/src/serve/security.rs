@@ -18,13 +18,19 @@
 //! * **Host.** On loopback, a request whose `Host` is not a loopback name is refused (403): a
 //!   DNS-rebinding page (`evil.example` re-pointed at 127.0.0.1) is same-origin for the browser
 //!   and sends no `Origin` with a GET, but it sends its own `Host`.
+//! * **No framing.** Every answer carries `X-Frame-Options: DENY` and a Content-Security-Policy
+//!   (`frame-ancestors 'none'`, the page's own scripts and WebSocket only): otherwise another
+//!   site could show the page in an invisible frame and get a click on Measure (clickjacking),
+//!   which every check above would let through, the frame being the server's own origin.
+//! * **Tokens** are at least [`MIN_TOKEN_CHARS`] characters. Off loopback they travel in clear
+//!   over HTTP: use a trusted network, or an SSH tunnel to the loopback server.
 //! * Bodies are bounded (see [`super::MAX_BODY_BYTES`]) and no request names a file: plans
 //!   travel as text, results as JSON.
 
 use std::net::SocketAddr;
 
 use axum::extract::{Request, State};
-use axum::http::{HeaderMap, Method, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, header};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use subtle::ConstantTimeEq;
@@ -44,6 +50,45 @@ pub struct Security {
     allowed_origins: Vec<String>,
 }
 
+/// The shortest token accepted: a short one could be guessed by anyone on the network, and
+/// nothing limits how often they try.
+pub const MIN_TOKEN_CHARS: usize = 16;
+
+/// The headers every answer carries, so that no other site can frame the page (and get a click
+/// on Measure through an invisible frame), and nothing the server sends is run as a page of its
+/// own but its own files: `(name, value)`; the CSP's `connect-src` is completed per request.
+const SAFETY_HEADERS: [(&str, &str); 3] = [
+    ("x-frame-options", "DENY"),
+    ("x-content-type-options", "nosniff"),
+    ("referrer-policy", "no-referrer"),
+];
+
+/// The Content-Security-Policy for a request to `host` (a loopback name, or any name when a
+/// token guards the server): the page's own files only, no frames, its own WebSocket.
+fn content_security_policy(host: Option<&str>) -> String {
+    let host_safe = |c: char| c.is_ascii_alphanumeric() || ".:-[]".contains(c);
+    let socket = match host.filter(|h| !h.is_empty() && h.chars().all(host_safe)) {
+        Some(h) => format!(" ws://{h} wss://{h}"),
+        None => String::new(),
+    };
+    format!(
+        "default-src 'self'; connect-src 'self'{socket}; img-src 'self' data: blob:; \
+         object-src 'none'; base-uri 'none'; form-action 'self'; frame-ancestors 'none'"
+    )
+}
+
+/// Add the safety headers to `response` (for a request to `host`).
+fn with_safety_headers(mut response: Response, host: Option<&str>) -> Response {
+    let headers = response.headers_mut();
+    for (name, value) in SAFETY_HEADERS {
+        headers.insert(name, HeaderValue::from_static(value));
+    }
+    if let Ok(csp) = HeaderValue::from_str(&content_security_policy(host)) {
+        headers.insert(header::CONTENT_SECURITY_POLICY, csp);
+    }
+    response
+}
+
 impl Security {
     /// The rules for listening on `listen`; refuses a non-loopback address without a token, and
     /// an empty token.
@@ -55,13 +100,13 @@ impl Security {
         let url_safe = |c: char| c.is_ascii_alphanumeric() || "-._~".contains(c);
         if token
             .as_deref()
-            .is_some_and(|t| t.is_empty() || !t.chars().all(url_safe))
+            .is_some_and(|t| t.len() < MIN_TOKEN_CHARS || !t.chars().all(url_safe))
         {
-            return Err(CliError::Usage(
-                "--token must be non-empty and made of letters, digits and - . _ ~ (it travels \
-                 in URLs as ?token=)"
-                    .into(),
-            ));
+            return Err(CliError::Usage(format!(
+                "--token must be at least {MIN_TOKEN_CHARS} characters, made of letters, digits \
+                 and - . _ ~ (it travels in URLs as ?token=); e.g. \
+                 `--token $(head -c 18 /dev/urandom | base64 | tr +/ -_)`"
+            )));
         }
         if !listen.ip().is_loopback() && token.is_none() {
             return Err(CliError::Usage(format!(
@@ -143,14 +188,25 @@ fn is_loopback_host(host: &str) -> bool {
             .is_ok_and(|ip| ip.is_loopback())
 }
 
-/// The middleware: host, token and origin, in that order, before any route.
+/// The middleware: host, token and origin, in that order, before any route; the safety headers
+/// on every answer.
 pub async fn guard(
     State(security): State<std::sync::Arc<Security>>,
     request: Request,
     next: Next,
 ) -> Response {
+    let host = request
+        .headers()
+        .get(header::HOST)
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_owned);
+    let response = check(&security, request, host.as_deref(), next).await;
+    with_safety_headers(response, host.as_deref())
+}
+
+/// The checks of [`guard`], then the route.
+async fn check(security: &Security, request: Request, host: Option<&str>, next: Next) -> Response {
     let headers = request.headers();
-    let host = headers.get(header::HOST).and_then(|v| v.to_str().ok());
     let path = request.uri().path();
     let refuse = |status: StatusCode, why: &str| {
         error_response(status, &RpcError::new(INVALID_REQUEST, why)).into_response()

@@ -20,9 +20,9 @@
 //!   boot id) is noticed without a client asking.
 
 use std::ops::ControlFlow;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
+use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -110,6 +110,9 @@ struct Job {
 
 /// What the worker and the clients share.
 struct Shared {
+    /// Taken while `busy` and `stop` change together (a long call starting, an abort), so that
+    /// an abort can never fall between a new call taking the device and clearing the old stop.
+    gate: Mutex<()>,
     /// A long call holds the device.
     busy: AtomicBool,
     /// The long call going should stop.
@@ -169,6 +172,7 @@ impl Device {
     pub fn start(g: Global, cutter: Option<String>) -> (Device, JoinHandle<()>) {
         let (events, _) = broadcast::channel(EVENTS_BACKLOG);
         let shared = Arc::new(Shared {
+            gate: Mutex::new(()),
             busy: AtomicBool::new(false),
             stop: AtomicBool::new(false),
             connected: AtomicBool::new(false),
@@ -212,6 +216,7 @@ impl Device {
         let long = call.is_long();
         let shared = &self.shared;
         if long {
+            let _gate = shared.gate.lock().unwrap_or_else(PoisonError::into_inner);
             let taken =
                 shared
                     .busy
@@ -240,8 +245,16 @@ impl Device {
     /// Stop the motor: the long call going is told to stop (its caller gets "aborted"); with
     /// none going, the device is sent an abort.
     pub async fn abort(&self) -> Reply {
-        self.stop_running();
-        if !self.shared.busy.load(Ordering::SeqCst) {
+        let running = {
+            let _gate = self
+                .shared
+                .gate
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            self.stop_running();
+            self.shared.busy.load(Ordering::SeqCst)
+        };
+        if !running {
             self.call(Call::Abort, Caller::Rpc).await?;
         }
         Ok(json!({ "aborted": true }))
@@ -377,7 +390,14 @@ impl Worker {
             return Err(RpcError::new(NOT_CONNECTED, "the device is not connected"));
         };
         match measure_and_report(&self.g, s, &run, &self.shared) {
-            Ok(served) => Ok(to_value(&served)),
+            Ok(served) => {
+                let mut answer = to_value(&served);
+                // Where the server keeps its files is not the clients' business.
+                if let Some(history) = answer.get_mut("history").and_then(Value::as_object_mut) {
+                    history.remove("db");
+                }
+                Ok(answer)
+            }
             Err(e) => {
                 self.lost(&e);
                 Err(RpcError::from(&e))

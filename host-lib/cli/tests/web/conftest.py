@@ -133,4 +133,4 @@ def token_server(tmp_path):
     s.stop()
 
 
-TOKEN = "page-test-token"
+TOKEN = "page-test-token-0123456789"
