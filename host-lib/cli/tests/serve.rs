@@ -516,6 +516,9 @@ fn an_allowed_origin_passes() {
     assert_eq!(server.http("POST", "/api/abort", &origin, b"").0, 200);
     let other = [("Origin", "http://tool.example:5174")];
     assert_eq!(server.http("POST", "/api/abort", &other, b"").0, 403);
+    // A browser's cross-site request without an Origin (none does that today) is refused too.
+    let cross = [("Sec-Fetch-Site", "cross-site")];
+    assert_eq!(server.http("POST", "/api/abort", &cross, b"").0, 403);
 }
 
 #[test]

@@ -64,7 +64,7 @@ pub async fn dilate(device: &Device, mut p: Params, by: Caller) -> Result<Value,
     let strict = p.bool("strict")?.unwrap_or(false);
     p.finish()?;
     let work = move || dilate_plan(plan, format, &args, strict);
-    let outcome = tokio::task::spawn_blocking(work)
+    let outcome = plan_work(work)
         .await
         .map_err(|e| RpcError::new(super::rpc::PLAN_ERROR, format!("the dilation failed: {e}")))?;
     outcome.map_err(|e| RpcError::from(&e))
@@ -189,7 +189,7 @@ pub async fn gauge(p: Params) -> Result<Value, RpcError> {
         "svg"
     };
     let work = move || draw(&args);
-    let (content, report) = tokio::task::spawn_blocking(work)
+    let (content, report) = plan_work(work)
         .await
         .map_err(|e| RpcError::new(super::rpc::PLAN_ERROR, format!("the drawing failed: {e}")))?
         .map_err(|e| RpcError::from(&e))?;
@@ -205,6 +205,23 @@ pub async fn gauge(p: Params) -> Result<Value, RpcError> {
     Ok(answer)
 }
 
+/// Plans read, dilated or drawn at once, server-wide: each may take many times its plan's size in
+/// memory (16 MiB bodies, 16 requests per connection, any number of connections), and a
+/// server killed for want of memory mid-run could not stop its motor. The rest wait their turn.
+static PLAN_WORK: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
+
+/// Run `work` (plan reading, dilation or drawing) on a blocking thread when [`PLAN_WORK`] lets
+/// it.
+async fn plan_work<T: Send + 'static>(
+    work: impl FnOnce() -> T + Send + 'static,
+) -> Result<T, tokio::task::JoinError> {
+    let _permit = PLAN_WORK
+        .acquire()
+        .await
+        .expect("the semaphore is never closed");
+    tokio::task::spawn_blocking(work).await
+}
+
 /// `history` {label, limit (1..=100000, default 50)}: the newest records of the server's history
 /// database (the simulated ones when the server runs the twin), newest first, with the drift
 /// warnings; the same listing as `kerfmeter history --json`, without the database's path.
@@ -214,7 +231,7 @@ pub async fn history(device: &Device, mut p: Params) -> Result<Value, RpcError> 
     p.finish()?;
     let g = device.global().clone();
     let work = move || history::list(&g, label, limit);
-    let report = tokio::task::spawn_blocking(work)
+    let report = plan_work(work)
         .await
         .map_err(|e| {
             RpcError::new(
@@ -382,7 +399,7 @@ pub async fn job_call(mut p: Params, cutter: &str) -> Result<JobCall, RpcError> 
         .map_err(|e| clap_error("job", &e))?;
     // The measurement is recorded in the history under the job's label.
     args.label.clone_from(&label);
-    let (args, setup) = tokio::task::spawn_blocking(move || Setup::new(&args).map(|s| (args, s)))
+    let (args, setup) = plan_work(move || Setup::new(&args).map(|s| (args, s)))
         .await
         .map_err(|e| RpcError::new(PLAN_ERROR, format!("the plan could not be read: {e}")))?
         .map_err(|e| RpcError::from(&e))?;

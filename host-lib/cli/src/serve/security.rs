@@ -224,7 +224,12 @@ async fn check(security: &Security, request: Request, host: Option<&str>, next: 
     let origin = headers
         .get(header::ORIGIN)
         .map(|v| v.to_str().unwrap_or("?"));
-    if needs_origin && origin.is_some_and(|o| !security.origin_ok(o, host)) {
+    // Browsers say where a request comes from twice: `Origin`, and `Sec-Fetch-Site`.
+    let cross_site = headers
+        .get("sec-fetch-site")
+        .is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"cross-site"));
+    let foreign = origin.is_some_and(|o| !security.origin_ok(o, host));
+    if needs_origin && (foreign || cross_site && origin.is_none()) {
         let why = "cross-site request refused: this Origin is not the server's own; start the \
                    server with --allow-origin ORIGIN to allow it";
         return refuse(StatusCode::FORBIDDEN, why);
