@@ -183,6 +183,7 @@ impl Twin {
         let (motor, _) = G2Motor::new(pwm.clone(), dir.clone(), slp.clone(), flt.clone());
         let mut chip = FakeAs5048a::new(rng.next_u64());
         chip.set_noise_lsb(options.plant.encoder_noise_lsb as f32);
+        chip.set_agc(options.plant.magnet_agc.round() as u8);
         let watchdog = SimWatchdog::new(flash.clock().clone());
         let (opened, flash_clock) = open_config(WatchdogFlash::new(flash, watchdog.clone()));
         // The board starts its watchdog once booted.

@@ -220,6 +220,24 @@ fn a_failed_measurement_stops_before_the_job_with_the_prongs_lifted_and_the_lase
 }
 
 #[test]
+fn a_flagged_measurement_stops_before_the_job_with_the_prongs_lifted_and_the_laser_off() {
+    // A magnet a little too far from the encoder: every reading works but is flagged.
+    let mut device = SimOptions::default();
+    device.plant.magnet_agc = 228.0;
+    let mut rig = rig(device, SimCutterOptions::default());
+    let (result, started) = run(&mut rig, 4, &mut |_, _| {});
+    let error = result.unwrap_err();
+    assert!(matches!(error, JobError::Flagged { .. }), "{error}");
+    let message = error.to_string();
+    assert!(message.contains("weak-magnet"), "{message}");
+    assert!(message.contains("laser is off"), "{message}");
+    assert!(!started.contains(&Stage::Dilate), "{started:?}");
+    let record = record(&rig);
+    assert!(!laser_safe_and_job_cut(&record));
+    assert_eq!(record.segments.last().unwrap().end[2], 8.0);
+}
+
+#[test]
 fn a_cutter_alarm_mid_job_stops_the_loop_with_the_laser_off() {
     // The gauge and the prong moves take well under 5 min of motion; the job 60 squares, 27 min.
     let twin = SimCutterOptions {

@@ -200,6 +200,11 @@ plant_params! {
     /// Magnet off the sensor's axis, mm: a once-per-turn angle error (this model: 1° per mm).
     /// A press-fitted diametric magnet: 0.05–0.25 mm.
     magnet_offset_mm ["mm"] = 0.1, 0.0..=0.5;
+    /// The encoder's AGC with the magnet in place: the gain the AS5048A needs for the field it
+    /// sees, set by the magnet's air gap (datasheet: 0.5–2.5 mm; at the design gap it sits
+    /// mid-scale). Above 220 the field is weak and every run is flagged `weak-magnet` (a magnet
+    /// glued a little too far); the device refuses one beyond 250 (a fault, not a build).
+    magnet_agc [""] = 128.0, 60.0..=230.0;
 
     // ---- The gauge, as a real cutter cuts it ----
     /// SD of each hole centre's position, µm: the cutter's repeatability.
