@@ -35,7 +35,7 @@ use serde_json::{Value, json};
 use sha2::Sha256;
 
 use crate::error::Category;
-use crate::files::write_atomically;
+use crate::files::write_atomically_with_mode;
 
 /// LightBurn's API address (the port is fixed per product).
 pub const DEFAULT_HOST: &str = "127.0.0.1:19520";
@@ -198,14 +198,8 @@ impl Pairing {
             std::fs::create_dir_all(dir).map_err(|e| pairing_file(path, e))?;
         }
         let text = serde_json::to_string_pretty(self).expect("a pairing serializes");
-        write_atomically(path, text.as_bytes()).map_err(|e| pairing_file(path, e))?;
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600))
-                .map_err(|e| pairing_file(path, e))?;
-        }
-        Ok(())
+        // Written 0600 from the start: the secret is never readable by others, even briefly.
+        write_atomically_with_mode(path, text.as_bytes(), 0o600).map_err(|e| pairing_file(path, e))
     }
 }
 

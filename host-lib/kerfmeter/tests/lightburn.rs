@@ -174,6 +174,16 @@ fn pairing_then_apply_sets_every_line_pass_in_use_to_half_the_kerf() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("sub/lightburn.json");
     pairing.save(&file).unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(&file).unwrap().permissions().mode();
+        assert_eq!(
+            mode & 0o777,
+            0o600,
+            "the secret is readable by its owner only"
+        );
+    }
     let pairing = Pairing::load(&file).unwrap();
     let applied = apply_kerf(
         &Client::new(&host),
