@@ -253,7 +253,7 @@ fn an_open_editor_a_bad_signature_and_a_declined_pairing_are_clear_errors() {
         ExistingOffset::Refuse,
     )
     .unwrap_err();
-    assert!(matches!(e, LightBurnError::EditorOpen { .. }), "{e}");
+    assert!(matches!(e, LightBurnError::EditorOpen), "{e}");
     assert!(e.to_string().ends_with("close it and run again"), "{e}");
 
     let forged = Pairing {
