@@ -114,6 +114,39 @@ fn dilate_refuses_what_does_not_fit_a_lightburn_project() {
 }
 
 #[test]
+fn the_output_keeps_the_projects_extension() {
+    let (dir, input) = project("lightburn_2x_layers.lbrn2");
+    let old_format = dir.path().join("out.lbrn");
+    let out = kerfmeter(&[
+        "dilate",
+        s(&input),
+        "--kerf-um",
+        "150",
+        "-o",
+        s(&old_format),
+    ]);
+    assert_eq!(code(&out), 2, "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("must have the input's extension .lbrn2"),
+        "{}",
+        text(&out.stderr)
+    );
+    assert!(!old_format.exists());
+    // The reverse: a LightBurn 1.x project saved as .lbrn2.
+    let lbrn = dir.path().join("in.lbrn");
+    std::fs::copy(&input, &lbrn).unwrap();
+    let new_format = dir.path().join("out.lbrn2");
+    let out = kerfmeter(&["dilate", s(&lbrn), "--kerf-um", "150", "-o", s(&new_format)]);
+    assert_eq!(code(&out), 2, "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("must have the input's extension .lbrn"));
+    assert!(!new_format.exists());
+    // Same extension, any case: accepted.
+    let upper = dir.path().join("out.LBRN2");
+    let out = kerfmeter(&["dilate", s(&input), "--kerf-um", "150", "-o", s(&upper)]);
+    assert_eq!(code(&out), 0, "{}", text(&out.stderr));
+}
+
+#[test]
 fn layers_is_for_lightburn_projects_only() {
     let plan =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../plan/tests/fixtures/box_generator.svg");

@@ -305,10 +305,17 @@ impl History {
         }
     }
 
+    /// No drift for an unlabelled record, nor for an untrusted one (flagged other than
+    /// `decimated`): a flagged run's kerf says more about that run (a slip, a jam missed) than
+    /// about the cutter, so a drift warning on it would blame the cutter for a bad measurement;
+    /// its flags already say it is suspect.
     fn drift_of(&self, record: &Record) -> Result<Option<Drift>, Error> {
         let Some(label) = record.label.as_deref() else {
             return Ok(None);
         };
+        if !trusted(record) {
+            return Ok(None);
+        }
         let mut stmt = self
             .conn
             .prepare_cached(&format!(
@@ -322,7 +329,7 @@ impl History {
             .map_err(|e| self.sql(e))?;
         for row in rows {
             let r = row.map_err(|e| self.sql(e))?;
-            if r.flags.iter().all(|f| f == HARMLESS_FLAG) {
+            if trusted(&r) {
                 baseline.push(r.kerf_um);
                 if baseline.len() == drift::BASELINE_RECORDS {
                     break;
@@ -331,6 +338,11 @@ impl History {
         }
         Ok(drift::drift(label, record.kerf_um, &baseline))
     }
+}
+
+/// Whether a record is trusted: flagged with nothing but [`HARMLESS_FLAG`].
+fn trusted(record: &Record) -> bool {
+    record.flags.iter().all(|f| f == HARMLESS_FLAG)
 }
 
 /// The columns [`read_record`] reads, in its order.

@@ -208,6 +208,27 @@ fn a_kerf_beyond_its_labels_spread_warns_and_only_like_records_count() {
     assert_eq!(h.drift_at(none).unwrap(), None);
 }
 
+#[test]
+fn an_untrusted_record_gets_no_drift_warning_a_decimated_one_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut h = History::open(&dir.path().join("h.sqlite3")).unwrap();
+    for kerf in [150.0, 152.0, 148.0] {
+        h.record(&measurement(Some("birch"), kerf, false)).unwrap();
+    }
+    // A flagged run far off the baseline: its flag already says it is suspect.
+    let mut slipped = measurement(Some("birch"), 300.0, false);
+    slipped.flags = vec!["decimated".into(), "slip".into()];
+    let slipped = h.record(&slipped).unwrap();
+    assert_eq!(h.drift_at(slipped).unwrap(), None);
+    assert_eq!(h.drift("birch", false).unwrap(), None);
+    assert_eq!(h.listing(&all(None, false)).unwrap().drift, vec![]);
+    // Only decimated (a coarser curve, still trusted): warned as usual.
+    let mut coarse = measurement(Some("birch"), 300.0, false);
+    coarse.flags = vec!["decimated".into()];
+    let coarse = h.record(&coarse).unwrap();
+    assert!(h.drift_at(coarse).unwrap().is_some());
+}
+
 /// The environment variable that makes [`crash_writer`] run (it is the child of
 /// [`a_process_killed_mid_write_leaves_every_committed_record`]).
 const CRASH_DB: &str = "KERFMETER_HISTORY_TEST_CRASH_DB";

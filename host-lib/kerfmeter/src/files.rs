@@ -7,8 +7,17 @@ use crate::error::{Error, Result};
 
 /// Write `bytes` to `path` atomically: into a temporary file in the same folder, flushed to disk,
 /// then renamed over `path`. A crash or a full disk leaves either the old file or the new one,
-/// never a mix.
+/// never a mix. The file gets ordinary permissions (0644 on Unix).
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomically_with_mode(path, bytes, 0o644)
+}
+
+/// [`write_atomically`], the file getting the Unix permission bits `mode` (ignored elsewhere).
+///
+/// The temporary file is created private to its owner (0600, `tempfile`'s default on Unix) and
+/// given `mode` before the rename,
+/// so a file written with 0600 (a secret) is never readable by others, not even for a moment.
+pub fn write_atomically_with_mode(path: &Path, bytes: &[u8], mode: u32) -> Result<()> {
     let file_error = |message: String| Error::File {
         path: path.to_owned(),
         message,
@@ -27,11 +36,26 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
             ))
         })?;
     tmp.write_all(bytes)
+        .and_then(|()| set_mode(tmp.as_file(), mode))
         .and_then(|()| tmp.as_file().sync_all())
         .map_err(|e| file_error(format!("cannot write: {e}")))?;
     tmp.persist(path)
         .map_err(|e| file_error(format!("cannot replace the file: {}", e.error)))?;
-    make_readable(path)
+    Ok(())
+}
+
+/// Give an open file the Unix permission bits `mode` (nothing elsewhere).
+fn set_mode(file: &std::fs::File, mode: u32) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        file.set_permissions(std::fs::Permissions::from_mode(mode))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (file, mode);
+        Ok(())
+    }
 }
 
 /// Give a file written through a temporary file ordinary permissions (temporary files are created
@@ -94,6 +118,24 @@ mod tests {
             );
         }
         // No temporary files left behind.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_private_file_is_never_readable_by_others() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("secret.json");
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        // Over a file readable by others, too: the new file does not inherit its mode.
+        std::fs::write(&p, "old").unwrap();
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o644)).unwrap();
+        write_atomically_with_mode(&p, b"secret", 0o600).unwrap();
+        assert_eq!(mode(&p), 0o600);
+        assert_eq!(std::fs::read(&p).unwrap(), b"secret");
+        write_atomically_with_mode(&p, b"secret 2", 0o600).unwrap();
+        assert_eq!(mode(&p), 0o600);
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 

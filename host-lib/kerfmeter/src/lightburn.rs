@@ -35,7 +35,7 @@ use serde_json::{Value, json};
 use sha2::Sha256;
 
 use crate::error::Category;
-use crate::files::write_atomically;
+use crate::files::write_atomically_with_mode;
 
 /// LightBurn's API address (the port is fixed per product).
 pub const DEFAULT_HOST: &str = "127.0.0.1:19520";
@@ -85,12 +85,22 @@ pub enum LightBurnError {
     },
     /// A cut settings editor is open in LightBurn.
     #[error(
-        "LightBurn's cut settings editor is open, so it changes no settings (409): close it and run again{}",
-        if done.is_empty() { String::from(" (nothing was changed)") } else { format!(" (layers {done} were already set)") }
+        "LightBurn's cut settings editor is open, so it changes no settings (409): close it and run again"
     )]
-    EditorOpen {
-        /// The layers set before the refusal, e.g. "0, 2" (empty: none).
+    EditorOpen,
+    /// A request failed after some layers were set (layers are set one request at a time).
+    ///
+    /// Those layers now hold this kerf's Kerf Offset, so a plain re-run would refuse them as
+    /// compensated, and adding on top would count the kerf twice: the way out is to replace.
+    #[error(
+        "{cause}; but {done} had already been set to this kerf's Kerf Offset: once that is fixed, run `kerfmeter lightburn apply` again with --recompensate (it replaces the Kerf Offsets this run set)"
+    )]
+    PartlyApplied {
+        /// The layers set before the failure and their previous Kerf Offsets, e.g.
+        /// `layer 0 "C00" (was 0 mm)`.
         done: String,
+        /// The failure.
+        cause: Box<LightBurnError>,
     },
     /// LightBurn refused a request for another reason.
     #[error("LightBurn refused {request} ({status}): {message}")]
@@ -198,14 +208,8 @@ impl Pairing {
             std::fs::create_dir_all(dir).map_err(|e| pairing_file(path, e))?;
         }
         let text = serde_json::to_string_pretty(self).expect("a pairing serializes");
-        write_atomically(path, text.as_bytes()).map_err(|e| pairing_file(path, e))?;
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600))
-                .map_err(|e| pairing_file(path, e))?;
-        }
-        Ok(())
+        // Written 0600 from the start: the secret is never readable by others, even briefly.
+        write_atomically_with_mode(path, text.as_bytes(), 0o600).map_err(|e| pairing_file(path, e))
     }
 }
 
@@ -424,13 +428,8 @@ pub fn apply_kerf(
                 _ => offset,
             })
             .collect();
-        let request = format!("POST /api/cuts/{}", cut.index);
-        let (status, answer) = client.call(&request, Some(secret), Some(body(&cut, &after)))?;
-        match status {
-            200 => {}
-            409 => return Err(LightBurnError::EditorOpen { done: names(&set) }),
-            401 | 403 => return Err(LightBurnError::Unauthorized { status }),
-            _ => return Err(refused(&request, status, &answer)),
+        if let Err(cause) = post_cut(client, secret, &cut, &after) {
+            return Err(partly_applied(cause, &set, unit));
         }
         set.push(LayerSet {
             cut_index: cut.index,
@@ -448,9 +447,40 @@ pub fn apply_kerf(
     })
 }
 
-fn names(set: &[LayerSet]) -> String {
-    let v: Vec<String> = set.iter().map(|l| l.layer_index.to_string()).collect();
-    v.join(", ")
+/// `POST /api/cuts/{index}` setting the Line passes of `cut` to `after`.
+fn post_cut(client: &Client, secret: &str, cut: &LineCut, after: &[f64]) -> Result<()> {
+    let request = format!("POST /api/cuts/{}", cut.index);
+    let (status, answer) = client.call(&request, Some(secret), Some(body(cut, after)))?;
+    match status {
+        200 => Ok(()),
+        409 => Err(LightBurnError::EditorOpen),
+        401 | 403 => Err(LightBurnError::Unauthorized { status }),
+        _ => Err(refused(&request, status, &answer)),
+    }
+}
+
+/// `cause`, saying which layers of `set` were changed before it and what they held (as is when
+/// none were).
+fn partly_applied(cause: LightBurnError, set: &[LayerSet], unit: &str) -> LightBurnError {
+    if set.is_empty() {
+        return cause;
+    }
+    let each: Vec<String> = set
+        .iter()
+        .map(|l| {
+            let before: Vec<String> = l.before.iter().map(f64::to_string).collect();
+            format!(
+                "layer {} \"{}\" (was {} {unit})",
+                l.layer_index,
+                l.name,
+                before.join(", ")
+            )
+        })
+        .collect();
+    LightBurnError::PartlyApplied {
+        done: each.join(", "),
+        cause: Box::new(cause),
+    }
 }
 
 /// The distance unit of `GET /api/units` and how many of it make a mm.

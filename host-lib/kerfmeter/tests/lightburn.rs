@@ -20,6 +20,8 @@ struct Fake {
     units: &'static str,
     editor_open: bool,
     declines: bool,
+    /// Fail the POST made after this many succeeded with this status (0: drop the connection).
+    fail_post: Option<(usize, u16)>,
     posts: Vec<(String, Value)>,
 }
 
@@ -99,6 +101,11 @@ fn answer(
             if f.editor_open {
                 return (409, json!({ "error": "Cut settings editor is open" }));
             }
+            if let Some((after, status)) = f.fail_post
+                && f.posts.len() == after
+            {
+                return (status, json!({ "error": "refused by the test" }));
+            }
             let body: Value = serde_json::from_str(body).unwrap();
             f.posts.push((p.to_string(), body));
             (200, json!({}))
@@ -134,6 +141,9 @@ fn handle(mut stream: TcpStream, fake: &Mutex<Fake>) {
     reader.read_exact(&mut body).unwrap();
     let body = String::from_utf8(body).unwrap();
     let (status, value) = answer(fake, &method, &path, auth.as_deref(), &body);
+    if status == 0 {
+        return; // the link is lost: no answer
+    }
     let text = value.to_string();
     write!(
         stream,
@@ -151,6 +161,7 @@ fn fake_lightburn() -> (String, Arc<Mutex<Fake>>) {
         units: "mm/s",
         editor_open: false,
         declines: false,
+        fail_post: None,
         posts: Vec::new(),
     }));
     let served = fake.clone();
@@ -174,6 +185,16 @@ fn pairing_then_apply_sets_every_line_pass_in_use_to_half_the_kerf() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("sub/lightburn.json");
     pairing.save(&file).unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(&file).unwrap().permissions().mode();
+        assert_eq!(
+            mode & 0o777,
+            0o600,
+            "the secret is readable by its owner only"
+        );
+    }
     let pairing = Pairing::load(&file).unwrap();
     let applied = apply_kerf(
         &Client::new(&host),
@@ -232,12 +253,8 @@ fn an_open_editor_a_bad_signature_and_a_declined_pairing_are_clear_errors() {
         ExistingOffset::Refuse,
     )
     .unwrap_err();
-    assert!(matches!(e, LightBurnError::EditorOpen { .. }), "{e}");
-    assert!(
-        e.to_string()
-            .contains("close it and run again (nothing was changed)"),
-        "{e}"
-    );
+    assert!(matches!(e, LightBurnError::EditorOpen), "{e}");
+    assert!(e.to_string().ends_with("close it and run again"), "{e}");
 
     let forged = Pairing {
         secret: "not the secret".into(),
@@ -261,6 +278,43 @@ fn an_open_editor_a_bad_signature_and_a_declined_pairing_are_clear_errors() {
     let e = Client::pair(&host).unwrap_err();
     assert!(matches!(e, LightBurnError::Declined), "{e}");
     assert!(fake.lock().unwrap().posts.is_empty());
+}
+
+#[test]
+fn a_failure_after_a_layer_was_set_names_it_and_says_to_replace() {
+    // 400, 401, 404, 409 and a lost link on the second layer (C00 is set, Badge is not).
+    for status in [400, 401, 404, 409, 0] {
+        let (host, fake) = fake_lightburn();
+        let pairing = paired(&host);
+        fake.lock().unwrap().fail_post = Some((1, status));
+        let e = apply_kerf(
+            &Client::new(&host),
+            &pairing,
+            150.0,
+            &[],
+            ExistingOffset::Refuse,
+        )
+        .unwrap_err();
+        let text = e.to_string();
+        assert!(
+            matches!(e, LightBurnError::PartlyApplied { .. }),
+            "{status}: {text}"
+        );
+        assert!(
+            text.contains("layer 0 \"C00\" (was 0 mm) had already been set"),
+            "{status}: {text}"
+        );
+        assert!(!text.contains("Badge"), "{status}: {text}");
+        assert!(
+            text.contains("again with --recompensate"),
+            "{status}: {text}"
+        );
+        assert!(
+            !text.contains("--already-compensated-ok"),
+            "{status}: {text}"
+        );
+        assert_eq!(fake.lock().unwrap().posts.len(), 1);
+    }
 }
 
 #[test]

@@ -524,9 +524,17 @@ fn record_edit(doc: &Document, applied: &AppliedCompensation) -> Edit {
             let at = root.range().start;
             Edit {
                 range: at..at,
-                text: format!("{comment}\n"),
+                text: format!("{comment}{}", line_ending(doc.input_text())),
             }
         }
+    }
+}
+
+/// The line ending of `text` (that of its first line): a CRLF project stays CRLF throughout.
+fn line_ending(text: &str) -> &'static str {
+    match text.find('\n') {
+        Some(i) if text[..i].ends_with('\r') => "\r\n",
+        _ => "\n",
     }
 }
 

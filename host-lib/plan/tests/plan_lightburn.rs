@@ -89,6 +89,16 @@ fn the_record_comment_precedes_the_root_and_says_what_was_applied() {
 }
 
 #[test]
+fn a_crlf_project_stays_crlf() {
+    let input = read("lightburn_2x_layers.lbrn2").replace('\n', "\r\n");
+    let (out, _) = set_kerf_offset(&input, 150.0, &LightBurnOptions::default()).unwrap();
+    assert!(out.contains("-->\r\n<LightBurnProject"), "{out}");
+    // Every line ends in CRLF: no bare LF anywhere, record and inserted <kerf> lines included.
+    assert_eq!(out.matches('\n').count(), out.matches("\r\n").count());
+    assert_eq!(out.matches("<kerf Value=\"0.075\"/>").count(), 3);
+}
+
+#[test]
 fn layers_are_chosen_by_index_or_name() {
     let input = read("lightburn_2x_layers.lbrn2");
     let (out, summary) = set_kerf_offset(&input, 200.0, &layers(&["Parts & holes", "3"])).unwrap();

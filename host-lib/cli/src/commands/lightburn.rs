@@ -6,7 +6,7 @@
 //! project open in a running LightBurn through its REST API (the library's `lightburn` module).
 
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use kerfmeter::files::{ensure_not_input, write_atomically};
 use kerfmeter::lightburn::{Applied, Client, DEFAULT_HOST, ExistingOffset, Pairing, apply_kerf};
@@ -62,6 +62,25 @@ fn refuse_plan_only_options(args: &DilateArgs) -> Result<()> {
     )))
 }
 
+/// Refuse an output whose extension is not the input's: the output holds the input's bytes, so
+/// an `.lbrn` (LightBurn 1.x) saved as `.lbrn2` (or the reverse) would not be what it says.
+fn same_extension(input: &Path, output: &Path) -> Result<()> {
+    let ext = |p: &Path| {
+        p.extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default()
+    };
+    if ext(input) == ext(output) {
+        return Ok(());
+    }
+    Err(PlanError::InvalidArgument(format!(
+        "the output {} must have the input's extension .{} (the project keeps its format: .lbrn stays .lbrn, .lbrn2 stays .lbrn2)",
+        output.display(),
+        ext(input)
+    ))
+    .into())
+}
+
 /// Set the Kerf Offset of the LightBurn project `args.input` (see the module doc).
 pub fn run_offline(args: &DilateArgs) -> Result<LightBurnReport> {
     refuse_plan_only_options(args)?;
@@ -73,6 +92,7 @@ pub fn run_offline(args: &DilateArgs) -> Result<LightBurnReport> {
             ))
             .into());
         }
+        same_extension(&args.input, out)?;
         ensure_not_input(&args.input, out)?;
     }
     let options = LightBurnOptions {
