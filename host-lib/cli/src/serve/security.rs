@@ -287,21 +287,33 @@ mod tests {
         let any = "0.0.0.0:7878".parse().unwrap();
         let e = Security::new(any, None, &[]).unwrap_err();
         assert!(e.to_string().contains("without --token"), "{e}");
-        assert!(Security::new(any, Some("s3cret".into()), &[]).is_ok());
+        assert!(Security::new(any, Some("s3cret-long-enough".into()), &[]).is_ok());
         assert!(Security::new(any, Some(" ".into()), &[]).is_err());
+        // Too short to resist guessing over the network.
+        assert!(Security::new(any, Some("s3cret".into()), &[]).is_err());
     }
 
     #[test]
     fn the_token_is_taken_from_the_header_or_the_query() {
-        let s = Security::new("127.0.0.1:1".parse().unwrap(), Some("abc".into()), &[]).unwrap();
+        const TOKEN: &str = "abc-0123456789-xyz";
+        let s = Security::new("127.0.0.1:1".parse().unwrap(), Some(TOKEN.into()), &[]).unwrap();
         let mut headers = HeaderMap::new();
         assert!(!s.token_ok(&headers, None));
-        assert!(s.token_ok(&headers, Some("x=1&token=abc")));
-        assert!(!s.token_ok(&headers, Some("token=abd")));
-        assert!(!s.token_ok(&headers, Some("token=ab")));
-        headers.insert(header::AUTHORIZATION, "Bearer abc".parse().unwrap());
+        assert!(s.token_ok(&headers, Some(&format!("x=1&token={TOKEN}"))));
+        assert!(!s.token_ok(&headers, Some(&format!("token={TOKEN}d"))));
+        assert!(!s.token_ok(
+            &headers,
+            Some(&format!("token={}", &TOKEN[..TOKEN.len() - 1]))
+        ));
+        headers.insert(
+            header::AUTHORIZATION,
+            format!("Bearer {TOKEN}").parse().unwrap(),
+        );
         assert!(s.token_ok(&headers, None));
-        headers.insert(header::AUTHORIZATION, "Bearer abcd".parse().unwrap());
+        headers.insert(
+            header::AUTHORIZATION,
+            format!("Bearer {TOKEN}x").parse().unwrap(),
+        );
         assert!(!s.token_ok(&headers, None));
     }
 }
