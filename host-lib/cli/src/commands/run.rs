@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use clap::Args;
 use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
 use kerfmeter::stats::Summary;
-use kerfmeter::{Error, JointSpec, Measurement, Progress};
+use kerfmeter::{Error, JointSpec, Measurement};
 use serde::Serialize;
 
 use crate::connection::{Global, Session};
@@ -83,7 +83,8 @@ pub struct RunReport {
     pub kerf_um: f64,
     /// The curve's file, if drawn.
     pub plot: Option<PathBuf>,
-    /// Every run, in order.
+    /// Every run, in order, its flags also by name.
+    #[serde(serialize_with = "crate::output::results_json")]
     pub runs: Vec<KerfResult>,
     /// What was measured (`--label`).
     pub label: Option<String>,
@@ -184,34 +185,6 @@ impl RunReport {
     }
 }
 
-/// Measure `n` gauges on the device of `s` (a fresh gauge each, the hub reset to zero before
-/// each) and summarise them. `before_gauge(i)` is called before gauge `i` (a prompt on
-/// hardware); `progress(i, …)` after every status poll, and stops the runs (and resets) when it
-/// returns [`ControlFlow::Break`]: the device aborts, its motor is safe, and the call ends with
-/// [`Error::Cancelled`]. The library's `measure` cannot be stopped; `kerfmeter serve` needs to.
-pub fn measure_on(
-    s: &mut Session,
-    params: &RunParams,
-    n: usize,
-    mut before_gauge: impl FnMut(usize) -> Result<(), Error>,
-    mut progress: impl FnMut(usize, &Progress) -> ControlFlow<()>,
-) -> Result<Measurement, Error> {
-    if n == 0 {
-        return Err(Error::InvalidArgument("measure at least one gauge".into()));
-    }
-    let mut runs = Vec::with_capacity(n);
-    for i in 0..n {
-        s.meter.prepare_for_run_until(|p| progress(i, p))?;
-        before_gauge(i)?;
-        runs.push(s.meter.run_kerfmeter_until(params, |p| progress(i, p))?);
-    }
-    let kerfs: Vec<f64> = runs.iter().map(|r| f64::from(r.kerf_um)).collect();
-    Ok(Measurement {
-        summary: kerfmeter::stats::summarize(&kerfs),
-        runs,
-    })
-}
-
 /// The `--samples` runs, each after its prompt, with a progress bar.
 fn measure(
     g: &Global,
@@ -222,8 +195,7 @@ fn measure(
     let sim = s.sim.is_some();
     let samples = args.samples as usize;
     let bar = progress_bar(g, "gauge 1");
-    let measured = measure_on(
-        s,
+    let measured = s.meter.measure_until(
         params,
         samples,
         |i| {
