@@ -311,6 +311,17 @@ fn the_simulated_plant_is_set_by_name_file_and_material_and_checked() {
 }
 
 #[test]
+fn a_flagged_result_names_its_flags_in_the_json() {
+    // A magnet glued a little too far: every reading is flagged `weak-magnet`.
+    let out = kerfmeter(&["--sim", "--json", "--sim-plant", "magnet_agc=225", "run"]);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let run = &json["runs"][0];
+    assert_ne!(run["flags"], 0, "{json}");
+    let names = run["flag_names"].as_array().expect("flag_names");
+    assert!(names.iter().any(|n| n == "weak-magnet"), "{json}");
+}
+
+#[test]
 fn the_twin_binary_lists_and_checks_its_plant() {
     let twin = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_kerfmeter-twin"))

@@ -854,6 +854,19 @@ fn a_job_runs_on_the_servers_cutter_with_its_stages_told() {
         }
     }
     assert_eq!(done, stages);
+    // Clearing the controller's alarm is for someone at the machine, unless the server says.
+    let unlock = ws.call(
+        "job",
+        json!({ "plan": PLATE, "format": "svg", "unlock": true }),
+    );
+    assert_eq!(code(&unlock), -32602, "{unlock}");
+    assert!(
+        unlock["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("--allow-unlock"),
+        "{unlock}"
+    );
     // Without --cutter, and with a bad plan, it is refused before anything moves.
     let plain = Server::sim(false);
     let refused = plain

@@ -34,12 +34,14 @@ use tokio::sync::{broadcast, oneshot};
 
 use kerfmeter::job::{JobEvent, Stage};
 
+use super::Cutter;
 use super::plans::{JobCall, job_answer};
 use super::rpc::{Caller, NOT_CONNECTED, RpcError, notification};
-use crate::commands::run::{RunReport, measure_on};
+use crate::commands::run::RunReport;
 use crate::commands::{Done, info, job, self_test, status};
 use crate::connection::{Global, Session};
 use crate::error::CliError;
+use crate::output::ResultJson;
 use crate::record::{Measured, record};
 
 /// The shortest time between two `progress` notifications of the same state.
@@ -126,7 +128,7 @@ struct Shared {
     /// Notifications to every client, as JSON-RPC text.
     events: broadcast::Sender<Arc<str>>,
     /// The cutter `job` runs on (`serve --cutter`), if any.
-    cutter: Option<String>,
+    cutter: Option<Cutter>,
     /// The flags the device was opened with (the history's database among them).
     global: Global,
 }
@@ -169,7 +171,7 @@ pub struct Device {
 impl Device {
     /// Open the device as `g` says and start its thread; the thread ends when every handle is
     /// dropped, after the call it is doing.
-    pub fn start(g: Global, cutter: Option<String>) -> (Device, JoinHandle<()>) {
+    pub fn start(g: Global, cutter: Option<Cutter>) -> (Device, JoinHandle<()>) {
         let (events, _) = broadcast::channel(EVENTS_BACKLOG);
         let shared = Arc::new(Shared {
             gate: Mutex::new(()),
@@ -196,8 +198,8 @@ impl Device {
     }
 
     /// The cutter `job` runs on, if the server was given one.
-    pub fn cutter(&self) -> Option<&str> {
-        self.shared.cutter.as_deref()
+    pub fn cutter(&self) -> Option<&Cutter> {
+        self.shared.cutter.as_ref()
     }
 
     /// The flags the server was started with.
@@ -476,7 +478,7 @@ fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliErr
     Ok(match call {
         Call::Info => to_value(&info::report(s)?),
         Call::Status => to_value(&status::StatusReport::from(s.meter.status()?)),
-        Call::Kerf => to_value(&s.meter.get_kerf_value()?),
+        Call::Kerf => to_value(&s.meter.get_kerf_value()?.as_ref().map(ResultJson::from)),
         Call::Reset => {
             s.meter.reset_kerfmeter_until(|_| shared.stop_requested())?;
             json!({ "reset": true })
@@ -522,8 +524,7 @@ fn measure_and_report(
     shared: &Shared,
 ) -> Result<ServedRun, CliError> {
     let mut throttle = Throttle::default();
-    let measurement = measure_on(
-        s,
+    let measurement = s.meter.measure_until(
         &run.params,
         run.samples,
         |_| Ok(()),
