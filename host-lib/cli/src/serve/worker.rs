@@ -20,6 +20,7 @@
 //!   boot id) is noticed without a client asking.
 
 use std::ops::ControlFlow;
+use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -36,7 +37,7 @@ use kerfmeter::job::{JobEvent, Stage};
 
 use super::Cutter;
 use super::plans::{JobCall, job_answer};
-use super::rpc::{Caller, NOT_CONNECTED, RpcError, notification};
+use super::rpc::{Caller, INTERNAL_ERROR, NOT_CONNECTED, RpcError, notification};
 use crate::commands::run::RunReport;
 use crate::commands::{Done, info, job, self_test, status};
 use crate::connection::{Global, Session};
@@ -350,7 +351,8 @@ impl Worker {
     fn serve(&mut self, job: Job) {
         let long = job.call.is_long();
         let run = job.call.measures();
-        let reply = self.reply(job.call, job.by);
+        let call = AssertUnwindSafe(|| self.reply(job.call, job.by));
+        let reply = std::panic::catch_unwind(call).unwrap_or_else(|_| self.after_panic());
         if long {
             self.shared.busy.store(false, Ordering::SeqCst);
         }
@@ -363,6 +365,19 @@ impl Worker {
             self.shared.notify("run_finished", finished);
         }
         let _ = job.reply.send(reply);
+    }
+
+    /// A call panicked (a bug; the panic message is on stderr): whatever the device was doing, its
+    /// motor stops, and it is opened afresh for the next call, its session's state being
+    /// unknown. The server goes on serving: its thread is the only one that can stop the motor.
+    fn after_panic(&mut self) -> Reply {
+        if let Some(s) = &mut self.session {
+            let _ = s.meter.abort();
+        }
+        self.session = None;
+        let why = "the server failed inside this call (a bug: please report it with the message \
+                   it printed); the device was told to stop";
+        Err(RpcError::new(INTERNAL_ERROR, why))
     }
 
     /// The answer to `call`.
