@@ -331,6 +331,7 @@ function showMeasurement(r) {
     `At ${fmt(r.force_n)} N, ${fmt(r.thickness_mm)} mm sheet${r.label ? `, label “${r.label}”` : ""}.`,
   ];
   if (s.outliers?.length) lines.push(`Outliers: gauge ${s.outliers.map((i) => i + 1).join(", ")}.`);
+  if (r.curve_error) lines.push(`The curve could not be read: ${r.curve_error}.`);
   const flagged = (r.runs ?? []).filter((run) => flagNames(run.flag_names ?? run.flags).length);
   for (const run of flagged) lines.push(`Run ${run.run_id}: ${flagNames(run.flag_names ?? run.flags).join(", ")}.`);
   showKerf(r.kerf_um, lines, r.runs?.at(-1)?.run_id);

@@ -104,6 +104,13 @@ pub struct RunReport {
     /// On the simulated device, each run's truth, µm, in the order of `runs`.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub sim_truths_um: Vec<f64>,
+    /// Why the curve could not be read or drawn after the measurement (which stands, and is
+    /// recorded); the command then fails after printing the report.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub curve_error: Option<String>,
+    /// The category of that failure, for the exit code.
+    #[serde(skip)]
+    pub curve_error_category: Option<kerfmeter::Category>,
     /// What the simulated device was told to cut, for the text output.
     #[serde(skip)]
     pub sim: Option<SimNote>,
@@ -138,9 +145,13 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
         },
     );
     let last = measurement.runs.last().copied();
-    let kerf_at_force_um = read_curve(&mut s, args, &params, last.as_ref())?;
+    let curve = read_curve(&mut s, args, &params, last.as_ref());
     let mut report = RunReport::new(&s, &params, measurement);
-    report.kerf_at_force_um = kerf_at_force_um;
+    match curve {
+        Ok(kerf_at_force_um) => report.kerf_at_force_um = kerf_at_force_um,
+        // The kerf is measured and recorded: show it, then fail for the curve.
+        Err(e) => report.curve_failed(&e),
+    }
     report.plot.clone_from(&args.plot);
     report.label.clone_from(&args.label);
     report.history = Some(history);
@@ -180,8 +191,16 @@ impl RunReport {
             thickness_mm: params.thickness_mm,
             sim_truth_um,
             sim_truths_um,
+            curve_error: None,
+            curve_error_category: None,
             sim,
         }
+    }
+
+    /// Note that the curve could not be read or drawn after the measurement.
+    pub fn curve_failed(&mut self, e: &CliError) {
+        self.curve_error = Some(e.to_string());
+        self.curve_error_category = Some(e.category());
     }
 }
 
@@ -306,4 +325,14 @@ impl fmt::Display for SimNote {
 
 impl Report for RunReport {
     const JSON: JsonLayout = JsonLayout::PrettySorted;
+
+    fn verdict(&self) -> Result<(), CliError> {
+        match (&self.curve_error, self.curve_error_category) {
+            (Some(message), Some(category)) => Err(CliError::AfterMeasuring {
+                message: message.clone(),
+                category,
+            }),
+            _ => Ok(()),
+        }
+    }
 }

@@ -518,8 +518,8 @@ pub struct ServedRun {
     /// The report, its fields at the top level (`kerf_um`, `summary`, `runs`, ...).
     #[serde(flatten)]
     pub report: RunReport,
-    /// The last run's curve.
-    pub curve: CurvePoints,
+    /// The last run's curve (`null`, with `curve_error`, when it could not be read).
+    pub curve: Option<CurvePoints>,
 }
 
 /// A run's curve as `[torque_nm, angle_deg]` pairs, oldest first.
@@ -564,22 +564,26 @@ fn measure_and_report(
             runs: &measurement.runs,
         },
     );
-    let curve = s.meter.curve()?;
-    let points = curve
-        .samples
-        .iter()
-        .map(|x| [x.torque_nm, x.angle_deg])
-        .collect();
+    let curve = s.meter.curve().map_err(CliError::from);
     let mut report = RunReport::new(s, &run.params, measurement);
     report.label.clone_from(&run.label);
     report.history = Some(history);
-    Ok(ServedRun {
-        report,
-        curve: CurvePoints {
+    // The kerf is measured and recorded: a curve that cannot be read does not hide it.
+    let curve = match curve {
+        Ok(curve) => Some(CurvePoints {
             run_id: curve.run_id,
-            points,
-        },
-    })
+            points: curve
+                .samples
+                .iter()
+                .map(|x| [x.torque_nm, x.angle_deg])
+                .collect(),
+        }),
+        Err(e) => {
+            report.curve_failed(&e);
+            None
+        }
+    };
+    Ok(ServedRun { report, curve })
 }
 
 /// Lets a `progress` notification through at most once per [`PROGRESS_INTERVAL`], and at every
