@@ -658,6 +658,9 @@ fn a_device_that_vanishes_is_reported_and_reopened_when_it_comes_back() {
     assert!(result(&info)["boot_id"].is_u64(), "{info}");
     let run = ws.call("run_kerfmeter", json!({}));
     assert!(result(&run)["kerf_um"].is_number(), "{run}");
+    // The twin behind a PTY is still the twin: its measurement is not a real one.
+    let real = ws.call("history", json!({}));
+    assert_eq!(result(&real)["records"], json!([]), "{real}");
     drop(server);
     let _ = twin.kill();
     let _ = twin.wait();
