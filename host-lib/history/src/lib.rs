@@ -48,7 +48,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use rusqlite::{Connection, OptionalExtension, Row, params};
+use rusqlite::{Connection, OpenFlags, OptionalExtension, Row, params};
 use serde::Serialize;
 
 pub mod drift;
@@ -167,6 +167,34 @@ impl History {
         conn.pragma_update(None, "synchronous", "FULL")
             .map_err(sql)?;
         schema::migrate(&mut conn, path)?;
+        Ok(History {
+            conn,
+            path: path.to_owned(),
+        })
+    }
+
+    /// Open the database at `path` only to read it: nothing is created and no write lock is
+    /// taken, so a listing never waits for a writer and works on a database the user may only
+    /// read (a shared one, a read-only mount). One that does not exist yet reads as empty; a
+    /// newer or foreign one is refused as [`History::open`] refuses it. One that needs a
+    /// migration, or a recovery after a crash (its journal left behind), is opened by
+    /// [`History::open`], which can do them.
+    pub fn open_to_read(path: &Path) -> Result<History, Error> {
+        let sql = |source| Error::sqlite(path, source);
+        let conn = if path.exists() {
+            let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+            let conn = Connection::open_with_flags(path, flags).map_err(sql)?;
+            conn.busy_timeout(Duration::from_secs(5)).map_err(sql)?;
+            match schema::readable(&conn, path) {
+                Ok(true) => conn,
+                Ok(false) | Err(Error::Sqlite { .. }) => return History::open(path),
+                Err(e) => return Err(e),
+            }
+        } else {
+            let mut empty = Connection::open_in_memory().map_err(sql)?;
+            schema::migrate(&mut empty, path)?;
+            empty
+        };
         Ok(History {
             conn,
             path: path.to_owned(),

@@ -139,7 +139,39 @@ fn a_database_from_a_newer_version_is_refused_untouched() {
     ] {
         assert!(text.contains(&words), "{words}: {text}");
     }
+    let err = History::open_to_read(&db)
+        .err()
+        .expect("refused to read too");
+    assert!(matches!(err, Error::NewerSchema { .. }), "{err}");
     assert_eq!(std::fs::read(&db).unwrap(), before);
+}
+
+#[test]
+fn reading_creates_nothing_and_never_waits_for_a_writer() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("not/yet/h.sqlite3");
+    let empty = History::open_to_read(&db).unwrap();
+    assert!(empty.list(&all(None, false)).unwrap().is_empty());
+    assert!(!dir.path().join("not").exists(), "nothing created to read");
+    drop(empty);
+
+    let mut h = History::open(&db).unwrap();
+    h.record(&measurement(Some("birch"), 150.0, false)).unwrap();
+    // Another program is writing: its transaction holds the write lock, uncommitted.
+    let writer = rusqlite::Connection::open(&db).unwrap();
+    writer
+        .execute_batch("BEGIN IMMEDIATE; DELETE FROM measurements;")
+        .unwrap();
+    let listing = History::open_to_read(&db)
+        .unwrap()
+        .listing(&all(None, false));
+    let records = listing.expect("read beside the writer").records;
+    assert_eq!(
+        records.len(),
+        1,
+        "the committed record, not the writer's change"
+    );
+    writer.execute_batch("ROLLBACK").unwrap();
 }
 
 #[test]

@@ -47,7 +47,7 @@ pub fn list(g: &Global, label: Option<String>, limit: u32) -> Result<HistoryRepo
     let db = g.db_path()?;
     // Listing creates nothing: no file yet is an empty history.
     let listing = if db.exists() {
-        History::open(&db)?.listing(&Query {
+        History::open_to_read(&db)?.listing(&Query {
             label,
             limit: Some(limit as usize),
             simulated: g.sim,
