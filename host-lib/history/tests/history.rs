@@ -139,9 +139,9 @@ fn a_database_from_a_newer_version_is_refused_untouched() {
     ] {
         assert!(text.contains(&words), "{words}: {text}");
     }
-    let err = History::open_to_read(&db)
-        .err()
-        .expect("refused to read too");
+    let Err(err) = History::open_to_read(&db) else {
+        panic!("refused to read too");
+    };
     assert!(matches!(err, Error::NewerSchema { .. }), "{err}");
     assert_eq!(std::fs::read(&db).unwrap(), before);
 }
