@@ -44,6 +44,15 @@ pub enum CliError {
     /// LightBurn's REST API refused or could not be reached.
     #[error(transparent)]
     LightBurn(#[from] LightBurnError),
+    /// The measurement stands (printed, and recorded) but what was asked after it failed (the
+    /// curve, its plot).
+    #[error("{message} (the kerf above is measured and recorded)")]
+    AfterMeasuring {
+        /// What failed.
+        message: String,
+        /// Its kind, for the exit code.
+        category: Category,
+    },
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
@@ -59,6 +68,7 @@ impl CliError {
             CliError::Plan(e) if e.path().is_some() => Category::File,
             CliError::Plan(_) => Category::Usage,
             CliError::SelfTestFailed => Category::Device,
+            CliError::AfterMeasuring { category, .. } => *category,
             CliError::Cutter(e) => e.category(),
             CliError::Job(e) => e.category(),
             CliError::History(kerfmeter_history::Error::Invalid(_))
@@ -77,6 +87,7 @@ impl CliError {
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
+            | CliError::AfterMeasuring { .. }
             | CliError::Cutter(_)
             | CliError::Job(_)
             | CliError::History(_)
@@ -91,6 +102,7 @@ impl CliError {
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
+            | CliError::AfterMeasuring { .. }
             | CliError::Cutter(_)
             | CliError::Job(_)
             | CliError::History(_)

@@ -166,10 +166,10 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::History(args) => emit(json, &history::run(g, args)?),
         Command::Serve(args) => emit(json, &commands::serve::run(g, args)?),
         Command::Lightburn(lightburn::LightBurnCommand::Pair(args)) => {
-            emit(json, &lightburn::pair(args)?)
+            emit(json, &lightburn::pair(args, g.sim)?)
         }
         Command::Lightburn(lightburn::LightBurnCommand::Apply(args)) => {
-            emit(json, &lightburn::apply(args)?)
+            emit(json, &lightburn::apply(args, g.sim)?)
         }
         Command::Job(args) => match job::run(g, args)? {
             job::JobOutcome::Done(report) => emit(json, report.as_ref()),

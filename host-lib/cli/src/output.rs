@@ -79,6 +79,39 @@ pub struct ErrorReport {
     pub conditions: Vec<&'static str>,
 }
 
+/// A kerf result as JSON: the device's own fields (`flags` as its bits), and `flag_names`, the
+/// flags by name (`weak-magnet`, `force-sensitive`, ...) for readers that do not know the bits.
+#[derive(Serialize)]
+pub struct ResultJson<'a> {
+    /// The device's result.
+    #[serde(flatten)]
+    result: &'a KerfResult,
+    /// Its quality flags by name; empty when it has none.
+    flag_names: Vec<&'static str>,
+}
+
+impl<'a> From<&'a KerfResult> for ResultJson<'a> {
+    fn from(result: &'a KerfResult) -> Self {
+        ResultJson {
+            result,
+            flag_names: result.flags.names().collect(),
+        }
+    }
+}
+
+/// `serialize_with` for a list of results: each as [`ResultJson`].
+pub fn results_json<S: serde::Serializer>(runs: &[KerfResult], s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq(runs.iter().map(ResultJson::from))
+}
+
+/// `serialize_with` for a result that may be missing: as [`ResultJson`], or `null`.
+pub fn result_json<S: serde::Serializer>(
+    result: &Option<KerfResult>,
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    result.as_ref().map(ResultJson::from).serialize(s)
+}
+
 /// The table of kerf results that `run` and `kerf` print.
 pub struct ResultsTable<'a>(pub &'a [KerfResult]);
 

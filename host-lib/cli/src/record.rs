@@ -92,9 +92,14 @@ pub fn record(g: &Global, meter: &Kerfmeter, simulated: bool, m: &Measured<'_>) 
     }
 }
 
+/// The board name the digital twin gives in `GetInfo`, in process or behind a PTY
+/// (`kerfmeter-twin`): its measurements are simulated wherever they come from.
+const TWIN_BOARD: &str = "twin";
+
 /// The record of `m`.
 fn new_record(meter: &Kerfmeter, simulated: bool, m: &Measured<'_>) -> NewRecord {
     let info = meter.cached_info();
+    let simulated = simulated || info.hardware.board.as_str() == TWIN_BOARD;
     let v = info.firmware;
     let mut flags: Vec<String> = Vec::new();
     for name in m.runs.iter().flat_map(|r| r.flags.names()) {

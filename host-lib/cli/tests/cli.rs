@@ -311,6 +311,42 @@ fn the_simulated_plant_is_set_by_name_file_and_material_and_checked() {
 }
 
 #[test]
+fn a_plot_that_cannot_be_written_does_not_hide_the_measured_kerf() {
+    let out = kerfmeter(&[
+        "--sim",
+        "--json",
+        "run",
+        "--plot",
+        "/nonexistent-kerfmeter-dir/curve.svg",
+    ]);
+    assert_ne!(code(&out), 0, "the plot was asked for and not made");
+    // The report, then the error's own JSON.
+    let text = stdout(&out);
+    let mut documents = serde_json::Deserializer::from_str(&text).into_iter::<serde_json::Value>();
+    let json = documents.next().unwrap().unwrap();
+    let error = documents.next().unwrap().unwrap();
+    assert!(
+        error["error"]
+            .as_str()
+            .unwrap()
+            .contains("measured and recorded")
+    );
+    assert!(json["kerf_um"].as_f64().unwrap() > 0.0, "{json}");
+    assert!(json["curve_error"].is_string(), "{json}");
+}
+
+#[test]
+fn a_flagged_result_names_its_flags_in_the_json() {
+    // A magnet glued a little too far: every reading is flagged `weak-magnet`.
+    let out = kerfmeter(&["--sim", "--json", "--sim-plant", "magnet_agc=225", "run"]);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    let run = &json["runs"][0];
+    assert_ne!(run["flags"], 0, "{json}");
+    let names = run["flag_names"].as_array().expect("flag_names");
+    assert!(names.iter().any(|n| n == "weak-magnet"), "{json}");
+}
+
+#[test]
 fn the_twin_binary_lists_and_checks_its_plant() {
     let twin = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_kerfmeter-twin"))

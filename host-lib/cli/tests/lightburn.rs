@@ -184,3 +184,38 @@ fn a_compensated_project_is_refused_until_told_to_replace_its_offsets() {
     assert!(text(&out.stdout).contains("line pass 0.08 → 0.075 mm"));
     assert!(text(&out.stdout).contains("replaced by this kerf's"));
 }
+
+#[test]
+fn sim_pairs_with_and_applies_to_a_lightburn_twin_and_keeps_no_secret() {
+    let dir = tempfile::tempdir().unwrap();
+    let pairing = dir.path().join("lightburn.json");
+    let with_pairing = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+            .args(args)
+            .env("KERFMETER_LIGHTBURN_PAIRING", &pairing)
+            .output()
+            .expect("the kerfmeter binary runs")
+    };
+    let out = with_pairing(&["--sim", "lightburn", "pair"]);
+    assert_eq!(code(&out), 0, "{}", text(&out.stderr));
+    assert!(text(&out.stdout).contains("paired with the LightBurn twin"));
+    let out = with_pairing(&["--sim", "--json", "lightburn", "apply", "--kerf-um", "150"]);
+    assert_eq!(code(&out), 0, "{}", text(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["simulated"], true, "{json}");
+    assert_eq!(json["kerf_offset"], 0.075, "{json}");
+    assert_eq!(json["layers"].as_array().unwrap().len(), 2, "{json}");
+    assert!(!pairing.exists(), "a simulated pairing is not kept");
+    // The twin is the twin: a real LightBurn's address does not go with --sim.
+    let out = with_pairing(&[
+        "--sim",
+        "lightburn",
+        "apply",
+        "--kerf-um",
+        "150",
+        "--host",
+        "h:1",
+    ]);
+    assert_eq!(code(&out), 2, "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("--host"));
+}

@@ -658,6 +658,9 @@ fn a_device_that_vanishes_is_reported_and_reopened_when_it_comes_back() {
     assert!(result(&info)["boot_id"].is_u64(), "{info}");
     let run = ws.call("run_kerfmeter", json!({}));
     assert!(result(&run)["kerf_um"].is_number(), "{run}");
+    // The twin behind a PTY is still the twin: its measurement is not a real one.
+    let real = ws.call("history", json!({}));
+    assert_eq!(result(&real)["records"], json!([]), "{real}");
     drop(server);
     let _ = twin.kill();
     let _ = twin.wait();
@@ -854,6 +857,19 @@ fn a_job_runs_on_the_servers_cutter_with_its_stages_told() {
         }
     }
     assert_eq!(done, stages);
+    // Clearing the controller's alarm is for someone at the machine, unless the server says.
+    let unlock = ws.call(
+        "job",
+        json!({ "plan": PLATE, "format": "svg", "unlock": true }),
+    );
+    assert_eq!(code(&unlock), -32602, "{unlock}");
+    assert!(
+        unlock["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("--allow-unlock"),
+        "{unlock}"
+    );
     // Without --cutter, and with a bad plan, it is refused before anything moves.
     let plain = Server::sim(false);
     let refused = plain

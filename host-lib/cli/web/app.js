@@ -16,6 +16,20 @@ class RpcError extends Error {
   }
 }
 
+/** The server's token, if it wants one. Given once as /?token=…, it is kept for this tab only
+ * (sessionStorage) and taken out of the address bar, so that it is not left in the history,
+ * bookmarks or a screenshot of the page. */
+const token = (() => {
+  const url = new URL(location.href);
+  const given = url.searchParams.get("token");
+  if (given) {
+    sessionStorage.setItem("kerfmeter-token", given);
+    url.searchParams.delete("token");
+    history.replaceState(null, "", url.pathname + url.search + url.hash);
+  }
+  return sessionStorage.getItem("kerfmeter-token");
+})();
+
 const METHOD_NOT_FOUND = -32601;
 const BUSY = -32001;
 
@@ -26,9 +40,9 @@ const rpc = {
   handlers: {},
   retryMs: 500,
 
-  /** ws://HOST/rpc, with the page's own ?token= passed on. */
+  /** ws://HOST/rpc, with the page's token passed on (a browser cannot set a WebSocket's
+   * headers). */
   url() {
-    const token = new URLSearchParams(location.search).get("token");
     const scheme = location.protocol === "https:" ? "wss:" : "ws:";
     return `${scheme}//${location.host}/rpc` + (token ? `?token=${encodeURIComponent(token)}` : "");
   },
@@ -54,9 +68,8 @@ const rpc = {
   /** A browser does not say why a WebSocket was refused: ask over HTTP whether a token is
    * missing, and say so instead of only "unreachable". */
   async explainRefusal() {
-    const token = new URLSearchParams(location.search).get("token");
     try {
-      const reply = await fetch(`/api/status${token ? `?token=${encodeURIComponent(token)}` : ""}`);
+      const reply = await fetch("/api/status", { headers: authorization() });
       if (reply.status === 401) {
         setLink("disconnected", "Refused: this server wants a token (open the page as /?token=TOKEN)");
       }
@@ -113,6 +126,11 @@ const rpc = {
     });
   },
 };
+
+/** The headers that carry the token to the HTTP API. */
+function authorization() {
+  return token ? { Authorization: `Bearer ${token}` } : {};
+}
 
 /* ---------- Messages ---------- */
 
@@ -313,8 +331,9 @@ function showMeasurement(r) {
     `At ${fmt(r.force_n)} N, ${fmt(r.thickness_mm)} mm sheet${r.label ? `, label “${r.label}”` : ""}.`,
   ];
   if (s.outliers?.length) lines.push(`Outliers: gauge ${s.outliers.map((i) => i + 1).join(", ")}.`);
-  const flagged = (r.runs ?? []).filter((run) => flagNames(run.flags).length);
-  for (const run of flagged) lines.push(`Run ${run.run_id}: ${flagNames(run.flags).join(", ")}.`);
+  if (r.curve_error) lines.push(`The curve could not be read: ${r.curve_error}.`);
+  const flagged = (r.runs ?? []).filter((run) => flagNames(run.flag_names ?? run.flags).length);
+  for (const run of flagged) lines.push(`Run ${run.run_id}: ${flagNames(run.flag_names ?? run.flags).join(", ")}.`);
   showKerf(r.kerf_um, lines, r.runs?.at(-1)?.run_id);
 }
 
@@ -337,6 +356,8 @@ function showKerf(kerfUm, lines, runId) {
 }
 
 /** Quality flags as names: the JSON may carry a list of names, or the raw bit set. */
+/** A result's or a record's quality flags by name: `flag_names` on a device result (its `flags`
+ * are bits), `flags` on a history record. */
 function flagNames(flags) {
   if (Array.isArray(flags)) return flags;
   if (typeof flags === "number" && flags !== 0) return [`flags 0x${flags.toString(16)}`];
@@ -352,9 +373,16 @@ async function showLastKerf() {
   }
 }
 
+/** Stop the motor: over the WebSocket, or, when it is down (the reason to press Abort may be
+ * the one that broke it), by the HTTP API's POST /api/abort. */
 function abort() {
   guarded(async () => {
-    await rpc.call("abort");
+    if (rpc.ws?.readyState === WebSocket.OPEN) {
+      await rpc.call("abort");
+    } else {
+      const reply = await fetch("/api/abort", { method: "POST", headers: authorization() });
+      if (!reply.ok) throw new Error(`the server refused to abort (HTTP ${reply.status})`);
+    }
     $("progress").textContent = "Aborted.";
   });
 }

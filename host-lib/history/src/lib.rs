@@ -48,7 +48,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use rusqlite::{Connection, OptionalExtension, Row, params};
+use rusqlite::{Connection, OpenFlags, OptionalExtension, Row, params};
 use serde::Serialize;
 
 pub mod drift;
@@ -66,7 +66,7 @@ pub const MAX_LABEL_CHARS: usize = 200;
 const HARMLESS_FLAG: &str = "decimated";
 
 /// A measurement to record.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NewRecord {
     /// What identifies the device (its board and serial number, or `twin`).
     pub device_id: String,
@@ -88,31 +88,17 @@ pub struct NewRecord {
     pub simulated: bool,
 }
 
-/// A recorded measurement; its JSON is the server's `history` record.
+/// A recorded measurement; its JSON is the server's `history` record: `id`, `time` and the
+/// measurement's fields side by side.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Record {
     /// Its id in the database (increasing in commit order).
     pub id: i64,
     /// When it was recorded, RFC 3339 in UTC.
     pub time: String,
-    /// What identifies the device.
-    pub device_id: String,
-    /// Its firmware version.
-    pub firmware: String,
     /// What was measured.
-    pub label: Option<String>,
-    /// Sheet thickness, mm.
-    pub thickness_mm: f64,
-    /// Joint force, N.
-    pub force_n: f64,
-    /// The kerf, µm.
-    pub kerf_um: f64,
-    /// Half-width of the 95 % confidence interval, µm.
-    pub ci95_um: Option<f64>,
-    /// Quality flags, by name.
-    pub flags: Vec<String>,
-    /// Measured by the simulated device.
-    pub simulated: bool,
+    #[serde(flatten)]
+    pub measurement: NewRecord,
 }
 
 /// Which records to list.
@@ -181,6 +167,34 @@ impl History {
         conn.pragma_update(None, "synchronous", "FULL")
             .map_err(sql)?;
         schema::migrate(&mut conn, path)?;
+        Ok(History {
+            conn,
+            path: path.to_owned(),
+        })
+    }
+
+    /// Open the database at `path` only to read it: nothing is created and no write lock is
+    /// taken, so a listing never waits for a writer and works on a database the user may only
+    /// read (a shared one, a read-only mount). One that does not exist yet reads as empty; a
+    /// newer or foreign one is refused as [`History::open`] refuses it. One that needs a
+    /// migration, or a recovery after a crash (its journal left behind), is opened by
+    /// [`History::open`], which can do them.
+    pub fn open_to_read(path: &Path) -> Result<History, Error> {
+        let sql = |source| Error::sqlite(path, source);
+        let conn = if path.exists() {
+            let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+            let conn = Connection::open_with_flags(path, flags).map_err(sql)?;
+            conn.busy_timeout(Duration::from_secs(5)).map_err(sql)?;
+            match schema::readable(&conn, path) {
+                Ok(true) => conn,
+                Ok(false) | Err(Error::Sqlite { .. }) => return History::open(path),
+                Err(e) => return Err(e),
+            }
+        } else {
+            let mut empty = Connection::open_in_memory().map_err(sql)?;
+            schema::migrate(&mut empty, path)?;
+            empty
+        };
         Ok(History {
             conn,
             path: path.to_owned(),
@@ -269,7 +283,7 @@ impl History {
         let mut drift = Vec::new();
         let mut seen: Vec<&str> = Vec::new();
         for r in &records {
-            let Some(label) = r.label.as_deref() else {
+            let Some(label) = r.measurement.label.as_deref() else {
                 continue;
             };
             if seen.contains(&label) {
@@ -308,27 +322,35 @@ impl History {
     /// No drift for an unlabelled record, nor for an untrusted one (flagged other than
     /// `decimated`): a flagged run's kerf says more about that run (a slip, a jam missed) than
     /// about the cutter, so a drift warning on it would blame the cutter for a bad measurement;
-    /// its flags already say it is suspect.
+    /// its flags already say it is suspect. The baseline is the label's trusted records at the
+    /// same thickness and force: the kerf a run measures grows as the force squeezes the
+    /// contact, so a record at another force is not the same measurement.
     fn drift_of(&self, record: &Record) -> Result<Option<Drift>, Error> {
-        let Some(label) = record.label.as_deref() else {
+        let m = &record.measurement;
+        let Some(label) = m.label.as_deref() else {
             return Ok(None);
         };
-        if !trusted(record) {
+        if !trusted(m) {
             return Ok(None);
         }
         let mut stmt = self
             .conn
             .prepare_cached(&format!(
                 "SELECT {COLUMNS} FROM measurements
-                 WHERE simulated = ?1 AND label = ?2 AND id < ?3 ORDER BY id DESC"
+                 WHERE simulated = ?1 AND label = ?2 AND id < ?3
+                   AND abs(thickness_mm - ?4) < 1e-9 AND abs(force_n - ?5) < 1e-9
+                 ORDER BY id DESC"
             ))
             .map_err(|e| self.sql(e))?;
         let mut baseline = Vec::with_capacity(drift::BASELINE_RECORDS);
         let rows = stmt
-            .query_map(params![record.simulated, label, record.id], read_record)
+            .query_map(
+                params![m.simulated, label, record.id, m.thickness_mm, m.force_n],
+                read_record,
+            )
             .map_err(|e| self.sql(e))?;
         for row in rows {
-            let r = row.map_err(|e| self.sql(e))?;
+            let r = row.map_err(|e| self.sql(e))?.measurement;
             if trusted(&r) {
                 baseline.push(r.kerf_um);
                 if baseline.len() == drift::BASELINE_RECORDS {
@@ -336,12 +358,12 @@ impl History {
                 }
             }
         }
-        Ok(drift::drift(label, record.kerf_um, &baseline))
+        Ok(drift::drift(label, m.kerf_um, &baseline))
     }
 }
 
 /// Whether a record is trusted: flagged with nothing but [`HARMLESS_FLAG`].
-fn trusted(record: &Record) -> bool {
+fn trusted(record: &NewRecord) -> bool {
     record.flags.iter().all(|f| f == HARMLESS_FLAG)
 }
 
@@ -357,15 +379,17 @@ fn read_record(row: &Row<'_>) -> rusqlite::Result<Record> {
     Ok(Record {
         id: row.get(0)?,
         time: row.get(1)?,
-        device_id: row.get(2)?,
-        firmware: row.get(3)?,
-        label: row.get(4)?,
-        thickness_mm: row.get(5)?,
-        force_n: row.get(6)?,
-        kerf_um: row.get(7)?,
-        ci95_um: row.get(8)?,
-        flags,
-        simulated: row.get(10)?,
+        measurement: NewRecord {
+            device_id: row.get(2)?,
+            firmware: row.get(3)?,
+            label: row.get(4)?,
+            thickness_mm: row.get(5)?,
+            force_n: row.get(6)?,
+            kerf_um: row.get(7)?,
+            ci95_um: row.get(8)?,
+            flags,
+            simulated: row.get(10)?,
+        },
     })
 }
 

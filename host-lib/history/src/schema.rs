@@ -34,15 +34,18 @@ const MIGRATIONS: &[&str] = &[
 /// The schema version this build writes (and the newest it can read).
 pub const SCHEMA_VERSION: i64 = MIGRATIONS.len() as i64;
 
-/// Bring the database at `path` (open as `conn`) up to [`SCHEMA_VERSION`].
-pub fn migrate(conn: &mut Connection, path: &Path) -> Result<(), Error> {
+/// Whether the database at `path` (open as `conn`, perhaps read-only) can be read as it is:
+/// `false` when it needs a migration first (an empty file, an older version); refused when it is
+/// newer or foreign, as by [`migrate`].
+pub fn readable(conn: &Connection, path: &Path) -> Result<bool, Error> {
+    Ok(version(conn, path)? == SCHEMA_VERSION)
+}
+
+/// The schema version of the database at `path` (open as `conn`); refused when it is newer than
+/// this build's, or when it holds tables but no version (not a Kerfmeter history).
+fn version(conn: &Connection, path: &Path) -> Result<i64, Error> {
     let sql = |source| Error::sqlite(path, source);
-    // IMMEDIATE: the write lock is taken before the version is read, so two processes opening
-    // a new database at once cannot both migrate it.
-    let tx = conn
-        .transaction_with_behavior(TransactionBehavior::Immediate)
-        .map_err(sql)?;
-    let found: i64 = tx
+    let found: i64 = conn
         .query_row("PRAGMA user_version", [], |r| r.get(0))
         .map_err(sql)?;
     if found > SCHEMA_VERSION {
@@ -53,7 +56,7 @@ pub fn migrate(conn: &mut Connection, path: &Path) -> Result<(), Error> {
         });
     }
     if found == 0 {
-        let tables: i64 = tx
+        let tables: i64 = conn
             .query_row("SELECT count(*) FROM sqlite_master", [], |r| r.get(0))
             .map_err(sql)?;
         if tables > 0 {
@@ -62,6 +65,18 @@ pub fn migrate(conn: &mut Connection, path: &Path) -> Result<(), Error> {
             });
         }
     }
+    Ok(found)
+}
+
+/// Bring the database at `path` (open as `conn`) up to [`SCHEMA_VERSION`].
+pub fn migrate(conn: &mut Connection, path: &Path) -> Result<(), Error> {
+    let sql = |source| Error::sqlite(path, source);
+    // IMMEDIATE: the write lock is taken before the version is read, so two processes opening
+    // a new database at once cannot both migrate it.
+    let tx = conn
+        .transaction_with_behavior(TransactionBehavior::Immediate)
+        .map_err(sql)?;
+    let found = version(&tx, path)?;
     for (from, step) in MIGRATIONS.iter().enumerate().skip(found as usize) {
         tx.execute_batch(step).map_err(sql)?;
         tx.pragma_update(None, "user_version", from as i64 + 1)

@@ -43,17 +43,21 @@ fn records_persist_newest_first_and_the_simulated_ones_apart() {
     }
     let h = History::open(&db).unwrap();
     let real = h.list(&all(None, false)).unwrap();
-    let kerfs: Vec<f64> = real.iter().map(|r| r.kerf_um).collect();
+    let kerfs: Vec<f64> = real.iter().map(|r| r.measurement.kerf_um).collect();
     assert_eq!(kerfs, [160.0, 170.0, 150.0]);
-    assert!(real.iter().all(|r| !r.simulated));
+    assert!(real.iter().all(|r| !r.measurement.simulated));
     let birch = h.list(&all(Some("birch"), false)).unwrap();
     assert_eq!(birch.len(), 1);
-    assert_eq!(birch[0].ci95_um, Some(4.5));
-    assert_eq!(birch[0].firmware, "1.2.3");
+    assert_eq!(birch[0].measurement.ci95_um, Some(4.5));
+    assert_eq!(birch[0].measurement.firmware, "1.2.3");
     check_utc_time(&birch[0].time);
     let sim = h.list(&all(None, true)).unwrap();
     assert_eq!(
-        (sim.len(), sim[0].kerf_um, sim[0].simulated),
+        (
+            sim.len(),
+            sim[0].measurement.kerf_um,
+            sim[0].measurement.simulated
+        ),
         (1, 999.0, true)
     );
     let limited = h
@@ -135,7 +139,39 @@ fn a_database_from_a_newer_version_is_refused_untouched() {
     ] {
         assert!(text.contains(&words), "{words}: {text}");
     }
+    let Err(err) = History::open_to_read(&db) else {
+        panic!("refused to read too");
+    };
+    assert!(matches!(err, Error::NewerSchema { .. }), "{err}");
     assert_eq!(std::fs::read(&db).unwrap(), before);
+}
+
+#[test]
+fn reading_creates_nothing_and_never_waits_for_a_writer() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("not/yet/h.sqlite3");
+    let empty = History::open_to_read(&db).unwrap();
+    assert!(empty.list(&all(None, false)).unwrap().is_empty());
+    assert!(!dir.path().join("not").exists(), "nothing created to read");
+    drop(empty);
+
+    let mut h = History::open(&db).unwrap();
+    h.record(&measurement(Some("birch"), 150.0, false)).unwrap();
+    // Another program is writing: its transaction holds the write lock, uncommitted.
+    let writer = rusqlite::Connection::open(&db).unwrap();
+    writer
+        .execute_batch("BEGIN IMMEDIATE; DELETE FROM measurements;")
+        .unwrap();
+    let listing = History::open_to_read(&db)
+        .unwrap()
+        .listing(&all(None, false));
+    let records = listing.expect("read beside the writer").records;
+    assert_eq!(
+        records.len(),
+        1,
+        "the committed record, not the writer's change"
+    );
+    writer.execute_batch("ROLLBACK").unwrap();
 }
 
 #[test]
@@ -184,8 +220,15 @@ fn a_kerf_beyond_its_labels_spread_warns_and_only_like_records_count() {
     for kerf in [150.0, 152.0, 148.0] {
         h.record(&measurement(Some("birch"), kerf, false)).unwrap();
     }
-    // Neither simulated nor flagged nor other labels' records enter birch's baseline.
+    // Neither simulated nor flagged nor other labels' records, nor records at another force or
+    // thickness, enter birch's baseline.
     h.record(&measurement(Some("birch"), 400.0, true)).unwrap();
+    let mut harder = measurement(Some("birch"), 100.0, false);
+    harder.force_n = 80.0;
+    h.record(&harder).unwrap();
+    let mut thicker = measurement(Some("birch"), 100.0, false);
+    thicker.thickness_mm = 6.0;
+    h.record(&thicker).unwrap();
     let mut flagged = measurement(Some("birch"), 300.0, false);
     flagged.flags = vec!["torque-limited".into()];
     h.record(&flagged).unwrap();

@@ -273,17 +273,33 @@ impl Kerfmeter {
         &mut self,
         params: &RunParams,
         n: usize,
-        mut before_gauge: impl FnMut(usize) -> Result<()>,
+        before_gauge: impl FnMut(usize) -> Result<()>,
         mut progress: impl FnMut(usize, &Progress),
+    ) -> Result<Measurement> {
+        self.measure_until(params, n, before_gauge, |i, p| {
+            progress(i, p);
+            ControlFlow::Continue(())
+        })
+    }
+
+    /// [`Kerfmeter::measure`] that can be stopped: when `progress` returns
+    /// [`ControlFlow::Break`] (after any status poll, resetting or running), the device is told
+    /// to abort, its motor is made safe, and the call ends with [`Error::Cancelled`].
+    pub fn measure_until(
+        &mut self,
+        params: &RunParams,
+        n: usize,
+        mut before_gauge: impl FnMut(usize) -> Result<()>,
+        mut progress: impl FnMut(usize, &Progress) -> ControlFlow<()>,
     ) -> Result<Measurement> {
         if n == 0 {
             return Err(Error::InvalidArgument("measure at least one gauge".into()));
         }
         let mut runs = Vec::with_capacity(n);
         for i in 0..n {
-            self.prepare_for_run()?;
+            self.prepare_for_run_until(|p| progress(i, p))?;
             before_gauge(i)?;
-            runs.push(self.run_kerfmeter(params, |p| progress(i, p))?);
+            runs.push(self.run_kerfmeter_until(params, |p| progress(i, p))?);
         }
         let kerfs: Vec<f64> = runs.iter().map(|r| f64::from(r.kerf_um)).collect();
         Ok(Measurement {

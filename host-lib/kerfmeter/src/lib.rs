@@ -34,6 +34,8 @@ pub mod files;
 pub mod grbl;
 pub mod job;
 pub mod lightburn;
+#[cfg(feature = "sim")]
+pub mod lightburn_twin;
 pub mod map;
 pub mod params;
 #[cfg(feature = "sim")]

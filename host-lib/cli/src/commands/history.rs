@@ -47,7 +47,7 @@ pub fn list(g: &Global, label: Option<String>, limit: u32) -> Result<HistoryRepo
     let db = g.db_path()?;
     // Listing creates nothing: no file yet is an empty history.
     let listing = if db.exists() {
-        History::open(&db)?.listing(&Query {
+        History::open_to_read(&db)?.listing(&Query {
             label,
             limit: Some(limit as usize),
             simulated: g.sim,
@@ -102,26 +102,26 @@ struct Row<'a>(&'a Record);
 
 impl fmt::Display for Row<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let r = self.0;
+        let (id, m) = (self.0.id, &self.0.measurement);
         // 2026-12-02T04:40:12.345Z → 2026-12-02 04:40:12
-        let time: String = r.time.replace('T', " ").chars().take(19).collect();
-        let ci = r.ci95_um.map_or("-".into(), |c| format!("{c:.1}"));
-        let flags = if r.flags.is_empty() {
+        let time: String = self.0.time.replace('T', " ").chars().take(19).collect();
+        let ci = m.ci95_um.map_or("-".into(), |c| format!("{c:.1}"));
+        let flags = if m.flags.is_empty() {
             "ok".into()
         } else {
-            r.flags.join(",")
+            m.flags.join(",")
         };
         write!(
             f,
             "{:>5}  {:<20}  {:>8.1} {:>7} {:>6.2} {:>6.1}  {:<20}  {:<16}  {flags}",
-            r.id,
+            id,
             time,
-            r.kerf_um,
+            m.kerf_um,
             ci,
-            r.thickness_mm,
-            r.force_n,
-            r.label.as_deref().unwrap_or("-"),
-            r.device_id,
+            m.thickness_mm,
+            m.force_n,
+            m.label.as_deref().unwrap_or("-"),
+            m.device_id,
         )
     }
 }

@@ -14,7 +14,8 @@ use crate::output::{JsonLayout, Report, ResultsTable};
 pub struct KerfReport {
     /// The kerf of that result, µm.
     pub kerf_um: Option<f32>,
-    /// The whole result.
+    /// The whole result, its flags also by name.
+    #[serde(serialize_with = "crate::output::result_json")]
     pub result: Option<KerfResult>,
 }
 

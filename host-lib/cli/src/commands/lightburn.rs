@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use kerfmeter::files::{ensure_not_input, write_atomically};
 use kerfmeter::lightburn::{Applied, Client, DEFAULT_HOST, ExistingOffset, Pairing, apply_kerf};
+use kerfmeter::lightburn_twin::{LightBurnTwin, LightBurnTwinOptions};
 use kerfmeter_plan::PlanError;
 use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_plan::lightburn::{
@@ -244,20 +245,30 @@ pub struct ApplyArgs {
 pub struct PairReport {
     /// LightBurn's address.
     pub host: String,
-    /// Where the secret is kept.
-    pub pairing_file: PathBuf,
+    /// Where the secret is kept (`None` with the LightBurn twin: nothing is kept).
+    pub pairing_file: Option<PathBuf>,
+    /// True when paired with the LightBurn twin (`--sim`).
+    pub simulated: bool,
     /// What it grants.
     pub capabilities: Vec<String>,
 }
 
 impl fmt::Display for PairReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let kept = match &self.pairing_file {
+            Some(path) => format!("the secret is kept in {}", path.display()),
+            None => "the simulated LightBurn's secret is not kept".into(),
+        };
+        let what = if self.simulated {
+            "the LightBurn twin (--sim)"
+        } else {
+            "LightBurn"
+        };
         write!(
             f,
-            "paired with LightBurn at {} ({}); the secret is kept in {}",
+            "paired with {what} at {} ({}); {kept}",
             self.host,
-            self.capabilities.join(", "),
-            self.pairing_file.display()
+            self.capabilities.join(", ")
         )
     }
 }
@@ -271,6 +282,8 @@ impl Report for PairReport {
 pub struct ApplyReport {
     /// LightBurn's address.
     pub host: String,
+    /// True when applied to the LightBurn twin (`--sim`).
+    pub simulated: bool,
     /// What was set.
     #[serde(flatten)]
     pub applied: Applied,
@@ -281,7 +294,12 @@ impl fmt::Display for ApplyReport {
         let a = &self.applied;
         writeln!(
             f,
-            "LightBurn at {}: Kerf Offset {} {} for a kerf of {} µm (half the kerf, positive = outward)",
+            "{} at {}: Kerf Offset {} {} for a kerf of {} µm (half the kerf, positive = outward)",
+            if self.simulated {
+                "The LightBurn twin (--sim)"
+            } else {
+                "LightBurn"
+            },
             self.host,
             round6(a.kerf_offset),
             a.unit,
@@ -311,23 +329,56 @@ fn round6(v: f64) -> f64 {
     (v * 1e6).round() / 1e6
 }
 
-/// Pair with LightBurn and keep the secret.
-pub fn pair(args: &PairArgs) -> Result<PairReport> {
+/// A LightBurn twin for `--sim`: a fresh one each time, as `--sim` gives a fresh device.
+fn twin(endpoint: &Endpoint) -> Result<LightBurnTwin> {
+    if endpoint.host.is_some() || endpoint.pairing_file.is_some() {
+        return Err(CliError::Usage(
+            "--sim talks to a LightBurn twin of its own: --host and --pairing-file do not apply"
+                .into(),
+        ));
+    }
+    LightBurnTwin::start(LightBurnTwinOptions::default())
+        .map_err(|e| CliError::Usage(format!("cannot start the LightBurn twin: {e}")))
+}
+
+/// Pair with LightBurn and keep the secret; with `sim`, pair with a LightBurn twin and keep
+/// nothing (the user's pairing stays as it was).
+pub fn pair(args: &PairArgs, sim: bool) -> Result<PairReport> {
+    if sim {
+        let twin = twin(&args.endpoint)?;
+        let pairing = Client::pair(twin.host())?;
+        return Ok(PairReport {
+            host: pairing.host,
+            pairing_file: None,
+            simulated: true,
+            capabilities: pairing.capabilities,
+        });
+    }
     let path = args.endpoint.pairing_path()?;
     let host = args.endpoint.host.clone().unwrap_or(DEFAULT_HOST.into());
     let pairing = Client::pair(&host)?;
     pairing.save(&path)?;
     Ok(PairReport {
         host,
-        pairing_file: path,
+        pairing_file: Some(path),
+        simulated: false,
         capabilities: pairing.capabilities,
     })
 }
 
-/// Write the kerf into LightBurn's Line layers.
-pub fn apply(args: &ApplyArgs) -> Result<ApplyReport> {
+/// Write the kerf into LightBurn's Line layers; with `sim`, into a LightBurn twin's, paired
+/// for this call only.
+pub fn apply(args: &ApplyArgs, sim: bool) -> Result<ApplyReport> {
     let kerf_um = KerfSource::check_kerf_um(args.kerf_um)?;
-    let pairing = Pairing::load(&args.endpoint.pairing_path()?)?;
+    let _twin;
+    let pairing = if sim {
+        let twin = twin(&args.endpoint)?;
+        let pairing = Client::pair(twin.host())?;
+        _twin = twin;
+        pairing
+    } else {
+        Pairing::load(&args.endpoint.pairing_path()?)?
+    };
     let host = args.endpoint.host.clone().unwrap_or(pairing.host.clone());
     let existing = if args.recompensate {
         ExistingOffset::Replace
@@ -343,5 +394,9 @@ pub fn apply(args: &ApplyArgs) -> Result<ApplyReport> {
         &args.layers,
         existing,
     )?;
-    Ok(ApplyReport { host, applied })
+    Ok(ApplyReport {
+        host,
+        simulated: sim,
+        applied,
+    })
 }

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use clap::Args;
 use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
 use kerfmeter::stats::Summary;
-use kerfmeter::{Error, JointSpec, Measurement, Progress};
+use kerfmeter::{Error, JointSpec, Measurement};
 use serde::Serialize;
 
 use crate::connection::{Global, Session};
@@ -83,7 +83,8 @@ pub struct RunReport {
     pub kerf_um: f64,
     /// The curve's file, if drawn.
     pub plot: Option<PathBuf>,
-    /// Every run, in order.
+    /// Every run, in order, its flags also by name.
+    #[serde(serialize_with = "crate::output::results_json")]
     pub runs: Vec<KerfResult>,
     /// What was measured (`--label`).
     pub label: Option<String>,
@@ -103,6 +104,13 @@ pub struct RunReport {
     /// On the simulated device, each run's truth, µm, in the order of `runs`.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub sim_truths_um: Vec<f64>,
+    /// Why the curve could not be read or drawn after the measurement (which stands, and is
+    /// recorded); the command then fails after printing the report.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub curve_error: Option<String>,
+    /// The category of that failure, for the exit code.
+    #[serde(skip)]
+    pub curve_error_category: Option<kerfmeter::Category>,
     /// What the simulated device was told to cut, for the text output.
     #[serde(skip)]
     pub sim: Option<SimNote>,
@@ -137,9 +145,13 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
         },
     );
     let last = measurement.runs.last().copied();
-    let kerf_at_force_um = read_curve(&mut s, args, &params, last.as_ref())?;
+    let curve = read_curve(&mut s, args, &params, last.as_ref());
     let mut report = RunReport::new(&s, &params, measurement);
-    report.kerf_at_force_um = kerf_at_force_um;
+    match curve {
+        Ok(kerf_at_force_um) => report.kerf_at_force_um = kerf_at_force_um,
+        // The kerf is measured and recorded: show it, then fail for the curve.
+        Err(e) => report.curve_failed(&e),
+    }
     report.plot.clone_from(&args.plot);
     report.label.clone_from(&args.label);
     report.history = Some(history);
@@ -179,37 +191,17 @@ impl RunReport {
             thickness_mm: params.thickness_mm,
             sim_truth_um,
             sim_truths_um,
+            curve_error: None,
+            curve_error_category: None,
             sim,
         }
     }
-}
 
-/// Measure `n` gauges on the device of `s` (a fresh gauge each, the hub reset to zero before
-/// each) and summarise them. `before_gauge(i)` is called before gauge `i` (a prompt on
-/// hardware); `progress(i, …)` after every status poll, and stops the runs (and resets) when it
-/// returns [`ControlFlow::Break`]: the device aborts, its motor is safe, and the call ends with
-/// [`Error::Cancelled`]. The library's `measure` cannot be stopped; `kerfmeter serve` needs to.
-pub fn measure_on(
-    s: &mut Session,
-    params: &RunParams,
-    n: usize,
-    mut before_gauge: impl FnMut(usize) -> Result<(), Error>,
-    mut progress: impl FnMut(usize, &Progress) -> ControlFlow<()>,
-) -> Result<Measurement, Error> {
-    if n == 0 {
-        return Err(Error::InvalidArgument("measure at least one gauge".into()));
+    /// Note that the curve could not be read or drawn after the measurement.
+    pub fn curve_failed(&mut self, e: &CliError) {
+        self.curve_error = Some(e.to_string());
+        self.curve_error_category = Some(e.category());
     }
-    let mut runs = Vec::with_capacity(n);
-    for i in 0..n {
-        s.meter.prepare_for_run_until(|p| progress(i, p))?;
-        before_gauge(i)?;
-        runs.push(s.meter.run_kerfmeter_until(params, |p| progress(i, p))?);
-    }
-    let kerfs: Vec<f64> = runs.iter().map(|r| f64::from(r.kerf_um)).collect();
-    Ok(Measurement {
-        summary: kerfmeter::stats::summarize(&kerfs),
-        runs,
-    })
 }
 
 /// The `--samples` runs, each after its prompt, with a progress bar.
@@ -222,8 +214,7 @@ fn measure(
     let sim = s.sim.is_some();
     let samples = args.samples as usize;
     let bar = progress_bar(g, "gauge 1");
-    let measured = measure_on(
-        s,
+    let measured = s.meter.measure_until(
         params,
         samples,
         |i| {
@@ -334,4 +325,14 @@ impl fmt::Display for SimNote {
 
 impl Report for RunReport {
     const JSON: JsonLayout = JsonLayout::PrettySorted;
+
+    fn verdict(&self) -> Result<(), CliError> {
+        match (&self.curve_error, self.curve_error_category) {
+            (Some(message), Some(category)) => Err(CliError::AfterMeasuring {
+                message: message.clone(),
+                category,
+            }),
+            _ => Ok(()),
+        }
+    }
 }

@@ -9,7 +9,7 @@ use kerfmeter::grbl::CutterAddress;
 use super::Done;
 use crate::connection::Global;
 use crate::error::CliError;
-use crate::serve::{Security, serve};
+use crate::serve::{Cutter, Security, serve};
 
 /// `kerfmeter serve`'s flags.
 #[derive(Args)]
@@ -30,6 +30,11 @@ pub struct ServeArgs {
     /// `grbl+tcp://HOST:PORT`. Without it, `job` is refused.
     #[arg(long, value_name = "ADDRESS", value_parser = cutter_address)]
     cutter: Option<String>,
+    /// Let a client's `job` clear the cutter's alarm (`unlock`). An alarm is the controller's
+    /// own stop (a limit switch, a door, a reset mid-job): by default only someone at the
+    /// machine clears it (`kerfmeter job --unlock`).
+    #[arg(long, requires = "cutter")]
+    allow_unlock: bool,
 }
 
 /// A cutter address, checked as `kerfmeter job` checks it.
@@ -42,6 +47,10 @@ fn cutter_address(text: &str) -> Result<String, String> {
 /// Serve until Ctrl-C.
 pub fn run(g: &Global, args: &ServeArgs) -> Result<Done, CliError> {
     let security = Security::new(args.listen, args.token.clone(), &args.allow_origins)?;
-    serve(g, args.listen, security, args.cutter.clone())?;
+    let cutter = args.cutter.clone().map(|address| Cutter {
+        address,
+        allow_unlock: args.allow_unlock,
+    });
+    serve(g, args.listen, security, cutter)?;
     Ok(Done::new("server stopped; the motor is stopped"))
 }

@@ -92,7 +92,7 @@ pub fn status_of(code: i32) -> StatusCode {
         rpc::NO_CUTTER => StatusCode::NOT_IMPLEMENTED,
         rpc::PLAN_ERROR => StatusCode::UNPROCESSABLE_ENTITY,
         rpc::DEVICE_ERROR => StatusCode::BAD_GATEWAY,
-        rpc::HISTORY_ERROR => StatusCode::INTERNAL_SERVER_ERROR,
+        rpc::HISTORY_ERROR | rpc::INTERNAL_ERROR => StatusCode::INTERNAL_SERVER_ERROR,
         _ => StatusCode::BAD_REQUEST,
     }
 }

@@ -31,7 +31,7 @@
 //! | `dilate` | `plan` (text) or `plan_base64`, `format` (`"svg"`/`"dxf"`, required), `kerf_um` (µm, or `"last"`: the device's last result; required), and `kerfmeter dilate`'s rules: `cut_colors`, `cut_max_width_mm`, `cut_layers`, `units`, `strict`, `already_compensated_ok`, `recompensate` | `{"kerf_um", "format", "content": the dilated plan's text, "report": {"kerf_um", "cut_rules", ... what `dilate --json` says was found and done}}` |
 //! | `gauge` | `format` (`"svg"` default, `"dxf"`), and `kerfmeter gauge`'s options with `_` for `-`: `pitch_um_per_deg`, `radius_mm`, `prong_radius_mm`, `hole_radius_mm`, `hole_distance_mm`, `jam_direction` (`"cw"`/`"ccw"`), `disengage_deg`, `test_piece`, `thickness_mm`, `finger_width_mm`, `test_piece_kerf_um`, `label` | `{"format", "content": the drawing's text, "report": gauge --json's report without the file}` |
 //! | `history` | `label`, `limit` (1..=100000, default 50) | `{"simulated", "records": [{id, time, device_id, firmware, label, thickness_mm, force_n, kerf_um, ci95_um, flags, simulated}, ...] newest first, "drift": [{label, kerf_um, usual_mean_um, usual_sd_um, message}, ...]}`: `kerfmeter history --json` without the database's path; the server's `--db` (or the user's data directory); the simulated records when the server runs the twin |
-//! | `job` | `plan` or `plan_base64`, `format` (required), `label`, and `kerfmeter job`'s flags with `_`: `thickness_mm`, `force_n`, `gauge_at_mm` (`[x, y]`), `bed_mm`, `prong_offset_mm`, `insert_z_mm`, `travel_z_mm`, `plunge_feed_mm_per_min`, `origin_mm`, `feed_mm_per_min`, `power_percent`, `passes`, `s_max`, `cut_color`, `cut_max_width_mm`, `cut_layer`, `units`, `unlock` | the whole loop on the cutter given to `serve --cutter` (else -32004): `{"kerf_um", "label", "report": job --json's report without file names, "content": the dilated plan, "gcode": the job as streamed}`; `stage` notifications as it goes |
+//! | `job` | `plan` or `plan_base64`, `format` (required), `label`, and `kerfmeter job`'s flags with `_`: `thickness_mm`, `force_n`, `gauge_at_mm` (`[x, y]`), `bed_mm`, `prong_offset_mm`, `insert_z_mm`, `travel_z_mm`, `plunge_feed_mm_per_min`, `origin_mm`, `feed_mm_per_min`, `power_percent`, `passes`, `s_max`, `cut_color`, `cut_max_width_mm`, `cut_layer`, `units`, `unlock` (only when the server was started with `--allow-unlock`) | the whole loop on the cutter given to `serve --cutter` (else -32004): `{"kerf_um", "label", "report": job --json's report without file names, "content": the dilated plan, "gcode": the job as streamed}`; `stage` notifications as it goes |
 //!
 //! With `samples` above 1 the gauges are measured one after the other without a prompt, as
 //! `kerfmeter run --yes` does: on hardware, something must place each fresh gauge.
@@ -52,7 +52,8 @@
 //! names the field); -32000 the device refused or failed (`data.kind`, `data.fault`,
 //! `data.conditions`); -32001 busy: a run, reset or self-test is going; -32002 aborted; -32003
 //! the device is not connected; -32004 no cutter configured; -32005 a plan error; -32006 the
-//! history database could not be read (HTTP 500).
+//! history database could not be read (HTTP 500); -32603 the server failed inside the call (a
+//! bug: the device was told to stop, and is opened afresh for the next call).
 //!
 //! # One device, one run
 //!
@@ -102,13 +103,22 @@ pub const MAX_BODY_BYTES: usize = 16 * 1024 * 1024;
 /// How long stopping waits for the clients' tasks to end.
 const SHUTDOWN_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 
+/// The laser cutter `job` runs on, as `serve --cutter` and `--allow-unlock` give it.
+#[derive(Debug, Clone)]
+pub struct Cutter {
+    /// Its address (`sim`, `grbl:PATH`, `grbl+tcp://HOST:PORT`).
+    pub address: String,
+    /// Whether a client's `job` may clear the controller's alarm (`unlock`).
+    pub allow_unlock: bool,
+}
+
 /// Serve until Ctrl-C (or SIGTERM, or SIGHUP): open the device as `g` says, listen on `listen` under
 /// `security`'s rules, print the address, and answer; `job` runs on `cutter`.
 pub fn serve(
     g: &Global,
     listen: SocketAddr,
     security: Security,
-    cutter: Option<String>,
+    cutter: Option<Cutter>,
 ) -> Result<(), CliError> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

@@ -13,6 +13,7 @@ use kerfmeter_plan::{PlanFormat, dilate_bytes};
 use serde::Serialize;
 use serde_json::{Value, json};
 
+use super::Cutter;
 use super::rpc::{Caller, INVALID_PARAMS, PLAN_ERROR, Params, RpcError};
 use super::worker::{Call, Device};
 use crate::commands::dilate::DilationArgs;
@@ -64,10 +65,7 @@ pub async fn dilate(device: &Device, mut p: Params, by: Caller) -> Result<Value,
     let strict = p.bool("strict")?.unwrap_or(false);
     p.finish()?;
     let work = move || dilate_plan(plan, format, &args, strict);
-    let outcome = plan_work(work)
-        .await
-        .map_err(|e| RpcError::new(super::rpc::PLAN_ERROR, format!("the dilation failed: {e}")))?;
-    outcome.map_err(|e| RpcError::from(&e))
+    plan_work(PLAN_ERROR, "the dilation", work).await
 }
 
 /// Dilate `plan` as `args` say: the answer of `dilate`.
@@ -189,10 +187,7 @@ pub async fn gauge(p: Params) -> Result<Value, RpcError> {
         "svg"
     };
     let work = move || draw(&args);
-    let (content, report) = plan_work(work)
-        .await
-        .map_err(|e| RpcError::new(super::rpc::PLAN_ERROR, format!("the drawing failed: {e}")))?
-        .map_err(|e| RpcError::from(&e))?;
+    let (content, report) = plan_work(PLAN_ERROR, "the drawing", work).await?;
     let mut report = serde_json::to_value(&report).expect("reports serialize");
     if let Some(fields) = report.as_object_mut() {
         fields.remove("output");
@@ -210,16 +205,27 @@ pub async fn gauge(p: Params) -> Result<Value, RpcError> {
 /// server killed for want of memory mid-run could not stop its motor. The rest wait their turn.
 static PLAN_WORK: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
 
-/// Run `work` (plan reading, dilation or drawing) on a blocking thread when [`PLAN_WORK`] lets
-/// it.
-async fn plan_work<T: Send + 'static>(
-    work: impl FnOnce() -> T + Send + 'static,
-) -> Result<T, tokio::task::JoinError> {
+/// Run `work` (plan reading, dilation or drawing; `what`, for a message) on a blocking thread
+/// when [`PLAN_WORK`] lets it. Its error is answered as [`RpcError::from`] says; a panic in it
+/// as error `code`, "`what` failed".
+async fn plan_work<T, E>(
+    code: i32,
+    what: &str,
+    work: impl FnOnce() -> Result<T, E> + Send + 'static,
+) -> Result<T, RpcError>
+where
+    T: Send + 'static,
+    E: Send + 'static,
+    for<'e> RpcError: From<&'e E>,
+{
     let _permit = PLAN_WORK
         .acquire()
         .await
         .expect("the semaphore is never closed");
-    tokio::task::spawn_blocking(work).await
+    match tokio::task::spawn_blocking(work).await {
+        Ok(done) => done.map_err(|e| RpcError::from(&e)),
+        Err(e) => Err(RpcError::new(code, format!("{what} failed: {e}"))),
+    }
 }
 
 /// `history` {label, limit (1..=100000, default 50)}: the newest records of the server's history
@@ -231,15 +237,7 @@ pub async fn history(device: &Device, mut p: Params) -> Result<Value, RpcError> 
     p.finish()?;
     let g = device.global().clone();
     let work = move || history::list(&g, label, limit);
-    let report = plan_work(work)
-        .await
-        .map_err(|e| {
-            RpcError::new(
-                super::rpc::HISTORY_ERROR,
-                format!("the history failed: {e}"),
-            )
-        })?
-        .map_err(|e| RpcError::from(&e))?;
+    let report = plan_work(super::rpc::HISTORY_ERROR, "the history", work).await?;
     let mut answer = serde_json::to_value(&report).expect("reports serialize");
     if let Some(fields) = answer.as_object_mut() {
         fields.remove("db");
@@ -279,7 +277,9 @@ fn gauge_args(mut p: Params) -> Result<GaugeArgs, RpcError> {
 }
 
 /// The params named in `allowed` as the command-line flags they stand for (`radius_mm: 12` is
-/// `--radius-mm 12`, `true` a bare flag, `[x, y]` `x,y`).
+/// `--radius-mm=12`, `true` a bare flag, `[x, y]` `--name=x,y`). A value is always joined to its
+/// flag by `=`, so that a value such as `"-o"` or `"--port=/dev/ttyUSB0"` is read as the value it
+/// is, never as a flag of its own.
 fn flags(p: &mut Params, allowed: &[&str]) -> Result<Vec<String>, RpcError> {
     let mut argv = Vec::new();
     for name in allowed {
@@ -294,9 +294,9 @@ fn flags(p: &mut Params, allowed: &[&str]) -> Result<Vec<String>, RpcError> {
             Some(Value::Bool(true)) => argv.push(flag),
             Some(Value::Array(items)) => {
                 let items: Result<Vec<String>, RpcError> = items.iter().map(item).collect();
-                argv.extend([flag, items?.join(",")]);
+                argv.push(format!("{flag}={}", items?.join(",")));
             }
-            Some(other) => argv.extend([flag, item(&other)?]),
+            Some(other) => argv.push(format!("{flag}={}", item(&other)?)),
         }
     }
     Ok(argv)
@@ -362,7 +362,13 @@ impl std::fmt::Debug for JobCall {
 
 /// `job` {plan | plan_base64, format, label, ... `kerfmeter job`'s flags}: checked (the plan is
 /// read, the gauge placed) before the device is asked for.
-pub async fn job_call(mut p: Params, cutter: &str) -> Result<JobCall, RpcError> {
+pub async fn job_call(mut p: Params, cutter: &Cutter) -> Result<JobCall, RpcError> {
+    if !cutter.allow_unlock && p.0.get("unlock").is_some_and(|u| u != &Value::Bool(false)) {
+        let why = "parameter `unlock`: refused, as the server was started without \
+                   --allow-unlock: a controller in alarm was stopped by its own safety (a limit, \
+                   a door, a reset mid-job); clear it at the machine";
+        return Err(RpcError::new(INVALID_PARAMS, why));
+    }
     let plan = plan_bytes(&mut p)?;
     let format = format(&mut p)?;
     let label = p.label()?;
@@ -380,7 +386,7 @@ pub async fn job_call(mut p: Params, cutter: &str) -> Result<JobCall, RpcError> 
         "job".to_owned(),
         path(&format!("plan.{ext}")),
         "--cutter".to_owned(),
-        cutter.to_owned(),
+        cutter.address.clone(),
         "-o".to_owned(),
         path(&format!("dilated.{ext}")),
         "--gcode-out".to_owned(),
@@ -399,10 +405,8 @@ pub async fn job_call(mut p: Params, cutter: &str) -> Result<JobCall, RpcError> 
         .map_err(|e| clap_error("job", &e))?;
     // The measurement is recorded in the history under the job's label.
     args.label.clone_from(&label);
-    let (args, setup) = plan_work(move || Setup::new(&args).map(|s| (args, s)))
-        .await
-        .map_err(|e| RpcError::new(PLAN_ERROR, format!("the plan could not be read: {e}")))?
-        .map_err(|e| RpcError::from(&e))?;
+    let read = move || Setup::new(&args).map(|s| (args, s));
+    let (args, setup) = plan_work(PLAN_ERROR, "reading the plan", read).await?;
     Ok(JobCall {
         args,
         setup,

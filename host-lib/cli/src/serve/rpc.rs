@@ -35,6 +35,9 @@ pub const NO_CUTTER: i32 = -32004;
 pub const PLAN_ERROR: i32 = -32005;
 /// The history database could not be opened or read (e.g. made by a newer version).
 pub const HISTORY_ERROR: i32 = -32006;
+/// JSON-RPC's internal error: the server failed inside the call (a bug); the device was told to
+/// abort.
+pub const INTERNAL_ERROR: i32 = -32603;
 
 /// The most samples one `run_kerfmeter` measures (as `kerfmeter run --samples`).
 pub const MAX_SAMPLES: u32 = 50;

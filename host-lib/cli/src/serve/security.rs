@@ -7,10 +7,12 @@
 //!   `Authorization: Bearer T` or `?token=T` (browsers cannot set headers on a WebSocket), else
 //!   401. The comparison takes the same time wherever the tokens differ. The page's own files
 //!   (`/`, `/app.js`, ...) hold no secret and are served without it; the page takes the token
-//!   from its own address (`/?token=T`).
+//!   from its own address (`/?token=T`), keeps it for its tab and takes it out of the address.
 //! * **Origin.** A WebSocket upgrade and every POST whose `Origin` is not the server's own, nor
 //!   one given with `--allow-origin`, is refused (403): browsers send `Origin` with both, so
-//!   another site's page cannot start a run. The server's own origins: `http://` + the address
+//!   another site's page cannot start a run. An `--allow-origin` must be `http(s)://HOST[:PORT]`:
+//!   `null`, which sandboxed frames and `file:` pages send, and `*` are refused at startup. The
+//!   server's own origins: `http://` + the address
 //!   listened on, and, on loopback, `http://` + the `Host` header when that names a loopback
 //!   host (`localhost`, `127.0.0.1`, `[::1]`, with any port). A request without `Origin` comes
 //!   from a program, not a browser: it is let through (on loopback it is local; elsewhere it
@@ -116,10 +118,14 @@ impl Security {
                  127.0.0.1"
             )));
         }
+        let allowed_origins = allow_origins
+            .iter()
+            .map(|o| allowed_origin(o))
+            .collect::<Result<_, _>>()?;
         Ok(Security {
             listen,
             token,
-            allowed_origins: allow_origins.iter().map(|o| normalize(o)).collect(),
+            allowed_origins,
         })
     }
 
@@ -172,6 +178,24 @@ impl Security {
 /// `origin` in lower case, without a trailing `/`.
 fn normalize(origin: &str) -> String {
     origin.trim().trim_end_matches('/').to_ascii_lowercase()
+}
+
+/// An `--allow-origin` as the browser sends it (`http://host[:port]` or `https://…`), or why it
+/// cannot be one. `null` (sent by sandboxed frames, `file:` pages and some redirects: any page
+/// can make its requests carry it) and `*` would open the server to every page.
+fn allowed_origin(origin: &str) -> Result<String, CliError> {
+    let o = normalize(origin);
+    let host = o
+        .strip_prefix("http://")
+        .or_else(|| o.strip_prefix("https://"));
+    match host {
+        Some(host) if !host.is_empty() && !host.contains(['/', '?', '#', '@', '*', ' ']) => Ok(o),
+        _ => Err(CliError::Usage(format!(
+            "--allow-origin {origin:?} is not an origin a browser sends: give \
+             `http://HOST[:PORT]` or `https://HOST[:PORT]`, with no path (`null` and `*` would \
+             let any page in)"
+        ))),
+    }
 }
 
 /// Whether a `Host` header (`name[:port]`) names this machine's loopback.
@@ -280,6 +304,25 @@ mod tests {
         assert!(!s.origin_ok("http://evil.example", Some("127.0.0.1:7878")));
         assert!(!s.origin_ok("http://localhost:9999", Some("localhost:7878")));
         assert!(!s.origin_ok("null", Some("127.0.0.1:7878")));
+    }
+
+    #[test]
+    fn allowed_origins_must_be_real_origins() {
+        let at = "127.0.0.1:7878".parse().unwrap();
+        for bad in [
+            "null",
+            "*",
+            "tool.example",
+            "http://",
+            "http://a.example/app",
+            "file://x",
+        ] {
+            let e = Security::new(at, None, &[bad.into()]).unwrap_err();
+            assert!(e.to_string().contains("--allow-origin"), "{bad}: {e}");
+        }
+        for good in ["http://localhost:5173", "https://Tool.example/"] {
+            assert!(Security::new(at, None, &[good.into()]).is_ok(), "{good}");
+        }
     }
 
     #[test]

@@ -20,6 +20,7 @@
 //!   boot id) is noticed without a client asking.
 
 use std::ops::ControlFlow;
+use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -34,12 +35,14 @@ use tokio::sync::{broadcast, oneshot};
 
 use kerfmeter::job::{JobEvent, Stage};
 
+use super::Cutter;
 use super::plans::{JobCall, job_answer};
-use super::rpc::{Caller, NOT_CONNECTED, RpcError, notification};
-use crate::commands::run::{RunReport, measure_on};
+use super::rpc::{Caller, INTERNAL_ERROR, NOT_CONNECTED, RpcError, notification};
+use crate::commands::run::RunReport;
 use crate::commands::{Done, info, job, self_test, status};
 use crate::connection::{Global, Session};
 use crate::error::CliError;
+use crate::output::ResultJson;
 use crate::record::{Measured, record};
 
 /// The shortest time between two `progress` notifications of the same state.
@@ -126,7 +129,7 @@ struct Shared {
     /// Notifications to every client, as JSON-RPC text.
     events: broadcast::Sender<Arc<str>>,
     /// The cutter `job` runs on (`serve --cutter`), if any.
-    cutter: Option<String>,
+    cutter: Option<Cutter>,
     /// The flags the device was opened with (the history's database among them).
     global: Global,
 }
@@ -169,7 +172,7 @@ pub struct Device {
 impl Device {
     /// Open the device as `g` says and start its thread; the thread ends when every handle is
     /// dropped, after the call it is doing.
-    pub fn start(g: Global, cutter: Option<String>) -> (Device, JoinHandle<()>) {
+    pub fn start(g: Global, cutter: Option<Cutter>) -> (Device, JoinHandle<()>) {
         let (events, _) = broadcast::channel(EVENTS_BACKLOG);
         let shared = Arc::new(Shared {
             gate: Mutex::new(()),
@@ -196,8 +199,8 @@ impl Device {
     }
 
     /// The cutter `job` runs on, if the server was given one.
-    pub fn cutter(&self) -> Option<&str> {
-        self.shared.cutter.as_deref()
+    pub fn cutter(&self) -> Option<&Cutter> {
+        self.shared.cutter.as_ref()
     }
 
     /// The flags the server was started with.
@@ -348,7 +351,8 @@ impl Worker {
     fn serve(&mut self, job: Job) {
         let long = job.call.is_long();
         let run = job.call.measures();
-        let reply = self.reply(job.call, job.by);
+        let call = AssertUnwindSafe(|| self.reply(job.call, job.by));
+        let reply = std::panic::catch_unwind(call).unwrap_or_else(|_| self.after_panic());
         if long {
             self.shared.busy.store(false, Ordering::SeqCst);
         }
@@ -361,6 +365,19 @@ impl Worker {
             self.shared.notify("run_finished", finished);
         }
         let _ = job.reply.send(reply);
+    }
+
+    /// A call panicked (a bug; the panic message is on stderr): whatever the device was doing, its
+    /// motor stops, and it is opened afresh for the next call, its session's state being
+    /// unknown. The server goes on serving: its thread is the only one that can stop the motor.
+    fn after_panic(&mut self) -> Reply {
+        if let Some(s) = &mut self.session {
+            let _ = s.meter.abort();
+        }
+        self.session = None;
+        let why = "the server failed inside this call (a bug: please report it with the message \
+                   it printed); the device was told to stop";
+        Err(RpcError::new(INTERNAL_ERROR, why))
     }
 
     /// The answer to `call`.
@@ -476,7 +493,7 @@ fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliErr
     Ok(match call {
         Call::Info => to_value(&info::report(s)?),
         Call::Status => to_value(&status::StatusReport::from(s.meter.status()?)),
-        Call::Kerf => to_value(&s.meter.get_kerf_value()?),
+        Call::Kerf => to_value(&s.meter.get_kerf_value()?.as_ref().map(ResultJson::from)),
         Call::Reset => {
             s.meter.reset_kerfmeter_until(|_| shared.stop_requested())?;
             json!({ "reset": true })
@@ -501,8 +518,8 @@ pub struct ServedRun {
     /// The report, its fields at the top level (`kerf_um`, `summary`, `runs`, ...).
     #[serde(flatten)]
     pub report: RunReport,
-    /// The last run's curve.
-    pub curve: CurvePoints,
+    /// The last run's curve (`null`, with `curve_error`, when it could not be read).
+    pub curve: Option<CurvePoints>,
 }
 
 /// A run's curve as `[torque_nm, angle_deg]` pairs, oldest first.
@@ -522,8 +539,7 @@ fn measure_and_report(
     shared: &Shared,
 ) -> Result<ServedRun, CliError> {
     let mut throttle = Throttle::default();
-    let measurement = measure_on(
-        s,
+    let measurement = s.meter.measure_until(
         &run.params,
         run.samples,
         |_| Ok(()),
@@ -548,22 +564,26 @@ fn measure_and_report(
             runs: &measurement.runs,
         },
     );
-    let curve = s.meter.curve()?;
-    let points = curve
-        .samples
-        .iter()
-        .map(|x| [x.torque_nm, x.angle_deg])
-        .collect();
+    let curve = s.meter.curve().map_err(CliError::from);
     let mut report = RunReport::new(s, &run.params, measurement);
     report.label.clone_from(&run.label);
     report.history = Some(history);
-    Ok(ServedRun {
-        report,
-        curve: CurvePoints {
+    // The kerf is measured and recorded: a curve that cannot be read does not hide it.
+    let curve = match curve {
+        Ok(curve) => Some(CurvePoints {
             run_id: curve.run_id,
-            points,
-        },
-    })
+            points: curve
+                .samples
+                .iter()
+                .map(|x| [x.torque_nm, x.angle_deg])
+                .collect(),
+        }),
+        Err(e) => {
+            report.curve_failed(&e);
+            None
+        }
+    };
+    Ok(ServedRun { report, curve })
 }
 
 /// Lets a `progress` notification through at most once per [`PROGRESS_INTERVAL`], and at every

@@ -297,9 +297,14 @@ def test_page_reconnects_after_the_server_restarts(browser, fast_server):
 
 def test_page_passes_its_token_on(browser, token_server):
     """With a token, the page's files load without it and the page hands its own `?token=` to
-    the WebSocket; without the token in its address the page says it cannot connect."""
+    the WebSocket. The token leaves the address bar at once and stays with the tab (a reload
+    still connects); a tab without it says it cannot connect."""
     open_page(browser, token_server, f"?token={TOKEN}")
     assert "Firmware" in text(browser, "info")
+    assert TOKEN not in browser.current_url
+    browser.refresh()
+    wait(browser, lambda d: attr(d, "info", "data-loaded") == "true", message="no info on reload")
+    browser.execute_script("sessionStorage.clear()")
     browser.get(token_server.url)
     wait(browser, lambda d: "wants a token" in text(d, "link"), message="no word of the token")
     assert attr(browser, "info", "data-loaded") is None
