@@ -17,7 +17,8 @@ pub struct Global {
     /// Serial port of the device (e.g. /dev/ttyACM0). Also from KERFMETER_PORT.
     #[arg(long, global = true, env = "KERFMETER_PORT", conflicts_with = "sim")]
     pub port: Option<String>,
-    /// Use the simulated device (the digital twin) instead of hardware.
+    /// Use the simulated device (the digital twin) instead of hardware; with `lightburn`, a
+    /// LightBurn twin instead of LightBurn.
     #[arg(long, global = true)]
     pub sim: bool,
     /// Simulated device: true kerf of the cut gauges, µm.

@@ -96,10 +96,15 @@ pub fn record(g: &Global, meter: &Kerfmeter, simulated: bool, m: &Measured<'_>) 
 /// (`kerfmeter-twin`): its measurements are simulated wherever they come from.
 const TWIN_BOARD: &str = "twin";
 
+/// Whether `meter` is the digital twin (by the board it names), wherever it is reached.
+pub fn is_twin(meter: &Kerfmeter) -> bool {
+    meter.cached_info().hardware.board.as_str() == TWIN_BOARD
+}
+
 /// The record of `m`.
 fn new_record(meter: &Kerfmeter, simulated: bool, m: &Measured<'_>) -> NewRecord {
     let info = meter.cached_info();
-    let simulated = simulated || info.hardware.board.as_str() == TWIN_BOARD;
+    let simulated = simulated || is_twin(meter);
     let v = info.firmware;
     let mut flags: Vec<String> = Vec::new();
     for name in m.runs.iter().flat_map(|r| r.flags.names()) {

@@ -658,9 +658,13 @@ fn a_device_that_vanishes_is_reported_and_reopened_when_it_comes_back() {
     assert!(result(&info)["boot_id"].is_u64(), "{info}");
     let run = ws.call("run_kerfmeter", json!({}));
     assert!(result(&run)["kerf_um"].is_number(), "{run}");
-    // The twin behind a PTY is still the twin: its measurement is not a real one.
-    let real = ws.call("history", json!({}));
-    assert_eq!(result(&real)["records"], json!([]), "{real}");
+    // The twin behind a PTY is still the twin: its measurement is recorded, as simulated, and
+    // the server lists those.
+    assert!(result(&run)["history"]["id"].is_number(), "{run}");
+    let listed = ws.call("history", json!({}));
+    let records = result(&listed)["records"].as_array().unwrap().clone();
+    assert_eq!(records.len(), 1, "{listed}");
+    assert_eq!(records[0]["simulated"], true, "{listed}");
     drop(server);
     let _ = twin.kill();
     let _ = twin.wait();
@@ -857,7 +861,18 @@ fn a_job_runs_on_the_servers_cutter_with_its_stages_told() {
         }
     }
     assert_eq!(done, stages);
-    // Clearing the controller's alarm is for someone at the machine, unless the server says.
+    // Clearing the controller's alarm is for someone at the machine, unless the server says
+    // (then the request goes on to its other params: here a bad one, so nothing runs).
+    let allowing = Server::start(&["--sim"], &["--cutter", "sim", "--allow-unlock"]);
+    let passed = allowing.ws().call(
+        "job",
+        json!({ "plan": PLATE, "format": "svg", "unlock": true, "profile": "x" }),
+    );
+    let message = passed["error"]["message"].as_str().unwrap().to_owned();
+    assert!(
+        message.contains("`profile`") && !message.contains("--allow-unlock"),
+        "{passed}"
+    );
     let unlock = ws.call(
         "job",
         json!({ "plan": PLATE, "format": "svg", "unlock": true }),

@@ -355,7 +355,6 @@ function showKerf(kerfUm, lines, runId) {
   }
 }
 
-/** Quality flags as names: the JSON may carry a list of names, or the raw bit set. */
 /** A result's or a record's quality flags by name: `flag_names` on a device result (its `flags`
  * are bits), `flags` on a history record. */
 function flagNames(flags) {
@@ -373,15 +372,29 @@ async function showLastKerf() {
   }
 }
 
-/** Stop the motor: over the WebSocket, or, when it is down (the reason to press Abort may be
- * the one that broke it), by the HTTP API's POST /api/abort. */
+/** How long Abort waits for the WebSocket's answer before it asks over HTTP too. */
+const ABORT_WAIT_MS = 2000;
+
+/** Stop the motor: over the WebSocket, and by the HTTP API's POST /api/abort when the
+ * WebSocket is down or does not answer in time (the reason to press Abort may be the one that
+ * broke it). */
 function abort() {
   guarded(async () => {
-    if (rpc.ws?.readyState === WebSocket.OPEN) {
-      await rpc.call("abort");
-    } else {
+    const overHttp = async () => {
       const reply = await fetch("/api/abort", { method: "POST", headers: authorization() });
       if (!reply.ok) throw new Error(`the server refused to abort (HTTP ${reply.status})`);
+    };
+    if (rpc.ws?.readyState === WebSocket.OPEN) {
+      const late = new Promise((_, reject) =>
+        setTimeout(() => reject(new Error("no answer")), ABORT_WAIT_MS));
+      try {
+        await Promise.race([rpc.call("abort"), late]);
+      } catch (e) {
+        if (e instanceof RpcError && !e.lost) throw e;
+        await overHttp();
+      }
+    } else {
+      await overHttp();
     }
     $("progress").textContent = "Aborted.";
   });

@@ -2,8 +2,9 @@
 //!
 //! The baseline is the label's last [`BASELINE_RECORDS`] trusted measurements before the newest
 //! one (same label, same thickness and force, same population: real or simulated; a record
-//! flagged for anything but `decimated` is not trusted and left out). With at least [`MIN_BASELINE`] of them, the newest
-//! kerf drifts when it is farther from their mean than `max(3 · SD, FLOOR_UM)`.
+//! flagged for anything but `decimated` is not trusted and left out). With at least
+//! [`MIN_BASELINE`] of them, the newest kerf drifts when it is farther from their mean than
+//! `max(3 · SD, FLOOR_UM)`.
 //!
 //! Why these numbers:
 //! - 3 · SD: for a steady cutter, a new measurement lands beyond 3 SD about once in 370 times,

@@ -126,7 +126,12 @@ pub struct Listing {
 pub struct History {
     conn: Connection,
     path: PathBuf,
+    /// Opened by [`History::open_to_read`]: [`History::record`] is refused.
+    read_only: bool,
 }
+
+/// How long a writer waits for another writer, or a reader for a commit, before giving up.
+const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// Check a label: not blank, at most [`MAX_LABEL_CHARS`] characters, no control characters.
 pub fn check_label(label: &str) -> Result<(), Error> {
@@ -163,28 +168,30 @@ impl History {
         }
         let sql = |source| Error::sqlite(path, source);
         let mut conn = Connection::open(path).map_err(sql)?;
-        conn.busy_timeout(Duration::from_secs(5)).map_err(sql)?;
+        conn.busy_timeout(BUSY_TIMEOUT).map_err(sql)?;
         conn.pragma_update(None, "synchronous", "FULL")
             .map_err(sql)?;
         schema::migrate(&mut conn, path)?;
         Ok(History {
             conn,
             path: path.to_owned(),
+            read_only: false,
         })
     }
 
-    /// Open the database at `path` only to read it: nothing is created and no write lock is
-    /// taken, so a listing never waits for a writer and works on a database the user may only
-    /// read (a shared one, a read-only mount). One that does not exist yet reads as empty; a
-    /// newer or foreign one is refused as [`History::open`] refuses it. One that needs a
-    /// migration, or a recovery after a crash (its journal left behind), is opened by
+    /// Open the database at `path` only to read it ([`History::record`] is refused): nothing is
+    /// created and no write lock is taken, so a listing waits only while a writer commits, and
+    /// works on a database the user may only read (a shared one, a read-only mount). One that
+    /// does not exist yet reads as empty; a newer or foreign one is refused as
+    /// [`History::open`] refuses it. The exceptions write: a database that needs a migration
+    /// (an older version), or a recovery after a crash (its journal left behind), is opened by
     /// [`History::open`], which can do them.
     pub fn open_to_read(path: &Path) -> Result<History, Error> {
         let sql = |source| Error::sqlite(path, source);
         let conn = if path.exists() {
             let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
             let conn = Connection::open_with_flags(path, flags).map_err(sql)?;
-            conn.busy_timeout(Duration::from_secs(5)).map_err(sql)?;
+            conn.busy_timeout(BUSY_TIMEOUT).map_err(sql)?;
             match schema::readable(&conn, path) {
                 Ok(true) => conn,
                 Ok(false) | Err(Error::Sqlite { .. }) => return History::open(path),
@@ -198,6 +205,7 @@ impl History {
         Ok(History {
             conn,
             path: path.to_owned(),
+            read_only: true,
         })
     }
 
@@ -212,6 +220,12 @@ impl History {
 
     /// Record `record` now (one transaction); its id.
     pub fn record(&mut self, record: &NewRecord) -> Result<i64, Error> {
+        if self.read_only {
+            return Err(Error::Invalid(format!(
+                "{} was opened only to read: nothing can be recorded through it",
+                self.path.display()
+            )));
+        }
         check_record(record)?;
         let time = jiff::Timestamp::now()
             .round(jiff::Unit::Millisecond)

@@ -150,8 +150,10 @@ fn a_database_from_a_newer_version_is_refused_untouched() {
 fn reading_creates_nothing_and_never_waits_for_a_writer() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("not/yet/h.sqlite3");
-    let empty = History::open_to_read(&db).unwrap();
+    let mut empty = History::open_to_read(&db).unwrap();
     assert!(empty.list(&all(None, false)).unwrap().is_empty());
+    let refused = empty.record(&measurement(Some("birch"), 150.0, false));
+    assert!(matches!(refused, Err(Error::Invalid(_))), "{refused:?}");
     assert!(!dir.path().join("not").exists(), "nothing created to read");
     drop(empty);
 

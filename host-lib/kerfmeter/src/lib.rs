@@ -12,7 +12,7 @@
 //! ([`files`]), the laser cutter's GRBL driver ([`grbl`]), the automatic loop that cuts a gauge, measures
 //! it and cuts the job dilated ([`job`]), LightBurn's local REST API to write the kerf into its
 //! layers ([`lightburn`]) and, with the `sim` feature (on by default), the digital twin in-process
-//! ([`sim`]).
+//! ([`sim`]) and a LightBurn twin ([`lightburn_twin`]).
 //!
 //! This crate is not the command-line tool (that is `kerfmeter-cli`, which also draws the plots)
 //! and does not read or write cutting plans (that is `kerfmeter-plan`): it has no argument parser,

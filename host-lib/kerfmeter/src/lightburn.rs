@@ -53,6 +53,12 @@ pub const PAIRING_FILE_ENV: &str = "KERFMETER_LIGHTBURN_PAIRING";
 /// What went wrong talking to LightBurn; every message says what to do.
 #[derive(Debug, thiserror::Error)]
 pub enum LightBurnError {
+    /// The LightBurn twin (`--sim`) could not start (no loopback port, no thread).
+    #[error("the LightBurn twin could not start: {source}")]
+    TwinFailed {
+        /// Why.
+        source: std::io::Error,
+    },
     /// Nothing listens at the address.
     #[error(
         "LightBurn is not running at {host} (connection refused): start LightBurn 2.2 or later and try again"

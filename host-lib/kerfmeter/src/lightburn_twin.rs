@@ -18,18 +18,24 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use hmac::{Hmac, KeyInit, Mac};
 use serde_json::{Value, json};
 use sha2::Sha256;
+
+use crate::lightburn::LightBurnError;
 
 /// The secret the twin hands out when it pairs.
 const SECRET: &str = "twin-3dE7fG9hJ1kL5m";
 
 /// Longest request head and body the twin reads, bytes.
 const MAX_REQUEST_BYTES: usize = 1 << 20;
+
+/// Longest time a client may take to send its whole request.
+const REQUEST_DEADLINE: Duration = Duration::from_secs(5);
 
 /// How the twin behaves.
 #[derive(Debug, Clone, PartialEq)]
@@ -64,16 +70,29 @@ struct State {
     posts: Vec<(String, Value)>,
 }
 
-/// A running LightBurn twin; it serves until the process ends.
-#[derive(Clone)]
+/// A running LightBurn twin; it stops serving when dropped. Each connection is served on a
+/// thread of its own, so a slow client delays only itself.
 pub struct LightBurnTwin {
     host: String,
     state: Arc<Mutex<State>>,
+    stop: Arc<AtomicBool>,
+}
+
+impl Drop for LightBurnTwin {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        // Wake the accepting thread so that it sees the flag.
+        let _ = TcpStream::connect(&self.host);
+    }
 }
 
 impl LightBurnTwin {
     /// Serve a twin on a free loopback port.
-    pub fn start(options: LightBurnTwinOptions) -> std::io::Result<LightBurnTwin> {
+    pub fn start(options: LightBurnTwinOptions) -> Result<LightBurnTwin, LightBurnError> {
+        Self::serve(options).map_err(|source| LightBurnError::TwinFailed { source })
+    }
+
+    fn serve(options: LightBurnTwinOptions) -> std::io::Result<LightBurnTwin> {
         let listener = TcpListener::bind("127.0.0.1:0")?;
         let host = listener.local_addr()?.to_string();
         let state = Arc::new(Mutex::new(State {
@@ -81,16 +100,12 @@ impl LightBurnTwin {
             cuts: project_cuts(),
             posts: Vec::new(),
         }));
-        let served = Arc::clone(&state);
+        let stop = Arc::new(AtomicBool::new(false));
+        let (served, stopped) = (Arc::clone(&state), Arc::clone(&stop));
         std::thread::Builder::new()
             .name("lightburn-twin".into())
-            .spawn(move || {
-                for stream in listener.incoming().flatten() {
-                    // A client that sends garbage only loses its own connection.
-                    let _ = serve(stream, &served);
-                }
-            })?;
-        Ok(LightBurnTwin { host, state })
+            .spawn(move || accept(&listener, &served, &stopped))?;
+        Ok(LightBurnTwin { host, state, stop })
     }
 
     /// Its address, `127.0.0.1:PORT`.
@@ -233,15 +248,17 @@ fn change_cut(s: &mut State, path: &str, body: Value) -> (u16, Value) {
     else {
         return (404, json!({ "error": "no such cut" }));
     };
-    merge(&mut cut["params"], &body["params"]);
+    if let Some(params) = cut.get_mut("params") {
+        merge(params, &body["params"]);
+    }
     for sub in body["sub_layers"].as_array().into_iter().flatten() {
-        let subs = cut["sub_layers"].as_array_mut();
-        if let Some(target) = subs
+        let subs = cut.get_mut("sub_layers").and_then(Value::as_array_mut);
+        let target = subs
             .into_iter()
             .flatten()
-            .find(|t| t["index"] == sub["index"])
-        {
-            merge(&mut target["params"], &sub["params"]);
+            .find(|t| t["index"] == sub["index"]);
+        if let Some(params) = target.and_then(|t| t.get_mut("params")) {
+            merge(params, &sub["params"]);
         }
     }
     s.posts.push((path.to_owned(), body));
@@ -257,10 +274,33 @@ fn merge(into: &mut Value, from: &Value) {
     }
 }
 
-/// Read one request from `stream` and answer it.
+/// Take connections until `stop`, each served on its own thread.
+fn accept(listener: &TcpListener, state: &Arc<Mutex<State>>, stop: &AtomicBool) {
+    for stream in listener.incoming() {
+        if stop.load(Ordering::SeqCst) {
+            return;
+        }
+        match stream {
+            Ok(stream) => {
+                let state = Arc::clone(state);
+                // A client that sends garbage only loses its own connection.
+                let _ = std::thread::Builder::new()
+                    .name("lightburn-twin-request".into())
+                    .spawn(move || serve(stream, &state));
+            }
+            // Out of file handles, say: wait rather than spin.
+            Err(_) => std::thread::sleep(Duration::from_millis(50)),
+        }
+    }
+}
+
+/// Read one request from `stream` (within [`REQUEST_DEADLINE`]) and answer it.
 fn serve(stream: TcpStream, state: &Mutex<State>) -> std::io::Result<()> {
-    stream.set_read_timeout(Some(Duration::from_secs(5)))?;
-    let mut reader = BufReader::new(stream.try_clone()?);
+    let deadline = Instant::now() + REQUEST_DEADLINE;
+    let mut reader = BufReader::new(Deadlined {
+        stream: stream.try_clone()?,
+        deadline,
+    });
     let head = read_head(&mut reader)?;
     let mut headers = [httparse::EMPTY_HEADER; 32];
     let mut request = httparse::Request::new(&mut headers);
@@ -288,12 +328,32 @@ fn serve(stream: TcpStream, state: &Mutex<State>) -> std::io::Result<()> {
     }
     let text = value.to_string();
     let mut stream = stream;
+    // A client that does not read its answer cannot hold the thread either.
+    stream.set_write_timeout(Some(REQUEST_DEADLINE))?;
     write!(
         stream,
         "HTTP/1.1 {status} {}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{text}",
         reason(status),
         text.len()
     )
+}
+
+/// A stream whose reads all end by one deadline: a client cannot hold its connection open by
+/// sending a byte now and then.
+struct Deadlined {
+    stream: TcpStream,
+    deadline: Instant,
+}
+
+impl Read for Deadlined {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let left = self.deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(std::io::ErrorKind::TimedOut.into());
+        }
+        self.stream.set_read_timeout(Some(left))?;
+        self.stream.read(buf)
+    }
 }
 
 /// The request's head, up to and including its blank line.

@@ -38,19 +38,25 @@ pub struct HistoryReport {
 
 /// List the history as `args` say.
 pub fn run(g: &Global, args: &HistoryArgs) -> Result<HistoryReport, CliError> {
-    list(g, args.label.clone(), args.limit)
+    list(g, g.sim, args.label.clone(), args.limit)
 }
 
-/// The newest `limit` records of the history `g` names (of `label` only, if given), real or
-/// simulated as `g.sim` says, with the drift warnings (`kerfmeter serve`'s `history` too).
-pub fn list(g: &Global, label: Option<String>, limit: u32) -> Result<HistoryReport, CliError> {
+/// The newest `limit` records of the history `g` names (of `label` only, if given), the
+/// `simulated` ones or the real ones, with the drift warnings (`kerfmeter serve`'s `history`
+/// too).
+pub fn list(
+    g: &Global,
+    simulated: bool,
+    label: Option<String>,
+    limit: u32,
+) -> Result<HistoryReport, CliError> {
     let db = g.db_path()?;
     // Listing creates nothing: no file yet is an empty history.
     let listing = if db.exists() {
         History::open_to_read(&db)?.listing(&Query {
             label,
             limit: Some(limit as usize),
-            simulated: g.sim,
+            simulated,
         })?
     } else {
         Listing {
@@ -60,7 +66,7 @@ pub fn list(g: &Global, label: Option<String>, limit: u32) -> Result<HistoryRepo
     };
     Ok(HistoryReport {
         db,
-        simulated: g.sim,
+        simulated,
         listing,
     })
 }

@@ -3,7 +3,8 @@
 //! documents LightBurn's convention: half the kerf, positive outward); this module checks the
 //! arguments that apply to a project, writes the output atomically (never over the input) and
 //! reports. Online, `kerfmeter lightburn pair` and `kerfmeter lightburn apply` do the same to the
-//! project open in a running LightBurn through its REST API (the library's `lightburn` module).
+//! project open in a running LightBurn through its REST API (the library's `lightburn` module);
+//! with `--sim`, to a LightBurn twin started for the call (the library's `lightburn_twin`).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -329,24 +330,25 @@ fn round6(v: f64) -> f64 {
     (v * 1e6).round() / 1e6
 }
 
-/// A LightBurn twin for `--sim`: a fresh one each time, as `--sim` gives a fresh device.
-fn twin(endpoint: &Endpoint) -> Result<LightBurnTwin> {
+/// For `--sim`: a fresh LightBurn twin (as `--sim` gives a fresh device) and a pairing with
+/// it, kept in memory only. The twin serves until it is dropped.
+fn sim_pairing(endpoint: &Endpoint) -> Result<(LightBurnTwin, Pairing)> {
     if endpoint.host.is_some() || endpoint.pairing_file.is_some() {
         return Err(CliError::Usage(
             "--sim talks to a LightBurn twin of its own: --host and --pairing-file do not apply"
                 .into(),
         ));
     }
-    LightBurnTwin::start(LightBurnTwinOptions::default())
-        .map_err(|e| CliError::Usage(format!("cannot start the LightBurn twin: {e}")))
+    let twin = LightBurnTwin::start(LightBurnTwinOptions::default())?;
+    let pairing = Client::pair(twin.host())?;
+    Ok((twin, pairing))
 }
 
 /// Pair with LightBurn and keep the secret; with `sim`, pair with a LightBurn twin and keep
 /// nothing (the user's pairing stays as it was).
 pub fn pair(args: &PairArgs, sim: bool) -> Result<PairReport> {
     if sim {
-        let twin = twin(&args.endpoint)?;
-        let pairing = Client::pair(twin.host())?;
+        let (_twin, pairing) = sim_pairing(&args.endpoint)?;
         return Ok(PairReport {
             host: pairing.host,
             pairing_file: None,
@@ -370,14 +372,11 @@ pub fn pair(args: &PairArgs, sim: bool) -> Result<PairReport> {
 /// for this call only.
 pub fn apply(args: &ApplyArgs, sim: bool) -> Result<ApplyReport> {
     let kerf_um = KerfSource::check_kerf_um(args.kerf_um)?;
-    let _twin;
-    let pairing = if sim {
-        let twin = twin(&args.endpoint)?;
-        let pairing = Client::pair(twin.host())?;
-        _twin = twin;
-        pairing
+    let (_twin, pairing) = if sim {
+        let (twin, pairing) = sim_pairing(&args.endpoint)?;
+        (Some(twin), pairing)
     } else {
-        Pairing::load(&args.endpoint.pairing_path()?)?
+        (None, Pairing::load(&args.endpoint.pairing_path()?)?)
     };
     let host = args.endpoint.host.clone().unwrap_or(pairing.host.clone());
     let existing = if args.recompensate {

@@ -107,10 +107,7 @@ pub struct RunReport {
     /// Why the curve could not be read or drawn after the measurement (which stands, and is
     /// recorded); the command then fails after printing the report.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub curve_error: Option<String>,
-    /// The category of that failure, for the exit code.
-    #[serde(skip)]
-    pub curve_error_category: Option<kerfmeter::Category>,
+    pub curve_error: Option<CurveError>,
     /// What the simulated device was told to cut, for the text output.
     #[serde(skip)]
     pub sim: Option<SimNote>,
@@ -158,6 +155,17 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
     Ok(report)
 }
 
+/// Why the curve could not be read or drawn after a measurement; its JSON is the message.
+#[derive(Debug, Clone, Serialize)]
+#[serde(transparent)]
+pub struct CurveError {
+    /// What failed.
+    pub message: String,
+    /// Its kind, for the exit code (and, on the server, whether the link is lost).
+    #[serde(skip)]
+    pub category: kerfmeter::Category,
+}
+
 impl RunReport {
     /// The report of `measurement`, made with `params` on the device of `s` (on the twin, with
     /// its truth); no readings at other forces, no plot.
@@ -192,15 +200,16 @@ impl RunReport {
             sim_truth_um,
             sim_truths_um,
             curve_error: None,
-            curve_error_category: None,
             sim,
         }
     }
 
     /// Note that the curve could not be read or drawn after the measurement.
     pub fn curve_failed(&mut self, e: &CliError) {
-        self.curve_error = Some(e.to_string());
-        self.curve_error_category = Some(e.category());
+        self.curve_error = Some(CurveError {
+            message: e.to_string(),
+            category: e.category(),
+        });
     }
 }
 
@@ -327,12 +336,12 @@ impl Report for RunReport {
     const JSON: JsonLayout = JsonLayout::PrettySorted;
 
     fn verdict(&self) -> Result<(), CliError> {
-        match (&self.curve_error, self.curve_error_category) {
-            (Some(message), Some(category)) => Err(CliError::AfterMeasuring {
-                message: message.clone(),
-                category,
+        match &self.curve_error {
+            Some(e) => Err(CliError::AfterMeasuring {
+                message: e.message.clone(),
+                category: e.category,
             }),
-            _ => Ok(()),
+            None => Ok(()),
         }
     }
 }

@@ -14,7 +14,7 @@ use serde::Serialize;
 use serde_json::{Value, json};
 
 use super::Cutter;
-use super::rpc::{Caller, INVALID_PARAMS, PLAN_ERROR, Params, RpcError};
+use super::rpc::{Caller, INTERNAL_ERROR, INVALID_PARAMS, PLAN_ERROR, Params, RpcError};
 use super::worker::{Call, Device};
 use crate::commands::dilate::DilationArgs;
 use crate::commands::gauge::{GaugeArgs, draw};
@@ -65,7 +65,7 @@ pub async fn dilate(device: &Device, mut p: Params, by: Caller) -> Result<Value,
     let strict = p.bool("strict")?.unwrap_or(false);
     p.finish()?;
     let work = move || dilate_plan(plan, format, &args, strict);
-    plan_work(PLAN_ERROR, "the dilation", work).await
+    plan_work("the dilation", work).await
 }
 
 /// Dilate `plan` as `args` say: the answer of `dilate`.
@@ -187,7 +187,7 @@ pub async fn gauge(p: Params) -> Result<Value, RpcError> {
         "svg"
     };
     let work = move || draw(&args);
-    let (content, report) = plan_work(PLAN_ERROR, "the drawing", work).await?;
+    let (content, report) = plan_work("the drawing", work).await?;
     let mut report = serde_json::to_value(&report).expect("reports serialize");
     if let Some(fields) = report.as_object_mut() {
         fields.remove("output");
@@ -207,9 +207,8 @@ static PLAN_WORK: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
 
 /// Run `work` (plan reading, dilation or drawing; `what`, for a message) on a blocking thread
 /// when [`PLAN_WORK`] lets it. Its error is answered as [`RpcError::from`] says; a panic in it
-/// as error `code`, "`what` failed".
+/// (a bug) as -32603, "`what` failed".
 async fn plan_work<T, E>(
-    code: i32,
     what: &str,
     work: impl FnOnce() -> Result<T, E> + Send + 'static,
 ) -> Result<T, RpcError>
@@ -224,7 +223,7 @@ where
         .expect("the semaphore is never closed");
     match tokio::task::spawn_blocking(work).await {
         Ok(done) => done.map_err(|e| RpcError::from(&e)),
-        Err(e) => Err(RpcError::new(code, format!("{what} failed: {e}"))),
+        Err(e) => Err(RpcError::new(INTERNAL_ERROR, format!("{what} failed: {e}"))),
     }
 }
 
@@ -236,8 +235,10 @@ pub async fn history(device: &Device, mut p: Params) -> Result<Value, RpcError> 
     let limit = p.u32_in("limit", 1..=100_000)?.unwrap_or(50);
     p.finish()?;
     let g = device.global().clone();
-    let work = move || history::list(&g, label, limit);
-    let report = plan_work(super::rpc::HISTORY_ERROR, "the history", work).await?;
+    // The twin behind a PTY records its measurements as simulated: list those.
+    let simulated = g.sim || device.is_twin();
+    let work = move || history::list(&g, simulated, label, limit);
+    let report = plan_work("the history", work).await?;
     let mut answer = serde_json::to_value(&report).expect("reports serialize");
     if let Some(fields) = answer.as_object_mut() {
         fields.remove("db");
@@ -406,7 +407,7 @@ pub async fn job_call(mut p: Params, cutter: &Cutter) -> Result<JobCall, RpcErro
     // The measurement is recorded in the history under the job's label.
     args.label.clone_from(&label);
     let read = move || Setup::new(&args).map(|s| (args, s));
-    let (args, setup) = plan_work(PLAN_ERROR, "reading the plan", read).await?;
+    let (args, setup) = plan_work("reading the plan", read).await?;
     Ok(JobCall {
         args,
         setup,

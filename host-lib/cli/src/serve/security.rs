@@ -180,11 +180,17 @@ fn normalize(origin: &str) -> String {
     origin.trim().trim_end_matches('/').to_ascii_lowercase()
 }
 
-/// An `--allow-origin` as the browser sends it (`http://host[:port]` or `https://…`), or why it
-/// cannot be one. `null` (sent by sandboxed frames, `file:` pages and some redirects: any page
-/// can make its requests carry it) and `*` would open the server to every page.
+/// An `--allow-origin` as the browser sends it (`http://host[:port]` or `https://…`, without
+/// the scheme's default port, which browsers leave out), or why it cannot be one. `null` (sent
+/// by sandboxed frames, `file:` pages and some redirects: any page can make its requests carry
+/// it) and `*` would open the server to every page.
 fn allowed_origin(origin: &str) -> Result<String, CliError> {
     let o = normalize(origin);
+    let o = match (o.strip_suffix(":80"), o.strip_suffix(":443")) {
+        (Some(bare), _) if bare.starts_with("http://") => bare.to_owned(),
+        (_, Some(bare)) if bare.starts_with("https://") => bare.to_owned(),
+        _ => o,
+    };
     let host = o
         .strip_prefix("http://")
         .or_else(|| o.strip_prefix("https://"));
@@ -323,6 +329,9 @@ mod tests {
         for good in ["http://localhost:5173", "https://Tool.example/"] {
             assert!(Security::new(at, None, &[good.into()]).is_ok(), "{good}");
         }
+        // A default port is left out, as the browser leaves it out of `Origin`.
+        let s = Security::new(at, None, &["https://tool.example:443".into()]).unwrap();
+        assert!(s.origin_ok("https://tool.example", Some("127.0.0.1:7878")));
     }
 
     #[test]

@@ -43,7 +43,7 @@ use crate::commands::{Done, info, job, self_test, status};
 use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::ResultJson;
-use crate::record::{Measured, record};
+use crate::record::{Measured, is_twin, record};
 
 /// The shortest time between two `progress` notifications of the same state.
 pub const PROGRESS_INTERVAL: Duration = Duration::from_millis(50);
@@ -122,6 +122,8 @@ struct Shared {
     stop: AtomicBool,
     /// The device answered last time it was asked.
     connected: AtomicBool,
+    /// The device last opened is the digital twin (in process or behind a PTY).
+    twin: AtomicBool,
     /// The server is stopping: the thread ends after the call it is doing.
     quit: AtomicBool,
     /// The device's state was logged once.
@@ -179,6 +181,7 @@ impl Device {
             busy: AtomicBool::new(false),
             stop: AtomicBool::new(false),
             connected: AtomicBool::new(false),
+            twin: AtomicBool::new(false),
             quit: AtomicBool::new(false),
             logged: AtomicBool::new(false),
             events,
@@ -196,6 +199,12 @@ impl Device {
             .spawn(move || worker.work(queue))
             .expect("a thread can be started");
         (Device { shared, jobs }, thread)
+    }
+
+    /// Whether the device last opened is the digital twin, whose measurements are recorded as
+    /// simulated.
+    pub fn is_twin(&self) -> bool {
+        self.shared.twin.load(Ordering::SeqCst)
     }
 
     /// The cutter `job` runs on, if the server was given one.
@@ -317,6 +326,8 @@ impl Worker {
         match self.g.connect() {
             Ok(s) => {
                 let message = format!("the device answers on {}", s.meter.path());
+                let twin = s.sim.is_some() || is_twin(&s.meter);
+                self.shared.twin.store(twin, Ordering::SeqCst);
                 self.session = Some(s);
                 self.shared.set_connected(true, &message);
             }
@@ -339,9 +350,14 @@ impl Worker {
 
     /// Drop the session after a link error, so that the device is re-opened.
     fn lost(&mut self, e: &CliError) {
-        if e.category() == kerfmeter::Category::Communication {
+        self.lost_link(e.category(), &e.to_string());
+    }
+
+    /// Drop the session if a failure of `category` (told as `message`) was the link's.
+    fn lost_link(&mut self, category: kerfmeter::Category, message: &str) {
+        if category == kerfmeter::Category::Communication {
             self.session = None;
-            self.shared.set_connected(false, &e.to_string());
+            self.shared.set_connected(false, message);
         }
     }
 
@@ -408,6 +424,9 @@ impl Worker {
         };
         match measure_and_report(&self.g, s, &run, &self.shared) {
             Ok(served) => {
+                if let Some(e) = &served.report.curve_error {
+                    self.lost_link(e.category, &e.message);
+                }
                 let mut answer = to_value(&served);
                 // Where the server keeps its files is not the clients' business.
                 if let Some(history) = answer.get_mut("history").and_then(Value::as_object_mut) {
