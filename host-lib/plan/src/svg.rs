@@ -46,6 +46,7 @@
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
+use std::io::Write;
 use std::ops::Range;
 use std::str::FromStr;
 
@@ -159,15 +160,34 @@ pub fn dilate_svg(
     kerf: &KerfSource,
     opts: &SvgOptions,
 ) -> Result<(String, PlanSummary)> {
+    let mut out = Vec::with_capacity(text.len());
+    let summary = dilate_svg_into(text, kerf, opts, &mut out)?;
+    let out = String::from_utf8(out).map_err(|_| {
+        bad("internal error: the edited SVG is not UTF-8 (please report this file)")
+    })?;
+    Ok((out, summary))
+}
+
+/// Dilate the cuts of an SVG plan, writing the edited document to `out` as it is made (it is
+/// never held whole: with its arcs written out, it is several times the size of the source).
+/// On an error, part of the document may have been written. An error writing to `out` is a
+/// [`PlanError::Write`] (whose path the caller sets).
+pub fn dilate_svg_into(
+    text: &str,
+    kerf: &KerfSource,
+    opts: &SvgOptions,
+    out: &mut (dyn Write + Sync),
+) -> Result<PlanSummary> {
     opts.progress.start(Stage::Reading, 0);
     let doc = parse(text)?;
-    pipeline::dilate_plan(
-        SvgPlan::new(text, &doc, opts),
+    let ((), summary) = pipeline::dilate_plan(
+        SvgPlan::new(text, &doc, opts, out),
         kerf,
         opts.if_compensated,
         &opts.rules,
         &opts.progress,
-    )
+    )?;
+    Ok(summary)
 }
 
 /// Dilate the cuts of an SVG plan and give them back as contours in document mm (y down), each
@@ -180,7 +200,7 @@ pub(crate) fn dilate_svg_cuts(
     opts.progress.start(Stage::Reading, 0);
     let doc = parse(text)?;
     pipeline::dilate_plan_cuts(
-        SvgPlan::new(text, &doc, opts),
+        SvgPlan::new(text, &doc, opts, &mut std::io::sink()),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -210,7 +230,7 @@ fn parse(text: &str) -> Result<Document<'_>> {
 
 /// An SVG document in the plan pipeline: the source text, its XML tree, and the cut instances
 /// found by rendering it. A contour's origin is (instance, subpath).
-struct SvgPlan<'d, 'a> {
+struct SvgPlan<'d, 'a, 'w> {
     text: &'a str,
     doc: &'d Document<'a>,
     opts: &'d SvgOptions,
@@ -224,10 +244,17 @@ struct SvgPlan<'d, 'a> {
     instances: Vec<Instance>,
     /// Where each line of the source starts, to name elements by line and column.
     lines: LineIndex<'a>,
+    /// Where the dilated document goes (taken when it is written).
+    out: Option<&'w mut (dyn Write + Sync)>,
 }
 
-impl<'d, 'a> SvgPlan<'d, 'a> {
-    fn new(text: &'a str, doc: &'d Document<'a>, opts: &'d SvgOptions) -> Self {
+impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
+    fn new(
+        text: &'a str,
+        doc: &'d Document<'a>,
+        opts: &'d SvgOptions,
+        out: &'w mut (dyn Write + Sync),
+    ) -> Self {
         let shapes = doc
             .descendants()
             .filter(|n| {
@@ -255,6 +282,7 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
             ids,
             instances: Vec::new(),
             lines: LineIndex::new(text),
+            out: Some(out),
         }
     }
 
@@ -490,13 +518,14 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         edits: Vec<Edit>,
         contour_of: &HashMap<(usize, usize), &Pline>,
         summary: &mut PlanSummary,
-    ) -> Result<String> {
+        sink: &mut (dyn Write + Sync),
+    ) -> Result<()> {
         let mut direct: Vec<usize> = (0..self.instances.len())
             .filter(|&ii| self.instances[ii].via_use.is_none())
             .collect();
         direct.sort_by_key(|&ii| self.shapes[self.instances[ii].element].range().start);
         let mut edits = sorted(edits).into_iter().peekable();
-        let mut out = EditWriter::new(self.text);
+        let mut out = EditWriter::new(self.text, sink);
         for batch in direct.chunks(WRITE_BATCH) {
             let made: Vec<Option<Result<Vec<Edit>>>> = batch
                 .par_iter()
@@ -516,7 +545,7 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         for x in edits {
             out.apply(x)?;
         }
-        Ok(out.finish())
+        out.finish()
     }
 
     /// The compensation record (see [`compensation`]) right after the root's start tag, replacing
@@ -670,9 +699,9 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
     }
 }
 
-impl Format for SvgPlan<'_, '_> {
+impl Format for SvgPlan<'_, '_, '_> {
     type Origin = (usize, usize);
-    type Output = String;
+    type Output = ();
 
     fn read(&mut self) -> Result<Plan<(usize, usize)>> {
         let mut plan = Plan::new("svg");
@@ -708,7 +737,7 @@ impl Format for SvgPlan<'_, '_> {
             .collect()
     }
 
-    fn write(self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<String> {
+    fn write(mut self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<()> {
         let contour_of: HashMap<(usize, usize), &Pline> = plan
             .cuts
             .iter()
@@ -719,7 +748,10 @@ impl Format for SvgPlan<'_, '_> {
         let mut edits = Vec::new();
         self.clone_uses(clone_edits, &mut edits, &mut plan.summary)?;
         edits.extend(self.record_edits(&plan.summary));
-        self.write_document(edits, &contour_of, &mut plan.summary)
+        let Some(sink) = self.out.take() else {
+            return Err(bad("internal error: the SVG was written twice"));
+        };
+        self.write_document(edits, &contour_of, &mut plan.summary, sink)
     }
 }
 
@@ -1161,21 +1193,17 @@ fn sorted(mut edits: Vec<Edit>) -> Vec<Edit> {
     edits
 }
 
-/// A source text being copied with non-overlapping edits applied, given in order.
-struct EditWriter<'s> {
+/// A source text being copied to a writer with non-overlapping edits applied, given in order.
+struct EditWriter<'s, 'o> {
     src: &'s str,
     /// How far the source has been copied.
     pos: usize,
-    out: String,
+    out: &'o mut dyn Write,
 }
 
-impl<'s> EditWriter<'s> {
-    fn new(src: &'s str) -> Self {
-        EditWriter {
-            src,
-            pos: 0,
-            out: String::with_capacity(src.len()),
-        }
+impl<'s, 'o> EditWriter<'s, 'o> {
+    fn new(src: &'s str, out: &'o mut dyn Write) -> Self {
+        EditWriter { src, pos: 0, out }
     }
 
     /// Copy the source up to `e`, then `e`'s text in place of its range.
@@ -1185,26 +1213,48 @@ impl<'s> EditWriter<'s> {
                 "internal error: overlapping edits of the SVG text (please report this file)",
             ));
         }
-        self.out.push_str(&self.src[self.pos..e.range.start]);
-        self.out.push_str(&e.text);
+        self.put(self.pos..e.range.start)?;
+        self.write(&e.text)?;
         self.pos = e.range.end;
         Ok(())
     }
 
-    /// The edited text: the rest of the source copied.
-    fn finish(mut self) -> String {
-        self.out.push_str(&self.src[self.pos..]);
-        self.out
+    /// Copy the rest of the source.
+    fn finish(mut self) -> Result<()> {
+        self.put(self.pos..self.src.len())?;
+        self.out.flush().map_err(write_error)
+    }
+
+    fn put(&mut self, range: Range<usize>) -> Result<()> {
+        let text = self.src.get(range).ok_or_else(|| {
+            bad("internal error: an edit of the SVG text splits a character (please report this file)")
+        })?;
+        self.write(text)
+    }
+
+    fn write(&mut self, text: &str) -> Result<()> {
+        self.out.write_all(text.as_bytes()).map_err(write_error)
+    }
+}
+
+/// An error writing the output; the caller names the output.
+fn write_error(source: std::io::Error) -> PlanError {
+    PlanError::Write {
+        path: std::path::PathBuf::new(),
+        source,
     }
 }
 
 /// Apply non-overlapping edits.
 fn apply_edits(src: &str, edits: Vec<Edit>) -> Result<String> {
-    let mut out = EditWriter::new(src);
+    let mut out = Vec::with_capacity(src.len() + 64 * edits.len());
+    let mut writer = EditWriter::new(src, &mut out);
     for e in sorted(edits) {
-        out.apply(e)?;
+        writer.apply(e)?;
     }
-    Ok(out.finish())
+    writer.finish()?;
+    String::from_utf8(out)
+        .map_err(|_| bad("internal error: the edited SVG is not UTF-8 (please report this file)"))
 }
 
 /// The element a `<use>` refers to.
