@@ -1,7 +1,7 @@
 //! What can go wrong with a cutting plan, by kind: a file that is not readable in its format, units
 //! that are not known, a plan that cannot be dilated as drawn or is already compensated, open paths
-//! where none are allowed, a bad argument, or the file itself (reading it). Every message says what
-//! to do.
+//! where none are allowed, a bad argument, or the files themselves (reading the plan, writing the
+//! output). Every message says what to do.
 
 use std::path::{Path, PathBuf};
 

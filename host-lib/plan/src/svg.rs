@@ -43,6 +43,12 @@
 //! * What was applied is recorded right after the root's start tag (a comment and a `<metadata>`
 //!   element, see [`compensation`]), replacing an earlier record of this
 //!   tool's.
+//!
+//! **Memory.** The dilated document is several times its source (every rounded corner an arc), so
+//! it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of elements'
+//! path data at a time; and the drawn segments of closed contours are traced straight from usvg's
+//! tree, not copied. What is held at the peak, while dilating, is the source text, its XML tree,
+//! and the contours drawn and dilated.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
