@@ -170,6 +170,35 @@ fn dilate_writes_the_output_atomically_and_reports_it() {
 }
 
 #[test]
+fn a_refused_plan_leaves_the_output_as_it_was() {
+    // The output is written as it is made, into a temporary file: `--strict`'s refusal of an
+    // open cut path comes after that, and must neither replace the output nor leave the
+    // temporary file.
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("slit.svg");
+    std::fs::write(
+        &input,
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="50mm" height="50mm" viewBox="0 0 50 50"><rect x="5" y="5" width="20" height="20" fill="none" stroke="#ff0000" stroke-width="0.1"/><path d="M 30 5 L 30 25" fill="none" stroke="#ff0000" stroke-width="0.1"/></svg>"##,
+    )
+    .unwrap();
+    let output = dir.path().join("out.svg");
+    std::fs::write(&output, "earlier").unwrap();
+    let out = kerfmeter(&[
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "150",
+        "--strict",
+        "-o",
+        path(&output),
+    ]);
+    assert_ne!(code(&out), 0, "{}", stdout(&out));
+    assert!(stderr(&out).contains("open cut path"), "{}", stderr(&out));
+    assert_eq!(std::fs::read_to_string(&output).unwrap(), "earlier");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+}
+
+#[test]
 fn dry_run_reports_without_writing() {
     let (dir, input) = box_plan();
     let output = dir.path().join("out.svg");

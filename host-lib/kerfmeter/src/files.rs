@@ -1,6 +1,7 @@
 //! Writing output files safely: never over an input, never half-written.
 
-use std::io::Write;
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use crate::error::{Error, Result};
@@ -18,6 +19,31 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
 /// given `mode` before the rename,
 /// so a file written with 0600 (a secret) is never readable by others, not even for a moment.
 pub fn write_atomically_with_mode(path: &Path, bytes: &[u8], mode: u32) -> Result<()> {
+    atomic_write(path, mode, |w| {
+        w.write_all(bytes).map_err(|e| Error::File {
+            path: path.to_owned(),
+            message: format!("cannot write: {e}"),
+        })
+    })
+}
+
+/// [`write_atomically`], the content written by `write` into a buffered writer (so a large
+/// output is never held whole in memory): the file is replaced only when `write` succeeds, and
+/// its error is returned as it is.
+pub fn write_atomically_with<T, E: From<Error>>(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<&mut File>) -> std::result::Result<T, E>,
+) -> std::result::Result<T, E> {
+    atomic_write(path, 0o644, write)
+}
+
+/// Write a temporary file in `path`'s folder with `write`, give it `mode`, flush it to disk and
+/// rename it over `path`; on any error the temporary file is removed.
+fn atomic_write<T, E: From<Error>>(
+    path: &Path,
+    mode: u32,
+    write: impl FnOnce(&mut BufWriter<&mut File>) -> std::result::Result<T, E>,
+) -> std::result::Result<T, E> {
     let file_error = |message: String| Error::File {
         path: path.to_owned(),
         message,
@@ -35,13 +61,18 @@ pub fn write_atomically_with_mode(path: &Path, bytes: &[u8], mode: u32) -> Resul
                 dir.display()
             ))
         })?;
-    tmp.write_all(bytes)
-        .and_then(|()| set_mode(tmp.as_file(), mode))
+    let mut writer = BufWriter::new(tmp.as_file_mut());
+    let value = write(&mut writer)?;
+    writer
+        .flush()
+        .map_err(|e| file_error(format!("cannot write: {e}")))?;
+    drop(writer);
+    set_mode(tmp.as_file(), mode)
         .and_then(|()| tmp.as_file().sync_all())
         .map_err(|e| file_error(format!("cannot write: {e}")))?;
     tmp.persist(path)
         .map_err(|e| file_error(format!("cannot replace the file: {}", e.error)))?;
-    Ok(())
+    Ok(value)
 }
 
 /// Give an open file the Unix permission bits `mode` (nothing elsewhere).

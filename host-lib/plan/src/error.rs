@@ -1,7 +1,7 @@
 //! What can go wrong with a cutting plan, by kind: a file that is not readable in its format, units
 //! that are not known, a plan that cannot be dilated as drawn or is already compensated, open paths
-//! where none are allowed, a bad argument, or the file itself (reading it). Every message says what
-//! to do.
+//! where none are allowed, a bad argument, or the files themselves (reading the plan, writing the
+//! output). Every message says what to do.
 
 use std::path::{Path, PathBuf};
 
@@ -47,6 +47,14 @@ pub enum PlanError {
         /// Why.
         source: std::io::Error,
     },
+    /// The dilated plan could not be written.
+    #[error("{}: cannot write: {source}", path.display())]
+    Write {
+        /// The output file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
     /// Any of the above, in a particular plan file.
     #[error("{}: {source}", path.display())]
     InFile {
@@ -69,7 +77,9 @@ impl PlanError {
     /// The plan file this error is about, if it is about a file rather than the arguments.
     pub fn path(&self) -> Option<&Path> {
         match self {
-            PlanError::Io { path, .. } | PlanError::InFile { path, .. } => Some(path),
+            PlanError::Io { path, .. }
+            | PlanError::Write { path, .. }
+            | PlanError::InFile { path, .. } => Some(path),
             _ => None,
         }
     }

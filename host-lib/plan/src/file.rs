@@ -1,9 +1,12 @@
 //! Plan files: the format a file name says, and dilating a plan read from disk into the bytes of
-//! the dilated plan ([`dilate_file`]) or into its dilated cuts ([`dilate_file_cuts`], for G-code).
+//! the dilated plan ([`dilate_file`]), into a writer as it is made ([`dilate_file_into`]: what the
+//! CLI uses, so a large plan's output is never held whole) or into its dilated cuts
+//! ([`dilate_file_cuts`], for G-code).
 //! Writing the output is the caller's (the CLI writes it atomically and never over the input).
 
 use std::fmt;
-use std::path::Path;
+use std::io::Write;
+use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
@@ -14,7 +17,7 @@ use crate::error::{PlanError, Result};
 use crate::outcome::{AssumedUnits, CutPath, PlanSummary};
 use crate::progress::Progress;
 use crate::rules::CutRules;
-use crate::svg::{SvgOptions, dilate_svg, dilate_svg_cuts};
+use crate::svg::{SvgOptions, dilate_svg, dilate_svg_cuts, dilate_svg_into};
 
 /// Plan file formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -101,6 +104,52 @@ pub fn dilate_bytes(
         refuse_open_paths(&summary, "--strict")?;
     }
     Ok((output, summary))
+}
+
+/// Read the plan at `input` (SVG or DXF, by its extension) and dilate it by `kerf`, like
+/// [`dilate_file`], but write the dilated plan to `out` (called `output` in messages) as it is
+/// made: a dilated SVG plan, its arcs written out, is several times the size of its file, and is
+/// never held whole in memory. On an error (even `--strict`'s refusal, which comes after the
+/// writing) part of the plan may have been written: write into a temporary file, and keep it
+/// only on success. An error writing to `out` is a [`PlanError::Write`] naming `output`.
+pub fn dilate_file_into(
+    input: &Path,
+    kerf: &KerfSource,
+    options: &DilateOptions,
+    output: &Path,
+    out: &mut (dyn Write + Sync),
+) -> Result<PlanSummary> {
+    let format = PlanFormat::of(input)?;
+    let bytes = std::fs::read(input).map_err(|source| PlanError::Io {
+        path: input.to_owned(),
+        source,
+    })?;
+    let summary = match format {
+        PlanFormat::Svg => svg_text(bytes)
+            .and_then(|text| dilate_svg_into(&text, kerf, &svg_options(options), out)),
+        PlanFormat::Dxf => {
+            dilate_dxf_owned(bytes, kerf, &dxf_options(options)).and_then(|(dxf, summary)| {
+                out.write_all(&dxf)
+                    .and_then(|()| out.flush())
+                    .map_err(|source| PlanError::Write {
+                        path: PathBuf::new(),
+                        source,
+                    })?;
+                Ok(summary)
+            })
+        }
+    }
+    .map_err(|e| match e {
+        PlanError::Write { source, .. } => PlanError::Write {
+            path: output.to_owned(),
+            source,
+        },
+        e => e.in_file(input),
+    })?;
+    if options.strict {
+        refuse_open_paths(&summary, "--strict").map_err(|e| e.in_file(input))?;
+    }
+    Ok(summary)
 }
 
 /// Read the plan at `input` (SVG or DXF, by its extension) and dilate it by `kerf`, like

@@ -68,4 +68,6 @@ pub mod rules;
 pub mod svg;
 
 pub use error::{PlanError, Result};
-pub use file::{DilateOptions, PlanFormat, dilate_bytes, dilate_file, dilate_file_cuts};
+pub use file::{
+    DilateOptions, PlanFormat, dilate_bytes, dilate_file, dilate_file_cuts, dilate_file_into,
+};

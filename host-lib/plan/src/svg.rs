@@ -43,9 +43,16 @@
 //! * What was applied is recorded right after the root's start tag (a comment and a `<metadata>`
 //!   element, see [`compensation`]), replacing an earlier record of this
 //!   tool's.
+//!
+//! **Memory.** The dilated document is several times its source (every rounded corner an arc), so
+//! it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of elements'
+//! path data at a time; and the drawn segments of closed contours are traced straight from usvg's
+//! tree, not copied. What is held at the peak, while dilating, is the source text, its XML tree,
+//! and the contours drawn and dilated.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
+use std::io::Write;
 use std::ops::Range;
 use std::str::FromStr;
 
@@ -75,6 +82,9 @@ const GEOMETRY_ATTRIBUTES: [&str; 14] = [
 ];
 /// Prefix of the private ids given to `<use>` elements that have none (never written out).
 const USE_TAG: &str = "__kerfmeter_use_";
+/// Elements whose dilated path data is made at once when the document is written (see
+/// `SvgPlan::write_document`).
+const WRITE_BATCH: usize = 256;
 
 /// How to read an SVG plan.
 #[derive(Debug, Clone, Default)]
@@ -118,8 +128,12 @@ struct Instance {
     via_use: Option<usize>,
     /// Element coordinates → document mm.
     to_doc: Affine,
-    /// The element's subpaths, as `usvg` resolved them.
-    subpaths: Vec<Vec<Seg>>,
+    /// How many subpaths the element has.
+    subpath_count: usize,
+    /// Its subpaths as `usvg` resolved them, kept only when one of them is not a closed contour
+    /// (that one is written back as drawn); empty otherwise, as the closed ones are written back
+    /// dilated.
+    drawn: Vec<Vec<Seg>>,
     /// Its stroke colour (chooses its G-code cut settings).
     stroke: Option<Rgb>,
 }
@@ -152,15 +166,34 @@ pub fn dilate_svg(
     kerf: &KerfSource,
     opts: &SvgOptions,
 ) -> Result<(String, PlanSummary)> {
+    let mut out = Vec::with_capacity(text.len());
+    let summary = dilate_svg_into(text, kerf, opts, &mut out)?;
+    let out = String::from_utf8(out).map_err(|_| {
+        bad("internal error: the edited SVG is not UTF-8 (please report this file)")
+    })?;
+    Ok((out, summary))
+}
+
+/// Dilate the cuts of an SVG plan, writing the edited document to `out` as it is made (it is
+/// never held whole: with its arcs written out, it is several times the size of the source).
+/// On an error, part of the document may have been written. An error writing to `out` is a
+/// [`PlanError::Write`] (whose path the caller sets).
+pub fn dilate_svg_into(
+    text: &str,
+    kerf: &KerfSource,
+    opts: &SvgOptions,
+    out: &mut (dyn Write + Sync),
+) -> Result<PlanSummary> {
     opts.progress.start(Stage::Reading, 0);
     let doc = parse(text)?;
-    pipeline::dilate_plan(
-        SvgPlan::new(text, &doc, opts),
+    let ((), summary) = pipeline::dilate_plan(
+        SvgPlan::new(text, &doc, opts, out),
         kerf,
         opts.if_compensated,
         &opts.rules,
         &opts.progress,
-    )
+    )?;
+    Ok(summary)
 }
 
 /// Dilate the cuts of an SVG plan and give them back as contours in document mm (y down), each
@@ -173,7 +206,7 @@ pub(crate) fn dilate_svg_cuts(
     opts.progress.start(Stage::Reading, 0);
     let doc = parse(text)?;
     pipeline::dilate_plan_cuts(
-        SvgPlan::new(text, &doc, opts),
+        SvgPlan::new(text, &doc, opts, &mut std::io::sink()),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -203,7 +236,7 @@ fn parse(text: &str) -> Result<Document<'_>> {
 
 /// An SVG document in the plan pipeline: the source text, its XML tree, and the cut instances
 /// found by rendering it. A contour's origin is (instance, subpath).
-struct SvgPlan<'d, 'a> {
+struct SvgPlan<'d, 'a, 'w> {
     text: &'a str,
     doc: &'d Document<'a>,
     opts: &'d SvgOptions,
@@ -217,10 +250,17 @@ struct SvgPlan<'d, 'a> {
     instances: Vec<Instance>,
     /// Where each line of the source starts, to name elements by line and column.
     lines: LineIndex<'a>,
+    /// Where the dilated document goes (taken when it is written).
+    out: Option<&'w mut (dyn Write + Sync)>,
 }
 
-impl<'d, 'a> SvgPlan<'d, 'a> {
-    fn new(text: &'a str, doc: &'d Document<'a>, opts: &'d SvgOptions) -> Self {
+impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
+    fn new(
+        text: &'a str,
+        doc: &'d Document<'a>,
+        opts: &'d SvgOptions,
+        out: &'w mut (dyn Write + Sync),
+    ) -> Self {
         let shapes = doc
             .descendants()
             .filter(|n| {
@@ -248,6 +288,7 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
             ids,
             instances: Vec::new(),
             lines: LineIndex::new(text),
+            out: Some(out),
         }
     }
 
@@ -295,24 +336,29 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         Ok((apply_edits(self.text, tags)?, use_by_id))
     }
 
-    /// Render the tagged copy with usvg and collect the cut instances; counts what passes.
-    fn walk(&mut self, mm_per_px: f64, summary: &mut PlanSummary) -> Result<()> {
+    /// Render the tagged copy with usvg, collect the cut instances and trace their subpaths
+    /// (by instance); counts what passes.
+    ///
+    /// Memory: the tagged copy goes as soon as usvg has read it, and the subpaths are traced
+    /// straight from usvg's path data on any core (no copy of the drawn segments is kept but of
+    /// elements with an open subpath), while usvg's tree is alive; the tree goes on return.
+    fn walk(&mut self, mm_per_px: f64, summary: &mut PlanSummary) -> Result<Vec<Vec<Traced>>> {
         let (tagged, use_by_id) = self.tagged()?;
         let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
             .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
+        drop(tagged);
         let mut walk = Walk {
             rules: &self.opts.rules,
             mm_per_px,
             shapes_len: self.shapes.len(),
             use_by_id: &use_by_id,
-            instances: Vec::new(),
+            found: Vec::new(),
             seen: HashSet::new(),
             summary,
             unidentified: 0,
         };
         walk.group(tree.root(), &mut Vec::new());
-        let unidentified = walk.unidentified;
-        self.instances = std::mem::take(&mut walk.instances);
+        let (unidentified, found) = (walk.unidentified, walk.found);
         if unidentified > 0 {
             return Err(bad(format!(
                 "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
@@ -326,7 +372,22 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         for _ in 0..text_count {
             summary.pass("text");
         }
-        Ok(())
+        let (instances, traced) = found
+            .into_par_iter()
+            .map(|(mut inst, path)| {
+                let segs = subpaths_of(path);
+                let traced = self.trace(&inst, &segs);
+                inst.subpath_count = segs.len();
+                let all_closed = traced.len() == segs.len()
+                    && traced.iter().all(|t| matches!(t, Traced::Closed(..)));
+                if !all_closed {
+                    inst.drawn = segs;
+                }
+                (inst, traced)
+            })
+            .unzip();
+        self.instances = instances;
+        Ok(traced)
     }
 
     /// How to name an instance in messages.
@@ -361,22 +422,13 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         problems.into_error(PlanError::Svg)
     }
 
-    /// Each instance's subpaths, in document mm: closed ones are cuts, the rest open paths.
-    /// Traced on any core, added in document order.
-    /// The drawn segments of closed subpaths are not kept (they are written back dilated).
-    fn contours(&mut self, plan: &mut Plan<(usize, usize)>) {
-        let traced: Vec<Vec<Traced>> = self
-            .instances
-            .par_iter()
-            .map(|inst| self.trace(inst))
-            .collect();
+    /// Each instance's traced subpaths (by instance), in document order: closed ones are cuts,
+    /// the rest open paths.
+    fn contours(plan: &mut Plan<(usize, usize)>, traced: Vec<Vec<Traced>>) {
         for (ii, subpaths) in traced.into_iter().enumerate() {
             for t in subpaths {
                 match t {
-                    Traced::Closed(si, pline, name) => {
-                        self.instances[ii].subpaths[si] = Vec::new();
-                        plan.cut(pline, name, (ii, si));
-                    }
+                    Traced::Closed(si, pline, name) => plan.cut(pline, name, (ii, si)),
                     Traced::Open(name, first, last) => plan.open_path(name, first, last),
                 }
             }
@@ -401,12 +453,12 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         }
     }
 
-    /// One instance's subpaths in document mm.
-    fn trace(&self, inst: &Instance) -> Vec<Traced> {
-        let eps = coordinate_eps(inst);
-        let n_sub = inst.subpaths.len();
+    /// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm.
+    fn trace(&self, inst: &Instance, subpaths: &[Vec<Seg>]) -> Vec<Traced> {
+        let eps = coordinate_eps(inst, subpaths);
+        let n_sub = subpaths.len();
         let mut traced = Vec::with_capacity(n_sub);
-        for (si, segs) in inst.subpaths.iter().enumerate() {
+        for (si, segs) in subpaths.iter().enumerate() {
             // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
             let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
             let doc = |p: P32| inst.to_doc.apply(p.v2());
@@ -437,35 +489,69 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         traced
     }
 
-    /// The new geometry of every instance with a dilated subpath, as edits: those of elements
-    /// drawn directly, and those of elements reached through each `<use>` (by `<use>`).
-    fn geometry_edits(
+    /// The new geometry of the instances reached through `<use>`, as edits by `<use>`: their
+    /// targets are copied whole (see [`Self::clone_uses`]), so these are made before writing.
+    fn clone_geometry_edits(
         &self,
         contour_of: &HashMap<(usize, usize), &Pline>,
         summary: &mut PlanSummary,
-    ) -> Result<(Vec<Edit>, CloneEdits)> {
-        // The path data of each instance is written on any core; the edits are gathered in
-        // document order.
-        let per_instance: Vec<Option<Result<Vec<Edit>>>> = self
+    ) -> Result<CloneEdits> {
+        let made: Vec<(usize, Option<Result<Vec<Edit>>>)> = self
             .instances
             .par_iter()
             .enumerate()
-            .map(|(ii, inst)| self.instance_edits(ii, inst, contour_of))
+            .filter_map(|(ii, inst)| {
+                let u = inst.via_use?;
+                Some((u, self.instance_edits(ii, inst, contour_of)))
+            })
             .collect();
-        let mut main_edits: Vec<Edit> = Vec::new();
         let mut clone_edits: CloneEdits = BTreeMap::new();
-        for (inst, edits) in self.instances.iter().zip(per_instance) {
-            let Some(edits) = edits else {
-                continue;
-            };
-            let edits = edits?;
-            summary.changed_elements += 1;
-            match inst.via_use {
-                None => main_edits.extend(edits),
-                Some(u) => clone_edits.entry(u).or_default().extend(edits),
+        for (u, edits) in made {
+            if let Some(edits) = edits {
+                clone_edits.entry(u).or_default().extend(edits?);
+                summary.changed_elements += 1;
             }
         }
-        Ok((main_edits, clone_edits))
+        Ok(clone_edits)
+    }
+
+    /// Write the document with `edits` applied and the instances drawn directly (not through
+    /// `<use>`) given their dilated geometry. That geometry is made batch by batch as the
+    /// document is written (each batch's path data on any core), so no more than a batch of it
+    /// is held at once: the path data of a whole plan is larger than its file.
+    fn write_document(
+        &self,
+        edits: Vec<Edit>,
+        contour_of: &HashMap<(usize, usize), &Pline>,
+        summary: &mut PlanSummary,
+        sink: &mut (dyn Write + Sync),
+    ) -> Result<()> {
+        let mut direct: Vec<usize> = (0..self.instances.len())
+            .filter(|&ii| self.instances[ii].via_use.is_none())
+            .collect();
+        direct.sort_by_key(|&ii| self.shapes[self.instances[ii].element].range().start);
+        let mut edits = sorted(edits).into_iter().peekable();
+        let mut out = EditWriter::new(self.text, sink);
+        for batch in direct.chunks(WRITE_BATCH) {
+            let made: Vec<Option<Result<Vec<Edit>>>> = batch
+                .par_iter()
+                .map(|&ii| self.instance_edits(ii, &self.instances[ii], contour_of))
+                .collect();
+            for geometry in made.into_iter().flatten() {
+                summary.changed_elements += 1;
+                // On a tie the geometry goes first, as it did when all edits were sorted at once.
+                for e in sorted(geometry?) {
+                    while let Some(x) = edits.next_if(|x| edit_key(x) < edit_key(&e)) {
+                        out.apply(x)?;
+                    }
+                    out.apply(e)?;
+                }
+            }
+        }
+        for x in edits {
+            out.apply(x)?;
+        }
+        out.finish()
     }
 
     /// The compensation record (see [`compensation`]) right after the root's start tag, replacing
@@ -499,7 +585,7 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         inst: &Instance,
         contour_of: &HashMap<(usize, usize), &Pline>,
     ) -> Option<Result<Vec<Edit>>> {
-        if !(0..inst.subpaths.len()).any(|si| contour_of.contains_key(&(ii, si))) {
+        if !(0..inst.subpath_count).any(|si| contour_of.contains_key(&(ii, si))) {
             return None;
         }
         let Some(to_local) = inst.to_doc.inverse() else {
@@ -510,13 +596,15 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
         };
         let digits = digits_for(&inst.to_doc);
         let mut d = String::new();
-        for (si, segs) in inst.subpaths.iter().enumerate() {
+        for si in 0..inst.subpath_count {
             if !d.is_empty() {
                 d.push(' ');
             }
-            match contour_of.get(&(ii, si)) {
-                Some(pline) => write_pline(pline, &to_local, digits, &mut d),
-                None => write_segs(segs, digits, &mut d),
+            match (contour_of.get(&(ii, si)), inst.drawn.get(si)) {
+                (Some(pline), _) => write_pline(pline, &to_local, digits, &mut d),
+                (None, Some(segs)) => write_segs(segs, digits, &mut d),
+                // Not kept: every subpath of this instance is a dilated contour.
+                (None, None) => {}
             }
         }
         Some(Ok(geometry_edits(self.text, self.shapes[inst.element], &d)))
@@ -617,9 +705,9 @@ impl<'d, 'a> SvgPlan<'d, 'a> {
     }
 }
 
-impl Format for SvgPlan<'_, '_> {
+impl Format for SvgPlan<'_, '_, '_> {
     type Origin = (usize, usize);
-    type Output = String;
+    type Output = ();
 
     fn read(&mut self) -> Result<Plan<(usize, usize)>> {
         let mut plan = Plan::new("svg");
@@ -630,10 +718,10 @@ impl Format for SvgPlan<'_, '_> {
         )?;
         plan.summary.mm_per_unit = mm_per_px;
         plan.summary.compensation_found = compensation::find_in_svg(self.doc);
-        self.walk(mm_per_px, &mut plan.summary)?;
+        let traced = self.walk(mm_per_px, &mut plan.summary)?;
         self.check_uses()?;
         plan.summary.cut_elements = self.instances.len();
-        self.contours(&mut plan);
+        Self::contours(&mut plan, traced);
         self.find_unburnt(&mut plan);
         Ok(plan)
     }
@@ -655,20 +743,21 @@ impl Format for SvgPlan<'_, '_> {
             .collect()
     }
 
-    fn write(self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<String> {
+    fn write(mut self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<()> {
         let contour_of: HashMap<(usize, usize), &Pline> = plan
             .cuts
             .iter()
             .zip(&dilated)
             .map(|(cut, d)| (cut.origin, d))
             .collect();
-        let (mut main_edits, clone_edits) = self.geometry_edits(&contour_of, &mut plan.summary)?;
-        // The geometry is in the edits' path data now: free it before the document is built.
-        drop(contour_of);
-        drop(dilated);
-        self.clone_uses(clone_edits, &mut main_edits, &mut plan.summary)?;
-        main_edits.extend(self.record_edits(&plan.summary));
-        apply_edits(self.text, main_edits)
+        let clone_edits = self.clone_geometry_edits(&contour_of, &mut plan.summary)?;
+        let mut edits = Vec::new();
+        self.clone_uses(clone_edits, &mut edits, &mut plan.summary)?;
+        edits.extend(self.record_edits(&plan.summary));
+        let Some(sink) = self.out.take() else {
+            return Err(bad("internal error: the SVG was written twice"));
+        };
+        self.write_document(edits, &contour_of, &mut plan.summary, sink)
     }
 }
 
@@ -722,19 +811,20 @@ fn document_scale(
     }
 }
 
-struct Walk<'a> {
+/// The walk over usvg's tree: the cut instances found, each with its path in the tree.
+struct Walk<'a, 't> {
     rules: &'a CutRules,
     mm_per_px: f64,
     shapes_len: usize,
     use_by_id: &'a HashMap<String, usize>,
-    instances: Vec<Instance>,
+    found: Vec<(Instance, &'t usvg::Path)>,
     seen: HashSet<(usize, Option<usize>)>,
     summary: &'a mut PlanSummary,
     unidentified: usize,
 }
 
-impl Walk<'_> {
-    fn group(&mut self, g: &usvg::Group, uses: &mut Vec<usize>) {
+impl<'t> Walk<'_, 't> {
+    fn group(&mut self, g: &'t usvg::Group, uses: &mut Vec<usize>) {
         for child in g.children() {
             match child {
                 usvg::Node::Group(c) => {
@@ -755,7 +845,7 @@ impl Walk<'_> {
         }
     }
 
-    fn path(&mut self, p: &usvg::Path, uses: &[usize]) {
+    fn path(&mut self, p: &'t usvg::Path, uses: &[usize]) {
         let to_doc = Affine::scale(self.mm_per_px).then_after(&affine(p.abs_transform()));
         if !p.is_visible() {
             self.summary.pass("hidden");
@@ -790,37 +880,15 @@ impl Walk<'_> {
                     // The same element drawn twice in one instance (paint-order with markers).
                     return;
                 }
-                let mut subpaths: Vec<Vec<Seg>> = Vec::new();
-                let pt = |q: usvg::tiny_skia_path::Point| P32(q.x, q.y);
-                for seg in p.data().segments() {
-                    let s = match seg {
-                        PathSegment::MoveTo(a) => {
-                            subpaths.push(Vec::new());
-                            Seg::M(pt(a))
-                        }
-                        PathSegment::LineTo(a) => Seg::L(pt(a)),
-                        PathSegment::QuadTo(a, b) => Seg::Q(pt(a), pt(b)),
-                        PathSegment::CubicTo(a, b, c) => Seg::C(pt(a), pt(b), pt(c)),
-                        PathSegment::Close => Seg::Z,
-                    };
-                    if subpaths.is_empty() {
-                        subpaths.push(Vec::new());
-                    }
-                    subpaths.last_mut().expect("pushed").push(s);
-                }
-                // Until traced, these segments are most of the memory a large plan takes: no
-                // room to spare (a growing vector keeps up to half again).
-                for sub in &mut subpaths {
-                    sub.shrink_to_fit();
-                }
-                subpaths.shrink_to_fit();
-                self.instances.push(Instance {
+                let instance = Instance {
                     element: element - 1,
                     via_use,
                     to_doc,
-                    subpaths,
+                    subpath_count: 0,
+                    drawn: Vec::new(),
                     stroke: stroke.map(|s| s.0),
-                });
+                };
+                self.found.push((instance, p));
             }
         }
     }
@@ -849,11 +917,39 @@ fn affine(t: usvg::Transform) -> Affine {
     }
 }
 
-/// Rounding uncertainty of an instance's coordinates in document mm (usvg keeps `f32`).
-fn coordinate_eps(inst: &Instance) -> f64 {
+/// A path's subpaths as usvg resolved them, each vector no larger than it needs.
+fn subpaths_of(p: &usvg::Path) -> Vec<Vec<Seg>> {
+    let mut subpaths: Vec<Vec<Seg>> = Vec::new();
+    let pt = |q: usvg::tiny_skia_path::Point| P32(q.x, q.y);
+    for seg in p.data().segments() {
+        let s = match seg {
+            PathSegment::MoveTo(a) => {
+                subpaths.push(Vec::new());
+                Seg::M(pt(a))
+            }
+            PathSegment::LineTo(a) => Seg::L(pt(a)),
+            PathSegment::QuadTo(a, b) => Seg::Q(pt(a), pt(b)),
+            PathSegment::CubicTo(a, b, c) => Seg::C(pt(a), pt(b), pt(c)),
+            PathSegment::Close => Seg::Z,
+        };
+        if subpaths.is_empty() {
+            subpaths.push(Vec::new());
+        }
+        subpaths.last_mut().expect("pushed").push(s);
+    }
+    for sub in &mut subpaths {
+        sub.shrink_to_fit();
+    }
+    subpaths.shrink_to_fit();
+    subpaths
+}
+
+/// Rounding uncertainty of an instance's coordinates (`subpaths`) in document mm (usvg keeps
+/// `f32`).
+fn coordinate_eps(inst: &Instance, subpaths: &[Vec<Seg>]) -> f64 {
     let mut local = 0.0f64;
     let mut doc = 0.0f64;
-    for s in inst.subpaths.iter().flatten() {
+    for s in subpaths.iter().flatten() {
         let pts: &[P32] = match s {
             Seg::M(a) | Seg::L(a) => std::slice::from_ref(a),
             Seg::Q(a, _) => std::slice::from_ref(a),
@@ -1091,23 +1187,80 @@ fn geometry_edits(src: &str, node: Node, d: &str) -> Vec<Edit> {
     edits
 }
 
-/// Apply non-overlapping edits.
-fn apply_edits(src: &str, mut edits: Vec<Edit>) -> Result<String> {
-    edits.sort_by_key(|e| (e.range.start, e.range.end));
-    let mut out = String::with_capacity(src.len() + 64 * edits.len());
-    let mut pos = 0;
-    for e in edits {
-        if e.range.start < pos {
+/// The order edits are applied in: by where they start, then end (an insertion before a
+/// replacement at the same place).
+fn edit_key(e: &Edit) -> (usize, usize) {
+    (e.range.start, e.range.end)
+}
+
+/// `edits` in the order they are applied in (equal ones keep their order).
+fn sorted(mut edits: Vec<Edit>) -> Vec<Edit> {
+    edits.sort_by_key(edit_key);
+    edits
+}
+
+/// A source text being copied to a writer with non-overlapping edits applied, given in order.
+struct EditWriter<'s, 'o> {
+    src: &'s str,
+    /// How far the source has been copied.
+    pos: usize,
+    out: &'o mut dyn Write,
+}
+
+impl<'s, 'o> EditWriter<'s, 'o> {
+    fn new(src: &'s str, out: &'o mut dyn Write) -> Self {
+        EditWriter { src, pos: 0, out }
+    }
+
+    /// Copy the source up to `e`, then `e`'s text in place of its range.
+    fn apply(&mut self, e: Edit) -> Result<()> {
+        if e.range.start < self.pos {
             return Err(bad(
                 "internal error: overlapping edits of the SVG text (please report this file)",
             ));
         }
-        out.push_str(&src[pos..e.range.start]);
-        out.push_str(&e.text);
-        pos = e.range.end;
+        self.put(self.pos..e.range.start)?;
+        self.write(&e.text)?;
+        self.pos = e.range.end;
+        Ok(())
     }
-    out.push_str(&src[pos..]);
-    Ok(out)
+
+    /// Copy the rest of the source.
+    fn finish(mut self) -> Result<()> {
+        self.put(self.pos..self.src.len())?;
+        self.out.flush().map_err(write_error)
+    }
+
+    fn put(&mut self, range: Range<usize>) -> Result<()> {
+        let text = self.src.get(range).ok_or_else(|| {
+            bad("internal error: an edit of the SVG text splits a character (please report this file)")
+        })?;
+        self.write(text)
+    }
+
+    fn write(&mut self, text: &str) -> Result<()> {
+        self.out.write_all(text.as_bytes()).map_err(write_error)
+    }
+}
+
+/// An error writing the output; the caller names the output.
+fn write_error(source: std::io::Error) -> PlanError {
+    PlanError::Write {
+        path: std::path::PathBuf::new(),
+        source,
+    }
+}
+
+/// Apply non-overlapping edits.
+fn apply_edits(src: &str, edits: Vec<Edit>) -> Result<String> {
+    let mut out = Vec::with_capacity(src.len() + 64 * edits.len());
+    let mut writer = EditWriter::new(src, &mut out);
+    for e in sorted(edits) {
+        writer.apply(e)?;
+    }
+    writer.finish()?;
+    String::from_utf8(out)
+        .map_err(|_| bad("internal error: the edited SVG is not UTF-8 (please report this file)"))
 }
 
 /// The element a `<use>` refers to.

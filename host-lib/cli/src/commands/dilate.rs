@@ -4,11 +4,11 @@
 //! the output atomically, never over the input.
 
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-use kerfmeter::files::{ensure_not_input, write_atomically};
+use kerfmeter::files::{ensure_not_input, write_atomically_with};
 use kerfmeter::map::KerfMap;
 use kerfmeter_plan::compensation::IfCompensated;
 use kerfmeter_plan::dilate::KerfSource;
@@ -16,7 +16,7 @@ use kerfmeter_plan::lightburn::is_project_path;
 use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
 use kerfmeter_plan::progress::Progress;
 use kerfmeter_plan::rules::CutRules;
-use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file};
+use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file_into};
 use serde::Serialize;
 
 use super::lightburn::{self, LightBurnReport};
@@ -328,14 +328,23 @@ fn plan(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
     let (kerf_um, kerf) = args.dilation.kerf()?;
     let (progress, bar) = plan_progress(g.json);
     let options = args.dilation.options(args.strict, progress)?;
-    let dilated = dilate_file(&args.input, &kerf, &options);
+    // The dilated plan is written into the temporary output file as it is made (never held whole:
+    // a dilated SVG is several times its source), and kept only if all went well.
+    let dilated = match &args.output {
+        Some(out) if !args.dry_run => write_atomically_with(out, |w| {
+            dilate_file_into(&args.input, &kerf, &options, out, w).map_err(CliError::from)
+        }),
+        _ => dilate_file_into(
+            &args.input,
+            &kerf,
+            &options,
+            Path::new("(none)"),
+            &mut std::io::sink(),
+        )
+        .map_err(CliError::from),
+    };
     bar.finish_and_clear();
-    let (output, summary) = dilated?;
-    if !args.dry_run
-        && let Some(out) = &args.output
-    {
-        write_atomically(out, &output)?;
-    }
+    let summary = dilated?;
     Ok(DilateReport {
         input: args.input.clone(),
         output: if args.dry_run {
