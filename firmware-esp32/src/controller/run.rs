@@ -341,9 +341,9 @@ impl Controller {
         }
         let drift_deg = self.run.hold.drift_deg();
         if drift_deg.abs() > HOLD_CREEP_LSB * self.lsb_deg() && self.may_hold_again() {
-            // Still creeping into the contact (a soft one, the back-EMF braking the last of
-            // the approach): the reading would be short of where the hub comes to rest. Hold
-            // again; a creep that carries the hub past the slip limit resumes the ramp.
+            // Still creeping into the contact: the reading would be short of where the hub comes
+            // to rest. Hold again; a creep that carries the hub past the slip limit resumes the
+            // ramp.
             self.run.hold_retries += 1;
             self.run.hold.clear();
             return;
@@ -418,10 +418,14 @@ impl Controller {
     }
 
     /// The hold's flags, on the probe's last tick (a light one: the first releasing tick has the
-    /// kerf solve): `NOISY_HOLD` for a hold that drifted, `FORCE_SENSITIVE` for a reading the
-    /// probe's `(rise_deg, fraction)` or an overshoot says a torque error could move too far.
+    /// kerf solve): `NOISY_HOLD` for a hold that drifted (past [`HOLD_DRIFT_LSB`], or past
+    /// [`HOLD_CREEP_LSB`] after it was taken again for a creep), `FORCE_SENSITIVE` for a reading
+    /// the probe's `(rise_deg, fraction)`, the approach or an overshoot says a torque error could
+    /// move too far.
     fn judge_hold(&mut self, held: &HeldJam, probe: (f32, f32)) {
-        if held.drift_deg.abs() > HOLD_DRIFT_LSB * self.lsb_deg() {
+        let drift_lsb = held.drift_deg.abs() / self.lsb_deg();
+        let still_creeping = self.run.hold_retries > 0 && drift_lsb > HOLD_CREEP_LSB;
+        if drift_lsb > HOLD_DRIFT_LSB || still_creeping {
             self.run.flags.insert(QualityFlags::NOISY_HOLD);
         }
         let sensitivity_um = self

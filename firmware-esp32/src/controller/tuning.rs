@@ -92,17 +92,19 @@ pub const JAM_SLIP_DEG: f32 = 0.3;
 /// [`JAM_SLIP_DEG`] (0.8 µm of kerf on the paper's gauge) without counting as a slip.
 pub const HOLD_DRIFT_LSB: f32 = 6.0;
 /// A hold whose halves' means are more than this many encoder LSB apart is taken again (up to
-/// [`MAX_HOLD_RETRIES`] times, [`HOLD_RETRY_RESERVE_MS`]) instead of read: the hub is still creeping into the contact. The
-/// stillness test lets a hub turning at up to some 4°/s count as still (its threshold must stand
-/// clear of the regression's noise at 4 LSB of encoder noise), and on a soft contact the last of
-/// the approach, braked by the motor's back-EMF, creeps on for some hundreds of ms: read early,
-/// such a jam read 2–5 µm low on the twin. Two LSB in 40 ms is 1.1°/s on an output-shaft
-/// encoder, over twice the drift's SD at 4 LSB of noise (0.22σ, see [`HOLD_DRIFT_LSB`]): a hold
-/// taken again for noise alone costs 80 ms, nothing else.
+/// [`MAX_HOLD_RETRIES`] times, while [`HOLD_RETRY_RESERVE_MS`] of the run is left) instead of
+/// read: the hub is still creeping into the contact. The stillness test lets a hub turning at up
+/// to some 4°/s count as still (its threshold must stand clear of the regression's noise at 4 LSB
+/// of encoder noise), and on a soft contact the last of the approach creeps on for hundreds of
+/// ms: read early, such jams read 2–5 µm low on the twin, or were flagged `NOISY_HOLD`. One LSB
+/// in 40 ms is 0.55°/s on an output-shaft encoder. Noise alone passes it often at 4 LSB of
+/// encoder noise (the drift's SD is 0.22σ, see [`HOLD_DRIFT_LSB`]), but a hold taken again
+/// for noise costs only 80 ms, and ten in a row never happen.
 pub const HOLD_CREEP_LSB: f32 = 1.0;
-/// The most holds taken again for a creep ([`HOLD_CREEP_LSB`]): 480 ms of waiting at most. The
+/// The most holds taken again for a creep ([`HOLD_CREEP_LSB`]): 800 ms of waiting at most. The
 /// last one is read whatever it shows, and flagged `NOISY_HOLD` if it drifted past
-/// [`HOLD_DRIFT_LSB`].
+/// [`HOLD_DRIFT_LSB`], or, having been taken again, still past [`HOLD_CREEP_LSB`] (a jam that
+/// never stops creeping).
 pub const MAX_HOLD_RETRIES: u32 = 10;
 /// A creeping hold is taken again only while the run has this much of its `max_time_ms` left,
 /// ms: the last hold, the probe (150 ms) and the release (200 ms at most) fit with room to
