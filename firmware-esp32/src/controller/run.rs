@@ -9,9 +9,10 @@ use kerfmeter_protocol::{
 use super::supply::{millivolts, needed_supply_v};
 use super::winding::{ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS};
 use super::{
-    Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, FORCE_SENSITIVITY_LIMIT_UM,
-    HOLD_DRIFT_LSB, JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB,
-    JAM_WINDOW_TICKS, MAX_TURN_SPEED_DEG_PER_S, MIN_PROBE_FRACTION, Motion,
+    APPROACH_FRACTION, Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S,
+    FORCE_SENSITIVITY_LIMIT_UM, HOLD_CREEP_LSB, HOLD_DRIFT_LSB, HOLD_RETRY_RESERVE_MS,
+    JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS,
+    MAX_HOLD_RETRIES, MAX_TURN_SPEED_DEG_PER_S, MIN_APPROACH_FRACTION, MIN_PROBE_FRACTION, Motion,
     NEAR_DISENGAGE_FRACTION, OVERSHOOT_LIMIT, OVERTRAVEL_MARGIN_DEG, PROBE_AVERAGED_TICKS,
     PROBE_FRACTION, PROBE_TICKS, RELEASE_RATE_NM_PER_S, State, TORQUE_UNCERTAINTY,
     TORQUE_UNCERTAINTY_UNMEASURED,
@@ -43,6 +44,9 @@ pub(super) struct Run {
     pub(super) still_ticks: u32,
     /// Angles collected while a jam is held.
     pub(super) hold: HoldWindow,
+    /// Holds taken again because the hub was still creeping into the contact
+    /// ([`HOLD_CREEP_LSB`]).
+    pub(super) hold_retries: u32,
     /// The hole play of a zero kerf, θplay(0), degrees: where engaging ends and the inset
     /// starts to turn. Fixed for the run (an `asinf`: computed here, not every tick).
     pub(super) zero_kerf_play_deg: f32,
@@ -61,6 +65,11 @@ pub(super) struct Run {
     pub(super) winding_measured: bool,
     /// The probe's angles summed over its last [`PROBE_AVERAGED_TICKS`], degrees.
     pub(super) probe_sum_deg: f32,
+    /// The approach's start: (commanded torque, hub angle) on the last ramping tick whose torque
+    /// was at most [`APPROACH_FRACTION`] of its target. From there to the jam the hub moved into
+    /// the contact with the torque, so the two give the contact's compliance where the hub's
+    /// static friction hides it from the probe (`FORCE_SENSITIVE`).
+    pub(super) approach: Option<(f32, f32)>,
     /// The held jam waiting for its kerf solve: (median angle, drift, torque). The hold's last
     /// tick takes the median and the first releasing tick solves it, so that no tick pays for
     /// both (each is some 5–8k instructions: together over the worst-step budget).
@@ -99,12 +108,14 @@ impl Run {
             no_motion_ticks: 0,
             still_ticks: 0,
             hold: HoldWindow::new(),
+            hold_retries: 0,
             zero_kerf_play_deg,
             overtravel_limit_deg,
             ramp_kerf_um: 0.0,
             max_still_drive_v: 0.0,
             winding_measured: false,
             probe_sum_deg: 0.0,
+            approach: None,
             held: None,
         }
     }
@@ -234,6 +245,9 @@ impl Controller {
         let speed_capped = self.speed_loop(MAX_TURN_SPEED_DEG_PER_S, target, dt_s);
         let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * dt_s;
         self.torque_nm = ramped.min(speed_capped).clamp(0.0, target);
+        if self.torque_nm <= APPROACH_FRACTION * target {
+            self.run.approach = Some((self.torque_nm, self.angle_deg));
+        }
         let at_target = self.torque_nm >= target * 0.999 && target > self.breakaway_torque_nm();
         let inset = self.angle_deg - self.run.zero_kerf_play_deg;
         if at_target && self.is_still() && inset >= JAM_MIN_INSET_DEG {
@@ -325,6 +339,15 @@ impl Controller {
         if !self.run.hold.is_full() {
             return;
         }
+        let drift_deg = self.run.hold.drift_deg();
+        if drift_deg.abs() > HOLD_CREEP_LSB * self.lsb_deg() && self.may_hold_again() {
+            // Still creeping into the contact: the reading would be short of where the hub comes
+            // to rest. Hold again; a creep that carries the hub past the slip limit resumes the
+            // ramp.
+            self.run.hold_retries += 1;
+            self.run.hold.clear();
+            return;
+        }
         // The contact was pressed this much harder before the hold than it is held.
         let overshoot = (self.run.max_still_drive_v / drive_v.max(f32::EPSILON) - 1.0).max(0.0);
         let (median, _) = self
@@ -334,7 +357,7 @@ impl Controller {
             .unwrap_or((entry_deg, 0.0));
         self.run.held = Some(HeldJam {
             angle_deg: median,
-            drift_deg: self.run.hold.drift_deg(),
+            drift_deg,
             overshoot,
             torque_nm,
         });
@@ -343,6 +366,15 @@ impl Controller {
             torque_nm: self.probe_torque_nm(torque_nm, overshoot),
             ticks: 0,
         };
+    }
+
+    /// Whether a creeping hold may be taken again: at most [`MAX_HOLD_RETRIES`] times, and only
+    /// with [`HOLD_RETRY_RESERVE_MS`] of the run's time left (a slow run is read, not faulted
+    /// with `MaxRunTime`, for waiting on its creep).
+    fn may_hold_again(&self) -> bool {
+        let elapsed_ms = self.run.ticks * 1000 / u32::from(CONTROL_RATE_HZ);
+        self.run.hold_retries < MAX_HOLD_RETRIES
+            && elapsed_ms + HOLD_RETRY_RESERVE_MS < self.run.params.max_time_ms
     }
 
     /// The probe's torque for a jam held at `held_nm` after an `overshoot`: [`PROBE_FRACTION`]
@@ -386,15 +418,20 @@ impl Controller {
     }
 
     /// The hold's flags, on the probe's last tick (a light one: the first releasing tick has the
-    /// kerf solve): `NOISY_HOLD` for a hold that drifted, `FORCE_SENSITIVE` for a reading the
-    /// probe's `(rise_deg, fraction)` or an overshoot says a torque error could move too far.
+    /// kerf solve): `NOISY_HOLD` for a hold that drifted (past [`HOLD_DRIFT_LSB`], or past
+    /// [`HOLD_CREEP_LSB`] after it was taken again for a creep), `FORCE_SENSITIVE` for a reading
+    /// the probe's `(rise_deg, fraction)`, the approach or an overshoot says a torque error could
+    /// move too far.
     fn judge_hold(&mut self, held: &HeldJam, probe: (f32, f32)) {
-        if held.drift_deg.abs() > HOLD_DRIFT_LSB * self.lsb_deg() {
+        let drift_lsb = held.drift_deg.abs() / self.lsb_deg();
+        let still_creeping = self.run.hold_retries > 0 && drift_lsb > HOLD_CREEP_LSB;
+        if drift_lsb > HOLD_DRIFT_LSB || still_creeping {
             self.run.flags.insert(QualityFlags::NOISY_HOLD);
         }
-        if held.overshoot > OVERSHOOT_LIMIT
-            || self.force_sensitivity_um(probe, held.overshoot) > FORCE_SENSITIVITY_LIMIT_UM
-        {
+        let sensitivity_um = self
+            .force_sensitivity_um(probe, held.overshoot)
+            .max(self.approach_sensitivity_um(held));
+        if held.overshoot > OVERSHOOT_LIMIT || sensitivity_um > FORCE_SENSITIVITY_LIMIT_UM {
             self.run.flags.insert(QualityFlags::FORCE_SENSITIVE);
         }
     }
@@ -446,13 +483,39 @@ impl Controller {
         if beyond < MIN_PROBE_FRACTION {
             return 0.0;
         }
-        let uncertainty = if self.run.winding_measured {
+        let rise_um = self.run.params.gauge.pitch_um_per_deg * rise_deg.max(0.0);
+        rise_um / beyond * self.torque_uncertainty().max(overshoot)
+    }
+
+    /// How far the torque's uncertainty could move the reading, µm, judged from the approach
+    /// ([`Run::approach`]): the hub turned from the approach's start to the held median while the
+    /// torque rose to the held one, so the contact's compliance is at least that turn over that
+    /// rise (a slip on the way, stick-slip, counts in full: it is what a torque error that size
+    /// does). The probe after the hold cannot see this where the drive train's and the inset's
+    /// static friction hold the hub at the jam: a torque 10 % higher does not break it loose,
+    /// and the probe reads a stiff contact. Zero where the torque rose by less than
+    /// [`MIN_APPROACH_FRACTION`] of the held one (a jam reached at the approach's start).
+    fn approach_sensitivity_um(&self, held: &HeldJam) -> f32 {
+        let Some((start_nm, start_deg)) = self.run.approach else {
+            return 0.0;
+        };
+        let rise = held.torque_nm - start_nm;
+        if rise < MIN_APPROACH_FRACTION * held.torque_nm {
+            return 0.0;
+        }
+        let turn_um =
+            self.run.params.gauge.pitch_um_per_deg * (held.angle_deg - start_deg).max(0.0);
+        turn_um / rise * held.torque_nm * self.torque_uncertainty()
+    }
+
+    /// The torque's relative uncertainty at this run's jam: [`TORQUE_UNCERTAINTY`], or
+    /// [`TORQUE_UNCERTAINTY_UNMEASURED`] where no settle of the run measured the winding.
+    fn torque_uncertainty(&self) -> f32 {
+        if self.run.winding_measured {
             TORQUE_UNCERTAINTY
         } else {
             TORQUE_UNCERTAINTY_UNMEASURED
-        };
-        let rise_um = self.run.params.gauge.pitch_um_per_deg * rise_deg.max(0.0);
-        rise_um / beyond * uncertainty.max(overshoot)
+        }
     }
 
     /// Releasing: ramp the torque down, then `Done`.

@@ -91,6 +91,25 @@ pub const JAM_SLIP_DEG: f32 = 0.3;
 /// the median it guarded is insensitive to noise, and a hold cannot move it by more than
 /// [`JAM_SLIP_DEG`] (0.8 µm of kerf on the paper's gauge) without counting as a slip.
 pub const HOLD_DRIFT_LSB: f32 = 6.0;
+/// A hold whose halves' means are more than this many encoder LSB apart is taken again (up to
+/// [`MAX_HOLD_RETRIES`] times, while [`HOLD_RETRY_RESERVE_MS`] of the run is left) instead of
+/// read: the hub is still creeping into the contact. The stillness test lets a hub turning at up
+/// to some 4°/s count as still (its threshold must stand clear of the regression's noise at 4 LSB
+/// of encoder noise), and on a soft contact the last of the approach creeps on for hundreds of
+/// ms: read early, such jams read 2–5 µm low on the twin, or were flagged `NOISY_HOLD`. One LSB
+/// in 40 ms is 0.55°/s on an output-shaft encoder. Noise alone passes it often at 4 LSB of
+/// encoder noise (the drift's SD is 0.22σ, see [`HOLD_DRIFT_LSB`]), but a hold taken again
+/// for noise costs only 80 ms, and ten in a row never happen.
+pub const HOLD_CREEP_LSB: f32 = 1.0;
+/// The most holds taken again for a creep ([`HOLD_CREEP_LSB`]): 800 ms of waiting at most. The
+/// last one is read whatever it shows, and flagged `NOISY_HOLD` if it drifted past
+/// [`HOLD_DRIFT_LSB`], or, having been taken again, still past [`HOLD_CREEP_LSB`] (a jam that
+/// never stops creeping).
+pub const MAX_HOLD_RETRIES: u32 = 10;
+/// A creeping hold is taken again only while the run has this much of its `max_time_ms` left,
+/// ms: the last hold, the probe (150 ms) and the release (200 ms at most) fit with room to
+/// spare, so waiting on a creep never turns a slow run into a `MaxRunTime` fault.
+pub const HOLD_RETRY_RESERVE_MS: u32 = 1_500;
 /// The torque's relative uncertainty at the jam, as a fraction: the current sense's gain
 /// (±10 %) through the winding's estimate, or, where the duty is too low to measure the winding
 /// (`winding::MIN_DUTY`), the winding's temperature against the calibration's 25 °C (an
@@ -102,8 +121,21 @@ pub const TORQUE_UNCERTAINTY: f32 = 0.1;
 /// settle's duty below `winding::MIN_DUTY`: a high gear ratio or a high supply), as a fraction:
 /// the factor stands where the last measurement, or the boot, left it, and the winding may be
 /// anywhere from −10 °C to 130 °C (`winding::PLAUSIBLE_FACTOR`'s temperatures: −14 % to +41 %
-/// of its resistance at 25 °C).
-pub const TORQUE_UNCERTAINTY_UNMEASURED: f32 = 0.2;
+/// of its resistance at 25 °C). The torque goes as the inverse of the resistance, so it may be
+/// 29 % low (1/1.41) or 16 % high: the larger side, rounded up. At 0.2 (the hot winding's
+/// shortfall left out) the robustness sweep read unflagged readings up to 4.6 µm low on
+/// windings at 95 °C, whose probe said a 20 % torque error moved them by under 3 µm.
+pub const TORQUE_UNCERTAINTY_UNMEASURED: f32 = 0.3;
+/// The approach to the jam starts where the ramp's torque passes this fraction of its target
+/// (`run.rs`, `Run::approach`): from there the contact bears most of the torque, so the hub's
+/// turn from there to the jam over the torque's rise is the contact's compliance, stick-slip
+/// included, which the probe after the hold misses where static friction holds the hub (on the
+/// twin: a contact of 17 N/µm on a 63:1 build slipped 5° at the jam, read 7.3 µm high, and did
+/// not move under the probe).
+pub const APPROACH_FRACTION: f32 = 0.8;
+/// An approach whose torque rose by less than this fraction of the held torque (the jam was
+/// reached as the approach started) measures nothing: the reading is judged without it.
+pub const MIN_APPROACH_FRACTION: f32 = 0.05;
 /// The probe's extra torque over the held one, as a fraction.
 pub const PROBE_FRACTION: f32 = 0.1;
 /// The probe after the hold, ticks: the torque rises by [`TORQUE_UNCERTAINTY`] at the ramp's
