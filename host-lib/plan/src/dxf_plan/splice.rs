@@ -173,23 +173,7 @@ impl Layout {
             if p.code == 0 {
                 seen_zero = true;
                 if section == b"ENTITIES" {
-                    if matches!(p.value, b"VERTEX" | b"SEQEND" | b"ATTRIB") && open.is_some() {
-                        in_follower = true;
-                    } else {
-                        layout.close(open.take(), p.start);
-                        in_follower = false;
-                        if p.value == b"ENDSEC" {
-                            layout.entities_end = Some(p.start);
-                        } else {
-                            open = Some((
-                                None,
-                                Scanned {
-                                    span: (p.start, p.end),
-                                    owner: None,
-                                },
-                            ));
-                        }
-                    }
+                    layout.entity_starts(&p, &mut open, &mut in_follower);
                 }
                 if p.value == b"ENDSEC" {
                     section = b"";
@@ -203,10 +187,10 @@ impl Layout {
                 if p.code == 5 && prev.is_some_and(|q| q.code == 9 && q.value == b"$HANDSEED") {
                     layout.handseed = hex(p.value).map(|h| (value_span(bytes, &p), h));
                 }
-            } else if matches!(p.code, 5 | 105) {
-                if let Some(h) = hex(p.value) {
-                    layout.max_handle = layout.max_handle.max(h);
-                }
+            } else if matches!(p.code, 5 | 105)
+                && let Some(h) = hex(p.value)
+            {
+                layout.max_handle = layout.max_handle.max(h);
             }
             if let Some((handle, scanned)) = open.as_mut().filter(|_| !in_follower) {
                 match p.code {
@@ -223,6 +207,28 @@ impl Layout {
         // An ENTITIES section that never ended has no place for new entities.
         layout.close(open.take(), bytes.len());
         Some(layout)
+    }
+
+    /// A `0` pair `p` in the `ENTITIES` section: a follower of the `open` entity (`VERTEX`,
+    /// `ATTRIB`, `SEQEND`), the start of the next one, or the section's end.
+    fn entity_starts(
+        &mut self,
+        p: &Pair,
+        open: &mut Option<(Option<u64>, Scanned)>,
+        in_follower: &mut bool,
+    ) {
+        if matches!(p.value, b"VERTEX" | b"SEQEND" | b"ATTRIB") && open.is_some() {
+            *in_follower = true;
+            return;
+        }
+        self.close(open.take(), p.start);
+        *in_follower = false;
+        if p.value == b"ENDSEC" {
+            self.entities_end = Some(p.start);
+        } else {
+            let span = (p.start, p.end);
+            *open = Some((None, Scanned { span, owner: None }));
+        }
     }
 
     /// Record the entity `open` that ends at `end`.
