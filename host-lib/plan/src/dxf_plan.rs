@@ -31,12 +31,18 @@
 //! **Writing.** A closed `LWPOLYLINE` gets its new vertices in place (handle, layer, colour,
 //! extended data kept); a `CIRCLE` stays a `CIRCLE` with the new radius; a chain of pieces (and an
 //! old-style `POLYLINE`, an `ELLIPSE` or a `SPLINE`) is replaced by one closed `LWPOLYLINE` with
-//! bulges that takes over the first piece's layer, colour, linetype and lineweight. A cut inside
-//! a block becomes a new model-space `LWPOLYLINE`, and its `INSERT` shows a copy of the block
-//! without the cuts. Everything else is written
-//! back as read. A drawing older than R14 (which has no `LWPOLYLINE`) is written as R2000. What was
-//! applied is recorded in `999` comments at the top of the file (see
-//! [`compensation`]).
+//! bulges that takes over the first piece's layer, colour, linetype and lineweight. Everything
+//! else is written back as read: an ASCII file's bytes are copied and only the changed entities
+//! are spliced in, found by their handles (the crate-private `splice` submodule), so comments,
+//! entities and objects the `dxf` crate does not model and the file's own number formatting come
+//! out byte for byte, and writing a large plan costs little more than formatting its new
+//! vertices (on the 10,000-contour benchmark plan the `dxf` crate's save took 0.94–1.2 s and most
+//! of the peak memory; the splice 0.4 s). Where that cannot be done the changed drawing is
+//! written whole by the `dxf` crate: a binary DXF; a drawing older than R2000 (no `LWPOLYLINE`
+//! before R14), which is written as R2000; assumed units (`--units`), written into its header;
+//! a cut inside a block, which becomes a new model-space `LWPOLYLINE` while its `INSERT` shows a
+//! copy of the block without the cuts; an entity to change with no handle or a shared one. What
+//! was applied is recorded in `999` comments at the top of the file (see [`compensation`]).
 
 use std::collections::HashMap;
 use std::io::Cursor;

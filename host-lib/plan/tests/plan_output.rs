@@ -219,4 +219,17 @@ fn a_dxf_is_written_as_read_but_for_its_cuts() {
     }
     assert_eq!(handles, [0x20, 0x21, 0x22, 0x23, 0x30]);
     assert!(out.contains("$HANDSEED\n  5\n31\n"), "{out}");
+    // Dilated again on purpose, the output carries the new record alone, and the other comment.
+    let opts = DxfOptions {
+        if_compensated: kerfmeter_plan::compensation::IfCompensated::DilateAnyway,
+        ..DxfOptions::default()
+    };
+    let (again, _) = dilate_dxf(out.as_bytes(), &kerf(), &opts).unwrap();
+    let again = String::from_utf8(again).unwrap();
+    assert_eq!(
+        again.matches("kerfmeter-compensation").count(),
+        1,
+        "{again}"
+    );
+    assert!(again.contains("999\nmade by a CAD program\n"));
 }

@@ -327,11 +327,11 @@ impl<'p> Splice<'p> {
             .layout
             .handseed
             .map_or(0, |(_, h)| h)
-            .max(self.layout.max_handle + 1);
+            .max(self.layout.max_handle.checked_add(1)?);
         let mut new_entities: Vec<u8> = Vec::new();
         for (like, contour) in &self.added {
             let handle = next_handle;
-            next_handle += 1;
+            next_handle = next_handle.checked_add(1)?;
             new_lwpolyline(
                 bytes,
                 like,
