@@ -37,7 +37,7 @@
 //! entities and objects the `dxf` crate does not model and the file's own number formatting come
 //! out byte for byte, and writing a large plan costs little more than formatting its new
 //! vertices (on the 10,000-contour benchmark plan the `dxf` crate's save took 0.94–1.2 s and most
-//! of the peak memory; the splice 0.4 s). Where that cannot be done the changed drawing is
+//! of the peak memory; the splice 0.27 s). Where that cannot be done the changed drawing is
 //! written whole by the `dxf` crate: a binary DXF; a drawing older than R2000 (no `LWPOLYLINE`
 //! before R14), which is written as R2000; assumed units (`--units`), written into its header;
 //! a cut inside a block, which becomes a new model-space `LWPOLYLINE` while its `INSERT` shows a
