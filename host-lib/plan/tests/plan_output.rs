@@ -137,3 +137,99 @@ fn dxf_numbers_keep_0_1_um_with_no_more_decimals_than_needed() {
         }
     }
 }
+
+/// The pieces of a small R2000 DXF (LF line ends, numbers padded as some CAD programs write
+/// them, a comment, handles up to 0x27 and `$HANDSEED` 0x30): everything but the `$HANDSEED`
+/// value and the cut entities is to come out byte for byte.
+mod spliced {
+    pub const HEAD: &str = "999\nmade by a CAD program\n  0\nSECTION\n  2\nHEADER\n  9\n$ACADVER\n  1\nAC1015\n  9\n$INSUNITS\n 70\n4\n  9\n$HANDSEED\n  5\n";
+    pub const SEED: &str = "30";
+    pub const MIDDLE: &str = "\n  0\nENDSEC\n  0\nSECTION\n  2\nTABLES\n  0\nTABLE\n  2\nLAYER\n  5\n2\n 70\n1\n  0\nLAYER\n  5\n10\n330\n2\n100\nAcDbSymbolTableRecord\n100\nAcDbLayerTableRecord\n  2\nCUT\n 70\n0\n 62\n1\n  6\nCONTINUOUS\n  0\nENDTAB\n  0\nENDSEC\n  0\nSECTION\n  2\nENTITIES\n  0\nTEXT\n  5\n20\n330\n1F\n100\nAcDbEntity\n  8\nNOTES\n 62\n3\n100\nAcDbText\n 10\n1.50000000\n 20\n2.00000000\n 30\n0.0\n 40\n2.5\n  1\nlabel\n";
+    /// A red square 0…10 (handle 21), with extended data.
+    pub const SQUARE: &str = "  0\nLWPOLYLINE\n  5\n21\n330\n1F\n100\nAcDbEntity\n  8\nCUT\n 62\n1\n100\nAcDbPolyline\n 90\n4\n 70\n1\n 43\n0.0\n 10\n0.00000000\n 20\n0.00000000\n 10\n10.00000000\n 20\n0.00000000\n 10\n10.00000000\n 20\n10.00000000\n 10\n0.00000000\n 20\n10.00000000\n1001\nAPP\n1000\nkept\n";
+    /// A red circle about (30, 5), radius 2 (handle 22).
+    pub const CIRCLE: &str = "  0\nCIRCLE\n  5\n22\n330\n1F\n100\nAcDbEntity\n  8\nCUT\n 62\n1\n100\nAcDbCircle\n 10\n30.00000000\n 20\n5.00000000\n 30\n0.0\n 40\n2.00000000\n";
+    /// A green line: not a cut (handle 23).
+    pub const GREEN: &str = "  0\nLINE\n  5\n23\n330\n1F\n100\nAcDbEntity\n  8\nNOTES\n 62\n3\n100\nAcDbLine\n 10\n0.50000000\n 20\n20.0\n 30\n0.0\n 11\n9.5\n 21\n20.0\n 31\n0.0\n";
+    pub const TAIL: &str = "  0\nENDSEC\n  0\nSECTION\n  2\nOBJECTS\n  0\nDICTIONARY\n  5\nC\n330\n0\n100\nAcDbDictionary\n  0\nENDSEC\n  0\nEOF\n";
+
+    /// A red line (a side of the square 50…60 drawn as four lines, handles 24…27).
+    pub fn red_line(handle: u32, a: (f64, f64), b: (f64, f64)) -> String {
+        format!(
+            "  0\nLINE\n  5\n{handle:X}\n330\n1F\n100\nAcDbEntity\n  8\nCUT\n 62\n1\n100\nAcDbLine\n 10\n{:.8}\n 20\n{:.8}\n 30\n0.0\n 11\n{:.8}\n 21\n{:.8}\n 31\n0.0\n",
+            a.0, a.1, b.0, b.1
+        )
+    }
+
+    pub fn file() -> String {
+        let corners = [(50.0, 50.0), (60.0, 50.0), (60.0, 60.0), (50.0, 60.0)];
+        let lines: String = (0..4)
+            .map(|k| red_line(0x24 + k as u32, corners[k], corners[(k + 1) % 4]))
+            .collect();
+        format!("{HEAD}{SEED}{MIDDLE}{SQUARE}{CIRCLE}{GREEN}{lines}{TAIL}")
+    }
+}
+
+#[test]
+fn a_dxf_is_written_as_read_but_for_its_cuts() {
+    use dxf::entities::EntityType;
+    use spliced::*;
+    let (out, summary) = dilate_dxf(file().as_bytes(), &kerf(), &DxfOptions::default()).unwrap();
+    assert_eq!(summary.contours_dilated, 3);
+    let out = String::from_utf8(out).unwrap();
+    // The record first, in the file's own line ends, then every untouched byte, in order.
+    assert!(out.starts_with("999\nkerfmeter-compensation"), "{out}");
+    assert!(!out.contains('\r'));
+    let mut at = 0;
+    for piece in [HEAD, MIDDLE, GREEN, TAIL] {
+        let found = out[at..]
+            .find(piece)
+            .unwrap_or_else(|| panic!("{piece} not in {out}"));
+        at += found + piece.len();
+    }
+    assert!(out.ends_with(TAIL));
+    // The cuts: the square's vertices in place (its extended data kept), the circle's radius,
+    // and the four red lines replaced by one new LWPOLYLINE on their layer and colour, whose
+    // handle follows the seed, which moves past it.
+    assert!(!out.contains("\n  5\n24\n"), "the red lines are gone");
+    assert!(out.contains("1001\nAPP\n1000\nkept\n"));
+    let drawing = dxf::Drawing::load(&mut std::io::Cursor::new(out.as_bytes())).unwrap();
+    let mut handles = Vec::new();
+    for e in drawing.entities() {
+        handles.push(e.common.handle.0);
+        match &e.specific {
+            EntityType::LwPolyline(p) => {
+                assert_eq!(p.vertices.len(), 8, "{p:?}");
+                assert!(p.is_closed());
+                assert_eq!(
+                    (e.common.layer.as_str(), e.common.color.index()),
+                    ("CUT", Some(1))
+                );
+            }
+            EntityType::Circle(c) => {
+                assert!(
+                    (c.radius - 2.0 - HALF_KERF_MM).abs() < TOL_MM,
+                    "{}",
+                    c.radius
+                );
+            }
+            EntityType::Text(_) | EntityType::Line(_) => {}
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    assert_eq!(handles, [0x20, 0x21, 0x22, 0x23, 0x30]);
+    assert!(out.contains("$HANDSEED\n  5\n31\n"), "{out}");
+    // Dilated again on purpose, the output carries the new record alone, and the other comment.
+    let opts = DxfOptions {
+        if_compensated: kerfmeter_plan::compensation::IfCompensated::DilateAnyway,
+        ..DxfOptions::default()
+    };
+    let (again, _) = dilate_dxf(out.as_bytes(), &kerf(), &opts).unwrap();
+    let again = String::from_utf8(again).unwrap();
+    assert_eq!(
+        again.matches("kerfmeter-compensation").count(),
+        1,
+        "{again}"
+    );
+    assert!(again.contains("999\nmade by a CAD program\n"));
+}

@@ -1,0 +1,575 @@
+//! Writing a dilated ASCII DXF by splicing: the input's bytes are copied as read, and only the
+//! entities that changed are rewritten in their place (found by their handle, code `5`).
+//!
+//! The `dxf` crate's own save builds every code pair of the drawing in memory and formats every
+//! number again: most of the time and memory of dilating a large DXF went there, and it drops what
+//! it does not model (comments, unknown entities and objects, the file's number formatting). Here
+//! a small scanner of the code/value lines ([`Pairs`]) finds each model-space entity's byte span
+//! (with its `VERTEX`, `ATTRIB` and `SEQEND` followers), and the output is:
+//!
+//! * the record of what was applied (`999` comments; an earlier record of this tool at the top of
+//!   the input is dropped, the file's other comments kept);
+//! * every byte of the input as read, except that
+//!   - a closed `LWPOLYLINE` cut gets its new vertices in place (its other pairs kept in order;
+//!     its width, vertex id and extrusion pairs dropped, as the drawing's rewrite does),
+//!   - a `CIRCLE` cut gets its new centre and radius in place (extrusion dropped: it is
+//!     written in world coordinates),
+//!   - the entities a chain (or a `POLYLINE`, `ELLIPSE`, `SPLINE`, or a circle that did not stay a
+//!     circle) replaces are left out, and the new closed `LWPOLYLINE`s are added at the end of
+//!     the `ENTITIES` section, with new handles (and `$HANDSEED` moved past them), the owner of
+//!     the entity they replace and its layer, linetype, colour and lineweight pairs copied as
+//!     they are written in the file.
+//!
+//! Anything this does not cover is written by the `dxf` crate instead ([`super`]'s `save`): a
+//! binary DXF, a drawing to be written as another version (older than R2000), assumed units to
+//! record in the header, cuts inside blocks (their `INSERT`s point at new blocks), and any entity
+//! to change that has no handle, shares it, or is not where and what the scan expects.
+
+use std::collections::HashMap;
+use std::io::Write as _;
+
+use cavalier_contours::polyline::PlineSource;
+
+use crate::geom::Pline;
+
+/// One code/value pair of an ASCII DXF: where it starts and ends in the file, its code, and its
+/// value (the line without its end, and without surrounding white space).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Pair<'a> {
+    pub start: usize,
+    pub end: usize,
+    pub code: i32,
+    pub value: &'a [u8],
+}
+
+/// The code/value pairs of ASCII DXF bytes, in order; stops at the end, or at a line that is not
+/// a pair (`broken` then says so).
+pub(super) struct Pairs<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    pub broken: bool,
+}
+
+impl<'a> Pairs<'a> {
+    pub fn new(bytes: &'a [u8], from: usize) -> Self {
+        Pairs {
+            bytes,
+            at: from,
+            broken: false,
+        }
+    }
+
+    /// The next line (without its end) and where the line after it starts.
+    fn line(&self, from: usize) -> Option<(&'a [u8], usize)> {
+        let rest = self.bytes.get(from..)?;
+        if rest.is_empty() {
+            return None;
+        }
+        Some(match rest.iter().position(|&b| b == b'\n') {
+            Some(n) => (&rest[..n], from + n + 1),
+            None => (rest, self.bytes.len()),
+        })
+    }
+}
+
+impl<'a> Iterator for Pairs<'a> {
+    type Item = Pair<'a>;
+
+    fn next(&mut self) -> Option<Pair<'a>> {
+        let start = self.at;
+        let (code_line, next) = self.line(start)?;
+        if code_line.trim_ascii().is_empty() && next >= self.bytes.len() {
+            // A blank last line.
+            return None;
+        }
+        let code = std::str::from_utf8(code_line.trim_ascii())
+            .ok()
+            .and_then(|s| s.parse::<i32>().ok());
+        let (Some(code), Some((value, end))) = (code, self.line(next)) else {
+            self.broken = true;
+            self.at = self.bytes.len();
+            return None;
+        };
+        self.at = end;
+        Some(Pair {
+            start,
+            end,
+            code,
+            value: value.trim_ascii(),
+        })
+    }
+}
+
+/// A byte range of the file.
+type Span = (usize, usize);
+
+/// A model-space entity as scanned: its span (with its followers), and where its owner handle's
+/// value is.
+#[derive(Debug, Clone, Copy)]
+struct Scanned {
+    span: Span,
+    owner: Option<Span>,
+}
+
+/// Where things are in an ASCII DXF file.
+pub(super) struct Layout {
+    /// The file's line end.
+    eol: &'static str,
+    /// The entities of the `ENTITIES` section by handle (`None`: the handle is used twice).
+    entities: HashMap<u64, Option<Scanned>>,
+    /// Where the `ENTITIES` section's `ENDSEC` pair starts.
+    entities_end: Option<usize>,
+    /// The `$HANDSEED` value's span in the header, and its value.
+    handseed: Option<(Span, u64)>,
+    /// The largest handle given to anything outside the header.
+    max_handle: u64,
+    /// Pairs at the top of the file that are an earlier record of this tool, to drop.
+    old_records: Vec<Span>,
+}
+
+fn hex(value: &[u8]) -> Option<u64> {
+    u64::from_str_radix(std::str::from_utf8(value).ok()?, 16).ok()
+}
+
+/// The value span of a pair (its value line, without the line end and surrounding blanks).
+fn value_span(bytes: &[u8], p: &Pair) -> Span {
+    let start = p.value.as_ptr() as usize - bytes.as_ptr() as usize;
+    (start, start + p.value.len())
+}
+
+/// Pairs of a record of this tool: its record line, and the words after it.
+fn is_old_record(value: &[u8]) -> bool {
+    let text = String::from_utf8_lossy(value);
+    crate::compensation::is_record(&text) || text.starts_with("the cuts of this drawing lie ")
+}
+
+impl Layout {
+    /// Scan ASCII DXF bytes; `None` when they are binary or not a sequence of code/value pairs.
+    pub fn scan(bytes: &[u8]) -> Option<Layout> {
+        if bytes.starts_with(b"AutoCAD Binary DXF") {
+            return None;
+        }
+        let first_end = bytes.iter().position(|&b| b == b'\n')?;
+        let eol = if first_end > 0 && bytes[first_end - 1] == b'\r' {
+            "\r\n"
+        } else {
+            "\n"
+        };
+        let mut layout = Layout {
+            eol,
+            entities: HashMap::new(),
+            entities_end: None,
+            handseed: None,
+            max_handle: 0,
+            old_records: Vec::new(),
+        };
+        let mut pairs = Pairs::new(bytes, 0);
+        let mut section: &[u8] = b"";
+        let mut prev: Option<Pair> = None;
+        let mut open: Option<(Option<u64>, Scanned)> = None;
+        let mut in_follower = false;
+        let mut seen_zero = false;
+        for p in pairs.by_ref() {
+            if p.code == 0 {
+                seen_zero = true;
+                if section == b"ENTITIES" {
+                    layout.entity_starts(&p, &mut open, &mut in_follower);
+                }
+                if p.value == b"ENDSEC" {
+                    section = b"";
+                }
+            } else if p.code == 2 && prev.is_some_and(|q| q.code == 0 && q.value == b"SECTION") {
+                section = p.value;
+            } else if p.code == 999 && !seen_zero && is_old_record(p.value) {
+                layout.old_records.push((p.start, p.end));
+            }
+            if section == b"HEADER" {
+                if p.code == 5 && prev.is_some_and(|q| q.code == 9 && q.value == b"$HANDSEED") {
+                    layout.handseed = hex(p.value).map(|h| (value_span(bytes, &p), h));
+                }
+            } else if matches!(p.code, 5 | 105)
+                && let Some(h) = hex(p.value)
+            {
+                layout.max_handle = layout.max_handle.max(h);
+            }
+            if let Some((handle, scanned)) = open.as_mut().filter(|_| !in_follower) {
+                match p.code {
+                    5 if handle.is_none() => *handle = hex(p.value),
+                    330 if scanned.owner.is_none() => scanned.owner = Some(value_span(bytes, &p)),
+                    _ => {}
+                }
+            }
+            prev = Some(p);
+        }
+        if pairs.broken {
+            return None;
+        }
+        // An ENTITIES section that never ended has no place for new entities.
+        layout.close(open.take(), bytes.len());
+        Some(layout)
+    }
+
+    /// A `0` pair `p` in the `ENTITIES` section: a follower of the `open` entity (`VERTEX`,
+    /// `ATTRIB`, `SEQEND`), the start of the next one, or the section's end.
+    fn entity_starts(
+        &mut self,
+        p: &Pair,
+        open: &mut Option<(Option<u64>, Scanned)>,
+        in_follower: &mut bool,
+    ) {
+        if matches!(p.value, b"VERTEX" | b"SEQEND" | b"ATTRIB") && open.is_some() {
+            *in_follower = true;
+            return;
+        }
+        self.close(open.take(), p.start);
+        *in_follower = false;
+        if p.value == b"ENDSEC" {
+            self.entities_end = Some(p.start);
+        } else {
+            let span = (p.start, p.end);
+            *open = Some((None, Scanned { span, owner: None }));
+        }
+    }
+
+    /// Record the entity `open` that ends at `end`.
+    fn close(&mut self, open: Option<(Option<u64>, Scanned)>, end: usize) {
+        let Some((Some(handle), mut scanned)) = open else {
+            return;
+        };
+        scanned.span.1 = end;
+        self.entities
+            .entry(handle)
+            .and_modify(|e| *e = None)
+            .or_insert(Some(scanned));
+    }
+
+    /// The entity with `handle`, when it is there once.
+    fn entity(&self, handle: u64) -> Option<Scanned> {
+        self.entities.get(&handle).copied().flatten()
+    }
+}
+
+/// What is done to one entity of the input.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Change {
+    /// A closed `LWPOLYLINE` whose vertices become the contour.
+    Vertices,
+    /// A `CIRCLE` whose centre becomes (x, y, z) and radius r (drawing units).
+    Circle([f64; 4]),
+    /// Left out (replaced by a new `LWPOLYLINE`).
+    Drop,
+}
+
+/// The changes to make, found in the input: each entity to change, by its span.
+pub(super) struct Splice<'p> {
+    layout: Layout,
+    /// (span, change, contour) in file order.
+    edits: Vec<(Span, Change, Option<&'p Pline>)>,
+    /// New `LWPOLYLINE`s: the entity whose properties they take, and the contour.
+    added: Vec<(Scanned, &'p Pline)>,
+}
+
+impl<'p> Splice<'p> {
+    pub fn new(layout: Layout) -> Self {
+        Splice {
+            layout,
+            edits: Vec::new(),
+            added: Vec::new(),
+        }
+    }
+
+    /// Change the entity `handle` (its type, as the file writes it, must be `kind`); `false`
+    /// when it cannot be found once.
+    pub fn change(
+        &mut self,
+        bytes: &[u8],
+        handle: u64,
+        kind: &[u8],
+        change: Change,
+        contour: Option<&'p Pline>,
+    ) -> bool {
+        let Some(e) = self.layout.entity(handle) else {
+            return false;
+        };
+        let first = Pairs::new(bytes, e.span.0).next();
+        if !first.is_some_and(|p| p.code == 0 && p.value.eq_ignore_ascii_case(kind)) {
+            return false;
+        }
+        self.edits.push((e.span, change, contour));
+        true
+    }
+
+    /// Add a new closed `LWPOLYLINE` for `contour` with the properties of entity `like`.
+    pub fn add(&mut self, like: u64, contour: &'p Pline) -> bool {
+        let Some(e) = self.layout.entity(like) else {
+            return false;
+        };
+        self.added.push((e, contour));
+        true
+    }
+
+    /// The spliced file: `record` first, then the input with the changes (numbers in drawing
+    /// units by `units`, bulges by `bulge`); `None` when the changes cannot be placed (an entity
+    /// changed twice, or nowhere to add new ones).
+    pub fn write(
+        mut self,
+        bytes: &[u8],
+        record: Option<&str>,
+        units: &dyn Fn(f64) -> f64,
+        bulge: &dyn Fn(f64) -> f64,
+    ) -> Option<Vec<u8>> {
+        let eol = self.layout.eol;
+        let mut out = Vec::with_capacity(bytes.len() + bytes.len() / 4);
+        if let Some(record) = record {
+            out.extend_from_slice(record.replace("\r\n", "\n").replace('\n', eol).as_bytes());
+        }
+        let mut next_handle = self
+            .layout
+            .handseed
+            .map_or(0, |(_, h)| h)
+            .max(self.layout.max_handle.checked_add(1)?);
+        let mut new_entities: Vec<u8> = Vec::new();
+        for (like, contour) in &self.added {
+            let handle = next_handle;
+            next_handle = next_handle.checked_add(1)?;
+            new_lwpolyline(
+                bytes,
+                like,
+                handle,
+                contour,
+                eol,
+                units,
+                bulge,
+                &mut new_entities,
+            )?;
+        }
+        let mut cuts: Vec<(Span, Cut)> = self
+            .edits
+            .drain(..)
+            .map(|(span, change, contour)| (span, Cut::Entity(change, contour)))
+            .collect();
+        cuts.extend(self.layout.old_records.iter().map(|&s| (s, Cut::Remove)));
+        if !self.added.is_empty() {
+            let at = self.layout.entities_end?;
+            cuts.push(((at, at), Cut::Insert(&new_entities)));
+            if let Some((span, _)) = self.layout.handseed {
+                cuts.push((span, Cut::Handseed(next_handle)));
+            }
+        }
+        cuts.sort_by_key(|(span, _)| *span);
+        let mut at = 0;
+        for (span, cut) in cuts {
+            if span.0 < at {
+                // Two changes to one place.
+                return None;
+            }
+            out.extend_from_slice(&bytes[at..span.0]);
+            cut.write(bytes, span, eol, units, bulge, &mut out)?;
+            at = span.1;
+        }
+        out.extend_from_slice(&bytes[at..]);
+        Some(out)
+    }
+}
+
+/// One change to the input, at a span.
+enum Cut<'s, 'p> {
+    Entity(Change, Option<&'p Pline>),
+    Remove,
+    Insert(&'s [u8]),
+    Handseed(u64),
+}
+
+impl Cut<'_, '_> {
+    fn write(
+        &self,
+        bytes: &[u8],
+        span: Span,
+        eol: &str,
+        units: &dyn Fn(f64) -> f64,
+        bulge: &dyn Fn(f64) -> f64,
+        out: &mut Vec<u8>,
+    ) -> Option<()> {
+        match *self {
+            Cut::Entity(Change::Drop, _) | Cut::Remove => {}
+            Cut::Entity(Change::Vertices, contour) => {
+                edit_lwpolyline(bytes, span, contour?, eol, units, bulge, out)?
+            }
+            Cut::Entity(Change::Circle(c), _) => edit_circle(bytes, span, c, eol, out)?,
+            Cut::Insert(s) => out.extend_from_slice(s),
+            Cut::Handseed(h) => {
+                let _ = write!(out, "{h:X}");
+            }
+        }
+        Some(())
+    }
+}
+
+/// A number as DXF text: the shortest form that reads back as `v`, with a decimal point.
+fn number(v: f64, out: &mut Vec<u8>) {
+    let start = out.len();
+    let _ = write!(out, "{v}");
+    if !out[start..]
+        .iter()
+        .any(|b| matches!(b, b'.' | b'e' | b'E' | b'N' | b'i'))
+    {
+        out.extend_from_slice(b".0");
+    }
+}
+
+fn pair(code: i32, value: &str, eol: &str, out: &mut Vec<u8>) {
+    let _ = write!(out, "{code:>3}{eol}{value}{eol}");
+}
+
+fn pair_number(code: i32, v: f64, eol: &str, out: &mut Vec<u8>) {
+    let _ = write!(out, "{code:>3}{eol}");
+    number(v, out);
+    out.extend_from_slice(eol.as_bytes());
+}
+
+/// A pair of the input as it is written there.
+fn copy(bytes: &[u8], p: &Pair, out: &mut Vec<u8>) {
+    out.extend_from_slice(&bytes[p.start..p.end]);
+}
+
+/// The vertices of a closed contour as `LWPOLYLINE` pairs.
+fn vertices(
+    contour: &Pline,
+    eol: &str,
+    units: &dyn Fn(f64) -> f64,
+    bulge: &dyn Fn(f64) -> f64,
+    out: &mut Vec<u8>,
+) {
+    for v in contour.iter_vertexes() {
+        pair_number(10, units(v.x), eol, out);
+        pair_number(20, units(v.y), eol, out);
+        let b = bulge(v.bulge);
+        if b != 0.0 {
+            pair_number(42, b, eol, out);
+        }
+    }
+}
+
+/// An `LWPOLYLINE` (at `span`) with the vertices of `contour`, closed, its other pairs as read.
+fn edit_lwpolyline(
+    bytes: &[u8],
+    span: Span,
+    contour: &Pline,
+    eol: &str,
+    units: &dyn Fn(f64) -> f64,
+    bulge: &dyn Fn(f64) -> f64,
+    out: &mut Vec<u8>,
+) -> Option<()> {
+    let (mut counts, mut placed) = (0, false);
+    for p in Pairs::new(&bytes[..span.1], span.0) {
+        match p.code {
+            90 => {
+                counts += 1;
+                pair(90, &contour.vertex_count().to_string(), eol, out);
+            }
+            70 => {
+                let flags: i32 = std::str::from_utf8(p.value).ok()?.parse().ok()?;
+                pair(70, &(flags | 1).to_string(), eol, out);
+            }
+            10 if !placed => {
+                placed = true;
+                vertices(contour, eol, units, bulge, out);
+            }
+            10 | 20 | 30 | 40 | 41 | 42 | 91 | 210 | 220 | 230 => {}
+            _ => copy(bytes, &p, out),
+        }
+    }
+    (counts == 1 && placed).then_some(())
+}
+
+/// A `CIRCLE` (at `span`) with centre and radius `c` (x, y, z, r), its other pairs as read.
+fn edit_circle(bytes: &[u8], span: Span, c: [f64; 4], eol: &str, out: &mut Vec<u8>) -> Option<()> {
+    let (mut centre, mut radius) = (false, false);
+    for p in Pairs::new(&bytes[..span.1], span.0) {
+        match p.code {
+            10 if !centre => {
+                centre = true;
+                pair_number(10, c[0], eol, out);
+                pair_number(20, c[1], eol, out);
+                pair_number(30, c[2], eol, out);
+            }
+            40 if !radius => {
+                radius = true;
+                pair_number(40, c[3], eol, out);
+            }
+            10 | 20 | 30 | 40 | 210 | 220 | 230 => {}
+            _ => copy(bytes, &p, out),
+        }
+    }
+    (centre && radius).then_some(())
+}
+
+/// A new closed `LWPOLYLINE` for `contour`, handle `handle`, with the owner and the layer,
+/// linetype, colour and lineweight pairs of the entity `like` as the file writes them.
+#[allow(clippy::too_many_arguments)]
+fn new_lwpolyline(
+    bytes: &[u8],
+    like: &Scanned,
+    handle: u64,
+    contour: &Pline,
+    eol: &str,
+    units: &dyn Fn(f64) -> f64,
+    bulge: &dyn Fn(f64) -> f64,
+    out: &mut Vec<u8>,
+) -> Option<()> {
+    pair(0, "LWPOLYLINE", eol, out);
+    pair(5, &format!("{handle:X}"), eol, out);
+    if let Some((s, e)) = like.owner {
+        let _ = write!(out, "330{eol}");
+        out.extend_from_slice(&bytes[s..e]);
+        out.extend_from_slice(eol.as_bytes());
+    }
+    pair(100, "AcDbEntity", eol, out);
+    let mut seen: Vec<i32> = Vec::new();
+    // The entity's own pairs, up to its first follower (a POLYLINE's VERTEX).
+    for p in Pairs::new(&bytes[..like.span.1], like.span.0)
+        .skip(1)
+        .take_while(|p| p.code != 0)
+    {
+        if matches!(p.code, 6 | 8 | 62 | 370 | 420) && !seen.contains(&p.code) {
+            seen.push(p.code);
+            copy(bytes, &p, out);
+        }
+    }
+    if !seen.contains(&8) {
+        pair(8, "0", eol, out);
+    }
+    pair(100, "AcDbPolyline", eol, out);
+    pair(90, &contour.vertex_count().to_string(), eol, out);
+    pair(70, "1", eol, out);
+    vertices(contour, eol, units, bulge, out);
+    Some(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pairs_are_read_with_their_spans_and_a_broken_file_says_so() {
+        let text = b"  0\r\nSECTION\r\n  2\r\nHEADER\r\n";
+        let pairs: Vec<Pair> = Pairs::new(text, 0).collect();
+        assert_eq!(pairs.len(), 2);
+        assert_eq!((pairs[0].code, pairs[0].value), (0, &b"SECTION"[..]));
+        assert_eq!((pairs[1].start, pairs[1].end), (14, text.len()));
+        let mut broken = Pairs::new(b"0\nSECTION\nx\ny\n", 0);
+        assert_eq!(broken.by_ref().count(), 1);
+        assert!(broken.broken);
+    }
+
+    #[test]
+    fn numbers_read_back_exactly_and_keep_a_decimal_point() {
+        for v in [0.0, 100.0, -3.5, 12.34567, 1e-7, 254.00001] {
+            let mut s = Vec::new();
+            number(v, &mut s);
+            let s = String::from_utf8(s).unwrap();
+            assert!(s.contains('.'), "{s}");
+            assert_eq!(s.parse::<f64>().unwrap(), v);
+        }
+    }
+}
