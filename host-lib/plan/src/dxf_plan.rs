@@ -41,7 +41,8 @@
 //! written whole by the `dxf` crate: a binary DXF; a drawing older than R2000 (no `LWPOLYLINE`
 //! before R14), which is written as R2000; assumed units (`--units`), written into its header;
 //! a cut inside a block, which becomes a new model-space `LWPOLYLINE` while its `INSERT` shows a
-//! copy of the block without the cuts; an entity to change with no handle or a shared one. What
+//! copy of the block without the cuts; a drawing with an entity that has no usable handle; an
+//! entity to change whose handle is shared. What
 //! was applied is recorded in `999` comments at the top of the file (see [`compensation`]).
 
 use std::collections::HashMap;

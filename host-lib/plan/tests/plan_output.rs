@@ -233,3 +233,84 @@ fn a_dxf_is_written_as_read_but_for_its_cuts() {
     );
     assert!(again.contains("999\nmade by a CAD program\n"));
 }
+
+#[test]
+fn a_dxf_entity_without_a_handle_is_never_confused_with_another() {
+    use dxf::entities::EntityType;
+    use spliced::*;
+    // No `$HANDSEED`, and a red square with no handle: the `dxf` crate gives it a handle of its
+    // own, here the one a green open polyline already has. The square must be dilated, the
+    // polyline not.
+    let head = HEAD.replace("  9\n$HANDSEED\n  5\n", "");
+    let square = SQUARE.replace("  5\n21\n", "");
+    let green = |handle: u64| {
+        format!(
+            "  0\nLWPOLYLINE\n  5\n{handle:X}\n330\n1F\n100\nAcDbEntity\n  8\nNOTES\n 62\n3\n100\nAcDbPolyline\n 90\n2\n 70\n0\n 10\n0.0\n 20\n30.0\n 10\n10.0\n 20\n30.0\n"
+        )
+    };
+    let with = |handle: u64| format!("{head}{MIDDLE}{square}{}{TAIL}", green(handle));
+    // The handle the crate gives the square (the green polyline's own is far from it).
+    let probe = dxf::Drawing::load(&mut std::io::Cursor::new(with(0xFFFF).as_bytes())).unwrap();
+    let given = probe
+        .entities()
+        .find(|e| e.common.layer == "CUT")
+        .map(|e| e.common.handle.0)
+        .unwrap();
+    assert_ne!(given, 0xFFFF);
+    let (out, summary) =
+        dilate_dxf(with(given).as_bytes(), &kerf(), &DxfOptions::default()).unwrap();
+    assert_eq!(summary.contours_dilated, 1);
+    let drawing = dxf::Drawing::load(&mut std::io::Cursor::new(&out)).unwrap();
+    let mut seen = 0;
+    for e in drawing.entities() {
+        if let EntityType::LwPolyline(p) = &e.specific {
+            seen += 1;
+            match e.common.layer.as_str() {
+                "NOTES" => assert!(p.vertices.len() == 2 && !p.is_closed(), "{p:?}"),
+                _ => assert!(p.vertices.len() == 8 && p.is_closed(), "{p:?}"),
+            }
+        }
+    }
+    assert_eq!(seen, 2);
+}
+
+#[test]
+fn a_new_dxf_polyline_is_owned_by_its_pieces_owner_not_their_reactors() {
+    use dxf::entities::EntityType;
+    use spliced::*;
+    // Lines in a group: AutoCAD writes the group's reactor 330 before the owner's.
+    let corners = [(50.0, 50.0), (60.0, 50.0), (60.0, 60.0), (50.0, 60.0)];
+    let lines: String = (0..4)
+        .map(|k| {
+            red_line(0x24 + k as u32, corners[k], corners[(k + 1) % 4]).replace(
+                "330\n1F\n",
+                "102\n{ACAD_REACTORS\n330\n40\n102\n}\n330\n1F\n",
+            )
+        })
+        .collect();
+    let file = format!("{HEAD}{SEED}{MIDDLE}{lines}{TAIL}");
+    let (out, summary) = dilate_dxf(file.as_bytes(), &kerf(), &DxfOptions::default()).unwrap();
+    assert_eq!(summary.contours_dilated, 1);
+    let out = String::from_utf8(out).unwrap();
+    let new = &out[out.find("LWPOLYLINE").expect("the chain's new polyline")..];
+    assert!(new.contains("330\n1F\n"), "{new}");
+    assert!(
+        !new[..new.find("AcDbPolyline").unwrap()].contains("330\n40\n"),
+        "{new}"
+    );
+    let drawing = dxf::Drawing::load(&mut std::io::Cursor::new(out.as_bytes())).unwrap();
+    let polylines = drawing
+        .entities()
+        .filter(|e| matches!(e.specific, EntityType::LwPolyline(_)))
+        .count();
+    assert_eq!(polylines, 1);
+}
+
+#[test]
+fn a_dxf_handle_seed_behind_a_comment_still_moves_past_the_new_handles() {
+    use spliced::*;
+    let file = file().replace("$HANDSEED\n  5\n", "$HANDSEED\n999\nnote\n  5\n");
+    let (out, _) = dilate_dxf(file.as_bytes(), &kerf(), &DxfOptions::default()).unwrap();
+    let out = String::from_utf8(out).unwrap();
+    assert!(out.contains("$HANDSEED\n999\nnote\n  5\n31\n"), "{out}");
+}

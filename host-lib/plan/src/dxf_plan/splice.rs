@@ -22,8 +22,11 @@
 //!
 //! Anything this does not cover is written by the `dxf` crate instead ([`super`]'s `save`): a
 //! binary DXF, a drawing to be written as another version (older than R2000), assumed units to
-//! record in the header, cuts inside blocks (their `INSERT`s point at new blocks), and any entity
-//! to change that has no handle, shares it, or is not where and what the scan expects.
+//! record in the header, cuts inside blocks (their `INSERT`s point at new blocks), a drawing with
+//! an entity that has no usable handle (the crate gives it one of its own, which may be another
+//! entity's here) or a `$HANDSEED` whose value cannot be read, and any entity to change that
+//! shares its handle or is not where and what the scan expects. The scan stops at `0 EOF`, as
+//! readers do.
 
 use std::collections::HashMap;
 use std::io::Write as _;
@@ -109,6 +112,9 @@ type Span = (usize, usize);
 struct Scanned {
     span: Span,
     owner: Option<Span>,
+    /// Inside a `102 {…` application group (reactors, dictionaries), whose `330`s are not the
+    /// owner.
+    in_group: bool,
 }
 
 /// Where things are in an ASCII DXF file.
@@ -125,6 +131,10 @@ pub(super) struct Layout {
     max_handle: u64,
     /// Pairs at the top of the file that are an earlier record of this tool, to drop.
     old_records: Vec<Span>,
+    /// An entity of `ENTITIES` has no usable handle (none, 0, or not a 64-bit hex number): the
+    /// `dxf` crate gives it one of its own when it reads the file, which may be another entity's
+    /// handle here, so nothing can be found by handle.
+    unhandled: bool,
 }
 
 fn hex(value: &[u8]) -> Option<u64> {
@@ -162,6 +172,7 @@ impl Layout {
             handseed: None,
             max_handle: 0,
             old_records: Vec::new(),
+            unhandled: false,
         };
         let mut pairs = Pairs::new(bytes, 0);
         let mut section: &[u8] = b"";
@@ -169,7 +180,12 @@ impl Layout {
         let mut open: Option<(Option<u64>, Scanned)> = None;
         let mut in_follower = false;
         let mut seen_zero = false;
+        let mut handseed_named = false;
         for p in pairs.by_ref() {
+            if p.code == 0 && p.value == b"EOF" {
+                // Readers stop here; whatever follows is copied as it is.
+                break;
+            }
             if p.code == 0 {
                 seen_zero = true;
                 if section == b"ENTITIES" {
@@ -184,6 +200,7 @@ impl Layout {
                 layout.old_records.push((p.start, p.end));
             }
             if section == b"HEADER" {
+                handseed_named |= p.code == 9 && p.value == b"$HANDSEED";
                 if p.code == 5 && prev.is_some_and(|q| q.code == 9 && q.value == b"$HANDSEED") {
                     layout.handseed = hex(p.value).map(|h| (value_span(bytes, &p), h));
                 }
@@ -195,17 +212,24 @@ impl Layout {
             if let Some((handle, scanned)) = open.as_mut().filter(|_| !in_follower) {
                 match p.code {
                     5 if handle.is_none() => *handle = hex(p.value),
-                    330 if scanned.owner.is_none() => scanned.owner = Some(value_span(bytes, &p)),
+                    102 => scanned.in_group = p.value.starts_with(b"{"),
+                    330 if scanned.owner.is_none() && !scanned.in_group => {
+                        scanned.owner = Some(value_span(bytes, &p));
+                    }
                     _ => {}
                 }
             }
-            prev = Some(p);
-        }
-        if pairs.broken {
-            return None;
+            // The `dxf` crate skips comments between a pair and the one it belongs to.
+            if p.code != 999 {
+                prev = Some(p);
+            }
         }
         // An ENTITIES section that never ended has no place for new entities.
         layout.close(open.take(), bytes.len());
+        // A `$HANDSEED` whose value was not found could not be moved past the new handles.
+        if pairs.broken || layout.unhandled || (handseed_named && layout.handseed.is_none()) {
+            return None;
+        }
         Some(layout)
     }
 
@@ -227,13 +251,22 @@ impl Layout {
             self.entities_end = Some(p.start);
         } else {
             let span = (p.start, p.end);
-            *open = Some((None, Scanned { span, owner: None }));
+            let scanned = Scanned {
+                span,
+                owner: None,
+                in_group: false,
+            };
+            *open = Some((None, scanned));
         }
     }
 
     /// Record the entity `open` that ends at `end`.
     fn close(&mut self, open: Option<(Option<u64>, Scanned)>, end: usize) {
-        let Some((Some(handle), mut scanned)) = open else {
+        let Some((handle, mut scanned)) = open else {
+            return;
+        };
+        let Some(handle) = handle.filter(|&h| h != 0) else {
+            self.unhandled = true;
             return;
         };
         scanned.span.1 = end;
