@@ -10,9 +10,9 @@ use super::supply::{millivolts, needed_supply_v};
 use super::winding::{ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS};
 use super::{
     APPROACH_FRACTION, Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S,
-    FORCE_SENSITIVITY_LIMIT_UM, HOLD_CREEP_LSB, HOLD_DRIFT_LSB, HOLD_RETRY_RESERVE_MS,
-    JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS,
-    MAX_HOLD_RETRIES, MAX_TURN_SPEED_DEG_PER_S, MIN_APPROACH_FRACTION, MIN_PROBE_FRACTION, Motion,
+    FORCE_SENSITIVITY_LIMIT_UM, HOLD_CREEP_LSB, HOLD_RETRY_RESERVE_MS, JAM_MIN_INSET_DEG,
+    JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_HOLD_RETRIES,
+    MAX_TURN_SPEED_DEG_PER_S, MIN_APPROACH_FRACTION, MIN_PROBE_FRACTION, Motion,
     NEAR_DISENGAGE_FRACTION, OVERSHOOT_LIMIT, OVERTRAVEL_MARGIN_DEG, PROBE_AVERAGED_TICKS,
     PROBE_FRACTION, PROBE_TICKS, RELEASE_RATE_NM_PER_S, State, TORQUE_UNCERTAINTY,
     TORQUE_UNCERTAINTY_UNMEASURED,
@@ -65,8 +65,8 @@ pub(super) struct Run {
     pub(super) winding_measured: bool,
     /// The probe's angles summed over its last [`PROBE_AVERAGED_TICKS`], degrees.
     pub(super) probe_sum_deg: f32,
-    /// The approach's start: (commanded torque, hub angle) on the last ramping tick whose torque
-    /// was at most [`APPROACH_FRACTION`] of its target. From there to the jam the hub moved into
+    /// The approach's start: (commanded torque, hub angle) on the last ramping tick before the
+    /// first settle at the jam whose torque was at most [`APPROACH_FRACTION`] of its target. From there to the jam the hub moved into
     /// the contact with the torque, so the two give the contact's compliance where the hub's
     /// static friction hides it from the probe (`FORCE_SENSITIVE`).
     pub(super) approach: Option<(f32, f32)>,
@@ -245,7 +245,9 @@ impl Controller {
         let speed_capped = self.speed_loop(MAX_TURN_SPEED_DEG_PER_S, target, dt_s);
         let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * dt_s;
         self.torque_nm = ramped.min(speed_capped).clamp(0.0, target);
-        if self.torque_nm <= APPROACH_FRACTION * target {
+        // Only before the first settle at the jam: a torque lowered there (a winding estimate)
+        // and ramped up again must not move the approach's start to the jam itself.
+        if self.torque_nm <= APPROACH_FRACTION * target && self.run.max_still_drive_v == 0.0 {
             self.run.approach = Some((self.torque_nm, self.angle_deg));
         }
         let at_target = self.torque_nm >= target * 0.999 && target > self.breakaway_torque_nm();
@@ -418,14 +420,15 @@ impl Controller {
     }
 
     /// The hold's flags, on the probe's last tick (a light one: the first releasing tick has the
-    /// kerf solve): `NOISY_HOLD` for a hold that drifted (past [`HOLD_DRIFT_LSB`], or past
-    /// [`HOLD_CREEP_LSB`] after it was taken again for a creep), `FORCE_SENSITIVE` for a reading
+    /// kerf solve): `NOISY_HOLD` for a hold that drifted past [`HOLD_CREEP_LSB`]: one still
+    /// creeping after it was taken again for a creep, or that could not be taken again (no
+    /// retries or run time left), is read short of where the hub comes to rest. `FORCE_SENSITIVE` for a reading
     /// the probe's `(rise_deg, fraction)`, the approach or an overshoot says a torque error could
     /// move too far.
     fn judge_hold(&mut self, held: &HeldJam, probe: (f32, f32)) {
         let drift_lsb = held.drift_deg.abs() / self.lsb_deg();
-        let still_creeping = self.run.hold_retries > 0 && drift_lsb > HOLD_CREEP_LSB;
-        if drift_lsb > HOLD_DRIFT_LSB || still_creeping {
+        // A hold is judged only once it may not be taken again: a creep left is a creep read.
+        if drift_lsb > HOLD_CREEP_LSB {
             self.run.flags.insert(QualityFlags::NOISY_HOLD);
         }
         let sensitivity_um = self

@@ -83,12 +83,12 @@ pub const JAM_MIN_INSET_DEG: f32 = 1.0;
 /// margin by which engaging may stop short of the zero-kerf play. About 14 LSB: far above the
 /// noise of a held hub, far below a real slip.
 pub const JAM_SLIP_DEG: f32 = 0.3;
-/// A hold whose angle drifted by more than this many encoder LSB between the means of its halves
-/// is flagged `NOISY_HOLD`: the jam was still moving while it was read. The drift averages the
-/// encoder's noise down (an SD of 0.22σ over the 80-tick hold: under 1 LSB for the 4 LSB of a
-/// weak magnet), so a threshold of six LSB never fires on noise. The spread (max − min) the flag
-/// used before grows with the noise and the window's length and fired on most healthy holds;
-/// the median it guarded is insensitive to noise, and a hold cannot move it by more than
+/// The most a held hub's angle drifts on encoder noise alone, in LSB between the means of the
+/// hold's halves: the drift averages the noise down (an SD of 0.22σ over the 80-tick hold: under
+/// 1 LSB for the 4 LSB of a weak magnet), so six LSB is never reached on noise (the on-target
+/// tests check a held hub against it). The flag is [`HOLD_CREEP_LSB`]'s; the spread (max − min)
+/// it used before grew with the noise and the window's length and fired on most healthy holds,
+/// while the median it guarded is insensitive to noise, and a hold cannot move it by more than
 /// [`JAM_SLIP_DEG`] (0.8 µm of kerf on the paper's gauge) without counting as a slip.
 pub const HOLD_DRIFT_LSB: f32 = 6.0;
 /// A hold whose halves' means are more than this many encoder LSB apart is taken again (up to
@@ -102,9 +102,9 @@ pub const HOLD_DRIFT_LSB: f32 = 6.0;
 /// for noise costs only 80 ms, and ten in a row never happen.
 pub const HOLD_CREEP_LSB: f32 = 1.0;
 /// The most holds taken again for a creep ([`HOLD_CREEP_LSB`]): 800 ms of waiting at most. The
-/// last one is read whatever it shows, and flagged `NOISY_HOLD` if it drifted past
-/// [`HOLD_DRIFT_LSB`], or, having been taken again, still past [`HOLD_CREEP_LSB`] (a jam that
-/// never stops creeping).
+/// last one is read whatever it shows, and flagged `NOISY_HOLD` if it still drifted past
+/// [`HOLD_CREEP_LSB`] (a jam that never stops creeping); so is a creeping hold that may not be
+/// taken again for want of run time ([`HOLD_RETRY_RESERVE_MS`]).
 pub const MAX_HOLD_RETRIES: u32 = 10;
 /// A creeping hold is taken again only while the run has this much of its `max_time_ms` left,
 /// ms: the last hold, the probe (150 ms) and the release (200 ms at most) fit with room to
