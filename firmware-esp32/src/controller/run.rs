@@ -65,8 +65,8 @@ pub(super) struct Run {
     pub(super) winding_measured: bool,
     /// The probe's angles summed over its last [`PROBE_AVERAGED_TICKS`], degrees.
     pub(super) probe_sum_deg: f32,
-    /// The approach's start: (commanded torque, hub angle) on the last ramping tick before the
-    /// first settle at the jam whose torque was at most [`APPROACH_FRACTION`] of its target. From there to the jam the hub moved into
+    /// The approach's start: (commanded torque, hub angle) on the last ramping tick whose torque
+    /// was at most [`APPROACH_FRACTION`] of its target. From there to the jam the hub moved into
     /// the contact with the torque, so the two give the contact's compliance where the hub's
     /// static friction hides it from the probe (`FORCE_SENSITIVE`).
     pub(super) approach: Option<(f32, f32)>,
@@ -245,9 +245,7 @@ impl Controller {
         let speed_capped = self.speed_loop(MAX_TURN_SPEED_DEG_PER_S, target, dt_s);
         let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * dt_s;
         self.torque_nm = ramped.min(speed_capped).clamp(0.0, target);
-        // Only before the first settle at the jam: a torque lowered there (a winding estimate)
-        // and ramped up again must not move the approach's start to the jam itself.
-        if self.torque_nm <= APPROACH_FRACTION * target && self.run.max_still_drive_v == 0.0 {
+        if self.torque_nm <= APPROACH_FRACTION * target {
             self.run.approach = Some((self.torque_nm, self.angle_deg));
         }
         let at_target = self.torque_nm >= target * 0.999 && target > self.breakaway_torque_nm();
