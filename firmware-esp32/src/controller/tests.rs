@@ -1331,6 +1331,43 @@ fn a_creep_that_stops_is_waited_out_and_read_where_the_hub_came_to_rest() {
 }
 
 #[test]
+fn a_creep_that_cannot_be_waited_out_for_want_of_time_is_flagged() {
+    // The creep of the test above, on a run whose time limit leaves no room to take the hold
+    // again: it is read creeping, so flagged, not read short without a flag.
+    let contact = (0.0, 0.002, 120, false);
+    let unhurried = run_on_supply_into_contact(12.0, RunParams::DEFAULT, contact);
+    assert_eq!(unhurried.flags, QualityFlags::empty());
+    let at_jam_ms = jam_time_ms(RunParams::DEFAULT, contact);
+    let hurried = RunParams {
+        max_time_ms: at_jam_ms + HOLD_RETRY_RESERVE_MS - 100,
+        ..RunParams::DEFAULT
+    };
+    let read = run_on_supply_into_contact(12.0, hurried, contact);
+    assert!(
+        read.flags.contains(QualityFlags::NOISY_HOLD),
+        "{:?}",
+        read.flags
+    );
+}
+
+/// When the run of [`run_on_supply_into_contact`] (on 12 V) first holds its jam, ms.
+fn jam_time_ms(params: RunParams, contact: (f32, f32, u32, bool)) -> u32 {
+    let mut s = on_supply(12.0);
+    s.start(params);
+    for tick in 0..8000u32 {
+        let contact_deg = 60.0 + contact.0 * s.c.torque_nm;
+        if s.angle_deg < contact_deg && s.c.torque_nm > 0.0 {
+            s.angle_deg = (s.angle_deg + 0.06).min(contact_deg);
+        }
+        if matches!(s.c.state, State::Jammed { .. }) {
+            return tick * 1000 / u32::from(CONTROL_RATE_HZ);
+        }
+        s.tick();
+    }
+    panic!("no jam");
+}
+
+#[test]
 fn a_soft_contact_that_static_friction_holds_against_the_probe_is_force_sensitive() {
     // The hub follows the contact while the torque ramps, and not at all once the jam is held:
     // the probe sees a rigid contact, the approach a soft one (40°/N·m: 5.6 µm for 10 % of
