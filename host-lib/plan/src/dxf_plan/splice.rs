@@ -352,29 +352,26 @@ impl<'p> Splice<'p> {
         bulge: &dyn Fn(f64) -> f64,
     ) -> Option<Vec<u8>> {
         let eol = self.layout.eol;
-        let mut out = Vec::with_capacity(bytes.len() + bytes.len() / 4);
+        let mut out = Out {
+            bytes: Vec::with_capacity(bytes.len() + bytes.len() / 4),
+            eol,
+            units,
+            bulge,
+        };
         if let Some(record) = record {
-            out.extend_from_slice(record.replace("\r\n", "\n").replace('\n', eol).as_bytes());
+            let record = record.replace("\r\n", "\n").replace('\n', eol);
+            out.bytes.extend_from_slice(record.as_bytes());
         }
         let mut next_handle = self
             .layout
             .handseed
             .map_or(0, |(_, h)| h)
             .max(self.layout.max_handle.checked_add(1)?);
-        let mut new_entities: Vec<u8> = Vec::new();
+        let mut new_entities = out.sibling();
         for (like, contour) in &self.added {
             let handle = next_handle;
             next_handle = next_handle.checked_add(1)?;
-            new_lwpolyline(
-                bytes,
-                like,
-                handle,
-                contour,
-                eol,
-                units,
-                bulge,
-                &mut new_entities,
-            )?;
+            new_lwpolyline(bytes, like, handle, contour, &mut new_entities);
         }
         let mut cuts: Vec<(Span, Cut)> = self
             .edits
@@ -384,7 +381,7 @@ impl<'p> Splice<'p> {
         cuts.extend(self.layout.old_records.iter().map(|&s| (s, Cut::Remove)));
         if !self.added.is_empty() {
             let at = self.layout.entities_end?;
-            cuts.push(((at, at), Cut::Insert(&new_entities)));
+            cuts.push(((at, at), Cut::Insert(&new_entities.bytes)));
             if let Some((span, _)) = self.layout.handseed {
                 cuts.push((span, Cut::Handseed(next_handle)));
             }
@@ -396,12 +393,12 @@ impl<'p> Splice<'p> {
                 // Two changes to one place.
                 return None;
             }
-            out.extend_from_slice(&bytes[at..span.0]);
-            cut.write(bytes, span, eol, units, bulge, &mut out)?;
+            out.bytes.extend_from_slice(&bytes[at..span.0]);
+            cut.write(bytes, span, &mut out)?;
             at = span.1;
         }
-        out.extend_from_slice(&bytes[at..]);
-        Some(out)
+        out.bytes.extend_from_slice(&bytes[at..]);
+        Some(out.bytes)
     }
 }
 
@@ -414,27 +411,64 @@ enum Cut<'s, 'p> {
 }
 
 impl Cut<'_, '_> {
-    fn write(
-        &self,
-        bytes: &[u8],
-        span: Span,
-        eol: &str,
-        units: &dyn Fn(f64) -> f64,
-        bulge: &dyn Fn(f64) -> f64,
-        out: &mut Vec<u8>,
-    ) -> Option<()> {
+    fn write(&self, bytes: &[u8], span: Span, out: &mut Out) -> Option<()> {
         match *self {
             Cut::Entity(Change::Drop, _) | Cut::Remove => {}
-            Cut::Entity(Change::Vertices, contour) => {
-                edit_lwpolyline(bytes, span, contour?, eol, units, bulge, out)?
-            }
-            Cut::Entity(Change::Circle(c), _) => edit_circle(bytes, span, c, eol, out)?,
-            Cut::Insert(s) => out.extend_from_slice(s),
+            Cut::Entity(Change::Vertices, contour) => edit_lwpolyline(bytes, span, contour?, out)?,
+            Cut::Entity(Change::Circle(c), _) => edit_circle(bytes, span, c, out)?,
+            Cut::Insert(s) => out.bytes.extend_from_slice(s),
             Cut::Handseed(h) => {
-                let _ = write!(out, "{h:X}");
+                let _ = write!(out.bytes, "{h:X}");
             }
         }
         Some(())
+    }
+}
+
+/// Where the spliced file is written, and how: the file's line end, and the conversions of the
+/// dilated contours' numbers into the drawing's units and its bulges.
+struct Out<'f> {
+    bytes: Vec<u8>,
+    eol: &'static str,
+    units: &'f dyn Fn(f64) -> f64,
+    bulge: &'f dyn Fn(f64) -> f64,
+}
+
+impl<'f> Out<'f> {
+    /// An empty output written the same way (for pieces placed later).
+    fn sibling(&self) -> Out<'f> {
+        Out {
+            bytes: Vec::new(),
+            ..*self
+        }
+    }
+
+    fn pair(&mut self, code: i32, value: &str) {
+        let eol = self.eol;
+        let _ = write!(self.bytes, "{code:>3}{eol}{value}{eol}");
+    }
+
+    fn pair_number(&mut self, code: i32, v: f64) {
+        let _ = write!(self.bytes, "{code:>3}{}", self.eol);
+        number(v, &mut self.bytes);
+        self.bytes.extend_from_slice(self.eol.as_bytes());
+    }
+
+    /// A pair of the input `bytes` as it is written there.
+    fn copy(&mut self, bytes: &[u8], p: &Pair) {
+        self.bytes.extend_from_slice(&bytes[p.start..p.end]);
+    }
+
+    /// The vertices of a closed contour as `LWPOLYLINE` pairs.
+    fn vertices(&mut self, contour: &Pline) {
+        for v in contour.iter_vertexes() {
+            self.pair_number(10, (self.units)(v.x));
+            self.pair_number(20, (self.units)(v.y));
+            let b = (self.bulge)(v.bulge);
+            if b != 0.0 {
+                self.pair_number(42, b);
+            }
+        }
     }
 }
 
@@ -450,88 +484,47 @@ fn number(v: f64, out: &mut Vec<u8>) {
     }
 }
 
-fn pair(code: i32, value: &str, eol: &str, out: &mut Vec<u8>) {
-    let _ = write!(out, "{code:>3}{eol}{value}{eol}");
-}
-
-fn pair_number(code: i32, v: f64, eol: &str, out: &mut Vec<u8>) {
-    let _ = write!(out, "{code:>3}{eol}");
-    number(v, out);
-    out.extend_from_slice(eol.as_bytes());
-}
-
-/// A pair of the input as it is written there.
-fn copy(bytes: &[u8], p: &Pair, out: &mut Vec<u8>) {
-    out.extend_from_slice(&bytes[p.start..p.end]);
-}
-
-/// The vertices of a closed contour as `LWPOLYLINE` pairs.
-fn vertices(
-    contour: &Pline,
-    eol: &str,
-    units: &dyn Fn(f64) -> f64,
-    bulge: &dyn Fn(f64) -> f64,
-    out: &mut Vec<u8>,
-) {
-    for v in contour.iter_vertexes() {
-        pair_number(10, units(v.x), eol, out);
-        pair_number(20, units(v.y), eol, out);
-        let b = bulge(v.bulge);
-        if b != 0.0 {
-            pair_number(42, b, eol, out);
-        }
-    }
-}
-
 /// An `LWPOLYLINE` (at `span`) with the vertices of `contour`, closed, its other pairs as read.
-fn edit_lwpolyline(
-    bytes: &[u8],
-    span: Span,
-    contour: &Pline,
-    eol: &str,
-    units: &dyn Fn(f64) -> f64,
-    bulge: &dyn Fn(f64) -> f64,
-    out: &mut Vec<u8>,
-) -> Option<()> {
+fn edit_lwpolyline(bytes: &[u8], span: Span, contour: &Pline, out: &mut Out) -> Option<()> {
     let (mut counts, mut placed) = (0, false);
     for p in Pairs::new(&bytes[..span.1], span.0) {
         match p.code {
             90 => {
                 counts += 1;
-                pair(90, &contour.vertex_count().to_string(), eol, out);
+                out.pair(90, &contour.vertex_count().to_string());
             }
             70 => {
                 let flags: i32 = std::str::from_utf8(p.value).ok()?.parse().ok()?;
-                pair(70, &(flags | 1).to_string(), eol, out);
+                out.pair(70, &(flags | 1).to_string());
             }
             10 if !placed => {
                 placed = true;
-                vertices(contour, eol, units, bulge, out);
+                out.vertices(contour);
             }
             10 | 20 | 30 | 40 | 41 | 42 | 91 | 210 | 220 | 230 => {}
-            _ => copy(bytes, &p, out),
+            _ => out.copy(bytes, &p),
         }
     }
     (counts == 1 && placed).then_some(())
 }
 
 /// A `CIRCLE` (at `span`) with centre and radius `c` (x, y, z, r), its other pairs as read.
-fn edit_circle(bytes: &[u8], span: Span, c: [f64; 4], eol: &str, out: &mut Vec<u8>) -> Option<()> {
+fn edit_circle(bytes: &[u8], span: Span, c: [f64; 4], out: &mut Out) -> Option<()> {
     let (mut centre, mut radius) = (false, false);
     for p in Pairs::new(&bytes[..span.1], span.0) {
         match p.code {
             10 if !centre => {
                 centre = true;
-                pair_number(10, c[0], eol, out);
-                pair_number(20, c[1], eol, out);
-                pair_number(30, c[2], eol, out);
+                out.pair_number(10, c[0]);
+                out.pair_number(20, c[1]);
+                out.pair_number(30, c[2]);
             }
             40 if !radius => {
                 radius = true;
-                pair_number(40, c[3], eol, out);
+                out.pair_number(40, c[3]);
             }
             10 | 20 | 30 | 40 | 210 | 220 | 230 => {}
-            _ => copy(bytes, &p, out),
+            _ => out.copy(bytes, &p),
         }
     }
     (centre && radius).then_some(())
@@ -539,25 +532,17 @@ fn edit_circle(bytes: &[u8], span: Span, c: [f64; 4], eol: &str, out: &mut Vec<u
 
 /// A new closed `LWPOLYLINE` for `contour`, handle `handle`, with the owner and the layer,
 /// linetype, colour and lineweight pairs of the entity `like` as the file writes them.
-#[allow(clippy::too_many_arguments)]
-fn new_lwpolyline(
-    bytes: &[u8],
-    like: &Scanned,
-    handle: u64,
-    contour: &Pline,
-    eol: &str,
-    units: &dyn Fn(f64) -> f64,
-    bulge: &dyn Fn(f64) -> f64,
-    out: &mut Vec<u8>,
-) -> Option<()> {
-    pair(0, "LWPOLYLINE", eol, out);
-    pair(5, &format!("{handle:X}"), eol, out);
+fn new_lwpolyline(bytes: &[u8], like: &Scanned, handle: u64, contour: &Pline, out: &mut Out) {
+    out.pair(0, "LWPOLYLINE");
+    out.pair(5, &format!("{handle:X}"));
     if let Some((s, e)) = like.owner {
-        let _ = write!(out, "330{eol}");
-        out.extend_from_slice(&bytes[s..e]);
-        out.extend_from_slice(eol.as_bytes());
+        let eol = out.eol.as_bytes();
+        out.bytes.extend_from_slice(b"330");
+        out.bytes.extend_from_slice(eol);
+        out.bytes.extend_from_slice(&bytes[s..e]);
+        out.bytes.extend_from_slice(eol);
     }
-    pair(100, "AcDbEntity", eol, out);
+    out.pair(100, "AcDbEntity");
     let mut seen: Vec<i32> = Vec::new();
     // The entity's own pairs, up to its first follower (a POLYLINE's VERTEX).
     for p in Pairs::new(&bytes[..like.span.1], like.span.0)
@@ -566,17 +551,16 @@ fn new_lwpolyline(
     {
         if matches!(p.code, 6 | 8 | 62 | 370 | 420) && !seen.contains(&p.code) {
             seen.push(p.code);
-            copy(bytes, &p, out);
+            out.copy(bytes, &p);
         }
     }
     if !seen.contains(&8) {
-        pair(8, "0", eol, out);
+        out.pair(8, "0");
     }
-    pair(100, "AcDbPolyline", eol, out);
-    pair(90, &contour.vertex_count().to_string(), eol, out);
-    pair(70, "1", eol, out);
-    vertices(contour, eol, units, bulge, out);
-    Some(())
+    out.pair(100, "AcDbPolyline");
+    out.pair(90, &contour.vertex_count().to_string());
+    out.pair(70, "1");
+    out.vertices(contour);
 }
 
 #[cfg(test)]
