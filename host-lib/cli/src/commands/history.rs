@@ -51,19 +51,12 @@ pub fn list(
     limit: u32,
 ) -> Result<HistoryReport, CliError> {
     let db = g.db_path()?;
-    // Listing creates nothing: no file yet is an empty history.
-    let listing = if db.exists() {
-        History::open_to_read(&db)?.listing(&Query {
-            label,
-            limit: Some(limit as usize),
-            simulated,
-        })?
-    } else {
-        Listing {
-            records: Vec::new(),
-            drift: Vec::new(),
-        }
-    };
+    // Read-only: listing creates nothing, and no file yet is an empty history.
+    let listing = History::open_to_read(&db)?.listing(&Query {
+        label,
+        limit: Some(limit as usize),
+        simulated,
+    })?;
     Ok(HistoryReport {
         db,
         simulated,
