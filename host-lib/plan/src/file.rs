@@ -80,11 +80,7 @@ pub fn dilate_file(
     kerf: &KerfSource,
     options: &DilateOptions,
 ) -> Result<(Vec<u8>, PlanSummary)> {
-    let format = PlanFormat::of(input)?;
-    let bytes = std::fs::read(input).map_err(|source| PlanError::Io {
-        path: input.to_owned(),
-        source,
-    })?;
+    let (format, bytes) = read_plan(input)?;
     dilate_bytes(bytes, format, kerf, options).map_err(|e| e.in_file(input))
 }
 
@@ -119,11 +115,7 @@ pub fn dilate_file_into(
     output: &Path,
     out: &mut (dyn Write + Sync),
 ) -> Result<PlanSummary> {
-    let format = PlanFormat::of(input)?;
-    let bytes = std::fs::read(input).map_err(|source| PlanError::Io {
-        path: input.to_owned(),
-        source,
-    })?;
+    let (format, bytes) = read_plan(input)?;
     let summary = match format {
         PlanFormat::Svg => svg_text(bytes)
             .and_then(|text| dilate_svg_into(&text, kerf, &svg_options(options), out)),
@@ -162,11 +154,7 @@ pub fn dilate_file_cuts(
     kerf: &KerfSource,
     options: &DilateOptions,
 ) -> Result<(PlanFormat, Vec<CutPath>, PlanSummary)> {
-    let format = PlanFormat::of(input)?;
-    let bytes = std::fs::read(input).map_err(|source| PlanError::Io {
-        path: input.to_owned(),
-        source,
-    })?;
+    let (format, bytes) = read_plan(input)?;
     let (cuts, summary) = match format {
         PlanFormat::Svg => {
             svg_text(bytes).and_then(|text| dilate_svg_cuts(&text, kerf, &svg_options(options)))
@@ -177,6 +165,16 @@ pub fn dilate_file_cuts(
     refuse_open_paths(&summary, "G-code cuts closed contours only")
         .map_err(|e| e.in_file(input))?;
     Ok((format, cuts, summary))
+}
+
+/// The plan file at `input`: its format (by its extension) and its bytes.
+fn read_plan(input: &Path) -> Result<(PlanFormat, Vec<u8>)> {
+    let format = PlanFormat::of(input)?;
+    let bytes = std::fs::read(input).map_err(|source| PlanError::Io {
+        path: input.to_owned(),
+        source,
+    })?;
+    Ok((format, bytes))
 }
 
 /// The `--strict` policy (and G-code's): open cut paths cannot be dilated, so a plan with any is
