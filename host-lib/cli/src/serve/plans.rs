@@ -416,6 +416,14 @@ pub async fn job_call(mut p: Params, cutter: &Cutter) -> Result<JobCall, RpcErro
     })
 }
 
+/// Take the history database's path (`history.db`) out of a measurement's answer: where the
+/// server keeps its files is not the clients' business.
+pub fn hide_history_db(answer: &mut Value) {
+    if let Some(history) = answer.get_mut("history").and_then(Value::as_object_mut) {
+        history.remove("db");
+    }
+}
+
 /// What `job` answers: the loop's report (without the server's file names), the dilated plan
 /// and the job's G-code as text.
 pub fn job_answer(call: &JobCall, report: &JobCliReport) -> Result<Value, CliError> {
@@ -424,10 +432,8 @@ pub fn job_answer(call: &JobCall, report: &JobCliReport) -> Result<Value, CliErr
         for name in ["input", "output", "gcode_out"] {
             fields.remove(name);
         }
-        if let Some(history) = fields.get_mut("history").and_then(Value::as_object_mut) {
-            history.remove("db");
-        }
     }
+    hide_history_db(&mut report);
     let read = |path: &std::path::Path| {
         std::fs::read(path).map_err(|e| kerfmeter::Error::File {
             path: path.to_owned(),

@@ -36,7 +36,7 @@ use tokio::sync::{broadcast, oneshot};
 use kerfmeter::job::{JobEvent, Stage};
 
 use super::Cutter;
-use super::plans::{JobCall, job_answer};
+use super::plans::{JobCall, hide_history_db, job_answer};
 use super::rpc::{Caller, INTERNAL_ERROR, NOT_CONNECTED, RpcError, notification};
 use crate::commands::run::RunReport;
 use crate::commands::{Done, info, job, self_test, status};
@@ -428,10 +428,7 @@ impl Worker {
                     self.lost_link(e.category, &e.message);
                 }
                 let mut answer = to_value(&served);
-                // Where the server keeps its files is not the clients' business.
-                if let Some(history) = answer.get_mut("history").and_then(Value::as_object_mut) {
-                    history.remove("db");
-                }
+                hide_history_db(&mut answer);
                 Ok(answer)
             }
             Err(e) => {
