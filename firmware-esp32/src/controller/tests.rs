@@ -1225,19 +1225,32 @@ fn run_on_scripted_contact(
 fn run_on_supply_into_contact(
     supply_v: f32,
     params: RunParams,
-    (deg_per_nm, creep_deg_per_tick, creep_ticks, sticky): (f32, f32, u32, bool),
+    contact: (f32, f32, u32, bool),
 ) -> KerfResult {
+    timed_run_into_contact(supply_v, params, contact).0
+}
+
+/// [`run_on_supply_into_contact`], and when the run first held its jam, ms from its start.
+fn timed_run_into_contact(
+    supply_v: f32,
+    params: RunParams,
+    (deg_per_nm, creep_deg_per_tick, creep_ticks, sticky): (f32, f32, u32, bool),
+) -> (KerfResult, u32) {
     let mut s = on_supply(supply_v);
     s.start(params);
     let mut creep_deg = 0.0;
     let mut crept = 0;
     let mut held = false;
-    for _ in 0..8000 {
+    let mut jam_ms = 0;
+    for tick in 0..8000u32 {
         let contact_deg = 60.0 + deg_per_nm * s.c.torque_nm + creep_deg;
         if s.angle_deg < contact_deg && s.c.torque_nm > 0.0 && !(sticky && held) {
             s.angle_deg = (s.angle_deg + 0.06).min(contact_deg);
         }
         if matches!(s.c.state, State::Jammed { .. }) {
+            if !held {
+                jam_ms = tick * 1000 / u32::from(CONTROL_RATE_HZ);
+            }
             held = true;
             if crept < creep_ticks {
                 creep_deg += creep_deg_per_tick;
@@ -1249,7 +1262,7 @@ fn run_on_supply_into_contact(
             break;
         }
     }
-    *s.c.result().expect("a result")
+    (*s.c.result().expect("a result"), jam_ms)
 }
 
 #[test]
@@ -1335,9 +1348,8 @@ fn a_creep_that_cannot_be_waited_out_for_want_of_time_is_flagged() {
     // The creep of the test above, on a run whose time limit leaves no room to take the hold
     // again: it is read creeping, so flagged, not read short without a flag.
     let contact = (0.0, 0.002, 120, false);
-    let unhurried = run_on_supply_into_contact(12.0, RunParams::DEFAULT, contact);
+    let (unhurried, at_jam_ms) = timed_run_into_contact(12.0, RunParams::DEFAULT, contact);
     assert_eq!(unhurried.flags, QualityFlags::empty());
-    let at_jam_ms = jam_time_ms(RunParams::DEFAULT, contact);
     let hurried = RunParams {
         max_time_ms: at_jam_ms + HOLD_RETRY_RESERVE_MS - 100,
         ..RunParams::DEFAULT
@@ -1348,23 +1360,6 @@ fn a_creep_that_cannot_be_waited_out_for_want_of_time_is_flagged() {
         "{:?}",
         read.flags
     );
-}
-
-/// When the run of [`run_on_supply_into_contact`] (on 12 V) first holds its jam, ms.
-fn jam_time_ms(params: RunParams, contact: (f32, f32, u32, bool)) -> u32 {
-    let mut s = on_supply(12.0);
-    s.start(params);
-    for tick in 0..8000u32 {
-        let contact_deg = 60.0 + contact.0 * s.c.torque_nm;
-        if s.angle_deg < contact_deg && s.c.torque_nm > 0.0 {
-            s.angle_deg = (s.angle_deg + 0.06).min(contact_deg);
-        }
-        if matches!(s.c.state, State::Jammed { .. }) {
-            return tick * 1000 / u32::from(CONTROL_RATE_HZ);
-        }
-        s.tick();
-    }
-    panic!("no jam");
 }
 
 #[test]
