@@ -12,9 +12,9 @@
 //!   one given with `--allow-origin`, is refused (403): browsers send `Origin` with both, so
 //!   another site's page cannot start a run. An `--allow-origin` must be `http(s)://HOST[:PORT]`:
 //!   `null`, which sandboxed frames and `file:` pages send, and `*` are refused at startup. The
-//!   server's own origins: `http://` + the address
-//!   listened on, and, on loopback, `http://` + the `Host` header when that names a loopback
-//!   host (`localhost`, `127.0.0.1`, `[::1]`, with any port). A request without `Origin` comes
+//!   server's own origins: `http://` + the address listened on, and, on loopback, `http://` +
+//!   the `Host` header when that names a loopback host (`localhost`, `127.0.0.1`, `[::1]`, with
+//!   any port). A request without `Origin` comes
 //!   from a program, not a browser: it is let through (on loopback it is local; elsewhere it
 //!   carries the token).
 //! * **Host.** On loopback, a request whose `Host` is not a loopback name is refused (403): a
