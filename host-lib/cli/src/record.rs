@@ -57,8 +57,9 @@ pub fn parse_label(label: &str) -> Result<String, String> {
     Ok(label.to_owned())
 }
 
-/// Record `m`, measured by `meter` (the twin when `simulated`), in the history `g` names.
-pub fn record(g: &Global, meter: &Kerfmeter, simulated: bool, m: &Measured<'_>) -> Recorded {
+/// Record `m`, measured by `meter`, in the history `g` names (as simulated when `meter` is the
+/// twin, [`is_twin`]).
+pub fn record(g: &Global, meter: &Kerfmeter, m: &Measured<'_>) -> Recorded {
     let db = match g.db_path() {
         Ok(db) => db,
         Err(e) => {
@@ -70,7 +71,7 @@ pub fn record(g: &Global, meter: &Kerfmeter, simulated: bool, m: &Measured<'_>) 
             };
         }
     };
-    let new = new_record(meter, simulated, m);
+    let new = new_record(meter, m);
     let outcome = History::open(&db).and_then(|mut h| {
         let id = h.record(&new)?;
         // A drift that cannot be worked out is no reason to call the record lost.
@@ -102,9 +103,9 @@ pub fn is_twin(meter: &Kerfmeter) -> bool {
 }
 
 /// The record of `m`.
-fn new_record(meter: &Kerfmeter, simulated: bool, m: &Measured<'_>) -> NewRecord {
+fn new_record(meter: &Kerfmeter, m: &Measured<'_>) -> NewRecord {
     let info = meter.cached_info();
-    let simulated = simulated || is_twin(meter);
+    let simulated = is_twin(meter);
     let v = info.firmware;
     let mut flags: Vec<String> = Vec::new();
     for name in m.runs.iter().flat_map(|r| r.flags.names()) {

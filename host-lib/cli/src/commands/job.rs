@@ -360,7 +360,7 @@ fn record_kerf(
         ci95_um: None,
         runs: std::slice::from_ref(kerf),
     };
-    record(g, &session.meter, session.sim.is_some(), &measured)
+    record(g, &session.meter, &measured)
 }
 
 /// A job that failed after its measurement: record the device's last result, saying so on

@@ -131,7 +131,6 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
     let history = record(
         g,
         &s.meter,
-        s.sim.is_some(),
         &Measured {
             label: args.label.as_deref(),
             thickness_mm: f64::from(params.thickness_mm),

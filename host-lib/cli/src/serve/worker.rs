@@ -326,7 +326,7 @@ impl Worker {
         match self.g.connect() {
             Ok(s) => {
                 let message = format!("the device answers on {}", s.meter.path());
-                let twin = s.sim.is_some() || is_twin(&s.meter);
+                let twin = is_twin(&s.meter);
                 self.shared.twin.store(twin, Ordering::SeqCst);
                 self.session = Some(s);
                 self.shared.set_connected(true, &message);
@@ -570,7 +570,6 @@ fn measure_and_report(
     let history = record(
         g,
         &s.meter,
-        s.sim.is_some(),
         &Measured {
             label: run.label.as_deref(),
             thickness_mm: f64::from(run.params.thickness_mm),
