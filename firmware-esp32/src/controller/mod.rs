@@ -217,6 +217,12 @@ enum State {
         torque_nm: f32,
         ticks: u32,
     },
+    /// After the probe, still reported as `Jammed`, where no settle could measure the winding:
+    /// the torque raised to `torque_nm` to measure it (`run.rs`, `winding.rs`).
+    CheckingWinding {
+        torque_nm: f32,
+        ticks: u32,
+    },
     Releasing,
     Done,
     Resetting {
@@ -236,6 +242,7 @@ impl State {
                 | State::Ramping
                 | State::Jammed { .. }
                 | State::Probing { .. }
+                | State::CheckingWinding { .. }
                 | State::Releasing
         )
     }
@@ -401,7 +408,9 @@ impl Controller {
             State::Idle => RunState::Idle,
             State::Engaging => RunState::Engaging,
             State::Ramping => RunState::Ramping,
-            State::Jammed { .. } | State::Probing { .. } => RunState::Jammed,
+            State::Jammed { .. } | State::Probing { .. } | State::CheckingWinding { .. } => {
+                RunState::Jammed
+            }
             State::Releasing => RunState::Releasing,
             State::Done => RunState::Done,
             State::Resetting { .. } => RunState::Resetting,
@@ -581,6 +590,9 @@ impl Controller {
                 entry_deg,
             } => self.hold_jam(torque_nm, entry_deg, fresh),
             State::Probing { torque_nm, ticks } => self.probe(torque_nm, ticks),
+            State::CheckingWinding { torque_nm, ticks } => {
+                self.check_winding(torque_nm, ticks, inputs.current_a)
+            }
             State::Releasing => self.release(),
             State::Resetting { ticks, settled } => self.reset_step(ticks, settled),
             State::SelfTest(phase) => self.self_test_step(phase, inputs, fresh),

@@ -7,7 +7,10 @@ use kerfmeter_protocol::{
 };
 
 use super::supply::{millivolts, needed_supply_v};
-use super::winding::{ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS};
+use super::winding::{
+    CHECK_DUTY, CHECK_MAX_TICKS, CHECK_READINGS, CHECK_RESERVE_MS, ESTIMATE_TICK, MAX_STEP,
+    MIN_DUTY, SKIP_TICKS,
+};
 use super::{
     APPROACH_FRACTION, Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S,
     FORCE_SENSITIVITY_LIMIT_UM, HOLD_CREEP_LSB, HOLD_RETRY_RESERVE_MS, JAM_MIN_INSET_DEG,
@@ -65,6 +68,13 @@ pub(super) struct Run {
     pub(super) winding_measured: bool,
     /// The probe's angles summed over its last [`PROBE_AVERAGED_TICKS`], degrees.
     pub(super) probe_sum_deg: f32,
+    /// The probe's figures for the hold's judgement, (rise_deg, fraction): kept from the probe's
+    /// last tick to the judgement where the winding is checked after it.
+    pub(super) probe: Option<(f32, f32)>,
+    /// Where no settle measured the winding: the held torque's error as the winding check after
+    /// the probe found it, as a fraction of the commanded torque (`winding.rs`, "After the
+    /// hold").
+    pub(super) hold_torque_error: Option<f32>,
     /// The approach's start: (commanded torque, hub angle) on the last ramping tick whose torque
     /// was at most [`APPROACH_FRACTION`] of its target. From there to the jam the hub moved into
     /// the contact with the torque, so the two give the contact's compliance where the hub's
@@ -115,6 +125,8 @@ impl Run {
             max_still_drive_v: 0.0,
             winding_measured: false,
             probe_sum_deg: 0.0,
+            probe: None,
+            hold_torque_error: None,
             approach: None,
             held: None,
         }
@@ -411,7 +423,102 @@ impl Controller {
         }
         if let Some(held) = self.run.held {
             let mean_deg = self.run.probe_sum_deg / PROBE_AVERAGED_TICKS as f32;
-            let probe = (mean_deg - held.angle_deg, probe_nm / held.torque_nm - 1.0);
+            self.run.probe = Some((mean_deg - held.angle_deg, probe_nm / held.torque_nm - 1.0));
+        }
+        match self.winding_check_torque_nm() {
+            Some(check_nm) => {
+                self.run.still_ticks = 0;
+                self.winding.clear();
+                self.state = State::CheckingWinding {
+                    torque_nm: check_nm,
+                    ticks: 0,
+                };
+            }
+            None => self.judge_and_release(),
+        }
+    }
+
+    /// The torque that drives [`CHECK_DUTY`], where this run's winding is still to be measured
+    /// (no settle's duty reached [`MIN_DUTY`]) and the check fits: within the run's cap and
+    /// what full duty gives, never below the probe's, and with [`CHECK_RESERVE_MS`] of the
+    /// run's time left. `None`: no check, the torque's uncertainty stays
+    /// [`TORQUE_UNCERTAINTY_UNMEASURED`].
+    fn winding_check_torque_nm(&self) -> Option<f32> {
+        let elapsed_ms = self.run.ticks * 1000 / u32::from(CONTROL_RATE_HZ);
+        if self.run.winding_measured
+            || elapsed_ms + CHECK_RESERVE_MS >= self.run.params.max_time_ms
+            || self.past_check_turn_limit()
+        {
+            return None;
+        }
+        let config = &self.config;
+        let check_nm = (CHECK_DUTY / self.supply.duty_scale() - config.breakaway_duty)
+            * config.torque_per_duty_nm;
+        let cap_nm = self
+            .run
+            .params
+            .max_torque_nm
+            .min(self.supply.full_duty_torque_nm(config));
+        (check_nm <= cap_nm).then_some(check_nm.max(self.torque_nm))
+    }
+
+    /// Checking the winding after the probe: the torque stepped to `check_nm` (the reading was
+    /// taken: what it compresses now does not enter it), and once the hub stands still, the
+    /// winding measured over [`CHECK_READINGS`] ticks as at a settle. Its factor applies from
+    /// then on, and the held torque's error it reveals sets the torque's uncertainty the hold is
+    /// judged with, on the tick after (the estimate's tick is not also the judgement's). A hub
+    /// that is not still in [`CHECK_MAX_TICKS`], or turns on towards the spiral's disengage
+    /// ([`Controller::past_check_turn_limit`]), leaves the winding unmeasured.
+    pub(super) fn check_winding(&mut self, check_nm: f32, ticks: u32, current_a: Option<f32>) {
+        self.torque_nm = check_nm;
+        if self.run.hold_torque_error.is_some() || ticks >= CHECK_MAX_TICKS {
+            self.judge_and_release();
+            return;
+        }
+        if self.past_check_turn_limit() {
+            // The contact gives way under the check towards the spiral's disengage: back to the
+            // held torque and release, before the inset lets go; the winding unmeasured.
+            if let Some(held) = self.run.held {
+                self.torque_nm = held.torque_nm;
+            }
+            self.winding.clear();
+            self.judge_and_release();
+            return;
+        }
+        if self.is_still() {
+            self.run.still_ticks += 1;
+            self.winding_reading(current_a);
+        } else {
+            self.run.still_ticks = 0;
+            self.winding.clear();
+        }
+        if self.winding.readings() >= CHECK_READINGS {
+            let held_factor = self.winding.factor();
+            if self.winding.conclude(&self.config) == Some(true) {
+                self.run.flags.insert(QualityFlags::TORQUE_MISMATCH);
+            }
+            let factor = self.winding.factor();
+            self.supply.set_winding_factor(factor);
+            // The hold drove `held_factor / factor` of the torque it commanded.
+            self.run.hold_torque_error = Some(held_factor / factor - 1.0);
+        }
+        self.state = State::CheckingWinding {
+            torque_nm: check_nm,
+            ticks: ticks + 1,
+        };
+    }
+
+    /// Whether the hub has turned so far that the inset may be near the spiral's disengage: past
+    /// [`NEAR_DISENGAGE_FRACTION`] of it, counting the inset from the zero kerf's play (no kerf
+    /// has less, so the true inset is at most this).
+    fn past_check_turn_limit(&self) -> bool {
+        let inset_bound_deg = self.angle_deg - self.run.zero_kerf_play_deg;
+        inset_bound_deg > NEAR_DISENGAGE_FRACTION * self.run.params.gauge.disengage_deg
+    }
+
+    /// The hold's flags from the probe's figures ([`Controller::judge_hold`]), then `Releasing`.
+    fn judge_and_release(&mut self) {
+        if let (Some(held), Some(probe)) = (self.run.held, self.run.probe) {
             self.judge_hold(&held, probe);
         }
         self.state = State::Releasing;
@@ -509,13 +616,14 @@ impl Controller {
         turn_um / rise * held.torque_nm * self.torque_uncertainty()
     }
 
-    /// The torque's relative uncertainty at this run's jam: [`TORQUE_UNCERTAINTY`], or
-    /// [`TORQUE_UNCERTAINTY_UNMEASURED`] where no settle of the run measured the winding.
+    /// The torque's relative uncertainty at this run's jam: [`TORQUE_UNCERTAINTY`] where a
+    /// settle of the run measured the winding; where only the check after the probe did, the
+    /// held torque's error it found on top; [`TORQUE_UNCERTAINTY_UNMEASURED`] where nothing did.
     fn torque_uncertainty(&self) -> f32 {
-        if self.run.winding_measured {
-            TORQUE_UNCERTAINTY
-        } else {
-            TORQUE_UNCERTAINTY_UNMEASURED
+        match (self.run.winding_measured, self.run.hold_torque_error) {
+            (true, _) => TORQUE_UNCERTAINTY,
+            (false, Some(error)) => TORQUE_UNCERTAINTY + error.abs(),
+            (false, None) => TORQUE_UNCERTAINTY_UNMEASURED,
         }
     }
 

@@ -52,6 +52,18 @@
 //! - **Cost.** Three soft-float operations on each settle tick, three divisions and a few more
 //!   on the estimate's tick; nothing on the hold's last tick (the worst one).
 //!
+//! # After the hold, where no settle could measure
+//!
+//! Where every settle's duty stays under [`MIN_DUTY`] (a light force on a 24 V supply), the
+//! torque is known only as well as the factor left by the last measurement or the boot. After
+//! the probe (the reading's angles are taken), the run then steps the torque to what drives
+//! [`CHECK_DUTY`], within its cap and what full duty gives, with [`CHECK_RESERVE_MS`] of its
+//! time left and the inset clear of the spiral's disengage; once the hub stands still, the
+//! winding is measured over [`CHECK_READINGS`] ticks as at a settle. The factor found applies
+//! from then on, and the hold is judged with the torque error it reveals: the hold drove
+//! ρ_before/ρ_found of the torque it commanded (`run.rs`, `check_winding`). A build whose check
+//! duty is past the run's cap (a high gear ratio) stays unmeasured.
+//!
 //! # Torque mismatch
 //!
 //! A factor outside [`PLAUSIBLE_FACTOR`] is more than the winding's temperature (−10–130 °C) and
@@ -86,6 +98,24 @@ pub const MAX_STEP: f32 = 0.02;
 /// before the hold collects its angles.
 pub const ESTIMATE_TICK: u32 = 12;
 
+/// The duty the winding check after the probe drives, fraction: [`MIN_DUTY`] with margin for
+/// the duty the controller sets being off by the factor's own error (a winding up to 15 % more
+/// resistive than the factor says still drives the filtered duty past the conversion's floor).
+pub const CHECK_DUTY: f32 = 0.26;
+
+/// The readings the winding check averages: more than a settle's 7 (it has the time), so that
+/// the current's noise, divided by a duty near [`MIN_DUTY`], averages down to about 1 %.
+pub const CHECK_READINGS: u32 = 16;
+
+/// The most ticks the winding check waits for the hub to stand still and take its readings:
+/// the regression's window, [`SKIP_TICKS`] and [`CHECK_READINGS`] with room for the contact to
+/// settle under the new torque.
+pub const CHECK_MAX_TICKS: u32 = 200;
+
+/// Run time the winding check needs left, ms: its [`CHECK_MAX_TICKS`] and the release after it
+/// (200 ms at most), so that it never turns a run into a `MaxRunTime` fault.
+pub const CHECK_RESERVE_MS: u32 = 500;
+
 /// The factors the winding's temperature and the senses' gain errors explain: copper at
 /// −10–130 °C (0.86–1.41 of its resistance at 25 °C), read through a current sense ±10 % and a
 /// supply sense ±3 % off (0.88–1.14 of the ratio).
@@ -118,6 +148,11 @@ impl WindingEstimate {
     /// The factor applied to every duty.
     pub(super) fn factor(&self) -> f32 {
         self.factor
+    }
+
+    /// The readings summed so far.
+    pub(super) fn readings(&self) -> u32 {
+        self.readings
     }
 
     /// Forget the readings (the hub moved).
