@@ -1340,6 +1340,30 @@ fn a_winding_the_settle_cannot_measure_is_checked_after_the_probe() {
 }
 
 #[test]
+fn abort_is_safe_in_the_next_tick_of_the_winding_check() {
+    let mut s = on_supply(26.0);
+    s.start(LIGHT_RUN);
+    for _ in 0..20_000 {
+        let contact_deg = 60.0 + 12.0 * s.c.torque_nm;
+        if s.angle_deg < contact_deg && s.c.torque_nm > 0.0 {
+            s.angle_deg = (s.angle_deg + 0.06).min(contact_deg);
+        }
+        s.tick();
+        if matches!(s.c.state, State::CheckingWinding { .. }) {
+            break;
+        }
+    }
+    assert!(
+        matches!(s.c.state, State::CheckingWinding { .. }),
+        "no check reached"
+    );
+    s.host().abort();
+    let out = s.tick();
+    assert!(!out.awake && out.duty == 0.0);
+    assert_eq!(s.state(), RunState::Idle);
+}
+
+#[test]
 fn a_hold_that_drifts_is_noisy_and_a_noisy_still_one_is_not() {
     // 0.0035° a tick: still by the regression's band, 0.14° (6.4 LSB) between the hold's halves.
     // It never stops: the hold is taken again (`HOLD_CREEP_LSB`) until the retries run out, then
