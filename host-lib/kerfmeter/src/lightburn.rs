@@ -545,7 +545,8 @@ fn line_cuts(answer: &Value) -> Result<Vec<LineCut>> {
     Ok(out)
 }
 
-/// The cuts to set: those `layers` name (by slot index or name), or every Line layer in use.
+/// The cuts to set: those `layers` name (by slot index or whole name, or a comma-separated list
+/// of them), or every Line layer in use.
 fn choose(
     client: &Client,
     secret: &str,
@@ -573,8 +574,21 @@ fn choose(
         return Ok(chosen);
     }
     let mut problems = Vec::new();
-    let matches = |c: &LineCut, s: &String| c.layer_index.to_string() == s.trim() || c.name == *s;
-    for s in layers {
+    let matches = |c: &LineCut, s: &str| c.layer_index.to_string() == s.trim() || c.name == s;
+    // A value names one layer whole (a name may hold a comma), or lists several by commas: the
+    // rule of `kerfmeter dilate --layers` for project files (`kerfmeter_plan::selectors`).
+    let wanted: Vec<&str> = layers
+        .iter()
+        .flat_map(|v| match cuts.iter().any(|c| matches(c, v)) {
+            true => vec![v.as_str()],
+            false => v
+                .split(',')
+                .map(str::trim)
+                .filter(|s| !s.is_empty())
+                .collect(),
+        })
+        .collect();
+    for &s in &wanted {
         match cuts.iter().find(|c| matches(c, s)) {
             None => problems.push(format!("no layer has the index or name \"{s}\"")),
             Some(c) if c.passes.is_empty() => problems.push(format!(
@@ -592,7 +606,7 @@ fn choose(
     }
     Ok(cuts
         .into_iter()
-        .filter(|c| layers.iter().any(|s| matches(c, s)))
+        .filter(|c| wanted.iter().any(|s| matches(c, s)))
         .collect())
 }
 

@@ -7,7 +7,7 @@
 //! * every other request must carry `Authorization: Bearer hex(HMAC-SHA256(secret, minute))` for
 //!   this or the previous Unix minute (computed here, not by the client's code), else 401;
 //! * `GET /api/units`, `GET /api/layers`, `GET /api/cuts` describe a small project: a Line layer
-//!   `C00`, a Fill layer `Engrave`, a Fill layer `Badge` with a Line sub-layer, an unused Line
+//!   `C00`, a Fill layer `Engrave`, a Fill layer `Badge, 3 mm` (a name with a comma) with a Line sub-layer, an unused Line
 //!   layer `Old` already offset by 0.05 mm, a tool layer and an image;
 //! * `POST /api/cuts/{index}` changes the entry's `params` and its sub-layers' (what a later
 //!   `GET /api/cuts` shows), or answers 409 while the "cut settings editor" is open.
@@ -148,7 +148,7 @@ fn project_cuts() -> Value {
     json!({ "product": "lightburn", "cuts": [
         normal(0, "C00", "cut", 0.0, json!([])),
         normal(1, "Engrave", "scan", 0.0, json!([])),
-        normal(2, "Badge", "scan", 0.0,
+        normal(2, "Badge, 3 mm", "scan", 0.0,
                json!([{ "index": 1, "name": "", "enabled": true, "mode": "cut",
                         "params": { "speed": 5, "kerf": 0.0 } }])),
         normal(3, "Old", "cut", 0.05, json!([])),

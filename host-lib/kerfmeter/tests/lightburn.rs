@@ -92,6 +92,30 @@ fn the_offset_is_written_in_the_display_units() {
 }
 
 #[test]
+fn a_value_lists_layers_by_commas_unless_it_is_a_whole_name_with_one() {
+    let (host, _fake) = fake_lightburn();
+    let set = |values: &[&str]| {
+        let values: Vec<String> = values.iter().map(|v| v.to_string()).collect();
+        let client = Client::new(&host);
+        apply_kerf(
+            &client,
+            &paired(&host),
+            150.0,
+            &values,
+            ExistingOffset::Replace,
+        )
+        .map(|a| a.layers.iter().map(|l| l.layer_index).collect::<Vec<_>>())
+    };
+    // The twin's layer 2 is named `Badge, 3 mm`.
+    assert_eq!(set(&["Badge, 3 mm"]).unwrap(), [2]);
+    assert_eq!(set(&["0,2"]).unwrap(), [0, 2]);
+    assert_eq!(set(&["C00", "Badge, 3 mm"]).unwrap(), [0, 2]);
+    // Split, `Badge` and `3 mm` name no layer.
+    let e = set(&["C00, Badge, 3 mm"]).unwrap_err().to_string();
+    assert!(e.contains("\"Badge\""), "{e}");
+}
+
+#[test]
 fn an_open_editor_a_bad_signature_and_a_declined_pairing_are_clear_errors() {
     let (host, fake) = fake_lightburn();
     let pairing = paired(&host);

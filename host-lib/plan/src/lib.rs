@@ -65,6 +65,7 @@ pub mod profile;
 pub mod progress;
 pub mod recompensate;
 pub mod rules;
+pub mod selectors;
 pub mod svg;
 
 pub use error::{PlanError, Result};

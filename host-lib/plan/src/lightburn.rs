@@ -44,6 +44,7 @@ use serde::Serialize;
 use crate::compensation::{self, AppliedCompensation, IfCompensated};
 use crate::dilate::KerfSource;
 use crate::error::{PlanError, Problems, Result};
+use crate::selectors;
 
 /// The largest project read, bytes (projects with embedded images run to tens of MB).
 pub const MAX_PROJECT_BYTES: u64 = 256 * 1024 * 1024;
@@ -353,9 +354,10 @@ fn line_of(doc: &Document, n: Node) -> u32 {
     doc.text_pos_at(n.range().start).row
 }
 
-/// The positions (in `layers`) of the layers to set: those `selectors` name, or every cut layer.
-fn choose(layers: &[Layer], selectors: &[String]) -> Result<Vec<usize>> {
-    if selectors.is_empty() {
+/// The positions (in `layers`) of the layers to set: those `wanted` names (each a layer's
+/// index or whole name, or a comma-separated list of them: [`selectors`]), or every cut layer.
+fn choose(layers: &[Layer], wanted: &[String]) -> Result<Vec<usize>> {
+    if wanted.is_empty() {
         let all: Vec<usize> = (0..layers.len())
             .filter(|&i| !layers[i].passes.is_empty())
             .collect();
@@ -369,10 +371,9 @@ fn choose(layers: &[Layer], selectors: &[String]) -> Result<Vec<usize>> {
     }
     let mut problems = Problems::default();
     let mut chosen = Vec::new();
-    for s in selectors {
-        let hits: Vec<usize> = (0..layers.len())
-            .filter(|&i| layers[i].index.to_string() == s.trim() || layers[i].name == *s)
-            .collect();
+    let is = |l: &Layer, s: &str| l.index.to_string() == s.trim() || l.name == s;
+    for s in selectors::layer_selectors(wanted, |s| layers.iter().any(|l| is(l, s))) {
+        let hits: Vec<usize> = (0..layers.len()).filter(|&i| is(&layers[i], s)).collect();
         if hits.is_empty() {
             problems.push(format!("no layer has the index or name \"{s}\""));
         }

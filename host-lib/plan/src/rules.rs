@@ -30,6 +30,7 @@ use std::str::FromStr;
 use serde::Serialize;
 
 use crate::error::{PlanError, Result};
+use crate::selectors;
 
 /// An sRGB colour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -107,14 +108,13 @@ pub enum Verdict {
 }
 
 impl CutRules {
-    /// Rules from option values: colours (CSS syntax), maximum width, DXF layers.
+    /// Rules from option values: colours (CSS syntax), maximum width, DXF layers; a value may
+    /// list several, separated by commas ([`selectors`]).
     pub fn new(colors: &[String], max_width_mm: f64, layers: &[String]) -> Result<Self> {
         let mut rules = Self::default();
+        let colors = selectors::split_lists(colors);
         if !colors.is_empty() {
-            rules.colors = colors
-                .iter()
-                .map(|c| Rgb::parse(c))
-                .collect::<Result<_>>()?;
+            rules.colors = colors.into_iter().map(Rgb::parse).collect::<Result<_>>()?;
         }
         if !(max_width_mm.is_finite() && max_width_mm >= 0.0) {
             return Err(PlanError::InvalidArgument(format!(
@@ -122,7 +122,15 @@ impl CutRules {
             )));
         }
         rules.max_width_mm = max_width_mm;
-        rules.layers = layers.to_vec();
+        // A value is a layer's whole name (one may hold a comma) or a list of them: the entities'
+        // layers are matched against both.
+        for value in layers {
+            for name in std::iter::once(value.trim()).chain(selectors::split_list(value)) {
+                if !name.is_empty() && !rules.layers.iter().any(|l| l == name) {
+                    rules.layers.push(name.to_string());
+                }
+            }
+        }
         Ok(rules)
     }
 
@@ -226,6 +234,21 @@ mod tests {
         assert_eq!(r.classify_dxf(Rgb::from_aci(1), "0", None), Verdict::Cut);
         assert!(matches!(
             r.classify_dxf(Rgb::from_aci(3), "0", None),
+            Verdict::Keep(_)
+        ));
+    }
+
+    #[test]
+    fn a_value_may_list_colours_and_layers_and_keeps_a_colours_own_commas() {
+        let colors = ["rgb(255,0,0), #00f".to_string(), "black".to_string()];
+        let r = CutRules::new(&colors, 0.1, &["Cut, 3 mm".into()]).unwrap();
+        assert_eq!(r.colors, vec![Rgb::RED, Rgb::BLUE, Rgb::BLACK]);
+        // The whole name (a DXF layer may hold a comma) and each of its parts.
+        for layer in ["Cut, 3 mm", "Cut", "3 mm"] {
+            assert_eq!(r.classify_dxf(Rgb::from_aci(3), layer, None), Verdict::Cut);
+        }
+        assert!(matches!(
+            r.classify_dxf(Rgb::from_aci(1), "Engrave", None),
             Verdict::Keep(_)
         ));
     }

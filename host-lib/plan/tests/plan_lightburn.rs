@@ -119,6 +119,25 @@ fn layers_are_chosen_by_index_or_name() {
 }
 
 #[test]
+fn a_value_lists_layers_by_commas_unless_it_is_a_whole_name_with_one() {
+    let set_of = |input: &str, wanted: &[&str]| -> Vec<i64> {
+        let (_, summary) = set_kerf_offset(input, 200.0, &layers(wanted)).unwrap();
+        summary
+            .layers
+            .iter()
+            .filter(|l| !l.set.is_empty())
+            .map(|l| l.index)
+            .collect()
+    };
+    let input = read("lightburn_2x_layers.lbrn2");
+    assert_eq!(set_of(&input, &["0,3"]), [0, 3]);
+    // LightBurn lets a layer's name hold a comma: asked for whole, it is that layer.
+    let named = input.replace("\"Score\"", "\"Score, 3 mm\"");
+    assert_eq!(set_of(&named, &["Score, 3 mm"]), [2]);
+    assert_eq!(set_of(&named, &["Score, 3 mm", "0"]), [0, 2]);
+}
+
+#[test]
 fn a_layer_that_is_not_a_cut_layer_or_not_there_is_refused() {
     let input = read("lightburn_2x_layers.lbrn2");
     let e = set_kerf_offset(&input, 150.0, &layers(&["Engrave"])).unwrap_err();

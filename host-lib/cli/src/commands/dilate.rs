@@ -52,8 +52,9 @@ pub struct DilateArgs {
     #[arg(long)]
     pub dry_run: bool,
     /// LightBurn projects: set only these layers, each by index (0, 1, …) or name (repeat or
-    /// separate by commas) [default: every Line layer].
-    #[arg(long = "layers", value_name = "LAYER", value_delimiter = ',')]
+    /// separate by commas; a value that is a whole layer's name is not split) [default: every
+    /// Line layer].
+    #[arg(long = "layers", value_name = "LAYER")]
     pub layers: Vec<String>,
     /// The kerf, the cut rules and what to do with a compensated plan.
     #[command(flatten)]
@@ -70,15 +71,16 @@ pub struct DilationArgs {
     /// Kerf map (JSON from the map command): each part uses the kerf at its centroid.
     #[arg(long, value_name = "MAP.json")]
     pub map: Option<PathBuf>,
-    /// Colours that mean "cut" (CSS syntax; repeat or separate by commas) [default: red, blue,
-    /// black].
-    #[arg(long = "cut-color", value_name = "COLOR", value_delimiter = ',')]
+    /// Colours that mean "cut" (CSS syntax, `rgb(255,0,0)` too; repeat or separate by commas)
+    /// [default: red, blue, black].
+    #[arg(long = "cut-color", value_name = "COLOR")]
     pub cut_colors: Vec<String>,
     /// Widest stroke (SVG) or lineweight (DXF) that is still a cut line, mm.
     #[arg(long, default_value_t = 0.3)]
     pub cut_max_width_mm: f64,
-    /// DXF: the entities on these layers are the cuts (instead of the colour rules).
-    #[arg(long = "cut-layer", value_name = "LAYER", value_delimiter = ',')]
+    /// DXF: the entities on these layers are the cuts (instead of the colour rules; repeat or
+    /// separate by commas; a layer's whole name with a comma in it matches too).
+    #[arg(long = "cut-layer", value_name = "LAYER")]
     pub cut_layers: Vec<String>,
     /// What one drawing unit is, for files that do not say (unitless SVG, DXF without $INSUNITS).
     #[arg(long, value_parser = units_parser())]

@@ -112,14 +112,16 @@ pub struct JobArgs {
     /// Cut settings [default: 300 mm/min, 100 %, 1 pass, for the gauge and the job].
     #[command(flatten)]
     pub cut: CutArgs,
-    /// Colours that mean "cut" [default: red, blue, black].
-    #[arg(long = "cut-color", value_name = "COLOR", value_delimiter = ',')]
+    /// Colours that mean "cut" (CSS syntax, `rgb(255,0,0)` too; repeat or separate by commas)
+    /// [default: red, blue, black].
+    #[arg(long = "cut-color", value_name = "COLOR")]
     pub cut_colors: Vec<String>,
     /// Widest stroke (SVG) or lineweight (DXF) that is still a cut line, mm.
     #[arg(long, default_value_t = 0.3)]
     pub cut_max_width_mm: f64,
-    /// DXF: the entities on these layers are the cuts.
-    #[arg(long = "cut-layer", value_name = "LAYER", value_delimiter = ',')]
+    /// DXF: the entities on these layers are the cuts (repeat or separate by commas; a layer's
+    /// whole name with a comma in it matches too).
+    #[arg(long = "cut-layer", value_name = "LAYER")]
     pub cut_layers: Vec<String>,
     /// What one drawing unit is, for files that do not say (unitless SVG, DXF without
     /// $INSUNITS).

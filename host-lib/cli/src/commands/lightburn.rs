@@ -226,9 +226,9 @@ pub struct ApplyArgs {
     /// Kerf (full cut width), µm; LightBurn's Kerf Offset is half of it.
     #[arg(long)]
     pub kerf_um: f64,
-    /// Set only these layers, each by index (0, 1, …) or name (repeat or separate by commas)
-    /// [default: every Line layer in use].
-    #[arg(long = "layers", value_name = "LAYER", value_delimiter = ',')]
+    /// Set only these layers, each by index (0, 1, …) or name (repeat or separate by commas; a
+    /// value that is a whole layer's name is not split) [default: every Line layer in use].
+    #[arg(long = "layers", value_name = "LAYER")]
     pub layers: Vec<String>,
     /// A layer that already has a Kerf Offset is refused; add this kerf's to it anyway.
     #[arg(long, conflicts_with = "recompensate")]

@@ -278,7 +278,10 @@ fn gauge_args(mut p: Params) -> Result<GaugeArgs, RpcError> {
 }
 
 /// The params named in `allowed` as the command-line flags they stand for (`radius_mm: 12` is
-/// `--radius-mm=12`, `true` a bare flag, `[x, y]` `--name=x,y`). A value is always joined to its
+/// `--radius-mm=12`, `true` a bare flag, numbers `[x, y]` `--name=x,y` (a point or a size),
+/// strings `["a", "b"]` `--name=a --name=b`: each its own flag, so that an item's own commas, as
+/// in `rgb(255,0,0)` or a layer named `Cut, 3 mm`, are never read as separators). A value is
+/// always joined to its
 /// flag by `=`, so that a value such as `"-o"` or `"--port=/dev/ttyUSB0"` is read as the value it
 /// is, never as a flag of its own.
 fn flags(p: &mut Params, allowed: &[&str]) -> Result<Vec<String>, RpcError> {
@@ -294,8 +297,13 @@ fn flags(p: &mut Params, allowed: &[&str]) -> Result<Vec<String>, RpcError> {
             None | Some(Value::Null) | Some(Value::Bool(false)) => {}
             Some(Value::Bool(true)) => argv.push(flag),
             Some(Value::Array(items)) => {
-                let items: Result<Vec<String>, RpcError> = items.iter().map(item).collect();
-                argv.push(format!("{flag}={}", items?.join(",")));
+                let values: Vec<String> = items.iter().map(item).collect::<Result<_, _>>()?;
+                if items.iter().all(Value::is_number) {
+                    // A point or a size: one value, `X,Y`.
+                    argv.push(format!("{flag}={}", values.join(",")));
+                } else {
+                    argv.extend(values.iter().map(|v| format!("{flag}={v}")));
+                }
             }
             Some(other) => argv.push(format!("{flag}={}", item(&other)?)),
         }
@@ -447,4 +455,32 @@ pub fn job_answer(call: &JobCall, report: &JobCliReport) -> Result<Value, CliErr
         "kerf_um": kerf_um, "label": call.label, "report": report, "content": content,
         "gcode": gcode,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_list_of_strings_is_one_flag_each_and_a_point_one_value() {
+        let Value::Object(map) = json!({
+            "cut_color": ["rgb(255,0,0)", "blue"],
+            "origin_mm": [10, 20.5],
+            "cut_layer": "Cut, 3 mm",
+            "unlock": true,
+        }) else {
+            unreachable!("an object")
+        };
+        let argv = flags(&mut Params(map), JOB_PARAMS).unwrap();
+        assert_eq!(
+            argv,
+            [
+                "--origin-mm=10,20.5",
+                "--cut-color=rgb(255,0,0)",
+                "--cut-color=blue",
+                "--cut-layer=Cut, 3 mm",
+                "--unlock"
+            ]
+        );
+    }
 }
