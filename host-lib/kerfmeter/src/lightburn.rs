@@ -576,21 +576,35 @@ fn choose(
     let mut problems = Vec::new();
     let matches = |c: &LineCut, s: &str| c.layer_index.to_string() == s.trim() || c.name == s;
     // A value names one layer whole (a name may hold a comma), or lists several by commas: the
-    // rule of `kerfmeter dilate --layers` for project files (`kerfmeter_plan::selectors`).
-    let wanted: Vec<&str> = layers
-        .iter()
-        .flat_map(|v| match cuts.iter().any(|c| matches(c, v)) {
-            true => vec![v.as_str()],
-            false => v
-                .split(',')
-                .map(str::trim)
-                .filter(|s| !s.is_empty())
-                .collect(),
-        })
-        .collect();
+    // rule of `kerfmeter dilate --layers` for project files (`kerfmeter_plan::selectors`, which
+    // this crate does not depend on; LightBurn's names have no colours' parentheses to mind).
+    let mut wanted: Vec<&str> = Vec::new();
+    for v in layers {
+        let whole = [v.as_str(), v.trim()]
+            .into_iter()
+            .find(|w| cuts.iter().any(|c| matches(c, w)));
+        match whole {
+            Some(whole) => wanted.push(whole),
+            None => {
+                let items: Vec<&str> = v
+                    .split(',')
+                    .map(str::trim)
+                    .filter(|s| !s.is_empty())
+                    .collect();
+                if items.is_empty() {
+                    problems.push(format!("{v:?} names nothing"));
+                }
+                wanted.extend(items);
+            }
+        }
+    }
+    let hint = match layers.iter().any(|v| v.contains(',')) {
+        true => " (a value is split at its commas unless it is a layer's whole name)",
+        false => "",
+    };
     for &s in &wanted {
         match cuts.iter().find(|c| matches(c, s)) {
-            None => problems.push(format!("no layer has the index or name \"{s}\"")),
+            None => problems.push(format!("no layer has the index or name \"{s}\"{hint}")),
             Some(c) if c.passes.is_empty() => problems.push(format!(
                 "layer {} \"{}\" is not a Line layer: LightBurn applies a Kerf Offset to Line passes only",
                 c.layer_index, c.name

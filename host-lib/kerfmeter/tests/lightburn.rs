@@ -112,7 +112,10 @@ fn a_value_lists_layers_by_commas_unless_it_is_a_whole_name_with_one() {
     assert_eq!(set(&["C00", "Badge, 3 mm"]).unwrap(), [0, 2]);
     // Split, `Badge` and `3 mm` name no layer.
     let e = set(&["C00, Badge, 3 mm"]).unwrap_err().to_string();
-    assert!(e.contains("\"Badge\""), "{e}");
+    assert!(e.contains("\"Badge\" (a value is split"), "{e}");
+    // A value that names nothing (an empty shell variable) is refused, not "no layer at all".
+    let e = set(&[" , "]).unwrap_err().to_string();
+    assert!(e.contains("names nothing"), "{e}");
 }
 
 #[test]

@@ -45,7 +45,7 @@
 //! entity to change whose handle is shared. What
 //! was applied is recorded in `999` comments at the top of the file (see [`compensation`]).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::io::Cursor;
 
 use cavalier_contours::polyline::{PlineCreation, PlineSource, PlineSourceMut, PlineVertex};
@@ -312,15 +312,7 @@ fn dilate_loaded(
     found: Option<FoundCompensation>,
 ) -> Result<(Changes, PlanSummary)> {
     pipeline::dilate_plan(
-        DxfPlan {
-            drawing,
-            opts,
-            scale: 1.0,
-            found,
-            retargets: Vec::new(),
-            rest_blocks: Vec::new(),
-            assumed: None,
-        },
+        DxfPlan::new(drawing, opts, found)?,
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -336,15 +328,7 @@ pub(crate) fn dilate_dxf_cuts(
     opts: &DxfOptions,
 ) -> Result<(Vec<CutPath>, PlanSummary)> {
     let (drawing, found) = load(bytes, &opts.progress)?;
-    let plan = DxfPlan {
-        drawing,
-        opts,
-        scale: 1.0,
-        found,
-        retargets: Vec::new(),
-        rest_blocks: Vec::new(),
-        assumed: None,
-    };
+    let plan = DxfPlan::new(drawing, opts, found)?;
     pipeline::dilate_plan_cuts(plan, kerf, opts.if_compensated, &opts.rules, &opts.progress)
 }
 
@@ -352,6 +336,8 @@ pub(crate) fn dilate_dxf_cuts(
 struct DxfPlan<'o> {
     drawing: Drawing,
     opts: &'o DxfOptions,
+    /// The cut rules, their `--cut-layer` values resolved against this drawing's layers.
+    rules: CutRules,
     /// mm per drawing unit (set by `read`).
     scale: f64,
     /// The compensation the file records (read from its comments before loading).
@@ -363,6 +349,37 @@ struct DxfPlan<'o> {
     rest_blocks: Vec<dxf::Block>,
     /// The units assumed for a drawing that did not say, to write into it (set by `read`).
     assumed: Option<Units>,
+}
+
+impl<'o> DxfPlan<'o> {
+    /// The plan of a loaded `drawing` whose file recorded the compensation `found`: a
+    /// `--cut-layer` value is a layer's whole name if the drawing has such a layer (in its table
+    /// or on an entity), else a comma-separated list of names.
+    fn new(
+        drawing: Drawing,
+        opts: &'o DxfOptions,
+        found: Option<FoundCompensation>,
+    ) -> Result<Self> {
+        let rules = if opts.rules.layers.is_empty() {
+            opts.rules.clone()
+        } else {
+            let mut names: HashSet<String> =
+                drawing.layers().map(|l| l.name.to_uppercase()).collect();
+            names.extend(drawing.entities().map(|e| e.common.layer.to_uppercase()));
+            opts.rules
+                .for_layers(|n| names.contains(&n.to_uppercase()))?
+        };
+        Ok(DxfPlan {
+            drawing,
+            opts,
+            rules,
+            scale: 1.0,
+            found,
+            retargets: Vec::new(),
+            rest_blocks: Vec::new(),
+            assumed: None,
+        })
+    }
 }
 
 /// What reading one cut entity gives.
@@ -707,7 +724,7 @@ impl DxfPlan<'_> {
         let color = resolve_color(common, layer_colors);
         let lw = (common.lineweight_enum_value > 0)
             .then(|| f64::from(common.lineweight_enum_value) / 100.0);
-        if let Verdict::Keep(reason) = self.opts.rules.classify_dxf(color, &common.layer, lw) {
+        if let Verdict::Keep(reason) = self.rules.classify_dxf(color, &common.layer, lw) {
             summary.pass(format!("{} ({reason})", type_name(specific)));
             return false;
         }

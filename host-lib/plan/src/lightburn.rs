@@ -372,10 +372,16 @@ fn choose(layers: &[Layer], wanted: &[String]) -> Result<Vec<usize>> {
     let mut problems = Problems::default();
     let mut chosen = Vec::new();
     let is = |l: &Layer, s: &str| l.index.to_string() == s.trim() || l.name == s;
-    for s in selectors::layer_selectors(wanted, |s| layers.iter().any(|l| is(l, s))) {
+    let names = selectors::layer_selectors(wanted, |s| layers.iter().any(|l| is(l, s)))
+        .map_err(|e| PlanError::InvalidArgument(format!("--layers: {e}")))?;
+    for s in names {
         let hits: Vec<usize> = (0..layers.len()).filter(|&i| is(&layers[i], s)).collect();
         if hits.is_empty() {
-            problems.push(format!("no layer has the index or name \"{s}\""));
+            let hint = match wanted.iter().any(|v| v.contains(',')) {
+                true => format!(" ({})", selectors::SPLIT_HINT),
+                false => String::new(),
+            };
+            problems.push(format!("no layer has the index or name \"{s}\"{hint}"));
         }
         for i in hits {
             if layers[i].passes.is_empty() {

@@ -112,7 +112,8 @@ impl CutRules {
     /// list several, separated by commas ([`selectors`]).
     pub fn new(colors: &[String], max_width_mm: f64, layers: &[String]) -> Result<Self> {
         let mut rules = Self::default();
-        let colors = selectors::split_lists(colors);
+        let colors = selectors::split_lists(colors)
+            .map_err(|e| PlanError::InvalidArgument(format!("--cut-color: {e}")))?;
         if !colors.is_empty() {
             rules.colors = colors.into_iter().map(Rgb::parse).collect::<Result<_>>()?;
         }
@@ -122,15 +123,11 @@ impl CutRules {
             )));
         }
         rules.max_width_mm = max_width_mm;
-        // A value is a layer's whole name (one may hold a comma) or a list of them: the entities'
-        // layers are matched against both.
-        for value in layers {
-            for name in std::iter::once(value.trim()).chain(selectors::split_list(value)) {
-                if !name.is_empty() && !rules.layers.iter().any(|l| l == name) {
-                    rules.layers.push(name.to_string());
-                }
-            }
-        }
+        // Kept as given: a value is a layer's whole name (one may hold a comma) or a list of them,
+        // which only the drawing's layers can tell ([`CutRules::for_layers`]).
+        selectors::split_lists(layers)
+            .map_err(|e| PlanError::InvalidArgument(format!("--cut-layer: {e}")))?;
+        rules.layers = layers.to_vec();
         Ok(rules)
     }
 
@@ -190,6 +187,23 @@ impl CutRules {
         Verdict::Cut
     }
 
+    /// These rules for a drawing whose layers `is_layer` recognises: each `--cut-layer` value is
+    /// a layer's whole name, or else a comma-separated list of them ([`selectors`]).
+    pub fn for_layers(&self, is_layer: impl Fn(&str) -> bool) -> Result<CutRules> {
+        let names = selectors::layer_selectors(&self.layers, is_layer)
+            .map_err(|e| PlanError::InvalidArgument(format!("--cut-layer: {e}")))?;
+        let mut layers: Vec<String> = Vec::new();
+        for name in names {
+            if !layers.iter().any(|l| l == name) {
+                layers.push(name.to_string());
+            }
+        }
+        Ok(CutRules {
+            layers,
+            ..self.clone()
+        })
+    }
+
     /// One line describing the rules, for reports.
     pub fn describe(&self) -> String {
         let colors: Vec<String> = self.colors.iter().map(Rgb::to_string).collect();
@@ -199,7 +213,8 @@ impl CutRules {
             self.max_width_mm
         );
         if !self.layers.is_empty() {
-            s.push_str(&format!("; DXF layers {}", self.layers.join(", ")));
+            let names: Vec<String> = self.layers.iter().map(|l| format!("{l:?}")).collect();
+            s.push_str(&format!("; DXF layers {}", names.join(", ")));
         }
         s
     }
@@ -243,14 +258,21 @@ mod tests {
         let colors = ["rgb(255,0,0), #00f".to_string(), "black".to_string()];
         let r = CutRules::new(&colors, 0.1, &["Cut, 3 mm".into()]).unwrap();
         assert_eq!(r.colors, vec![Rgb::RED, Rgb::BLUE, Rgb::BLACK]);
-        // The whole name (a DXF layer may hold a comma) and each of its parts.
-        for layer in ["Cut, 3 mm", "Cut", "3 mm"] {
-            assert_eq!(r.classify_dxf(Rgb::from_aci(3), layer, None), Verdict::Cut);
-        }
-        assert!(matches!(
-            r.classify_dxf(Rgb::from_aci(1), "Engrave", None),
-            Verdict::Keep(_)
-        ));
+        let kept = |r: &CutRules, layer| !matches!(r.classify_dxf(None, layer, None), Verdict::Cut);
+        // A drawing with a layer of that whole name (DXF allows a comma): that layer alone.
+        let whole = r.for_layers(|n| n == "Cut, 3 mm").unwrap();
+        assert!(!kept(&whole, "Cut, 3 mm"));
+        assert!(kept(&whole, "Cut") && kept(&whole, "3 mm"));
+        // One without: the value is a list.
+        let listed = r.for_layers(|n| n == "Cut").unwrap();
+        assert!(!kept(&listed, "Cut") && !kept(&listed, "3 mm"));
+        assert_eq!(
+            listed.describe(),
+            "unfilled lines in #FF0000, #0000FF, #000000 up to 0.1 mm wide; DXF layers \"Cut\", \"3 mm\""
+        );
+        // A value that names nothing is refused, not read as "no rule".
+        assert!(CutRules::new(&[" ".into()], 0.1, &[]).is_err());
+        assert!(CutRules::new(&[], 0.1, &[",".into()]).is_err());
     }
 
     #[test]

@@ -28,6 +28,10 @@ pub fn split_list(value: &str) -> Vec<&str> {
         }
     }
     items.push(&value[start..]);
+    if depth > 0 {
+        // A parenthesis left open (`Cut :(,Score`) is not a group: every comma separates.
+        items = value.split(',').collect();
+    }
     items
         .into_iter()
         .map(str::trim)
@@ -35,25 +39,46 @@ pub fn split_list(value: &str) -> Vec<&str> {
         .collect()
 }
 
-/// The items of every value in `values`, split by [`split_list`].
-pub fn split_lists(values: &[String]) -> Vec<&str> {
-    values.iter().flat_map(|v| split_list(v)).collect()
+/// The items of every value in `values`, split by [`split_list`]; a value with no item at all
+/// (`""`, `","`: an empty shell variable) is an error, not a silent "nothing".
+pub fn split_lists(values: &[String]) -> Result<Vec<&str>, String> {
+    let mut items = Vec::new();
+    for v in values {
+        let some = split_list(v);
+        if some.is_empty() {
+            return Err(format!("{v:?} names nothing"));
+        }
+        items.extend(some);
+    }
+    Ok(items)
 }
 
 /// The layer selectors in `values`: a value that `is_layer` recognises whole (a layer's name or
-/// index) stays whole; any other is split by [`split_list`].
-pub fn layer_selectors(values: &[String], is_layer: impl Fn(&str) -> bool) -> Vec<&str> {
-    values
-        .iter()
-        .flat_map(|v| {
-            if is_layer(v) {
-                vec![v.as_str()]
-            } else {
-                split_list(v)
+/// index, as given or trimmed) stays whole; any other is split by [`split_list`]. A value with
+/// no item at all is an error.
+pub fn layer_selectors(
+    values: &[String],
+    is_layer: impl Fn(&str) -> bool,
+) -> Result<Vec<&str>, String> {
+    let mut selectors = Vec::new();
+    for v in values {
+        match [v.as_str(), v.trim()].into_iter().find(|w| is_layer(w)) {
+            Some(whole) => selectors.push(whole),
+            None => {
+                let some = split_list(v);
+                if some.is_empty() {
+                    return Err(format!("{v:?} names nothing"));
+                }
+                selectors.extend(some);
             }
-        })
-        .collect()
+        }
+    }
+    Ok(selectors)
 }
+
+/// The hint added to "no layer is called …" where a value was split: how to name a layer whose
+/// name holds a comma.
+pub const SPLIT_HINT: &str = "a value is split at its commas unless it is a layer's whole name";
 
 #[cfg(test)]
 mod tests {
@@ -69,16 +94,23 @@ mod tests {
         assert_eq!(split_list(" , red,,"), ["red"]);
         // An unbalanced parenthesis never swallows the rest, nor panics.
         assert_eq!(split_list("a),b"), ["a)", "b"]);
+        assert_eq!(split_list("Cut :(,Score"), ["Cut :(", "Score"]);
+        assert!(split_lists(&["red".into(), " , ".into()]).is_err());
     }
 
     #[test]
     fn a_value_that_names_a_layer_is_not_split() {
         let names = ["Cut, 3 mm", "Score"];
         let is_layer = |s: &str| names.contains(&s);
-        let values = ["Cut, 3 mm".to_string(), "Score,0".to_string()];
+        let values = [
+            "Cut, 3 mm ".to_string(),
+            "Score,0".to_string(),
+            "Cut, 3 mm".to_string(),
+        ];
         assert_eq!(
-            layer_selectors(&values, is_layer),
-            ["Cut, 3 mm", "Score", "0"]
+            layer_selectors(&values, is_layer).unwrap(),
+            ["Cut, 3 mm", "Score", "0", "Cut, 3 mm"]
         );
+        assert!(layer_selectors(&[String::new()], is_layer).is_err());
     }
 }

@@ -135,6 +135,8 @@ fn a_value_lists_layers_by_commas_unless_it_is_a_whole_name_with_one() {
     let named = input.replace("\"Score\"", "\"Score, 3 mm\"");
     assert_eq!(set_of(&named, &["Score, 3 mm"]), [2]);
     assert_eq!(set_of(&named, &["Score, 3 mm", "0"]), [0, 2]);
+    // An empty value is refused rather than setting nothing and recording it.
+    assert!(set_kerf_offset(&input, 200.0, &layers(&[""])).is_err());
 }
 
 #[test]
