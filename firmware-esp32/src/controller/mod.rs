@@ -2,7 +2,7 @@
 //!
 //! ```text
 //!            Run                 θ ≥ θplay(0)          still at τ(θs)          hold done
-//!   Idle ─────────▶ Engaging ─────────────▶ Ramping ──────────────▶ Jammed ─────────────▶ Releasing ──▶ Done
+//!   Idle ─────────▶ Engaging ─────────────▶ Ramping ──────────────▶ Jammed ───(probe, check)──▶ Releasing ──▶ Done
 //!    ▲  ▲                                     ▲                       │ slipped                          │
 //!    │  │ Abort (any state, safe this tick)   └───────────────────────┘                                 │
 //!    │  └──────────── Resetting ◀── Reset (Idle, Done, Fault) ◀──────────────────────────────────────────┘
@@ -70,6 +70,11 @@
 //!   (above breakaway) and the inset past [`JAM_MIN_INSET_DEG`]. Then the torque is held for
 //!   [`HOLD_TICKS`] ticks; θm is the median angle over the hold. If the hub slips by more than
 //!   [`JAM_SLIP_DEG`] meanwhile, the ramp resumes.
+//! - **Probing** (reported as `Jammed`): the torque rises by [`PROBE_FRACTION`] and how far the
+//!   hub turns on says how far a torque error would move the reading (`FORCE_SENSITIVE`).
+//! - **Checking the winding** (reported as `Jammed`), only where no settle's duty could measure
+//!   the winding: the torque rises to a duty the current sense reads and the winding is measured
+//!   there (`winding.rs`, "After the hold").
 //! - **Releasing** ramps the torque down; **Done** holds the result for `GetKerf`.
 //!
 //! # Cost per tick

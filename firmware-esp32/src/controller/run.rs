@@ -8,8 +8,8 @@ use kerfmeter_protocol::{
 
 use super::supply::{millivolts, needed_supply_v};
 use super::winding::{
-    CHECK_DUTY, CHECK_MAX_TICKS, CHECK_READINGS, CHECK_RESERVE_MS, ESTIMATE_TICK, MAX_STEP,
-    MIN_DUTY, SKIP_TICKS,
+    CHECK_DUTY, CHECK_MARGIN_MS, CHECK_MAX_TICKS, CHECK_MAX_TORQUE_RATIO, CHECK_READINGS,
+    ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS,
 };
 use super::{
     APPROACH_FRACTION, Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S,
@@ -71,9 +71,12 @@ pub(super) struct Run {
     /// The probe's figures for the hold's judgement, (rise_deg, fraction): kept from the probe's
     /// last tick to the judgement where the winding is checked after it.
     pub(super) probe: Option<(f32, f32)>,
-    /// Where no settle measured the winding: the held torque's error as the winding check after
-    /// the probe found it, as a fraction of the commanded torque (`winding.rs`, "After the
+    /// The winding check after the probe has taken its readings (`winding.rs`, "After the
     /// hold").
+    pub(super) winding_checked: bool,
+    /// Where no settle measured the winding: the held torque's error as the winding check after
+    /// the probe found it, as a fraction of the commanded torque (`None` also where the check's
+    /// estimate was implausible: then it measures nothing).
     pub(super) hold_torque_error: Option<f32>,
     /// The approach's start: (commanded torque, hub angle) on the last ramping tick whose torque
     /// was at most [`APPROACH_FRACTION`] of its target. From there to the jam the hub moved into
@@ -126,6 +129,7 @@ impl Run {
             winding_measured: false,
             probe_sum_deg: 0.0,
             probe: None,
+            winding_checked: false,
             hold_torque_error: None,
             approach: None,
             held: None,
@@ -384,9 +388,13 @@ impl Controller {
     /// with [`HOLD_RETRY_RESERVE_MS`] of the run's time left (a slow run is read, not faulted
     /// with `MaxRunTime`, for waiting on its creep).
     fn may_hold_again(&self) -> bool {
-        let elapsed_ms = self.run.ticks * 1000 / u32::from(CONTROL_RATE_HZ);
         self.run.hold_retries < MAX_HOLD_RETRIES
-            && elapsed_ms + HOLD_RETRY_RESERVE_MS < self.run.params.max_time_ms
+            && self.elapsed_ms() + HOLD_RETRY_RESERVE_MS < self.run.params.max_time_ms
+    }
+
+    /// The run's time so far, ms.
+    fn elapsed_ms(&self) -> u32 {
+        self.run.ticks * 1000 / u32::from(CONTROL_RATE_HZ)
     }
 
     /// The probe's torque for a jam held at `held_nm` after an `overshoot`: [`PROBE_FRACTION`]
@@ -440,15 +448,13 @@ impl Controller {
 
     /// The torque that drives [`CHECK_DUTY`], where this run's winding is still to be measured
     /// (no settle's duty reached [`MIN_DUTY`]) and the check fits: within the run's cap and
-    /// what full duty gives, never below the probe's, and with [`CHECK_RESERVE_MS`] of the
-    /// run's time left. `None`: no check, the torque's uncertainty stays
-    /// [`TORQUE_UNCERTAINTY_UNMEASURED`].
+    /// what full duty gives, at most [`CHECK_MAX_TORQUE_RATIO`] times the held torque, never
+    /// below the probe's, with the inset clear of the spiral's disengage, and with the run's
+    /// time left for the ramp up, [`CHECK_MAX_TICKS`], the release and [`CHECK_MARGIN_MS`].
+    /// `None`: no check, the torque's uncertainty stays [`TORQUE_UNCERTAINTY_UNMEASURED`].
     fn winding_check_torque_nm(&self) -> Option<f32> {
-        let elapsed_ms = self.run.ticks * 1000 / u32::from(CONTROL_RATE_HZ);
-        if self.run.winding_measured
-            || elapsed_ms + CHECK_RESERVE_MS >= self.run.params.max_time_ms
-            || self.past_check_turn_limit()
-        {
+        let held = self.run.held?;
+        if self.run.winding_measured || self.past_check_turn_limit() {
             return None;
         }
         let config = &self.config;
@@ -458,34 +464,45 @@ impl Controller {
             .run
             .params
             .max_torque_nm
-            .min(self.supply.full_duty_torque_nm(config));
-        (check_nm <= cap_nm).then_some(check_nm.max(self.torque_nm))
+            .min(self.supply.full_duty_torque_nm(config))
+            .min(CHECK_MAX_TORQUE_RATIO * held.torque_nm);
+        if check_nm > cap_nm {
+            return None;
+        }
+        let check_nm = check_nm.max(self.torque_nm);
+        let ramp_ms = (check_nm - self.torque_nm) / self.run.params.ramp_rate_nm_per_s * 1000.0;
+        let release_ms = check_nm / RELEASE_RATE_NM_PER_S * 1000.0;
+        let check_ms = (CHECK_MAX_TICKS * 1000 / u32::from(CONTROL_RATE_HZ)) as f32;
+        let needed_ms = ramp_ms + check_ms + release_ms + CHECK_MARGIN_MS as f32;
+        let left_ms = self.run.params.max_time_ms as f32 - self.elapsed_ms() as f32;
+        (needed_ms < left_ms).then_some(check_nm)
     }
 
-    /// Checking the winding after the probe: the torque stepped to `check_nm` (the reading was
-    /// taken: what it compresses now does not enter it), and once the hub stands still, the
-    /// winding measured over [`CHECK_READINGS`] ticks as at a settle. Its factor applies from
-    /// then on, and the held torque's error it reveals sets the torque's uncertainty the hold is
-    /// judged with, on the tick after (the estimate's tick is not also the judgement's). A hub
-    /// that is not still in [`CHECK_MAX_TICKS`], or turns on towards the spiral's disengage
-    /// ([`Controller::past_check_turn_limit`]), leaves the winding unmeasured.
+    /// Checking the winding after the probe: the torque rises at the ramp's rate to `check_nm`
+    /// (the reading was taken: what it compresses now does not enter it), and once the hub stands
+    /// still there, the winding is measured over [`CHECK_READINGS`] ticks as at a settle. Its
+    /// factor applies from then on, and the held torque's error it reveals
+    /// ([`Controller::conclude_check`]) sets the torque's uncertainty the hold is judged with, on
+    /// the tick after (the estimate's tick is not also the judgement's). `ticks` counts the ticks
+    /// at `check_nm`: a hub not still in [`CHECK_MAX_TICKS`] of them leaves the winding
+    /// unmeasured. A hub that turns on towards the spiral's disengage
+    /// ([`Controller::past_check_turn_limit`]) or faster than the ramp's speed limit (a contact
+    /// giving way) has its torque dropped at once, and the run releases.
     pub(super) fn check_winding(&mut self, check_nm: f32, ticks: u32, current_a: Option<f32>) {
-        self.torque_nm = check_nm;
-        if self.run.hold_torque_error.is_some() || ticks >= CHECK_MAX_TICKS {
+        if self.run.winding_checked || ticks >= CHECK_MAX_TICKS {
             self.judge_and_release();
             return;
         }
-        if self.past_check_turn_limit() {
-            // The contact gives way under the check towards the spiral's disengage: back to the
-            // held torque and release, before the inset lets go; the winding unmeasured.
-            if let Some(held) = self.run.held {
-                self.torque_nm = held.torque_nm;
-            }
+        if self.past_check_turn_limit() || self.speed_deg_per_s() > MAX_TURN_SPEED_DEG_PER_S {
+            self.torque_nm = 0.0;
             self.winding.clear();
             self.judge_and_release();
             return;
         }
-        if self.is_still() {
+        let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * self.dt_s();
+        self.torque_nm = ramped.min(check_nm);
+        let at_check = self.torque_nm >= check_nm;
+        if at_check && self.is_still() {
             self.run.still_ticks += 1;
             self.winding_reading(current_a);
         } else {
@@ -493,19 +510,33 @@ impl Controller {
             self.winding.clear();
         }
         if self.winding.readings() >= CHECK_READINGS {
-            let held_factor = self.winding.factor();
-            if self.winding.conclude(&self.config) == Some(true) {
-                self.run.flags.insert(QualityFlags::TORQUE_MISMATCH);
-            }
-            let factor = self.winding.factor();
-            self.supply.set_winding_factor(factor);
-            // The hold drove `held_factor / factor` of the torque it commanded.
-            self.run.hold_torque_error = Some(held_factor / factor - 1.0);
+            self.conclude_check();
         }
         self.state = State::CheckingWinding {
             torque_nm: check_nm,
-            ticks: ticks + 1,
+            ticks: ticks + u32::from(at_check),
         };
+    }
+
+    /// The winding check's readings are in: the factor applies from now on, and the held
+    /// torque's error follows from the factor the hold drove with. The hold's duty was
+    /// (breakaway + τ/k)·s, s proportional to the factor, so a winding r = ρ_held/ρ_found times as
+    /// conductive as the hold assumed gave τ·r + b·k·(r − 1): an error of (r − 1)(1 + b·k/τ)
+    /// (the breakaway's share moves with the rest of the drive). An implausible estimate is not
+    /// taken (`WindingEstimate::conclude_if_plausible`): the error stays unknown.
+    fn conclude_check(&mut self) {
+        let held_factor = self.winding.factor();
+        self.run.winding_checked = true;
+        if !self.winding.conclude_if_plausible(&self.config) {
+            return;
+        }
+        let factor = self.winding.factor();
+        self.supply.set_winding_factor(factor);
+        if let Some(held) = self.run.held {
+            let r = held_factor / factor;
+            let breakaway_share = self.breakaway_torque_nm() / held.torque_nm.max(f32::EPSILON);
+            self.run.hold_torque_error = Some((r - 1.0) * (1.0 + breakaway_share));
+        }
     }
 
     /// Whether the hub has turned so far that the inset may be near the spiral's disengage: past
@@ -524,8 +555,8 @@ impl Controller {
         self.state = State::Releasing;
     }
 
-    /// The hold's flags, on the probe's last tick (a light one: the first releasing tick has the
-    /// kerf solve): `NOISY_HOLD` for a hold that drifted past [`HOLD_CREEP_LSB`]: one still
+    /// The hold's flags, on the probe's last tick or the winding check's (light ones: the first
+    /// releasing tick has the kerf solve): `NOISY_HOLD` for a hold that drifted past [`HOLD_CREEP_LSB`]: one still
     /// creeping after it was taken again for a creep, or that could not be taken again (no
     /// retries or run time left), is read short of where the hub comes to rest. `FORCE_SENSITIVE` for a reading
     /// the probe's `(rise_deg, fraction)`, the approach or an overshoot says a torque error could
@@ -547,11 +578,9 @@ impl Controller {
     /// The result from the held jam's median angle at its torque (the hold's flags are in the
     /// run's already: [`Controller::judge_hold`]).
     fn finish(&mut self, held: HeldJam) {
-        let HeldJam {
-            angle_deg,
-            torque_nm,
-            ..
-        } = held;
+        let HeldJam { angle_deg, .. } = held;
+        // Where the winding check found the torque the hold really drove, that is the reading's.
+        let torque_nm = held.torque_nm * (1.0 + self.run.hold_torque_error.unwrap_or(0.0));
         let params = &self.run.params;
         let gauge = &params.gauge;
         let solution = kerf_from_angle(gauge, angle_deg);
@@ -582,8 +611,7 @@ impl Controller {
     /// hub only moves once the probe passes it, and the reading is high by what the overshoot
     /// compressed). The contact's compliance is the rise over the probe's torque beyond the
     /// overshoot; the error it allows is that compliance times the torque's uncertainty
-    /// ([`TORQUE_UNCERTAINTY`], or [`TORQUE_UNCERTAINTY_UNMEASURED`] where no settle of the run
-    /// measured the winding) or the overshoot, whichever is larger. Zero where the probe could
+    /// ([`Controller::torque_uncertainty`]) or the overshoot, whichever is larger. Zero where the probe could
     /// not rise far enough to tell (the run's cap or full duty held it: `TORQUE_LIMITED` and
     /// `SUPPLY_LIMITED` flag those).
     fn force_sensitivity_um(&self, (rise_deg, fraction): (f32, f32), overshoot: f32) -> f32 {

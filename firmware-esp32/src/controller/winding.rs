@@ -56,13 +56,18 @@
 //!
 //! Where every settle's duty stays under [`MIN_DUTY`] (a light force on a 24 V supply), the
 //! torque is known only as well as the factor left by the last measurement or the boot. After
-//! the probe (the reading's angles are taken), the run then steps the torque to what drives
-//! [`CHECK_DUTY`], within its cap and what full duty gives, with [`CHECK_RESERVE_MS`] of its
-//! time left and the inset clear of the spiral's disengage; once the hub stands still, the
-//! winding is measured over [`CHECK_READINGS`] ticks as at a settle. The factor found applies
-//! from then on, and the hold is judged with the torque error it reveals: the hold drove
-//! ρ_before/ρ_found of the torque it commanded (`run.rs`, `check_winding`). A build whose check
-//! duty is past the run's cap (a high gear ratio) stays unmeasured.
+//! the probe (the reading's angles are taken), the run then ramps the torque to what drives
+//! [`CHECK_DUTY`], within its cap, what full duty gives and [`CHECK_MAX_TORQUE_RATIO`] times the
+//! held torque, with the run's time left for it ([`CHECK_MARGIN_MS`]) and the inset clear of
+//! the spiral's disengage; once the hub stands still, the winding is measured over
+//! [`CHECK_READINGS`] ticks as at a settle. The factor found applies from then on, and the hold
+//! is judged with the torque error it reveals, (r − 1)(1 + b·k/τ) for a winding r =
+//! ρ_held/ρ_found times as conductive as the hold assumed (`run.rs`, `conclude_check`); the
+//! result reports the torque and force really held. A build whose check duty is past the run's
+//! cap (a high gear ratio at the default 0.8 N·m), a hub that never stands still under it, and
+//! a check whose estimate is implausible (at a fraction of an amp the sense's noise and offset
+//! can do that as well as a wrong calibration: the factor stands, nothing is flagged, and a
+//! normal run's settle is what judges the calibration) stay unmeasured.
 //!
 //! # Torque mismatch
 //!
@@ -99,22 +104,32 @@ pub const MAX_STEP: f32 = 0.02;
 pub const ESTIMATE_TICK: u32 = 12;
 
 /// The duty the winding check after the probe drives, fraction: [`MIN_DUTY`] with margin for
-/// the duty the controller sets being off by the factor's own error (a winding up to 15 % more
-/// resistive than the factor says still drives the filtered duty past the conversion's floor).
+/// the supply's filter moving under the check's load (a sag raises the duty scale, and the
+/// check's torque was set from the scale before it), so that the duty applied stays past
+/// [`MIN_DUTY`].
 pub const CHECK_DUTY: f32 = 0.26;
 
-/// The readings the winding check averages: more than a settle's 7 (it has the time), so that
-/// the current's noise, divided by a duty near [`MIN_DUTY`], averages down to about 1 %.
-pub const CHECK_READINGS: u32 = 16;
+/// The most the winding check may press the jam, as a multiple of the held torque: the spiral
+/// keeps the check's compression (a gauge is not measured twice), and a torque many times the
+/// requested force's would crush a soft gauge's contact for nothing; a light run whose check
+/// would need more stays unmeasured.
+pub const CHECK_MAX_TORQUE_RATIO: f32 = 2.0;
+
+/// The readings the winding check averages: far more than a settle's 7 (it has the time), for
+/// it reads the current at a duty just past [`MIN_DUTY`], where a motor of a few ohms draws under
+/// an amp: some 5 mV of filtered `CS` against an ADC noise of up to 2.6 mV (the robustness
+/// sweep's draws). 64 readings bring that to 0.3 mV, some 6 %.
+pub const CHECK_READINGS: u32 = 64;
 
 /// The most ticks the winding check waits for the hub to stand still and take its readings:
 /// the regression's window, [`SKIP_TICKS`] and [`CHECK_READINGS`] with room for the contact to
 /// settle under the new torque.
 pub const CHECK_MAX_TICKS: u32 = 200;
 
-/// Run time the winding check needs left, ms: its [`CHECK_MAX_TICKS`] and the release after it
-/// (200 ms at most), so that it never turns a run into a `MaxRunTime` fault.
-pub const CHECK_RESERVE_MS: u32 = 500;
+/// Run time the winding check keeps in hand beyond its ramp, its [`CHECK_MAX_TICKS`] and the
+/// release after it, ms (the ramp's and the release's times follow from the torques), so that it
+/// never turns a run into a `MaxRunTime` fault.
+pub const CHECK_MARGIN_MS: u32 = 100;
 
 /// The factors the winding's temperature and the senses' gain errors explain: copper at
 /// −10–130 °C (0.86–1.41 of its resistance at 25 °C), read through a current sense ±10 % and a
@@ -173,6 +188,28 @@ impl WindingEstimate {
     /// them (the factor stands), else whether the estimate was implausible (a torque mismatch;
     /// the factor is then held to [`PLAUSIBLE_FACTOR`]).
     pub(super) fn conclude(&mut self, config: &DeviceConfig) -> Option<bool> {
+        let estimate = self.estimate(config)?;
+        let plausible = PLAUSIBLE_FACTOR.contains(&estimate);
+        self.factor = estimate.clamp(*PLAUSIBLE_FACTOR.start(), *PLAUSIBLE_FACTOR.end());
+        Some(!plausible)
+    }
+
+    /// Like [`Self::conclude`], for the check after the hold, where the current is read at a
+    /// duty just past [`MIN_DUTY`] and may be a fraction of an amp: a factor is taken only if
+    /// it is plausible; an implausible one is the sense's noise and offset as likely as a wrong
+    /// calibration, and the factor stands (whether it was taken).
+    pub(super) fn conclude_if_plausible(&mut self, config: &DeviceConfig) -> bool {
+        match self.estimate(config) {
+            Some(estimate) if PLAUSIBLE_FACTOR.contains(&estimate) => {
+                self.factor = estimate;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// ρ from the readings, which are then forgotten; `None` with too few of them.
+    fn estimate(&mut self, config: &DeviceConfig) -> Option<f32> {
         let enough = self.readings >= MIN_READINGS;
         let (drive_v, current_a) = (self.drive_v, self.current_a);
         self.clear();
@@ -184,14 +221,11 @@ impl WindingEstimate {
         let reference_ohm =
             config.torque_per_amp_nm * REFERENCE_SUPPLY_V / config.torque_per_duty_nm;
         let denominator = current_a * reference_ohm;
-        let estimate = if denominator > 0.0 {
+        Some(if denominator > 0.0 {
             drive_v / denominator
         } else {
             f32::INFINITY
-        };
-        let plausible = PLAUSIBLE_FACTOR.contains(&estimate);
-        self.factor = estimate.clamp(*PLAUSIBLE_FACTOR.start(), *PLAUSIBLE_FACTOR.end());
-        Some(!plausible)
+        })
     }
 }
 
