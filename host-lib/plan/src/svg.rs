@@ -46,9 +46,12 @@
 //!
 //! **Memory.** The dilated document is several times its source (every rounded corner an arc), so
 //! it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of elements'
-//! path data at a time; and the drawn segments of closed contours are traced straight from usvg's
-//! tree, not copied. What is held at the peak, while dilating, is the source text, its XML tree,
-//! and the contours drawn and dilated.
+//! path data at a time. Reading holds as little as it can at once: the source's XML tree is
+//! dropped while usvg parses the tagged copy (and parsed again afterwards, for naming and
+//! writing), and of usvg's tree only the cut paths' data is kept, each path freed as it is
+//! traced. The kernel frees each drawn contour as it is offset. Two peaks are left, about equal:
+//! usvg's parse (the source, the tagged copy, usvg's XML tree and its own), and the end of the
+//! dilation (the source, its XML tree, and the dilated contours).
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -59,7 +62,7 @@ use std::str::FromStr;
 use cavalier_contours::polyline::PlineSource;
 use rayon::prelude::*;
 use roxmltree::{Document, Node, ParsingOptions};
-use usvg::tiny_skia_path::PathSegment;
+use usvg::tiny_skia_path::{self, PathSegment};
 
 use super::compensation::{self, CompensatedBy, IfCompensated};
 use super::dilate::KerfSource;
@@ -185,9 +188,10 @@ pub fn dilate_svg_into(
     out: &mut (dyn Write + Sync),
 ) -> Result<PlanSummary> {
     opts.progress.start(Stage::Reading, 0);
+    let rendered = render(text, opts)?;
     let doc = parse(text)?;
     let ((), summary) = pipeline::dilate_plan(
-        SvgPlan::new(text, &doc, opts, out),
+        SvgPlan::new(text, &doc, rendered, out),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -204,9 +208,10 @@ pub(crate) fn dilate_svg_cuts(
     opts: &SvgOptions,
 ) -> Result<(Vec<CutPath>, PlanSummary)> {
     opts.progress.start(Stage::Reading, 0);
+    let rendered = render(text, opts)?;
     let doc = parse(text)?;
     pipeline::dilate_plan_cuts(
-        SvgPlan::new(text, &doc, opts, &mut std::io::sink()),
+        SvgPlan::new(text, &doc, rendered, &mut std::io::sink()),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -234,12 +239,128 @@ fn parse(text: &str) -> Result<Document<'_>> {
     Ok(doc)
 }
 
+/// The document as usvg renders it: the plan begun (units, the compensation recorded, what
+/// passes through) and each cut instance with its path data (element coordinates).
+struct Rendered {
+    plan: Plan<(usize, usize)>,
+    found: Vec<(Instance, tiny_skia_path::Path)>,
+}
+
+/// Render the document with usvg and find its cut instances.
+///
+/// Memory: this is the largest step of reading, so nothing else large is alive during it. The
+/// XML tree of the source (parsed here to check it, read its size and records, and tag its
+/// elements, see [`tagged`]) goes before usvg parses the tagged copy; the tagged copy goes as soon
+/// as usvg has read it; and of usvg's tree only the cut paths' data is kept (a tenth of the tree).
+/// The caller parses the source again for naming and writing.
+fn render(text: &str, opts: &SvgOptions) -> Result<Rendered> {
+    let mut plan = Plan::new("svg");
+    let (tagged, use_by_id, shapes_len) = {
+        let doc = parse(text)?;
+        let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
+        plan.summary.mm_per_unit = mm_per_px;
+        plan.summary.compensation_found = compensation::find_in_svg(&doc);
+        for _ in doc
+            .descendants()
+            .filter(|n| n.has_tag_name((SVG_NS, "text")))
+        {
+            plan.summary.pass("text");
+        }
+        let (shapes, uses) = shapes_and_uses(&doc);
+        let (tagged, use_by_id) = tagged(text, &shapes, &uses)?;
+        (tagged, use_by_id, shapes.len())
+    };
+    let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
+        .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
+    drop(tagged);
+    let mut walk = Walk {
+        rules: &opts.rules,
+        mm_per_px: plan.summary.mm_per_unit,
+        shapes_len,
+        use_by_id: &use_by_id,
+        found: Vec::new(),
+        seen: HashSet::new(),
+        summary: &mut plan.summary,
+        unidentified: 0,
+    };
+    walk.group(tree.root(), &mut Vec::new());
+    let (unidentified, mut found) = (walk.unidentified, walk.found);
+    if unidentified > 0 {
+        return Err(bad(format!(
+            "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
+        )));
+    }
+    found.shrink_to_fit();
+    Ok(Rendered { plan, found })
+}
+
+/// The shape elements and the `<use>` elements of a document, each in document order (an
+/// instance's `element` and `via_use` index these).
+fn shapes_and_uses<'d, 'a>(doc: &'d Document<'a>) -> (Vec<Node<'d, 'a>>, Vec<Node<'d, 'a>>) {
+    let shapes = doc
+        .descendants()
+        .filter(|n| {
+            n.is_element()
+                && n.tag_name().namespace() == Some(SVG_NS)
+                && SHAPES.contains(&n.tag_name().name())
+        })
+        .collect();
+    let uses = doc
+        .descendants()
+        .filter(|n| n.is_element() && n.has_tag_name((SVG_NS, "use")))
+        .collect();
+    (shapes, uses)
+}
+
+/// The source `text` with every shape tagged by its number (`stroke-miterlimit`, which usvg
+/// keeps) and every `<use>` given an id, so that what usvg renders can be traced back to its
+/// element; and the `<use>` elements by id.
+fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(String, HashMap<String, usize>)> {
+    let mut tags: Vec<Edit> = Vec::new();
+    for (k, n) in shapes.iter().enumerate() {
+        let code = k + 1;
+        match n
+            .attributes()
+            .find(|a| a.name() == "style" && a.namespace().is_none())
+        {
+            Some(style) => tags.push(Edit {
+                range: style.range_value().end..style.range_value().end,
+                text: format!(";stroke-miterlimit:{code}"),
+            }),
+            None => {
+                let at = tag_name_range(text, *n).end;
+                tags.push(Edit {
+                    range: at..at,
+                    text: format!(" style=\"stroke-miterlimit:{code}\""),
+                });
+            }
+        }
+    }
+    let mut use_by_id: HashMap<String, usize> = HashMap::new();
+    for (k, u) in uses.iter().enumerate() {
+        match u.attribute("id") {
+            Some(id) => {
+                use_by_id.insert(id.to_string(), k);
+            }
+            None => {
+                let id = format!("{USE_TAG}{k}");
+                let at = tag_name_range(text, *u).end;
+                tags.push(Edit {
+                    range: at..at,
+                    text: format!(" id=\"{id}\""),
+                });
+                use_by_id.insert(id, k);
+            }
+        }
+    }
+    Ok((apply_edits(text, tags)?, use_by_id))
+}
+
 /// An SVG document in the plan pipeline: the source text, its XML tree, and the cut instances
 /// found by rendering it. A contour's origin is (instance, subpath).
 struct SvgPlan<'d, 'a, 'w> {
     text: &'a str,
     doc: &'d Document<'a>,
-    opts: &'d SvgOptions,
     /// The shape elements, in document order (an instance's `element` indexes this).
     shapes: Vec<Node<'d, 'a>>,
     /// The `<use>` elements, in document order.
@@ -248,6 +369,8 @@ struct SvgPlan<'d, 'a, 'w> {
     ids: HashMap<&'d str, Node<'d, 'a>>,
     /// The rendered occurrences of cut elements (set by `read`).
     instances: Vec<Instance>,
+    /// What rendering found, until `read` takes it.
+    rendered: Option<Rendered>,
     /// Where each line of the source starts, to name elements by line and column.
     lines: LineIndex<'a>,
     /// Where the dilated document goes (taken when it is written).
@@ -258,21 +381,10 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
     fn new(
         text: &'a str,
         doc: &'d Document<'a>,
-        opts: &'d SvgOptions,
+        rendered: Rendered,
         out: &'w mut (dyn Write + Sync),
     ) -> Self {
-        let shapes = doc
-            .descendants()
-            .filter(|n| {
-                n.is_element()
-                    && n.tag_name().namespace() == Some(SVG_NS)
-                    && SHAPES.contains(&n.tag_name().name())
-            })
-            .collect();
-        let uses = doc
-            .descendants()
-            .filter(|n| n.is_element() && n.has_tag_name((SVG_NS, "use")))
-            .collect();
+        let (shapes, uses) = shapes_and_uses(doc);
         let mut ids: HashMap<&str, Node> = HashMap::new();
         for n in doc.descendants().filter(|n| n.is_element()) {
             if let Some(id) = n.attribute("id") {
@@ -282,100 +394,25 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
         SvgPlan {
             text,
             doc,
-            opts,
             shapes,
             uses,
             ids,
             instances: Vec::new(),
+            rendered: Some(rendered),
             lines: LineIndex::new(text),
             out: Some(out),
         }
     }
 
-    /// The source with every shape tagged by its number (`stroke-miterlimit`, which usvg keeps)
-    /// and every `<use>` given an id, so that what usvg renders can be traced back to its
-    /// element; and the `<use>` elements by id.
-    fn tagged(&self) -> Result<(String, HashMap<String, usize>)> {
-        let mut tags: Vec<Edit> = Vec::new();
-        for (k, n) in self.shapes.iter().enumerate() {
-            let code = k + 1;
-            match n
-                .attributes()
-                .find(|a| a.name() == "style" && a.namespace().is_none())
-            {
-                Some(style) => tags.push(Edit {
-                    range: style.range_value().end..style.range_value().end,
-                    text: format!(";stroke-miterlimit:{code}"),
-                }),
-                None => {
-                    let at = tag_name_range(self.text, *n).end;
-                    tags.push(Edit {
-                        range: at..at,
-                        text: format!(" style=\"stroke-miterlimit:{code}\""),
-                    });
-                }
-            }
-        }
-        let mut use_by_id: HashMap<String, usize> = HashMap::new();
-        for (k, u) in self.uses.iter().enumerate() {
-            match u.attribute("id") {
-                Some(id) => {
-                    use_by_id.insert(id.to_string(), k);
-                }
-                None => {
-                    let id = format!("{USE_TAG}{k}");
-                    let at = tag_name_range(self.text, *u).end;
-                    tags.push(Edit {
-                        range: at..at,
-                        text: format!(" id=\"{id}\""),
-                    });
-                    use_by_id.insert(id, k);
-                }
-            }
-        }
-        Ok((apply_edits(self.text, tags)?, use_by_id))
-    }
-
-    /// Render the tagged copy with usvg, collect the cut instances and trace their subpaths
-    /// (by instance); counts what passes.
-    ///
-    /// Memory: the tagged copy goes as soon as usvg has read it, and the subpaths are traced
-    /// straight from usvg's path data on any core (no copy of the drawn segments is kept but of
-    /// elements with an open subpath), while usvg's tree is alive; the tree goes on return.
-    fn walk(&mut self, mm_per_px: f64, summary: &mut PlanSummary) -> Result<Vec<Vec<Traced>>> {
-        let (tagged, use_by_id) = self.tagged()?;
-        let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
-            .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
-        drop(tagged);
-        let mut walk = Walk {
-            rules: &self.opts.rules,
-            mm_per_px,
-            shapes_len: self.shapes.len(),
-            use_by_id: &use_by_id,
-            found: Vec::new(),
-            seen: HashSet::new(),
-            summary,
-            unidentified: 0,
-        };
-        walk.group(tree.root(), &mut Vec::new());
-        let (unidentified, found) = (walk.unidentified, walk.found);
-        if unidentified > 0 {
-            return Err(bad(format!(
-                "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
-            )));
-        }
-        let text_count = self
-            .doc
-            .descendants()
-            .filter(|n| n.has_tag_name((SVG_NS, "text")))
-            .count();
-        for _ in 0..text_count {
-            summary.pass("text");
-        }
+    /// Trace the instances' subpaths (by instance) on any core, freeing each one's path data as
+    /// it goes (it is kept, as segments, only for elements with an open subpath, which is
+    /// written back as drawn).
+    fn trace_all(&mut self, found: Vec<(Instance, tiny_skia_path::Path)>) -> Vec<Vec<Traced>> {
         let (instances, traced) = found
             .into_par_iter()
             .map(|(mut inst, path)| {
-                let segs = subpaths_of(path);
+                let segs = subpaths_of(&path);
+                drop(path);
                 let traced = self.trace(&inst, &segs);
                 inst.subpath_count = segs.len();
                 let all_closed = traced.len() == segs.len()
@@ -387,7 +424,7 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
             })
             .unzip();
         self.instances = instances;
-        Ok(traced)
+        traced
     }
 
     /// How to name an instance in messages.
@@ -710,15 +747,10 @@ impl Format for SvgPlan<'_, '_, '_> {
     type Output = ();
 
     fn read(&mut self) -> Result<Plan<(usize, usize)>> {
-        let mut plan = Plan::new("svg");
-        let mm_per_px = document_scale(
-            self.doc.root_element(),
-            self.opts.assume_units,
-            &mut plan.summary,
-        )?;
-        plan.summary.mm_per_unit = mm_per_px;
-        plan.summary.compensation_found = compensation::find_in_svg(self.doc);
-        let traced = self.walk(mm_per_px, &mut plan.summary)?;
+        let Some(Rendered { mut plan, found }) = self.rendered.take() else {
+            return Err(bad("internal error: the SVG was read twice"));
+        };
+        let traced = self.trace_all(found);
         self.check_uses()?;
         plan.summary.cut_elements = self.instances.len();
         Self::contours(&mut plan, traced);
@@ -812,19 +844,19 @@ fn document_scale(
 }
 
 /// The walk over usvg's tree: the cut instances found, each with its path in the tree.
-struct Walk<'a, 't> {
+struct Walk<'a> {
     rules: &'a CutRules,
     mm_per_px: f64,
     shapes_len: usize,
     use_by_id: &'a HashMap<String, usize>,
-    found: Vec<(Instance, &'t usvg::Path)>,
+    found: Vec<(Instance, tiny_skia_path::Path)>,
     seen: HashSet<(usize, Option<usize>)>,
     summary: &'a mut PlanSummary,
     unidentified: usize,
 }
 
-impl<'t> Walk<'_, 't> {
-    fn group(&mut self, g: &'t usvg::Group, uses: &mut Vec<usize>) {
+impl Walk<'_> {
+    fn group(&mut self, g: &usvg::Group, uses: &mut Vec<usize>) {
         for child in g.children() {
             match child {
                 usvg::Node::Group(c) => {
@@ -845,7 +877,7 @@ impl<'t> Walk<'_, 't> {
         }
     }
 
-    fn path(&mut self, p: &'t usvg::Path, uses: &[usize]) {
+    fn path(&mut self, p: &usvg::Path, uses: &[usize]) {
         let to_doc = Affine::scale(self.mm_per_px).then_after(&affine(p.abs_transform()));
         if !p.is_visible() {
             self.summary.pass("hidden");
@@ -888,7 +920,7 @@ impl<'t> Walk<'_, 't> {
                     drawn: Vec::new(),
                     stroke: stroke.map(|s| s.0),
                 };
-                self.found.push((instance, p));
+                self.found.push((instance, p.data().clone()));
             }
         }
     }
@@ -918,10 +950,10 @@ fn affine(t: usvg::Transform) -> Affine {
 }
 
 /// A path's subpaths as usvg resolved them, each vector no larger than it needs.
-fn subpaths_of(p: &usvg::Path) -> Vec<Vec<Seg>> {
+fn subpaths_of(p: &tiny_skia_path::Path) -> Vec<Vec<Seg>> {
     let mut subpaths: Vec<Vec<Seg>> = Vec::new();
-    let pt = |q: usvg::tiny_skia_path::Point| P32(q.x, q.y);
-    for seg in p.data().segments() {
+    let pt = |q: tiny_skia_path::Point| P32(q.x, q.y);
+    for seg in p.segments() {
         let s = match seg {
             PathSegment::MoveTo(a) => {
                 subpaths.push(Vec::new());
