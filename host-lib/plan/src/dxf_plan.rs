@@ -66,7 +66,7 @@ use crate::error::{PlanError, Problems, Result};
 mod blocks;
 mod splice;
 
-use splice::{Change, Layout, Splice};
+use splice::{Change, Layout, Precision, Splice};
 
 /// Ends closer than this join (mm).
 const JOIN_MM: f64 = 1e-4;
@@ -572,10 +572,12 @@ impl Changes {
                 return None;
             }
         }
-        let scale = self.scale;
-        splice.write(bytes, record, &|x| units(x, scale), &|b| {
-            rounded(b, BULGE_DIGITS)
-        })
+        let precision = Precision {
+            mm_per_unit: self.scale,
+            unit_digits: unit_digits(self.scale),
+            bulge_digits: BULGE_DIGITS,
+        };
+        splice.write(bytes, record, precision)
     }
 }
 
@@ -1319,10 +1321,15 @@ fn rounded(v: f64, digits: i32) -> f64 {
     if r.is_finite() { r } else { v }
 }
 
+/// The decimals of a coordinate in drawing units (`scale` mm each) that give the step written
+/// (see [`STEP_MM`]).
+fn unit_digits(scale: f64) -> i32 {
+    (-(STEP_MM / scale).log10() - 1e-6).ceil().clamp(0.0, 12.0) as i32
+}
+
 /// `mm` in drawing units (`scale` mm each), rounded to the step written (see [`STEP_MM`]).
 fn units(mm: f64, scale: f64) -> f64 {
-    let digits = (-(STEP_MM / scale).log10() - 1e-6).ceil().clamp(0.0, 12.0) as i32;
-    rounded(mm / scale, digits)
+    rounded(mm / scale, unit_digits(scale))
 }
 
 fn lw_vertices(p: &Pline, scale: f64) -> Vec<LwPolylineVertex> {

@@ -65,6 +65,7 @@ use roxmltree::{Document, Node, ParsingOptions};
 use usvg::tiny_skia_path::{self, PathSegment};
 
 use super::compensation::{self, CompensatedBy, IfCompensated};
+use super::decimal::Scaled;
 use super::dilate::KerfSource;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
@@ -1008,31 +1009,14 @@ fn digits_for(to_doc: &Affine) -> usize {
 /// `v` with at most `digits` decimals, trailing zeros dropped (`-0` is `0`).
 fn num(v: f64, digits: usize, out: &mut String) {
     // Fast path: round to an integer count of the last decimal, ties to even as float
-    // formatting does, and print that (formatting a float exactly was most of the time spent
-    // writing a large plan). Where the product itself rounds across a tie (rare), the last
-    // decimal differs by one: 0.01 µm in mm.
+    // formatting does, and print that. Where the product itself rounds across a tie (rare), the
+    // last decimal differs by one: 0.01 µm in mm.
     let scaled = (v * 10f64.powi(digits as i32)).round_ties_even();
     if digits <= 12 && scaled.abs() < 1e15 {
-        let mut n = scaled as i64;
-        if n == 0 {
-            out.push('0');
-            return;
-        }
-        if n < 0 {
+        if scaled != 0.0 && scaled < 0.0 {
             out.push('-');
-            n = -n;
         }
-        let unit = 10i64.pow(digits as u32);
-        let (int, mut frac, mut places) = (n / unit, n % unit, digits);
-        while places > 0 && frac % 10 == 0 {
-            frac /= 10;
-            places -= 1;
-        }
-        push_digits(out, int as u64, 1);
-        if places > 0 {
-            out.push('.');
-            push_digits(out, frac as u64, places);
-        }
+        out.push_str(Scaled::new(scaled.abs() as u64, digits).as_str());
         return;
     }
     let mut s = format!("{v:.digits$}");
@@ -1048,18 +1032,6 @@ fn num(v: f64, digits: usize, out: &mut String) {
         s = "0".into();
     }
     out.push_str(&s);
-}
-
-/// The decimal digits of `n`, at least `width` of them (zeros in front).
-fn push_digits(out: &mut String, mut n: u64, width: usize) {
-    let mut buf = [b'0'; 20];
-    let mut start = buf.len();
-    while n > 0 || buf.len() - start < width {
-        start -= 1;
-        buf[start] = b'0' + (n % 10) as u8;
-        n /= 10;
-    }
-    out.extend(buf[start..].iter().map(|&b| char::from(b)));
 }
 
 fn point(p: V2, digits: usize, out: &mut String) {
