@@ -20,6 +20,9 @@
 //!   a burn moves by kerf/2 − burn instead, with its drawn corners kept sharp (see
 //!   [`crate::recompensate`]).
 //!
+//! * **Memory**: [`dilate_releasing_drawn`] (what the plan pipeline uses) frees each drawn contour
+//!   as soon as it is offset, so a large plan's drawn and dilated geometry are not held at once.
+//!
 //! Problems are collected, not stopped at, and reported together (each with the contours' labels
 //! and a position in mm): contours that cross themselves or each other, a hole narrower than the
 //! kerf (it would vanish or split), a part whose outline would close around a void, and two parts
