@@ -830,7 +830,6 @@ impl Format for SvgPlan<'_, '_> {
     }
 
     fn write(mut self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<()> {
-        let mut summary = std::mem::take(&mut plan.summary);
         let contour_of: ContourOf = plan
             .cuts
             .iter()
@@ -841,17 +840,14 @@ impl Format for SvgPlan<'_, '_> {
         if self.instances.iter().any(|inst| inst.via_use.is_some()) {
             let doc = parse(self.text)?;
             let el = Elements::of(&doc);
-            let clone_edits = self.clone_geometry_edits(&contour_of, &mut summary)?;
-            self.clone_uses(&el, clone_edits, &mut edits, &mut summary)?;
+            let clone_edits = self.clone_geometry_edits(&contour_of, &mut plan.summary)?;
+            self.clone_uses(&el, clone_edits, &mut edits, &mut plan.summary)?;
         }
-        edits.extend(self.record_edits(&summary));
+        edits.extend(self.record_edits(&plan.summary));
         let Some(sink) = self.out.take() else {
             return Err(bad("internal error: the SVG was written twice"));
         };
-        let written = self.write_document(edits, &contour_of, &mut summary, sink);
-        drop(contour_of);
-        plan.summary = summary;
-        written
+        self.write_document(edits, &contour_of, &mut plan.summary, sink)
     }
 }
 
