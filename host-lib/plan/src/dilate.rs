@@ -20,6 +20,9 @@
 //!   a burn moves by kerf/2 − burn instead, with its drawn corners kept sharp (see
 //!   [`crate::recompensate`]).
 //!
+//! * **Memory**: [`dilate_releasing_drawn`] (what the plan pipeline uses) frees each drawn contour
+//!   as soon as it is offset, so a large plan's drawn and dilated geometry are not held at once.
+//!
 //! Problems are collected, not stopped at, and reported together (each with the contours' labels
 //! and a position in mm): contours that cross themselves or each other, a hole narrower than the
 //! kerf (it would vanish or split), a part whose outline would close around a void, and two parts
@@ -228,6 +231,45 @@ pub fn dilate_with_progress(
     how: Offsetting,
     progress: &Progress,
 ) -> Result<Dilation> {
+    dilate_drawn(Drawn::Lent(contours), kerf, how, progress)
+}
+
+/// [`dilate_with_progress`], freeing each contour's drawn geometry (its polyline is left empty)
+/// as soon as it is offset; the labels stay, for messages. Nothing after the offsets needs the
+/// drawn geometry, and a large plan's drawn and dilated contours held at once were most of its
+/// memory: this way the drawn ones go while the dilated ones are made.
+pub fn dilate_releasing_drawn(
+    contours: &mut [Contour],
+    kerf: &KerfSource,
+    how: Offsetting,
+    progress: &Progress,
+) -> Result<Dilation> {
+    dilate_drawn(Drawn::Given(contours), kerf, how, progress)
+}
+
+/// The drawn contours the kernel works on: lent (left as they are), or given (each one's
+/// polyline freed once it is offset).
+enum Drawn<'c> {
+    Lent(&'c [Contour]),
+    Given(&'c mut [Contour]),
+}
+
+impl Drawn<'_> {
+    fn get(&self) -> &[Contour] {
+        match self {
+            Drawn::Lent(c) => c,
+            Drawn::Given(c) => c,
+        }
+    }
+}
+
+fn dilate_drawn(
+    mut drawn: Drawn,
+    kerf: &KerfSource,
+    how: Offsetting,
+    progress: &Progress,
+) -> Result<Dilation> {
+    let contours = drawn.get();
     progress.start(Stage::Dilating, contours.len());
     let (areas, centroids) = check_each(contours)?;
     let (depth, parent) = nest(contours, &areas)?;
@@ -237,8 +279,8 @@ pub fn dilate_with_progress(
         .collect();
     let (mut parts, part_index) = group_parts(&roles, &depth, &parent);
     kerf_per_part(&mut parts, contours, &areas, &centroids, kerf)?;
-    let dilated = offset_all(contours, &roles, &parts, &part_index, how, progress)?;
-    check_merges(contours, &parts, &dilated)?;
+    let dilated = offset_all(&mut drawn, &roles, &parts, &part_index, how, progress)?;
+    check_merges(drawn.get(), &parts, &dilated)?;
     Ok(Dilation {
         contours: dilated,
         roles,
@@ -460,9 +502,10 @@ fn kerf_per_part(
     problems.cannot_dilate()
 }
 
-/// Offset every contour by half its part's kerf, spread over the available cores.
+/// Offset every contour by half its part's kerf, spread over the available cores (a given
+/// contour's drawn polyline is freed as soon as it is offset).
 fn offset_all(
-    contours: &[Contour],
+    drawn: &mut Drawn,
     roles: &[Role],
     parts: &[Part],
     part_index: &[usize],
@@ -473,16 +516,29 @@ fn offset_all(
         Offsetting::Dilate => 0.0,
         Offsetting::Recompensate { burn_mm } => burn_mm,
     };
-    let counter = progress.counter(Stage::Dilating, contours.len());
-    let outcomes: Vec<Result<Pline, String>> = (0..contours.len())
-        .into_par_iter()
-        .map(|i| {
-            let grow = parts[part_index[i]].kerf_um / 2000.0 - already_mm;
-            let offset = offset_one(&contours[i], roles[i], grow, how);
-            counter.step();
-            offset
-        })
-        .collect();
+    let counter = progress.counter(Stage::Dilating, drawn.get().len());
+    let one = |i: usize, c: &Contour| {
+        let grow = parts[part_index[i]].kerf_um / 2000.0 - already_mm;
+        let offset = offset_one(c, roles[i], grow, how);
+        counter.step();
+        offset
+    };
+    let outcomes: Vec<Result<Pline, String>> = match drawn {
+        Drawn::Lent(contours) => contours
+            .par_iter()
+            .enumerate()
+            .map(|(i, c)| one(i, c))
+            .collect(),
+        Drawn::Given(contours) => contours
+            .par_iter_mut()
+            .enumerate()
+            .map(|(i, c)| {
+                let offset = one(i, c);
+                c.pline = Pline::new_closed();
+                offset
+            })
+            .collect(),
+    };
     let mut problems = Problems::default();
     let mut dilated = Vec::with_capacity(outcomes.len());
     for o in outcomes {
@@ -584,6 +640,9 @@ fn offset_one(c: &Contour, role: Role, grow: f64, how: Offsetting) -> Result<Pli
             if !ccw {
                 r.invert_direction_mut();
             }
+            // Built vertex by vertex, it holds up to twice the room it needs until the plan is
+            // written.
+            r.vertex_data.shrink_to_fit();
             Ok(r)
         }
         (Role::Hole, 0, _) => Err(format!(
@@ -742,6 +801,32 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("square and L cross"), "{e}");
+    }
+
+    #[test]
+    fn releasing_the_drawn_contours_frees_them_and_dilates_the_same() {
+        let drawn = vec![
+            c(rect(0.0, 0.0, 100.0, 100.0, false), "outer"),
+            c(rect(10.0, 10.0, 90.0, 90.0, true), "hole"),
+        ];
+        let lent = dilate(&drawn, &KerfSource::Uniform(200.0)).unwrap();
+        let mut given = drawn.clone();
+        let released = dilate_releasing_drawn(
+            &mut given,
+            &KerfSource::Uniform(200.0),
+            Offsetting::Dilate,
+            &Progress::default(),
+        )
+        .unwrap();
+        assert_eq!(released.contours.len(), lent.contours.len());
+        for (a, b) in released.contours.iter().zip(&lent.contours) {
+            assert_eq!(a.vertex_data, b.vertex_data);
+        }
+        assert_eq!(released.parts, lent.parts);
+        // The drawn geometry is gone; the labels stay for messages.
+        assert!(given.iter().all(|c| c.pline.vertex_count() == 0));
+        let labels: Vec<&str> = given.iter().map(|c| c.label.as_str()).collect();
+        assert_eq!(labels, ["outer", "hole"]);
     }
 
     #[test]

@@ -37,13 +37,14 @@
 //! entities and objects the `dxf` crate does not model and the file's own number formatting come
 //! out byte for byte, and writing a large plan costs little more than formatting its new
 //! vertices (on the 10,000-contour benchmark plan the `dxf` crate's save took 0.94–1.2 s and most
-//! of the peak memory; the splice 0.27 s). Where that cannot be done the changed drawing is
-//! written whole by the `dxf` crate: a binary DXF; a drawing older than R2000 (no `LWPOLYLINE`
-//! before R14), which is written as R2000; assumed units (`--units`), written into its header;
-//! a cut inside a block, which becomes a new model-space `LWPOLYLINE` while its `INSERT` shows a
-//! copy of the block without the cuts; a drawing with an entity that has no usable handle; an
-//! entity to change whose handle is shared. What
-//! was applied is recorded in `999` comments at the top of the file (see [`compensation`]).
+//! of the peak memory; the splice 0.09–0.12 s, its formatting spread over the cores). Where
+//! that cannot be done the changed drawing is written whole by the `dxf` crate: a binary DXF; a
+//! drawing older than R2000 (no `LWPOLYLINE` before R14), which is written as R2000; assumed
+//! units (`--units`), written into its header; a cut inside a block, which becomes a new
+//! model-space `LWPOLYLINE` while its `INSERT` shows a copy of the block without the cuts; a
+//! drawing with an entity that has no usable handle; an entity to change whose handle is shared.
+//! What was applied is recorded in `999` comments at the top of the file (see
+//! [`compensation`]).
 
 use std::collections::{HashMap, HashSet};
 use std::io::Cursor;
@@ -66,7 +67,7 @@ use crate::error::{PlanError, Problems, Result};
 mod blocks;
 mod splice;
 
-use splice::{Change, Layout, Splice};
+use splice::{Change, Layout, Precision, Splice};
 
 /// Ends closer than this join (mm).
 const JOIN_MM: f64 = 1e-4;
@@ -589,10 +590,12 @@ impl Changes {
                 return None;
             }
         }
-        let scale = self.scale;
-        splice.write(bytes, record, &|x| units(x, scale), &|b| {
-            rounded(b, BULGE_DIGITS)
-        })
+        let precision = Precision {
+            mm_per_unit: self.scale,
+            unit_digits: unit_digits(self.scale),
+            bulge_digits: BULGE_DIGITS,
+        };
+        splice.write(bytes, record, precision)
     }
 }
 
@@ -1336,10 +1339,15 @@ fn rounded(v: f64, digits: i32) -> f64 {
     if r.is_finite() { r } else { v }
 }
 
+/// The decimals of a coordinate in drawing units (`scale` mm each) that give the step written
+/// (see [`STEP_MM`]).
+fn unit_digits(scale: f64) -> i32 {
+    (-(STEP_MM / scale).log10() - 1e-6).ceil().clamp(0.0, 12.0) as i32
+}
+
 /// `mm` in drawing units (`scale` mm each), rounded to the step written (see [`STEP_MM`]).
 fn units(mm: f64, scale: f64) -> f64 {
-    let digits = (-(STEP_MM / scale).log10() - 1e-6).ceil().clamp(0.0, 12.0) as i32;
-    rounded(mm / scale, digits)
+    rounded(mm / scale, unit_digits(scale))
 }
 
 fn lw_vertices(p: &Pline, scale: f64) -> Vec<LwPolylineVertex> {

@@ -50,6 +50,7 @@
 #![warn(missing_docs)]
 
 pub mod compensation;
+mod decimal;
 pub mod dilate;
 pub mod dxf_plan;
 mod error;

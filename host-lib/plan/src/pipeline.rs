@@ -190,25 +190,19 @@ fn read_and_dilate<F: Format>(
     if let Offsetting::Recompensate { burn_mm } = treatment.offsetting {
         plan.burn_unburnt(burn_mm);
     }
-    // The contours are lent to the kernel, not copied (a large plan's geometry is most of its
-    // memory).
-    let (contours, origins): (Vec<Contour>, Vec<F::Origin>) = std::mem::take(&mut plan.cuts)
+    // The contours are given to the kernel, not copied, and it frees each one's drawn geometry
+    // as soon as it is offset: writing needs each cut's origin and label, not its drawn
+    // geometry (a large plan's drawn and dilated geometry held at once were most of its memory).
+    let (mut contours, origins): (Vec<Contour>, Vec<F::Origin>) = std::mem::take(&mut plan.cuts)
         .into_iter()
         .map(|c| (c.contour, c.origin))
         .unzip();
-    let dilation = dilate::dilate_with_progress(&contours, kerf, treatment.offsetting, progress)?;
-    // Writing needs each cut's origin and label, not its drawn geometry: that goes now, before
-    // the document is written (it was a sixth of the peak memory).
+    let dilation =
+        dilate::dilate_releasing_drawn(&mut contours, kerf, treatment.offsetting, progress)?;
     plan.cuts = contours
         .into_iter()
         .zip(origins)
-        .map(|(contour, origin)| Cut {
-            contour: Contour {
-                pline: Pline::new_closed(),
-                label: contour.label,
-            },
-            origin,
-        })
+        .map(|(contour, origin)| Cut { contour, origin })
         .collect();
     plan.summary.record_parts(&dilation);
     plan.summary.compensation_applied = Some(compensation::applied(

@@ -46,9 +46,14 @@
 //!
 //! **Memory.** The dilated document is several times its source (every rounded corner an arc), so
 //! it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of elements'
-//! path data at a time; and the drawn segments of closed contours are traced straight from usvg's
-//! tree, not copied. What is held at the peak, while dilating, is the source text, its XML tree,
-//! and the contours drawn and dilated.
+//! path data at a time. No step holds more than it needs: the source's XML tree is dropped while
+//! usvg parses the tagged copy, and of usvg's tree only the cut paths' data is kept, each path
+//! freed as it is traced; the source is parsed again to name the cuts and find where their new
+//! path data goes (byte ranges, a few per element), and that tree goes too before the dilation
+//! (writing parses it once more only to copy the targets of `<use>` clones). The kernel frees
+//! each drawn contour as it is offset. The peak is usvg's parse (the source, the tagged copy,
+//! usvg's XML tree of it and its own tree); the end of the dilation (the source and the dilated
+//! contours, cavalier's 24 bytes a vertex) is a little lower.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -59,9 +64,10 @@ use std::str::FromStr;
 use cavalier_contours::polyline::PlineSource;
 use rayon::prelude::*;
 use roxmltree::{Document, Node, ParsingOptions};
-use usvg::tiny_skia_path::PathSegment;
+use usvg::tiny_skia_path::{self, PathSegment};
 
 use super::compensation::{self, CompensatedBy, IfCompensated};
+use super::decimal::Scaled;
 use super::dilate::KerfSource;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
@@ -136,6 +142,31 @@ struct Instance {
     drawn: Vec<Vec<Seg>>,
     /// Its stroke colour (chooses its G-code cut settings).
     stroke: Option<Rgb>,
+    /// Where its element starts in the source, and where its new path data goes there (set by
+    /// `read`).
+    start: usize,
+    slots: Vec<Slot>,
+}
+
+/// A place in the source that writing a cut element's new path data changes, found while reading
+/// (see [`geometry_slots`]), so that writing needs no XML tree of the source.
+#[derive(Debug, Clone)]
+struct Slot {
+    range: Range<usize>,
+    put: Put,
+}
+
+/// What goes in a [`Slot`].
+#[derive(Debug, Clone, Copy)]
+enum Put {
+    /// The new path data (the value of the element's `d`).
+    D,
+    /// A new `d` attribute with the path data.
+    NewD,
+    /// Nothing: an attribute removed.
+    Nothing,
+    /// `path`: the element's new name.
+    Path,
 }
 
 /// A byte-range replacement in the source (an insertion when the range is empty).
@@ -147,6 +178,9 @@ struct Edit {
 
 /// Edits inside the targets of `<use>` elements, by `<use>` (index into the `<use>` elements).
 type CloneEdits = BTreeMap<usize, Vec<Edit>>;
+
+/// The dilated contour of each (instance, subpath) that is a cut, with the cut's label.
+type ContourOf<'p> = HashMap<(usize, usize), (&'p Pline, &'p str)>;
 
 /// A subpath of an instance traced into document mm.
 enum Traced {
@@ -185,9 +219,9 @@ pub fn dilate_svg_into(
     out: &mut (dyn Write + Sync),
 ) -> Result<PlanSummary> {
     opts.progress.start(Stage::Reading, 0);
-    let doc = parse(text)?;
+    let rendered = render(text, opts)?;
     let ((), summary) = pipeline::dilate_plan(
-        SvgPlan::new(text, &doc, opts, out),
+        SvgPlan::new(text, rendered, out),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -204,9 +238,9 @@ pub(crate) fn dilate_svg_cuts(
     opts: &SvgOptions,
 ) -> Result<(Vec<CutPath>, PlanSummary)> {
     opts.progress.start(Stage::Reading, 0);
-    let doc = parse(text)?;
+    let rendered = render(text, opts)?;
     pipeline::dilate_plan_cuts(
-        SvgPlan::new(text, &doc, opts, &mut std::io::sink()),
+        SvgPlan::new(text, rendered, &mut std::io::sink()),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -234,149 +268,201 @@ fn parse(text: &str) -> Result<Document<'_>> {
     Ok(doc)
 }
 
-/// An SVG document in the plan pipeline: the source text, its XML tree, and the cut instances
-/// found by rendering it. A contour's origin is (instance, subpath).
-struct SvgPlan<'d, 'a, 'w> {
-    text: &'a str,
-    doc: &'d Document<'a>,
-    opts: &'d SvgOptions,
+/// The document as usvg renders it: the plan begun (units, the compensation recorded, what
+/// passes through) and each cut instance with its path data (element coordinates).
+struct Rendered {
+    plan: Plan<(usize, usize)>,
+    found: Vec<(Instance, tiny_skia_path::Path)>,
+}
+
+/// Render the document with usvg and find its cut instances.
+///
+/// Memory: this is the largest step of reading, so nothing else large is alive during it. The
+/// XML tree of the source (parsed here to check it, read its size and records, and tag its
+/// elements, see [`tagged`]) goes before usvg parses the tagged copy; the tagged copy goes as soon
+/// as usvg has read it; and of usvg's tree only the cut paths' data is kept (a tenth of the tree).
+/// Reading parses the source again, to name and place the cuts.
+fn render(text: &str, opts: &SvgOptions) -> Result<Rendered> {
+    let mut plan = Plan::new("svg");
+    let (tagged, use_by_id, shapes_len) = {
+        let doc = parse(text)?;
+        let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
+        plan.summary.mm_per_unit = mm_per_px;
+        plan.summary.compensation_found = compensation::find_in_svg(&doc);
+        for _ in doc
+            .descendants()
+            .filter(|n| n.has_tag_name((SVG_NS, "text")))
+        {
+            plan.summary.pass("text");
+        }
+        let (shapes, uses) = shapes_and_uses(&doc);
+        let (tagged, use_by_id) = tagged(text, &shapes, &uses)?;
+        (tagged, use_by_id, shapes.len())
+    };
+    let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
+        .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
+    drop(tagged);
+    let mut walk = Walk {
+        rules: &opts.rules,
+        mm_per_px: plan.summary.mm_per_unit,
+        shapes_len,
+        use_by_id: &use_by_id,
+        found: Vec::new(),
+        seen: HashSet::new(),
+        summary: &mut plan.summary,
+        unidentified: 0,
+    };
+    walk.group(tree.root(), &mut Vec::new());
+    let (unidentified, mut found) = (walk.unidentified, walk.found);
+    if unidentified > 0 {
+        return Err(bad(format!(
+            "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
+        )));
+    }
+    found.shrink_to_fit();
+    Ok(Rendered { plan, found })
+}
+
+/// The shape elements and the `<use>` elements of a document, each in document order (an
+/// instance's `element` and `via_use` index these).
+fn shapes_and_uses<'d, 'a>(doc: &'d Document<'a>) -> (Vec<Node<'d, 'a>>, Vec<Node<'d, 'a>>) {
+    let shapes = doc
+        .descendants()
+        .filter(|n| {
+            n.is_element()
+                && n.tag_name().namespace() == Some(SVG_NS)
+                && SHAPES.contains(&n.tag_name().name())
+        })
+        .collect();
+    let uses = doc
+        .descendants()
+        .filter(|n| n.is_element() && n.has_tag_name((SVG_NS, "use")))
+        .collect();
+    (shapes, uses)
+}
+
+/// The elements of a parsed source that cuts are named and written by.
+struct Elements<'d, 'a> {
     /// The shape elements, in document order (an instance's `element` indexes this).
     shapes: Vec<Node<'d, 'a>>,
     /// The `<use>` elements, in document order.
     uses: Vec<Node<'d, 'a>>,
     /// Elements by id (the first one with each id).
     ids: HashMap<&'d str, Node<'d, 'a>>,
-    /// The rendered occurrences of cut elements (set by `read`).
-    instances: Vec<Instance>,
-    /// Where each line of the source starts, to name elements by line and column.
-    lines: LineIndex<'a>,
-    /// Where the dilated document goes (taken when it is written).
-    out: Option<&'w mut (dyn Write + Sync)>,
 }
 
-impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
-    fn new(
-        text: &'a str,
-        doc: &'d Document<'a>,
-        opts: &'d SvgOptions,
-        out: &'w mut (dyn Write + Sync),
-    ) -> Self {
-        let shapes = doc
-            .descendants()
-            .filter(|n| {
-                n.is_element()
-                    && n.tag_name().namespace() == Some(SVG_NS)
-                    && SHAPES.contains(&n.tag_name().name())
-            })
-            .collect();
-        let uses = doc
-            .descendants()
-            .filter(|n| n.is_element() && n.has_tag_name((SVG_NS, "use")))
-            .collect();
+impl<'d, 'a> Elements<'d, 'a> {
+    fn of(doc: &'d Document<'a>) -> Self {
+        let (shapes, uses) = shapes_and_uses(doc);
         let mut ids: HashMap<&str, Node> = HashMap::new();
         for n in doc.descendants().filter(|n| n.is_element()) {
             if let Some(id) = n.attribute("id") {
                 ids.entry(id).or_insert(n);
             }
         }
+        Elements { shapes, uses, ids }
+    }
+}
+
+/// Where this tool's compensation record goes in the source (right after the root's start tag),
+/// and its earlier records there, to drop.
+#[derive(Default)]
+struct Records {
+    old: Vec<Range<usize>>,
+    at: Option<usize>,
+}
+
+/// The source `text` with every shape tagged by its number (`stroke-miterlimit`, which usvg
+/// keeps) and every `<use>` given an id, so that what usvg renders can be traced back to its
+/// element; and the `<use>` elements by id.
+fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(String, HashMap<String, usize>)> {
+    let mut tags: Vec<Edit> = Vec::new();
+    for (k, n) in shapes.iter().enumerate() {
+        let code = k + 1;
+        match n
+            .attributes()
+            .find(|a| a.name() == "style" && a.namespace().is_none())
+        {
+            Some(style) => tags.push(Edit {
+                range: style.range_value().end..style.range_value().end,
+                text: format!(";stroke-miterlimit:{code}"),
+            }),
+            None => {
+                let at = tag_name_range(text, *n).end;
+                tags.push(Edit {
+                    range: at..at,
+                    text: format!(" style=\"stroke-miterlimit:{code}\""),
+                });
+            }
+        }
+    }
+    let mut use_by_id: HashMap<String, usize> = HashMap::new();
+    for (k, u) in uses.iter().enumerate() {
+        match u.attribute("id") {
+            Some(id) => {
+                use_by_id.insert(id.to_string(), k);
+            }
+            None => {
+                let id = format!("{USE_TAG}{k}");
+                let at = tag_name_range(text, *u).end;
+                tags.push(Edit {
+                    range: at..at,
+                    text: format!(" id=\"{id}\""),
+                });
+                use_by_id.insert(id, k);
+            }
+        }
+    }
+    Ok((apply_edits(text, tags)?, use_by_id))
+}
+
+/// An SVG document in the plan pipeline: the source text and the cut instances found by
+/// rendering it. A contour's origin is (instance, subpath).
+///
+/// No XML tree of the source is kept between the steps (it was a fifth of the peak memory, held
+/// through the dilation): reading parses the source to name the cuts and find where their new
+/// path data goes, and drops it; writing parses it again only for cuts reached through `<use>`,
+/// whose targets are copied.
+struct SvgPlan<'a, 'w> {
+    text: &'a str,
+    /// The rendered occurrences of cut elements (set by `read`).
+    instances: Vec<Instance>,
+    /// What rendering found, until `read` takes it.
+    rendered: Option<Rendered>,
+    /// Where the compensation record goes (set by `read`).
+    records: Records,
+    /// Where each line of the source starts, to name elements by line and column.
+    lines: LineIndex<'a>,
+    /// Where the dilated document goes (taken when it is written).
+    out: Option<&'w mut (dyn Write + Sync)>,
+}
+
+impl<'a, 'w> SvgPlan<'a, 'w> {
+    fn new(text: &'a str, rendered: Rendered, out: &'w mut (dyn Write + Sync)) -> Self {
         SvgPlan {
             text,
-            doc,
-            opts,
-            shapes,
-            uses,
-            ids,
             instances: Vec::new(),
+            rendered: Some(rendered),
+            records: Records::default(),
             lines: LineIndex::new(text),
             out: Some(out),
         }
     }
 
-    /// The source with every shape tagged by its number (`stroke-miterlimit`, which usvg keeps)
-    /// and every `<use>` given an id, so that what usvg renders can be traced back to its
-    /// element; and the `<use>` elements by id.
-    fn tagged(&self) -> Result<(String, HashMap<String, usize>)> {
-        let mut tags: Vec<Edit> = Vec::new();
-        for (k, n) in self.shapes.iter().enumerate() {
-            let code = k + 1;
-            match n
-                .attributes()
-                .find(|a| a.name() == "style" && a.namespace().is_none())
-            {
-                Some(style) => tags.push(Edit {
-                    range: style.range_value().end..style.range_value().end,
-                    text: format!(";stroke-miterlimit:{code}"),
-                }),
-                None => {
-                    let at = tag_name_range(self.text, *n).end;
-                    tags.push(Edit {
-                        range: at..at,
-                        text: format!(" style=\"stroke-miterlimit:{code}\""),
-                    });
-                }
-            }
-        }
-        let mut use_by_id: HashMap<String, usize> = HashMap::new();
-        for (k, u) in self.uses.iter().enumerate() {
-            match u.attribute("id") {
-                Some(id) => {
-                    use_by_id.insert(id.to_string(), k);
-                }
-                None => {
-                    let id = format!("{USE_TAG}{k}");
-                    let at = tag_name_range(self.text, *u).end;
-                    tags.push(Edit {
-                        range: at..at,
-                        text: format!(" id=\"{id}\""),
-                    });
-                    use_by_id.insert(id, k);
-                }
-            }
-        }
-        Ok((apply_edits(self.text, tags)?, use_by_id))
-    }
-
-    /// Render the tagged copy with usvg, collect the cut instances and trace their subpaths
-    /// (by instance); counts what passes.
-    ///
-    /// Memory: the tagged copy goes as soon as usvg has read it, and the subpaths are traced
-    /// straight from usvg's path data on any core (no copy of the drawn segments is kept but of
-    /// elements with an open subpath), while usvg's tree is alive; the tree goes on return.
-    fn walk(&mut self, mm_per_px: f64, summary: &mut PlanSummary) -> Result<Vec<Vec<Traced>>> {
-        let (tagged, use_by_id) = self.tagged()?;
-        let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
-            .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
-        drop(tagged);
-        let mut walk = Walk {
-            rules: &self.opts.rules,
-            mm_per_px,
-            shapes_len: self.shapes.len(),
-            use_by_id: &use_by_id,
-            found: Vec::new(),
-            seen: HashSet::new(),
-            summary,
-            unidentified: 0,
-        };
-        walk.group(tree.root(), &mut Vec::new());
-        let (unidentified, found) = (walk.unidentified, walk.found);
-        if unidentified > 0 {
-            return Err(bad(format!(
-                "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
-            )));
-        }
-        let text_count = self
-            .doc
-            .descendants()
-            .filter(|n| n.has_tag_name((SVG_NS, "text")))
-            .count();
-        for _ in 0..text_count {
-            summary.pass("text");
-        }
+    /// Trace the instances' subpaths (by instance) on any core, freeing each one's path data as
+    /// it goes (it is kept, as segments, only for elements with an open subpath, which is
+    /// written back as drawn).
+    fn trace_all(
+        &mut self,
+        el: &Elements,
+        found: Vec<(Instance, tiny_skia_path::Path)>,
+    ) -> Vec<Vec<Traced>> {
         let (instances, traced) = found
             .into_par_iter()
             .map(|(mut inst, path)| {
-                let segs = subpaths_of(path);
-                let traced = self.trace(&inst, &segs);
+                let segs = subpaths_of(&path);
+                drop(path);
+                let traced = self.trace(el, &inst, &segs);
                 inst.subpath_count = segs.len();
                 let all_closed = traced.len() == segs.len()
                     && traced.iter().all(|t| matches!(t, Traced::Closed(..)));
@@ -387,34 +473,31 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
             })
             .unzip();
         self.instances = instances;
-        Ok(traced)
+        traced
     }
 
     /// How to name an instance in messages.
-    fn label(&self, inst: &Instance) -> String {
-        let mut s = describe(&self.lines, self.shapes[inst.element]);
+    fn label(&self, el: &Elements, inst: &Instance) -> String {
+        let mut s = describe(&self.lines, el.shapes[inst.element]);
         if let Some(u) = inst.via_use {
-            s.push_str(&format!(
-                " via <use> {}",
-                describe(&self.lines, self.uses[u])
-            ));
+            s.push_str(&format!(" via <use> {}", describe(&self.lines, el.uses[u])));
         }
         s
     }
 
     /// Refuse cuts reached through nested `<use>` clones (they cannot be copied one by one).
-    fn check_uses(&self) -> Result<()> {
+    fn check_uses(&self, el: &Elements) -> Result<()> {
         let mut problems = Problems::default();
         for inst in &self.instances {
             if let Some(u) = inst.via_use {
                 // `ancestors()` starts at the node itself: the target may be the shape.
-                let target = use_target(self.uses[u], &self.ids);
+                let target = use_target(el.uses[u], &el.ids);
                 let inside =
-                    target.is_some_and(|t| self.shapes[inst.element].ancestors().any(|a| a == t));
+                    target.is_some_and(|t| el.shapes[inst.element].ancestors().any(|a| a == t));
                 if !inside {
                     problems.push(format!(
                         "{} is reached through nested <use> clones; unlink the clones first (Inkscape: Edit ▸ Clone ▸ Unlink Clone)",
-                        self.label(inst)
+                        self.label(el, inst)
                     ));
                 }
             }
@@ -436,7 +519,7 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
     }
 
     /// In a boxes.py plan, the cuts of its reference rectangle, which boxes.py draws without burn.
-    fn find_unburnt(&self, plan: &mut Plan<(usize, usize)>) {
+    fn find_unburnt(&self, el: &Elements, plan: &mut Plan<(usize, usize)>) {
         let boxes = plan
             .summary
             .compensation_found
@@ -446,7 +529,7 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
             return;
         }
         for (k, cut) in plan.cuts.iter().enumerate() {
-            let node = self.shapes[self.instances[cut.origin.0].element];
+            let node = el.shapes[self.instances[cut.origin.0].element];
             if compensation::is_boxes_reference(node) {
                 plan.unburnt.push(k);
             }
@@ -454,7 +537,7 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
     }
 
     /// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm.
-    fn trace(&self, inst: &Instance, subpaths: &[Vec<Seg>]) -> Vec<Traced> {
+    fn trace(&self, el: &Elements, inst: &Instance, subpaths: &[Vec<Seg>]) -> Vec<Traced> {
         let eps = coordinate_eps(inst, subpaths);
         let n_sub = subpaths.len();
         let mut traced = Vec::with_capacity(n_sub);
@@ -474,7 +557,7 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
             let Some(sub) = sink.finish().into_iter().next() else {
                 continue;
             };
-            let mut name = self.label(inst);
+            let mut name = self.label(el, inst);
             if n_sub > 1 {
                 name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
             }
@@ -493,7 +576,7 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
     /// targets are copied whole (see [`Self::clone_uses`]), so these are made before writing.
     fn clone_geometry_edits(
         &self,
-        contour_of: &HashMap<(usize, usize), &Pline>,
+        contour_of: &ContourOf,
         summary: &mut PlanSummary,
     ) -> Result<CloneEdits> {
         let made: Vec<(usize, Option<Result<Vec<Edit>>>)> = self
@@ -522,14 +605,14 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
     fn write_document(
         &self,
         edits: Vec<Edit>,
-        contour_of: &HashMap<(usize, usize), &Pline>,
+        contour_of: &ContourOf,
         summary: &mut PlanSummary,
         sink: &mut (dyn Write + Sync),
     ) -> Result<()> {
         let mut direct: Vec<usize> = (0..self.instances.len())
             .filter(|&ii| self.instances[ii].via_use.is_none())
             .collect();
-        direct.sort_by_key(|&ii| self.shapes[self.instances[ii].element].range().start);
+        direct.sort_by_key(|&ii| self.instances[ii].start);
         let mut edits = sorted(edits).into_iter().peekable();
         let mut out = EditWriter::new(self.text, sink);
         for batch in direct.chunks(WRITE_BATCH) {
@@ -557,18 +640,13 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
     /// The compensation record (see [`compensation`]) right after the root's start tag, replacing
     /// any this tool wrote before.
     fn record_edits(&self, summary: &PlanSummary) -> Vec<Edit> {
-        let mut edits: Vec<Edit> = compensation::own_svg_records(self.doc)
-            .into_iter()
+        let mut edits: Vec<Edit> = (self.records.old.iter())
             .map(|range| Edit {
-                range,
+                range: range.clone(),
                 text: String::new(),
             })
             .collect();
-        if let (Some(applied), Some(first)) = (
-            &summary.compensation_applied,
-            self.doc.root_element().first_child(),
-        ) {
-            let at = first.range().start;
+        if let (Some(applied), Some(at)) = (&summary.compensation_applied, self.records.at) {
             edits.push(Edit {
                 range: at..at,
                 text: applied.svg_record(),
@@ -583,15 +661,12 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
         &self,
         ii: usize,
         inst: &Instance,
-        contour_of: &HashMap<(usize, usize), &Pline>,
+        contour_of: &ContourOf,
     ) -> Option<Result<Vec<Edit>>> {
-        if !(0..inst.subpath_count).any(|si| contour_of.contains_key(&(ii, si))) {
-            return None;
-        }
+        let (_, label) = (0..inst.subpath_count).find_map(|si| contour_of.get(&(ii, si)))?;
         let Some(to_local) = inst.to_doc.inverse() else {
             return Some(Err(bad(format!(
-                "{} has a degenerate transform (zero scale)",
-                self.label(inst)
+                "{label} has a degenerate transform (zero scale)"
             ))));
         };
         let digits = digits_for(&inst.to_doc);
@@ -601,29 +676,30 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
                 d.push(' ');
             }
             match (contour_of.get(&(ii, si)), inst.drawn.get(si)) {
-                (Some(pline), _) => write_pline(pline, &to_local, digits, &mut d),
+                (Some((pline, _)), _) => write_pline(pline, &to_local, digits, &mut d),
                 (None, Some(segs)) => write_segs(segs, digits, &mut d),
                 // Not kept: every subpath of this instance is a dilated contour.
                 (None, None) => {}
             }
         }
-        Some(Ok(geometry_edits(self.text, self.shapes[inst.element], &d)))
+        Some(Ok(filled(&inst.slots, &d)))
     }
 
     /// Copies of the targets of `<use>` elements whose cuts were dilated (ids suffixed `-kerfN`),
     /// each `<use>` pointed at its copy: edits to `main_edits`, one note per copied target.
     fn clone_uses(
         &self,
+        el: &Elements,
         clone_edits: CloneEdits,
         main_edits: &mut Vec<Edit>,
         summary: &mut PlanSummary,
     ) -> Result<()> {
-        let mut taken: HashSet<String> = self.ids.keys().map(|s| s.to_string()).collect();
+        let mut taken: HashSet<String> = el.ids.keys().map(|s| s.to_string()).collect();
         let mut inserts: BTreeMap<usize, (Node, String)> = BTreeMap::new();
         let mut counter = 0usize;
         for (u, edits) in clone_edits {
-            let node = self.uses[u];
-            let target = use_target(node, &self.ids).expect("checked above");
+            let node = el.uses[u];
+            let target = use_target(node, &el.ids).expect("checked above");
             let suffix = loop {
                 counter += 1;
                 let s = format!("-kerf{counter}");
@@ -705,54 +781,68 @@ impl<'d, 'a, 'w> SvgPlan<'d, 'a, 'w> {
     }
 }
 
-impl Format for SvgPlan<'_, '_, '_> {
+impl Format for SvgPlan<'_, '_> {
     type Origin = (usize, usize);
     type Output = ();
 
     fn read(&mut self) -> Result<Plan<(usize, usize)>> {
-        let mut plan = Plan::new("svg");
-        let mm_per_px = document_scale(
-            self.doc.root_element(),
-            self.opts.assume_units,
-            &mut plan.summary,
-        )?;
-        plan.summary.mm_per_unit = mm_per_px;
-        plan.summary.compensation_found = compensation::find_in_svg(self.doc);
-        let traced = self.walk(mm_per_px, &mut plan.summary)?;
-        self.check_uses()?;
+        let Some(Rendered { mut plan, found }) = self.rendered.take() else {
+            return Err(bad("internal error: the SVG was read twice"));
+        };
+        let doc = parse(self.text)?;
+        let el = Elements::of(&doc);
+        let traced = self.trace_all(&el, found);
+        self.check_uses(&el)?;
         plan.summary.cut_elements = self.instances.len();
         Self::contours(&mut plan, traced);
-        self.find_unburnt(&mut plan);
+        self.find_unburnt(&el, &mut plan);
+        for inst in &mut self.instances {
+            let node = el.shapes[inst.element];
+            inst.start = node.range().start;
+            inst.slots = geometry_slots(self.text, node);
+        }
+        self.records = Records {
+            old: compensation::own_svg_records(&doc),
+            at: doc.root_element().first_child().map(|n| n.range().start),
+        };
         Ok(plan)
     }
 
     fn groups(&self, plan: &Plan<(usize, usize)>) -> Vec<CutGroup> {
+        // The layers are read from the source parsed again (it was read before, so it parses;
+        // only G-code asks for them).
+        let doc = parse(self.text).ok();
+        let el = doc.as_ref().map(Elements::of);
         plan.cuts
             .iter()
             .map(|cut| {
                 let inst = &self.instances[cut.origin.0];
                 // A clone is on the layer of its <use>, not of the element it copies.
-                let placed = inst
-                    .via_use
-                    .map_or(self.shapes[inst.element], |u| self.uses[u]);
+                let layer = el.as_ref().and_then(|el| {
+                    inkscape_layer(inst.via_use.map_or(el.shapes[inst.element], |u| el.uses[u]))
+                });
                 CutGroup {
                     color: inst.stroke,
-                    layer: inkscape_layer(placed),
+                    layer,
                 }
             })
             .collect()
     }
 
     fn write(mut self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<()> {
-        let contour_of: HashMap<(usize, usize), &Pline> = plan
+        let contour_of: ContourOf = plan
             .cuts
             .iter()
             .zip(&dilated)
-            .map(|(cut, d)| (cut.origin, d))
+            .map(|(cut, d)| (cut.origin, (d, cut.contour.label.as_str())))
             .collect();
-        let clone_edits = self.clone_geometry_edits(&contour_of, &mut plan.summary)?;
         let mut edits = Vec::new();
-        self.clone_uses(clone_edits, &mut edits, &mut plan.summary)?;
+        if self.instances.iter().any(|inst| inst.via_use.is_some()) {
+            let doc = parse(self.text)?;
+            let el = Elements::of(&doc);
+            let clone_edits = self.clone_geometry_edits(&contour_of, &mut plan.summary)?;
+            self.clone_uses(&el, clone_edits, &mut edits, &mut plan.summary)?;
+        }
         edits.extend(self.record_edits(&plan.summary));
         let Some(sink) = self.out.take() else {
             return Err(bad("internal error: the SVG was written twice"));
@@ -812,19 +902,19 @@ fn document_scale(
 }
 
 /// The walk over usvg's tree: the cut instances found, each with its path in the tree.
-struct Walk<'a, 't> {
+struct Walk<'a> {
     rules: &'a CutRules,
     mm_per_px: f64,
     shapes_len: usize,
     use_by_id: &'a HashMap<String, usize>,
-    found: Vec<(Instance, &'t usvg::Path)>,
+    found: Vec<(Instance, tiny_skia_path::Path)>,
     seen: HashSet<(usize, Option<usize>)>,
     summary: &'a mut PlanSummary,
     unidentified: usize,
 }
 
-impl<'t> Walk<'_, 't> {
-    fn group(&mut self, g: &'t usvg::Group, uses: &mut Vec<usize>) {
+impl Walk<'_> {
+    fn group(&mut self, g: &usvg::Group, uses: &mut Vec<usize>) {
         for child in g.children() {
             match child {
                 usvg::Node::Group(c) => {
@@ -845,7 +935,7 @@ impl<'t> Walk<'_, 't> {
         }
     }
 
-    fn path(&mut self, p: &'t usvg::Path, uses: &[usize]) {
+    fn path(&mut self, p: &usvg::Path, uses: &[usize]) {
         let to_doc = Affine::scale(self.mm_per_px).then_after(&affine(p.abs_transform()));
         if !p.is_visible() {
             self.summary.pass("hidden");
@@ -887,8 +977,10 @@ impl<'t> Walk<'_, 't> {
                     subpath_count: 0,
                     drawn: Vec::new(),
                     stroke: stroke.map(|s| s.0),
+                    start: 0,
+                    slots: Vec::new(),
                 };
-                self.found.push((instance, p));
+                self.found.push((instance, p.data().clone()));
             }
         }
     }
@@ -918,10 +1010,10 @@ fn affine(t: usvg::Transform) -> Affine {
 }
 
 /// A path's subpaths as usvg resolved them, each vector no larger than it needs.
-fn subpaths_of(p: &usvg::Path) -> Vec<Vec<Seg>> {
+fn subpaths_of(p: &tiny_skia_path::Path) -> Vec<Vec<Seg>> {
     let mut subpaths: Vec<Vec<Seg>> = Vec::new();
-    let pt = |q: usvg::tiny_skia_path::Point| P32(q.x, q.y);
-    for seg in p.data().segments() {
+    let pt = |q: tiny_skia_path::Point| P32(q.x, q.y);
+    for seg in p.segments() {
         let s = match seg {
             PathSegment::MoveTo(a) => {
                 subpaths.push(Vec::new());
@@ -976,31 +1068,14 @@ fn digits_for(to_doc: &Affine) -> usize {
 /// `v` with at most `digits` decimals, trailing zeros dropped (`-0` is `0`).
 fn num(v: f64, digits: usize, out: &mut String) {
     // Fast path: round to an integer count of the last decimal, ties to even as float
-    // formatting does, and print that (formatting a float exactly was most of the time spent
-    // writing a large plan). Where the product itself rounds across a tie (rare), the last
-    // decimal differs by one: 0.01 µm in mm.
+    // formatting does, and print that. Where the product itself rounds across a tie (rare), the
+    // last decimal differs by one: 0.01 µm in mm.
     let scaled = (v * 10f64.powi(digits as i32)).round_ties_even();
     if digits <= 12 && scaled.abs() < 1e15 {
-        let mut n = scaled as i64;
-        if n == 0 {
-            out.push('0');
-            return;
-        }
-        if n < 0 {
+        if scaled != 0.0 && scaled < 0.0 {
             out.push('-');
-            n = -n;
         }
-        let unit = 10i64.pow(digits as u32);
-        let (int, mut frac, mut places) = (n / unit, n % unit, digits);
-        while places > 0 && frac % 10 == 0 {
-            frac /= 10;
-            places -= 1;
-        }
-        push_digits(out, int as u64, 1);
-        if places > 0 {
-            out.push('.');
-            push_digits(out, frac as u64, places);
-        }
+        out.push_str(Scaled::new(scaled.abs() as u64, digits).as_str());
         return;
     }
     let mut s = format!("{v:.digits$}");
@@ -1016,18 +1091,6 @@ fn num(v: f64, digits: usize, out: &mut String) {
         s = "0".into();
     }
     out.push_str(&s);
-}
-
-/// The decimal digits of `n`, at least `width` of them (zeros in front).
-fn push_digits(out: &mut String, mut n: u64, width: usize) {
-    let mut buf = [b'0'; 20];
-    let mut start = buf.len();
-    while n > 0 || buf.len() - start < width {
-        start -= 1;
-        buf[start] = b'0' + (n % 10) as u8;
-        n /= 10;
-    }
-    out.extend(buf[start..].iter().map(|&b| char::from(b)));
 }
 
 fn point(p: V2, digits: usize, out: &mut String) {
@@ -1132,9 +1195,25 @@ fn attribute_with_space(src: &str, a: &roxmltree::Attribute) -> Range<usize> {
     start..r.end
 }
 
-/// Edits that give `node` the path data `d` (see the module doc).
-fn geometry_edits(src: &str, node: Node, d: &str) -> Vec<Edit> {
-    let mut edits = Vec::new();
+/// The edits that give an element with these `slots` the path data `d`.
+fn filled(slots: &[Slot], d: &str) -> Vec<Edit> {
+    slots
+        .iter()
+        .map(|slot| Edit {
+            range: slot.range.clone(),
+            text: match slot.put {
+                Put::D => d.to_string(),
+                Put::NewD => format!(" d=\"{d}\""),
+                Put::Nothing => String::new(),
+                Put::Path => "path".into(),
+            },
+        })
+        .collect()
+}
+
+/// Where giving `node` new path data changes the source (see the module doc).
+fn geometry_slots(src: &str, node: Node) -> Vec<Slot> {
+    let mut slots = Vec::new();
     let is_path = node.tag_name().name() == "path";
     let dropped = |a: &roxmltree::Attribute| match a.namespace() {
         Some(SODIPODI_NS) => true,
@@ -1148,27 +1227,27 @@ fn geometry_edits(src: &str, node: Node, d: &str) -> Vec<Edit> {
         last_end = last_end.max(a.range().end);
         if is_path && a.name() == "d" && a.namespace().is_none() {
             has_d = true;
-            edits.push(Edit {
+            slots.push(Slot {
                 range: a.range_value(),
-                text: d.to_string(),
+                put: Put::D,
             });
         } else if dropped(&a) {
-            edits.push(Edit {
+            slots.push(Slot {
                 range: attribute_with_space(src, &a),
-                text: String::new(),
+                put: Put::Nothing,
             });
         }
     }
     if !has_d {
-        edits.push(Edit {
+        slots.push(Slot {
             range: last_end..last_end,
-            text: format!(" d=\"{d}\""),
+            put: Put::NewD,
         });
     }
     if !is_path {
-        edits.push(Edit {
+        slots.push(Slot {
             range: local_name(src, tag_name_range(src, node)),
-            text: "path".into(),
+            put: Put::Path,
         });
         let r = node.range();
         if !src[..r.end].ends_with("/>")
@@ -1178,13 +1257,13 @@ fn geometry_edits(src: &str, node: Node, d: &str) -> Vec<Edit> {
             let end = src[start..r.end]
                 .find(|c: char| c.is_whitespace() || c == '>')
                 .map_or(r.end, |k| start + k);
-            edits.push(Edit {
+            slots.push(Slot {
                 range: local_name(src, start..end),
-                text: "path".into(),
+                put: Put::Path,
             });
         }
     }
-    edits
+    slots
 }
 
 /// The order edits are applied in: by where they start, then end (an insertion before a
@@ -1253,7 +1332,10 @@ fn write_error(source: std::io::Error) -> PlanError {
 
 /// Apply non-overlapping edits.
 fn apply_edits(src: &str, edits: Vec<Edit>) -> Result<String> {
-    let mut out = Vec::with_capacity(src.len() + 64 * edits.len());
+    // The exact size: the tagged copy of a large plan is held while usvg parses it, at the peak.
+    let grown: usize = edits.iter().map(|e| e.text.len()).sum();
+    let cut: usize = edits.iter().map(|e| e.range.len()).sum();
+    let mut out = Vec::with_capacity((src.len() + grown).saturating_sub(cut));
     let mut writer = EditWriter::new(src, &mut out);
     for e in sorted(edits) {
         writer.apply(e)?;

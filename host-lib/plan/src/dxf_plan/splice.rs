@@ -20,6 +20,11 @@
 //!     the entity they replace and its layer, linetype, colour and lineweight pairs copied as
 //!     they are written in the file.
 //!
+//! Formatting the new vertices is most of the work: the changed entities' text is made on every
+//! core, a batch at a time, and put in file order (the output does not depend on the number of
+//! cores), and a rounded number is printed from the integer count of its last decimal
+//! (`decimal`), not by the float formatter, with the same text.
+//!
 //! Anything this does not cover is written by the `dxf` crate instead ([`super`]'s `save`): a
 //! binary DXF, a drawing to be written as another version (older than R2000), assumed units to
 //! record in the header, cuts inside blocks (their `INSERT`s point at new blocks), a drawing with
@@ -32,8 +37,15 @@ use std::collections::HashMap;
 use std::io::Write as _;
 
 use cavalier_contours::polyline::PlineSource;
+use rayon::prelude::*;
 
+use super::rounded;
+use crate::decimal::Scaled;
 use crate::geom::Pline;
+
+/// Changed entities whose text is made at once, on any core, before it is put in its place (the
+/// text of all of them would be more than the file).
+const WRITE_BATCH: usize = 1024;
 
 /// One code/value pair of an ASCII DXF: where it starts and ends in the file, its code, and its
 /// value (the line without its end, and without surrounding white space).
@@ -341,22 +353,21 @@ impl<'p> Splice<'p> {
         true
     }
 
-    /// The spliced file: `record` first, then the input with the changes (numbers in drawing
-    /// units by `units`, bulges by `bulge`); `None` when the changes cannot be placed (an entity
-    /// changed twice, or nowhere to add new ones).
+    /// The spliced file: `record` first, then the input with the changes (numbers written as
+    /// `precision` says); `None` when the changes cannot be placed (an entity changed twice, or
+    /// nowhere to add new ones). The changed entities' text is made on every core, a batch at a
+    /// time, and put in file order.
     pub fn write(
         mut self,
         bytes: &[u8],
         record: Option<&str>,
-        units: &dyn Fn(f64) -> f64,
-        bulge: &dyn Fn(f64) -> f64,
+        precision: Precision,
     ) -> Option<Vec<u8>> {
         let eol = self.layout.eol;
         let mut out = Out {
             bytes: Vec::with_capacity(bytes.len() + bytes.len() / 4),
             eol,
-            units,
-            bulge,
+            precision,
         };
         if let Some(record) = record {
             let record = record.replace("\r\n", "\n").replace('\n', eol);
@@ -367,12 +378,23 @@ impl<'p> Splice<'p> {
             .handseed
             .map_or(0, |(_, h)| h)
             .max(self.layout.max_handle.checked_add(1)?);
-        let mut new_entities = out.sibling();
-        for (like, contour) in &self.added {
-            let handle = next_handle;
-            next_handle = next_handle.checked_add(1)?;
-            new_lwpolyline(bytes, like, handle, contour, &mut new_entities);
-        }
+        let first_new = next_handle;
+        next_handle = next_handle.checked_add(self.added.len() as u64)?;
+        let made: Vec<Vec<u8>> = self
+            .added
+            .par_iter()
+            .enumerate()
+            .map(|(k, (like, contour))| {
+                let mut new = out.sibling();
+                new_lwpolyline(bytes, like, first_new + k as u64, contour, &mut new);
+                new.bytes
+            })
+            .collect();
+        let new_entities = Out {
+            bytes: made.concat(),
+            ..out.sibling()
+        };
+        drop(made);
         let mut cuts: Vec<(Span, Cut)> = self
             .edits
             .drain(..)
@@ -388,14 +410,24 @@ impl<'p> Splice<'p> {
         }
         cuts.sort_by_key(|(span, _)| *span);
         let mut at = 0;
-        for (span, cut) in cuts {
-            if span.0 < at {
-                // Two changes to one place.
-                return None;
+        for batch in cuts.chunks(WRITE_BATCH) {
+            let made: Vec<Option<Vec<u8>>> = batch
+                .par_iter()
+                .map(|(span, cut)| {
+                    let mut piece = out.sibling();
+                    cut.write(bytes, *span, &mut piece)?;
+                    Some(piece.bytes)
+                })
+                .collect();
+            for ((span, _), piece) in batch.iter().zip(made) {
+                if span.0 < at {
+                    // Two changes to one place.
+                    return None;
+                }
+                out.bytes.extend_from_slice(&bytes[at..span.0]);
+                out.bytes.extend_from_slice(&piece?);
+                at = span.1;
             }
-            out.bytes.extend_from_slice(&bytes[at..span.0]);
-            cut.write(bytes, span, &mut out)?;
-            at = span.1;
         }
         out.bytes.extend_from_slice(&bytes[at..]);
         Some(out.bytes)
@@ -425,32 +457,67 @@ impl Cut<'_, '_> {
     }
 }
 
-/// Where the spliced file is written, and how: the file's line end, and the conversions of the
-/// dilated contours' numbers into the drawing's units and its bulges.
-struct Out<'f> {
-    bytes: Vec<u8>,
-    eol: &'static str,
-    units: &'f dyn Fn(f64) -> f64,
-    bulge: &'f dyn Fn(f64) -> f64,
+/// How the dilated contours' numbers are written: mm per drawing unit, and the decimals of a
+/// coordinate (in drawing units) and of a bulge.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Precision {
+    pub mm_per_unit: f64,
+    pub unit_digits: i32,
+    pub bulge_digits: i32,
 }
 
-impl<'f> Out<'f> {
+/// Where the spliced file is written, and how: the file's line end, and the precision of the
+/// dilated contours' numbers.
+struct Out {
+    bytes: Vec<u8>,
+    eol: &'static str,
+    precision: Precision,
+}
+
+impl Out {
     /// An empty output written the same way (for pieces placed later).
-    fn sibling(&self) -> Out<'f> {
+    fn sibling(&self) -> Out {
         Out {
             bytes: Vec::new(),
             ..*self
         }
     }
 
+    /// A group code line, right-aligned in three columns as the `dxf` crate writes it.
+    fn code(&mut self, code: i32) {
+        if (0..1000).contains(&code) {
+            let width = if code >= 100 {
+                0
+            } else if code >= 10 {
+                1
+            } else {
+                2
+            };
+            self.bytes.extend_from_slice(&b"  "[..width]);
+            self.bytes
+                .extend_from_slice(Scaled::new(code as u64, 0).as_str().as_bytes());
+        } else {
+            let _ = write!(self.bytes, "{code:>3}");
+        }
+        self.bytes.extend_from_slice(self.eol.as_bytes());
+    }
+
     fn pair(&mut self, code: i32, value: &str) {
-        let eol = self.eol;
-        let _ = write!(self.bytes, "{code:>3}{eol}{value}{eol}");
+        self.code(code);
+        self.bytes.extend_from_slice(value.as_bytes());
+        self.bytes.extend_from_slice(self.eol.as_bytes());
     }
 
     fn pair_number(&mut self, code: i32, v: f64) {
-        let _ = write!(self.bytes, "{code:>3}{}", self.eol);
+        self.code(code);
         number(v, &mut self.bytes);
+        self.bytes.extend_from_slice(self.eol.as_bytes());
+    }
+
+    /// A pair whose number is `v` rounded to `digits` decimals.
+    fn pair_fixed(&mut self, code: i32, v: f64, digits: i32) {
+        self.code(code);
+        fixed(v, digits, &mut self.bytes);
         self.bytes.extend_from_slice(self.eol.as_bytes());
     }
 
@@ -459,14 +526,14 @@ impl<'f> Out<'f> {
         self.bytes.extend_from_slice(&bytes[p.start..p.end]);
     }
 
-    /// The vertices of a closed contour as `LWPOLYLINE` pairs.
+    /// The vertices of a closed contour (mm) as `LWPOLYLINE` pairs.
     fn vertices(&mut self, contour: &Pline) {
+        let p = self.precision;
         for v in contour.iter_vertexes() {
-            self.pair_number(10, (self.units)(v.x));
-            self.pair_number(20, (self.units)(v.y));
-            let b = (self.bulge)(v.bulge);
-            if b != 0.0 {
-                self.pair_number(42, b);
+            self.pair_fixed(10, v.x / p.mm_per_unit, p.unit_digits);
+            self.pair_fixed(20, v.y / p.mm_per_unit, p.unit_digits);
+            if rounded(v.bulge, p.bulge_digits) != 0.0 {
+                self.pair_fixed(42, v.bulge, p.bulge_digits);
             }
         }
     }
@@ -480,6 +547,28 @@ fn number(v: f64, out: &mut Vec<u8>) {
         .iter()
         .any(|b| matches!(b, b'.' | b'e' | b'E' | b'N' | b'i'))
     {
+        out.extend_from_slice(b".0");
+    }
+}
+
+/// `v` rounded to `digits` decimals as DXF text: what [`number`] writes of the rounded value (the
+/// shortest text that reads back as it, with a point), printed from the integer count of its
+/// last decimal. Below 10¹⁵ of those the rounded decimal is that shortest text: any shorter one
+/// is at least a last decimal away, more than the value's float step. Beyond, or not finite, the
+/// float is formatted.
+fn fixed(v: f64, digits: i32, out: &mut Vec<u8>) {
+    let m = 10f64.powi(digits);
+    let n = (v * m).round();
+    if !(n.abs() < 1e15 && (0..=19).contains(&digits)) {
+        number(rounded(v, digits), out);
+        return;
+    }
+    if (n / m).is_sign_negative() {
+        out.push(b'-');
+    }
+    let text = Scaled::new(n.abs() as u64, digits as usize);
+    out.extend_from_slice(text.as_str().as_bytes());
+    if !text.as_str().contains('.') {
         out.extend_from_slice(b".0");
     }
 }
@@ -577,6 +666,58 @@ mod tests {
         let mut broken = Pairs::new(b"0\nSECTION\nx\ny\n", 0);
         assert_eq!(broken.by_ref().count(), 1);
         assert!(broken.broken);
+    }
+
+    #[test]
+    fn rounded_numbers_are_written_as_the_float_formatter_writes_them() {
+        // A small deterministic generator: values of every magnitude the writer meets, signs,
+        // exact ties, zeros and the decimals of mm, inches, µm and bulges.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut values = vec![0.0, -0.0, 1e-9, -1e-9, 0.5, -0.5, 2.5e-5, 123.456_785, 1e7];
+        for _ in 0..20_000 {
+            let mantissa = (next() % 2_000_000) as f64 / 1_000_000.0 - 1.0;
+            let exponent = (next() % 16) as i32 - 8;
+            values.push(mantissa * 10f64.powi(exponent));
+        }
+        for v in values {
+            for digits in [0, 1, 4, 5, 7, 10, 12] {
+                let (mut fast, mut formatted) = (Vec::new(), Vec::new());
+                fixed(v, digits, &mut fast);
+                number(rounded(v, digits), &mut formatted);
+                assert_eq!(
+                    String::from_utf8(fast).unwrap(),
+                    String::from_utf8(formatted).unwrap(),
+                    "{v:e} to {digits} decimals"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn codes_are_right_aligned_in_three_columns() {
+        let mut out = Out {
+            bytes: Vec::new(),
+            eol: "\n",
+            precision: Precision {
+                mm_per_unit: 1.0,
+                unit_digits: 5,
+                bulge_digits: 10,
+            },
+        };
+        for code in [0, 5, 10, 42, 100, 330, 999, 1000, 1071, -1] {
+            out.code(code);
+        }
+        let expected: String = [0, 5, 10, 42, 100, 330, 999, 1000, 1071, -1]
+            .iter()
+            .map(|c| format!("{c:>3}\n"))
+            .collect();
+        assert_eq!(String::from_utf8(out.bytes).unwrap(), expected);
     }
 
     #[test]
