@@ -237,7 +237,8 @@ pub fn dilate_with_progress(
 /// [`dilate_with_progress`], freeing each contour's drawn geometry (its polyline is left empty)
 /// as soon as it is offset; the labels stay, for messages. Nothing after the offsets needs the
 /// drawn geometry, and a large plan's drawn and dilated contours held at once were most of its
-/// memory: this way the drawn ones go while the dilated ones are made.
+/// memory: this way the drawn ones go while the dilated ones are made. After an error the
+/// contours may be partly emptied (those offset before it): the plan is not to be used again.
 pub fn dilate_releasing_drawn(
     contours: &mut [Contour],
     kerf: &KerfSource,

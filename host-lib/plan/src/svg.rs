@@ -50,7 +50,8 @@
 //! usvg parses the tagged copy, and of usvg's tree only the cut paths' data is kept, each path
 //! freed as it is traced; the source is parsed again to name the cuts and find where their new
 //! path data goes (byte ranges, a few per element), and that tree goes too before the dilation
-//! (writing parses it once more only to copy the targets of `<use>` clones). The kernel frees
+//! (writing parses it once more only to copy the targets of `<use>` clones, and G-code's cut
+//! order parses it again for the cuts' Inkscape layers). The kernel frees
 //! each drawn contour as it is offset. The peak is usvg's parse (the source, the tagged copy,
 //! usvg's XML tree of it and its own tree); the end of the dilation (the source and the dilated
 //! contours, cavalier's 24 bytes a vertex) is a little lower.
@@ -809,18 +810,17 @@ impl Format for SvgPlan<'_, '_> {
     }
 
     fn groups(&self, plan: &Plan<(usize, usize)>) -> Vec<CutGroup> {
-        // The layers are read from the source parsed again (it was read before, so it parses;
-        // only G-code asks for them).
-        let doc = parse(self.text).ok();
-        let el = doc.as_ref().map(Elements::of);
+        // The layers are read from the source parsed again (only G-code asks for them, and it
+        // parsed in `read`: a failure now would be a bug, not bad input).
+        let doc = parse(self.text).expect("the source parsed when it was read");
+        let el = Elements::of(&doc);
         plan.cuts
             .iter()
             .map(|cut| {
                 let inst = &self.instances[cut.origin.0];
                 // A clone is on the layer of its <use>, not of the element it copies.
-                let layer = el.as_ref().and_then(|el| {
-                    inkscape_layer(inst.via_use.map_or(el.shapes[inst.element], |u| el.uses[u]))
-                });
+                let layer =
+                    inkscape_layer(inst.via_use.map_or(el.shapes[inst.element], |u| el.uses[u]));
                 CutGroup {
                     color: inst.stroke,
                     layer,

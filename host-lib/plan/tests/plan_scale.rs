@@ -186,8 +186,10 @@ fn replaced_dxf_chains_go_and_every_other_entity_stays_in_order_with_its_handle(
 
 #[test]
 fn the_dxf_output_does_not_depend_on_the_number_of_threads() {
+    // 1,100 parts: more changed entities (5,500) and more new ones (1,100) than the splice
+    // writes in one batch (1,024), so batches meet in the output.
     let mut bytes = Vec::new();
-    dxf_plan(60).save(&mut bytes).unwrap();
+    dxf_plan(1100).save(&mut bytes).unwrap();
     let run = || {
         dilate_dxf(&bytes, &KerfSource::Uniform(150.0), &DxfOptions::default())
             .unwrap()
@@ -195,6 +197,27 @@ fn the_dxf_output_does_not_depend_on_the_number_of_threads() {
     };
     let one = on_threads(1, run);
     assert!(on_threads(4, run) == one);
+    // And what the batches wrote is whole: every part's new outline and circle, each entity
+    // with a handle of its own, the labels in order.
+    let out = Drawing::load(&mut one.as_slice()).unwrap();
+    let mut handles = std::collections::HashSet::new();
+    let (mut outlines, mut circles, mut labels) = (0, 0, Vec::new());
+    for e in out.entities() {
+        assert!(
+            handles.insert(e.common.handle.0),
+            "handle {:X} twice",
+            e.common.handle.0
+        );
+        match &e.specific {
+            EntityType::LwPolyline(_) => outlines += 1,
+            EntityType::Circle(_) => circles += 1,
+            EntityType::Text(t) => labels.push(t.value.clone()),
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    assert_eq!((outlines, circles), (1100, 1100));
+    let expected: Vec<String> = (0..1100).map(|k| format!("part {k}")).collect();
+    assert_eq!(labels, expected);
 }
 
 #[test]

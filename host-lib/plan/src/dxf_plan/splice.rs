@@ -380,21 +380,6 @@ impl<'p> Splice<'p> {
             .max(self.layout.max_handle.checked_add(1)?);
         let first_new = next_handle;
         next_handle = next_handle.checked_add(self.added.len() as u64)?;
-        let made: Vec<Vec<u8>> = self
-            .added
-            .par_iter()
-            .enumerate()
-            .map(|(k, (like, contour))| {
-                let mut new = out.sibling();
-                new_lwpolyline(bytes, like, first_new + k as u64, contour, &mut new);
-                new.bytes
-            })
-            .collect();
-        let new_entities = Out {
-            bytes: made.concat(),
-            ..out.sibling()
-        };
-        drop(made);
         let mut cuts: Vec<(Span, Cut)> = self
             .edits
             .drain(..)
@@ -403,7 +388,7 @@ impl<'p> Splice<'p> {
         cuts.extend(self.layout.old_records.iter().map(|&s| (s, Cut::Remove)));
         if !self.added.is_empty() {
             let at = self.layout.entities_end?;
-            cuts.push(((at, at), Cut::Insert(&new_entities.bytes)));
+            cuts.push(((at, at), Cut::Insert));
             if let Some((span, _)) = self.layout.handseed {
                 cuts.push((span, Cut::Handseed(next_handle)));
             }
@@ -419,12 +404,15 @@ impl<'p> Splice<'p> {
                     Some(piece.bytes)
                 })
                 .collect();
-            for ((span, _), piece) in batch.iter().zip(made) {
+            for ((span, cut), piece) in batch.iter().zip(made) {
                 if span.0 < at {
                     // Two changes to one place.
                     return None;
                 }
                 out.bytes.extend_from_slice(&bytes[at..span.0]);
+                if matches!(cut, Cut::Insert) {
+                    self.write_added(bytes, first_new, &mut out);
+                }
                 out.bytes.extend_from_slice(&piece?);
                 at = span.1;
             }
@@ -432,23 +420,44 @@ impl<'p> Splice<'p> {
         out.bytes.extend_from_slice(&bytes[at..]);
         Some(out.bytes)
     }
+
+    /// The new entities, handles from `first_handle` on, straight into `out`: formatted on every
+    /// core a batch at a time, so that no more than a batch's text is held beside the output.
+    fn write_added(&self, bytes: &[u8], first_handle: u64, out: &mut Out) {
+        for (b, batch) in self.added.chunks(WRITE_BATCH).enumerate() {
+            let first = first_handle + (b * WRITE_BATCH) as u64;
+            let made: Vec<Vec<u8>> = batch
+                .par_iter()
+                .enumerate()
+                .map(|(k, (like, contour))| {
+                    let mut new = out.sibling();
+                    new_lwpolyline(bytes, like, first + k as u64, contour, &mut new);
+                    new.bytes
+                })
+                .collect();
+            for text in made {
+                out.bytes.extend_from_slice(&text);
+            }
+        }
+    }
 }
 
 /// One change to the input, at a span.
-enum Cut<'s, 'p> {
+enum Cut<'p> {
     Entity(Change, Option<&'p Pline>),
     Remove,
-    Insert(&'s [u8]),
+    /// The new entities (written by [`Splice::write_added`], not here).
+    Insert,
     Handseed(u64),
 }
 
-impl Cut<'_, '_> {
+impl Cut<'_> {
     fn write(&self, bytes: &[u8], span: Span, out: &mut Out) -> Option<()> {
         match *self {
             Cut::Entity(Change::Drop, _) | Cut::Remove => {}
             Cut::Entity(Change::Vertices, contour) => edit_lwpolyline(bytes, span, contour?, out)?,
             Cut::Entity(Change::Circle(c), _) => edit_circle(bytes, span, c, out)?,
-            Cut::Insert(s) => out.bytes.extend_from_slice(s),
+            Cut::Insert => {}
             Cut::Handseed(h) => {
                 let _ = write!(out.bytes, "{h:X}");
             }
