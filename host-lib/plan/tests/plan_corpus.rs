@@ -287,7 +287,9 @@ fn damaged_corpus_files_never_panic_the_readers() {
 /// before the SVG writer moved from the XML tree to byte ranges (2026-12-02, 237e183); with a
 /// version other than the one it records, that version is put back first.
 fn expected_svg(name: &str) -> String {
-    let path = tests_dir().join("expected").join(format!("{name}.kerf150.svg"));
+    let path = tests_dir()
+        .join("expected")
+        .join(format!("{name}.kerf150.svg"));
     std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
@@ -308,7 +310,11 @@ fn svg_outputs_are_byte_for_byte_what_they_were() {
     let plans = [
         ("corpus", "inkscape_1x_layers_use_mm", None),
         ("corpus", "illustrator_pt_units", None),
-        ("corpus", "illustrator_px_style_classes", Some(AssumedUnits::Px72)),
+        (
+            "corpus",
+            "illustrator_px_style_classes",
+            Some(AssumedUnits::Px72),
+        ),
         ("corpus", "lightburn_export", None),
         ("fixtures", "box_generator", None),
         ("fixtures", "inkscape_layers", None),
@@ -316,7 +322,10 @@ fn svg_outputs_are_byte_for_byte_what_they_were() {
     for (dir, name, units) in plans {
         let path = tests_dir().join(dir).join(format!("{name}.svg"));
         let text = std::fs::read_to_string(&path).unwrap();
-        assert!(dilated_svg(&text, units) == expected_svg(name), "{name}: the output changed");
+        assert!(
+            dilated_svg(&text, units) == expected_svg(name),
+            "{name}: the output changed"
+        );
     }
     // CRLF line ends, an attribute with an entity and characters beyond ASCII on a cut element
     // (a <circle>, rewritten as a <path> that keeps them).
@@ -326,5 +335,8 @@ fn svg_outputs_are_byte_for_byte_what_they_were() {
         .replacen("<circle", "<circle data-note=\"Café &amp; ☃\"", 1)
         .replace('\n', "\r\n");
     let name = "inkscape_1x_layers_use_mm.crlf_entities";
-    assert!(dilated_svg(&variant, None) == expected_svg(name), "{name}: the output changed");
+    assert!(
+        dilated_svg(&variant, None) == expected_svg(name),
+        "{name}: the output changed"
+    );
 }
