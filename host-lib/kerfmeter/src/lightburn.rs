@@ -603,13 +603,17 @@ fn choose(
         false => "",
     };
     for &s in &wanted {
-        match cuts.iter().find(|c| matches(c, s)) {
-            None => problems.push(format!("no layer has the index or name \"{s}\"{hint}")),
-            Some(c) if c.passes.is_empty() => problems.push(format!(
+        // Every cut entry it names is set, so every one must be a Line layer (two layers may
+        // share a name).
+        let mut hits = cuts.iter().filter(|c| matches(c, s)).peekable();
+        if hits.peek().is_none() {
+            problems.push(format!("no layer has the index or name \"{s}\"{hint}"));
+        }
+        for c in hits.filter(|c| c.passes.is_empty()) {
+            problems.push(format!(
                 "layer {} \"{}\" is not a Line layer: LightBurn applies a Kerf Offset to Line passes only",
                 c.layer_index, c.name
-            )),
-            Some(_) => {}
+            ));
         }
     }
     if !problems.is_empty() {
