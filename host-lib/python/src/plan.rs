@@ -1,11 +1,12 @@
 //! `kerfmeter.dilate` and `kerfmeter.gauge`: the plan crate's dilation and gauge drawing, with
-//! the outputs written atomically (never over the input) by the library's file helpers, and a
+//! the outputs written atomically (never over the input) by the library's file helpers, a
+//! dilated plan into its temporary file as it is made (as the CLI does: never held whole), and a
 //! report dict with the keys of the CLI's `--json` report.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use kerfmeter::files::{ensure_not_input, write_atomically};
+use kerfmeter::files::{ensure_not_input, write_atomically, write_atomically_with};
 use kerfmeter::map::KerfMap;
 use kerfmeter::protocol::{GaugeGeometry, JamDirection};
 use kerfmeter_plan::compensation::IfCompensated;
@@ -13,7 +14,7 @@ use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_plan::gauge::{self as drawing, GaugeOptions, TestPieceSpec};
 use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
 use kerfmeter_plan::rules::CutRules;
-use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file};
+use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file_into};
 use pyo3::prelude::*;
 use serde::Serialize;
 
@@ -39,6 +40,18 @@ struct DilateReport {
     cut_rules: String,
     #[serde(flatten)]
     summary: PlanSummary,
+}
+
+/// What failed in a dilation into a file: the plan, or the file.
+enum Failure {
+    Plan(PlanError),
+    File(kerfmeter::Error),
+}
+
+impl From<kerfmeter::Error> for Failure {
+    fn from(e: kerfmeter::Error) -> Self {
+        Failure::File(e)
+    }
 }
 
 /// The dilation's options from `dilate`'s keyword arguments.
@@ -139,14 +152,27 @@ fn dilate<'py>(
     )
     .map_err(errors::plan)?;
     let kerf = kerf_source(kerf_um, map.as_deref()).map_err(|e| errors::device(py, e))?;
-    let (bytes, summary) = py
-        .detach(|| dilate_file(&in_path, &kerf, &options))
-        .map_err(errors::plan)?;
     let output = if dry_run { None } else { out_path };
-    if let Some(out) = &output {
-        py.detach(|| write_atomically(out, &bytes))
-            .map_err(|e| errors::PlanError::new_err(e.to_string()))?;
-    }
+    // As the CLI does: the dilated plan goes into the temporary output file as it is made (a
+    // dilated SVG is several times its source), kept only if all went well.
+    let summary = py
+        .detach(|| match &output {
+            Some(out) => write_atomically_with(out, |w| {
+                dilate_file_into(&in_path, &kerf, &options, out, w).map_err(Failure::Plan)
+            }),
+            None => dilate_file_into(
+                &in_path,
+                &kerf,
+                &options,
+                Path::new("(none)"),
+                &mut std::io::sink(),
+            )
+            .map_err(Failure::Plan),
+        })
+        .map_err(|e| match e {
+            Failure::Plan(e) => errors::plan(e),
+            Failure::File(e) => errors::PlanError::new_err(e.to_string()),
+        })?;
     let report = DilateReport {
         input: in_path,
         output,

@@ -185,6 +185,17 @@ def test_dilate_refuses_what_would_lose_work(tmp_path):
     with pytest.raises(kerfmeter.PlanError):
         kerfmeter.dilate(bad, tmp_path / "out.svg", 200)
     assert not (tmp_path / "out.svg").exists()
+    # A refused plan leaves an earlier output as it was (the new one goes to a temporary file).
+    crossing = tmp_path / "crossing.svg"
+    crossing.write_text(PLAN.replace(
+        '<rect id="part" x="10" y="10" width="20" height="20"',
+        '<path id="part" d="M10 10 L30 30 L30 10 L10 30 Z"'))
+    kept = tmp_path / "kept.svg"
+    kept.write_text("an earlier output")
+    with pytest.raises(kerfmeter.PlanError):
+        kerfmeter.dilate(crossing, kept, 200)
+    assert kept.read_text() == "an earlier output"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.svg", "crossing.svg", "kept.svg", "plan.svg"]
 
 
 def test_gauge_draws_the_spiral(tmp_path):
