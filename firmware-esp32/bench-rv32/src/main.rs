@@ -46,7 +46,9 @@ use core::fmt::{self, Write};
 use core::hint::black_box;
 use core::panic::PanicInfo;
 
-use kerfmeter_firmware::controller::{Controller, DiagnosticsReading, Inputs, PERIOD_US};
+use kerfmeter_firmware::controller::{
+    Controller, DiagnosticsReading, Inputs, PERIOD_US, WINDING_CHECK_READINGS,
+};
 use kerfmeter_firmware::hardware::DIAGNOSTICS_PERIOD_TICKS;
 use kerfmeter_firmware::jam::{HOLD_TICKS, HoldWindow, JAM_WINDOW_TICKS, SlopeWindow};
 use kerfmeter_protocol::spiral::{kerf_from_angle, kerf_step, play_deg, torque_for_force_nm};
@@ -352,8 +354,8 @@ impl StepBench {
     }
 
     /// One run with `params` from zero to a jam at `hold_deg`, through release, then a reset
-    /// back to Idle.
-    fn run(&mut self, hold_deg: f32, params: &RunParams) {
+    /// back to Idle; its ticks in `Jammed` (the hold, the probe, a winding check).
+    fn run(&mut self, hold_deg: f32, params: &RunParams) -> u32 {
         for _ in 0..IDLE_TICKS {
             self.step(0.0);
         }
@@ -404,6 +406,7 @@ impl StepBench {
                 fail(format_args!("reset did not settle"));
             }
         }
+        jammed_ticks
     }
 }
 
@@ -498,15 +501,21 @@ fn main() -> ! {
         last_duty: 0.0,
         supply_v: 12.0,
     };
+    let mut default_jammed_ticks = 0;
     for hold_deg in HOLD_ANGLES_DEG {
-        bench.run(hold_deg, &RunParams::DEFAULT);
+        default_jammed_ticks = bench.run(hold_deg, &RunParams::DEFAULT);
     }
     bench.supply_v = LIGHT_SUPPLY_V;
     let light = RunParams {
         target_force_n: LIGHT_FORCE_N,
         ..RunParams::DEFAULT
     };
-    bench.run(LIGHT_HOLD_DEG, &light);
+    let light_jammed_ticks = bench.run(LIGHT_HOLD_DEG, &light);
+    if light_jammed_ticks < default_jammed_ticks + WINDING_CHECK_READINGS {
+        fail(format_args!(
+            "the light run held {light_jammed_ticks} ticks: no winding check was measured"
+        ));
+    }
     for (stat, name) in bench.by_state.iter().zip(STATES) {
         stat.print("step", name);
     }

@@ -153,7 +153,10 @@ use timing::Pacing;
 pub use timing::TickTiming;
 pub use tuning::*;
 use winding::WindingEstimate;
-pub use winding::{MIN_DUTY as WINDING_MIN_DUTY, PLAUSIBLE_FACTOR as WINDING_PLAUSIBLE_FACTOR};
+pub use winding::{
+    CHECK_READINGS as WINDING_CHECK_READINGS, MIN_DUTY as WINDING_MIN_DUTY,
+    PLAUSIBLE_FACTOR as WINDING_PLAUSIBLE_FACTOR,
+};
 
 /// Why an encoder read failed (the driver's error, without the bus type).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -8,8 +8,8 @@ use kerfmeter_protocol::{
 
 use super::supply::{millivolts, needed_supply_v};
 use super::winding::{
-    CHECK_DUTY, CHECK_MARGIN_MS, CHECK_MAX_TICKS, CHECK_MAX_TORQUE_RATIO, CHECK_READINGS,
-    ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS,
+    CHECK_COMPLIANCE_MARGIN, CHECK_DUTY, CHECK_MARGIN_MS, CHECK_MAX_ERROR, CHECK_MAX_TICKS,
+    CHECK_MAX_TORQUE_RATIO, CHECK_READINGS, ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS,
 };
 use super::{
     APPROACH_FRACTION, Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S,
@@ -74,6 +74,9 @@ pub(super) struct Run {
     /// The winding check after the probe has taken its readings (`winding.rs`, "After the
     /// hold").
     pub(super) winding_checked: bool,
+    /// How far the hub may turn on from the held angle under the winding check, degrees
+    /// ([`Controller::check_turn_allowance_deg`], set as the check starts).
+    pub(super) check_turn_allowance_deg: f32,
     /// Where no settle measured the winding: the held torque's error as the winding check after
     /// the probe found it, as a fraction of the commanded torque (`None` also where the check's
     /// estimate was implausible: then it measures nothing).
@@ -130,6 +133,7 @@ impl Run {
             probe_sum_deg: 0.0,
             probe: None,
             winding_checked: false,
+            check_turn_allowance_deg: 0.0,
             hold_torque_error: None,
             approach: None,
             held: None,
@@ -437,6 +441,7 @@ impl Controller {
             Some(check_nm) => {
                 self.run.still_ticks = 0;
                 self.winding.clear();
+                self.run.check_turn_allowance_deg = self.check_turn_allowance_deg(check_nm);
                 self.state = State::CheckingWinding {
                     torque_nm: check_nm,
                     ticks: 0,
@@ -454,7 +459,11 @@ impl Controller {
     /// `None`: no check, the torque's uncertainty stays [`TORQUE_UNCERTAINTY_UNMEASURED`].
     fn winding_check_torque_nm(&self) -> Option<f32> {
         let held = self.run.held?;
-        if self.run.winding_measured || self.past_check_turn_limit() {
+        let limited = QualityFlags(QualityFlags::TORQUE_LIMITED.0 | QualityFlags::SUPPLY_LIMITED.0);
+        if self.run.winding_measured || self.run.flags.0 & limited.0 != 0 {
+            return None;
+        }
+        if self.past_check_turn_limit() {
             return None;
         }
         let config = &self.config;
@@ -479,28 +488,35 @@ impl Controller {
     }
 
     /// Checking the winding after the probe: the torque rises at the ramp's rate to `check_nm`
-    /// (the reading was taken: what it compresses now does not enter it), and once the hub stands
-    /// still there, the winding is measured over [`CHECK_READINGS`] ticks as at a settle. Its
-    /// factor applies from then on, and the held torque's error it reveals
-    /// ([`Controller::conclude_check`]) sets the torque's uncertainty the hold is judged with, on
-    /// the tick after (the estimate's tick is not also the judgement's). `ticks` counts the ticks
-    /// at `check_nm`: a hub not still in [`CHECK_MAX_TICKS`] of them leaves the winding
-    /// unmeasured. A hub that turns on towards the spiral's disengage
-    /// ([`Controller::past_check_turn_limit`]) or faster than the ramp's speed limit (a contact
-    /// giving way) has its torque dropped at once, and the run releases.
+    /// (the reading was taken: what it compresses now does not enter it), never turning the hub
+    /// faster than the ramp's speed limit, and once the hub stands still there, the winding is
+    /// measured over [`CHECK_READINGS`] ticks as at a settle. Its factor applies from then on,
+    /// and the held torque's error it reveals ([`Controller::conclude_check`]) sets the torque's
+    /// uncertainty the hold is judged with, on the tick after (the estimate's tick is not also
+    /// the judgement's). `ticks` counts the ticks at `check_nm`: a hub not still in
+    /// [`CHECK_MAX_TICKS`] of them leaves the winding unmeasured. A hub that turns on past what
+    /// the contact's measured compliance allows ([`Controller::check_turn_allowance_deg`]: a
+    /// contact giving way) or towards the spiral's disengage
+    /// ([`Controller::past_check_turn_limit`]) has its torque dropped at once, the reading is
+    /// flagged `FORCE_SENSITIVE` (its contact yields under less than twice its force), and the run
+    /// releases.
     pub(super) fn check_winding(&mut self, check_nm: f32, ticks: u32, current_a: Option<f32>) {
         if self.run.winding_checked || ticks >= CHECK_MAX_TICKS {
-            self.judge_and_release();
-            return;
-        }
-        if self.past_check_turn_limit() || self.speed_deg_per_s() > MAX_TURN_SPEED_DEG_PER_S {
-            self.torque_nm = 0.0;
             self.winding.clear();
             self.judge_and_release();
             return;
         }
-        let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * self.dt_s();
-        self.torque_nm = ramped.min(check_nm);
+        if self.gives_way_under_check() {
+            self.torque_nm = 0.0;
+            self.winding.clear();
+            self.run.flags.insert(QualityFlags::FORCE_SENSITIVE);
+            self.judge_and_release();
+            return;
+        }
+        let dt_s = self.dt_s();
+        let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * dt_s;
+        let speed_capped = self.speed_loop(MAX_TURN_SPEED_DEG_PER_S, check_nm, dt_s);
+        self.torque_nm = ramped.min(speed_capped).min(check_nm).max(0.0);
         let at_check = self.torque_nm >= check_nm;
         if at_check && self.is_still() {
             self.run.still_ticks += 1;
@@ -518,6 +534,40 @@ impl Controller {
         };
     }
 
+    /// How far the hub may turn on from the held angle under a check at `check_nm`, degrees:
+    /// [`JAM_SLIP_DEG`] plus [`CHECK_COMPLIANCE_MARGIN`] times what the contact's compliance (the
+    /// larger of the probe's and the approach's, degrees per N·m) gives for the check's extra
+    /// torque. Computed once, as the check starts.
+    fn check_turn_allowance_deg(&self, check_nm: f32) -> f32 {
+        let Some(held) = self.run.held else {
+            return JAM_SLIP_DEG;
+        };
+        let probe_deg_per_nm = match self.run.probe {
+            Some((rise_deg, fraction)) if fraction >= MIN_PROBE_FRACTION => {
+                rise_deg.max(0.0) / (fraction * held.torque_nm)
+            }
+            _ => 0.0,
+        };
+        let approach_deg_per_nm = match self.run.approach {
+            Some((start_nm, start_deg))
+                if held.torque_nm - start_nm >= MIN_APPROACH_FRACTION * held.torque_nm =>
+            {
+                (held.angle_deg - start_deg).max(0.0) / (held.torque_nm - start_nm)
+            }
+            _ => 0.0,
+        };
+        let extra_nm = (check_nm - held.torque_nm).max(0.0);
+        JAM_SLIP_DEG
+            + CHECK_COMPLIANCE_MARGIN * probe_deg_per_nm.max(approach_deg_per_nm) * extra_nm
+    }
+
+    /// Whether the contact gives way under the check: the hub turned on past its allowance from
+    /// the held angle, or towards the spiral's disengage.
+    fn gives_way_under_check(&self) -> bool {
+        let turned_deg = self.run.held.map_or(0.0, |h| self.angle_deg - h.angle_deg);
+        turned_deg > self.run.check_turn_allowance_deg || self.past_check_turn_limit()
+    }
+
     /// The winding check's readings are in: the factor applies from now on, and the held
     /// torque's error follows from the factor the hold drove with. The hold's duty was
     /// (breakaway + τ/k)·s, s proportional to the factor, so a winding r = ρ_held/ρ_found times as
@@ -525,6 +575,7 @@ impl Controller {
     /// (the breakaway's share moves with the rest of the drive). An implausible estimate is not
     /// taken (`WindingEstimate::conclude_if_plausible`): the error stays unknown.
     fn conclude_check(&mut self) {
+        debug_assert!(self.run.held.is_some(), "a check comes after a hold");
         let held_factor = self.winding.factor();
         self.run.winding_checked = true;
         if !self.winding.conclude_if_plausible(&self.config) {
@@ -535,7 +586,10 @@ impl Controller {
         if let Some(held) = self.run.held {
             let r = held_factor / factor;
             let breakaway_share = self.breakaway_torque_nm() / held.torque_nm.max(f32::EPSILON);
-            self.run.hold_torque_error = Some((r - 1.0) * (1.0 + breakaway_share));
+            let error = (r - 1.0) * (1.0 + breakaway_share);
+            // An error past [`CHECK_MAX_ERROR`] is more than a correction should be trusted with
+            // (a breakaway share that large is the calibration's own guess): left unknown.
+            self.run.hold_torque_error = (error.abs() <= CHECK_MAX_ERROR).then_some(error);
         }
     }
 

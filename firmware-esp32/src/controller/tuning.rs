@@ -120,8 +120,8 @@ pub const TORQUE_UNCERTAINTY: f32 = 0.1;
 /// The torque's relative uncertainty at a jam where the winding could not be measured (every
 /// settle's duty below `winding::MIN_DUTY`: a high gear ratio or a high supply; and no check
 /// after the probe, `winding::CHECK_DUTY`, for want of room under the run's cap or twice the
-/// held torque, or of run time, or with the hub near the disengage or never still under it, or
-/// finding a torque mismatch), as a fraction:
+/// held torque, or of run time, or with the hub near the disengage, never still or giving way
+/// under it, or an implausible estimate), as a fraction:
 /// the factor stands where the last measurement, or the boot, left it, and the winding may be
 /// anywhere from −10 °C to 130 °C (`winding::PLAUSIBLE_FACTOR`'s temperatures: −14 % to +41 %
 /// of its resistance at 25 °C). The torque goes as the inverse of the resistance, so it may be

@@ -126,6 +126,18 @@ pub const CHECK_READINGS: u32 = 64;
 /// settle under the new torque.
 pub const CHECK_MAX_TICKS: u32 = 200;
 
+/// How many times the turn the contact's measured compliance predicts for the check's extra
+/// torque the hub may turn on under the check before the contact counts as giving way (besides
+/// `JAM_SLIP_DEG`): the compliance was measured at the hold's torque, and a contact stiffens as
+/// it is pressed, so twice is a wide margin for a sound one.
+pub const CHECK_COMPLIANCE_MARGIN: f32 = 2.0;
+
+/// The largest held-torque error, as a fraction, the check's estimate is trusted with: beyond
+/// it the torque is left unknown (uncertain by `TORQUE_UNCERTAINTY_UNMEASURED`) rather than
+/// corrected. Copper between −10 and 130 °C with a factor from boot moves the torque by at most
+/// some 40 % with the breakaway's share.
+pub const CHECK_MAX_ERROR: f32 = 0.5;
+
 /// Run time the winding check keeps in hand beyond its ramp, its [`CHECK_MAX_TICKS`] and the
 /// release after it, ms (the ramp's and the release's times follow from the torques), so that it
 /// never turns a run into a `MaxRunTime` fault.

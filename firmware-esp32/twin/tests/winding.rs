@@ -119,9 +119,15 @@ fn a_winding_too_lightly_driven_to_measure_at_the_jam_is_checked_after_the_probe
             then.flags
         );
         assert!(cold_k.flags.is_empty(), "{:?}", cold_k.flags);
+        // The checked run itself: some 20 % short of its torque, so it cannot vouch for it.
+        assert!(
+            first.flags.contains(QualityFlags::FORCE_SENSITIVE),
+            "{:?}",
+            first.flags
+        );
         assert!(then.flags.is_empty(), "{:?}", then.flags);
         assert!(
-            (then_e - cold_e).abs() < 1.5,
+            (then_e - cold_e).abs() < 1.0,
             "hot then {then_e:+.2}, cold {cold_e:+.2}"
         );
     }
