@@ -295,7 +295,9 @@ pub struct KerfResult {
     pub angle_deg: f32,
     /// Hole play θplay(k) included in `angle_deg`, degrees.
     pub play_deg: f32,
-    /// Output torque at the jam, N·m.
+    /// Output torque at the jam, N·m: the one held, or, where the winding check after the probe
+    /// found the hold's torque off (a winding the jam's duty could not measure), the one it
+    /// really drove. The curve (`GetSamples`) logs the commanded torque.
     pub torque_at_jam_nm: f32,
     /// Joint assembly force this torque represents, N.
     pub force_at_jam_n: f32,

@@ -610,10 +610,13 @@ fn choose(
             problems.push(format!("no layer has the index or name \"{s}\"{hint}"));
         }
         for c in hits.filter(|c| c.passes.is_empty()) {
-            problems.push(format!(
+            let problem = format!(
                 "layer {} \"{}\" is not a Line layer: LightBurn applies a Kerf Offset to Line passes only",
                 c.layer_index, c.name
-            ));
+            );
+            if !problems.contains(&problem) {
+                problems.push(problem);
+            }
         }
     }
     if !problems.is_empty() {

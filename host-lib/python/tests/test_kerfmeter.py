@@ -195,7 +195,15 @@ def test_dilate_refuses_what_would_lose_work(tmp_path):
     with pytest.raises(kerfmeter.PlanError):
         kerfmeter.dilate(crossing, kept, 200)
     assert kept.read_text() == "an earlier output"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.svg", "crossing.svg", "kept.svg", "plan.svg"]
+    # Refused with strict=True for an open cut, which is found as the plan is written.
+    hinge = tmp_path / "hinge.svg"
+    hinge.write_text(PLAN.replace(
+        "</svg>", '<path id="slit" d="M12 40 L28 40" fill="none" stroke="red" stroke-width="0.01"/></svg>'))
+    with pytest.raises(kerfmeter.PlanError):
+        kerfmeter.dilate(hinge, kept, 200, strict=True)
+    assert kept.read_text() == "an earlier output"
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == ["bad.svg", "crossing.svg", "hinge.svg", "kept.svg", "plan.svg"]
 
 
 def test_gauge_draws_the_spiral(tmp_path):
