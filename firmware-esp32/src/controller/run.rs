@@ -459,11 +459,12 @@ impl Controller {
     /// `None`: no check, the torque's uncertainty stays [`TORQUE_UNCERTAINTY_UNMEASURED`].
     fn winding_check_torque_nm(&self) -> Option<f32> {
         let held = self.run.held?;
-        let limited = QualityFlags(QualityFlags::TORQUE_LIMITED.0 | QualityFlags::SUPPLY_LIMITED.0);
-        if self.run.winding_measured || self.run.flags.0 & limited.0 != 0 {
-            return None;
-        }
-        if self.past_check_turn_limit() {
+        let flags = self.run.flags;
+        if self.run.winding_measured
+            || flags.contains(QualityFlags::TORQUE_LIMITED)
+            || flags.contains(QualityFlags::SUPPLY_LIMITED)
+            || self.past_check_turn_limit()
+        {
             return None;
         }
         let config = &self.config;
@@ -548,14 +549,9 @@ impl Controller {
             }
             _ => 0.0,
         };
-        let approach_deg_per_nm = match self.run.approach {
-            Some((start_nm, start_deg))
-                if held.torque_nm - start_nm >= MIN_APPROACH_FRACTION * held.torque_nm =>
-            {
-                (held.angle_deg - start_deg).max(0.0) / (held.torque_nm - start_nm)
-            }
-            _ => 0.0,
-        };
+        let approach_deg_per_nm = self
+            .approach_turn(&held)
+            .map_or(0.0, |(turn_deg, rise_nm)| turn_deg / rise_nm);
         let extra_nm = (check_nm - held.torque_nm).max(0.0);
         JAM_SLIP_DEG
             + CHECK_COMPLIANCE_MARGIN * probe_deg_per_nm.max(approach_deg_per_nm) * extra_nm
@@ -686,16 +682,22 @@ impl Controller {
     /// and the probe reads a stiff contact. Zero where the torque rose by less than
     /// [`MIN_APPROACH_FRACTION`] of the held one (a jam reached at the approach's start).
     fn approach_sensitivity_um(&self, held: &HeldJam) -> f32 {
-        let Some((start_nm, start_deg)) = self.run.approach else {
+        let Some((turn_deg, rise_nm)) = self.approach_turn(held) else {
             return 0.0;
         };
-        let rise = held.torque_nm - start_nm;
-        if rise < MIN_APPROACH_FRACTION * held.torque_nm {
-            return 0.0;
-        }
-        let turn_um =
-            self.run.params.gauge.pitch_um_per_deg * (held.angle_deg - start_deg).max(0.0);
-        turn_um / rise * held.torque_nm * self.torque_uncertainty()
+        let turn_um = self.run.params.gauge.pitch_um_per_deg * turn_deg;
+        turn_um / rise_nm * held.torque_nm * self.torque_uncertainty()
+    }
+
+    /// The approach to `held` ([`Run::approach`]): how far the hub turned, degrees, while the
+    /// torque rose how much, N·m, from the approach's start to the held jam; `None` where the
+    /// torque rose by less than [`MIN_APPROACH_FRACTION`] of the held one (a jam reached at the
+    /// approach's start measures nothing).
+    fn approach_turn(&self, held: &HeldJam) -> Option<(f32, f32)> {
+        let (start_nm, start_deg) = self.run.approach?;
+        let rise_nm = held.torque_nm - start_nm;
+        (rise_nm >= MIN_APPROACH_FRACTION * held.torque_nm)
+            .then(|| ((held.angle_deg - start_deg).max(0.0), rise_nm))
     }
 
     /// The torque's relative uncertainty at this run's jam: [`TORQUE_UNCERTAINTY`] where a

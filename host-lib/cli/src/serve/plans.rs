@@ -279,11 +279,10 @@ fn gauge_args(mut p: Params) -> Result<GaugeArgs, RpcError> {
 
 /// The params named in `allowed` as the command-line flags they stand for (`radius_mm: 12` is
 /// `--radius-mm=12`, `true` a bare flag, `[x, y]` `--name=x,y` for a point or a size
-/// ([`POINT_PARAMS`]), any other list `["a", "b"]` `--name=a --name=b`: each its own flag, so that an item's own commas, as
-/// in `rgb(255,0,0)` or a layer named `Cut, 3 mm`, are never read as separators). A value is
-/// always joined to its
-/// flag by `=`, so that a value such as `"-o"` or `"--port=/dev/ttyUSB0"` is read as the value it
-/// is, never as a flag of its own.
+/// ([`POINT_PARAMS`]), any other list `["a", "b"]` `--name=a --name=b`: each its own flag, so
+/// that an item's own commas, as in `rgb(255,0,0)` or a layer named `Cut, 3 mm`, are never read
+/// as separators). A value is always joined to its flag by `=`, so that a value such as `"-o"`
+/// or `"--port=/dev/ttyUSB0"` is read as the value it is, never as a flag of its own.
 fn flags(p: &mut Params, allowed: &[&str]) -> Result<Vec<String>, RpcError> {
     let mut argv = Vec::new();
     for name in allowed {
@@ -325,10 +324,10 @@ fn clap_error(command: &str, e: &clap::Error) -> RpcError {
     RpcError::new(INVALID_PARAMS, why)
 }
 
-/// The `job` parameters besides the plan: those of `kerfmeter job`'s flags that name no file.
 /// The params that are one point or size given as `[x, y]` (`--name=x,y`).
 const POINT_PARAMS: &[&str] = &["gauge_at_mm", "bed_mm", "prong_offset_mm", "origin_mm"];
 
+/// The `job` parameters besides the plan: those of `kerfmeter job`'s flags that name no file.
 const JOB_PARAMS: &[&str] = &[
     "thickness_mm",
     "force_n",
