@@ -3,6 +3,13 @@
 //! exactly was most of the time spent writing a large plan). The SVG and DXF writers each decide
 //! how they round and sign a number; the digits are written here.
 
+/// The decimals (0 to 12) that write a value to a step of `step` or finer: `step` 0.001 gives 3
+/// (a step a hair under a power of ten, from a scale that is 1 but for rounding, does not cost a
+/// decimal more).
+pub(crate) fn decimals_for_step(step: f64) -> usize {
+    (-step.log10() - 1e-6).ceil().clamp(0.0, 12.0) as usize
+}
+
 /// `n / 10^digits` as decimal text: the integer part (at least one digit), then a point and the
 /// fraction without its trailing zeros, or no point when the fraction is zero. No sign: that is
 /// the caller's.

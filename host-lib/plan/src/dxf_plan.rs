@@ -55,6 +55,7 @@ use dxf::enums::{AcadVersion, Units};
 use dxf::{Drawing, LwPolylineVertex, Point, Vector};
 
 use super::compensation::{self, FoundCompensation, IfCompensated};
+use super::decimal::decimals_for_step;
 use super::dilate::KerfSource;
 use super::geom::{Affine, CURVE_TOLERANCE_MM, PathSink, Pline, V2, arc_geom, fit_biarcs, v2};
 use super::nurbs::Nurbs;
@@ -1342,7 +1343,7 @@ fn rounded(v: f64, digits: i32) -> f64 {
 /// The decimals of a coordinate in drawing units (`scale` mm each) that give the step written
 /// (see [`STEP_MM`]).
 fn unit_digits(scale: f64) -> i32 {
-    (-(STEP_MM / scale).log10() - 1e-6).ceil().clamp(0.0, 12.0) as i32
+    decimals_for_step(STEP_MM / scale) as i32
 }
 
 /// `mm` in drawing units (`scale` mm each), rounded to the step written (see [`STEP_MM`]).

@@ -68,7 +68,7 @@ use roxmltree::{Document, Node, ParsingOptions};
 use usvg::tiny_skia_path::{self, PathSegment};
 
 use super::compensation::{self, CompensatedBy, IfCompensated};
-use super::decimal::Scaled;
+use super::decimal::{Scaled, decimals_for_step};
 use super::dilate::KerfSource;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
@@ -1060,9 +1060,7 @@ fn coordinate_eps(inst: &Instance, subpaths: &[Vec<Seg>]) -> f64 {
 /// Decimal places that keep 0.01 µm in the element's coordinates.
 fn digits_for(to_doc: &Affine) -> usize {
     let local_per_mm = 1.0 / to_doc.mean_scale().max(1e-300);
-    let step = 1e-5 * local_per_mm;
-    // A scale that is 1 but for rounding must not cost a sixth decimal everywhere.
-    (-step.log10() - 1e-6).ceil().clamp(0.0, 12.0) as usize
+    decimals_for_step(1e-5 * local_per_mm)
 }
 
 /// `v` with at most `digits` decimals, trailing zeros dropped (`-0` is `0`).
