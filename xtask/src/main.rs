@@ -126,6 +126,10 @@ struct RobustnessArgs {
     /// Run only this draw of the seed's sweep and print everything about it.
     #[arg(long, value_name = "DRAW")]
     replay: Option<u32>,
+    /// With --replay: run the draw again with each plant parameter at its default in turn, and
+    /// list the parameters that move its error most.
+    #[arg(long, requires = "replay")]
+    ablate: bool,
 }
 
 #[derive(clap::Args)]
@@ -318,6 +322,9 @@ fn robustness(args: &RobustnessArgs, release: bool) -> Result<()> {
     if let Some(draw) = args.replay {
         cmd.args(["--replay", &draw.to_string()]);
     }
+    if args.ablate {
+        cmd.arg("--ablate");
+    }
     if args.json {
         cmd.arg("--json");
     }
@@ -404,6 +411,7 @@ fn test(args: &TestArgs) -> Result<()> {
                         strict: args.strict_robustness,
                         tolerance_um: None,
                         replay: None,
+                        ablate: false,
                     },
                     false,
                 )

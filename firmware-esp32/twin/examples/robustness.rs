@@ -3,14 +3,15 @@
 //! (`kerfmeter_twin::study::robustness` has the rules).
 //!
 //! Usage: `robustness [--draws N] [--seed S] [--json] [--strict] [--tolerance-um T]
-//! [--threads N] [--worst N] [--out-dir DIR] [--replay DRAW] [--hang-s S]` (`--help` says what
+//! [--threads N] [--worst N] [--out-dir DIR] [--replay DRAW [--ablate]] [--hang-s S]` (`--help` says what
 //! each does).
 //!
 //! Prints the success rate, the device-added error over the readings, every failure by its
 //! typed fault or refusal, the unflagged wrong readings and the worst readings, each with the
 //! commands that replay it; writes the plant parameters of each listed draw to
 //! `DIR/seed<S>-draw<D>.json` (`--sim-plant-file`). `--replay D` runs draw D alone and prints
-//! everything about it.
+//! everything about it; with `--ablate` also what each plant parameter contributes to its error
+//! (the draw run again with that parameter at its default).
 //!
 //! Exits 1 when a draw did not end in a reading or a typed fault or refusal, or left the motor
 //! unsafe; with `--strict` also when a reading was wrong with no flag. 2 for bad arguments.
@@ -67,6 +68,10 @@ struct Args {
     /// Run this draw alone and print everything about it.
     #[arg(long, value_name = "DRAW")]
     replay: Option<u32>,
+    /// With --replay: run the draw again with each plant parameter in turn at its default, and
+    /// list the parameters whose default moves the reading's error most (what causes it).
+    #[arg(long, requires = "replay")]
+    ablate: bool,
     /// Give up when no draw has finished for this many seconds of wall time (a hung draw).
     #[arg(long, default_value_t = 600)]
     hang_s: u64,
@@ -138,7 +143,67 @@ fn replay(args: &Args, index: u32) -> bool {
             );
         }
     }
+    if args.ablate {
+        print_ablation(&report);
+    }
     class.ends_properly() && report.motor_safe == Some(true)
+}
+
+/// The draw run again with each plant parameter in turn at its default: the parameters that
+/// move the reading's error (or its ending) most, largest first.
+fn print_ablation(report: &DrawReport) {
+    let Some(base_um) = reading_error_um(&report.outcome) else {
+        println!("ablation: the draw ended without a reading; nothing to compare");
+        return;
+    };
+    let changes = parallel_map(
+        PARAMS.len() as u32,
+        available_threads(),
+        &|index| {
+            let spec = &PARAMS[index as usize];
+            let mut draw = report.draw.clone();
+            draw.plant
+                .set(spec.name, spec.default_value())
+                .expect("a parameter's default is within its range");
+            (spec.name, run_draw(&draw).outcome)
+        },
+        &|_| {},
+    );
+    let mut rows: Vec<(f64, String)> = changes
+        .into_iter()
+        .map(
+            |(name, outcome)| match (&outcome, reading_error_um(&outcome)) {
+                (Outcome::Reading { result, .. }, Some(error_um)) => (
+                    (error_um - base_um).abs(),
+                    format!(
+                        "  {name:<30} error {error_um:+.2} µm ({:+.2}), flags [{}]",
+                        error_um - base_um,
+                        result.flags.names().collect::<Vec<_>>().join(", ")
+                    ),
+                ),
+                _ => (
+                    f64::INFINITY,
+                    format!(
+                        "  {name:<30} {}",
+                        failure_name(&outcome).unwrap_or_default()
+                    ),
+                ),
+            },
+        )
+        .collect();
+    rows.sort_by(|a, b| b.0.total_cmp(&a.0));
+    println!("ablation: error {base_um:+.2} µm; with one parameter at its default:");
+    for (_, row) in rows.iter().take(12) {
+        println!("{row}");
+    }
+}
+
+/// A reading's error against its truth, µm.
+fn reading_error_um(outcome: &Outcome) -> Option<f64> {
+    match outcome {
+        Outcome::Reading { result, truth_um } => Some(f64::from(result.kerf_um) - truth_um),
+        _ => None,
+    }
 }
 
 /// Exits the process, naming the draws in progress, when none has finished for a while.
