@@ -133,6 +133,12 @@ impl LightBurnTwin {
         self.lock().cuts.clone()
     }
 
+    /// Change the project's cut entries (what the user does in LightBurn between two calls),
+    /// e.g. to give two layers one name.
+    pub fn edit_cuts(&self, change: impl FnOnce(&mut Value)) {
+        change(&mut self.lock().cuts);
+    }
+
     fn lock(&self) -> std::sync::MutexGuard<'_, State> {
         self.state.lock().unwrap_or_else(PoisonError::into_inner)
     }

@@ -196,6 +196,41 @@ fn a_failure_after_a_layer_was_set_names_it_and_says_to_replace() {
 }
 
 #[test]
+fn a_name_shared_by_a_line_layer_and_another_is_refused_whole() {
+    // Every entry a name selects is set, so the Fill layer that shares the Line layer's name
+    // must stop the change, not be skipped while the Line layer is set.
+    let (host, fake) = fake_lightburn();
+    let pairing = paired(&host);
+    let client = Client::new(&host);
+    fake.edit_cuts(|cuts| cuts["cuts"][1]["name"] = "C00".into());
+    let e = apply_kerf(
+        &client,
+        &pairing,
+        150.0,
+        &["C00".into()],
+        ExistingOffset::Refuse,
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("layer 1 \"C00\" is not a Line layer"),
+        "{e}"
+    );
+    assert!(fake.posts().is_empty());
+    // By its index, the Line layer alone is chosen and set.
+    let applied = apply_kerf(
+        &client,
+        &pairing,
+        150.0,
+        &["0".into()],
+        ExistingOffset::Refuse,
+    )
+    .unwrap();
+    assert_eq!(applied.layers.len(), 1);
+    assert_eq!(fake.posts().len(), 1);
+}
+
+#[test]
 fn layers_asked_for_must_be_line_layers_and_not_already_compensated() {
     let (host, fake) = fake_lightburn();
     let pairing = paired(&host);
