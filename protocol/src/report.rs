@@ -270,6 +270,10 @@ impl QualityFlags {
     pub fn insert(&mut self, other: Self) {
         self.0 |= other.0;
     }
+    /// Clear the flags of `other`.
+    pub fn remove(&mut self, other: Self) {
+        self.0 &= !other.0;
+    }
     /// True when no flag is set.
     pub const fn is_empty(self) -> bool {
         self.0 == 0
@@ -293,7 +297,10 @@ pub struct KerfResult {
     pub kerf_um: f32,
     /// Measured hub angle at the jam θm (median over the hold window), degrees.
     pub angle_deg: f32,
-    /// Hole play θplay(k) included in `angle_deg`, degrees.
+    /// Hole play included in `angle_deg`, degrees: measured by backing the hub off against the
+    /// jammed inset after the release (half the turn between the holes' two faces), or, where
+    /// that found no stall or one too far from the model, the model's θplay(k). The same at
+    /// every force: the host reads the sweep (`GetSamples`) with it.
     pub play_deg: f32,
     /// Output torque at the jam, N·m: the one held, or, where the winding check after the probe
     /// found the hold's torque off (a winding the jam's duty could not measure), the one it

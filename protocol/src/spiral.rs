@@ -174,24 +174,37 @@ fn torque_per_newton_nm(params: &RunParams, inset_deg: f32) -> f32 {
 
 /// The kerf at another assembly force, read off a run's (torque, angle) sweep: the angle where
 /// the torque first represents `force_n` (interpolated between samples, looking only at the
-/// loading part of the sweep, up to its highest torque), solved for kerf. `None` when the sweep
-/// never reached that force (ask for at most the force the run reached).
+/// loading part of the sweep, up to its highest torque), less the hole play. `None` when the
+/// sweep never reached that force (ask for at most the force the run reached).
+///
+/// `play_deg` is the run's hole play as its result reports it (`KerfResult::play_deg`: measured
+/// by backing off where the device could, else the model's): the holes' play is the gauge's, the
+/// same at every force, so every angle of the sweep is read with it. With `None` (a sweep
+/// without its result) each angle is solved with the model's play ([`kerf_from_angle`]).
 ///
 /// The kerf that matters depends on how hard the joint is pressed; one run answers for every
 /// force up to its own. The log's samples are decimated (one kept per 2, 4, … ticks on a long
 /// run), so its highest torque can sit a little under the torque the jam was held at: a force up
 /// to [`SWEEP_PEAK_TOLERANCE`] above the sweep's peak is read at the peak.
-pub fn kerf_at_force_um(params: &RunParams, samples: &[Sample], force_n: f32) -> Option<f32> {
+pub fn kerf_at_force_um(
+    params: &RunParams,
+    samples: &[Sample],
+    play_deg: Option<f32>,
+    force_n: f32,
+) -> Option<f32> {
     let peak = samples
         .iter()
         .enumerate()
         .max_by(|a, b| a.1.torque_nm.total_cmp(&b.1.torque_nm))?
         .0;
     let gauge = &params.gauge;
-    let force_at = |s: &Sample| {
-        let inset = kerf_from_angle(gauge, s.angle_deg).inset_deg.max(0.0);
-        force_for_torque_n(params, s.torque_nm, inset)
+    let inset_at = |angle_deg: f32| match play_deg {
+        Some(play) => angle_deg - play,
+        None => kerf_from_angle(gauge, angle_deg).inset_deg,
     };
+    let kerf_at = |angle_deg: f32| gauge.pitch_um_per_deg * inset_at(angle_deg);
+    let force_at =
+        |s: &Sample| force_for_torque_n(params, s.torque_nm, inset_at(s.angle_deg).max(0.0));
     let loading = &samples[..=peak];
     let mut previous: Option<(f32, f32)> = None;
     for s in loading {
@@ -203,13 +216,13 @@ pub fn kerf_at_force_um(params: &RunParams, samples: &[Sample], force_n: f32) ->
                 }
                 _ => s.angle_deg,
             };
-            return Some(kerf_from_angle(gauge, angle).kerf_um);
+            return Some(kerf_at(angle));
         }
         previous = Some((force, s.angle_deg));
     }
     match previous {
         Some((peak_force, peak_deg)) if force_n <= peak_force * (1.0 + SWEEP_PEAK_TOLERANCE) => {
-            Some(kerf_from_angle(gauge, peak_deg).kerf_um)
+            Some(kerf_at(peak_deg))
         }
         _ => None,
     }
@@ -351,12 +364,25 @@ mod tests {
         let p = RunParams::DEFAULT;
         let samples = sweep(&p);
         // 55 N lies halfway between the samples at 54 N (177 µm) and 56 N (178 µm).
-        let k = kerf_at_force_um(&p, &samples, 55.0).unwrap();
+        let k = kerf_at_force_um(&p, &samples, None, 55.0).unwrap();
         assert!((k - 177.5).abs() < 0.01, "{k}");
-        assert!((kerf_at_force_um(&p, &samples, 79.0).unwrap() - 189.5).abs() < 0.01);
+        assert!((kerf_at_force_um(&p, &samples, None, 79.0).unwrap() - 189.5).abs() < 0.01);
         // The tail represents far more than 80 N at its large angle, but it is unloading.
-        assert_eq!(kerf_at_force_um(&p, &samples, 85.0), None);
-        assert_eq!(kerf_at_force_um(&p, &[], 10.0), None);
+        assert_eq!(kerf_at_force_um(&p, &samples, None, 85.0), None);
+        assert_eq!(kerf_at_force_um(&p, &[], None, 10.0), None);
+    }
+
+    #[test]
+    fn a_reported_play_reads_every_angle_of_the_sweep() {
+        // The sweep's angles include the model's play; a play measured 0.5° shorter reads every
+        // kerf 0.5° of pitch higher (the holes' play is the same at every force), less a little:
+        // at a larger inset angle a torque stands for more force, so 55 N is met a shade sooner.
+        let p = RunParams::DEFAULT;
+        let samples = sweep(&p);
+        let model_play = play_deg(&p.gauge, 177.5);
+        let k = kerf_at_force_um(&p, &samples, Some(model_play - 0.5), 55.0).unwrap();
+        let shift = 0.5 * p.gauge.pitch_um_per_deg;
+        assert!(k < 177.5 + shift && k > 177.5 + shift - 0.2, "{k}");
     }
 
     #[test]

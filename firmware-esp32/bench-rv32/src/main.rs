@@ -95,6 +95,12 @@ const KEEPALIVE_TICKS: u32 = 100;
 const ENGAGE_DEG_PER_TICK: f32 = 0.06;
 /// Hub motion while ramping towards the jam, degrees per tick (50 °/s).
 const RAMP_DEG_PER_TICK: f32 = 0.05;
+/// Hub motion while backing off after the release, degrees per tick (30 °/s, the back-off's
+/// speed target), until the prongs meet the holes' far faces [`BACK_OFF_SHORT_DEG`] short of
+/// both sides of the model's play: a measured play the result takes.
+const BACK_OFF_DEG_PER_TICK: f32 = 0.03;
+/// How much shorter than the model's two sides of play the scripted back-off turn is, degrees.
+const BACK_OFF_SHORT_DEG: f32 = 1.0;
 /// A run that has not reached Done after this many steps has gone wrong.
 const MAX_RUN_TICKS: u32 = 9_000;
 /// A reset that has not reached Idle after this many steps has gone wrong.
@@ -365,6 +371,8 @@ impl StepBench {
         }
         let mut deg = 0.0f32;
         let (mut ticks, mut jammed_ticks) = (0, 0);
+        let faces_deg = hold_deg - 2.0 * kerf_from_angle(&params.gauge, hold_deg).play_deg
+            + BACK_OFF_SHORT_DEG;
         loop {
             let state = self.step(encoder_deg(deg, self.tick));
             ticks += 1;
@@ -373,6 +381,10 @@ impl StepBench {
                 RunState::Ramping => deg = (deg + RAMP_DEG_PER_TICK).min(hold_deg),
                 // The hold, the probe and (on the light run) the winding check.
                 RunState::Jammed => jammed_ticks += 1,
+                // The release, then the back-off: the hub turns back while pulled.
+                RunState::Releasing if self.controller.status().torque_nm < 0.0 => {
+                    deg = (deg - BACK_OFF_DEG_PER_TICK).max(faces_deg);
+                }
                 RunState::Releasing => {}
                 RunState::Done => break,
                 other => fail(format_args!("unexpected state {other:?} during a run")),
@@ -389,6 +401,14 @@ impl StepBench {
         let Some(result) = self.controller.result().copied() else {
             fail(format_args!("Done without a result"));
         };
+        // The back-off's stall is one of the steps measured: the play must be the scripted one.
+        let scripted_play_deg = (hold_deg - faces_deg) / 2.0;
+        if (result.play_deg - scripted_play_deg).abs() > 0.1 {
+            fail(format_args!(
+                "the back-off did not measure the play: {} against {scripted_play_deg}",
+                result.play_deg
+            ));
+        }
         say!(
             "RUN hold_deg={hold_deg} kerf_um={} flags={:#06x} ticks={ticks} jammed_ticks={jammed_ticks}",
             result.kerf_um,

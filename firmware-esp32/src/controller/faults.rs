@@ -121,7 +121,8 @@ impl Controller {
             return Some(Fault::Overtravel);
         }
         run.max_deg = run.max_deg.max(self.angle_deg);
-        if self.angle_deg < run.max_deg - REVERSE_TOLERANCE_DEG {
+        let backing_off = matches!(self.state, State::BackingOff { .. });
+        if !backing_off && self.angle_deg < run.max_deg - REVERSE_TOLERANCE_DEG {
             return Some(Fault::ReverseMotion);
         }
         if matches!(self.state, State::Engaging | State::Ramping) {

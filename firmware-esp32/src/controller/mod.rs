@@ -2,7 +2,7 @@
 //!
 //! ```text
 //!            Run                 θ ≥ θplay(0)          still at τ(θs)          hold done
-//!   Idle ─────────▶ Engaging ─────────────▶ Ramping ──────────────▶ Jammed ───(probe, check)──▶ Releasing ──▶ Done
+//!   Idle ─────────▶ Engaging ─────────────▶ Ramping ──────────────▶ Jammed ───(probe, check)──▶ Releasing ──(back off)──▶ Done
 //!    ▲  ▲                                     ▲                       │ slipped                          │
 //!    │  │ Abort (any state, safe this tick)   └───────────────────────┘                                 │
 //!    │  └──────────── Resetting ◀── Reset (Idle, Done, Fault) ◀──────────────────────────────────────────┘
@@ -75,7 +75,10 @@
 //! - **Checking the winding** (reported as `Jammed`), only where no settle's duty could measure
 //!   the winding: the torque rises to a duty the current sense reads and the winding is measured
 //!   there (`winding.rs`, "After the hold").
-//! - **Releasing** ramps the torque down; **Done** holds the result for `GetKerf`.
+//! - **Releasing** ramps the torque down, then **backs off** (still reported as `Releasing`):
+//!   the hub turns back against the jammed inset until the prongs stall on the holes' far faces,
+//!   and the kerf is read with half that turn as the hole play instead of the model's (`run.rs`,
+//!   "Measured play"). **Done** holds the result for `GetKerf`.
 //!
 //! # Cost per tick
 //!
@@ -105,7 +108,7 @@
 //!
 //! Checked every tick; the first one found is latched as `Fault(reason)` and the output of that
 //! very tick is the safe state: max run time, overtravel past the disengage angle, no motion with
-//! torque above breakaway, reverse motion, [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a
+//! torque above breakaway, reverse motion (except backing off, whose turn back is the point), [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a
 //! row, failed encoder diagnostics (chip or magnet), over-current (the mean of the last
 //! [`OVER_CURRENT_MEAN_TICKS`] currents above the limit, one reading above twice it, or a current
 //! that is unknown), driver FLT, host silence (communication watchdog) and a late control step: a
@@ -232,6 +235,13 @@ enum State {
         ticks: u32,
     },
     Releasing,
+    /// After the release, reported as `Releasing`: the hub turned back through the hole play
+    /// against the jammed inset to measure it (`run.rs`, "Measured play").
+    BackingOff {
+        from_deg: f32,
+        ticks: u32,
+        still: u32,
+    },
     Done,
     Resetting {
         ticks: u32,
@@ -252,6 +262,7 @@ impl State {
                 | State::Probing { .. }
                 | State::CheckingWinding { .. }
                 | State::Releasing
+                | State::BackingOff { .. }
         )
     }
 }
@@ -419,7 +430,7 @@ impl Controller {
             State::Jammed { .. } | State::Probing { .. } | State::CheckingWinding { .. } => {
                 RunState::Jammed
             }
-            State::Releasing => RunState::Releasing,
+            State::Releasing | State::BackingOff { .. } => RunState::Releasing,
             State::Done => RunState::Done,
             State::Resetting { .. } => RunState::Resetting,
             State::SelfTest(_) => RunState::SelfTest,
@@ -602,6 +613,11 @@ impl Controller {
                 self.check_winding(torque_nm, ticks, inputs.current_a)
             }
             State::Releasing => self.release(),
+            State::BackingOff {
+                from_deg,
+                ticks,
+                still,
+            } => self.back_off(from_deg, ticks, still),
             State::Resetting { ticks, settled } => self.reset_step(ticks, settled),
             State::SelfTest(phase) => self.self_test_step(phase, inputs, fresh),
         }

@@ -1,6 +1,30 @@
 //! The run: starting it, engaging through the hole play, the torque ramp, the jam and its hold,
-//! the kerf result, and the release. The state a run keeps for itself lives in [`Run`], which
-//! every run builds afresh: nothing of the previous run can leak into the next.
+//! the kerf result, the release and the back-off that measures the hole play. The state a run
+//! keeps for itself lives in [`Run`], which every run builds afresh: nothing of the previous run
+//! can leak into the next.
+//!
+//! # Measured play
+//!
+//! The hub angle at the jam includes the prongs' play in their holes, which the spiral's model
+//! gives as θplay(k) = 2·asin((r_h − r_p + k/2)/(2R)) for prongs centred in holes cut where they
+//! were drawn. A real cut differs: the head comes back over the gauge off its centre by its
+//! repeatability, which shortens the play both ways by |d_t|/R; the holes are cut off place; a
+//! tapered kerf leaves them narrowest where the prongs bear; a prong is off its nominal radius.
+//! On the twin these made the model's play up to 1.5° (4 µm of kerf) too long, and its readings
+//! 0.9 µm low on average across the robustness sweep.
+//!
+//! So after the release the hub is turned back ([`Controller::back_off`]): the self-locking
+//! spiral holds the inset where the jam left it, and the hub turns freely through both sides of
+//! the play until the prongs stall on the holes' far faces. Half that turn is the forward play
+//! to first order whatever the head's offset (it shortens both sides alike); what is left is
+//! the holes' common displacement along the spiral, (δ₀ + δ₁)/(2R). The pull is capped at
+//! [`BACK_OFF_MAX_TORQUE_NM`] over the gearbox's breakaway (which the duty already covers), so
+//! a hub the gearbox alone holds does not stand still at the cap; a stall counts only at the cap
+//! and after [`BACK_OFF_MIN_TURN_DEG`]. A play further than [`BACK_OFF_MAX_DEVIATION_DEG`] from
+//! the model's, a hub that never stalls (an inset that gives way: the reading is already taken)
+//! or a run without the time for it leave the model's play. The back-off is reported as
+//! `Releasing` and is not in the sweep; the result's `play_deg` is the play it read with, and
+//! the host reads the sweep at other forces with it.
 
 use kerfmeter_protocol::{
     ErrorCode, KerfResult, QualityFlags, REFERENCE_SUPPLY_V, RunParams, START_TOLERANCE_DEG, Sample,
@@ -12,7 +36,9 @@ use super::winding::{
     CHECK_MAX_TORQUE_RATIO, CHECK_READINGS, ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS,
 };
 use super::{
-    APPROACH_FRACTION, Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S,
+    APPROACH_FRACTION, BACK_OFF_MAX_DEVIATION_DEG, BACK_OFF_MAX_TICKS, BACK_OFF_MAX_TORQUE_NM,
+    BACK_OFF_MIN_TURN_DEG, BACK_OFF_RESERVE_MS, BACK_OFF_SPEED_DEG_PER_S, BACK_OFF_STALL_SHARE,
+    BACK_OFF_STILL_TICKS, Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S,
     FORCE_SENSITIVITY_LIMIT_UM, HOLD_CREEP_LSB, HOLD_RETRY_RESERVE_MS, JAM_MIN_INSET_DEG,
     JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_HOLD_RETRIES,
     MAX_TURN_SPEED_DEG_PER_S, MIN_APPROACH_FRACTION, MIN_PROBE_FRACTION, Motion,
@@ -21,6 +47,7 @@ use super::{
     TORQUE_UNCERTAINTY_UNMEASURED,
 };
 use crate::build::CONTROL_RATE_HZ;
+
 use crate::jam::HoldWindow;
 use kerfmeter_protocol::spiral::{
     force_for_torque_n, kerf_from_angle, kerf_step, play_deg, torque_for_force_nm,
@@ -204,6 +231,10 @@ impl Controller {
     /// Log this tick of the run.
     pub(super) fn record_sample(&mut self) {
         self.run.ticks += 1;
+        // Backing off is not part of the (torque, angle) sweep: its turn is the play's.
+        if matches!(self.state, State::BackingOff { .. }) {
+            return;
+        }
         self.log.record(Sample {
             t_ms: self.run.ticks * 1000 / u32::from(CONTROL_RATE_HZ),
             torque_nm: self.torque_nm,
@@ -711,14 +742,82 @@ impl Controller {
         }
     }
 
-    /// Releasing: ramp the torque down, then `Done`.
+    /// Releasing: ramp the torque down, then back off to measure the play
+    /// ([`Controller::back_off`]) or, without a result or the run time for it, `Done`.
     pub(super) fn release(&mut self) {
         if let Some(held) = self.run.held.take() {
             self.finish(held);
         }
         self.torque_nm = (self.torque_nm - RELEASE_RATE_NM_PER_S * self.dt_s()).max(0.0);
-        if self.torque_nm == 0.0 {
-            self.state = State::Done;
+        if self.torque_nm > 0.0 {
+            return;
+        }
+        let time_left = self.elapsed_ms() + BACK_OFF_MAX_TICKS + BACK_OFF_RESERVE_MS
+            <= self.run.params.max_time_ms;
+        self.state = if self.result.is_some() && time_left {
+            self.motion.speed_integral_nm = 0.0;
+            State::BackingOff {
+                from_deg: self.angle_deg,
+                ticks: 0,
+                still: 0,
+            }
+        } else {
+            State::Done
+        };
+    }
+
+    /// Backing off: turn the hub back through the hole play, the inset held by the
+    /// self-locking spiral, until the prongs stall on the holes' far faces; half that turn is
+    /// the play the reading includes (module docs, "Measured play"). Ends in `Done`, with the
+    /// play measured, or left to the model where the hub never stalled within
+    /// [`BACK_OFF_MAX_TICKS`] or turned past twice the model's play and
+    /// [`BACK_OFF_MAX_DEVIATION_DEG`] more (an inset that gave way).
+    pub(super) fn back_off(&mut self, from_deg: f32, ticks: u32, still: u32) {
+        let dt_s = self.dt_s();
+        self.torque_nm = self
+            .speed_loop(-BACK_OFF_SPEED_DEG_PER_S, BACK_OFF_MAX_TORQUE_NM, dt_s)
+            .min(0.0);
+        let turned_deg = from_deg - self.angle_deg;
+        let stalled = turned_deg > BACK_OFF_MIN_TURN_DEG
+            && self.torque_nm <= -BACK_OFF_STALL_SHARE * BACK_OFF_MAX_TORQUE_NM
+            && self.is_still();
+        let still = if stalled { still + 1 } else { 0 };
+        let model_play_deg = self.result.map_or(0.0, |r| r.play_deg);
+        let too_far = turned_deg > 2.0 * (model_play_deg + BACK_OFF_MAX_DEVIATION_DEG);
+        if still >= BACK_OFF_STILL_TICKS {
+            self.apply_measured_play(turned_deg / 2.0);
+        }
+        self.state = if still >= BACK_OFF_STILL_TICKS || too_far || ticks >= BACK_OFF_MAX_TICKS {
+            self.torque_nm = 0.0;
+            State::Done
+        } else {
+            State::BackingOff {
+                from_deg,
+                ticks: ticks + 1,
+                still,
+            }
+        };
+    }
+
+    /// The result read with the hole play measured as `play_deg` instead of the model's, where
+    /// the two agree within [`BACK_OFF_MAX_DEVIATION_DEG`]: kerf, play, force and the
+    /// near-disengage flag follow the inset angle it gives.
+    fn apply_measured_play(&mut self, play_deg: f32) {
+        let params = self.run.params;
+        let Some(result) = self.result.as_mut() else {
+            return;
+        };
+        if (play_deg - result.play_deg).abs() > BACK_OFF_MAX_DEVIATION_DEG {
+            return;
+        }
+        let gauge = &params.gauge;
+        let inset_deg = result.angle_deg - play_deg;
+        result.kerf_um = gauge.pitch_um_per_deg * inset_deg;
+        result.play_deg = play_deg;
+        result.force_at_jam_n = force_for_torque_n(&params, result.torque_at_jam_nm, inset_deg);
+        result.flags.remove(QualityFlags::NEAR_DISENGAGE);
+        if inset_deg > NEAR_DISENGAGE_FRACTION * gauge.disengage_deg {
+            result.flags.insert(QualityFlags::NEAR_DISENGAGE);
         }
     }
 }

@@ -1536,3 +1536,144 @@ fn a_soft_contact_that_static_friction_holds_against_the_probe_is_force_sensitiv
     let stiff = run_on_scripted_contact(1.0, 0.0, 0, true);
     assert_eq!(stiff.flags, QualityFlags::empty());
 }
+
+/// A scripted run that jams at 60°, then, backing off, turns back 0.03° a tick while pulled
+/// back, until it stalls `stall_deg` behind where the release left it (`None`: never). The
+/// result and the ticks spent after the release.
+fn run_backing_off(s: &mut Script, stall_deg: Option<f32>) -> (KerfResult, u32) {
+    s.start(RunParams::DEFAULT);
+    let mut released_at: Option<(f32, u32)> = None;
+    for tick in 0..8000 {
+        if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 && released_at.is_none() {
+            s.angle_deg += 0.06;
+        }
+        if matches!(s.c.state, State::BackingOff { .. }) {
+            let from_deg = *released_at.get_or_insert((s.angle_deg, tick));
+            let face_deg = stall_deg.map_or(f32::NEG_INFINITY, |d| from_deg.0 - d);
+            if s.c.torque_nm < 0.0 && s.angle_deg - 0.03 >= face_deg {
+                s.angle_deg -= 0.03;
+            }
+        }
+        s.tick();
+        match s.state() {
+            RunState::Done => {
+                let spent = released_at.map_or(0, |(_, at)| tick - at);
+                return (*s.c.result().unwrap(), spent);
+            }
+            RunState::Fault(f) => panic!("fault {f:?}"),
+            _ => {}
+        }
+    }
+    panic!("the run did not end");
+}
+
+#[test]
+fn backing_off_measures_the_play_and_reads_the_kerf_with_it() {
+    let gauge = kerfmeter_protocol::GaugeGeometry::PAPER;
+    let model = kerf_from_angle(&gauge, 60.0);
+    // The far faces are 1.2° nearer than the model's two plays: each side 0.6° shorter.
+    let turn_deg = 2.0 * model.play_deg - 1.2;
+    let mut s = Script::new();
+    let (r, _) = run_backing_off(&mut s, Some(turn_deg));
+    assert!((r.play_deg - turn_deg / 2.0).abs() < 0.05, "{r:?}");
+    let expected_um = gauge.pitch_um_per_deg * (60.0 - turn_deg / 2.0);
+    assert!(
+        (r.kerf_um - expected_um).abs() < 0.15,
+        "{r:?} vs {expected_um}"
+    );
+    assert!(r.kerf_um > model.kerf_um + 1.0, "{r:?}");
+    // The back-off's turn is not in the sweep: its angles all stay at the jam's side.
+    assert!(s.c.samples().iter().all(|x| x.torque_nm >= 0.0));
+    // The motor is safe once it is done.
+    assert!(s.tick().is_safe());
+}
+
+#[test]
+fn a_hub_that_never_stalls_or_stalls_too_far_keeps_the_models_play() {
+    let model = kerf_from_angle(&kerfmeter_protocol::GaugeGeometry::PAPER, 60.0);
+    // An inset that gives way: the hub turns back on, past twice the play and the allowance.
+    let (r, spent) = run_backing_off(&mut Script::new(), None);
+    assert!((r.kerf_um - model.kerf_um).abs() < 0.01, "{r:?}");
+    assert!(spent < BACK_OFF_MAX_TICKS, "{spent}");
+    // A stall far short of the model's play (a hub caught on something) is not taken.
+    let short_deg = 2.0 * (model.play_deg - BACK_OFF_MAX_DEVIATION_DEG) - 0.5;
+    let (r, _) = run_backing_off(&mut Script::new(), Some(short_deg));
+    assert!((r.play_deg - model.play_deg).abs() < 0.01, "{r:?}");
+}
+
+#[test]
+fn a_hub_that_stands_still_without_the_full_pull_is_not_a_stall() {
+    // Turning back, the hub sticks 1° short of the far faces (the model's two plays): from there
+    // it moves only while pulled at the cap, 0.25° at a time, and stands still in between while
+    // the pull builds up again. Those stops are not stalls: the play is taken at the faces.
+    let model = kerf_from_angle(&kerfmeter_protocol::GaugeGeometry::PAPER, 60.0);
+    let faces_deg = 2.0 * model.play_deg;
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    let mut from_deg = None;
+    for _ in 0..8000 {
+        if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 && from_deg.is_none() {
+            s.angle_deg += 0.06;
+        }
+        if matches!(s.c.state, State::BackingOff { .. }) {
+            let from = *from_deg.get_or_insert(s.angle_deg);
+            let turned = from - s.angle_deg;
+            let pulled_full = s.c.torque_nm <= -BACK_OFF_STALL_SHARE * BACK_OFF_MAX_TORQUE_NM;
+            if s.c.torque_nm < 0.0 && turned < faces_deg - 1.0 {
+                s.angle_deg -= 0.03;
+            } else if pulled_full && turned + 0.25 <= faces_deg {
+                s.angle_deg -= 0.25;
+            }
+        }
+        s.tick();
+        if s.state() == RunState::Done {
+            break;
+        }
+    }
+    let r = s.c.result().unwrap();
+    assert!(
+        (r.play_deg - model.play_deg).abs() < 0.15,
+        "{r:?} vs {model:?}"
+    );
+}
+
+#[test]
+fn no_back_off_without_the_run_time_for_it_and_abort_stops_it_safe() {
+    // A run whose time left cannot hold the longest back-off ends without one.
+    let mut s = Script::new();
+    let short = RunParams {
+        max_time_ms: 2_000,
+        ..RunParams::DEFAULT
+    };
+    s.start(short);
+    let mut backed_off = false;
+    for _ in 0..3000 {
+        if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
+            s.angle_deg += 0.06;
+        }
+        s.tick();
+        backed_off |= matches!(s.c.state, State::BackingOff { .. });
+        match s.state() {
+            RunState::Done | RunState::Fault(_) => break,
+            _ => {}
+        }
+    }
+    assert_eq!(s.state(), RunState::Done);
+    assert!(!backed_off);
+    // Abort while backing off: safe at once, and the result read so far stays.
+    let mut s = Script::new();
+    s.start(RunParams::DEFAULT);
+    for _ in 0..8000 {
+        if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
+            s.angle_deg += 0.06;
+        }
+        s.tick();
+        if matches!(s.c.state, State::BackingOff { ticks: 50.., .. }) {
+            break;
+        }
+    }
+    assert!(matches!(s.c.state, State::BackingOff { .. }));
+    s.host().abort();
+    assert!(s.tick().is_safe());
+    assert!(s.c.result().is_some());
+}

@@ -187,6 +187,42 @@ pub const SPEED_KI: f32 = 0.01;
 /// in 200 ms.
 pub const RELEASE_RATE_NM_PER_S: f32 = 4.0;
 
+// ---- Measured play: backing off after the release (`run.rs`) -----------------------------------
+
+/// Backing-off speed, degrees per second: the hole play's two sides (some 10°) pass in a third
+/// of a second, slowly enough that the prongs meet the holes' far faces without a knock.
+pub const BACK_OFF_SPEED_DEG_PER_S: f32 = 30.0;
+/// The most torque backing off pulls with, N·m over the gearbox's breakaway (which the duty
+/// already covers): past anything the gearbox's friction alone can hold, below what the jammed
+/// inset resists being pulled back with, F·(μ·r − c) (0.18 N·m at 55 N and μ = 0.35; it is
+/// under 0.08 N·m only for μ·r − c under 1.5 mm at 55 N, a μ under 0.17). An inset that gives
+/// way is pulled back without a stall, and the model's play stands. Not less: a high-ratio
+/// gearbox's motor brakes the hub by its back-EMF, k_t²·N²·η/R (some 0.33 N·m per rad/s at
+/// 58:1 on the twin), and at 0.04 N·m such hubs crawled back at 7°/s and ran out of time.
+pub const BACK_OFF_MAX_TORQUE_NM: f32 = 0.08;
+/// The hub must have turned back this far before a stall counts, degrees: the hub leaving the
+/// holes' forward faces, not the start.
+pub const BACK_OFF_MIN_TURN_DEG: f32 = 1.0;
+/// A stall is the hub still ([`JAM_STILL_LSB`] over the regression window) with the pull at
+/// [`BACK_OFF_STALL_SHARE`] of its cap, for this many ticks in a row: the gearbox's friction is
+/// already covered by the duty, so what holds the hub against the cap is the prongs on the
+/// holes' far faces, not a gearbox that sticks.
+pub const BACK_OFF_STILL_TICKS: u32 = 30;
+/// The share of [`BACK_OFF_MAX_TORQUE_NM`] the pull must be at for a still hub to count as
+/// stalled.
+pub const BACK_OFF_STALL_SHARE: f32 = 0.9;
+/// The longest back-off, ticks: both sides of the play (some 10°) at 7°/s, a high-ratio
+/// gearbox's crawl. It starts only with this much of the run's `max_time_ms` left (plus
+/// [`BACK_OFF_RESERVE_MS`]), so it never ends a run in `MaxRunTime`.
+pub const BACK_OFF_MAX_TICKS: u32 = 1500;
+/// Run time kept in hand beyond [`BACK_OFF_MAX_TICKS`] before a back-off starts, ms.
+pub const BACK_OFF_RESERVE_MS: u32 = 100;
+/// A measured play further than this from the model's, degrees, is not taken (a stall that is
+/// not the far faces): the cut's imperfections move the play by less. A hub 100 µm off the
+/// gauge's centre (twice the worst head repeatability the twin draws) shortens both sides by
+/// 1.1°; a kerf tapered by 150 µm, by 0.4°.
+pub const BACK_OFF_MAX_DEVIATION_DEG: f32 = 2.0;
+
 // ---- Fault limits ------------------------------------------------------------------------------
 
 /// No motion: the hub moved less than this since the run started, degrees...

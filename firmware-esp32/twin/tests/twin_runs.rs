@@ -369,10 +369,10 @@ fn the_sweep_gives_the_kerf_at_other_forces() {
     let samples = t.device().controller().samples();
     // At the run's own force, the sweep agrees with the held jam reading (the median of the
     // hold, where the sweep reads one decimated sample: within half a micrometre).
-    let at_55 = kerf_at_force_um(&params, samples, 55.0).unwrap();
+    let at_55 = kerf_at_force_um(&params, samples, Some(k.play_deg), 55.0).unwrap();
     assert!((at_55 - k.kerf_um).abs() < 0.5, "{at_55} vs {}", k.kerf_um);
     // Less force, less compression: a smaller kerf, close to what the physics say.
-    let at_25 = kerf_at_force_um(&params, samples, 25.0).unwrap();
+    let at_25 = kerf_at_force_um(&params, samples, Some(k.play_deg), 25.0).unwrap();
     assert!(at_25 < at_55, "{at_25} !< {at_55}");
     let lever_torque = torque_for_force_nm(&params, 25.0, at_25 / params.gauge.pitch_um_per_deg);
     let ideal_25 = t.plant().kerf_at_torque_um(f64::from(lever_torque));
@@ -381,7 +381,10 @@ fn the_sweep_gives_the_kerf_at_other_forces() {
         "{at_25} vs ideal {ideal_25}"
     );
     // More force than the run applied: not in the sweep.
-    assert_eq!(kerf_at_force_um(&params, samples, 90.0), None);
+    assert_eq!(
+        kerf_at_force_um(&params, samples, Some(k.play_deg), 90.0),
+        None
+    );
 }
 
 /// The gauges a seed gives are the same however long the host took between runs: only the
@@ -459,4 +462,47 @@ fn the_device_reads_the_hub_through_the_encoders_errors() {
         "device {} vs {read_deg} (hub at {hub_deg})",
         k.angle_deg
     );
+}
+
+/// The hole play is measured, not assumed: on gauges whose prongs stand off the holes' centres
+/// (the head's repeatability) and whose kerf is tapered (the holes narrowest at the bottom),
+/// both of which shorten the play the model gives, the device backs the hub off against the
+/// jammed inset and reads the kerf with half the turn between the holes' faces.
+#[test]
+fn the_hole_play_is_measured_where_the_cut_makes_it_differ_from_the_model() {
+    use kerfmeter_protocol::spiral::play_deg;
+    let params = RunParams::DEFAULT;
+    let mut model_off_deg: f64 = 0.0;
+    for seed in 1..=5 {
+        let plant = PlantParams {
+            prong_offset_sd_um: 40.0,
+            kerf_taper_um: 120.0,
+            ..PlantParams::default()
+        };
+        let mut t = Twin::new(TwinOptions {
+            kerf_um: 200.0,
+            seed,
+            plant,
+            ..TwinOptions::default()
+        });
+        t.advance_ticks(5);
+        let k = measure(&mut t, &params).unwrap();
+        let (forward_deg, backward_deg) = t.plant().play_deg();
+        let half_turn_deg = (forward_deg + backward_deg) / 2.0;
+        assert!(
+            (f64::from(k.play_deg) - half_turn_deg).abs() < 0.1,
+            "seed {seed}: play {} against the faces' half-turn {half_turn_deg}",
+            k.play_deg
+        );
+        let truth_um = t.truths().last().unwrap().1;
+        assert!(
+            (f64::from(k.kerf_um) - truth_um).abs() < 1.0,
+            "seed {seed}: {} vs truth {truth_um}",
+            k.kerf_um
+        );
+        let model_deg = f64::from(play_deg(&params.gauge, k.kerf_um));
+        model_off_deg = model_off_deg.max(model_deg - forward_deg);
+    }
+    // What the model's play would have read: some 0.5° (1.4 µm) or more too much play.
+    assert!(model_off_deg > 0.5, "{model_off_deg}");
 }

@@ -61,10 +61,16 @@ pub struct Curve {
 }
 
 impl Curve {
-    /// The kerf at another assembly force read off this run's sweep (`params` are the run's), µm;
-    /// `None` beyond the force the run reached. See [`kerfmeter_protocol::spiral::kerf_at_force_um`].
-    pub fn kerf_at_force_um(&self, params: &RunParams, force_n: f32) -> Option<f32> {
-        kerfmeter_protocol::spiral::kerf_at_force_um(params, &self.samples, force_n)
+    /// The kerf at another assembly force read off this run's sweep (`params` are the run's,
+    /// `play_deg` its result's hole play, `None` without a result), µm; `None` beyond the force
+    /// the run reached. See [`kerfmeter_protocol::spiral::kerf_at_force_um`].
+    pub fn kerf_at_force_um(
+        &self,
+        params: &RunParams,
+        play_deg: Option<f32>,
+        force_n: f32,
+    ) -> Option<f32> {
+        kerfmeter_protocol::spiral::kerf_at_force_um(params, &self.samples, play_deg, force_n)
     }
 }
 

@@ -266,7 +266,12 @@ fn read_curve(
         .iter()
         .map(|&force_n| KerfAtForce {
             force_n,
-            kerf_um: curve.kerf_at_force_um(params, force_n),
+            kerf_um: curve.kerf_at_force_um(
+                params,
+                last.filter(|r| r.run_id == curve.run_id)
+                    .map(|r| r.play_deg),
+                force_n,
+            ),
         })
         .collect())
 }
