@@ -202,7 +202,7 @@ pub fn dilate_svg(
     opts: &SvgOptions,
 ) -> Result<(String, PlanSummary)> {
     let mut out = Vec::with_capacity(text.len());
-    let summary = dilate_svg_into(text, kerf, opts, &mut out)?;
+    let summary = dilate_svg_into(text.to_owned(), kerf, opts, &mut out)?;
     let out = String::from_utf8(out).map_err(|_| {
         bad("internal error: the edited SVG is not UTF-8 (please report this file)")
     })?;
@@ -211,18 +211,19 @@ pub fn dilate_svg(
 
 /// Dilate the cuts of an SVG plan, writing the edited document to `out` as it is made (it is
 /// never held whole: with its arcs written out, it is several times the size of the source).
-/// On an error, part of the document may have been written. An error writing to `out` is a
-/// [`PlanError::Write`] (whose path the caller sets).
+/// The source `text` is taken, not lent: it is not held while usvg parses its tagged copy (see
+/// [`render`]). On an error, part of the document may have been written. An error writing to
+/// `out` is a [`PlanError::Write`] (whose path the caller sets).
 pub fn dilate_svg_into(
-    text: &str,
+    text: String,
     kerf: &KerfSource,
     opts: &SvgOptions,
     out: &mut (dyn Write + Sync),
 ) -> Result<PlanSummary> {
     opts.progress.start(Stage::Reading, 0);
-    let rendered = render(text, opts)?;
+    let (text, rendered) = render(text, opts)?;
     let ((), summary) = pipeline::dilate_plan(
-        SvgPlan::new(text, rendered, out),
+        SvgPlan::new(&text, rendered, out),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -234,14 +235,14 @@ pub fn dilate_svg_into(
 /// Dilate the cuts of an SVG plan and give them back as contours in document mm (y down), each
 /// with its stroke colour and Inkscape layer: what G-code is made from.
 pub(crate) fn dilate_svg_cuts(
-    text: &str,
+    text: String,
     kerf: &KerfSource,
     opts: &SvgOptions,
 ) -> Result<(Vec<CutPath>, PlanSummary)> {
     opts.progress.start(Stage::Reading, 0);
-    let rendered = render(text, opts)?;
+    let (text, rendered) = render(text, opts)?;
     pipeline::dilate_plan_cuts(
-        SvgPlan::new(text, rendered, &mut std::io::sink()),
+        SvgPlan::new(&text, rendered, &mut std::io::sink()),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -273,20 +274,23 @@ fn parse(text: &str) -> Result<Document<'_>> {
 /// passes through) and each cut instance with its path data (element coordinates).
 struct Rendered {
     plan: Plan<(usize, usize)>,
-    found: Vec<(Instance, tiny_skia_path::Path)>,
+    instances: Vec<Instance>,
+    /// `paths[k]` is the path data of `instances[k]`.
+    paths: Vec<tiny_skia_path::Path>,
 }
 
-/// Render the document with usvg and find its cut instances.
+/// Render the document with usvg and find its cut instances; the source is given back.
 ///
 /// Memory: this is the largest step of reading, so nothing else large is alive during it. The
 /// XML tree of the source (parsed here to check it, read its size and records, and tag its
-/// elements, see [`tagged`]) goes before usvg parses the tagged copy; the tagged copy goes as soon
-/// as usvg has read it; and of usvg's tree only the cut paths' data is kept (a tenth of the tree).
-/// Reading parses the source again, to name and place the cuts.
-fn render(text: &str, opts: &SvgOptions) -> Result<Rendered> {
+/// elements, see [`tagged`]) goes before usvg parses the tagged copy, and so does the source
+/// itself: it is made again from the tagged copy, whose insertions are known, once usvg's tree
+/// is gone. Of usvg's tree only the cut paths' data is kept (a tenth of the tree). Reading parses
+/// the source again, to name and place the cuts.
+fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     let mut plan = Plan::new("svg");
     let (tagged, use_by_id, shapes_len) = {
-        let doc = parse(text)?;
+        let doc = parse(&text)?;
         let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
         plan.summary.mm_per_unit = mm_per_px;
         plan.summary.compensation_found = compensation::find_in_svg(&doc);
@@ -297,31 +301,41 @@ fn render(text: &str, opts: &SvgOptions) -> Result<Rendered> {
             plan.summary.pass("text");
         }
         let (shapes, uses) = shapes_and_uses(&doc);
-        let (tagged, use_by_id) = tagged(text, &shapes, &uses)?;
+        let (tagged, use_by_id) = tagged(&text, &shapes, &uses)?;
         (tagged, use_by_id, shapes.len())
     };
-    let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
+    drop(text);
+    let tree = usvg::Tree::from_str(&tagged.text, &usvg::Options::default())
         .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
-    drop(tagged);
     let mut walk = Walk {
         rules: &opts.rules,
         mm_per_px: plan.summary.mm_per_unit,
         shapes_len,
         use_by_id: &use_by_id,
-        found: Vec::new(),
+        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
+        // grown by doubling, these vectors held up to twice their room at the peak of reading.
+        instances: Vec::with_capacity(shapes_len),
+        paths: Vec::with_capacity(shapes_len),
         seen: HashSet::new(),
         summary: &mut plan.summary,
         unidentified: 0,
     };
     walk.group(tree.root(), &mut Vec::new());
-    let (unidentified, mut found) = (walk.unidentified, walk.found);
+    let (unidentified, mut instances, mut paths) = (walk.unidentified, walk.instances, walk.paths);
+    drop(tree);
     if unidentified > 0 {
         return Err(bad(format!(
             "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
         )));
     }
-    found.shrink_to_fit();
-    Ok(Rendered { plan, found })
+    instances.shrink_to_fit();
+    paths.shrink_to_fit();
+    let rendered = Rendered {
+        plan,
+        instances,
+        paths,
+    };
+    Ok((tagged.untagged(), rendered))
 }
 
 /// The shape elements and the `<use>` elements of a document, each in document order (an
@@ -373,10 +387,54 @@ struct Records {
     at: Option<usize>,
 }
 
+/// The source with tags inserted (see [`tagged`]), and where they are, so that the source can be
+/// made again from it.
+struct Tagged {
+    text: String,
+    /// The inserted tags' ranges in `text`, in order.
+    tags: Vec<Range<usize>>,
+}
+
+impl Tagged {
+    /// The source `text` with the insertions `edits` (empty source ranges) applied.
+    fn new(src: &str, edits: Vec<Edit>) -> Result<Self> {
+        let edits = sorted(edits);
+        let mut grown = 0;
+        let mut tags = Vec::with_capacity(edits.len());
+        for e in &edits {
+            if !e.range.is_empty() {
+                return Err(bad(
+                    "internal error: a tag replaces SVG text (please report this file)",
+                ));
+            }
+            let at = e.range.start + grown;
+            tags.push(at..at + e.text.len());
+            grown += e.text.len();
+        }
+        Ok(Tagged {
+            text: apply_edits(src, edits)?,
+            tags,
+        })
+    }
+
+    /// The source again: the text without the tags.
+    fn untagged(self) -> String {
+        let tagged_len: usize = self.tags.iter().map(Range::len).sum();
+        let mut src = String::with_capacity(self.text.len() - tagged_len);
+        let mut pos = 0;
+        for tag in &self.tags {
+            src.push_str(&self.text[pos..tag.start]);
+            pos = tag.end;
+        }
+        src.push_str(&self.text[pos..]);
+        src
+    }
+}
+
 /// The source `text` with every shape tagged by its number (`stroke-miterlimit`, which usvg
 /// keeps) and every `<use>` given an id, so that what usvg renders can be traced back to its
 /// element; and the `<use>` elements by id.
-fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(String, HashMap<String, usize>)> {
+fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(Tagged, HashMap<String, usize>)> {
     let mut tags: Vec<Edit> = Vec::new();
     for (k, n) in shapes.iter().enumerate() {
         let code = k + 1;
@@ -414,7 +472,7 @@ fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(String, HashMap
             }
         }
     }
-    Ok((apply_edits(text, tags)?, use_by_id))
+    Ok((Tagged::new(text, tags)?, use_by_id))
 }
 
 /// An SVG document in the plan pipeline: the source text and the cut instances found by
@@ -450,31 +508,31 @@ impl<'a, 'w> SvgPlan<'a, 'w> {
         }
     }
 
-    /// Trace the instances' subpaths (by instance) on any core, freeing each one's path data as
-    /// it goes (it is kept, as segments, only for elements with an open subpath, which is
-    /// written back as drawn).
+    /// Trace the instances' subpaths (by instance; `paths[k]` and `names[k]` are instance `k`'s
+    /// path data and name) on any core, freeing each one's path data as it goes (it is kept, as
+    /// segments, only for elements with an open subpath, which is written back as drawn).
     fn trace_all(
         &mut self,
-        el: &Elements,
-        found: Vec<(Instance, tiny_skia_path::Path)>,
+        paths: Vec<tiny_skia_path::Path>,
+        names: &[String],
     ) -> Vec<Vec<Traced>> {
-        let (instances, traced) = found
-            .into_par_iter()
-            .map(|(mut inst, path)| {
+        self.instances
+            .par_iter_mut()
+            .zip(paths)
+            .zip(names)
+            .map(|((inst, path), name)| {
                 let segs = subpaths_of(&path);
                 drop(path);
-                let traced = self.trace(el, &inst, &segs);
+                let traced = trace(inst, &segs, name);
                 inst.subpath_count = segs.len();
                 let all_closed = traced.len() == segs.len()
                     && traced.iter().all(|t| matches!(t, Traced::Closed(..)));
                 if !all_closed {
                     inst.drawn = segs;
                 }
-                (inst, traced)
+                traced
             })
-            .unzip();
-        self.instances = instances;
-        traced
+            .collect()
     }
 
     /// How to name an instance in messages.
@@ -519,58 +577,47 @@ impl<'a, 'w> SvgPlan<'a, 'w> {
         }
     }
 
-    /// In a boxes.py plan, the cuts of its reference rectangle, which boxes.py draws without burn.
-    fn find_unburnt(&self, el: &Elements, plan: &mut Plan<(usize, usize)>) {
-        let boxes = plan
-            .summary
+    /// In a boxes.py plan, which instances are of its reference rectangle, which boxes.py draws
+    /// without burn (by instance; empty for other plans).
+    fn boxes_references(&self, el: &Elements, summary: &PlanSummary) -> Vec<bool> {
+        let boxes = summary
             .compensation_found
             .as_ref()
             .is_some_and(|f| f.by == CompensatedBy::BoxesPy);
         if !boxes {
-            return;
+            return Vec::new();
         }
-        for (k, cut) in plan.cuts.iter().enumerate() {
-            let node = el.shapes[self.instances[cut.origin.0].element];
-            if compensation::is_boxes_reference(node) {
-                plan.unburnt.push(k);
-            }
+        (self.instances.iter())
+            .map(|inst| compensation::is_boxes_reference(el.shapes[inst.element]))
+            .collect()
+    }
+
+    /// Where each instance's element starts in the source, and where its new path data goes.
+    fn place(&mut self, el: &Elements) {
+        for inst in &mut self.instances {
+            let node = el.shapes[inst.element];
+            inst.start = node.range().start;
+            inst.slots = geometry_slots(self.text, node);
         }
     }
 
-    /// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm.
-    fn trace(&self, el: &Elements, inst: &Instance, subpaths: &[Vec<Seg>]) -> Vec<Traced> {
-        let eps = coordinate_eps(inst, subpaths);
-        let n_sub = subpaths.len();
-        let mut traced = Vec::with_capacity(n_sub);
-        for (si, segs) in subpaths.iter().enumerate() {
-            // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
-            let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
-            let doc = |p: P32| inst.to_doc.apply(p.v2());
-            for s in segs {
-                match *s {
-                    Seg::M(p) => sink.move_to(doc(p)),
-                    Seg::L(p) => sink.line_to(doc(p)),
-                    Seg::Q(a, b) => sink.quad_to(doc(a), doc(b)),
-                    Seg::C(a, b, c) => sink.cubic_to(doc(a), doc(b), doc(c)),
-                    Seg::Z => sink.close(),
-                }
-            }
-            let Some(sub) = sink.finish().into_iter().next() else {
-                continue;
-            };
-            let mut name = self.label(el, inst);
-            if n_sub > 1 {
-                name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
-            }
-            if sub.pline.is_closed() {
-                traced.push(Traced::Closed(si, sub.pline, name));
-            } else {
-                let first = sub.pline.at(0);
-                let last = sub.pline.at(sub.pline.vertex_count() - 1);
-                traced.push(Traced::Open(name, v2(first.x, first.y), v2(last.x, last.y)));
-            }
-        }
-        traced
+    /// Everything reading needs from the source's XML tree, found in one parse that is dropped
+    /// before the cuts are traced (the tree and the traced contours held at once were the peak
+    /// of reading): the uses checked, the instances placed, the compensation records found, and
+    /// each instance's name and whether it is of boxes.py's reference rectangle.
+    fn read_source(&mut self, summary: &PlanSummary) -> Result<(Vec<String>, Vec<bool>)> {
+        let doc = parse(self.text)?;
+        let el = Elements::of(&doc);
+        self.check_uses(&el)?;
+        self.place(&el);
+        self.records = Records {
+            old: compensation::own_svg_records(&doc),
+            at: doc.root_element().first_child().map(|n| n.range().start),
+        };
+        let names = (self.instances.iter())
+            .map(|inst| self.label(&el, inst))
+            .collect();
+        Ok((names, self.boxes_references(&el, summary)))
     }
 
     /// The new geometry of the instances reached through `<use>`, as edits by `<use>`: their
@@ -787,25 +834,25 @@ impl Format for SvgPlan<'_, '_> {
     type Output = ();
 
     fn read(&mut self) -> Result<Plan<(usize, usize)>> {
-        let Some(Rendered { mut plan, found }) = self.rendered.take() else {
+        let Some(Rendered {
+            mut plan,
+            instances,
+            paths,
+        }) = self.rendered.take()
+        else {
             return Err(bad("internal error: the SVG was read twice"));
         };
-        let doc = parse(self.text)?;
-        let el = Elements::of(&doc);
-        let traced = self.trace_all(&el, found);
-        self.check_uses(&el)?;
+        self.instances = instances;
+        let (names, boxes_reference) = self.read_source(&plan.summary)?;
+        let traced = self.trace_all(paths, &names);
+        drop(names);
         plan.summary.cut_elements = self.instances.len();
         Self::contours(&mut plan, traced);
-        self.find_unburnt(&el, &mut plan);
-        for inst in &mut self.instances {
-            let node = el.shapes[inst.element];
-            inst.start = node.range().start;
-            inst.slots = geometry_slots(self.text, node);
+        for (k, cut) in plan.cuts.iter().enumerate() {
+            if boxes_reference.get(cut.origin.0) == Some(&true) {
+                plan.unburnt.push(k);
+            }
         }
-        self.records = Records {
-            old: compensation::own_svg_records(&doc),
-            at: doc.root_element().first_child().map(|n| n.range().start),
-        };
         Ok(plan)
     }
 
@@ -901,13 +948,14 @@ fn document_scale(
     }
 }
 
-/// The walk over usvg's tree: the cut instances found, each with its path in the tree.
+/// The walk over usvg's tree: the cut instances found, and each one's path data (a copy).
 struct Walk<'a> {
     rules: &'a CutRules,
     mm_per_px: f64,
     shapes_len: usize,
     use_by_id: &'a HashMap<String, usize>,
-    found: Vec<(Instance, tiny_skia_path::Path)>,
+    instances: Vec<Instance>,
+    paths: Vec<tiny_skia_path::Path>,
     seen: HashSet<(usize, Option<usize>)>,
     summary: &'a mut PlanSummary,
     unidentified: usize,
@@ -980,7 +1028,8 @@ impl Walk<'_> {
                     start: 0,
                     slots: Vec::new(),
                 };
-                self.found.push((instance, p.data().clone()));
+                self.instances.push(instance);
+                self.paths.push(p.data().clone());
             }
         }
     }
@@ -1034,6 +1083,43 @@ fn subpaths_of(p: &tiny_skia_path::Path) -> Vec<Vec<Seg>> {
     }
     subpaths.shrink_to_fit();
     subpaths
+}
+
+/// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm; `name`
+/// names the instance.
+fn trace(inst: &Instance, subpaths: &[Vec<Seg>], name: &str) -> Vec<Traced> {
+    let eps = coordinate_eps(inst, subpaths);
+    let n_sub = subpaths.len();
+    let mut traced = Vec::with_capacity(n_sub);
+    for (si, segs) in subpaths.iter().enumerate() {
+        // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
+        let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
+        let doc = |p: P32| inst.to_doc.apply(p.v2());
+        for s in segs {
+            match *s {
+                Seg::M(p) => sink.move_to(doc(p)),
+                Seg::L(p) => sink.line_to(doc(p)),
+                Seg::Q(a, b) => sink.quad_to(doc(a), doc(b)),
+                Seg::C(a, b, c) => sink.cubic_to(doc(a), doc(b), doc(c)),
+                Seg::Z => sink.close(),
+            }
+        }
+        let Some(sub) = sink.finish().into_iter().next() else {
+            continue;
+        };
+        let mut name = name.to_string();
+        if n_sub > 1 {
+            name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
+        }
+        if sub.pline.is_closed() {
+            traced.push(Traced::Closed(si, sub.pline, name));
+        } else {
+            let first = sub.pline.at(0);
+            let last = sub.pline.at(sub.pline.vertex_count() - 1);
+            traced.push(Traced::Open(name, v2(first.x, first.y), v2(last.x, last.y)));
+        }
+    }
+    traced
 }
 
 /// Rounding uncertainty of an instance's coordinates (`subpaths`) in document mm (usvg keeps
@@ -1539,6 +1625,29 @@ mod tests {
                 assert_eq!(out, exact(v, digits), "{v} with {digits} digits");
             }
         }
+    }
+
+    #[test]
+    fn the_source_is_made_again_from_its_tagged_copy() {
+        let src = "<svg>\n  <path d=\"M0 0\"/><use href=\"#a\"/>é<rect/></svg>";
+        let at = |needle: &str| src.find(needle).unwrap();
+        let insert = |at: usize, text: &str| Edit {
+            range: at..at,
+            text: text.into(),
+        };
+        // Given out of order, two at one place.
+        let edits = vec![
+            insert(at("<rect") + 5, " style=\"b\""),
+            insert(at("<path") + 5, " style=\"a\""),
+            insert(at("<use") + 4, " id=\"u\""),
+            insert(at("<use") + 4, " x=\"1\""),
+        ];
+        let tagged = Tagged::new(src, edits).unwrap();
+        assert_eq!(
+            tagged.text,
+            "<svg>\n  <path style=\"a\" d=\"M0 0\"/><use id=\"u\" x=\"1\" href=\"#a\"/>é<rect style=\"b\"/></svg>"
+        );
+        assert_eq!(tagged.untagged(), src);
     }
 
     #[test]
