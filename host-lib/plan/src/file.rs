@@ -17,7 +17,8 @@ use crate::error::{PlanError, Result};
 use crate::outcome::{AssumedUnits, CutPath, PlanSummary};
 use crate::progress::Progress;
 use crate::rules::CutRules;
-use crate::svg::{SvgOptions, dilate_svg_cuts, dilate_svg_into};
+use crate::source_file::SourceFile;
+use crate::svg::{SvgOptions, dilate_svg_cuts, dilate_svg_file_into, dilate_svg_into};
 
 /// Plan file formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -118,7 +119,12 @@ pub fn dilate_file_into(
     let (format, bytes) = read_plan(input)?;
     let summary = match format {
         PlanFormat::Svg => {
-            svg_text(bytes).and_then(|text| dilate_svg_into(text, kerf, &svg_options(options), out))
+            // The file is read again as the dilated plan is written, so its text is not held
+            // while the cuts are dilated.
+            let file = SourceFile::new(input, &bytes);
+            svg_text(bytes).and_then(|text| {
+                dilate_svg_file_into(text, Some(file), kerf, &svg_options(options), out)
+            })
         }
         PlanFormat::Dxf => {
             dilate_dxf_owned(bytes, kerf, &dxf_options(options)).and_then(|(dxf, summary)| {

@@ -46,15 +46,19 @@
 //!
 //! **Memory.** The dilated document is several times its source (every rounded corner an arc), so
 //! it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of elements'
-//! path data at a time. No step holds more than it needs: the source's XML tree is dropped while
-//! usvg parses the tagged copy, and of usvg's tree only the cut paths' data is kept, each path
-//! freed as it is traced; the source is parsed again to name the cuts and find where their new
-//! path data goes (byte ranges, a few per element), and that tree goes too before the dilation
-//! (writing parses it once more only to copy the targets of `<use>` clones, and G-code's cut
-//! order parses it again for the cuts' Inkscape layers). The kernel frees
-//! each drawn contour as it is offset. The peak is usvg's parse (the source, the tagged copy,
-//! usvg's XML tree of it and its own tree); the end of the dilation (the source and the dilated
-//! contours, cavalier's 24 bytes a vertex) is a little lower.
+//! path data at a time. No step holds more than it needs: the source's XML tree is dropped, and
+//! so is the source itself, while usvg parses the tagged copy (the source is made again from the
+//! copy, whose insertions are known), and of usvg's tree only the cut paths' data is kept; the
+//! source is parsed again to name the cuts and find where their new path data goes (byte
+//! ranges, a few per element), and that tree goes before the cuts are traced, each path's data
+//! freed as it is traced (writing parses the source once more only to copy the targets of
+//! `<use>` clones, and G-code's cut order parses it again for the cuts' Inkscape layers). A plan
+//! read from a file ([`crate::file::dilate_file_into`], what the CLI uses) does not hold its
+//! text while its cuts are dilated: the file is read again, checked unchanged, as the output is
+//! written. The kernel frees each drawn contour as it is offset. The peak is usvg's parse (the
+//! tagged copy, usvg's XML tree of it and its own tree); the end of the dilation (the dilated
+//! contours, cavalier's 24 bytes a vertex, and what each cut needs to be written back) is a
+//! little lower.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -75,6 +79,7 @@ use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
 use super::pipeline::{self, Format, Plan};
 use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
+use super::source_file::{Copier, SourceFile};
 use crate::error::{PlanError, Problems, Result};
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
@@ -220,10 +225,23 @@ pub fn dilate_svg_into(
     opts: &SvgOptions,
     out: &mut (dyn Write + Sync),
 ) -> Result<PlanSummary> {
+    dilate_svg_file_into(text, None, kerf, opts, out)
+}
+
+/// [`dilate_svg_into`] for a source `text` read from `file`, if given: then the text is not held
+/// while the cuts are dilated, and the file is read again (checked unchanged) as the dilated
+/// document is written.
+pub(crate) fn dilate_svg_file_into(
+    text: String,
+    file: Option<SourceFile>,
+    kerf: &KerfSource,
+    opts: &SvgOptions,
+    out: &mut (dyn Write + Sync),
+) -> Result<PlanSummary> {
     opts.progress.start(Stage::Reading, 0);
     let (text, rendered) = render(text, opts)?;
     let ((), summary) = pipeline::dilate_plan(
-        SvgPlan::new(&text, rendered, out),
+        SvgPlan::new(text, file, rendered, out),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -242,7 +260,7 @@ pub(crate) fn dilate_svg_cuts(
     opts.progress.start(Stage::Reading, 0);
     let (text, rendered) = render(text, opts)?;
     pipeline::dilate_plan_cuts(
-        SvgPlan::new(&text, rendered, &mut std::io::sink()),
+        SvgPlan::new(text, None, rendered, &mut std::io::sink()),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -481,9 +499,13 @@ fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(Tagged, HashMap
 /// No XML tree of the source is kept between the steps (it was a fifth of the peak memory, held
 /// through the dilation): reading parses the source to name the cuts and find where their new
 /// path data goes, and drops it; writing parses it again only for cuts reached through `<use>`,
-/// whose targets are copied.
-struct SvgPlan<'a, 'w> {
-    text: &'a str,
+/// whose targets are copied. A plan read from a file does not even hold the source's text while
+/// its cuts are dilated: the file is read again as the output is written (see [`SourceFile`]).
+struct SvgPlan<'w> {
+    /// The source (empty between reading and writing when `file` can give it back).
+    text: String,
+    /// The file the source was read from, when it is to be read again for writing.
+    file: Option<SourceFile>,
     /// The rendered occurrences of cut elements (set by `read`).
     instances: Vec<Instance>,
     /// What rendering found, until `read` takes it.
@@ -491,19 +513,26 @@ struct SvgPlan<'a, 'w> {
     /// Where the compensation record goes (set by `read`).
     records: Records,
     /// Where each line of the source starts, to name elements by line and column.
-    lines: LineIndex<'a>,
+    lines: LineIndex,
     /// Where the dilated document goes (taken when it is written).
     out: Option<&'w mut (dyn Write + Sync)>,
 }
 
-impl<'a, 'w> SvgPlan<'a, 'w> {
-    fn new(text: &'a str, rendered: Rendered, out: &'w mut (dyn Write + Sync)) -> Self {
+impl<'w> SvgPlan<'w> {
+    /// The plan of the source `text` (read from `file`, if given) as rendered.
+    fn new(
+        text: String,
+        file: Option<SourceFile>,
+        rendered: Rendered,
+        out: &'w mut (dyn Write + Sync),
+    ) -> Self {
         SvgPlan {
+            lines: LineIndex::new(&text),
             text,
+            file,
             instances: Vec::new(),
             rendered: Some(rendered),
             records: Records::default(),
-            lines: LineIndex::new(text),
             out: Some(out),
         }
     }
@@ -592,24 +621,15 @@ impl<'a, 'w> SvgPlan<'a, 'w> {
             .collect()
     }
 
-    /// Where each instance's element starts in the source, and where its new path data goes.
-    fn place(&mut self, el: &Elements) {
-        for inst in &mut self.instances {
-            let node = el.shapes[inst.element];
-            inst.start = node.range().start;
-            inst.slots = geometry_slots(self.text, node);
-        }
-    }
-
     /// Everything reading needs from the source's XML tree, found in one parse that is dropped
     /// before the cuts are traced (the tree and the traced contours held at once were the peak
     /// of reading): the uses checked, the instances placed, the compensation records found, and
     /// each instance's name and whether it is of boxes.py's reference rectangle.
     fn read_source(&mut self, summary: &PlanSummary) -> Result<(Vec<String>, Vec<bool>)> {
-        let doc = parse(self.text)?;
+        let doc = parse(&self.text)?;
         let el = Elements::of(&doc);
         self.check_uses(&el)?;
-        self.place(&el);
+        place(&mut self.instances, &self.text, &el);
         self.records = Records {
             old: compensation::own_svg_records(&doc),
             at: doc.root_element().first_child().map(|n| n.range().start),
@@ -662,7 +682,11 @@ impl<'a, 'w> SvgPlan<'a, 'w> {
             .collect();
         direct.sort_by_key(|&ii| self.instances[ii].start);
         let mut edits = sorted(edits).into_iter().peekable();
-        let mut out = EditWriter::new(self.text, sink);
+        let src = match (&self.file, self.text.is_empty()) {
+            (Some(file), true) => Src::File(file.copier()?),
+            _ => Src::Text(&self.text),
+        };
+        let mut out = EditWriter::new(src, sink);
         for batch in direct.chunks(WRITE_BATCH) {
             let made: Vec<Option<Result<Vec<Edit>>>> = batch
                 .par_iter()
@@ -829,7 +853,7 @@ impl<'a, 'w> SvgPlan<'a, 'w> {
     }
 }
 
-impl Format for SvgPlan<'_, '_> {
+impl Format for SvgPlan<'_> {
     type Origin = (usize, usize);
     type Output = ();
 
@@ -853,13 +877,17 @@ impl Format for SvgPlan<'_, '_> {
                 plan.unburnt.push(k);
             }
         }
+        if self.file.is_some() {
+            // Read again when the plan is written.
+            self.text = String::new();
+        }
         Ok(plan)
     }
 
     fn groups(&self, plan: &Plan<(usize, usize)>) -> Vec<CutGroup> {
         // The layers are read from the source parsed again (only G-code asks for them, and it
         // parsed in `read`: a failure now would be a bug, not bad input).
-        let doc = parse(self.text).expect("the source parsed when it was read");
+        let doc = parse(&self.text).expect("the source parsed when it was read");
         let el = Elements::of(&doc);
         plan.cuts
             .iter()
@@ -885,7 +913,11 @@ impl Format for SvgPlan<'_, '_> {
             .collect();
         let mut edits = Vec::new();
         if self.instances.iter().any(|inst| inst.via_use.is_some()) {
-            let doc = parse(self.text)?;
+            // The targets of `<use>` are copied from the source's text: it is read again whole.
+            if let Some(file) = self.file.as_ref().filter(|_| self.text.is_empty()) {
+                self.text = file.read_again()?;
+            }
+            let doc = parse(&self.text)?;
             let el = Elements::of(&doc);
             let clone_edits = self.clone_geometry_edits(&contour_of, &mut plan.summary)?;
             self.clone_uses(&el, clone_edits, &mut edits, &mut plan.summary)?;
@@ -1083,6 +1115,15 @@ fn subpaths_of(p: &tiny_skia_path::Path) -> Vec<Vec<Seg>> {
     }
     subpaths.shrink_to_fit();
     subpaths
+}
+
+/// Where each instance's element starts in the source `text`, and where its new path data goes.
+fn place(instances: &mut [Instance], text: &str, el: &Elements) {
+    for inst in instances {
+        let node = el.shapes[inst.element];
+        inst.start = node.range().start;
+        inst.slots = geometry_slots(text, node);
+    }
 }
 
 /// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm; `name`
@@ -1362,16 +1403,22 @@ fn sorted(mut edits: Vec<Edit>) -> Vec<Edit> {
     edits
 }
 
+/// The source text an [`EditWriter`] copies: in memory, or its file read as it is copied.
+enum Src<'s> {
+    Text(&'s str),
+    File(Copier<'s>),
+}
+
 /// A source text being copied to a writer with non-overlapping edits applied, given in order.
 struct EditWriter<'s, 'o> {
-    src: &'s str,
+    src: Src<'s>,
     /// How far the source has been copied.
     pos: usize,
     out: &'o mut dyn Write,
 }
 
 impl<'s, 'o> EditWriter<'s, 'o> {
-    fn new(src: &'s str, out: &'o mut dyn Write) -> Self {
+    fn new(src: Src<'s>, out: &'o mut dyn Write) -> Self {
         EditWriter { src, pos: 0, out }
     }
 
@@ -1384,21 +1431,35 @@ impl<'s, 'o> EditWriter<'s, 'o> {
         }
         self.put(self.pos..e.range.start)?;
         self.write(&e.text)?;
+        if let Src::File(file) = &mut self.src {
+            file.copy_to(e.range.end as u64, None)?;
+        }
         self.pos = e.range.end;
         Ok(())
     }
 
     /// Copy the rest of the source.
     fn finish(mut self) -> Result<()> {
-        self.put(self.pos..self.src.len())?;
+        match self.src {
+            Src::Text(text) => {
+                let rest = self.pos..text.len();
+                self.put(rest)?;
+            }
+            Src::File(file) => file.finish(self.out)?,
+        }
         self.out.flush().map_err(write_error)
     }
 
     fn put(&mut self, range: Range<usize>) -> Result<()> {
-        let text = self.src.get(range).ok_or_else(|| {
-            bad("internal error: an edit of the SVG text splits a character (please report this file)")
-        })?;
-        self.write(text)
+        match &mut self.src {
+            Src::Text(src) => {
+                let text = src.get(range).ok_or_else(|| {
+                    bad("internal error: an edit of the SVG text splits a character (please report this file)")
+                })?;
+                self.out.write_all(text.as_bytes()).map_err(write_error)
+            }
+            Src::File(file) => file.copy_to(range.end as u64, Some(&mut *self.out)),
+        }
     }
 
     fn write(&mut self, text: &str) -> Result<()> {
@@ -1420,7 +1481,7 @@ fn apply_edits(src: &str, edits: Vec<Edit>) -> Result<String> {
     let grown: usize = edits.iter().map(|e| e.text.len()).sum();
     let cut: usize = edits.iter().map(|e| e.range.len()).sum();
     let mut out = Vec::with_capacity((src.len() + grown).saturating_sub(cut));
-    let mut writer = EditWriter::new(src, &mut out);
+    let mut writer = EditWriter::new(Src::Text(src), &mut out);
     for e in sorted(edits) {
         writer.apply(e)?;
     }
@@ -1442,7 +1503,8 @@ fn describe(lines: &LineIndex, n: Node) -> String {
     match n.attribute("id") {
         Some(id) => format!("{} \"{id}\"", n.tag_name().name()),
         None => {
-            let (line, column) = lines.line_column(n.range().start);
+            let text = n.document().input_text();
+            let (line, column) = lines.line_column(text, n.range().start);
             format!("<{}> at line {line}, column {column}", n.tag_name().name())
         }
     }
@@ -1451,32 +1513,27 @@ fn describe(lines: &LineIndex, n: Node) -> String {
 /// Line and column numbers of byte offsets in a text, each found by a binary search over the
 /// lines' starts. (roxmltree's `Document::text_pos_at` counts from the start of the document
 /// every time, which made naming every element of a large file quadratic in its size.)
-struct LineIndex<'a> {
-    text: &'a str,
+struct LineIndex {
     /// Byte offset of the start of each line.
     starts: Vec<usize>,
 }
 
-impl<'a> LineIndex<'a> {
-    fn new(text: &'a str) -> Self {
+impl LineIndex {
+    fn new(text: &str) -> Self {
         let breaks = text.bytes().enumerate().filter(|&(_, b)| b == b'\n');
         let starts = std::iter::once(0)
             .chain(breaks.map(|(i, _)| i + 1))
             .collect();
-        LineIndex { text, starts }
+        LineIndex { starts }
     }
 
     /// The line and column (both from 1; the column counts characters, as XML tools do) of the
-    /// byte at `offset`.
-    fn line_column(&self, offset: usize) -> (usize, usize) {
-        let offset = offset.min(self.text.len());
+    /// byte at `offset` of `text` (the text indexed).
+    fn line_column(&self, text: &str, offset: usize) -> (usize, usize) {
+        let offset = offset.min(text.len());
         let line = self.starts.partition_point(|&s| s <= offset);
         let start = self.starts[line - 1];
-        let column = self
-            .text
-            .get(start..offset)
-            .map_or(0, |s| s.chars().count())
-            + 1;
+        let column = text.get(start..offset).map_or(0, |s| s.chars().count()) + 1;
         (line, column)
     }
 }
