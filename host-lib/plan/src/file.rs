@@ -17,7 +17,8 @@ use crate::error::{PlanError, Result};
 use crate::outcome::{AssumedUnits, CutPath, PlanSummary};
 use crate::progress::Progress;
 use crate::rules::CutRules;
-use crate::svg::{SvgOptions, dilate_svg, dilate_svg_cuts, dilate_svg_into};
+use crate::source_file::SourceFile;
+use crate::svg::{SvgOptions, dilate_svg_cuts, dilate_svg_file_into, dilate_svg_into};
 
 /// Plan file formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -117,8 +118,14 @@ pub fn dilate_file_into(
 ) -> Result<PlanSummary> {
     let (format, bytes) = read_plan(input)?;
     let summary = match format {
-        PlanFormat::Svg => svg_text(bytes)
-            .and_then(|text| dilate_svg_into(&text, kerf, &svg_options(options), out)),
+        PlanFormat::Svg => {
+            // The file is read again as the dilated plan is written, so its text is not held
+            // while the cuts are dilated.
+            let file = SourceFile::new(input, &bytes);
+            svg_text(bytes).and_then(|text| {
+                dilate_svg_file_into(text, Some(file), kerf, &svg_options(options), out)
+            })
+        }
         PlanFormat::Dxf => {
             dilate_dxf_owned(bytes, kerf, &dxf_options(options)).and_then(|(dxf, summary)| {
                 out.write_all(&dxf)
@@ -157,7 +164,7 @@ pub fn dilate_file_cuts(
     let (format, bytes) = read_plan(input)?;
     let (cuts, summary) = match format {
         PlanFormat::Svg => {
-            svg_text(bytes).and_then(|text| dilate_svg_cuts(&text, kerf, &svg_options(options)))
+            svg_text(bytes).and_then(|text| dilate_svg_cuts(text, kerf, &svg_options(options)))
         }
         PlanFormat::Dxf => dilate_dxf_cuts(&bytes, kerf, &dxf_options(options)),
     }
@@ -198,8 +205,9 @@ fn dilate_svg_bytes(
     options: &DilateOptions,
 ) -> Result<(Vec<u8>, PlanSummary)> {
     let text = svg_text(bytes)?;
-    let (out, summary) = dilate_svg(&text, kerf, &svg_options(options))?;
-    Ok((out.into_bytes(), summary))
+    let mut out = Vec::with_capacity(text.len());
+    let summary = dilate_svg_into(text, kerf, &svg_options(options), &mut out)?;
+    Ok((out, summary))
 }
 
 /// An SVG file's text: refuses compressed SVG and text that is not UTF-8.

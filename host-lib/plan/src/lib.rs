@@ -67,6 +67,7 @@ pub mod progress;
 pub mod recompensate;
 pub mod rules;
 pub mod selectors;
+mod source_file;
 pub mod svg;
 
 pub use error::{PlanError, Result};

@@ -46,15 +46,19 @@
 //!
 //! **Memory.** The dilated document is several times its source (every rounded corner an arc), so
 //! it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of elements'
-//! path data at a time. No step holds more than it needs: the source's XML tree is dropped while
-//! usvg parses the tagged copy, and of usvg's tree only the cut paths' data is kept, each path
-//! freed as it is traced; the source is parsed again to name the cuts and find where their new
-//! path data goes (byte ranges, a few per element), and that tree goes too before the dilation
-//! (writing parses it once more only to copy the targets of `<use>` clones, and G-code's cut
-//! order parses it again for the cuts' Inkscape layers). The kernel frees
-//! each drawn contour as it is offset. The peak is usvg's parse (the source, the tagged copy,
-//! usvg's XML tree of it and its own tree); the end of the dilation (the source and the dilated
-//! contours, cavalier's 24 bytes a vertex) is a little lower.
+//! path data at a time. No step holds more than it needs: the source's XML tree is dropped, and
+//! so is the source itself, while usvg parses the tagged copy (the source is made again from the
+//! copy, whose insertions are known), and of usvg's tree only the cut paths' data is kept; the
+//! source is parsed again to name the cuts and find where their new path data goes (byte
+//! ranges, a few per element), and that tree goes before the cuts are traced, each path's data
+//! freed as it is traced (writing parses the source once more only to copy the targets of
+//! `<use>` clones, and G-code's cut order parses it again for the cuts' Inkscape layers). A plan
+//! read from a file ([`crate::file::dilate_file_into`], what the CLI uses) does not hold its
+//! text while its cuts are dilated: the file is read again, checked unchanged, as the output is
+//! written. The kernel frees each drawn contour as it is offset. The peak is usvg's parse (the
+//! tagged copy, usvg's XML tree of it and its own tree); the end of the dilation (the dilated
+//! contours, cavalier's 24 bytes a vertex, and what each cut needs to be written back) is a
+//! little lower.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -75,6 +79,7 @@ use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
 use super::pipeline::{self, Format, Plan};
 use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
+use super::source_file::{Copier, SourceFile};
 use crate::error::{PlanError, Problems, Result};
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
@@ -202,7 +207,7 @@ pub fn dilate_svg(
     opts: &SvgOptions,
 ) -> Result<(String, PlanSummary)> {
     let mut out = Vec::with_capacity(text.len());
-    let summary = dilate_svg_into(text, kerf, opts, &mut out)?;
+    let summary = dilate_svg_into(text.to_owned(), kerf, opts, &mut out)?;
     let out = String::from_utf8(out).map_err(|_| {
         bad("internal error: the edited SVG is not UTF-8 (please report this file)")
     })?;
@@ -211,18 +216,32 @@ pub fn dilate_svg(
 
 /// Dilate the cuts of an SVG plan, writing the edited document to `out` as it is made (it is
 /// never held whole: with its arcs written out, it is several times the size of the source).
-/// On an error, part of the document may have been written. An error writing to `out` is a
-/// [`PlanError::Write`] (whose path the caller sets).
+/// The source `text` is taken, not lent: it is not held while usvg parses its tagged copy (see
+/// [`render`]). On an error, part of the document may have been written. An error writing to
+/// `out` is a [`PlanError::Write`] (whose path the caller sets).
 pub fn dilate_svg_into(
-    text: &str,
+    text: String,
+    kerf: &KerfSource,
+    opts: &SvgOptions,
+    out: &mut (dyn Write + Sync),
+) -> Result<PlanSummary> {
+    dilate_svg_file_into(text, None, kerf, opts, out)
+}
+
+/// [`dilate_svg_into`] for a source `text` read from `file`, if given: then the text is not held
+/// while the cuts are dilated, and the file is read again (checked unchanged) as the dilated
+/// document is written.
+pub(crate) fn dilate_svg_file_into(
+    text: String,
+    file: Option<SourceFile>,
     kerf: &KerfSource,
     opts: &SvgOptions,
     out: &mut (dyn Write + Sync),
 ) -> Result<PlanSummary> {
     opts.progress.start(Stage::Reading, 0);
-    let rendered = render(text, opts)?;
+    let (text, rendered) = render(text, opts)?;
     let ((), summary) = pipeline::dilate_plan(
-        SvgPlan::new(text, rendered, out),
+        SvgPlan::new(text, file, rendered, out),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -234,14 +253,14 @@ pub fn dilate_svg_into(
 /// Dilate the cuts of an SVG plan and give them back as contours in document mm (y down), each
 /// with its stroke colour and Inkscape layer: what G-code is made from.
 pub(crate) fn dilate_svg_cuts(
-    text: &str,
+    text: String,
     kerf: &KerfSource,
     opts: &SvgOptions,
 ) -> Result<(Vec<CutPath>, PlanSummary)> {
     opts.progress.start(Stage::Reading, 0);
-    let rendered = render(text, opts)?;
+    let (text, rendered) = render(text, opts)?;
     pipeline::dilate_plan_cuts(
-        SvgPlan::new(text, rendered, &mut std::io::sink()),
+        SvgPlan::new(text, None, rendered, &mut std::io::sink()),
         kerf,
         opts.if_compensated,
         &opts.rules,
@@ -273,20 +292,23 @@ fn parse(text: &str) -> Result<Document<'_>> {
 /// passes through) and each cut instance with its path data (element coordinates).
 struct Rendered {
     plan: Plan<(usize, usize)>,
-    found: Vec<(Instance, tiny_skia_path::Path)>,
+    instances: Vec<Instance>,
+    /// `paths[k]` is the path data of `instances[k]`.
+    paths: Vec<tiny_skia_path::Path>,
 }
 
-/// Render the document with usvg and find its cut instances.
+/// Render the document with usvg and find its cut instances; the source is given back.
 ///
 /// Memory: this is the largest step of reading, so nothing else large is alive during it. The
 /// XML tree of the source (parsed here to check it, read its size and records, and tag its
-/// elements, see [`tagged`]) goes before usvg parses the tagged copy; the tagged copy goes as soon
-/// as usvg has read it; and of usvg's tree only the cut paths' data is kept (a tenth of the tree).
-/// Reading parses the source again, to name and place the cuts.
-fn render(text: &str, opts: &SvgOptions) -> Result<Rendered> {
+/// elements, see [`tagged`]) goes before usvg parses the tagged copy, and so does the source
+/// itself: it is made again from the tagged copy, whose insertions are known, once usvg's tree
+/// is gone. Of usvg's tree only the cut paths' data is kept (a tenth of the tree). Reading parses
+/// the source again, to name and place the cuts.
+fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     let mut plan = Plan::new("svg");
     let (tagged, use_by_id, shapes_len) = {
-        let doc = parse(text)?;
+        let doc = parse(&text)?;
         let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
         plan.summary.mm_per_unit = mm_per_px;
         plan.summary.compensation_found = compensation::find_in_svg(&doc);
@@ -297,31 +319,41 @@ fn render(text: &str, opts: &SvgOptions) -> Result<Rendered> {
             plan.summary.pass("text");
         }
         let (shapes, uses) = shapes_and_uses(&doc);
-        let (tagged, use_by_id) = tagged(text, &shapes, &uses)?;
+        let (tagged, use_by_id) = tagged(&text, &shapes, &uses)?;
         (tagged, use_by_id, shapes.len())
     };
-    let tree = usvg::Tree::from_str(&tagged, &usvg::Options::default())
+    drop(text);
+    let tree = usvg::Tree::from_str(&tagged.text, &usvg::Options::default())
         .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
-    drop(tagged);
     let mut walk = Walk {
         rules: &opts.rules,
         mm_per_px: plan.summary.mm_per_unit,
         shapes_len,
         use_by_id: &use_by_id,
-        found: Vec::new(),
+        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
+        // grown by doubling, these vectors held up to twice their room at the peak of reading.
+        instances: Vec::with_capacity(shapes_len),
+        paths: Vec::with_capacity(shapes_len),
         seen: HashSet::new(),
         summary: &mut plan.summary,
         unidentified: 0,
     };
     walk.group(tree.root(), &mut Vec::new());
-    let (unidentified, mut found) = (walk.unidentified, walk.found);
+    let (unidentified, mut instances, mut paths) = (walk.unidentified, walk.instances, walk.paths);
+    drop(tree);
     if unidentified > 0 {
         return Err(bad(format!(
             "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
         )));
     }
-    found.shrink_to_fit();
-    Ok(Rendered { plan, found })
+    instances.shrink_to_fit();
+    paths.shrink_to_fit();
+    let rendered = Rendered {
+        plan,
+        instances,
+        paths,
+    };
+    Ok((tagged.untagged(), rendered))
 }
 
 /// The shape elements and the `<use>` elements of a document, each in document order (an
@@ -373,10 +405,54 @@ struct Records {
     at: Option<usize>,
 }
 
+/// The source with tags inserted (see [`tagged`]), and where they are, so that the source can be
+/// made again from it.
+struct Tagged {
+    text: String,
+    /// The inserted tags' ranges in `text`, in order.
+    tags: Vec<Range<usize>>,
+}
+
+impl Tagged {
+    /// The source `text` with the insertions `edits` (empty source ranges) applied.
+    fn new(src: &str, edits: Vec<Edit>) -> Result<Self> {
+        let edits = sorted(edits);
+        let mut grown = 0;
+        let mut tags = Vec::with_capacity(edits.len());
+        for e in &edits {
+            if !e.range.is_empty() {
+                return Err(bad(
+                    "internal error: a tag replaces SVG text (please report this file)",
+                ));
+            }
+            let at = e.range.start + grown;
+            tags.push(at..at + e.text.len());
+            grown += e.text.len();
+        }
+        Ok(Tagged {
+            text: apply_edits(src, edits)?,
+            tags,
+        })
+    }
+
+    /// The source again: the text without the tags.
+    fn untagged(self) -> String {
+        let tagged_len: usize = self.tags.iter().map(Range::len).sum();
+        let mut src = String::with_capacity(self.text.len() - tagged_len);
+        let mut pos = 0;
+        for tag in &self.tags {
+            src.push_str(&self.text[pos..tag.start]);
+            pos = tag.end;
+        }
+        src.push_str(&self.text[pos..]);
+        src
+    }
+}
+
 /// The source `text` with every shape tagged by its number (`stroke-miterlimit`, which usvg
 /// keeps) and every `<use>` given an id, so that what usvg renders can be traced back to its
 /// element; and the `<use>` elements by id.
-fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(String, HashMap<String, usize>)> {
+fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(Tagged, HashMap<String, usize>)> {
     let mut tags: Vec<Edit> = Vec::new();
     for (k, n) in shapes.iter().enumerate() {
         let code = k + 1;
@@ -414,7 +490,7 @@ fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(String, HashMap
             }
         }
     }
-    Ok((apply_edits(text, tags)?, use_by_id))
+    Ok((Tagged::new(text, tags)?, use_by_id))
 }
 
 /// An SVG document in the plan pipeline: the source text and the cut instances found by
@@ -423,9 +499,13 @@ fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(String, HashMap
 /// No XML tree of the source is kept between the steps (it was a fifth of the peak memory, held
 /// through the dilation): reading parses the source to name the cuts and find where their new
 /// path data goes, and drops it; writing parses it again only for cuts reached through `<use>`,
-/// whose targets are copied.
-struct SvgPlan<'a, 'w> {
-    text: &'a str,
+/// whose targets are copied. A plan read from a file does not even hold the source's text while
+/// its cuts are dilated: the file is read again as the output is written (see [`SourceFile`]).
+struct SvgPlan<'w> {
+    /// The source (empty between reading and writing when `file` can give it back).
+    text: String,
+    /// The file the source was read from, when it is to be read again for writing.
+    file: Option<SourceFile>,
     /// The rendered occurrences of cut elements (set by `read`).
     instances: Vec<Instance>,
     /// What rendering found, until `read` takes it.
@@ -433,48 +513,55 @@ struct SvgPlan<'a, 'w> {
     /// Where the compensation record goes (set by `read`).
     records: Records,
     /// Where each line of the source starts, to name elements by line and column.
-    lines: LineIndex<'a>,
+    lines: LineIndex,
     /// Where the dilated document goes (taken when it is written).
     out: Option<&'w mut (dyn Write + Sync)>,
 }
 
-impl<'a, 'w> SvgPlan<'a, 'w> {
-    fn new(text: &'a str, rendered: Rendered, out: &'w mut (dyn Write + Sync)) -> Self {
+impl<'w> SvgPlan<'w> {
+    /// The plan of the source `text` (read from `file`, if given) as rendered.
+    fn new(
+        text: String,
+        file: Option<SourceFile>,
+        rendered: Rendered,
+        out: &'w mut (dyn Write + Sync),
+    ) -> Self {
         SvgPlan {
+            lines: LineIndex::new(&text),
             text,
+            file,
             instances: Vec::new(),
             rendered: Some(rendered),
             records: Records::default(),
-            lines: LineIndex::new(text),
             out: Some(out),
         }
     }
 
-    /// Trace the instances' subpaths (by instance) on any core, freeing each one's path data as
-    /// it goes (it is kept, as segments, only for elements with an open subpath, which is
-    /// written back as drawn).
+    /// Trace the instances' subpaths (by instance; `paths[k]` and `names[k]` are instance `k`'s
+    /// path data and name) on any core, freeing each one's path data as it goes (it is kept, as
+    /// segments, only for elements with an open subpath, which is written back as drawn).
     fn trace_all(
         &mut self,
-        el: &Elements,
-        found: Vec<(Instance, tiny_skia_path::Path)>,
+        paths: Vec<tiny_skia_path::Path>,
+        names: &[String],
     ) -> Vec<Vec<Traced>> {
-        let (instances, traced) = found
-            .into_par_iter()
-            .map(|(mut inst, path)| {
+        self.instances
+            .par_iter_mut()
+            .zip(paths)
+            .zip(names)
+            .map(|((inst, path), name)| {
                 let segs = subpaths_of(&path);
                 drop(path);
-                let traced = self.trace(el, &inst, &segs);
+                let traced = trace(inst, &segs, name);
                 inst.subpath_count = segs.len();
                 let all_closed = traced.len() == segs.len()
                     && traced.iter().all(|t| matches!(t, Traced::Closed(..)));
                 if !all_closed {
                     inst.drawn = segs;
                 }
-                (inst, traced)
+                traced
             })
-            .unzip();
-        self.instances = instances;
-        traced
+            .collect()
     }
 
     /// How to name an instance in messages.
@@ -519,58 +606,38 @@ impl<'a, 'w> SvgPlan<'a, 'w> {
         }
     }
 
-    /// In a boxes.py plan, the cuts of its reference rectangle, which boxes.py draws without burn.
-    fn find_unburnt(&self, el: &Elements, plan: &mut Plan<(usize, usize)>) {
-        let boxes = plan
-            .summary
+    /// In a boxes.py plan, which instances are of its reference rectangle, which boxes.py draws
+    /// without burn (by instance; empty for other plans).
+    fn boxes_references(&self, el: &Elements, summary: &PlanSummary) -> Vec<bool> {
+        let boxes = summary
             .compensation_found
             .as_ref()
             .is_some_and(|f| f.by == CompensatedBy::BoxesPy);
         if !boxes {
-            return;
+            return Vec::new();
         }
-        for (k, cut) in plan.cuts.iter().enumerate() {
-            let node = el.shapes[self.instances[cut.origin.0].element];
-            if compensation::is_boxes_reference(node) {
-                plan.unburnt.push(k);
-            }
-        }
+        (self.instances.iter())
+            .map(|inst| compensation::is_boxes_reference(el.shapes[inst.element]))
+            .collect()
     }
 
-    /// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm.
-    fn trace(&self, el: &Elements, inst: &Instance, subpaths: &[Vec<Seg>]) -> Vec<Traced> {
-        let eps = coordinate_eps(inst, subpaths);
-        let n_sub = subpaths.len();
-        let mut traced = Vec::with_capacity(n_sub);
-        for (si, segs) in subpaths.iter().enumerate() {
-            // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
-            let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
-            let doc = |p: P32| inst.to_doc.apply(p.v2());
-            for s in segs {
-                match *s {
-                    Seg::M(p) => sink.move_to(doc(p)),
-                    Seg::L(p) => sink.line_to(doc(p)),
-                    Seg::Q(a, b) => sink.quad_to(doc(a), doc(b)),
-                    Seg::C(a, b, c) => sink.cubic_to(doc(a), doc(b), doc(c)),
-                    Seg::Z => sink.close(),
-                }
-            }
-            let Some(sub) = sink.finish().into_iter().next() else {
-                continue;
-            };
-            let mut name = self.label(el, inst);
-            if n_sub > 1 {
-                name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
-            }
-            if sub.pline.is_closed() {
-                traced.push(Traced::Closed(si, sub.pline, name));
-            } else {
-                let first = sub.pline.at(0);
-                let last = sub.pline.at(sub.pline.vertex_count() - 1);
-                traced.push(Traced::Open(name, v2(first.x, first.y), v2(last.x, last.y)));
-            }
-        }
-        traced
+    /// Everything reading needs from the source's XML tree, found in one parse that is dropped
+    /// before the cuts are traced (the tree and the traced contours held at once were the peak
+    /// of reading): the uses checked, the instances placed, the compensation records found, and
+    /// each instance's name and whether it is of boxes.py's reference rectangle.
+    fn read_source(&mut self, summary: &PlanSummary) -> Result<(Vec<String>, Vec<bool>)> {
+        let doc = parse(&self.text)?;
+        let el = Elements::of(&doc);
+        self.check_uses(&el)?;
+        place(&mut self.instances, &self.text, &el);
+        self.records = Records {
+            old: compensation::own_svg_records(&doc),
+            at: doc.root_element().first_child().map(|n| n.range().start),
+        };
+        let names = (self.instances.iter())
+            .map(|inst| self.label(&el, inst))
+            .collect();
+        Ok((names, self.boxes_references(&el, summary)))
     }
 
     /// The new geometry of the instances reached through `<use>`, as edits by `<use>`: their
@@ -615,7 +682,11 @@ impl<'a, 'w> SvgPlan<'a, 'w> {
             .collect();
         direct.sort_by_key(|&ii| self.instances[ii].start);
         let mut edits = sorted(edits).into_iter().peekable();
-        let mut out = EditWriter::new(self.text, sink);
+        let src = match (&self.file, self.text.is_empty()) {
+            (Some(file), true) => Src::File(file.copier()?),
+            _ => Src::Text(&self.text),
+        };
+        let mut out = EditWriter::new(src, sink);
         for batch in direct.chunks(WRITE_BATCH) {
             let made: Vec<Option<Result<Vec<Edit>>>> = batch
                 .par_iter()
@@ -782,37 +853,41 @@ impl<'a, 'w> SvgPlan<'a, 'w> {
     }
 }
 
-impl Format for SvgPlan<'_, '_> {
+impl Format for SvgPlan<'_> {
     type Origin = (usize, usize);
     type Output = ();
 
     fn read(&mut self) -> Result<Plan<(usize, usize)>> {
-        let Some(Rendered { mut plan, found }) = self.rendered.take() else {
+        let Some(Rendered {
+            mut plan,
+            instances,
+            paths,
+        }) = self.rendered.take()
+        else {
             return Err(bad("internal error: the SVG was read twice"));
         };
-        let doc = parse(self.text)?;
-        let el = Elements::of(&doc);
-        let traced = self.trace_all(&el, found);
-        self.check_uses(&el)?;
+        self.instances = instances;
+        let (names, boxes_reference) = self.read_source(&plan.summary)?;
+        let traced = self.trace_all(paths, &names);
+        drop(names);
         plan.summary.cut_elements = self.instances.len();
         Self::contours(&mut plan, traced);
-        self.find_unburnt(&el, &mut plan);
-        for inst in &mut self.instances {
-            let node = el.shapes[inst.element];
-            inst.start = node.range().start;
-            inst.slots = geometry_slots(self.text, node);
+        for (k, cut) in plan.cuts.iter().enumerate() {
+            if boxes_reference.get(cut.origin.0) == Some(&true) {
+                plan.unburnt.push(k);
+            }
         }
-        self.records = Records {
-            old: compensation::own_svg_records(&doc),
-            at: doc.root_element().first_child().map(|n| n.range().start),
-        };
+        if self.file.is_some() {
+            // Read again when the plan is written.
+            self.text = String::new();
+        }
         Ok(plan)
     }
 
     fn groups(&self, plan: &Plan<(usize, usize)>) -> Vec<CutGroup> {
         // The layers are read from the source parsed again (only G-code asks for them, and it
         // parsed in `read`: a failure now would be a bug, not bad input).
-        let doc = parse(self.text).expect("the source parsed when it was read");
+        let doc = parse(&self.text).expect("the source parsed when it was read");
         let el = Elements::of(&doc);
         plan.cuts
             .iter()
@@ -838,7 +913,11 @@ impl Format for SvgPlan<'_, '_> {
             .collect();
         let mut edits = Vec::new();
         if self.instances.iter().any(|inst| inst.via_use.is_some()) {
-            let doc = parse(self.text)?;
+            // The targets of `<use>` are copied from the source's text: it is read again whole.
+            if let Some(file) = self.file.as_ref().filter(|_| self.text.is_empty()) {
+                self.text = file.read_again()?;
+            }
+            let doc = parse(&self.text)?;
             let el = Elements::of(&doc);
             let clone_edits = self.clone_geometry_edits(&contour_of, &mut plan.summary)?;
             self.clone_uses(&el, clone_edits, &mut edits, &mut plan.summary)?;
@@ -901,13 +980,14 @@ fn document_scale(
     }
 }
 
-/// The walk over usvg's tree: the cut instances found, each with its path in the tree.
+/// The walk over usvg's tree: the cut instances found, and each one's path data (a copy).
 struct Walk<'a> {
     rules: &'a CutRules,
     mm_per_px: f64,
     shapes_len: usize,
     use_by_id: &'a HashMap<String, usize>,
-    found: Vec<(Instance, tiny_skia_path::Path)>,
+    instances: Vec<Instance>,
+    paths: Vec<tiny_skia_path::Path>,
     seen: HashSet<(usize, Option<usize>)>,
     summary: &'a mut PlanSummary,
     unidentified: usize,
@@ -980,7 +1060,8 @@ impl Walk<'_> {
                     start: 0,
                     slots: Vec::new(),
                 };
-                self.found.push((instance, p.data().clone()));
+                self.instances.push(instance);
+                self.paths.push(p.data().clone());
             }
         }
     }
@@ -1034,6 +1115,52 @@ fn subpaths_of(p: &tiny_skia_path::Path) -> Vec<Vec<Seg>> {
     }
     subpaths.shrink_to_fit();
     subpaths
+}
+
+/// Where each instance's element starts in the source `text`, and where its new path data goes.
+fn place(instances: &mut [Instance], text: &str, el: &Elements) {
+    for inst in instances {
+        let node = el.shapes[inst.element];
+        inst.start = node.range().start;
+        inst.slots = geometry_slots(text, node);
+    }
+}
+
+/// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm; `name`
+/// names the instance.
+fn trace(inst: &Instance, subpaths: &[Vec<Seg>], name: &str) -> Vec<Traced> {
+    let eps = coordinate_eps(inst, subpaths);
+    let n_sub = subpaths.len();
+    let mut traced = Vec::with_capacity(n_sub);
+    for (si, segs) in subpaths.iter().enumerate() {
+        // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
+        let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
+        let doc = |p: P32| inst.to_doc.apply(p.v2());
+        for s in segs {
+            match *s {
+                Seg::M(p) => sink.move_to(doc(p)),
+                Seg::L(p) => sink.line_to(doc(p)),
+                Seg::Q(a, b) => sink.quad_to(doc(a), doc(b)),
+                Seg::C(a, b, c) => sink.cubic_to(doc(a), doc(b), doc(c)),
+                Seg::Z => sink.close(),
+            }
+        }
+        let Some(sub) = sink.finish().into_iter().next() else {
+            continue;
+        };
+        let mut name = name.to_string();
+        if n_sub > 1 {
+            name.push_str(&format!(" (subpath {} of {n_sub})", si + 1));
+        }
+        if sub.pline.is_closed() {
+            traced.push(Traced::Closed(si, sub.pline, name));
+        } else {
+            let first = sub.pline.at(0);
+            let last = sub.pline.at(sub.pline.vertex_count() - 1);
+            traced.push(Traced::Open(name, v2(first.x, first.y), v2(last.x, last.y)));
+        }
+    }
+    traced
 }
 
 /// Rounding uncertainty of an instance's coordinates (`subpaths`) in document mm (usvg keeps
@@ -1276,16 +1403,22 @@ fn sorted(mut edits: Vec<Edit>) -> Vec<Edit> {
     edits
 }
 
+/// The source text an [`EditWriter`] copies: in memory, or its file read as it is copied.
+enum Src<'s> {
+    Text(&'s str),
+    File(Copier<'s>),
+}
+
 /// A source text being copied to a writer with non-overlapping edits applied, given in order.
 struct EditWriter<'s, 'o> {
-    src: &'s str,
+    src: Src<'s>,
     /// How far the source has been copied.
     pos: usize,
     out: &'o mut dyn Write,
 }
 
 impl<'s, 'o> EditWriter<'s, 'o> {
-    fn new(src: &'s str, out: &'o mut dyn Write) -> Self {
+    fn new(src: Src<'s>, out: &'o mut dyn Write) -> Self {
         EditWriter { src, pos: 0, out }
     }
 
@@ -1298,21 +1431,35 @@ impl<'s, 'o> EditWriter<'s, 'o> {
         }
         self.put(self.pos..e.range.start)?;
         self.write(&e.text)?;
+        if let Src::File(file) = &mut self.src {
+            file.copy_to(e.range.end as u64, None)?;
+        }
         self.pos = e.range.end;
         Ok(())
     }
 
     /// Copy the rest of the source.
     fn finish(mut self) -> Result<()> {
-        self.put(self.pos..self.src.len())?;
+        match self.src {
+            Src::Text(text) => {
+                let rest = self.pos..text.len();
+                self.put(rest)?;
+            }
+            Src::File(file) => file.finish(self.out)?,
+        }
         self.out.flush().map_err(write_error)
     }
 
     fn put(&mut self, range: Range<usize>) -> Result<()> {
-        let text = self.src.get(range).ok_or_else(|| {
-            bad("internal error: an edit of the SVG text splits a character (please report this file)")
-        })?;
-        self.write(text)
+        match &mut self.src {
+            Src::Text(src) => {
+                let text = src.get(range).ok_or_else(|| {
+                    bad("internal error: an edit of the SVG text splits a character (please report this file)")
+                })?;
+                self.out.write_all(text.as_bytes()).map_err(write_error)
+            }
+            Src::File(file) => file.copy_to(range.end as u64, Some(&mut *self.out)),
+        }
     }
 
     fn write(&mut self, text: &str) -> Result<()> {
@@ -1334,7 +1481,7 @@ fn apply_edits(src: &str, edits: Vec<Edit>) -> Result<String> {
     let grown: usize = edits.iter().map(|e| e.text.len()).sum();
     let cut: usize = edits.iter().map(|e| e.range.len()).sum();
     let mut out = Vec::with_capacity((src.len() + grown).saturating_sub(cut));
-    let mut writer = EditWriter::new(src, &mut out);
+    let mut writer = EditWriter::new(Src::Text(src), &mut out);
     for e in sorted(edits) {
         writer.apply(e)?;
     }
@@ -1356,7 +1503,8 @@ fn describe(lines: &LineIndex, n: Node) -> String {
     match n.attribute("id") {
         Some(id) => format!("{} \"{id}\"", n.tag_name().name()),
         None => {
-            let (line, column) = lines.line_column(n.range().start);
+            let text = n.document().input_text();
+            let (line, column) = lines.line_column(text, n.range().start);
             format!("<{}> at line {line}, column {column}", n.tag_name().name())
         }
     }
@@ -1365,32 +1513,27 @@ fn describe(lines: &LineIndex, n: Node) -> String {
 /// Line and column numbers of byte offsets in a text, each found by a binary search over the
 /// lines' starts. (roxmltree's `Document::text_pos_at` counts from the start of the document
 /// every time, which made naming every element of a large file quadratic in its size.)
-struct LineIndex<'a> {
-    text: &'a str,
+struct LineIndex {
     /// Byte offset of the start of each line.
     starts: Vec<usize>,
 }
 
-impl<'a> LineIndex<'a> {
-    fn new(text: &'a str) -> Self {
+impl LineIndex {
+    fn new(text: &str) -> Self {
         let breaks = text.bytes().enumerate().filter(|&(_, b)| b == b'\n');
         let starts = std::iter::once(0)
             .chain(breaks.map(|(i, _)| i + 1))
             .collect();
-        LineIndex { text, starts }
+        LineIndex { starts }
     }
 
     /// The line and column (both from 1; the column counts characters, as XML tools do) of the
-    /// byte at `offset`.
-    fn line_column(&self, offset: usize) -> (usize, usize) {
-        let offset = offset.min(self.text.len());
+    /// byte at `offset` of `text` (the text indexed).
+    fn line_column(&self, text: &str, offset: usize) -> (usize, usize) {
+        let offset = offset.min(text.len());
         let line = self.starts.partition_point(|&s| s <= offset);
         let start = self.starts[line - 1];
-        let column = self
-            .text
-            .get(start..offset)
-            .map_or(0, |s| s.chars().count())
-            + 1;
+        let column = text.get(start..offset).map_or(0, |s| s.chars().count()) + 1;
         (line, column)
     }
 }
@@ -1539,6 +1682,29 @@ mod tests {
                 assert_eq!(out, exact(v, digits), "{v} with {digits} digits");
             }
         }
+    }
+
+    #[test]
+    fn the_source_is_made_again_from_its_tagged_copy() {
+        let src = "<svg>\n  <path d=\"M0 0\"/><use href=\"#a\"/>é<rect/></svg>";
+        let at = |needle: &str| src.find(needle).unwrap();
+        let insert = |at: usize, text: &str| Edit {
+            range: at..at,
+            text: text.into(),
+        };
+        // Given out of order, two at one place.
+        let edits = vec![
+            insert(at("<rect") + 5, " style=\"b\""),
+            insert(at("<path") + 5, " style=\"a\""),
+            insert(at("<use") + 4, " id=\"u\""),
+            insert(at("<use") + 4, " x=\"1\""),
+        ];
+        let tagged = Tagged::new(src, edits).unwrap();
+        assert_eq!(
+            tagged.text,
+            "<svg>\n  <path style=\"a\" d=\"M0 0\"/><use id=\"u\" x=\"1\" href=\"#a\"/>é<rect style=\"b\"/></svg>"
+        );
+        assert_eq!(tagged.untagged(), src);
     }
 
     #[test]

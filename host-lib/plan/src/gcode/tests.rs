@@ -30,7 +30,7 @@ const ARCS: &str = r#"
 
 fn svg_cuts(body: &str, kerf_um: f64) -> Vec<CutPath> {
     dilate_svg_cuts(
-        &svg(body),
+        svg(body),
         &KerfSource::Uniform(kerf_um),
         &SvgOptions::default(),
     )
