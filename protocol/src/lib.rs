@@ -103,7 +103,12 @@ pub use report::{
 ///   that the torque's uncertainty could move by more than the device's accuracy (a soft gauge
 ///   material); [`QualityFlags::NOISY_HOLD`] now means a hold that drifted, not one the
 ///   encoder's noise spread. Every 2.2 frame keeps its bytes.
-pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 3 };
+/// - 2.4 (minor, additive): the hole play is measured by backing the hub off after the
+///   release; [`QualityFlags::PLAY_MODELLED`] (a new bit, 10, advisory: see
+///   [`QualityFlags::ADVISORY`]) marks a result read with the model's play instead, and
+///   `GetKerf` answers only once a run has ended (the back-off completes the result). Every
+///   2.3 frame keeps its bytes.
+pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 4 };
 
 /// USB vendor id of the ESP32-C3/C6 USB-Serial-JTAG port (Espressif).
 pub const USB_VID_ESPRESSIF: u16 = 0x303A;

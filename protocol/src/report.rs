@@ -243,9 +243,22 @@ impl QualityFlags {
     /// (the senses' gain errors, the winding's temperature) could move it by more than the
     /// device's accuracy. A soft gauge material or a contact still creeping (protocol 2.3).
     pub const FORCE_SENSITIVE: Self = Self(1 << 9);
+    /// The hole play in the reading is the spiral model's, not measured: the back-off after the
+    /// release found no stall on the holes' far faces, or one too far from the model's, or was
+    /// not made (no run time left for it, an encoder on the motor shaft, a light hold, a fault
+    /// or abort during it). Such a reading is as good as every reading before protocol 2.4: on a
+    /// tapered cut or with the head back off the gauge's centre, a micrometre or a few low
+    /// (protocol 2.4). Advisory: it does not distrust the number ([`QualityFlags::ADVISORY`]).
+    pub const PLAY_MODELLED: Self = Self(1 << 10);
+
+    /// The flags that do not distrust the number: `decimated` (the curve is only coarser) and
+    /// `play-modelled` (the model's play, as every reading before protocol 2.4). A measurement
+    /// with any other flag is not trusted (the job stops, the history leaves it out of a label's
+    /// drift, the robustness sweep counts it as flagged).
+    pub const ADVISORY: Self = Self(Self::DECIMATED.0 | Self::PLAY_MODELLED.0);
 
     /// Names of the flags, for messages.
-    pub const NAMES: [(Self, &'static str); 10] = [
+    pub const NAMES: [(Self, &'static str); 11] = [
         (Self::NEAR_DISENGAGE, "near-disengage"),
         (Self::NOISY_HOLD, "noisy-hold"),
         (Self::WEAK_MAGNET, "weak-magnet"),
@@ -256,6 +269,7 @@ impl QualityFlags {
         (Self::SUPPLY_LIMITED, "supply-limited"),
         (Self::TORQUE_MISMATCH, "torque-mismatch"),
         (Self::FORCE_SENSITIVE, "force-sensitive"),
+        (Self::PLAY_MODELLED, "play-modelled"),
     ];
 
     /// No flag set.
@@ -273,6 +287,14 @@ impl QualityFlags {
     /// Clear the flags of `other`.
     pub fn remove(&mut self, other: Self) {
         self.0 &= !other.0;
+    }
+    /// The flags that distrust the number: all but the [`QualityFlags::ADVISORY`] ones.
+    pub const fn distrusting(self) -> Self {
+        Self(self.0 & !Self::ADVISORY.0)
+    }
+    /// Whether the flag named `name` is advisory ([`QualityFlags::ADVISORY`]).
+    pub fn is_advisory_name(name: &str) -> bool {
+        Self::ADVISORY.names().any(|n| n == name)
     }
     /// True when no flag is set.
     pub const fn is_empty(self) -> bool {

@@ -238,7 +238,7 @@ enum State {
     /// After the release, reported as `Releasing`: the hub turned back through the hole play
     /// against the jammed inset to measure it (`run.rs`, "Measured play").
     BackingOff {
-        from_deg: f32,
+        from_deg: Option<f32>,
         ticks: u32,
         still: u32,
     },
@@ -397,6 +397,12 @@ impl Controller {
 
     /// The last result (`GetKerf`): `None` before the first run, during a run and after a reset.
     pub fn result(&self) -> Option<&KerfResult> {
+        // The result is solved as the release starts and completed by the back-off: not
+        // published until the run has ended (or a fault or abort ended it: then with the
+        // model's play, flagged `PLAY_MODELLED`).
+        if self.state.is_run() {
+            return None;
+        }
         self.result.as_ref()
     }
 

@@ -27,24 +27,26 @@
 //! the host reads the sweep at other forces with it.
 
 use kerfmeter_protocol::{
-    ErrorCode, KerfResult, QualityFlags, REFERENCE_SUPPLY_V, RunParams, START_TOLERANCE_DEG, Sample,
+    EncoderPlacement, ErrorCode, KerfResult, QualityFlags, REFERENCE_SUPPLY_V, RunParams,
+    START_TOLERANCE_DEG, Sample,
 };
 
 use super::supply::{millivolts, needed_supply_v};
 use super::winding::{
     CHECK_COMPLIANCE_MARGIN, CHECK_DUTY, CHECK_MARGIN_MS, CHECK_MAX_ERROR, CHECK_MAX_TICKS,
-    CHECK_MAX_TORQUE_RATIO, CHECK_READINGS, ESTIMATE_TICK, MAX_STEP, MIN_DUTY, SKIP_TICKS,
+    CHECK_MAX_TORQUE_RATIO, CHECK_PROBE_MIN_RISE_LSB, CHECK_READINGS, ESTIMATE_TICK, MAX_STEP,
+    MIN_DUTY, SKIP_TICKS,
 };
 use super::{
-    APPROACH_FRACTION, BACK_OFF_MAX_DEVIATION_DEG, BACK_OFF_MAX_TICKS, BACK_OFF_MAX_TORQUE_NM,
-    BACK_OFF_MIN_TURN_DEG, BACK_OFF_RESERVE_MS, BACK_OFF_SPEED_DEG_PER_S, BACK_OFF_STALL_SHARE,
-    BACK_OFF_STILL_TICKS, Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S,
-    FORCE_SENSITIVITY_LIMIT_UM, HOLD_CREEP_LSB, HOLD_RETRY_RESERVE_MS, JAM_MIN_INSET_DEG,
-    JAM_SETTLE_TICKS, JAM_SLIP_DEG, JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_HOLD_RETRIES,
-    MAX_TURN_SPEED_DEG_PER_S, MIN_APPROACH_FRACTION, MIN_PROBE_FRACTION, Motion,
-    NEAR_DISENGAGE_FRACTION, OVERSHOOT_LIMIT, OVERTRAVEL_MARGIN_DEG, PROBE_AVERAGED_TICKS,
-    PROBE_FRACTION, PROBE_TICKS, RELEASE_RATE_NM_PER_S, State, TORQUE_UNCERTAINTY,
-    TORQUE_UNCERTAINTY_UNMEASURED,
+    APPROACH_FRACTION, BACK_OFF_MAX_LONGER_DEG, BACK_OFF_MAX_SHORTER_DEG, BACK_OFF_MAX_TICKS,
+    BACK_OFF_MAX_TORQUE_NM, BACK_OFF_MIN_HELD_RATIO, BACK_OFF_MIN_TURN_DEG, BACK_OFF_RESERVE_MS,
+    BACK_OFF_SETTLE_TICKS, BACK_OFF_SPEED_DEG_PER_S, BACK_OFF_STALL_SHARE, BACK_OFF_STILL_TICKS,
+    Controller, ENGAGE_MAX_TORQUE_NM, ENGAGE_SPEED_DEG_PER_S, FORCE_SENSITIVITY_LIMIT_UM,
+    HOLD_CREEP_LSB, HOLD_RETRY_RESERVE_MS, JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS, JAM_SLIP_DEG,
+    JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_HOLD_RETRIES, MAX_TURN_SPEED_DEG_PER_S,
+    MIN_APPROACH_FRACTION, MIN_PROBE_FRACTION, Motion, NEAR_DISENGAGE_FRACTION, OVERSHOOT_LIMIT,
+    OVERTRAVEL_MARGIN_DEG, PROBE_AVERAGED_TICKS, PROBE_FRACTION, PROBE_TICKS,
+    RELEASE_RATE_NM_PER_S, State, TORQUE_UNCERTAINTY, TORQUE_UNCERTAINTY_UNMEASURED,
 };
 use crate::build::CONTROL_RATE_HZ;
 
@@ -101,9 +103,9 @@ pub(super) struct Run {
     /// The winding check after the probe has taken its readings (`winding.rs`, "After the
     /// hold").
     pub(super) winding_checked: bool,
-    /// How far the hub may turn on from the held angle under the winding check, degrees
-    /// ([`Controller::check_turn_allowance_deg`], set as the check starts).
-    pub(super) check_turn_allowance_deg: f32,
+    /// The contact's compliance the winding check holds the hub's turn to, degrees per N·m
+    /// ([`Controller::check_compliance_deg_per_nm`], set as the check starts; zero before).
+    pub(super) check_compliance_deg_per_nm: f32,
     /// Where no settle measured the winding: the held torque's error as the winding check after
     /// the probe found it, as a fraction of the commanded torque (`None` also where the check's
     /// estimate was implausible: then it measures nothing).
@@ -160,7 +162,7 @@ impl Run {
             probe_sum_deg: 0.0,
             probe: None,
             winding_checked: false,
-            check_turn_allowance_deg: 0.0,
+            check_compliance_deg_per_nm: 0.0,
             hold_torque_error: None,
             approach: None,
             held: None,
@@ -472,7 +474,7 @@ impl Controller {
             Some(check_nm) => {
                 self.run.still_ticks = 0;
                 self.winding.clear();
-                self.run.check_turn_allowance_deg = self.check_turn_allowance_deg(check_nm);
+                self.run.check_compliance_deg_per_nm = self.check_compliance_deg_per_nm();
                 self.state = State::CheckingWinding {
                     torque_nm: check_nm,
                     ticks: 0,
@@ -566,33 +568,47 @@ impl Controller {
         };
     }
 
-    /// How far the hub may turn on from the held angle under a check at `check_nm`, degrees:
-    /// [`JAM_SLIP_DEG`] plus [`CHECK_COMPLIANCE_MARGIN`] times what the contact's compliance (the
-    /// larger of the probe's and the approach's, degrees per N·m) gives for the check's extra
-    /// torque. Computed once, as the check starts.
-    fn check_turn_allowance_deg(&self, check_nm: f32) -> f32 {
+    /// The contact's compliance the check's turn is held to, degrees per N·m: the probe's where
+    /// it turned the hub at least [`CHECK_PROBE_MIN_RISE_LSB`] (the tangent at the held torque,
+    /// which a stiffening contact only departs from downwards), else the larger of the probe's
+    /// and the approach's (a probe held by static friction measured nothing).
+    fn check_compliance_deg_per_nm(&self) -> f32 {
         let Some(held) = self.run.held else {
-            return JAM_SLIP_DEG;
+            return 0.0;
         };
-        let probe_deg_per_nm = match self.run.probe {
+        let (probe_rise_deg, probe_deg_per_nm) = match self.run.probe {
             Some((rise_deg, fraction)) if fraction >= MIN_PROBE_FRACTION => {
-                rise_deg.max(0.0) / (fraction * held.torque_nm)
+                let rise_deg = rise_deg.max(0.0);
+                (rise_deg, rise_deg / (fraction * held.torque_nm))
             }
-            _ => 0.0,
+            _ => (0.0, 0.0),
         };
+        if probe_rise_deg >= CHECK_PROBE_MIN_RISE_LSB * self.lsb_deg() {
+            return probe_deg_per_nm;
+        }
         let approach_deg_per_nm = self
             .approach_turn(&held)
             .map_or(0.0, |(turn_deg, rise_nm)| turn_deg / rise_nm);
-        let extra_nm = (check_nm - held.torque_nm).max(0.0);
-        JAM_SLIP_DEG
-            + CHECK_COMPLIANCE_MARGIN * probe_deg_per_nm.max(approach_deg_per_nm) * extra_nm
+        probe_deg_per_nm.max(approach_deg_per_nm)
+    }
+
+    /// How far the hub may turn on from the held angle under the check with the torque at
+    /// `torque_nm`, degrees: [`JAM_SLIP_DEG`] plus [`CHECK_COMPLIANCE_MARGIN`] times what the
+    /// contact's compliance gives for the torque's rise over the held one. It follows the torque
+    /// as the check ramps, so a contact that starts to crush early in the ramp is caught there,
+    /// not once it has turned as far as the whole check's torque would allow (the hub lags the
+    /// torque, so a sound contact stays inside it).
+    fn check_turn_allowance_deg(&self, torque_nm: f32) -> f32 {
+        let held_nm = self.run.held.map_or(torque_nm, |h| h.torque_nm);
+        let extra_nm = (torque_nm - held_nm).max(0.0);
+        JAM_SLIP_DEG + CHECK_COMPLIANCE_MARGIN * self.run.check_compliance_deg_per_nm * extra_nm
     }
 
     /// Whether the contact gives way under the check: the hub turned on past its allowance from
     /// the held angle, or towards the spiral's disengage.
     fn gives_way_under_check(&self) -> bool {
         let turned_deg = self.run.held.map_or(0.0, |h| self.angle_deg - h.angle_deg);
-        turned_deg > self.run.check_turn_allowance_deg || self.past_check_turn_limit()
+        turned_deg > self.check_turn_allowance_deg(self.torque_nm) || self.past_check_turn_limit()
     }
 
     /// The winding check's readings are in: the factor applies from now on, and the held
@@ -675,6 +691,8 @@ impl Controller {
         if self.log.ticks_per_sample() > 1 {
             flags.insert(QualityFlags::DECIMATED);
         }
+        // Until the back-off measures the play (`apply_measured_play`).
+        flags.insert(QualityFlags::PLAY_MODELLED);
         self.result = Some(KerfResult {
             run_id: self.run_id,
             kerf_um: solution.kerf_um,
@@ -743,7 +761,7 @@ impl Controller {
     }
 
     /// Releasing: ramp the torque down, then back off to measure the play
-    /// ([`Controller::back_off`]) or, without a result or the run time for it, `Done`.
+    /// ([`Controller::back_off`]) where [`Controller::may_back_off`], else `Done`.
     pub(super) fn release(&mut self) {
         if let Some(held) = self.run.held.take() {
             self.finish(held);
@@ -752,12 +770,9 @@ impl Controller {
         if self.torque_nm > 0.0 {
             return;
         }
-        let time_left = self.elapsed_ms() + BACK_OFF_MAX_TICKS + BACK_OFF_RESERVE_MS
-            <= self.run.params.max_time_ms;
-        self.state = if self.result.is_some() && time_left {
-            self.motion.speed_integral_nm = 0.0;
+        self.state = if self.may_back_off() {
             State::BackingOff {
-                from_deg: self.angle_deg,
+                from_deg: None,
                 ticks: 0,
                 still: 0,
             }
@@ -766,24 +781,47 @@ impl Controller {
         };
     }
 
-    /// Backing off: turn the hub back through the hole play, the inset held by the
-    /// self-locking spiral, until the prongs stall on the holes' far faces; half that turn is
-    /// the play the reading includes (module docs, "Measured play"). Ends in `Done`, with the
-    /// play measured, or left to the model where the hub never stalled within
-    /// [`BACK_OFF_MAX_TICKS`] or turned past twice the model's play and
-    /// [`BACK_OFF_MAX_DEVIATION_DEG`] more (an inset that gave way).
-    pub(super) fn back_off(&mut self, from_deg: f32, ticks: u32, still: u32) {
+    /// Whether the play may be measured by backing off: a result to read with it, a hold at
+    /// least [`BACK_OFF_MIN_HELD_RATIO`] times the pull's cap (a lighter one could be pulled out
+    /// of the jam), an encoder on the output shaft (on the motor's, the turn would carry the
+    /// gearbox's backlash), and the run's time left for the longest back-off.
+    fn may_back_off(&self) -> bool {
+        let Some(result) = self.result else {
+            return false;
+        };
+        let back_off_ms = BACK_OFF_MAX_TICKS * 1000 / u32::from(CONTROL_RATE_HZ);
+        let time_left =
+            self.elapsed_ms() + back_off_ms + BACK_OFF_RESERVE_MS <= self.run.params.max_time_ms;
+        let firm = result.torque_at_jam_nm >= BACK_OFF_MIN_HELD_RATIO * BACK_OFF_MAX_TORQUE_NM;
+        let on_output = self.config.encoder_placement == EncoderPlacement::OutputShaft;
+        time_left && firm && on_output
+    }
+
+    /// Backing off: once the hub stands still after the release ([`BACK_OFF_SETTLE_TICKS`]),
+    /// turn it back through the hole play, the inset held by the self-locking spiral, until the
+    /// prongs stall on the holes' far faces; half that turn is the play the reading includes
+    /// (module docs, "Measured play"). Ends in `Done`, with the play measured, or left to the
+    /// model's where the hub never stalled within [`BACK_OFF_MAX_TICKS`], turned past the
+    /// longest play it may find (an inset that gave way), or stalled outside the window.
+    pub(super) fn back_off(&mut self, from_deg: Option<f32>, ticks: u32, still: u32) {
+        let Some(from_deg) = from_deg else {
+            self.settle_before_back_off(ticks, still);
+            return;
+        };
         let dt_s = self.dt_s();
         self.torque_nm = self
             .speed_loop(-BACK_OFF_SPEED_DEG_PER_S, BACK_OFF_MAX_TORQUE_NM, dt_s)
             .min(0.0);
+        // The loop's output is held to pulling: so is its memory (no wind-up towards pushing).
+        self.motion.speed_integral_nm = self.motion.speed_integral_nm.min(0.0);
         let turned_deg = from_deg - self.angle_deg;
         let stalled = turned_deg > BACK_OFF_MIN_TURN_DEG
             && self.torque_nm <= -BACK_OFF_STALL_SHARE * BACK_OFF_MAX_TORQUE_NM
             && self.is_still();
         let still = if stalled { still + 1 } else { 0 };
         let model_play_deg = self.result.map_or(0.0, |r| r.play_deg);
-        let too_far = turned_deg > 2.0 * (model_play_deg + BACK_OFF_MAX_DEVIATION_DEG);
+        let too_far =
+            turned_deg > 2.0 * (model_play_deg + BACK_OFF_MAX_LONGER_DEG) + BACK_OFF_MIN_TURN_DEG;
         if still >= BACK_OFF_STILL_TICKS {
             self.apply_measured_play(turned_deg / 2.0);
         }
@@ -792,7 +830,30 @@ impl Controller {
             State::Done
         } else {
             State::BackingOff {
-                from_deg,
+                from_deg: Some(from_deg),
+                ticks: ticks + 1,
+                still,
+            }
+        };
+    }
+
+    /// Before backing off: no torque until the hub has stood still [`BACK_OFF_SETTLE_TICKS`]
+    /// in a row, then the back-off's start is where it stands.
+    fn settle_before_back_off(&mut self, ticks: u32, still: u32) {
+        self.torque_nm = 0.0;
+        let still = if self.is_still() { still + 1 } else { 0 };
+        self.state = if ticks >= BACK_OFF_MAX_TICKS {
+            State::Done
+        } else if still >= BACK_OFF_SETTLE_TICKS {
+            self.motion.speed_integral_nm = 0.0;
+            State::BackingOff {
+                from_deg: Some(self.angle_deg),
+                ticks: ticks + 1,
+                still: 0,
+            }
+        } else {
+            State::BackingOff {
+                from_deg: None,
                 ticks: ticks + 1,
                 still,
             }
@@ -800,14 +861,16 @@ impl Controller {
     }
 
     /// The result read with the hole play measured as `play_deg` instead of the model's, where
-    /// the two agree within [`BACK_OFF_MAX_DEVIATION_DEG`]: kerf, play, force and the
-    /// near-disengage flag follow the inset angle it gives.
+    /// it is within [`BACK_OFF_MAX_SHORTER_DEG`] shorter or [`BACK_OFF_MAX_LONGER_DEG`] longer:
+    /// kerf, play, force and the near-disengage flag follow the inset angle it gives, and the
+    /// result is no longer `PLAY_MODELLED` (nor `PLAY_NOT_CONVERGED`).
     fn apply_measured_play(&mut self, play_deg: f32) {
         let params = self.run.params;
         let Some(result) = self.result.as_mut() else {
             return;
         };
-        if (play_deg - result.play_deg).abs() > BACK_OFF_MAX_DEVIATION_DEG {
+        let longer_deg = play_deg - result.play_deg;
+        if !(-BACK_OFF_MAX_SHORTER_DEG..=BACK_OFF_MAX_LONGER_DEG).contains(&longer_deg) {
             return;
         }
         let gauge = &params.gauge;
@@ -816,6 +879,8 @@ impl Controller {
         result.play_deg = play_deg;
         result.force_at_jam_n = force_for_torque_n(&params, result.torque_at_jam_nm, inset_deg);
         result.flags.remove(QualityFlags::NEAR_DISENGAGE);
+        result.flags.remove(QualityFlags::PLAY_MODELLED);
+        result.flags.remove(QualityFlags::PLAY_NOT_CONVERGED);
         if inset_deg > NEAR_DISENGAGE_FRACTION * gauge.disengage_deg {
             result.flags.insert(QualityFlags::NEAR_DISENGAGE);
         }

@@ -194,12 +194,20 @@ pub const RELEASE_RATE_NM_PER_S: f32 = 4.0;
 pub const BACK_OFF_SPEED_DEG_PER_S: f32 = 30.0;
 /// The most torque backing off pulls with, N·m over the gearbox's breakaway (which the duty
 /// already covers): past anything the gearbox's friction alone can hold, below what the jammed
-/// inset resists being pulled back with, F·(μ·r − c) (0.18 N·m at 55 N and μ = 0.35; it is
-/// under 0.08 N·m only for μ·r − c under 1.5 mm at 55 N, a μ under 0.17). An inset that gives
-/// way is pulled back without a stall, and the model's play stands. Not less: a high-ratio
+/// inset resists being pulled back with. The self-locking spiral holds the inset with the
+/// contact's normal force F_n = τ_jam / (c + μ·r) times (μ·r − c): τ_jam·(μ·r − c)/(μ·r + c),
+/// over 0.7·τ_jam for any μ of 0.1 or more on the paper's gauge, so a hold of at least
+/// [`BACK_OFF_MIN_HELD_RATIO`] times this cap is never pulled out. Not less: a high-ratio
 /// gearbox's motor brakes the hub by its back-EMF, k_t²·N²·η/R (some 0.33 N·m per rad/s at
 /// 58:1 on the twin), and at 0.04 N·m such hubs crawled back at 7°/s and ran out of time.
 pub const BACK_OFF_MAX_TORQUE_NM: f32 = 0.08;
+/// No back-off after a hold lighter than this many times [`BACK_OFF_MAX_TORQUE_NM`] (a light
+/// target force): its pull could drag the inset back out of the jam, and a stick-slip on the
+/// way could pass for a stall. The model's play stands (`PLAY_MODELLED`).
+pub const BACK_OFF_MIN_HELD_RATIO: f32 = 2.0;
+/// After the release, the hub must stand still this many ticks in a row before the back-off
+/// takes its start: a hub still relaxing from the release would lengthen the turn.
+pub const BACK_OFF_SETTLE_TICKS: u32 = 20;
 /// The hub must have turned back this far before a stall counts, degrees: the hub leaving the
 /// holes' forward faces, not the start.
 pub const BACK_OFF_MIN_TURN_DEG: f32 = 1.0;
@@ -217,11 +225,16 @@ pub const BACK_OFF_STALL_SHARE: f32 = 0.9;
 pub const BACK_OFF_MAX_TICKS: u32 = 1500;
 /// Run time kept in hand beyond [`BACK_OFF_MAX_TICKS`] before a back-off starts, ms.
 pub const BACK_OFF_RESERVE_MS: u32 = 100;
-/// A measured play further than this from the model's, degrees, is not taken (a stall that is
-/// not the far faces): the cut's imperfections move the play by less. A hub 100 µm off the
-/// gauge's centre (twice the worst head repeatability the twin draws) shortens both sides by
-/// 1.1°; a kerf tapered by 150 µm, by 0.4°.
-pub const BACK_OFF_MAX_DEVIATION_DEG: f32 = 2.0;
+/// A measured play shorter than the model's by more than this, degrees, is not taken (a stall
+/// that is not the far faces): the cut's imperfections shorten the play by less. A hub 100 µm
+/// off the gauge's centre (twice the worst head repeatability the twin draws) shortens both
+/// sides by 1.1°; a kerf tapered by 150 µm, by 0.4°.
+pub const BACK_OFF_MAX_SHORTER_DEG: f32 = 2.0;
+/// A measured play longer than the model's by more than this, degrees, is not taken: what the
+/// cut does to the holes shortens the play (to first order; a prong thinner than drawn
+/// lengthens it by a little), so a long one is an inset that slipped back under the pull, a hub
+/// still relaxing, or gearbox backlash, each of which would read the kerf low.
+pub const BACK_OFF_MAX_LONGER_DEG: f32 = 0.5;
 
 // ---- Fault limits ------------------------------------------------------------------------------
 

@@ -132,6 +132,15 @@ pub const CHECK_MAX_TICKS: u32 = 200;
 /// it is pressed, so twice is a wide margin for a sound one.
 pub const CHECK_COMPLIANCE_MARGIN: f32 = 2.0;
 
+/// The least turn under the probe, encoder LSB, for the probe's compliance to stand alone in
+/// the check's allowance. The probe measures the contact at the held torque, the tangent a
+/// stiffening contact only departs from downwards; the approach's turn (from 80 % of the target)
+/// is a secant over the softer start of a tapered contact, up to several times larger, which let
+/// a contact crushing 17 % above the held force turn 3.3° on under the check unnoticed on the
+/// twin. A probe held by static friction (less than this) measured nothing: the approach's is
+/// taken then.
+pub const CHECK_PROBE_MIN_RISE_LSB: f32 = 4.0;
+
 /// The largest held-torque error, as a fraction, the check's estimate is trusted with: beyond
 /// it the torque is left unknown (uncertain by `TORQUE_UNCERTAINTY_UNMEASURED`) rather than
 /// corrected. Copper between −10 and 130 °C with a factor from boot moves the torque by at most

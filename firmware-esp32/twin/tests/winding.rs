@@ -184,3 +184,48 @@ fn a_torque_calibration_the_current_contradicts_is_flagged() {
     let k = measure(&mut t).unwrap();
     assert!(k.flags.is_empty(), "{:?}", k.flags);
 }
+
+#[test]
+fn a_contact_that_crushes_under_the_winding_check_is_let_go_and_flagged() {
+    // 30 N on 24 V: the winding is checked after the probe, up to twice the held torque. The
+    // jam holds the contact at some 85 N of normal force (τ / (c + μ·r)) and the probe at some
+    // 92 N; a gauge whose contact crushes at 100 N (cardboard-like) gives way under the check,
+    // its turn outpacing the torque's rise by far more than the probe's compliance allows: the
+    // torque is dropped at once, and the reading, taken before, is flagged `force-sensitive`
+    // (a torque 20 % too high would have crushed it).
+    let light = RunParams {
+        target_force_n: 30.0,
+        ..RunParams::DEFAULT
+    };
+    for (kerf_um, seed) in [(200.0, 91), (200.0, 93), (190.0, 94)] {
+        let mut t = Twin::new(TwinOptions {
+            kerf_um,
+            seed,
+            plant: PlantParams {
+                supply_v: 24.0,
+                contact_yield_n: 100.0,
+                ..PlantParams::default()
+            },
+            ..TwinOptions::default()
+        });
+        t.advance_ticks(100);
+        let k = measure_with(&mut t, light).unwrap();
+        let error_um = f64::from(k.kerf_um) - t.plant().truth_um(&light);
+        let c = f64::from(light.gauge.pitch_um_per_deg);
+        let crushed_deg = t.plant().inset_deg() - f64::from(k.kerf_um) / c;
+        eprintln!(
+            "kerf {kerf_um} µm: {error_um:+.2} µm {:?}, turned on {crushed_deg:.2}° \
+             ({:.0} N)",
+            k.flags,
+            t.plant().contact_force_n()
+        );
+        assert!(
+            k.flags.contains(QualityFlags::FORCE_SENSITIVE),
+            "{:?}",
+            k.flags
+        );
+        assert!(error_um.abs() < 1.0, "{error_um:+.2} µm");
+        // Let go as the crush began: driven on to the check's torque it turned 5° and more.
+        assert!(crushed_deg < 4.0, "{crushed_deg:.2}°");
+    }
+}

@@ -2,7 +2,7 @@
 //!
 //! The baseline is the label's last [`BASELINE_RECORDS`] trusted measurements before the newest
 //! one (same label, same thickness and force, same population: real or simulated; a record
-//! flagged for anything but `decimated` is not trusted and left out). With at least
+//! flagged for anything but the advisory `decimated` and `play-modelled` is not trusted and left out). With at least
 //! [`MIN_BASELINE`] of them, the newest kerf drifts when it is farther from their mean than
 //! `max(3 · SD, FLOOR_UM)`.
 //!

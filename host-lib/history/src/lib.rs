@@ -62,9 +62,6 @@ pub use schema::SCHEMA_VERSION;
 /// Longest label, characters.
 pub const MAX_LABEL_CHARS: usize = 200;
 
-/// The flag that does not make a measurement untrusted (the curve is only coarser).
-const HARMLESS_FLAG: &str = "decimated";
-
 /// A measurement to record.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NewRecord {
@@ -376,9 +373,13 @@ impl History {
     }
 }
 
-/// Whether a record is trusted: flagged with nothing but [`HARMLESS_FLAG`].
+/// Whether a record is trusted: flagged with nothing but advisory flags
+/// ([`QualityFlags::ADVISORY`](kerfmeter_protocol::QualityFlags::ADVISORY)).
 fn trusted(record: &NewRecord) -> bool {
-    record.flags.iter().all(|f| f == HARMLESS_FLAG)
+    record
+        .flags
+        .iter()
+        .all(|f| kerfmeter_protocol::QualityFlags::is_advisory_name(f))
 }
 
 /// The columns [`read_record`] reads, in its order.

@@ -324,9 +324,10 @@ impl JobError {
     }
 }
 
-/// The quality flags that stop the job (all but `decimated`, which only coarsens the log).
+/// The quality flags that stop the job: those that distrust the number (all but the advisory
+/// `decimated` and `play-modelled`, [`QualityFlags::ADVISORY`]).
 pub fn stopping_flags(flags: QualityFlags) -> QualityFlags {
-    QualityFlags(flags.0 & !QualityFlags::DECIMATED.0)
+    flags.distrusting()
 }
 
 /// The simulated device behind `--sim`, told where the prongs landed on the gauge the simulated

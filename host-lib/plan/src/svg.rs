@@ -217,7 +217,7 @@ pub fn dilate_svg(
 /// Dilate the cuts of an SVG plan, writing the edited document to `out` as it is made (it is
 /// never held whole: with its arcs written out, it is several times the size of the source).
 /// The source `text` is taken, not lent: it is not held while usvg parses its tagged copy (see
-/// [`render`]). On an error, part of the document may have been written. An error writing to
+/// `render`). On an error, part of the document may have been written. An error writing to
 /// `out` is a [`PlanError::Write`] (whose path the caller sets).
 pub fn dilate_svg_into(
     text: String,

@@ -51,6 +51,8 @@ pub struct GaugeCut {
     pub hub_offset_um: [f64; 2],
     /// Stiffness of the spiral contact over the full face, N/µm.
     pub stiffness_n_per_um: f64,
+    /// Normal force at which the contact starts to crush, N.
+    pub yield_n: f64,
     /// Friction coefficient of the spiral contact.
     pub mu: f64,
 }
@@ -65,6 +67,7 @@ impl GaugeCut {
             hole_offset_um: [[0.0; 2]; 2],
             hub_offset_um: [0.0; 2],
             stiffness_n_per_um: params.contact_stiffness_n_per_um,
+            yield_n: params.contact_yield_n,
             mu: params.contact_mu,
         }
     }
@@ -77,6 +80,7 @@ impl GaugeCut {
             "hole_offset_um": self.hole_offset_um,
             "hub_offset_um": self.hub_offset_um,
             "stiffness_n_per_um": self.stiffness_n_per_um,
+            "yield_n": self.yield_n,
             "mu": self.mu,
         })
     }
@@ -196,6 +200,7 @@ impl Cutter {
                 "contact_stiffness_n_per_um",
                 p.contact_stiffness_n_per_um * stiffness_share,
             ),
+            yield_n: p.contact_yield_n,
             mu: within_range("contact_mu", mu),
         }
     }
@@ -305,7 +310,8 @@ mod tests {
         assert_eq!(json["hole_offset_um"][1][0], cut.hole_offset_um[1][0]);
         assert_eq!(json["hub_offset_um"][1], cut.hub_offset_um[1]);
         assert_eq!(json["mu"], cut.mu);
-        assert_eq!(json.as_object().map(|o| o.len()), Some(6));
+        assert_eq!(json["yield_n"], cut.yield_n);
+        assert_eq!(json.as_object().map(|o| o.len()), Some(7));
     }
 
     #[test]

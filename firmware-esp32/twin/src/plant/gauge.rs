@@ -49,6 +49,10 @@
 //! ```
 //!
 //! quadratic while the contact spreads down the face, then linear; at τ = 0 it is F = K·(c·θs − k).
+//! Past the contact's yield F_y (`contact_yield_n`: cardboard crushes at some 250 N, MDF at
+//! some 1500 N) the face crushes: each further µm of closure costs a tenth of K
+//! ([`YIELD_STIFFNESS_SHARE`]), so a torque a little past the yield turns the inset on by many
+//! µm. The law has no memory: the self-locking spiral only ever closes it further under a run.
 //! The inset resists a prong pressing forward with F·(c + μ·r) (elastic c·F, friction μ·r·F).
 //! The spiral is self-locking (c < μ·r): the compressed inset never springs back by itself;
 //! pulled back, it resists with F·(μ·r − c).
@@ -77,8 +81,8 @@ use super::cut::GaugeCut;
 
 /// Slack in the prong–hole coupling test, rad.
 const COUPLING_EPS: f64 = 1e-9;
-/// Iterations of the truth's fixed point (the target torque's weak dependence on the angle).
-const TRUTH_ITERATIONS: usize = 20;
+/// Bisection steps of the truth's solve: the closure to well under a nanometre.
+const TRUTH_ITERATIONS: usize = 60;
 
 /// Friction torques, N·m: the level that holds the inset still, and the one while it slides.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -222,17 +226,36 @@ impl Gauge {
         self.cut.stiffness_n_per_um * 1e6
     }
 
-    /// Normal force of the contact at closure `e_m` beyond the narrowest kerf, N
-    /// ([`tapered_contact_force_n`]).
+    /// Normal force of the contact at closure `e_m` beyond the narrowest kerf, N: the tapered
+    /// elastic law ([`tapered_contact_force_n`]) up to the yield, then the crushing face's
+    /// ([`YIELD_STIFFNESS_SHARE`] of the stiffness) beyond it.
     pub(super) fn force_at_closure_n(&self, e_m: f64) -> f64 {
-        tapered_contact_force_n(self.cut.stiffness_n_per_um, self.taper_m() * 1e6, e_m * 1e6)
+        let elastic_n =
+            tapered_contact_force_n(self.cut.stiffness_n_per_um, self.taper_m() * 1e6, e_m * 1e6);
+        let yield_n = self.cut.yield_n;
+        if elastic_n <= yield_n {
+            return elastic_n;
+        }
+        let crushed_m = e_m - self.elastic_closure_m(yield_n);
+        yield_n + YIELD_STIFFNESS_SHARE * self.stiffness_n_per_m() * crushed_m
     }
 
-    /// The closure beyond the narrowest kerf at which the contact carries `force_n`, m.
+    /// The closure beyond the narrowest kerf at which the contact carries `force_n`, m (the
+    /// inverse of [`Gauge::force_at_closure_n`]).
     fn closure_for_force_m(&self, force_n: f64) -> f64 {
+        let force_n = force_n.max(0.0);
+        let yield_n = self.cut.yield_n;
+        if force_n <= yield_n {
+            return self.elastic_closure_m(force_n);
+        }
+        let crush_stiffness = YIELD_STIFFNESS_SHARE * self.stiffness_n_per_m();
+        self.elastic_closure_m(yield_n) + (force_n - yield_n) / crush_stiffness
+    }
+
+    /// The closure at which the elastic law alone carries `force_n`, m.
+    fn elastic_closure_m(&self, force_n: f64) -> f64 {
         let k = self.stiffness_n_per_m();
         let taper = self.taper_m();
-        let force_n = force_n.max(0.0);
         if force_n <= k * taper / 2.0 {
             (2.0 * force_n * taper / k).sqrt()
         } else {
@@ -322,18 +345,29 @@ impl Gauge {
     }
 
     /// The truth: the kerf an ideal device reads on this gauge at the force `run` asks for, µm.
-    /// At the jam, τ = F_n·(c + μ·r) and τ is the ramp's target at the jam angle; the (weak)
-    /// dependence of the target on the angle is iterated.
+    /// At the jam, τ = F_n·(c + μ·r) and τ is the ramp's target at the jam angle, which falls as
+    /// the angle grows: the closure e solves e = closure(τ(e)), whose right side falls as e
+    /// grows, so it has one root, found by bisection (a fixed-point iteration oscillates where
+    /// the contact is soft, a crushing one above all).
     pub(super) fn truth_um(&self, run: &RunParams) -> f64 {
         let c = self.pitch_m_per_rad();
-        let mut closure_m = self.cut.kerf_um * 1e-6;
-        for _ in 0..TRUTH_ITERATIONS {
+        let closure_at = |closure_m: f64| {
             let inset_deg = (closure_m / c).to_degrees() as f32;
             let torque =
                 torque_for_force_nm(run, run.target_force_n, inset_deg).min(run.max_torque_nm);
-            closure_m = self.closure_at_torque_m(f64::from(torque));
+            self.closure_at_torque_m(f64::from(torque))
+        };
+        // At zero closure the target's closure is above it; at half a turn the target is zero.
+        let (mut lo_m, mut hi_m) = (0.0, c * PI);
+        for _ in 0..TRUTH_ITERATIONS {
+            let mid_m = (lo_m + hi_m) / 2.0;
+            if closure_at(mid_m) > mid_m {
+                lo_m = mid_m;
+            } else {
+                hi_m = mid_m;
+            }
         }
-        closure_m * 1e6
+        (lo_m + hi_m) / 2.0 * 1e6
     }
 
     /// What an ideal device reports for a jam under `torque_nm` at the hub, µm.
@@ -341,6 +375,10 @@ impl Gauge {
         self.closure_at_torque_m(torque_nm) * 1e6
     }
 }
+
+/// The stiffness of a crushing contact, past its yield, as a share of its elastic stiffness: a
+/// fibreboard face densifying as it crushes.
+pub const YIELD_STIFFNESS_SHARE: f64 = 0.1;
 
 /// Normal force of a tapered cut face pressed `closure_um` beyond its narrowest kerf, N: with the
 /// full face's stiffness K and a taper τ through the sheet, the contact spreads down the face as

@@ -222,6 +222,13 @@ plant_params! {
     contact_stiffness_n_per_um ["N/µm"] = 15.0, 1.0..=500.0;
     /// Gauge-to-gauge spread of the contact stiffness, as a fraction (SD).
     contact_stiffness_sd_frac [""] = 0.1, 0.0..=0.5;
+    /// Normal force at which the spiral contact starts to crush, N: beyond it the face yields,
+    /// each further µm costing a tenth of the elastic stiffness, and stays crushed (see the
+    /// materials). The contact arc at the jam is some 170 mm² of cut face (4 mm stock): MDF
+    /// crushes at some 10 MPa there, cardboard at 1–2 MPa, plywood and acrylic far above. For
+    /// scale: the normal force is τ / (c + μ·r), some 150 N at the default 55 N and 220 N at the
+    /// 0.8 N·m cap.
+    contact_yield_n ["N"] = 1500.0, 100.0..=5000.0;
     /// Friction coefficient in the spiral contact (wood on wood: 0.2–0.5; acrylic: up to 0.6).
     contact_mu [""] = 0.35, 0.1..=0.6;
     /// Gauge-to-gauge spread of the contact's friction coefficient (SD).
@@ -265,19 +272,21 @@ impl Material {
         }
     }
 
-    /// (stiffness N/µm, stiffness SD fraction, μ, μ SD, inset static N·m, inset kinetic N·m).
-    const fn figures(self) -> [f64; 6] {
+    /// (stiffness N/µm, stiffness SD fraction, μ, μ SD, inset static N·m, inset kinetic N·m,
+    /// contact yield N).
+    const fn figures(self) -> [f64; 7] {
         match self {
-            Material::Mdf => [15.0, 0.1, 0.35, 0.03, 0.012, 0.010],
-            Material::Plywood => [40.0, 0.25, 0.4, 0.05, 0.015, 0.012],
-            Material::Acrylic => [120.0, 0.05, 0.5, 0.04, 0.006, 0.005],
-            Material::Cardboard => [3.0, 0.3, 0.45, 0.06, 0.004, 0.003],
+            Material::Mdf => [15.0, 0.1, 0.35, 0.03, 0.012, 0.010, 1500.0],
+            Material::Plywood => [40.0, 0.25, 0.4, 0.05, 0.015, 0.012, 4000.0],
+            Material::Acrylic => [120.0, 0.05, 0.5, 0.04, 0.006, 0.005, 5000.0],
+            Material::Cardboard => [3.0, 0.3, 0.45, 0.06, 0.004, 0.003, 250.0],
         }
     }
 
     /// Set the material's figures in `params`.
     pub fn apply(self, params: &mut PlantParams) {
-        let [k, k_sd, mu, mu_sd, inset_static, inset_kinetic] = self.figures();
+        let [k, k_sd, mu, mu_sd, inset_static, inset_kinetic, yield_n] = self.figures();
+        params.contact_yield_n = yield_n;
         params.contact_stiffness_n_per_um = k;
         params.contact_stiffness_sd_frac = k_sd;
         params.contact_mu = mu;

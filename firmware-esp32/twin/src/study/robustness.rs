@@ -43,8 +43,8 @@
 //!
 //! A reading is *correct* when its device-added error (reading − truth, the truth from the
 //! twin's log for that run id) is within the tolerance; *flagged* when a quality flag that
-//! distrusts the number is set ([`distrusted`]: any but `decimated`, which only says the curve
-//! is coarse); otherwise it is an *unflagged wrong reading*, the one ending the issue forbids
+//! distrusts the number is set ([`distrusted`]: any but the advisory `decimated`, which only
+//! says the curve is coarse, and `play-modelled`); otherwise it is an *unflagged wrong reading*, the one ending the issue forbids
 //! ("never a wrong number without a flag"). The default tolerance, [`TOLERANCE_UM`], is the
 //! device's own accuracy target for this sweep (issue 12: max |error| ≤ 5 µm); in a 4 mm MDF
 //! box joint 5 µm of interference is some 8 N of assembly force per finger, a quarter of the
@@ -299,10 +299,10 @@ pub fn sweep(
     )
 }
 
-/// Whether `flags` distrust the number: any flag but `decimated` (which only says the sample
-/// curve is coarser).
+/// Whether `flags` distrust the number: any flag but the advisory ones
+/// ([`QualityFlags::ADVISORY`]: `decimated`, `play-modelled`).
 pub fn distrusted(flags: QualityFlags) -> bool {
-    flags.0 & !QualityFlags::DECIMATED.0 != 0
+    !flags.distrusting().is_empty()
 }
 
 /// What an ending counts as.
