@@ -291,9 +291,13 @@ function onProgress(p) {
     curve.sample = p.sample;
     curve.live = [];
   }
-  curve.live.push([p.angle_deg, p.torque_nm]);
-  const canvas = $("curve");
-  canvas.dataset.livePoints = String(Number(canvas.dataset.livePoints) + 1);
+  // The back-off after the release pulls the hub back (a negative torque): it measures the hole
+  // play and is not part of the (torque, angle) curve, as on the device.
+  if (p.torque_nm >= 0) {
+    curve.live.push([p.angle_deg, p.torque_nm]);
+    const canvas = $("curve");
+    canvas.dataset.livePoints = String(Number(canvas.dataset.livePoints) + 1);
+  }
   $("progress").textContent =
     `Gauge ${p.sample + 1} of ${p.samples}: ${p.state}, ${fmt(p.torque_nm, 3)} N·m at ${fmt(p.angle_deg)}°`;
   drawCurve();

@@ -17,7 +17,7 @@ use crate::error::{PlanError, Result};
 use crate::outcome::{AssumedUnits, CutPath, PlanSummary};
 use crate::progress::Progress;
 use crate::rules::CutRules;
-use crate::source_file::SourceFile;
+use crate::source_file::read_plan_file;
 use crate::svg::{SvgOptions, dilate_svg_cuts, dilate_svg_file_into, dilate_svg_into};
 
 /// Plan file formats.
@@ -106,9 +106,12 @@ pub fn dilate_bytes(
 /// Read the plan at `input` (SVG or DXF, by its extension) and dilate it by `kerf`, like
 /// [`dilate_file`], but write the dilated plan to `out` (called `output` in messages) as it is
 /// made: a dilated SVG plan, its arcs written out, is several times the size of its file, and is
-/// never held whole in memory. On an error (even `--strict`'s refusal, which comes after the
-/// writing) part of the plan may have been written: write into a temporary file, and keep it
-/// only on success. An error writing to `out` is a [`PlanError::Write`] naming `output`.
+/// never held whole in memory. A regular SVG file is read again as the output is written (its
+/// text is not held meanwhile): it must not change in between, or the plan is refused after
+/// part of the output was written; a pipe or a device is read once and held. On an error (even
+/// `--strict`'s refusal, which comes after the writing) part of the plan may have been written:
+/// write into a temporary file, and keep it only on success. An error writing to `out` is a
+/// [`PlanError::Write`] naming `output`.
 pub fn dilate_file_into(
     input: &Path,
     kerf: &KerfSource,
@@ -116,15 +119,14 @@ pub fn dilate_file_into(
     output: &Path,
     out: &mut (dyn Write + Sync),
 ) -> Result<PlanSummary> {
-    let (format, bytes) = read_plan(input)?;
+    let format = PlanFormat::of(input)?;
+    let (bytes, file) = read_plan_file(input)?;
     let summary = match format {
         PlanFormat::Svg => {
-            // The file is read again as the dilated plan is written, so its text is not held
-            // while the cuts are dilated.
-            let file = SourceFile::new(input, &bytes);
-            svg_text(bytes).and_then(|text| {
-                dilate_svg_file_into(text, Some(file), kerf, &svg_options(options), out)
-            })
+            // A regular file is read again as the dilated plan is written, so its text is not
+            // held while the cuts are dilated.
+            svg_text(bytes)
+                .and_then(|text| dilate_svg_file_into(text, file, kerf, &svg_options(options), out))
         }
         PlanFormat::Dxf => {
             dilate_dxf_owned(bytes, kerf, &dxf_options(options)).and_then(|(dxf, summary)| {

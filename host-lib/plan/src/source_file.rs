@@ -3,41 +3,67 @@
 //! large plan holds).
 //!
 //! The input file is never modified by this tool, but another program could change it between
-//! reading and writing: its length and a hash of its bytes are recorded when it is first read,
-//! and the text read again must match them, or the plan is refused (the caller writes into a
-//! temporary file and keeps nothing on an error). Read whole ([`SourceFile::read_again`]), or
-//! copied piece by piece as the output is written ([`SourceFile::copier`]), when the hash is
-//! checked at the end.
+//! reading and writing: the file is opened once and read again through the same handle (so a
+//! file renamed over it, as editors save, or a symlink turned elsewhere is not what is read), and
+//! its length and a hash of its bytes are recorded when it is first read; the text read again
+//! must match them, or the plan is refused (the output is then incomplete: the CLI and the
+//! Python binding write into a temporary file and keep nothing). Read whole
+//! ([`SourceFile::read_again`]), or copied piece by piece as the output is written
+//! ([`SourceFile::copier`]), when the hash is checked at the end. Only a regular file is read
+//! again: a pipe or a device is read once and held in memory, as before ([`read_plan_file`]).
+//!
+//! The hash is std's `RandomState` hasher, keyed afresh for each file: it only has to tell,
+//! within one run, whether the bytes are the ones first read.
 
 use std::fs::File;
-use std::hash::{DefaultHasher, Hasher};
-use std::io::{BufReader, Read, Write};
+use std::hash::{BuildHasher, Hasher, RandomState};
+use std::io::{BufReader, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use crate::error::{PlanError, Result};
 
-/// A source file as first read: where it is, its length and a hash of its bytes.
-#[derive(Debug, Clone)]
+/// A source file as first read: its handle, its length and a hash of its bytes.
+#[derive(Debug)]
 pub(crate) struct SourceFile {
     path: PathBuf,
+    file: File,
     len_bytes: u64,
+    keys: RandomState,
     hash: u64,
 }
 
-impl SourceFile {
-    /// The file at `path`, whose bytes were read as `bytes`.
-    pub(crate) fn new(path: &Path, bytes: &[u8]) -> Self {
+/// Read the plan file at `path` once: its bytes, and a [`SourceFile`] to read it again by where
+/// it is a regular file (`None` for a pipe or a device, which cannot be read twice).
+pub(crate) fn read_plan_file(path: &Path) -> Result<(Vec<u8>, Option<SourceFile>)> {
+    let io = |source| PlanError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let mut file = File::open(path).map_err(io)?;
+    let regular = file.metadata().map_err(io)?.is_file();
+    let mut bytes = Vec::new();
+    file.read_to_end(&mut bytes).map_err(io)?;
+    let source = regular.then(|| {
+        let keys = RandomState::new();
         SourceFile {
             path: path.to_owned(),
+            file,
             len_bytes: bytes.len() as u64,
-            hash: hash_of(bytes),
+            hash: hash_of(&keys, &bytes),
+            keys,
         }
-    }
+    });
+    Ok((bytes, source))
+}
 
+impl SourceFile {
     /// The file's text, read again: refused unless it is the text first read.
     pub(crate) fn read_again(&self) -> Result<String> {
-        let bytes = std::fs::read(&self.path).map_err(|e| self.unreadable(&e))?;
-        if bytes.len() as u64 != self.len_bytes || hash_of(&bytes) != self.hash {
+        let mut bytes = Vec::with_capacity(self.len_bytes as usize);
+        self.rewound()?
+            .read_to_end(&mut bytes)
+            .map_err(|e| self.unreadable(e))?;
+        if bytes.len() as u64 != self.len_bytes || hash_of(&self.keys, &bytes) != self.hash {
             return Err(self.changed());
         }
         String::from_utf8(bytes).map_err(|_| self.changed())
@@ -45,36 +71,41 @@ impl SourceFile {
 
     /// A reader that copies the file's bytes out in order, checking them as they go.
     pub(crate) fn copier(&self) -> Result<Copier<'_>> {
-        let file = File::open(&self.path).map_err(|e| self.unreadable(&e))?;
-        let len_bytes = file.metadata().map_err(|e| self.unreadable(&e))?.len();
-        if len_bytes != self.len_bytes {
-            return Err(self.changed());
-        }
         Ok(Copier {
             source: self,
-            reader: BufReader::new(file),
+            reader: BufReader::new(self.rewound()?),
             pos: 0,
-            hasher: DefaultHasher::new(),
+            hasher: self.keys.build_hasher(),
         })
     }
 
-    fn unreadable(&self, e: &std::io::Error) -> PlanError {
-        PlanError::Svg(format!(
-            "cannot read the plan again to write the dilated plan ({e}); nothing was written"
-        ))
+    /// The file's handle, back at its start (a clone shares the position: one reader at a time).
+    fn rewound(&self) -> Result<File> {
+        let mut file = self.file.try_clone().map_err(|e| self.unreadable(e))?;
+        file.seek(SeekFrom::Start(0))
+            .map_err(|e| self.unreadable(e))?;
+        Ok(file)
+    }
+
+    fn unreadable(&self, source: std::io::Error) -> PlanError {
+        PlanError::Io {
+            path: self.path.clone(),
+            source,
+        }
     }
 
     fn changed(&self) -> PlanError {
-        PlanError::Svg(
-            "the plan file changed while it was being dilated; nothing was written: run the command again"
-                .into(),
-        )
+        PlanError::Svg(format!(
+            "{} changed while it was being dilated (another program wrote to it): the dilated \
+             plan is incomplete and is not kept; run the command again",
+            self.path.display()
+        ))
     }
 }
 
-/// A hash of `bytes` (std's SipHash with fixed keys: the same for the same bytes within a run).
-fn hash_of(bytes: &[u8]) -> u64 {
-    let mut h = DefaultHasher::new();
+/// A hash of `bytes` with `keys`.
+fn hash_of(keys: &RandomState, bytes: &[u8]) -> u64 {
+    let mut h = keys.build_hasher();
     h.write(bytes);
     h.finish()
 }
@@ -85,7 +116,7 @@ pub(crate) struct Copier<'s> {
     reader: BufReader<File>,
     /// How far the file has been read.
     pos: u64,
-    hasher: DefaultHasher,
+    hasher: std::hash::DefaultHasher,
 }
 
 impl Copier<'_> {
@@ -98,7 +129,7 @@ impl Copier<'_> {
             let got = self
                 .reader
                 .read(&mut buf[..want])
-                .map_err(|e| self.source.unreadable(&e))?;
+                .map_err(|e| self.source.unreadable(e))?;
             if got == 0 {
                 return Err(self.source.changed());
             }
@@ -122,7 +153,7 @@ impl Copier<'_> {
         let more = self
             .reader
             .read(&mut rest)
-            .map_err(|e| self.source.unreadable(&e))?;
+            .map_err(|e| self.source.unreadable(e))?;
         if more != 0 || self.hasher.finish() != self.source.hash {
             return Err(self.source.changed());
         }

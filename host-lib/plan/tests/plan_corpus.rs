@@ -13,7 +13,7 @@ use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_plan::dxf_plan::{DxfOptions, dilate_dxf};
 use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
 use kerfmeter_plan::svg::{SvgOptions, dilate_svg};
-use kerfmeter_plan::{DilateOptions, PlanFormat, dilate_file};
+use kerfmeter_plan::{DilateOptions, PlanFormat, dilate_file, dilate_file_into};
 
 /// What a corpus file must give with the default options.
 enum Expect {
@@ -305,6 +305,32 @@ fn dilated_svg(text: &str, units: Option<AssumedUnits>) -> String {
         .replace(&format!("version={version} "), "version=0.1.0 ")
 }
 
+/// `text` written to a file and dilated by 150 µm from it, as the CLI and the Python binding do
+/// (the file read again as the output is written), versions as in [`dilated_svg`].
+fn dilated_svg_file(text: &str, units: Option<AssumedUnits>) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("plan.svg");
+    std::fs::write(&input, text).unwrap();
+    let options = DilateOptions {
+        assume_units: units,
+        ..DilateOptions::default()
+    };
+    let mut out = Vec::new();
+    dilate_file_into(
+        &input,
+        &kerf(),
+        &options,
+        &dir.path().join("out.svg"),
+        &mut out,
+    )
+    .unwrap();
+    let version = env!("CARGO_PKG_VERSION");
+    String::from_utf8(out)
+        .unwrap()
+        .replace(&format!("version=\"{version}\""), "version=\"0.1.0\"")
+        .replace(&format!("version={version} "), "version=0.1.0 ")
+}
+
 #[test]
 fn svg_outputs_are_byte_for_byte_what_they_were() {
     let plans = [
@@ -322,9 +348,14 @@ fn svg_outputs_are_byte_for_byte_what_they_were() {
     for (dir, name, units) in plans {
         let path = tests_dir().join(dir).join(format!("{name}.svg"));
         let text = std::fs::read_to_string(&path).unwrap();
+        let expected = expected_svg(name);
         assert!(
-            dilated_svg(&text, units) == expected_svg(name),
+            dilated_svg(&text, units) == expected,
             "{name}: the output changed"
+        );
+        assert!(
+            dilated_svg_file(&text, units) == expected,
+            "{name}: the output written from the file changed"
         );
     }
     // CRLF line ends, an attribute with an entity and characters beyond ASCII on a cut element
@@ -338,5 +369,35 @@ fn svg_outputs_are_byte_for_byte_what_they_were() {
     assert!(
         dilated_svg(&variant, None) == expected_svg(name),
         "{name}: the output changed"
+    );
+    assert!(
+        dilated_svg_file(&variant, None) == expected_svg(name),
+        "{name}: the output written from the file changed"
+    );
+    // A byte-order mark, and a plan of many parts (its copies from the file span many reads,
+    // and edits fall across their boundaries): from the file as from memory.
+    let bom = format!("\u{feff}{text}");
+    assert!(
+        dilated_svg_file(&bom, None) == dilated_svg(&bom, None),
+        "BOM"
+    );
+    let parts: String = (0..500)
+        .map(|i| {
+            let (x, y) = (f64::from(i % 20) * 12.0, f64::from(i / 20) * 12.0);
+            format!(
+                "<!-- part {i}: padding to spread the copies over reads -->\r\n\
+                 <rect x=\"{x}\" y=\"{y}\" width=\"10\" height=\"10\" fill=\"none\" \
+                 stroke=\"#ff0000\" stroke-width=\"0.01\"/>\r\n"
+            )
+        })
+        .collect();
+    let large = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"250mm\" height=\"250mm\" \
+         viewBox=\"0 0 250 250\">\r\n{parts}</svg>\r\n"
+    );
+    assert!(large.len() > 64 * 1024, "{}", large.len());
+    assert!(
+        dilated_svg_file(&large, None) == dilated_svg(&large, None),
+        "many parts"
     );
 }

@@ -1,6 +1,7 @@
 //! An SVG plan dilated from its file is not held in memory while its cuts are dilated: the file
 //! is read again as the dilated plan is written. The output is the same as from the text in
-//! memory, and a file that changed in between is refused.
+//! memory, a file that changed in between is refused, a file saved over by rename is read as
+//! first opened, and a pipe is read once.
 
 use std::io::Write;
 use std::path::Path;
@@ -90,4 +91,46 @@ fn a_plan_file_changed_while_it_is_dilated_is_refused() {
             );
         }
     }
+}
+
+#[test]
+fn a_plan_saved_over_by_rename_is_read_from_the_file_first_opened() {
+    // Editors save by writing a new file and renaming it over the old one: the plan is read
+    // again through the handle first opened, so the output is the plan as first read.
+    let dir = tempfile::tempdir().unwrap();
+    let text = plan(false);
+    let input = dir.path().join("plan.svg");
+    std::fs::write(&input, &text).unwrap();
+    let (expected, _) = dilate_svg(&text, &kerf(), &SvgOptions::default()).unwrap();
+    let (path, saved) = (input.clone(), dir.path().join("saved.svg"));
+    let progress = Progress::new(move |stage, done, _| {
+        if stage == Stage::Dilating && done == 0 {
+            std::fs::write(&saved, text.replace("x=\"10\"", "x=\"11\"")).unwrap();
+            std::fs::rename(&saved, &path).unwrap();
+        }
+    });
+    let got = from_file(&input, progress).unwrap();
+    assert_eq!(String::from_utf8(got).unwrap(), expected);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_plan_from_a_pipe_is_read_once_and_held() {
+    // A named pipe cannot be read twice: it is read once, as before, not waited on again.
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("plan.svg");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("no mkfifo here: skipped");
+        return;
+    }
+    let text = plan(false);
+    let (expected, _) = dilate_svg(&text, &kerf(), &SvgOptions::default()).unwrap();
+    let writer = {
+        let (fifo, text) = (fifo.clone(), text.clone());
+        std::thread::spawn(move || std::fs::write(&fifo, text).unwrap())
+    };
+    let got = from_file(&fifo, Progress::default()).unwrap();
+    writer.join().unwrap();
+    assert_eq!(String::from_utf8(got).unwrap(), expected);
 }

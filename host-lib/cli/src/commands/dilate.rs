@@ -313,19 +313,27 @@ pub fn run(g: &Global, args: &DilateArgs) -> Result<DilateOutcome> {
     plan(g, args).map(|r| DilateOutcome::Plan(Box::new(r)))
 }
 
+/// The format a plan's dilation is written in: `input`'s, which `output` must share (by its
+/// extension), `output` never being `input` itself. The one check of a dilated plan's output
+/// path, for `dilate` and `job`.
+pub(crate) fn plan_output_format(input: &Path, output: &Path) -> Result<PlanFormat> {
+    let format = PlanFormat::of(input)?;
+    if PlanFormat::of(output)? != format {
+        return Err(PlanError::InvalidArgument(format!(
+            "the output {} must have the input's format ({format})",
+            output.display()
+        ))
+        .into());
+    }
+    ensure_not_input(input, output)?;
+    Ok(format)
+}
+
 /// Dilate an SVG or DXF plan, with a progress bar on a terminal (not with `--json`).
 fn plan(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
     let format = PlanFormat::of(&args.input)?;
     if let Some(out) = &args.output {
-        let out_format = PlanFormat::of(out)?;
-        if out_format != format {
-            return Err(PlanError::InvalidArgument(format!(
-                "the output {} must have the input's format ({format})",
-                out.display()
-            ))
-            .into());
-        }
-        ensure_not_input(&args.input, out)?;
+        plan_output_format(&args.input, out)?;
     }
     let (kerf_um, kerf) = args.dilation.kerf()?;
     let (progress, bar) = plan_progress(g.json);

@@ -48,7 +48,7 @@ use kerfmeter_plan::profile::Profile;
 use kerfmeter_plan::{PlanError, PlanFormat, dilate_file, dilate_file_cuts};
 use serde::Serialize;
 
-use super::dilate::{DilationArgs, units_parser};
+use super::dilate::{DilationArgs, plan_output_format, units_parser};
 use super::gauge::GAUGE_SETTINGS;
 use super::gcode::{CutArgs, parse_xy};
 use crate::connection::{Global, Session};
@@ -258,7 +258,6 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
     if args.dry_run {
         return Ok(JobOutcome::DryRun(setup.dry_run(args)?));
     }
-    ensure_not_input(&args.input, &args.output)?;
     ensure_not_input(&args.input, &setup.gcode_out)?;
     check_machines(g, args)?;
     let cancel = Arc::new(AtomicBool::new(false));
@@ -429,17 +428,11 @@ impl Setup {
     /// Check the plan (read at kerf 0) before anything moves, choose the gauge's place and write
     /// its G-code.
     pub fn new(args: &JobArgs) -> Result<Setup> {
-        let format = PlanFormat::of(&args.input)?;
+        plan_output_format(&args.input, &args.output)?;
         let gcode_out = match &args.gcode_out {
             Some(p) => p.clone(),
             None => args.output.with_extension("gcode"),
         };
-        if PlanFormat::of(&args.output)? != format {
-            return Err(CliError::Usage(format!(
-                "{}: the dilated plan is written in the input's format ({format})",
-                args.output.display()
-            )));
-        }
         let profile = job_profile(args)?;
         let gcode_options = GcodeOptions {
             s_max: args.cut.s_max,
