@@ -45,8 +45,9 @@ use super::{
     HOLD_CREEP_LSB, HOLD_RETRY_RESERVE_MS, JAM_MIN_INSET_DEG, JAM_SETTLE_TICKS, JAM_SLIP_DEG,
     JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_HOLD_RETRIES, MAX_TURN_SPEED_DEG_PER_S,
     MIN_APPROACH_FRACTION, MIN_PROBE_FRACTION, Motion, NEAR_DISENGAGE_FRACTION, OVERSHOOT_LIMIT,
-    OVERTRAVEL_MARGIN_DEG, PROBE_AVERAGED_TICKS, PROBE_FRACTION, PROBE_TICKS,
-    RELEASE_RATE_NM_PER_S, State, TORQUE_UNCERTAINTY, TORQUE_UNCERTAINTY_UNMEASURED,
+    OVERTRAVEL_MARGIN_DEG, PRESSED_OVER_LIMIT, PRESSED_PROBE_STILL_LSB, PRESSING_SPEED_DEG_PER_S,
+    PROBE_AVERAGED_TICKS, PROBE_FRACTION, PROBE_TICKS, RELEASE_RATE_NM_PER_S, State,
+    TORQUE_UNCERTAINTY, TORQUE_UNCERTAINTY_UNMEASURED,
 };
 use crate::build::CONTROL_RATE_HZ;
 
@@ -93,6 +94,11 @@ pub(super) struct Run {
     /// one above the hold's means the contact was pressed harder before the hold than during
     /// it (a winding estimate that lowered the factor), which the self-locking spiral keeps.
     pub(super) max_still_drive_v: f32,
+    /// The highest drive voltage on a ramping tick with the hub pressing slowly into the contact
+    /// (turning slower than [`PRESSING_SPEED_DEG_PER_S`]), V: far above the hold's, with a
+    /// probe that cannot move the hub, the contact bore more than it is held with
+    /// ([`PRESSED_OVER_LIMIT`]).
+    pub(super) max_pressing_drive_v: f32,
     /// The winding was measured at one of this run's settles (`winding.rs`).
     pub(super) winding_measured: bool,
     /// The probe's angles summed over its last [`PROBE_AVERAGED_TICKS`], degrees.
@@ -132,6 +138,9 @@ pub(super) struct HeldJam {
     /// How much harder the contact was pressed before the hold than during it, as a fraction of
     /// the held torque ([`Run::max_still_drive_v`]).
     pub(super) overshoot: f32,
+    /// How much harder the hub pressed on the way in, turning slowly, than at the hold, as a
+    /// fraction of the hold's drive ([`Run::max_pressing_drive_v`]).
+    pub(super) pressed_over: f32,
     /// The torque held, N·m.
     pub(super) torque_nm: f32,
 }
@@ -158,6 +167,7 @@ impl Run {
             overtravel_limit_deg,
             ramp_kerf_um: 0.0,
             max_still_drive_v: 0.0,
+            max_pressing_drive_v: 0.0,
             winding_measured: false,
             probe_sum_deg: 0.0,
             probe: None,
@@ -301,6 +311,10 @@ impl Controller {
         if self.torque_nm <= APPROACH_FRACTION * target {
             self.run.approach = Some((self.torque_nm, self.angle_deg));
         }
+        if self.speed_deg_per_s() < PRESSING_SPEED_DEG_PER_S {
+            let drive_v = self.drive_v();
+            self.run.max_pressing_drive_v = self.run.max_pressing_drive_v.max(drive_v);
+        }
         let at_target = self.torque_nm >= target * 0.999 && target > self.breakaway_torque_nm();
         let inset = self.angle_deg - self.run.zero_kerf_play_deg;
         if at_target && self.is_still() && inset >= JAM_MIN_INSET_DEG {
@@ -358,9 +372,14 @@ impl Controller {
     /// measured), kept in [`Run::max_still_drive_v`]: this tick the hub stands still at its
     /// target torque.
     fn note_still_drive(&mut self) -> f32 {
-        let drive_v = self.supply.supply_v().unwrap_or(REFERENCE_SUPPLY_V) * self.applied_duty;
+        let drive_v = self.drive_v();
         self.run.max_still_drive_v = self.run.max_still_drive_v.max(drive_v);
         drive_v
+    }
+
+    /// The drive voltage the last output applied, V: the measured supply times its duty.
+    fn drive_v(&self) -> f32 {
+        self.supply.supply_v().unwrap_or(REFERENCE_SUPPLY_V) * self.applied_duty
     }
 
     /// A tick of the jam's settle, the hub still: past the first [`SKIP_TICKS`] and at a duty of
@@ -403,6 +422,8 @@ impl Controller {
         }
         // The contact was pressed this much harder before the hold than it is held.
         let overshoot = (self.run.max_still_drive_v / drive_v.max(f32::EPSILON) - 1.0).max(0.0);
+        let pressed_over =
+            (self.run.max_pressing_drive_v / drive_v.max(f32::EPSILON) - 1.0).max(0.0);
         let (median, _) = self
             .run
             .hold
@@ -412,6 +433,7 @@ impl Controller {
             angle_deg: median,
             drift_deg,
             overshoot,
+            pressed_over,
             torque_nm,
         });
         self.run.probe_sum_deg = 0.0;
@@ -667,9 +689,22 @@ impl Controller {
         let sensitivity_um = self
             .force_sensitivity_um(probe, held.overshoot)
             .max(self.approach_sensitivity_um(held));
-        if held.overshoot > OVERSHOOT_LIMIT || sensitivity_um > FORCE_SENSITIVITY_LIMIT_UM {
+        if held.overshoot > OVERSHOOT_LIMIT
+            || self.pressed_harder_than_held(held, probe)
+            || sensitivity_um > FORCE_SENSITIVITY_LIMIT_UM
+        {
             self.run.flags.insert(QualityFlags::FORCE_SENSITIVE);
         }
+    }
+
+    /// Whether the contact bore more on the way in than at the hold: the hub pressed into it,
+    /// turning slowly, at a drive over [`PRESSED_OVER_LIMIT`] above the hold's, and the probe
+    /// then could not move the hub (by [`PRESSED_PROBE_STILL_LSB`]): a contact that crushed under
+    /// the ramp while the falling target followed the inset down, which the self-locking spiral
+    /// keeps. A sound contact the probe moves, or the hold's drive is its highest.
+    fn pressed_harder_than_held(&self, held: &HeldJam, (rise_deg, _): (f32, f32)) -> bool {
+        let probe_still = rise_deg.abs() < PRESSED_PROBE_STILL_LSB * self.lsb_deg();
+        held.pressed_over > PRESSED_OVER_LIMIT && probe_still
     }
 
     /// The result from the held jam's median angle at its torque (the hold's flags are in the

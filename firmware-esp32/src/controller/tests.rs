@@ -1808,3 +1808,42 @@ fn no_back_off_without_the_run_time_for_it_and_abort_stops_it_safe() {
     assert!(s.tick().is_safe());
     assert!(s.c.result().is_some());
 }
+
+#[test]
+fn a_contact_that_crushed_on_the_way_in_is_flagged_force_sensitive() {
+    // The hub meets the contact at 30°, where the ramp's target is high; the contact crushes:
+    // the hub presses on at 30°/s while the torque stands over 0.3 N·m, until 80°, where the
+    // falling target holds it. The contact bore far more than the hold's torque and keeps it:
+    // the probe cannot move the hub. Flagged; a rigid contact met at 80° is not.
+    let run = |crush: bool| {
+        let mut s = Script::new();
+        s.start(RunParams::DEFAULT);
+        for _ in 0..20_000 {
+            let free = s.angle_deg < 30.0 && s.c.torque_nm > 0.0;
+            let crushing = crush && s.angle_deg < 80.0 && s.c.torque_nm > 0.3;
+            let reaching = !crush && s.angle_deg < 80.0 && s.c.torque_nm > 0.0;
+            if free || reaching {
+                s.angle_deg += 0.06;
+            } else if crushing && matches!(s.c.state, State::Ramping) {
+                s.angle_deg += 0.03;
+            }
+            s.tick();
+            if matches!(s.state(), RunState::Done | RunState::Fault(_)) {
+                break;
+            }
+        }
+        *s.c.result().expect("a result")
+    };
+    let crushed = run(true);
+    assert!(
+        crushed.flags.contains(QualityFlags::FORCE_SENSITIVE),
+        "{:?}",
+        crushed.flags
+    );
+    let rigid = run(false);
+    assert_eq!(
+        rigid.flags.distrusting(),
+        QualityFlags::empty(),
+        "{rigid:?}"
+    );
+}

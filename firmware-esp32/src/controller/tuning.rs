@@ -136,6 +136,21 @@ pub const TORQUE_UNCERTAINTY_UNMEASURED: f32 = 0.3;
 /// twin: a contact of 17 N/µm on a 63:1 build slipped 5° at the jam, read 7.3 µm high, and did
 /// not move under the probe).
 pub const APPROACH_FRACTION: f32 = 0.8;
+/// A ramping tick with the hub turning slower than this, degrees per second, counts as pressing
+/// into the contact ([`PRESSED_OVER_LIMIT`]): half the ramp's speed limit, which a free hub
+/// runs at.
+pub const PRESSING_SPEED_DEG_PER_S: f32 = 45.0;
+/// A jam whose drive while pressing into the contact stood more than this fraction above the
+/// hold's, and whose probe could not move the hub, is flagged `FORCE_SENSITIVE`: the contact
+/// bore more than it is held with, and the self-locking spiral keeps what it pressed. A contact
+/// that crushes lets the hub turn on while the ramp's falling target follows it down: on the
+/// twin one yielding at 113 N was pressed 27 % over its hold and read 43 µm high, unflagged.
+/// Without the probe's stillness the test flags high-ratio builds whose free hub crawls at its
+/// ceiling (tried: some 60 more readings of 1,200 draws).
+pub const PRESSED_OVER_LIMIT: f32 = 0.15;
+/// A probe that turned the hub by less than this, encoder LSB, did not move it
+/// ([`PRESSED_OVER_LIMIT`]).
+pub const PRESSED_PROBE_STILL_LSB: f32 = 2.0;
 /// An approach whose torque rose by less than this fraction of the held torque (the jam was
 /// reached as the approach started) measures nothing: the reading is judged without it.
 pub const MIN_APPROACH_FRACTION: f32 = 0.05;

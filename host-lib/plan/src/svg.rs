@@ -888,7 +888,10 @@ impl Format for SvgPlan<'_> {
         // The layers are read from the source parsed again (only G-code asks for them, and it
         // parsed in `read`: a failure now would be a bug, not bad input). The cuts' path never
         // reads from a file (`dilate_svg_cuts` keeps its text), so the text is here.
-        debug_assert!(self.file.is_none(), "the cuts' groups need the source's text");
+        debug_assert!(
+            self.file.is_none(),
+            "the cuts' groups need the source's text"
+        );
         let doc = parse(&self.text).expect("the source parsed when it was read");
         let el = Elements::of(&doc);
         plan.cuts
