@@ -1,7 +1,8 @@
 //! Torque that stays right as the winding warms, on the twin: the firmware measures the
 //! winding's resistance from the motor current where the hub stands still at the jam and scales
 //! the duty by it, so a hot winding reads as a cold one and back-to-back runs do not drift; and a
-//! device whose torque calibration disagrees with the current it draws flags its results.
+//! device whose torque calibration disagrees with the current it draws flags its results. And a
+//! contact that crushes, under the winding check or on the way into the jam, is flagged.
 
 use kerfmeter_protocol::{
     DeviceConfig, Fault, KerfResult, QualityFlags, Request, Response, RunParams, RunState,
@@ -228,4 +229,21 @@ fn a_contact_that_crushes_under_the_winding_check_is_let_go_and_flagged() {
         // Let go as the crush began: driven on to the check's torque it turned 5° and more.
         assert!(crushed_deg < 4.0, "{crushed_deg:.2}°");
     }
+}
+
+#[test]
+fn the_sweeps_contact_crushed_before_the_hold_is_not_an_unflagged_wrong_reading() {
+    // Robustness seed 5, draw 154: a soft contact (1.1 N/µm) crushing at 113 N on a 58:1 build.
+    // The ramp pressed it 27 % over the torque it was then held at, while the falling target
+    // followed the inset down; the spiral kept the crush and the probe could not move the hub.
+    // It read 43 µm high with no flag; now it is flagged (or, should the firmware come to read
+    // it right, within the sweep's tolerance).
+    use kerfmeter_twin::study::robustness::{Class, Draw, TOLERANCE_UM, classify, run_draw};
+    let report = run_draw(&Draw::new(5, 154));
+    let class = classify(&report.outcome, TOLERANCE_UM);
+    assert!(
+        matches!(class, Class::Correct | Class::Flagged),
+        "{class:?}: {:?}",
+        report.outcome
+    );
 }
