@@ -88,10 +88,15 @@ pub fn play_deg(gauge: &GaugeGeometry, kerf_um: f32) -> f32 {
     2.0 * libm::asinf(ratio) * DEG_PER_RAD
 }
 
+/// The kerf whose gap closes with the inset turned by `inset_deg`, µm: k = c·θs.
+pub fn kerf_for_inset_um(gauge: &GaugeGeometry, inset_deg: f32) -> f32 {
+    gauge.pitch_um_per_deg * inset_deg
+}
+
 /// The kerf read without the hole-play correction, µm: c·θm. Off by 10–20 µm on the paper's
 /// gauge; kept for comparison.
 pub fn uncorrected_kerf_um(gauge: &GaugeGeometry, angle_deg: f32) -> f32 {
-    gauge.pitch_um_per_deg * angle_deg
+    kerf_for_inset_um(gauge, angle_deg)
 }
 
 /// A kerf solved from a hub angle.
@@ -139,7 +144,7 @@ pub fn kerf_from_angle(gauge: &GaugeGeometry, angle_deg: f32) -> KerfSolution {
 pub fn kerf_step(gauge: &GaugeGeometry, angle_deg: f32, kerf_um: f32) -> KerfSolution {
     let play = play_deg(gauge, kerf_um);
     let inset_deg = angle_deg - play;
-    let next_um = gauge.pitch_um_per_deg * inset_deg;
+    let next_um = kerf_for_inset_um(gauge, inset_deg);
     KerfSolution {
         kerf_um: next_um,
         play_deg: play,
@@ -202,7 +207,7 @@ pub fn kerf_at_force_um(
         Some(play) => angle_deg - play,
         None => kerf_from_angle(gauge, angle_deg).inset_deg,
     };
-    let kerf_at = |angle_deg: f32| gauge.pitch_um_per_deg * inset_at(angle_deg);
+    let kerf_at = |angle_deg: f32| kerf_for_inset_um(gauge, inset_at(angle_deg));
     let force_at =
         |s: &Sample| force_for_torque_n(params, s.torque_nm, inset_at(s.angle_deg).max(0.0));
     let loading = &samples[..=peak];

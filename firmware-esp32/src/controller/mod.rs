@@ -108,12 +108,13 @@
 //!
 //! Checked every tick; the first one found is latched as `Fault(reason)` and the output of that
 //! very tick is the safe state: max run time, overtravel past the disengage angle, no motion with
-//! torque above breakaway, reverse motion (except backing off, whose turn back is the point), [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a
-//! row, failed encoder diagnostics (chip or magnet), over-current (the mean of the last
-//! [`OVER_CURRENT_MEAN_TICKS`] currents above the limit, one reading above twice it, or a current
-//! that is unknown), driver FLT, host silence (communication watchdog) and a late control step: a
-//! gap of more than [`MAX_GAP_PERIODS`] since the last step, or late steps too frequent. An
-//! isolated late step is ridden through (the tuning's docs, "Late ticks", say when and why).
+//! torque above breakaway, reverse motion (except backing off, whose turn back is the point),
+//! [`MAX_CONSECUTIVE_ENCODER_ERRORS`] encoder errors in a row, failed encoder diagnostics (chip or
+//! magnet), over-current (the mean of the last [`OVER_CURRENT_MEAN_TICKS`] currents above the
+//! limit, one reading above twice it, or a current that is unknown), driver FLT, host silence
+//! (communication watchdog) and a late control step: a gap of more than [`MAX_GAP_PERIODS`] since
+//! the last step, or late steps too frequent. An isolated late step is ridden through (the
+//! tuning's docs, "Late ticks", say when and why).
 //!
 //! # Idle conditions
 //!

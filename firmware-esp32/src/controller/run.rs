@@ -20,10 +20,14 @@
 //! the holes' common displacement along the spiral, (δ₀ + δ₁)/(2R). The pull is capped at
 //! [`BACK_OFF_MAX_TORQUE_NM`] over the gearbox's breakaway (which the duty already covers), so
 //! a hub the gearbox alone holds does not stand still at the cap; a stall counts only at the cap
-//! and after [`BACK_OFF_MIN_TURN_DEG`]. A play further than [`BACK_OFF_MAX_DEVIATION_DEG`] from
-//! the model's, a hub that never stalls (an inset that gives way: the reading is already taken)
-//! or a run without the time for it leave the model's play. The back-off is reported as
-//! `Releasing` and is not in the sweep; the result's `play_deg` is the play it read with, and
+//! and after [`BACK_OFF_MIN_TURN_DEG`], and the turn is counted from where the hub came to rest
+//! after the release ([`BACK_OFF_SETTLE_TICKS`]). A play more than [`BACK_OFF_MAX_SHORTER_DEG`]
+//! shorter or [`BACK_OFF_MAX_LONGER_DEG`] longer than the model's, a hub that never stalls (an
+//! inset that gives way: the reading is already taken), and no back-off at all (a hold under
+//! [`BACK_OFF_MIN_HELD_RATIO`] times the pull's cap, an encoder on the motor shaft, a run
+//! without the time for it: [`Controller::may_back_off`]) leave the model's play, flagged
+//! `PLAY_MODELLED`. The back-off is reported as `Releasing` and is not in the sweep; the result
+//! is not published until the run has ended; its `play_deg` is the play it was read with, and
 //! the host reads the sweep at other forces with it.
 
 use kerfmeter_protocol::{
@@ -50,10 +54,10 @@ use super::{
     TORQUE_UNCERTAINTY, TORQUE_UNCERTAINTY_UNMEASURED,
 };
 use crate::build::CONTROL_RATE_HZ;
-
 use crate::jam::HoldWindow;
 use kerfmeter_protocol::spiral::{
-    force_for_torque_n, kerf_from_angle, kerf_step, play_deg, torque_for_force_nm,
+    force_for_torque_n, kerf_for_inset_um, kerf_from_angle, kerf_step, play_deg,
+    torque_for_force_nm,
 };
 
 /// One run's own state, from `Run` to the next `Run`.
@@ -662,8 +666,13 @@ impl Controller {
     /// [`NEAR_DISENGAGE_FRACTION`] of it, counting the inset from the zero kerf's play (no kerf
     /// has less, so the true inset is at most this).
     fn past_check_turn_limit(&self) -> bool {
-        let inset_bound_deg = self.angle_deg - self.run.zero_kerf_play_deg;
-        inset_bound_deg > NEAR_DISENGAGE_FRACTION * self.run.params.gauge.disengage_deg
+        self.near_disengage(self.angle_deg - self.run.zero_kerf_play_deg)
+    }
+
+    /// Whether an inset at `inset_deg` is past [`NEAR_DISENGAGE_FRACTION`] of the gauge's
+    /// disengage angle (`NEAR_DISENGAGE`: the spiral lets go soon after).
+    fn near_disengage(&self, inset_deg: f32) -> bool {
+        inset_deg > NEAR_DISENGAGE_FRACTION * self.run.params.gauge.disengage_deg
     }
 
     /// The hold's flags from the probe's figures ([`Controller::judge_hold`]), then `Releasing`.
@@ -717,7 +726,7 @@ impl Controller {
         let gauge = &params.gauge;
         let solution = kerf_from_angle(gauge, angle_deg);
         let mut flags = self.run.flags;
-        if solution.inset_deg > NEAR_DISENGAGE_FRACTION * gauge.disengage_deg {
+        if self.near_disengage(solution.inset_deg) {
             flags.insert(QualityFlags::NEAR_DISENGAGE);
         }
         if !solution.converged {
@@ -900,24 +909,24 @@ impl Controller {
     /// kerf, play, force and the near-disengage flag follow the inset angle it gives, and the
     /// result is no longer `PLAY_MODELLED` (nor `PLAY_NOT_CONVERGED`).
     fn apply_measured_play(&mut self, play_deg: f32) {
-        let params = self.run.params;
-        let Some(result) = self.result.as_mut() else {
+        let Some(mut result) = self.result else {
             return;
         };
         let longer_deg = play_deg - result.play_deg;
         if !(-BACK_OFF_MAX_SHORTER_DEG..=BACK_OFF_MAX_LONGER_DEG).contains(&longer_deg) {
             return;
         }
-        let gauge = &params.gauge;
+        let params = &self.run.params;
         let inset_deg = result.angle_deg - play_deg;
-        result.kerf_um = gauge.pitch_um_per_deg * inset_deg;
+        result.kerf_um = kerf_for_inset_um(&params.gauge, inset_deg);
         result.play_deg = play_deg;
-        result.force_at_jam_n = force_for_torque_n(&params, result.torque_at_jam_nm, inset_deg);
+        result.force_at_jam_n = force_for_torque_n(params, result.torque_at_jam_nm, inset_deg);
         result.flags.remove(QualityFlags::NEAR_DISENGAGE);
         result.flags.remove(QualityFlags::PLAY_MODELLED);
         result.flags.remove(QualityFlags::PLAY_NOT_CONVERGED);
-        if inset_deg > NEAR_DISENGAGE_FRACTION * gauge.disengage_deg {
+        if self.near_disengage(inset_deg) {
             result.flags.insert(QualityFlags::NEAR_DISENGAGE);
         }
+        self.result = Some(result);
     }
 }

@@ -1586,6 +1586,24 @@ fn run_backing_off(s: &mut Script, stall_deg: Option<f32>) -> (KerfResult, u32) 
     panic!("the run did not end");
 }
 
+/// A scripted run with `params` that jams at 60° (the scripted hub does not turn back), stepped
+/// to its end (`Done` or a fault); whether it backed off on the way.
+fn run_to_the_end(s: &mut Script, params: RunParams) -> bool {
+    s.start(params);
+    let mut backed_off = false;
+    for _ in 0..8000 {
+        if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
+            s.angle_deg += 0.06;
+        }
+        s.tick();
+        backed_off |= matches!(s.c.state, State::BackingOff { .. });
+        if matches!(s.state(), RunState::Done | RunState::Fault(_)) {
+            return backed_off;
+        }
+    }
+    panic!("the run did not end");
+}
+
 /// A scripted run that jams at 60°, stepped until it has been backing off `ticks` ticks (the
 /// scripted hub does not turn back).
 fn run_into_back_off(s: &mut Script, ticks: u32) {
@@ -1723,20 +1741,8 @@ fn no_back_off_after_a_light_hold_or_with_the_encoder_on_the_motor() {
         let mut s = Script::new();
         s.c = Controller::new(config);
         s.tick();
-        s.start(params);
-        let mut backed_off = false;
-        for _ in 0..8000 {
-            if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
-                s.angle_deg += 0.06;
-            }
-            s.tick();
-            backed_off |= matches!(s.c.state, State::BackingOff { .. });
-            if matches!(s.state(), RunState::Done | RunState::Fault(_)) {
-                break;
-            }
-        }
+        assert!(!run_to_the_end(&mut s, params));
         assert_eq!(s.state(), RunState::Done);
-        assert!(!backed_off);
         let r = s.c.result().unwrap();
         assert!(r.flags.contains(QualityFlags::PLAY_MODELLED), "{r:?}");
     }
@@ -1786,21 +1792,8 @@ fn no_back_off_without_the_run_time_for_it_and_abort_stops_it_safe() {
         max_time_ms: 2_000,
         ..RunParams::DEFAULT
     };
-    s.start(short);
-    let mut backed_off = false;
-    for _ in 0..3000 {
-        if s.angle_deg < 60.0 && s.c.torque_nm > 0.0 {
-            s.angle_deg += 0.06;
-        }
-        s.tick();
-        backed_off |= matches!(s.c.state, State::BackingOff { .. });
-        match s.state() {
-            RunState::Done | RunState::Fault(_) => break,
-            _ => {}
-        }
-    }
+    assert!(!run_to_the_end(&mut s, short));
     assert_eq!(s.state(), RunState::Done);
-    assert!(!backed_off);
     // Abort while backing off: safe at once, and the result read so far stays.
     let mut s = Script::new();
     run_into_back_off(&mut s, 50);

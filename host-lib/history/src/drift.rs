@@ -1,9 +1,9 @@
 //! The drift rule: when a label's newest kerf has moved beyond its usual spread.
 //!
-//! The baseline is the label's last [`BASELINE_RECORDS`] trusted measurements before the newest
-//! one (same label, same thickness and force, same population: real or simulated; a record
-//! flagged for anything but the advisory `decimated` and `play-modelled` is not trusted and left out). With at least
-//! [`MIN_BASELINE`] of them, the newest kerf drifts when it is farther from their mean than
+//! The baseline is the label's last [`BASELINE_RECORDS`] trusted measurements before the newest one
+//! (same label, same thickness and force, same population: real or simulated; a record flagged for
+//! anything but the advisory `decimated` and `play-modelled` is not trusted and left out). With at
+//! least [`MIN_BASELINE`] of them, the newest kerf drifts when it is farther from their mean than
 //! `max(3 · SD, FLOOR_UM)`.
 //!
 //! Why these numbers:
