@@ -103,6 +103,11 @@ pub(super) struct Run {
     /// probe that cannot move the hub, the contact bore more than it is held with
     /// ([`PRESSED_OVER_LIMIT`]).
     pub(super) max_pressing_drive_v: f32,
+    /// The run's first settle: (hub angle, degrees, jam frame; drive voltage, V) on the first
+    /// tick the hub stood still at its target torque. A jam held far past it at a drive hardly
+    /// above it is a contact that gave way under a load it had borne (`FORCE_SENSITIVE`,
+    /// [`Controller::settle_sensitivity_um`]).
+    pub(super) first_settle: Option<(f32, f32)>,
     /// The winding was measured at one of this run's settles (`winding.rs`).
     pub(super) winding_measured: bool,
     /// The probe's angles summed over its last [`PROBE_AVERAGED_TICKS`], degrees.
@@ -145,6 +150,10 @@ pub(super) struct HeldJam {
     /// How much harder the hub pressed on the way in, turning slowly, than at the hold, as a
     /// fraction of the hold's drive ([`Run::max_pressing_drive_v`]).
     pub(super) pressed_over: f32,
+    /// From the run's first settle to the hold ([`Run::first_settle`]): how far the hub turned,
+    /// degrees, and how much the drive rose, as a fraction of the settle's (negative where the
+    /// hold's drive is lower); `None` without a settle before the hold.
+    pub(super) since_first_settle: Option<(f32, f32)>,
     /// The torque held, N·m.
     pub(super) torque_nm: f32,
 }
@@ -172,6 +181,7 @@ impl Run {
             ramp_kerf_um: 0.0,
             max_still_drive_v: 0.0,
             max_pressing_drive_v: 0.0,
+            first_settle: None,
             winding_measured: false,
             probe_sum_deg: 0.0,
             probe: None,
@@ -323,7 +333,10 @@ impl Controller {
         let inset = self.angle_deg - self.run.zero_kerf_play_deg;
         if at_target && self.is_still() && inset >= JAM_MIN_INSET_DEG {
             self.run.still_ticks += 1;
-            self.note_still_drive();
+            let drive_v = self.note_still_drive();
+            if self.run.first_settle.is_none() {
+                self.run.first_settle = Some((self.angle_deg, drive_v));
+            }
             if self.run.still_ticks == ESTIMATE_TICK {
                 self.apply_winding_estimate();
             } else {
@@ -433,11 +446,18 @@ impl Controller {
             .hold
             .median_and_spread()
             .unwrap_or((entry_deg, 0.0));
+        let since_first_settle = self.run.first_settle.map(|(settle_deg, settle_v)| {
+            (
+                median - settle_deg,
+                drive_v / settle_v.max(f32::EPSILON) - 1.0,
+            )
+        });
         self.run.held = Some(HeldJam {
             angle_deg: median,
             drift_deg,
             overshoot,
             pressed_over,
+            since_first_settle,
             torque_nm,
         });
         self.run.probe_sum_deg = 0.0;
@@ -684,11 +704,12 @@ impl Controller {
     }
 
     /// The hold's flags, on the probe's last tick or the winding check's (light ones: the first
-    /// releasing tick has the kerf solve): `NOISY_HOLD` for a hold that drifted past [`HOLD_CREEP_LSB`]: one still
-    /// creeping after it was taken again for a creep, or that could not be taken again (no
-    /// retries or run time left), is read short of where the hub comes to rest. `FORCE_SENSITIVE` for a reading
-    /// the probe's `(rise_deg, fraction)`, the approach or an overshoot says a torque error could
-    /// move too far.
+    /// releasing tick has the kerf solve): `NOISY_HOLD` for a hold that drifted past
+    /// [`HOLD_CREEP_LSB`]: one still creeping after it was taken again for a creep, or that
+    /// could not be taken again (no retries or run time left), is read short of where the hub
+    /// comes to rest. `FORCE_SENSITIVE` for a reading that the probe's `(rise_deg, fraction)`,
+    /// the approach, the turn since the first settle or an overshoot says a torque error could
+    /// move too far, or whose contact bore more on the way in than at the hold.
     fn judge_hold(&mut self, held: &HeldJam, probe: (f32, f32)) {
         let drift_lsb = held.drift_deg.abs() / self.lsb_deg();
         // A hold is judged only once it may not be taken again: a creep left is a creep read.
@@ -697,7 +718,8 @@ impl Controller {
         }
         let sensitivity_um = self
             .force_sensitivity_um(probe, held.overshoot)
-            .max(self.approach_sensitivity_um(held));
+            .max(self.approach_sensitivity_um(held))
+            .max(self.settle_sensitivity_um(held));
         if held.overshoot > OVERSHOOT_LIMIT
             || self.pressed_harder_than_held(held, probe)
             || sensitivity_um > FORCE_SENSITIVITY_LIMIT_UM
@@ -791,6 +813,26 @@ impl Controller {
         let rise_nm = held.torque_nm - start_nm;
         (rise_nm >= MIN_APPROACH_FRACTION * held.torque_nm)
             .then(|| ((held.angle_deg - start_deg).max(0.0), rise_nm))
+    }
+
+    /// How far a torque error of the run's uncertainty would move the reading, µm, judged from
+    /// the run's first settle to the hold ([`HeldJam::since_first_settle`]): the hub stood still
+    /// there at its target, then turned on to the hold with the drive risen by so much (at least
+    /// [`MIN_APPROACH_FRACTION`]). Where the winding's estimate raised the factor at the settle,
+    /// this is the contact's compliance, as the approach's; where the contact gave way under the
+    /// settle's load (crushing, then running on faster than the pressing test sees, or with the
+    /// approach's start taken again by a dip of the speed loop), the hub turned tens of degrees
+    /// for a drive 10–20 % higher, and the reading is as uncertain as that compliance says. A
+    /// drive that fell (the target following the inset down while a jam creeps in) measures
+    /// nothing.
+    fn settle_sensitivity_um(&self, held: &HeldJam) -> f32 {
+        match held.since_first_settle {
+            Some((turn_deg, rise)) if rise >= MIN_APPROACH_FRACTION => {
+                let turn_um = self.run.params.gauge.pitch_um_per_deg * turn_deg.max(0.0);
+                turn_um / rise * self.torque_uncertainty()
+            }
+            _ => 0.0,
+        }
     }
 
     /// The torque's relative uncertainty at this run's jam: [`TORQUE_UNCERTAINTY`] where a
