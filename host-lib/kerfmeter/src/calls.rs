@@ -111,7 +111,11 @@ impl Kerfmeter {
     ///
     /// `progress` is called after every status poll with the state, torque and angle. The hub
     /// must be at its zero position (call [`Kerfmeter::reset_kerfmeter`] first). A fault ends the
-    /// call with [`Error::Fault`]; a device that restarted with [`Error::DeviceReset`].
+    /// call with [`Error::Fault`]; a device that restarted with [`Error::DeviceReset`]. A fault
+    /// latched while the device backs off after the hold (the reading already taken) also ends
+    /// it with [`Error::Fault`]: a device that faulted is not trusted with a job, whatever it
+    /// read before. That reading stays in [`Kerfmeter::get_kerf_value`] (flagged
+    /// `play-modelled`) for whoever wants to see it.
     ///
     /// ```no_run
     /// use kerfmeter::{Kerfmeter, JointSpec, protocol::GaugeGeometry};
