@@ -103,11 +103,11 @@ pub(super) struct Run {
     /// probe that cannot move the hub, the contact bore more than it is held with
     /// ([`PRESSED_OVER_LIMIT`]).
     pub(super) max_pressing_drive_v: f32,
-    /// The run's first settle: (hub angle, degrees, jam frame; drive voltage, V) on the first
-    /// tick the hub stood still at its target torque. A jam held far past it at a drive hardly
-    /// above it is a contact that gave way under a load it had borne (`FORCE_SENSITIVE`,
-    /// [`Controller::settle_sensitivity_um`]).
-    pub(super) first_settle: Option<(f32, f32)>,
+    /// The run's first settle: (hub angle, degrees, jam frame; drive voltage, V; commanded
+    /// torque, N·m) on the first tick the hub stood still at its target torque. A jam held far
+    /// past it at a force hardly above it is a contact that gave way under a load it had borne
+    /// (`FORCE_SENSITIVE`, [`Controller::settle_sensitivity_um`]).
+    pub(super) first_settle: Option<(f32, f32, f32)>,
     /// The winding was measured at one of this run's settles (`winding.rs`).
     pub(super) winding_measured: bool,
     /// The probe's angles summed over its last [`PROBE_AVERAGED_TICKS`], degrees.
@@ -151,8 +151,11 @@ pub(super) struct HeldJam {
     /// fraction of the hold's drive ([`Run::max_pressing_drive_v`]).
     pub(super) pressed_over: f32,
     /// From the run's first settle to the hold ([`Run::first_settle`]): how far the hub turned,
-    /// degrees, and how much the drive rose, as a fraction of the settle's (negative where the
-    /// hold's drive is lower); `None` without a settle before the hold.
+    /// degrees, and how much the force on the contact rose, as a fraction of the settle's
+    /// (negative where it fell); `None` without a settle before the hold. The force's ratio is
+    /// the drive's (supply × duty: physical, whatever winding factor each assumed) over the
+    /// commanded torques' (each the target for the same force at its own angle: the target
+    /// falls along the spiral, so a drive that fell over a long turn can still be more force).
     pub(super) since_first_settle: Option<(f32, f32)>,
     /// The torque held, N·m.
     pub(super) torque_nm: f32,
@@ -335,7 +338,7 @@ impl Controller {
             self.run.still_ticks += 1;
             let drive_v = self.note_still_drive();
             if self.run.first_settle.is_none() {
-                self.run.first_settle = Some((self.angle_deg, drive_v));
+                self.run.first_settle = Some((self.angle_deg, drive_v, self.torque_nm));
             }
             if self.run.still_ticks == ESTIMATE_TICK {
                 self.apply_winding_estimate();
@@ -446,12 +449,16 @@ impl Controller {
             .hold
             .median_and_spread()
             .unwrap_or((entry_deg, 0.0));
-        let since_first_settle = self.run.first_settle.map(|(settle_deg, settle_v)| {
-            (
-                median - settle_deg,
-                drive_v / settle_v.max(f32::EPSILON) - 1.0,
-            )
-        });
+        let since_first_settle = self
+            .run
+            .first_settle
+            .map(|(settle_deg, settle_v, settle_nm)| {
+                let drive_ratio = drive_v / settle_v.max(f32::EPSILON);
+                (
+                    median - settle_deg,
+                    drive_ratio * settle_nm / torque_nm.max(f32::EPSILON) - 1.0,
+                )
+            });
         self.run.held = Some(HeldJam {
             angle_deg: median,
             drift_deg,
@@ -817,14 +824,13 @@ impl Controller {
 
     /// How far a torque error of the run's uncertainty would move the reading, µm, judged from
     /// the run's first settle to the hold ([`HeldJam::since_first_settle`]): the hub stood still
-    /// there at its target, then turned on to the hold with the drive risen by so much (at least
+    /// there at its target, then turned on to the hold with the force risen by so much (at least
     /// [`MIN_APPROACH_FRACTION`]). Where the winding's estimate raised the factor at the settle,
     /// this is the contact's compliance, as the approach's; where the contact gave way under the
     /// settle's load (crushing, then running on faster than the pressing test sees, or with the
     /// approach's start taken again by a dip of the speed loop), the hub turned tens of degrees
-    /// for a drive 10–20 % higher, and the reading is as uncertain as that compliance says. A
-    /// drive that fell (the target following the inset down while a jam creeps in) measures
-    /// nothing.
+    /// for a force some 50 % higher, and the reading is as uncertain as that compliance says. A
+    /// force that did not rise (a jam creeping in at the target's force) measures nothing.
     fn settle_sensitivity_um(&self, held: &HeldJam) -> f32 {
         match held.since_first_settle {
             Some((turn_deg, rise)) if rise >= MIN_APPROACH_FRACTION => {

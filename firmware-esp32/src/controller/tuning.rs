@@ -153,8 +153,8 @@ pub const PRESSED_OVER_LIMIT: f32 = 0.15;
 pub const PRESSED_PROBE_STILL_LSB: f32 = 2.0;
 /// An approach whose torque rose by less than this fraction of the held torque (the jam was
 /// reached as the approach started) measures nothing: the reading is judged without it. Nor
-/// does the turn since the run's first settle where the drive rose by less than this fraction
-/// of the settle's (a jam creeping in while the target follows the inset down).
+/// does the turn since the run's first settle where the force rose by less than this fraction
+/// of the settle's (a jam creeping in at the target's force).
 pub const MIN_APPROACH_FRACTION: f32 = 0.05;
 /// The probe's extra torque over the held one, as a fraction.
 pub const PROBE_FRACTION: f32 = 0.1;
