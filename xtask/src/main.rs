@@ -156,10 +156,10 @@ struct TestArgs {
     /// Seconds of fuzzing per fuzz target.
     #[arg(long, default_value_t = 20)]
     fuzz_seconds: u64,
-    /// Fail the short robustness sweep on unflagged wrong readings too (today's firmware gives
-    /// some; issue 12 fixes them and turns this on).
+    /// Only report unflagged wrong readings in the short robustness sweep instead of failing on
+    /// them (for a firmware experiment whose flags are not settled yet; never in CI).
     #[arg(long)]
-    strict_robustness: bool,
+    lenient_robustness: bool,
 }
 
 /// Draws in the short robustness sweep of `cargo xtask test`.
@@ -400,15 +400,15 @@ fn test(args: &TestArgs) -> Result<()> {
         (
             "robustness sweep (short)",
             // Fails on a panic, a draw that ends in neither a reading nor a typed fault or
-            // refusal, or a motor left unsafe; reports unflagged wrong readings and fails on them
-            // only with --strict-robustness.
+            // refusal, a motor left unsafe, or an unflagged wrong reading (only reported with
+            // --lenient-robustness).
             Box::new(|| {
                 robustness(
                     &RobustnessArgs {
                         draws: TEST_SWEEP_DRAWS,
                         seed: 1,
                         json: false,
-                        strict: args.strict_robustness,
+                        strict: !args.lenient_robustness,
                         tolerance_um: None,
                         replay: None,
                         ablate: false,
