@@ -73,7 +73,7 @@
 //! - **Probing** (reported as `Jammed`): the torque rises by [`PROBE_FRACTION`] and how far the
 //!   hub turns on says how far a torque error would move the reading (`FORCE_SENSITIVE`); so
 //!   do the hub's turns from the approach's start and from the run's first settle to the hold,
-//!   over the rises that drove them (`run.rs`, `judge_hold`).
+//!   each over the rise in torque or force between them (`run.rs`, `judge_hold`).
 //! - **Checking the winding** (reported as `Jammed`), only where no settle's duty could measure
 //!   the winding: the torque rises to a duty the current sense reads and the winding is measured
 //!   there (`winding.rs`, "After the hold").

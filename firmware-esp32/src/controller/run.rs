@@ -50,8 +50,8 @@ use super::{
     JAM_STILL_LSB, JAM_WINDOW_TICKS, MAX_HOLD_RETRIES, MAX_TURN_SPEED_DEG_PER_S,
     MIN_APPROACH_FRACTION, MIN_PROBE_FRACTION, Motion, NEAR_DISENGAGE_FRACTION, OVERSHOOT_LIMIT,
     OVERTRAVEL_MARGIN_DEG, PRESSED_OVER_LIMIT, PRESSED_PROBE_STILL_LSB, PRESSING_SPEED_DEG_PER_S,
-    PROBE_AVERAGED_TICKS, PROBE_FRACTION, PROBE_TICKS, RELEASE_RATE_NM_PER_S, State,
-    TORQUE_UNCERTAINTY, TORQUE_UNCERTAINTY_UNMEASURED,
+    PROBE_AVERAGED_TICKS, PROBE_FRACTION, PROBE_TICKS, RELEASE_RATE_NM_PER_S,
+    SETTLE_MIN_FORCE_RISE, State, TORQUE_UNCERTAINTY, TORQUE_UNCERTAINTY_UNMEASURED,
 };
 use crate::build::CONTROL_RATE_HZ;
 use crate::jam::HoldWindow;
@@ -104,9 +104,10 @@ pub(super) struct Run {
     /// ([`PRESSED_OVER_LIMIT`]).
     pub(super) max_pressing_drive_v: f32,
     /// The run's first settle: (hub angle, degrees, jam frame; drive voltage, V; commanded
-    /// torque, N·m) on the first tick the hub stood still at its target torque. A jam held far
-    /// past it at a force hardly above it is a contact that gave way under a load it had borne
-    /// (`FORCE_SENSITIVE`, [`Controller::settle_sensitivity_um`]).
+    /// torque, N·m) on the first tick the hub stood still at its target torque (one still tick:
+    /// it may be a pause short of the contact). A jam held far past it for a force a few per
+    /// cent above it is a contact that gave way under a load it had borne (`FORCE_SENSITIVE`,
+    /// [`Controller::settle_sensitivity_um`]).
     pub(super) first_settle: Option<(f32, f32, f32)>,
     /// The winding was measured at one of this run's settles (`winding.rs`).
     pub(super) winding_measured: bool,
@@ -825,17 +826,23 @@ impl Controller {
     /// How far a torque error of the run's uncertainty would move the reading, µm, judged from
     /// the run's first settle to the hold ([`HeldJam::since_first_settle`]): the hub stood still
     /// there at its target, then turned on to the hold with the force risen by so much (at least
-    /// [`MIN_APPROACH_FRACTION`]). Where the winding's estimate raised the factor at the settle,
+    /// [`SETTLE_MIN_FORCE_RISE`]). Where the winding's estimate raised the factor at the settle,
     /// this is the contact's compliance, as the approach's; where the contact gave way under the
     /// settle's load (crushing, then running on faster than the pressing test sees, or with the
     /// approach's start taken again by a dip of the speed loop), the hub turned tens of degrees
-    /// for a force some 50 % higher, and the reading is as uncertain as that compliance says. A
-    /// force that did not rise (a jam creeping in at the target's force) measures nothing.
+    /// for a force some 50 % higher, and the reading is as uncertain as that compliance says.
+    ///
+    /// The rise is the commanded one; the drive train's friction at the settle may have borne
+    /// up to its breakaway torque of the load, so the contact's own rise may be larger by that
+    /// share of the held torque, and the compliance is taken over the larger rise (a lower
+    /// bound). A force that did not rise (a jam creeping in at the target's force, the settle's
+    /// still tick a pause of a hub still short of the contact) measures nothing.
     fn settle_sensitivity_um(&self, held: &HeldJam) -> f32 {
         match held.since_first_settle {
-            Some((turn_deg, rise)) if rise >= MIN_APPROACH_FRACTION => {
+            Some((turn_deg, rise)) if rise >= SETTLE_MIN_FORCE_RISE => {
                 let turn_um = self.run.params.gauge.pitch_um_per_deg * turn_deg.max(0.0);
-                turn_um / rise * self.torque_uncertainty()
+                let friction_share = self.breakaway_torque_nm() / held.torque_nm.max(f32::EPSILON);
+                turn_um / (rise + friction_share) * self.torque_uncertainty()
             }
             _ => 0.0,
         }

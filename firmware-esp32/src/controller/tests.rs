@@ -1881,3 +1881,38 @@ fn a_contact_that_gave_way_after_the_first_settle_is_flagged_force_sensitive() {
     let held = run(None);
     assert_eq!(held.flags.distrusting(), QualityFlags::empty(), "{held:?}");
 }
+
+#[test]
+fn a_pause_short_of_the_contact_is_not_a_give_way() {
+    // The hub pauses at 58.5° for 8 ticks at its target torque (static friction in the drive
+    // train: the run's first settle is taken there), then creeps on at 10 °/s into a contact
+    // that holds at 60°. The force at the hold is the target's, as at the pause: the turn since
+    // the first settle measures nothing, and the reading is not flagged (the 1.5° over a rise
+    // floored at 5 % would have read as a compliance of 8 µm per 10 % of torque).
+    let mut s = on_supply(12.0);
+    s.start(RunParams::DEFAULT);
+    let mut paused = 0;
+    for _ in 0..20_000 {
+        let settled = s.c.run.first_settle.is_some();
+        if settled && paused < 8 {
+            paused += 1;
+        } else if s.c.torque_nm > 0.0 {
+            let step_deg = if s.angle_deg < 58.5 { 0.06 } else { 0.01 };
+            let stop_deg = if settled { 60.0 } else { 58.5 };
+            s.angle_deg = (s.angle_deg + step_deg).min(stop_deg);
+        }
+        s.tick();
+        if matches!(s.state(), RunState::Done | RunState::Fault(_)) {
+            break;
+        }
+    }
+    let (settle_deg, _, _) = s.c.run.first_settle.expect("a first settle");
+    assert!((settle_deg - 58.5).abs() < 0.1, "{settle_deg}");
+    let result = s.c.result().expect("a result");
+    assert!(result.angle_deg > 59.5, "{result:?}");
+    assert_eq!(
+        result.flags.distrusting(),
+        QualityFlags::empty(),
+        "{result:?}"
+    );
+}
