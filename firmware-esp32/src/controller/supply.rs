@@ -27,6 +27,10 @@
 //!
 //! # Not measured
 //!
+//! A reading of 0 V is a reading, not a missing one: the motor supply is off (or the divider is
+//! not fitted), `SUPPLY_OUT_OF_RANGE` stands and blocks a run, reset and self-test (first bench
+//! check 3 in the README).
+//!
 //! Where the board passes no reading (`None` since boot), the supply is taken to be
 //! [`REFERENCE_SUPPLY_V`]: the duty is not scaled, no run is refused for its supply and
 //! [`Conditions::SUPPLY_OUT_OF_RANGE`](kerfmeter_protocol::Conditions::SUPPLY_OUT_OF_RANGE) never
@@ -52,6 +56,12 @@
 //!   motor is driven as asked, only less hard, and the result says so.
 
 use kerfmeter_protocol::{DeviceConfig, REFERENCE_SUPPLY_V, SUPPLY_MAX_V, SUPPLY_MIN_V};
+
+/// The least supply the duty's scale is taken at, V: below the G2's under-voltage lockout
+/// (5.8 V typical), where the bridge does not drive, so the scale only has to stay finite for a
+/// supply that is off (0 V) and not swing far past the rated minimum's while the filter follows
+/// a supply switched on.
+pub(super) const SCALE_FLOOR_V: f32 = 4.0;
 
 /// The supply filter's gain per tick: a first-order low-pass of time constant 1/gain ticks
 /// (32 ms at 1 kHz). It divides white noise's SD by √(2/gain − 1) ≈ 8.
@@ -99,9 +109,13 @@ impl SupplyFilter {
     }
 
     /// Take this tick's reading (`None`: none this tick, the filtered value stands). The first
-    /// reading starts the filter; a reading that is not a positive number is skipped.
+    /// reading starts the filter; a reading that is not a number, or negative, is skipped. Zero
+    /// is a reading: the motor supply is off (or its divider is not fitted), which is out of the
+    /// rated range and blocks a run until it is on. The duty's scale is taken at no less than
+    /// [`SCALE_FLOOR_V`] (finite at 0 V; below any G2's under-voltage lockout, so a bus the
+    /// bridge can drive is scaled by what it reads).
     pub(super) fn update(&mut self, reading_v: Option<f32>) {
-        let Some(v) = reading_v.filter(|v| *v > 0.0) else {
+        let Some(v) = reading_v.filter(|v| *v >= 0.0) else {
             return;
         };
         let filtered = match self.supply_v {
@@ -109,7 +123,7 @@ impl SupplyFilter {
             None => v,
         };
         self.supply_v = Some(filtered);
-        self.duty_scale = self.reference_v / filtered;
+        self.duty_scale = self.reference_v / filtered.max(SCALE_FLOOR_V);
     }
 
     /// The filtered supply, V; `None` where it is not measured.
@@ -188,12 +202,27 @@ mod tests {
     }
 
     #[test]
+    fn a_supply_that_is_off_reads_0_v_out_of_range_with_a_bounded_scale() {
+        let mut f = SupplyFilter::new();
+        f.update(Some(0.0));
+        assert_eq!(f.supply_v(), Some(0.0));
+        assert!(f.out_of_range());
+        assert_eq!(f.duty_scale(), REFERENCE_SUPPLY_V / SCALE_FLOOR_V);
+        // Switched on: the filter follows, and the scale never exceeds the floor's.
+        for _ in 0..300 {
+            f.update(Some(12.0));
+            assert!(f.duty_scale() <= REFERENCE_SUPPLY_V / SCALE_FLOOR_V);
+        }
+        assert!(!f.out_of_range());
+    }
+
+    #[test]
     fn a_missing_reading_keeps_the_filtered_value() {
         let mut f = SupplyFilter::new();
         f.update(Some(9.0));
         f.update(None);
         f.update(Some(f32::NAN));
-        f.update(Some(0.0));
+        f.update(Some(-1.0));
         assert_eq!(f.supply_v(), Some(9.0));
         assert_eq!(f.duty_scale(), REFERENCE_SUPPLY_V / 9.0);
     }

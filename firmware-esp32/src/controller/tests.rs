@@ -436,7 +436,8 @@ fn a_run_whose_torque_the_supply_cannot_deliver_is_refused_with_the_figures() {
 
 #[test]
 fn a_supply_outside_the_rated_range_at_rest_blocks_without_latching() {
-    for bad_v in [8.5, 27.0] {
+    // 0 V: the motor supply off (first bench check 3), read as such, not as "not measured".
+    for bad_v in [0.0, 8.5, 27.0] {
         // (Beyond the range by more than the sense's 3 % tolerance.)
         let mut s = on_supply(bad_v);
         let blocked = Err(ErrorCode::Blocked(Conditions::SUPPLY_OUT_OF_RANGE));
