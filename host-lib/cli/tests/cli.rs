@@ -170,6 +170,51 @@ fn dilate_writes_the_output_atomically_and_reports_it() {
 }
 
 #[test]
+fn a_plan_with_no_cut_is_refused_and_the_json_report_has_one_format_key() {
+    // A green square only: not a cut by the default rules. Nothing to dilate, so nothing is
+    // written (an output would record a compensation that was never applied).
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("green.svg");
+    std::fs::write(
+        &input,
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="50mm" height="50mm" viewBox="0 0 50 50"><rect x="5" y="5" width="20" height="20" fill="none" stroke="#00ff00" stroke-width="0.1"/></svg>"##,
+    )
+    .unwrap();
+    let output = dir.path().join("out.svg");
+    let args = [
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "150",
+        "-o",
+        path(&output),
+    ];
+    let refused = kerfmeter(&args);
+    assert_ne!(code(&refused), 0, "{}", stdout(&refused));
+    assert!(
+        stderr(&refused).contains("no closed cut contour")
+            && stderr(&refused).contains("--cut-color"),
+        "{}",
+        stderr(&refused)
+    );
+    assert!(!output.exists());
+    // Told the colour, it dilates; its JSON report names the format once.
+    let mut green = args.to_vec();
+    green.extend(["--cut-color", "#00ff00", "--json"]);
+    let done = kerfmeter(&green);
+    assert_eq!(code(&done), 0, "{}", stderr(&done));
+    assert_eq!(
+        stdout(&done).matches("\"format\"").count(),
+        1,
+        "{}",
+        stdout(&done)
+    );
+    let report: serde_json::Value = serde_json::from_str(&stdout(&done)).unwrap();
+    assert_eq!(report["format"], "svg");
+    assert_eq!(report["contours_dilated"], 1);
+}
+
+#[test]
 fn a_refused_plan_leaves_the_output_as_it_was() {
     // The output is written as it is made, into a temporary file: `--strict`'s refusal of an
     // open cut path comes after that, and must neither replace the output nor leave the

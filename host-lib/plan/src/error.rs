@@ -33,6 +33,11 @@ pub enum PlanError {
     /// Kerf Offset that is not a number, too large a file).
     #[error("{0}")]
     LightBurn(String),
+    /// No closed contour of the plan is a cut by the rules: there is nothing to dilate, and an
+    /// output recording a compensation would be a lie. The message says what the elements were
+    /// taken for and how to choose the cuts.
+    #[error("{0}")]
+    NoCuts(String),
     /// Open cut paths, which cannot be dilated, where the caller refuses them.
     #[error("{0}")]
     OpenPaths(String),

@@ -164,6 +164,31 @@ pub(crate) fn dilate_plan_cuts<F: Format>(
     Ok((cuts, plan.summary))
 }
 
+/// The refusal of a plan none of whose closed contours is a cut by `rules`: what the elements
+/// were taken for, and how to choose the cuts.
+fn no_cuts(summary: &PlanSummary, rules: &CutRules) -> crate::PlanError {
+    let passed: Vec<String> = summary
+        .passed_through
+        .iter()
+        .map(|(reason, n)| format!("{n} {reason}"))
+        .collect();
+    let mut found = if passed.is_empty() {
+        "nothing drawn".to_owned()
+    } else {
+        format!("left as drawn: {}", passed.join(", "))
+    };
+    if !summary.open_paths.is_empty() {
+        found.push_str(&format!(
+            "; {} open cut path(s), which cannot be dilated",
+            summary.open_paths.len()
+        ));
+    }
+    crate::PlanError::NoCuts(format!(
+        "no closed cut contour found, so nothing to dilate ({found}); the cuts are {}. Choose them with --cut-color, --cut-max-width-mm or --cut-layer (DXF), or close the open paths",
+        rules.describe()
+    ))
+}
+
 /// Read a plan and dilate its cuts: the format (to write with), the plan read and the dilated
 /// contours (`dilated[k]` for `plan.cuts[k]`). A plan that records a compensation is refused,
 /// dilated anyway or recompensated as `policy` says, before its geometry is checked (boxes.py's
@@ -177,6 +202,9 @@ fn read_and_dilate<F: Format>(
     progress: &Progress,
 ) -> Result<(F, Plan<F::Origin>, Vec<Pline>)> {
     let mut plan = format.read()?;
+    if plan.cuts.is_empty() {
+        return Err(no_cuts(&plan.summary, rules));
+    }
     let treatment =
         compensation::treatment(plan.summary.compensation_found.as_ref(), policy, kerf)?;
     if treatment.action == "dilate" && policy != IfCompensated::Refuse {

@@ -1579,23 +1579,42 @@ mod tests {
     #[test]
     fn non_cuts_and_the_rest_of_the_file_are_untouched() {
         let body = r##"<!-- comment --><text x="1" y="5" fill="black">Label</text><path id="g" d="M 0 0 L 5 5" stroke="#00ff00" fill="none"/>"##;
-        let src = format!("{HEAD}{body}</svg>");
+        let cut = r#"<rect id="c" x="10" y="10" width="5" height="5" stroke="red" stroke-width="0.1" fill="none"/>"#;
+        let src = format!("{HEAD}{body}{cut}</svg>");
         let (out, s) =
             dilate_svg(&src, &KerfSource::Uniform(150.0), &SvgOptions::default()).unwrap();
-        // All but the record of what was applied, right after the root's start tag.
+        // All but the record of what was applied, right after the root's start tag, and the cut.
         let record = s.compensation_applied.as_ref().unwrap().svg_record();
-        assert!(
-            out.starts_with(&format!("{HEAD}{record}<!-- comment -->")),
-            "{out}"
-        );
-        assert_eq!(out.replacen(&record, "", 1), src);
-        assert_eq!(s.contours_dilated, 0);
+        assert!(out.starts_with(&format!("{HEAD}{record}{body}")), "{out}");
+        assert!(out.ends_with("</svg>") && !out.contains(cut), "{out}");
+        assert_eq!(s.contours_dilated, 1);
         assert_eq!(s.passed_through.get("text"), Some(&1));
     }
 
     #[test]
+    fn a_plan_without_a_closed_cut_is_refused_and_says_what_was_found() {
+        // Only non-cuts (a label, a green line, a red square drawn 1 mm wide: wider than the
+        // rules' 0.3 mm) and an open red line: nothing to dilate, and no output that records
+        // a compensation it did not apply.
+        let body = r##"<text x="1" y="5" fill="black">Label</text><path d="M 0 0 L 5 5" stroke="#00ff00" fill="none"/><rect x="10" y="10" width="5" height="5" stroke="red" stroke-width="1" fill="none"/><path id="open" d="M 20 20 L 30 30" stroke="red" stroke-width="0.1" fill="none"/>"##;
+        let src = format!("{HEAD}{body}</svg>");
+        let e = dilate_svg(&src, &KerfSource::Uniform(150.0), &SvgOptions::default()).unwrap_err();
+        assert!(matches!(e, PlanError::NoCuts(_)), "{e:?}");
+        let e = e.to_string();
+        for said in [
+            "no closed cut contour",
+            "1 text",
+            "1 open cut path",
+            "up to 0.3 mm wide",
+            "--cut-max-width-mm",
+        ] {
+            assert!(e.contains(said), "{said:?} in {e}");
+        }
+    }
+
+    #[test]
     fn unitless_documents_need_assumed_units() {
-        let src = r#"<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100"><rect x="1" y="1" width="5" height="5" stroke="red" fill="none"/></svg>"#;
+        let src = r#"<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100"><rect x="1" y="1" width="5" height="5" stroke="red" stroke-width="0.1" fill="none"/></svg>"#;
         let e = dilate_svg(src, &KerfSource::Uniform(100.0), &SvgOptions::default())
             .unwrap_err()
             .to_string();

@@ -631,8 +631,11 @@ fn cut_rules_decide_what_is_dilated() {
     assert_eq!(summary.contours_dilated, 2);
     assert!(summary.open_paths.is_empty());
     assert!(summary.passed_through.keys().any(|k| k.contains("#000000")));
-    // Hairlines only: nothing here is thinner than 0.05 mm.
+    // Hairlines only: nothing here is thinner than 0.05 mm, so nothing is a cut: refused, and
+    // the earlier output is left as it was (not replaced by one recording a compensation).
+    let before = std::fs::read(&output).unwrap();
     let hairlines = rules(&[], 0.05);
-    let summary = dilate_with(&input, 150.0, &output, &hairlines).unwrap();
-    assert_eq!(summary.contours_dilated, 0);
+    let e = dilate_with(&input, 150.0, &output, &hairlines).unwrap_err();
+    assert!(e.to_string().contains("no closed cut contour"), "{e}");
+    assert_eq!(std::fs::read(&output).unwrap(), before);
 }

@@ -143,7 +143,8 @@ pub struct DilateReport {
     pub output: Option<PathBuf>,
     /// True when nothing was written.
     pub dry_run: bool,
-    /// The file format.
+    /// The file format (for the text; the JSON has the summary's `format`, one key).
+    #[serde(skip)]
     pub format: PlanFormat,
     /// The kerf given, µm (with a map: at the reference cell).
     pub kerf_um: f64,
@@ -167,7 +168,7 @@ impl fmt::Display for DilateReport {
                 out.display(),
                 self.format,
                 self.kerf_um,
-                self.kerf_um / 2.0
+                moved_um(s, self.kerf_um)
             )?,
             _ => writeln!(
                 f,
@@ -240,6 +241,15 @@ fn write_open_paths(f: &mut fmt::Formatter<'_>, s: &PlanSummary) -> fmt::Result 
         writeln!(f, "    - {o}")?;
     }
     Ok(())
+}
+
+/// How far the cuts moved, µm, as text: the net offset applied (with `--recompensate`, the
+/// kerf's half less the burn undone), else the kerf's half.
+fn moved_um(s: &PlanSummary, kerf_um: f64) -> String {
+    s.compensation_applied.as_ref().map_or_else(
+        || (kerf_um / 2.0).to_string(),
+        |a| a.net_offset_um.to_string(),
+    )
 }
 
 /// What compensation was found and what was applied (nothing when none was found).
