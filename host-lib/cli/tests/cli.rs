@@ -640,6 +640,14 @@ fn an_already_compensated_plan_is_refused_like_any_plan_error_and_the_flags_lead
     );
     let written = std::fs::read_to_string(&out_file).unwrap();
     assert!(written.contains("<kerfmeter:compensation"), "{written}");
+    // The text's headline gives the net offset applied, as its detail does.
+    let text = kerfmeter(&[&args[..], &["--recompensate"]].concat());
+    assert_eq!(code(&text), 0, "{}", stderr(&text));
+    assert!(
+        stdout(&text).contains("each cut moved -25 µm"),
+        "{}",
+        stdout(&text)
+    );
 
     // The output is this tool's own: refused too, and on top only when asked.
     let again = dir.path().join("again.svg");
