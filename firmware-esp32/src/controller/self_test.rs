@@ -11,16 +11,16 @@
 //! duty filtered alike (`board::current`), read one conversion behind: the reading of the pulse's
 //! tick *j* is the filter's state at tick *j* − 1. So the first reading with the pulse in it is
 //! tick 2's, and it is already right: both filters saw the same first millisecond, and the
-//! filtered duty is above the conversion's floor by then (0.25 against 0.2). The
+//! filtered duty is above the conversion's floor by then (0.38 against 0.2). The
 //! readings of [`PULSE_AVERAGED`] ticks are averaged, with the supply over the same ticks: enough
-//! readings to average the ADC's 1 mV step (0.13 A of motor current at 40 % duty) and its noise,
+//! readings to average the ADC's 1 mV step (0.09 A of motor current at 60 % duty) and its noise,
 //! early enough that the free hub's back-EMF has taken little of the current (some 6 % a
 //! millisecond on the reference build, the same at any supply: the hub's acceleration and the
 //! drive voltage both scale with it). What it took is put back from the hub's mean speed over
 //! those ticks (`torque_per_amp_nm` × ω: a lower bound, as the gearbox's efficiency is not
-//! known). On the twin's defaults the estimate lands at 0.86–1.09 of the configured value for 50
+//! known). On the twin's defaults the estimate lands at 0.88–1.04 of the configured value for 50
 //! seeds at each of 9, 12 and 24 V (the twin's current sense reads 5 % high, and its ADC adds
-//! 1 mV of noise).
+//! 1 mV of noise; the `sense_study` example).
 
 use kerfmeter_protocol::{
     ErrorCode, REFERENCE_SUPPLY_V, SelfTestItem, SelfTestReport, TestOutcome,
