@@ -19,7 +19,7 @@
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod commands;
 mod connection;
@@ -122,9 +122,46 @@ fn one_malloc_arena() {
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 fn one_malloc_arena() {}
 
+/// The command line, parsed. A negative number is a value wherever one is taken (`--kerf-um
+/// -150` gets the option's own range message, not "unexpected argument '-1'"), and with
+/// `--json` a usage error is printed as `{"error": …}` on stdout, like every other error.
+fn parse_cli() -> Result<Cli, ExitCode> {
+    let command = negative_numbers_are_values(Cli::command());
+    let parsed = command
+        .try_get_matches()
+        .and_then(|matches| Cli::from_arg_matches(&matches));
+    let e = match parsed {
+        Ok(cli) => return Ok(cli),
+        Err(e) => e,
+    };
+    let is_usage_error = e.use_stderr();
+    if is_usage_error && std::env::args().any(|a| a == "--json") {
+        let rendered = e.to_string();
+        let message = rendered.lines().next().unwrap_or_default();
+        let report = ErrorReport {
+            error: message.trim_start_matches("error: ").to_owned(),
+            fault: None,
+            conditions: Vec::new(),
+        };
+        print_line(&to_json(&report, JsonLayout::CompactSorted));
+        return Err(ExitCode::from(2));
+    }
+    e.exit()
+}
+
+/// `command` and all its subcommands take negative numbers as values.
+fn negative_numbers_are_values(command: clap::Command) -> clap::Command {
+    command
+        .allow_negative_numbers(true)
+        .mut_subcommands(negative_numbers_are_values)
+}
+
 fn main() -> ExitCode {
     one_malloc_arena();
-    let cli = Cli::parse();
+    let cli = match parse_cli() {
+        Ok(cli) => cli,
+        Err(code) => return code,
+    };
     match run(&cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

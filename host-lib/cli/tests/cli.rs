@@ -215,6 +215,33 @@ fn a_plan_with_no_cut_is_refused_and_the_json_report_has_one_format_key() {
 }
 
 #[test]
+fn negative_numbers_get_the_options_message_and_usage_errors_honour_json() {
+    let (dir, input) = box_plan();
+    let output = dir.path().join("out.svg");
+    let neg = kerfmeter(&[
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "-150",
+        "-o",
+        path(&output),
+    ]);
+    assert_eq!(code(&neg), 2);
+    assert!(
+        stderr(&neg).contains("between 0 and 5000 µm, got -150"),
+        "{}",
+        stderr(&neg)
+    );
+    let bogus = kerfmeter(&["--json", "run", "--bogus"]);
+    assert_eq!(code(&bogus), 2);
+    let report: serde_json::Value = serde_json::from_str(&stdout(&bogus)).unwrap();
+    assert!(
+        report["error"].as_str().unwrap().contains("--bogus"),
+        "{report}"
+    );
+}
+
+#[test]
 fn a_refused_plan_leaves_the_output_as_it_was() {
     // The output is written as it is made, into a temporary file: `--strict`'s refusal of an
     // open cut path comes after that, and must neither replace the output nor leave the
