@@ -258,3 +258,35 @@ fn mixed_simulated_and_real_machines_and_a_full_bed_are_refused() {
     assert_ne!(code(&out), 0);
     assert!(std::fs::read_to_string(&plan).unwrap().contains("<rect"));
 }
+
+/// Run the job on the twins with `extra` flags after `-o out.svg`; it must be refused before
+/// anything moved (exit 2, nothing written); its message.
+fn refused_before_moving(extra: &[&str]) -> String {
+    let (dir, plan) = plate_plan();
+    let out_svg = dir.path().join("out.svg");
+    let args = ["--sim", "job", path(&plan), "--cutter", "sim", "-o"];
+    let out = kerfmeter(&[&args[..], &[path(&out_svg)], extra].concat());
+    let message = stderr(&out);
+    assert_eq!(code(&out), 2, "{extra:?}: {message}");
+    // The cutter was never opened ("job on sim …" is printed once it is).
+    assert!(!message.contains("job on"), "{message}");
+    assert!(!out_svg.exists() && !dir.path().join("out.gcode").exists());
+    message
+}
+
+#[test]
+fn a_gauge_over_the_plan_or_off_the_bed_a_head_off_the_bed_and_an_upward_plunge_are_refused() {
+    // The plate's cuts fill (0, 0)–(40, 30) mm on the machine.
+    let over = refused_before_moving(&["--gauge-at-mm", "30,30"]);
+    assert!(over.contains("within 5 mm of the plan"), "{over}");
+    for at in ["-500,30", "5000,30"] {
+        let off = refused_before_moving(&[&format!("--gauge-at-mm={at}")]);
+        assert!(off.contains("off the 600 × 400 mm bed"), "{off}");
+    }
+    let head = refused_before_moving(&["--prong-offset-mm", "1000,1000"]);
+    assert!(head.contains("the head would move to X-9"), "{head}");
+    let plan = refused_before_moving(&["--origin-mm", "580,0"]);
+    assert!(plan.contains("the plan as placed fills"), "{plan}");
+    let z = refused_before_moving(&["--insert-z-mm", "50", "--travel-z-mm", "10"]);
+    assert!(z.contains("must be below the travel Z"), "{z}");
+}
