@@ -35,7 +35,7 @@ use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use kerfmeter::JointSpec;
-use kerfmeter::files::{ensure_not_input, write_atomically};
+use kerfmeter::files::{ensure_not_input, ensure_writable, same_file, write_atomically};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, SimCutterOptions};
 use kerfmeter::job::{
     Devices, JobError, JobEvent, JobRequest, Layout, Placement, SimLink, Stage, StageTime,
@@ -261,7 +261,6 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
     if args.dry_run {
         return Ok(JobOutcome::DryRun(setup.dry_run(args)?));
     }
-    ensure_not_input(&args.input, &setup.gcode_out)?;
     check_machines(g, args)?;
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
@@ -431,11 +430,7 @@ impl Setup {
     /// Check the plan (read at kerf 0) before anything moves, choose the gauge's place and write
     /// its G-code.
     pub fn new(args: &JobArgs) -> Result<Setup> {
-        plan_output_format(&args.input, &args.output)?;
-        let gcode_out = match &args.gcode_out {
-            Some(p) => p.clone(),
-            None => args.output.with_extension("gcode"),
-        };
+        let gcode_out = check_outputs(args)?;
         let profile = job_profile(args)?;
         let gcode_options = GcodeOptions {
             s_max: args.cut.s_max,
@@ -536,6 +531,29 @@ impl Setup {
                 .collect(),
         })
     }
+}
+
+/// Check the two outputs before anything moves: the dilated plan (`-o`) in the input's format,
+/// neither output the input nor each other, both in a directory that exists and takes a new file.
+/// The G-code's path is handed back.
+fn check_outputs(args: &JobArgs) -> Result<PathBuf> {
+    plan_output_format(&args.input, &args.output)?;
+    let gcode_out = match &args.gcode_out {
+        Some(p) => p.clone(),
+        None => args.output.with_extension("gcode"),
+    };
+    ensure_not_input(&args.input, &gcode_out)?;
+    if same_file(&args.output, &gcode_out) {
+        return Err(CliError::Usage(format!(
+            "the dilated plan (-o) and the job's G-code (--gcode-out) are the same file {}: the \
+             G-code would overwrite the plan; give --gcode-out another path (or leave it out: -o \
+             with .gcode)",
+            gcode_out.display()
+        )));
+    }
+    ensure_writable(&args.output)?;
+    ensure_writable(&gcode_out)?;
+    Ok(gcode_out)
 }
 
 /// The job's cut settings: the profile, the flags, or the gauge's defaults.
