@@ -2,7 +2,8 @@
 //! lower the prongs into it, measure, lift, dilate the plan by the kerf measured and cut it
 //! ([`kerfmeter::job`] runs the loop; this module turns the arguments into its inputs, makes the
 //! gauge's and the job's G-code with `kerfmeter_plan`, and writes the dilated plan and the job's
-//! G-code atomically, never over the input).
+//! G-code atomically, never over the input nor each other, checked writable before anything
+//! moves).
 //!
 //! The plan is read (and checked) before anything moves, and the gauge's place chosen: at
 //! `--gauge-at-mm`, or on a free spot of the `--bed-mm` bed beside the plan's placed bounding
