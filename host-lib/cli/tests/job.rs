@@ -120,8 +120,11 @@ fn the_whole_job_on_the_twins_prints_the_kerf_and_the_stage_times_and_writes_the
 #[test]
 fn a_job_that_fails_after_its_measurement_still_records_it() {
     let (dir, plan) = plate_plan();
-    // The dilated plan cannot be written: the job fails at its dilate stage.
-    let out_svg = dir.path().join("no such folder/out.svg");
+    // The dilated plan cannot be written: its directory takes files, but a directory stands
+    // where the plan goes (the checks before anything moves look at the directory only), so the
+    // job fails at its dilate stage.
+    let out_svg = dir.path().join("out.svg");
+    std::fs::create_dir(&out_svg).unwrap();
     let db = dir.path().join("history.sqlite3");
     let args = ["--sim", "--db", path(&db), "job", path(&plan)];
     let out = kerfmeter(&[&args[..], &["--cutter", "sim", "-o", path(&out_svg)]].concat());
@@ -257,4 +260,66 @@ fn mixed_simulated_and_real_machines_and_a_full_bed_are_refused() {
     ]);
     assert_ne!(code(&out), 0);
     assert!(std::fs::read_to_string(&plan).unwrap().contains("<rect"));
+}
+
+/// Run the job on the twins with `extra` flags after `-o out.svg`; it must be refused before
+/// anything moved (exit 2, nothing written); its message.
+fn refused_before_moving(extra: &[&str]) -> String {
+    let (dir, plan) = plate_plan();
+    refused_before_moving_in(dir.path(), &plan, extra)
+}
+
+/// [`refused_before_moving`] with the `plan` in `dir`, which the output goes into.
+fn refused_before_moving_in(dir: &Path, plan: &Path, extra: &[&str]) -> String {
+    let out_svg = dir.join("out.svg");
+    let args = ["--sim", "job", path(plan), "--cutter", "sim", "-o"];
+    let out = kerfmeter(&[&args[..], &[path(&out_svg)], extra].concat());
+    let message = stderr(&out);
+    assert_eq!(code(&out), 2, "{extra:?}: {message}");
+    // The cutter was never opened ("job on sim …" is printed once it is).
+    assert!(!message.contains("job on"), "{message}");
+    assert!(!out_svg.exists() && !dir.join("out.gcode").exists());
+    message
+}
+
+#[test]
+fn a_gauge_over_the_plan_or_off_the_bed_a_head_off_the_bed_and_an_upward_plunge_are_refused() {
+    // The plate's cuts fill (0, 0)–(40, 30) mm on the machine.
+    let over = refused_before_moving(&["--gauge-at-mm", "30,30"]);
+    assert!(over.contains("within 5 mm of the plan"), "{over}");
+    for at in ["-500,30", "5000,30"] {
+        let off = refused_before_moving(&[&format!("--gauge-at-mm={at}")]);
+        assert!(off.contains("off the 600 × 400 mm bed"), "{off}");
+    }
+    let head = refused_before_moving(&["--prong-offset-mm", "1000,1000"]);
+    assert!(head.contains("the head would move to X-9"), "{head}");
+    let plan = refused_before_moving(&["--origin-mm", "580,0"]);
+    assert!(plan.contains("the plan as placed fills"), "{plan}");
+    let z = refused_before_moving(&["--insert-z-mm", "50", "--travel-z-mm", "10"]);
+    assert!(z.contains("must be below the travel Z"), "{z}");
+}
+
+#[test]
+fn a_gcode_out_over_the_plan_or_in_a_missing_directory_is_refused_before_anything_moves() {
+    let (dir, plan) = plate_plan();
+    let out_svg = dir.path().join("out.svg");
+    let o = path(&out_svg);
+    // The same file by another name, not written yet.
+    let same = dir.path().join(".").join("out.svg");
+    let message = refused_before_moving_in(dir.path(), &plan, &["--gcode-out", path(&same)]);
+    assert!(message.contains("are the same file"), "{message}");
+    let missing = dir.path().join("nodir");
+    for (output, gcode) in [
+        (o, missing.join("o.gcode")),
+        (path(&missing.join("o.svg")), dir.path().join("o.gcode")),
+    ] {
+        let args = ["--sim", "job", path(&plan), "--cutter", "sim", "-o", output];
+        let out = kerfmeter(&[&args[..], &["--gcode-out", path(&gcode)]].concat());
+        let message = stderr(&out);
+        assert_eq!(code(&out), 4, "{message}");
+        let says = format!("the directory {} does not exist", missing.display());
+        assert!(message.contains(&says), "{message}");
+        assert!(!message.contains("job on"), "{message}");
+    }
+    assert!(!out_svg.exists());
 }

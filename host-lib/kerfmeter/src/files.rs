@@ -1,8 +1,11 @@
-//! Writing output files safely: never over an input, never half-written.
+//! Writing output files safely: never over an input, never half-written, and checked before a
+//! long task that ends by writing them ([`ensure_writable`], [`same_file`]).
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+use tempfile::NamedTempFile;
 
 use crate::error::{Error, Result};
 
@@ -48,19 +51,7 @@ fn atomic_write<T, E: From<Error>>(
         path: path.to_owned(),
         message,
     };
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".kerfmeter-")
-        .tempfile_in(dir)
-        .map_err(|e| {
-            file_error(format!(
-                "cannot create a temporary file in {}: {e}",
-                dir.display()
-            ))
-        })?;
+    let mut tmp = temporary_beside(path).map_err(file_error)?;
     let mut writer = BufWriter::new(tmp.as_file_mut());
     let value = write(&mut writer)?;
     writer
@@ -73,6 +64,75 @@ fn atomic_write<T, E: From<Error>>(
     tmp.persist(path)
         .map_err(|e| file_error(format!("cannot replace the file: {}", e.error)))?;
     Ok(value)
+}
+
+/// The folder a file at `path` goes into (`.` for a bare file name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// A new temporary file in `path`'s folder, or why not, in words: a folder that does not exist
+/// or is not a folder is named as such (not as the temporary file's path).
+fn temporary_beside(path: &Path) -> std::result::Result<NamedTempFile, String> {
+    let dir = folder_of(path);
+    match std::fs::metadata(dir) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(format!("the directory {} does not exist", dir.display()));
+        }
+        Ok(m) if !m.is_dir() => {
+            return Err(format!("{} is not a directory", dir.display()));
+        }
+        _ => {}
+    }
+    tempfile::Builder::new()
+        .prefix(".kerfmeter-")
+        .tempfile_in(dir)
+        .map_err(|e| {
+            use std::io::ErrorKind as Kind;
+            // The common reasons in words, without the temporary file's made-up name that
+            // `tempfile` adds to its error.
+            let reason = match e.kind() {
+                kind @ (Kind::PermissionDenied
+                | Kind::ReadOnlyFilesystem
+                | Kind::StorageFull
+                | Kind::QuotaExceeded) => kind.to_string(),
+                _ => e.to_string(),
+            };
+            let dir = dir.display();
+            format!("cannot create a file in the directory {dir}: {reason}")
+        })
+}
+
+/// Check, before a long task that ends by writing `path`, that it can be written there: its
+/// directory exists and takes a new file (a temporary file is created in it and removed).
+pub fn ensure_writable(path: &Path) -> Result<()> {
+    temporary_beside(path)
+        .map(drop)
+        .map_err(|message| Error::File {
+            path: path.to_owned(),
+            message,
+        })
+}
+
+/// `path` as compared by [`same_file`]: canonical when it exists, else its directory's canonical
+/// path with its name when that exists, else made absolute (lexically normalised).
+fn comparable(path: &Path) -> PathBuf {
+    if let Ok(p) = path.canonicalize() {
+        return p;
+    }
+    if let (Ok(dir), Some(name)) = (folder_of(path).canonicalize(), path.file_name()) {
+        return dir.join(name);
+    }
+    std::path::absolute(path).unwrap_or_else(|_| path.to_owned())
+}
+
+/// True when `a` and `b` name the same file, whether or not it exists yet (`out.svg` and
+/// `./out.svg` do; so do a file and a link to it).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    comparable(a) == comparable(b)
 }
 
 /// Give an open file the Unix permission bits `mode` (nothing elsewhere).
@@ -108,11 +168,7 @@ pub fn make_readable(path: &Path) -> Result<()> {
 /// Refuse to write `output` when it is the same file as `input` (the user's input is never
 /// overwritten).
 pub fn ensure_not_input(input: &Path, output: &Path) -> Result<()> {
-    let same = match (input.canonicalize(), output.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    };
-    if same {
+    if same_file(input, output) {
         return Err(Error::InvalidArgument(format!(
             "the output {} is the input file; choose another output path (inputs are never overwritten)",
             output.display()
@@ -177,5 +233,45 @@ mod tests {
         std::fs::write(&p, "x").unwrap();
         assert!(ensure_not_input(&p, &p).is_err());
         assert!(ensure_not_input(&p, &dir.path().join("out.svg")).is_ok());
+    }
+
+    #[test]
+    fn the_same_file_is_found_by_different_names_existing_or_not() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join("sub")).unwrap();
+        // Not written yet: the same name through `.` and `..`.
+        assert!(same_file(&d.join("out.svg"), &d.join("sub/../out.svg")));
+        assert!(same_file(&d.join("out.svg"), &d.join("./out.svg")));
+        assert!(!same_file(&d.join("out.svg"), &d.join("out.gcode")));
+        std::fs::write(d.join("out.svg"), "x").unwrap();
+        assert!(same_file(&d.join("out.svg"), &d.join("sub/../out.svg")));
+        assert!(same_file(Path::new("a.svg"), Path::new("./a.svg")));
+    }
+
+    #[test]
+    fn an_output_in_a_missing_directory_is_named_as_such() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("nodir");
+        let out = missing.join("o.gcode");
+        let e = ensure_writable(&out).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!(
+                "the directory {} does not exist",
+                missing.display()
+            )),
+            "{e}"
+        );
+        let e = write_atomically(&out, b"x").unwrap_err().to_string();
+        assert!(
+            e.contains("does not exist") && !e.contains(".kerfmeter-"),
+            "{e}"
+        );
+        std::fs::write(&missing, "a file").unwrap();
+        let e = ensure_writable(&out).unwrap_err().to_string();
+        assert!(e.contains("is not a directory"), "{e}");
+        // A directory that exists: checked, and nothing left in it.
+        ensure_writable(&dir.path().join("o.gcode")).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 }

@@ -21,6 +21,10 @@
 //!   controller's reported position) plus the offset is where the prongs landed, which the
 //!   simulated device is told ([`SimLink`]).
 //! - A gauge position can be chosen on a free spot of the bed beside the plan ([`free_spot_mm`]).
+//! - Before anything moves, [`Placement::check_layout`] checks every move the job plans: the
+//!   plan and the gauge on the bed, the gauge a margin clear of the plan, the head's move over
+//!   the gauge on the bed, and the insert Z below the travel Z (Z grows upward: the prongs plunge
+//!   down). [`run_job`] checks the numbers again ([`Placement::check`]); it knows no bed.
 
 use std::fmt;
 use std::ops::ControlFlow;
@@ -151,6 +155,66 @@ impl Placement {
                 "the plunge feed must be above 0 and at most 100000 mm/min, got {feed}"
             )));
         }
+        if self.insert_z_mm >= self.travel_z_mm {
+            return Err(JobError::Invalid(format!(
+                "the insert Z (--insert-z-mm {}) must be below the travel Z (--travel-z-mm {}): Z \
+                 grows upward, and the prongs plunge from the travel height down into the gauge; \
+                 give a lower --insert-z-mm (e.g. -6) or a higher --travel-z-mm",
+                self.insert_z_mm, self.travel_z_mm
+            )));
+        }
+        Ok(())
+    }
+
+    /// [`check`](Self::check) the numbers, then every move the job plans against `layout`: the
+    /// plan and the gauge on the bed, the gauge (with the margin) clear of the plan, and the
+    /// head's move that puts the prongs over the gauge on the bed. The one check of where the
+    /// job's moves go, made before anything moves.
+    pub fn check_layout(&self, layout: &Layout) -> Result<(), JobError> {
+        self.check()?;
+        let bed = layout.bed_box_mm();
+        let [bw, bh] = layout.bed_mm;
+        let plan = layout.plan_box_mm;
+        if !contains(bed, plan) {
+            return Err(JobError::Invalid(format!(
+                "the plan as placed fills {}, beyond the {bw} × {bh} mm bed {}: move it with \
+                 --origin-mm X,Y, or give the bed's size with --bed-mm W,H if it is larger",
+                show_box(plan),
+                show_box(bed)
+            )));
+        }
+        let gauge = placed(layout.gauge_extent_mm, self.gauge_at_mm);
+        let [gx, gy] = self.gauge_at_mm;
+        if !contains(bed, gauge) {
+            return Err(JobError::Invalid(format!(
+                "the gauge at ({gx:.1}, {gy:.1}) mm would be cut over {}, off the {bw} × {bh} mm \
+                 bed {}: give a --gauge-at-mm X,Y that keeps it on the bed (or leave it out for a \
+                 free spot beside the plan), or --bed-mm W,H if the bed is larger",
+                show_box(gauge),
+                show_box(bed)
+            )));
+        }
+        let margin = layout.margin_mm;
+        if overlap(grown(gauge, margin), plan) {
+            return Err(JobError::Invalid(format!(
+                "the gauge at ({gx:.1}, {gy:.1}) mm would be cut over {}, within {margin} mm of \
+                 the plan, which fills {}: the gauge would cut into the job. Give a --gauge-at-mm \
+                 X,Y clear of the plan, or leave it out for a free spot beside the plan",
+                show_box(gauge),
+                show_box(plan)
+            )));
+        }
+        let [hx, hy] = self.head_over_gauge_mm();
+        if !contains(bed, [[hx, hy], [hx, hy]]) {
+            let [dx, dy] = self.prong_offset_mm;
+            return Err(JobError::Invalid(format!(
+                "to put the prongs over the gauge at ({gx:.1}, {gy:.1}) mm the head would move to \
+                 X{hx:.1} Y{hy:.1}, off the {bw} × {bh} mm bed {}: check --prong-offset-mm \
+                 ({dx}, {dy} mm: the prongs' axis relative to the nozzle, a few tens of mm; see \
+                 the README to calibrate it), or move the gauge with --gauge-at-mm",
+                show_box(bed)
+            )));
+        }
         Ok(())
     }
 
@@ -168,6 +232,61 @@ impl Placement {
     pub fn lift_program(&self) -> String {
         format!("G21 G90\nM5 S0\nG0 Z{:.4}\n", self.travel_z_mm)
     }
+}
+
+/// Where the job's moves must stay, for [`Placement::check_layout`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Layout {
+    /// The bed's size, mm, from the machine origin (0, 0).
+    pub bed_mm: [f64; 2],
+    /// The plan's cuts as placed on the machine, `[[min_x, min_y], [max_x, max_y]]`, mm (as
+    /// drawn: the dilation grows them by half the kerf, well within `margin_mm`).
+    pub plan_box_mm: [[f64; 2]; 2],
+    /// The gauge's cuts relative to its spiral centre, `[[min_x, min_y], [max_x, max_y]]`, mm.
+    pub gauge_extent_mm: [[f64; 2]; 2],
+    /// Space kept between the gauge's cuts and the plan's, mm.
+    pub margin_mm: f64,
+}
+
+impl Layout {
+    /// The bed as a box, mm.
+    fn bed_box_mm(&self) -> [[f64; 2]; 2] {
+        [[0.0, 0.0], self.bed_mm]
+    }
+}
+
+/// Rounding allowed when a box is compared with another, mm.
+const TOLERANCE_MM: f64 = 1e-6;
+
+/// `extent` (relative to a centre) with its centre at `at`.
+fn placed(extent: [[f64; 2]; 2], at: [f64; 2]) -> [[f64; 2]; 2] {
+    let [[x0, y0], [x1, y1]] = extent;
+    [[at[0] + x0, at[1] + y0], [at[0] + x1, at[1] + y1]]
+}
+
+/// `b` grown by `by` on every side.
+fn grown(b: [[f64; 2]; 2], by: f64) -> [[f64; 2]; 2] {
+    [[b[0][0] - by, b[0][1] - by], [b[1][0] + by, b[1][1] + by]]
+}
+
+/// True when `inner` lies within `outer`.
+fn contains(outer: [[f64; 2]; 2], inner: [[f64; 2]; 2]) -> bool {
+    let outer = grown(outer, TOLERANCE_MM);
+    (0..2).all(|i| inner[0][i] >= outer[0][i] && inner[1][i] <= outer[1][i])
+}
+
+/// True when `a` and `b` share more than their edges.
+fn overlap(a: [[f64; 2]; 2], b: [[f64; 2]; 2]) -> bool {
+    let a = grown(a, -TOLERANCE_MM);
+    (0..2).all(|i| a[0][i] < b[1][i] && b[0][i] < a[1][i])
+}
+
+/// A box as `(x0, y0)–(x1, y1) mm`.
+fn show_box(b: [[f64; 2]; 2]) -> String {
+    format!(
+        "({:.1}, {:.1})–({:.1}, {:.1}) mm",
+        b[0][0], b[0][1], b[1][0], b[1][1]
+    )
 }
 
 /// A free spot on a bed of `bed_mm` (from 0,0) for a gauge whose cuts reach `gauge_extent_mm`
@@ -188,10 +307,10 @@ pub fn free_spot_mm(
         [px0 - margin_mm - gx1, py0 - gy0],
         [px0 - gx0, py0 - margin_mm - gy1],
     ];
-    let fits = |[cx, cy]: [f64; 2]| {
-        cx + gx0 >= 0.0 && cy + gy0 >= 0.0 && cx + gx1 <= bed_mm[0] && cy + gy1 <= bed_mm[1]
-    };
-    candidates.into_iter().find(|c| fits(*c))
+    let bed = [[0.0, 0.0], bed_mm];
+    candidates
+        .into_iter()
+        .find(|c| contains(bed, placed(gauge_extent_mm, *c)))
 }
 
 /// What the loop reports as it goes.
@@ -652,6 +771,77 @@ mod tests {
             ..p
         };
         assert!(bad.check().is_err());
+    }
+
+    fn layout() -> Layout {
+        Layout {
+            bed_mm: [600.0, 400.0],
+            plan_box_mm: [[0.0, 0.0], [96.0, 96.0]],
+            gauge_extent_mm: GAUGE,
+            margin_mm: 5.0,
+        }
+    }
+
+    fn at(gauge_at_mm: [f64; 2], prong_offset_mm: [f64; 2]) -> Placement {
+        Placement {
+            gauge_at_mm,
+            prong_offset_mm,
+            insert_z_mm: -2.0,
+            travel_z_mm: 10.0,
+            plunge_feed_mm_per_min: 300.0,
+        }
+    }
+
+    fn refusal(p: Placement, layout: &Layout) -> String {
+        p.check_layout(layout).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn the_gauge_beside_the_plan_on_the_bed_is_accepted() {
+        let l = layout();
+        let spot = free_spot_mm(l.plan_box_mm, GAUGE, l.bed_mm, l.margin_mm).unwrap();
+        assert_eq!(spot, [131.0, 30.0]);
+        at(spot, [20.0, -5.0]).check_layout(&l).unwrap();
+        at([300.0, 200.0], [0.0, 0.0]).check_layout(&l).unwrap();
+    }
+
+    #[test]
+    fn a_gauge_over_or_beside_the_plan_within_the_margin_is_refused() {
+        let l = layout();
+        let over = refusal(at([30.0, 30.0], [0.0, 0.0]), &l);
+        assert!(over.contains("within 5 mm of the plan"), "{over}");
+        assert!(over.contains("--gauge-at-mm"), "{over}");
+        // 4 mm right of the plan: inside the margin.
+        assert!(at([130.0, 30.0], [0.0, 0.0]).check_layout(&l).is_err());
+    }
+
+    #[test]
+    fn a_gauge_the_plan_or_the_head_off_the_bed_is_refused() {
+        let l = layout();
+        for gauge_at in [[-500.0, 30.0], [5000.0, 30.0], [300.0, 390.0]] {
+            let off = refusal(at(gauge_at, [0.0, 0.0]), &l);
+            assert!(off.contains("off the 600 × 400 mm bed"), "{off}");
+        }
+        let head = refusal(at([131.0, 30.0], [1000.0, 1000.0]), &l);
+        assert!(head.contains("X-869.0 Y-970.0"), "{head}");
+        assert!(head.contains("--prong-offset-mm"), "{head}");
+        let plan = Layout {
+            plan_box_mm: [[500.0, 0.0], [700.0, 96.0]],
+            ..l
+        };
+        let off = refusal(at([300.0, 200.0], [0.0, 0.0]), &plan);
+        assert!(off.contains("--origin-mm"), "{off}");
+    }
+
+    #[test]
+    fn an_insert_z_not_below_the_travel_z_is_refused() {
+        let p = at([300.0, 200.0], [0.0, 0.0]);
+        for insert_z_mm in [50.0, 10.0] {
+            let up = Placement { insert_z_mm, ..p };
+            let e = up.check().unwrap_err().to_string();
+            assert!(e.contains("must be below the travel Z"), "{e}");
+            assert!(up.check_layout(&layout()).is_err());
+        }
     }
 
     #[test]

@@ -2,11 +2,15 @@
 //! lower the prongs into it, measure, lift, dilate the plan by the kerf measured and cut it
 //! ([`kerfmeter::job`] runs the loop; this module turns the arguments into its inputs, makes the
 //! gauge's and the job's G-code with `kerfmeter_plan`, and writes the dilated plan and the job's
-//! G-code atomically, never over the input).
+//! G-code atomically, never over the input nor each other, checked writable before anything
+//! moves).
 //!
 //! The plan is read (and checked) before anything moves, and the gauge's place chosen: at
 //! `--gauge-at-mm`, or on a free spot of the `--bed-mm` bed beside the plan's placed bounding
-//! box. The gauge is cut with the job's own settings (the kerf depends on them).
+//! box. Every planned move is then checked ([`kerfmeter::job::Placement::check_layout`]): the
+//! plan and the gauge on the bed, the gauge 5 mm clear of the plan as drawn, the head's move over
+//! the gauge on the bed, the insert Z below the travel Z. The gauge is cut with the job's own
+//! settings (the kerf depends on them).
 //!
 //! # Simulated and real machines
 //!
@@ -32,11 +36,11 @@ use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use kerfmeter::JointSpec;
-use kerfmeter::files::{ensure_not_input, write_atomically};
+use kerfmeter::files::{ensure_not_input, ensure_writable, same_file, write_atomically};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, SimCutterOptions};
 use kerfmeter::job::{
-    Devices, JobError, JobEvent, JobRequest, Placement, SimLink, Stage, StageTime, free_spot_mm,
-    run_job,
+    Devices, JobError, JobEvent, JobRequest, Layout, Placement, SimLink, Stage, StageTime,
+    free_spot_mm, run_job,
 };
 use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
 use kerfmeter_plan::gauge::{GaugeOptions, build};
@@ -258,7 +262,6 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
     if args.dry_run {
         return Ok(JobOutcome::DryRun(setup.dry_run(args)?));
     }
-    ensure_not_input(&args.input, &setup.gcode_out)?;
     check_machines(g, args)?;
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
@@ -428,11 +431,7 @@ impl Setup {
     /// Check the plan (read at kerf 0) before anything moves, choose the gauge's place and write
     /// its G-code.
     pub fn new(args: &JobArgs) -> Result<Setup> {
-        plan_output_format(&args.input, &args.output)?;
-        let gcode_out = match &args.gcode_out {
-            Some(p) => p.clone(),
-            None => args.output.with_extension("gcode"),
-        };
+        let gcode_out = check_outputs(args)?;
         let profile = job_profile(args)?;
         let gcode_options = GcodeOptions {
             s_max: args.cut.s_max,
@@ -446,10 +445,15 @@ impl Setup {
         }
         .run_params(GaugeGeometry::PAPER)?;
         let drawing = build(&GaugeGeometry::PAPER, &GaugeOptions::default())?;
-        let plan_box = placed_plan_box(args, &gcode_options)?;
+        let layout = Layout {
+            bed_mm: args.bed_mm,
+            plan_box_mm: placed_plan_box(args, &gcode_options)?,
+            gauge_extent_mm: gauge_extent_mm(&drawing)?,
+            margin_mm: GAUGE_MARGIN_MM,
+        };
         let gauge_at_mm = match args.gauge_at_mm {
             Some(at) => at,
-            None => free_spot(args, &drawing, plan_box)?,
+            None => free_spot(args, &layout)?,
         };
         let placement = Placement {
             gauge_at_mm,
@@ -458,7 +462,7 @@ impl Setup {
             travel_z_mm: args.travel_z_mm,
             plunge_feed_mm_per_min: args.plunge_feed_mm_per_min,
         };
-        placement.check().map_err(job_error)?;
+        placement.check_layout(&layout).map_err(job_error)?;
         let settings = profile.default.unwrap_or(GAUGE_SETTINGS);
         let provenance = Provenance {
             source: "gauge for kerfmeter job".into(),
@@ -530,6 +534,29 @@ impl Setup {
     }
 }
 
+/// Check the two outputs before anything moves: the dilated plan (`-o`) in the input's format,
+/// neither output the input nor each other, both in a directory that exists and takes a new file.
+/// The G-code's path is handed back.
+fn check_outputs(args: &JobArgs) -> Result<PathBuf> {
+    plan_output_format(&args.input, &args.output)?;
+    let gcode_out = match &args.gcode_out {
+        Some(p) => p.clone(),
+        None => args.output.with_extension("gcode"),
+    };
+    ensure_not_input(&args.input, &gcode_out)?;
+    if same_file(&args.output, &gcode_out) {
+        return Err(CliError::Usage(format!(
+            "the dilated plan (-o) and the job's G-code (--gcode-out) are the same file {}: the \
+             G-code would overwrite the plan; give --gcode-out another path (or leave it out: -o \
+             with .gcode)",
+            gcode_out.display()
+        )));
+    }
+    ensure_writable(&args.output)?;
+    ensure_writable(&gcode_out)?;
+    Ok(gcode_out)
+}
+
 /// The job's cut settings: the profile, the flags, or the gauge's defaults.
 fn job_profile(args: &JobArgs) -> Result<Profile> {
     if args.profile.is_none() && args.cut.settings()?.is_none() {
@@ -568,20 +595,22 @@ fn placed_plan_box(args: &JobArgs, options: &GcodeOptions) -> Result<[[f64; 2]; 
     })
 }
 
-/// A free spot on the bed for the gauge, beside the plan's cuts (`plan_box`, as placed).
-fn free_spot(
-    args: &JobArgs,
-    drawing: &kerfmeter_plan::gauge::GaugeDrawing,
-    plan_box: [[f64; 2]; 2],
-) -> Result<[f64; 2]> {
+/// The gauge's cuts relative to its spiral centre, mm.
+fn gauge_extent_mm(drawing: &kerfmeter_plan::gauge::GaugeDrawing) -> Result<[[f64; 2]; 2]> {
     let gauge = gauge_cuts(drawing);
     let centred = Mapping {
         flip_y: false,
         offset_mm: [-drawing.center.x, -drawing.center.y],
     };
-    let gauge_box = placed_box(gauge.iter().map(|(_, p)| p), &centred)
-        .ok_or_else(|| CliError::Usage("the gauge drawing has no cuts".into()))?;
-    free_spot_mm(plan_box, gauge_box, args.bed_mm, GAUGE_MARGIN_MM).ok_or_else(|| {
+    placed_box(gauge.iter().map(|(_, p)| p), &centred)
+        .ok_or_else(|| CliError::Usage("the gauge drawing has no cuts".into()))
+}
+
+/// A free spot on the bed for the gauge, beside the plan's cuts (as placed).
+fn free_spot(args: &JobArgs, layout: &Layout) -> Result<[f64; 2]> {
+    let gauge_box = layout.gauge_extent_mm;
+    let plan_box = layout.plan_box_mm;
+    free_spot_mm(plan_box, gauge_box, layout.bed_mm, layout.margin_mm).ok_or_else(|| {
         CliError::Usage(format!(
             "no room for the gauge ({:.0} × {:.0} mm) on the {} × {} mm bed beside the plan, which fills ({:.1}, {:.1})–({:.1}, {:.1}) mm: give --gauge-at-mm X,Y, or --bed-mm W,H if the bed is larger",
             gauge_box[1][0] - gauge_box[0][0],
