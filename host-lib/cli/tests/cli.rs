@@ -242,6 +242,23 @@ fn negative_numbers_get_the_options_message_and_usage_errors_honour_json() {
 }
 
 #[test]
+fn a_flagged_run_and_a_force_not_reached_are_said_under_the_kerf() {
+    // 500 N is more than the default 12 V bus drives through the 0.8 N·m cap (some 70 N).
+    let out = kerfmeter(&["--sim", "run", "--force-n", "500"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    for said in [
+        "warning: run 1 is flagged supply-limited",
+        "warning: run 1 pressed the joint at",
+        "not the 500.0 N asked for",
+    ] {
+        assert!(stdout(&out).contains(said), "{said:?} in {}", stdout(&out));
+    }
+    // An unflagged run at the default force says neither.
+    let out = kerfmeter(&["--sim", "run"]);
+    assert!(!stdout(&out).contains("warning: run"), "{}", stdout(&out));
+}
+
+#[test]
 fn a_refused_plan_leaves_the_output_as_it_was() {
     // The output is written as it is made, into a temporary file: `--strict`'s refusal of an
     // open cut path comes after that, and must neither replace the output nor leave the

@@ -308,6 +308,7 @@ impl fmt::Display for RunReport {
                 self.runs[i].kerf_um
             )?;
         }
+        write_run_warnings(f, &self.runs, self.force_n)?;
         if let Some(path) = &self.plot {
             write!(f, "\ncurve: {}", path.display())?;
         }
@@ -319,6 +320,38 @@ impl fmt::Display for RunReport {
             None => Ok(()),
         }
     }
+}
+
+/// A run the quality flags distrust (its kerf may be off by more than the device vouches for),
+/// and a run whose joint force was not the one asked for (the supply or the torque cap held it
+/// back): a warning line each, so that a number is never read without them.
+fn write_run_warnings(
+    f: &mut fmt::Formatter<'_>,
+    runs: &[KerfResult],
+    force_n: f32,
+) -> fmt::Result {
+    for (i, r) in runs.iter().enumerate() {
+        let distrusting = r.flags.distrusting();
+        if !distrusting.is_empty() {
+            let names: Vec<&str> = distrusting.names().collect();
+            write!(
+                f,
+                "\nwarning: run {} is flagged {}: its kerf may be off by more than 3 µm (README: How a measurement works)",
+                i + 1,
+                names.join(", ")
+            )?;
+        }
+        if (r.force_at_jam_n - force_n).abs() > 0.05 * force_n {
+            write!(
+                f,
+                "\nwarning: run {} pressed the joint at {:.1} N, not the {:.1} N asked for",
+                i + 1,
+                r.force_at_jam_n,
+                force_n
+            )?;
+        }
+    }
+    Ok(())
 }
 
 impl fmt::Display for SimNote {
