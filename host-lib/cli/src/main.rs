@@ -162,6 +162,7 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(code) => return code,
     };
+    clean_up_on_interrupt(&cli.command);
     match run(&cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -176,6 +177,26 @@ fn main() -> ExitCode {
                 eprintln!("error: {e}");
             }
             ExitCode::from(exit_code(&e))
+        }
+    }
+}
+
+/// The commands that write an output file and take no Ctrl-C of their own: interrupted, they
+/// remove the temporary file they were writing (the output is replaced only by a finished one)
+/// and exit with 130, as a shell does for an interrupted program. `cut` and `job` handle Ctrl-C
+/// themselves (they must stop the cutter first).
+fn clean_up_on_interrupt(command: &Command) {
+    let writes_a_file = matches!(
+        command,
+        Command::Dilate(_) | Command::Gcode(_) | Command::Gauge(_) | Command::Lightburn(_)
+    );
+    if writes_a_file {
+        let handler = || {
+            kerfmeter::files::remove_unfinished_outputs();
+            std::process::exit(130);
+        };
+        if let Err(e) = ctrlc::set_handler(handler) {
+            eprintln!("warning: Ctrl-C will not clean up: {e}");
         }
     }
 }

@@ -4,6 +4,7 @@
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use tempfile::NamedTempFile;
 
@@ -52,6 +53,7 @@ fn atomic_write<T, E: From<Error>>(
         message,
     };
     let mut tmp = temporary_beside(path).map_err(file_error)?;
+    let _unfinished = Unfinished::register(tmp.path());
     let mut writer = BufWriter::new(tmp.as_file_mut());
     let value = write(&mut writer)?;
     writer
@@ -64,6 +66,48 @@ fn atomic_write<T, E: From<Error>>(
     tmp.persist(path)
         .map_err(|e| file_error(format!("cannot replace the file: {}", e.error)))?;
     Ok(value)
+}
+
+/// The temporary files being written now, for [`remove_unfinished_outputs`].
+static UNFINISHED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// A temporary file registered as being written, until this guard is dropped (renamed into place,
+/// or removed on an error, by then).
+struct Unfinished(PathBuf);
+
+impl Unfinished {
+    fn register(path: &Path) -> Self {
+        if let Ok(mut paths) = UNFINISHED.lock() {
+            paths.push(path.to_owned());
+        }
+        Unfinished(path.to_owned())
+    }
+}
+
+impl Drop for Unfinished {
+    fn drop(&mut self) {
+        if let Ok(mut paths) = UNFINISHED.lock() {
+            paths.retain(|p| *p != self.0);
+        }
+    }
+}
+
+/// Remove the temporary files of the outputs being written now: for an interrupted program
+/// (Ctrl-C) that exits at once, whose temporary files would otherwise be left beside the outputs
+/// (the outputs themselves are never touched: they are replaced only by a finished file).
+pub fn remove_unfinished_outputs() {
+    remove_unfinished_where(|_| true);
+}
+
+/// [`remove_unfinished_outputs`] for the temporary files `which` picks.
+fn remove_unfinished_where(which: impl Fn(&Path) -> bool) {
+    let paths = match UNFINISHED.lock() {
+        Ok(paths) => paths.clone(),
+        Err(poisoned) => poisoned.into_inner().clone(),
+    };
+    for path in paths.iter().filter(|p| which(p)) {
+        let _ = std::fs::remove_file(path);
+    }
 }
 
 /// The folder a file at `path` goes into (`.` for a bare file name).
@@ -180,6 +224,34 @@ pub fn ensure_not_input(input: &Path, output: &Path) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_interrupted_write_leaves_no_temporary_file_and_the_output_as_it_was() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out.svg");
+        std::fs::write(&out, "earlier").unwrap();
+        let seen = write_atomically_with(&out, |w| -> Result<usize> {
+            w.write_all(b"half").unwrap();
+            w.flush().unwrap();
+            // Interrupted here (what a Ctrl-C handler does before it exits; only this test's
+            // folder, as other tests write beside it).
+            remove_unfinished_where(|p| p.starts_with(dir.path()));
+            Ok(std::fs::read_dir(dir.path()).unwrap().count())
+        });
+        // The temporary file was gone while the write was under way; only the output is left.
+        assert!(
+            seen.is_err() || seen.as_ref().is_ok_and(|n| *n == 1),
+            "{seen:?}"
+        );
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["out.svg"]);
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), "earlier");
+        let registered = UNFINISHED.lock().unwrap().clone();
+        assert!(!registered.iter().any(|p| p.starts_with(dir.path())));
+    }
 
     #[test]
     fn writes_and_replaces_atomically() {
