@@ -20,7 +20,9 @@
 //!   at the part's area centroid (with a kerf map, interpolated there).
 //! * **Recompensation** ([`Offsetting::Recompensate`], [`dilate_with`]): a plan already offset by
 //!   a burn moves by kerf/2 − burn instead, with its drawn corners kept sharp (see
-//!   [`crate::recompensate`]).
+//!   [`crate::recompensate`]). With a burn above kerf/2 that moves into the part's material —
+//!   holes grow, outlines shrink — so a part's loops are checked again once offset: where its
+//!   material is narrower than twice the move, they would overlap.
 //!
 //! * **Memory**: [`dilate_releasing_drawn`] (what the plan pipeline uses) frees each drawn contour
 //!   as soon as it is offset, so a large plan's drawn and dilated geometry are not held at once.
@@ -29,7 +31,8 @@
 //! and a position in mm): contours that cross themselves or each other (holes of one part
 //! included: two holes side by side are compared with a spatial index of the holes, nesting only
 //! compares a contour with the larger ones around it), a loop drawn twice, a hole narrower than the
-//! kerf (it would vanish or split), a part whose outline would close around a void, and two parts
+//! kerf (it would vanish or split), a part whose outline would close around a void, loops of a
+//! part that a recompensation would move into each other, and two parts
 //! that would *merge* — closer than the kerf, so their dilated regions overlap (or share a cut
 //! line). A notch open to the outside and narrower than the kerf simply fills in: no kerf
 //! compensation can cut it.
@@ -286,6 +289,7 @@ fn dilate_drawn(
     check_holes(contours, &parts)?;
     kerf_per_part(&mut parts, contours, &areas, &centroids, kerf)?;
     let dilated = offset_all(&mut drawn, &roles, &parts, &part_index, how, progress)?;
+    check_offset_loops(drawn.get(), &parts, &dilated, how)?;
     check_merges(drawn.get(), &parts, &dilated)?;
     Ok(Dilation {
         contours: dilated,
@@ -448,39 +452,47 @@ fn same_loop(a: &Pline, b: &Pline) -> bool {
     (0..n).any(|k| (0..n).all(|i| close(i, (i + k) % n)))
 }
 
-/// Holes of one part whose loops (as `loop_of` gives them: drawn or offset) meet, each pair once
-/// as (part, hole, hole, where), in the input's order. Nesting compares a contour only with the
-/// larger ones whose boxes hold it, and the merge check only parts, so holes side by side are
-/// compared here: every two holes of a part whose boxes overlap, found with a spatial index.
-fn meeting_holes<'p>(
+/// Loops of one part that meet, as `loop_of` gives them (drawn or offset): every two of its holes,
+/// and its outline with each hole where `with_outer` says so. Each pair once, as (part, contour,
+/// contour, where), in the input's order. Nesting compares a contour only with the larger ones
+/// whose boxes hold it, and the merge check only parts, so holes side by side are compared here:
+/// those whose boxes overlap, found with a spatial index.
+fn meeting_loops<'p>(
     parts: &[Part],
+    with_outer: impl Fn(&Part) -> bool,
     loop_of: impl Fn(usize) -> &'p Pline + Sync,
 ) -> Vec<(usize, usize, usize, Meeting)> {
-    let holes: Vec<(usize, usize)> = parts
+    let loops: Vec<(usize, usize)> = parts
         .iter()
         .enumerate()
-        .flat_map(|(p, part)| part.holes.iter().map(move |&h| (p, h)))
+        .flat_map(|(p, part)| {
+            let outer = with_outer(part).then_some(part.outer);
+            outer
+                .into_iter()
+                .chain(part.holes.iter().copied())
+                .map(move |c| (p, c))
+        })
         .collect();
-    let boxes: Vec<Bbox> = holes.iter().map(|&(_, h)| Bbox::of(loop_of(h))).collect();
+    let boxes: Vec<Bbox> = loops.iter().map(|&(_, c)| Bbox::of(loop_of(c))).collect();
     let Some(index) = index_of(&boxes) else {
         return Vec::new();
     };
-    let found: Vec<Vec<(usize, usize, usize, Meeting)>> = (0..holes.len())
+    let found: Vec<Vec<(usize, usize, usize, Meeting)>> = (0..loops.len())
         .into_par_iter()
         .map(|a| {
-            let (part, ha) = holes[a];
+            let (part, ca) = loops[a];
             let ba = boxes[a];
             let mut met = Vec::new();
             for b in index.query(ba.min.x, ba.min.y, ba.max.x, ba.max.y) {
-                let hb = holes[b].1;
+                let cb = loops[b].1;
                 if b > a
-                    && holes[b].0 == part
-                    && let Some(m) = meeting(loop_of(ha), loop_of(hb))
+                    && loops[b].0 == part
+                    && let Some(m) = meeting(loop_of(ca), loop_of(cb))
                 {
-                    met.push((part, ha, hb, m));
+                    met.push((part, ca, cb, m));
                 }
             }
-            met.sort_by_key(|&(_, _, hb, _)| hb);
+            met.sort_by_key(|&(_, _, cb, _)| cb);
             met
         })
         .collect();
@@ -491,7 +503,8 @@ fn meeting_holes<'p>(
 /// contours that cross (see [`enclosers`]).
 fn check_holes(contours: &[Contour], parts: &[Part]) -> Result<()> {
     let mut problems = Problems::default();
-    for (p, a, b, m) in meeting_holes(parts, |h| &contours[h].pline) {
+    // A part's outline and its holes were compared when nesting.
+    for (p, a, b, m) in meeting_loops(parts, |_| false, |h| &contours[h].pline) {
         let (la, lb) = (&contours[a].label, &contours[b].label);
         problems.push(match m {
             Meeting::Twice(x) => {
@@ -503,6 +516,42 @@ fn check_holes(contours: &[Contour], parts: &[Part]) -> Result<()> {
                 at(x)
             ),
         });
+    }
+    problems.cannot_dilate()
+}
+
+/// Loops of one part that would overlap once offset. Dilating, they cannot (holes shrink into
+/// themselves, outlines grow away from them) unless they meet as drawn, which is refused first;
+/// but undoing a compensation larger than half the kerf grows the holes and shrinks the outline,
+/// into the part's material: where it is narrower than twice that, they would overlap.
+fn check_offset_loops(
+    contours: &[Contour],
+    parts: &[Part],
+    dilated: &[Pline],
+    how: Offsetting,
+) -> Result<()> {
+    let into_material_mm = |part: &Part| match how {
+        Offsetting::Dilate => -part.kerf_um / 2000.0,
+        Offsetting::Recompensate { burn_mm } => burn_mm - part.kerf_um / 2000.0,
+    };
+    let with_outer = |part: &Part| into_material_mm(part) > 0.0;
+    let mut problems = Problems::default();
+    for (p, a, b, m) in meeting_loops(parts, with_outer, |c| &dilated[c]) {
+        let (Meeting::Twice(x) | Meeting::At(x)) = m;
+        let part = &parts[p];
+        let named = |c: usize| {
+            let what = if c == part.outer { "outline" } else { "hole" };
+            format!("the {what} {}", contours[c].label)
+        };
+        let moved_um = into_material_mm(part) * 1000.0;
+        problems.push(format!(
+            "{} and {} of the part {} would overlap near {}: undoing the compensation moves them {moved_um:.1} µm into the part, and the material between them is narrower than {:.1} µm; move them apart, or recompensate the original drawing",
+            named(a),
+            named(b),
+            contours[part.outer].label,
+            at(x),
+            2.0 * moved_um
+        ));
     }
     problems.cannot_dilate()
 }
@@ -886,6 +935,35 @@ mod tests {
         for h in [1, 2] {
             assert!((d.contours[h].area() - std::f64::consts::PI * r * r).abs() < 1e-9);
         }
+    }
+
+    #[test]
+    fn holes_that_grow_into_each_other_when_a_compensation_is_undone_are_an_error() {
+        // Drawn 200 µm outside their parts (a burn of 0.2 mm), recompensated for a 100 µm kerf:
+        // every hole grows by 150 µm, so two holes 200 µm apart would overlap.
+        let contours = square_with_holes((30.0, 30.0, 5.0), (40.2, 30.0, 5.0));
+        let how = Offsetting::Recompensate { burn_mm: 0.2 };
+        let e = dilate_with(&contours, &KerfSource::Uniform(100.0), how)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the hole a and the hole b of the part square would overlap near"),
+            "{e}"
+        );
+        // 400 µm apart they still fit.
+        let contours = square_with_holes((30.0, 30.0, 5.0), (40.4, 30.0, 5.0));
+        assert!(dilate_with(&contours, &KerfSource::Uniform(100.0), how).is_ok());
+        // The outline shrinks as much: 200 µm from a hole, they would overlap too.
+        let contours = square_with_holes((5.2, 30.0, 5.0), (30.0, 30.0, 5.0));
+        let e = dilate_with(&contours, &KerfSource::Uniform(100.0), how)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the outline square and the hole a of the part square would overlap"),
+            "{e}"
+        );
+        // Dilating instead, the same part is fine: both move away from the web.
+        assert!(dilate(&contours, &KerfSource::Uniform(100.0)).is_ok());
     }
 
     #[test]
