@@ -544,13 +544,21 @@ fn check_offset_loops(
             format!("the {what} {}", contours[c].label)
         };
         let moved_um = into_material_mm(part) * 1000.0;
+        let why = if moved_um > 0.0 {
+            format!(
+                ": undoing the compensation moves them {moved_um:.1} µm into the part, and the material between them is narrower than {:.1} µm; move them apart, or recompensate the original drawing",
+                2.0 * moved_um
+            )
+        } else {
+            // Not expected: they moved apart. Still never written overlapping.
+            " once offset; move them apart".to_string()
+        };
         problems.push(format!(
-            "{} and {} of the part {} would overlap near {}: undoing the compensation moves them {moved_um:.1} µm into the part, and the material between them is narrower than {:.1} µm; move them apart, or recompensate the original drawing",
+            "{} and {} of the part {} would overlap near {}{why}",
             named(a),
             named(b),
             contours[part.outer].label,
             at(x),
-            2.0 * moved_um
         ));
     }
     problems.cannot_dilate()
