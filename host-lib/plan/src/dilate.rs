@@ -13,19 +13,26 @@
 //! * **Offsets** come from `cavalier_contours` (`parallel_offset`): lines stay lines, arcs stay
 //!   arcs, convex corners get round joins (arcs of radius k/2), concave corners stay sharp. For a
 //!   part with holes the contours can be offset one by one: outer contours move outwards and holes
-//!   move into the hole, away from each other, so they never interact.
+//!   move into the hole, away from each other, so they never interact — provided they do not
+//!   meet as drawn, which is checked (two holes of a part however close, even closer than the
+//!   kerf, shrink apart).
 //! * **Kerf per part**: each part (an outer contour with its holes) uses one kerf, the one given
 //!   at the part's area centroid (with a kerf map, interpolated there).
 //! * **Recompensation** ([`Offsetting::Recompensate`], [`dilate_with`]): a plan already offset by
 //!   a burn moves by kerf/2 − burn instead, with its drawn corners kept sharp (see
-//!   [`crate::recompensate`]).
+//!   [`crate::recompensate`]). With a burn above kerf/2 that moves into the part's material —
+//!   holes grow, outlines shrink — so a part's loops are checked again once offset: where its
+//!   material is narrower than twice the move, they would overlap.
 //!
 //! * **Memory**: [`dilate_releasing_drawn`] (what the plan pipeline uses) frees each drawn contour
 //!   as soon as it is offset, so a large plan's drawn and dilated geometry are not held at once.
 //!
 //! Problems are collected, not stopped at, and reported together (each with the contours' labels
-//! and a position in mm): contours that cross themselves or each other, a hole narrower than the
-//! kerf (it would vanish or split), a part whose outline would close around a void, and two parts
+//! and a position in mm): contours that cross themselves or each other (holes of one part
+//! included: two holes side by side are compared with a spatial index of the holes, nesting only
+//! compares a contour with the larger ones around it), a loop drawn twice, a hole narrower than the
+//! kerf (it would vanish or split), a part whose outline would close around a void, loops of a
+//! part that a recompensation would move into each other, and two parts
 //! that would *merge* — closer than the kerf, so their dilated regions overlap (or share a cut
 //! line). A notch open to the outside and narrower than the kerf simply fills in: no kerf
 //! compensation can cut it.
@@ -279,8 +286,10 @@ fn dilate_drawn(
         .map(|d| if d % 2 == 0 { Role::Outer } else { Role::Hole })
         .collect();
     let (mut parts, part_index) = group_parts(&roles, &depth, &parent);
+    check_holes(contours, &parts)?;
     kerf_per_part(&mut parts, contours, &areas, &centroids, kerf)?;
     let dilated = offset_all(&mut drawn, &roles, &parts, &part_index, how, progress)?;
+    check_offset_loops(drawn.get(), &parts, &dilated, how)?;
     check_merges(drawn.get(), &parts, &dilated)?;
     Ok(Dilation {
         contours: dilated,
@@ -403,6 +412,156 @@ fn enclosers(
         }
     }
     found
+}
+
+/// Two loops that meet: the same loop drawn twice, or crossing or touching at a point.
+enum Meeting {
+    Twice(V2),
+    At(V2),
+}
+
+/// Whether and how loops `a` and `b` meet.
+fn meeting(a: &Pline, b: &Pline) -> Option<Meeting> {
+    let x = crossing(a, b)?;
+    Some(if same_loop(a, b) {
+        Meeting::Twice(x)
+    } else {
+        Meeting::At(x)
+    })
+}
+
+/// Whether two loops are one loop drawn twice: the same vertices and arcs, from any start and in
+/// either direction. (A loop redrawn with other vertices, e.g. a circle split at another point,
+/// is not recognised: it still meets the first one.)
+fn same_loop(a: &Pline, b: &Pline) -> bool {
+    const EPS_MM: f64 = 1e-9;
+    let n = a.vertex_count();
+    if n != b.vertex_count() {
+        return false;
+    }
+    let mut b = b.clone();
+    if (a.area() > 0.0) != (b.area() > 0.0) {
+        b.invert_direction_mut();
+    }
+    let close = |i: usize, j: usize| {
+        let (u, v) = (a.at(i), b.at(j));
+        (u.x - v.x).abs() <= EPS_MM
+            && (u.y - v.y).abs() <= EPS_MM
+            && (u.bulge - v.bulge).abs() <= EPS_MM
+    };
+    (0..n).any(|k| (0..n).all(|i| close(i, (i + k) % n)))
+}
+
+/// Loops of one part that meet, as `loop_of` gives them (drawn or offset): every two of its holes,
+/// and its outline with each hole where `with_outer` says so. Each pair once, as (part, contour,
+/// contour, where), in the input's order. Nesting compares a contour only with the larger ones
+/// whose boxes hold it, and the merge check only parts, so holes side by side are compared here:
+/// those whose boxes overlap, found with a spatial index.
+fn meeting_loops<'p>(
+    parts: &[Part],
+    with_outer: impl Fn(&Part) -> bool,
+    loop_of: impl Fn(usize) -> &'p Pline + Sync,
+) -> Vec<(usize, usize, usize, Meeting)> {
+    let loops: Vec<(usize, usize)> = parts
+        .iter()
+        .enumerate()
+        .flat_map(|(p, part)| {
+            let outer = with_outer(part).then_some(part.outer);
+            outer
+                .into_iter()
+                .chain(part.holes.iter().copied())
+                .map(move |c| (p, c))
+        })
+        .collect();
+    let boxes: Vec<Bbox> = loops.iter().map(|&(_, c)| Bbox::of(loop_of(c))).collect();
+    let Some(index) = index_of(&boxes) else {
+        return Vec::new();
+    };
+    let found: Vec<Vec<(usize, usize, usize, Meeting)>> = (0..loops.len())
+        .into_par_iter()
+        .map(|a| {
+            let (part, ca) = loops[a];
+            let ba = boxes[a];
+            let mut met = Vec::new();
+            for b in index.query(ba.min.x, ba.min.y, ba.max.x, ba.max.y) {
+                let cb = loops[b].1;
+                if b > a
+                    && loops[b].0 == part
+                    && let Some(m) = meeting(loop_of(ca), loop_of(cb))
+                {
+                    met.push((part, ca, cb, m));
+                }
+            }
+            met.sort_by_key(|&(_, _, cb, _)| cb);
+            met
+        })
+        .collect();
+    found.into_iter().flatten().collect()
+}
+
+/// Holes of one part that cross, touch or coincide as drawn: cut lines that meet, like any two
+/// contours that cross (see [`enclosers`]).
+fn check_holes(contours: &[Contour], parts: &[Part]) -> Result<()> {
+    let mut problems = Problems::default();
+    // A part's outline and its holes were compared when nesting.
+    for (p, a, b, m) in meeting_loops(parts, |_| false, |h| &contours[h].pline) {
+        let (la, lb) = (&contours[a].label, &contours[b].label);
+        problems.push(match m {
+            Meeting::Twice(x) => {
+                format!("{la} and {lb} are the same loop drawn twice (at {}); delete one", at(x))
+            }
+            Meeting::At(x) => format!(
+                "the holes {la} and {lb} of the part {} cross or touch at {}; cut lines must not meet: draw them as one hole, or move them apart",
+                contours[parts[p].outer].label,
+                at(x)
+            ),
+        });
+    }
+    problems.cannot_dilate()
+}
+
+/// Loops of one part that would overlap once offset. Dilating, they cannot (holes shrink into
+/// themselves, outlines grow away from them) unless they meet as drawn, which is refused first;
+/// but undoing a compensation larger than half the kerf grows the holes and shrinks the outline,
+/// into the part's material: where it is narrower than twice that, they would overlap.
+fn check_offset_loops(
+    contours: &[Contour],
+    parts: &[Part],
+    dilated: &[Pline],
+    how: Offsetting,
+) -> Result<()> {
+    let into_material_mm = |part: &Part| match how {
+        Offsetting::Dilate => -part.kerf_um / 2000.0,
+        Offsetting::Recompensate { burn_mm } => burn_mm - part.kerf_um / 2000.0,
+    };
+    let with_outer = |part: &Part| into_material_mm(part) > 0.0;
+    let mut problems = Problems::default();
+    for (p, a, b, m) in meeting_loops(parts, with_outer, |c| &dilated[c]) {
+        let (Meeting::Twice(x) | Meeting::At(x)) = m;
+        let part = &parts[p];
+        let named = |c: usize| {
+            let what = if c == part.outer { "outline" } else { "hole" };
+            format!("the {what} {}", contours[c].label)
+        };
+        let moved_um = into_material_mm(part) * 1000.0;
+        let why = if moved_um > 0.0 {
+            format!(
+                ": undoing the compensation moves them {moved_um:.1} µm into the part, and the material between them is narrower than {:.1} µm; move them apart, or recompensate the original drawing",
+                2.0 * moved_um
+            )
+        } else {
+            // Not expected: they moved apart. Still never written overlapping.
+            " once offset; move them apart".to_string()
+        };
+        problems.push(format!(
+            "{} and {} of the part {} would overlap near {}{why}",
+            named(a),
+            named(b),
+            contours[part.outer].label,
+            at(x),
+        ));
+    }
+    problems.cannot_dilate()
 }
 
 /// Parts: one per outer contour, with the holes directly inside it. The parts, and each
@@ -720,6 +879,99 @@ mod tests {
             pline: p,
             label: label.into(),
         }
+    }
+
+    /// A circle as two half-circle arcs, counter-clockwise.
+    fn circle(cx: f64, cy: f64, r: f64) -> Pline {
+        let mut p = Pline::new_closed();
+        p.add(cx - r, cy, 1.0);
+        p.add(cx + r, cy, 1.0);
+        p
+    }
+
+    /// A 60 mm square part with the two circle holes (x, y, r) given, named "a" and "b".
+    fn square_with_holes(a: (f64, f64, f64), b: (f64, f64, f64)) -> Vec<Contour> {
+        vec![
+            c(rect(0.0, 0.0, 60.0, 60.0, true), "square"),
+            c(circle(a.0, a.1, a.2), "a"),
+            c(circle(b.0, b.1, b.2), "b"),
+        ]
+    }
+
+    #[test]
+    fn a_hole_drawn_twice_is_an_error() {
+        let contours = square_with_holes((30.0, 30.0, 5.0), (30.0, 30.0, 5.0));
+        let e = dilate(&contours, &KerfSource::Uniform(150.0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("a and b are the same loop drawn twice"), "{e}");
+        assert!(e.contains("delete one"), "{e}");
+        // Drawn the other way round, it is still the same loop.
+        let mut contours = contours;
+        contours[2].pline.invert_direction_mut();
+        let e = dilate(&contours, &KerfSource::Uniform(150.0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("a and b are the same loop drawn twice"), "{e}");
+    }
+
+    #[test]
+    fn holes_of_a_part_that_cross_are_an_error() {
+        // Equal areas: nesting compares neither with the other.
+        let nearly_twice = square_with_holes((30.0, 30.0, 5.0), (30.0, 30.05, 5.0));
+        // A smaller hole sticking out of the larger one's box.
+        let overlapping = square_with_holes((30.0, 30.0, 5.0), (33.0, 30.0, 4.0));
+        for contours in [nearly_twice, overlapping] {
+            let e = dilate(&contours, &KerfSource::Uniform(150.0))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("the holes a and b of the part square cross or touch at"),
+                "{e}"
+            );
+            assert!(e.contains("move them apart"), "{e}");
+        }
+    }
+
+    #[test]
+    fn holes_closer_than_the_kerf_shrink_apart_and_dilate() {
+        // 50 µm apart with a 150 µm kerf: each hole shrinks into itself, away from the other.
+        let contours = square_with_holes((30.0, 30.0, 5.0), (40.05, 30.0, 5.0));
+        let d = dilate(&contours, &KerfSource::Uniform(150.0)).unwrap();
+        assert_eq!(d.parts[0].holes, vec![1, 2]);
+        let r = 5.0 - 0.075;
+        for h in [1, 2] {
+            assert!((d.contours[h].area() - std::f64::consts::PI * r * r).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn holes_that_grow_into_each_other_when_a_compensation_is_undone_are_an_error() {
+        // Drawn 200 µm outside their parts (a burn of 0.2 mm), recompensated for a 100 µm kerf:
+        // every hole grows by 150 µm, so two holes 200 µm apart would overlap.
+        let contours = square_with_holes((30.0, 30.0, 5.0), (40.2, 30.0, 5.0));
+        let how = Offsetting::Recompensate { burn_mm: 0.2 };
+        let e = dilate_with(&contours, &KerfSource::Uniform(100.0), how)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the hole a and the hole b of the part square would overlap near"),
+            "{e}"
+        );
+        // 400 µm apart they still fit.
+        let contours = square_with_holes((30.0, 30.0, 5.0), (40.4, 30.0, 5.0));
+        assert!(dilate_with(&contours, &KerfSource::Uniform(100.0), how).is_ok());
+        // The outline shrinks as much: 200 µm from a hole, they would overlap too.
+        let contours = square_with_holes((5.2, 30.0, 5.0), (30.0, 30.0, 5.0));
+        let e = dilate_with(&contours, &KerfSource::Uniform(100.0), how)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the outline square and the hole a of the part square would overlap"),
+            "{e}"
+        );
+        // Dilating instead, the same part is fine: both move away from the web.
+        assert!(dilate(&contours, &KerfSource::Uniform(100.0)).is_ok());
     }
 
     #[test]

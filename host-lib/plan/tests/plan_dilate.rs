@@ -2,7 +2,7 @@
 //! box-generator SVG, an Inkscape SVG with layers, transforms and clones, a DXF as CAD programs
 //! write it — fingers get wider and slots narrower by exactly the kerf, labels and everything else
 //! stay as they were — and the ways it must refuse: broken files, unknown units, merging parts,
-//! open paths when strict. (What only the command does — never writing over the input, the
+//! holes of a part that meet or are drawn twice, open paths when strict. (What only the command does — never writing over the input, the
 //! dry-run report — is tested with the `kerfmeter-cli` package.)
 //!
 //! Geometry is measured on the *output file*, parsed again (SVG with `usvg`, DXF with `dxf`), and
@@ -534,6 +534,66 @@ fn parts_that_would_merge_are_refused_and_nothing_is_written() {
     // 150 µm fits (the gap is exactly 150 µm: still touching, so refused), 100 µm does.
     assert!(dilate(&input, 150.0, &output).is_err());
     assert!(dilate(&input, 100.0, &output).is_ok());
+}
+
+#[test]
+fn holes_of_a_part_that_meet_are_refused_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let part = |holes: &str| {
+        format!(
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="60mm" height="60mm" viewBox="0 0 60 60">
+  <rect id="panel" x="0" y="0" width="60" height="60" fill="none" stroke="red" stroke-width="0.01"/>
+  {holes}
+</svg>"#
+        )
+    };
+    let hole = |id: &str, cx: f64, cy: f64, r: f64| {
+        format!(
+            r#"<circle id="{id}" cx="{cx}" cy="{cy}" r="{r}" fill="none" stroke="red" stroke-width="0.01"/>"#
+        )
+    };
+    let cases = [
+        // Copied in place: the same loop twice.
+        (
+            hole("first", 30.0, 30.0, 5.0) + &hole("copy", 30.0, 30.0, 5.0),
+            "are the same loop drawn twice",
+        ),
+        // Moved by 50 µm: they cross.
+        (
+            hole("first", 30.0, 30.0, 5.0) + &hole("copy", 30.0, 30.05, 5.0),
+            "cross or touch",
+        ),
+        // A smaller one overlapping a larger one.
+        (
+            hole("first", 30.0, 30.0, 5.0) + &hole("copy", 33.0, 30.0, 4.0),
+            "cross or touch",
+        ),
+    ];
+    let output = dir.path().join("out.svg");
+    for (holes, what) in cases {
+        let input = plan(dir.path(), "holes.svg", &part(&holes));
+        let e = dilate(&input, 150.0, &output).unwrap_err().to_string();
+        assert!(
+            e.contains(what) && e.contains("\"first\"") && e.contains("\"copy\""),
+            "{e}"
+        );
+        assert!(!output.exists());
+    }
+    // 50 µm apart, closer than the kerf: each shrinks into itself, and the web stays.
+    let input = plan(
+        dir.path(),
+        "holes.svg",
+        &part(&(hole("first", 30.0, 30.0, 5.0) + &hole("copy", 40.05, 30.0, 5.0))),
+    );
+    dilate(&input, 150.0, &output).unwrap();
+    // Measured against the input read the same way (usvg draws circles as Béziers).
+    let (t_in, t_out) = (tree(&input), tree(&output));
+    for id in ["first", "copy"] {
+        let a_in = area(&polys(path_by_id(t_in.root(), id))[0]).abs();
+        let a_out = area(&polys(path_by_id(t_out.root(), id))[0]).abs();
+        let shrunk = (4.925f64 / 5.0).powi(2);
+        assert!((a_out / a_in - shrunk).abs() < 1e-5, "{id}: {a_in} {a_out}");
+    }
 }
 
 #[test]
