@@ -11,8 +11,8 @@
 //!   reference rectangle's label says `burn:0.10mm`. The burn is taken from the first of these
 //!   that gives it; a file that is plainly boxes.py's (`Created with Boxes.py`, or a `Command
 //!   line: boxes …`) but names no burn was made with boxes.py's default, 0.1 mm. A burn of 0 is
-//!   no compensation. boxes.py's DXF goes through `pstoedit` from PostScript and keeps no command
-//!   line, so it cannot be recognised. boxes.py draws its reference rectangle (in the group with
+//!   no compensation. boxes.py's DXF keeps no command line (whichever of its writers made it), so
+//!   it cannot be recognised. boxes.py draws its reference rectangle (in the group with
 //!   the `burn:` label) without burn: recompensating dilates it by the kerf's half alone. One burn
 //!   is taken for the rest (boxes.py's `BurnTest` draws each piece with its own).
 //! * **This tool's own outputs.** Every dilated SVG gets an XML comment and a `<metadata>` element
