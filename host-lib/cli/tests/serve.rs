@@ -743,6 +743,12 @@ fn a_plan_is_dilated_by_the_last_kerf_from_its_text() {
         json!({ "plan": "<svg", "format": "svg", "kerf_um": 150 }),
     );
     assert_eq!(code(&bad), -32005, "{bad}");
+    // A bad kerf is a bad param (-32602), not a plan error.
+    let negative = ws.call(
+        "dilate",
+        json!({ "plan": plan, "format": "svg", "kerf_um": -5 }),
+    );
+    assert_eq!(code(&negative), -32602, "{negative}");
     let no_format = ws.call("dilate", json!({ "plan": plan, "kerf_um": 150 }));
     assert!(
         no_format["error"]["message"]

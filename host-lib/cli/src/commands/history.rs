@@ -75,10 +75,11 @@ impl fmt::Display for HistoryReport {
             }
             return Ok(());
         }
+        let n = records.len();
+        let noun = if n == 1 { "measurement" } else { "measurements" };
         writeln!(
             f,
-            "{} {kind} measurements in {}, newest first",
-            records.len(),
+            "{n} {kind} {noun} in {}, newest first",
             self.db.display()
         )?;
         write!(

@@ -86,9 +86,9 @@ impl From<&CliError> for RpcError {
             CliError::Meter(m) if m.category() == Category::Communication => {
                 RpcError::new(NOT_CONNECTED, message)
             }
-            CliError::Meter(kerfmeter::Error::InvalidArgument(_)) | CliError::Usage(_) => {
-                RpcError::new(INVALID_PARAMS, message)
-            }
+            CliError::Meter(kerfmeter::Error::InvalidArgument(_))
+            | CliError::Plan(kerfmeter_plan::PlanError::InvalidArgument(_))
+            | CliError::Usage(_) => RpcError::new(INVALID_PARAMS, message),
             CliError::Plan(_) => RpcError::new(PLAN_ERROR, message),
             CliError::History(_) => RpcError::new(HISTORY_ERROR, message),
             CliError::Meter(m) => RpcError {
