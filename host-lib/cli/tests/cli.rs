@@ -259,6 +259,25 @@ fn a_flagged_run_and_a_force_not_reached_are_said_under_the_kerf() {
 }
 
 #[test]
+fn cut_refuses_a_drawing_and_fault_messages_read_as_sentences() {
+    let (_dir, input) = box_plan();
+    let out = kerfmeter(&["cut", path(&input), "--cutter", "sim"]);
+    assert_eq!(code(&out), 2);
+    assert!(
+        stderr(&out).contains("is a drawing (.svg), not a G-code program")
+            && stderr(&out).contains("kerfmeter gcode"),
+        "{}",
+        stderr(&out)
+    );
+    let fault = kerfmeter(&["--sim", "--sim-fault", "over-current", "run"]);
+    assert!(
+        stderr(&fault).contains("is the hub blocked? Fix the cause"),
+        "{}",
+        stderr(&fault)
+    );
+}
+
+#[test]
 fn a_refused_plan_leaves_the_output_as_it_was() {
     // The output is written as it is made, into a temporary file: `--strict`'s refusal of an
     // open cut path comes after that, and must neither replace the output nor leave the

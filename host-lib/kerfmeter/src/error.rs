@@ -87,7 +87,7 @@ pub enum Error {
         new: u32,
     },
     /// The device stopped a run (or reset, or self-test) on a fault, and latched it.
-    #[error("the device stopped: {}. Fix the cause, then `kerfmeter clear-fault` and `kerfmeter reset`", describe_fault(*fault))]
+    #[error("the device stopped: {} Fix the cause, then `kerfmeter clear-fault` and `kerfmeter reset`", sentence(describe_fault(*fault)))]
     Fault {
         /// The latched fault.
         fault: Fault,
@@ -271,6 +271,15 @@ fn describe_condition(condition: Conditions) -> &'static str {
             "the motor supply is outside the rated 9–26 V (`kerfmeter status` shows it): use a supply within that range"
         }
         _ => "an unknown condition (a newer firmware?)",
+    }
+}
+
+/// `text` ended as a sentence: a full stop added unless it ends in one already (or in `?`).
+fn sentence(text: &str) -> String {
+    if text.ends_with(['.', '?', '!']) {
+        text.to_owned()
+    } else {
+        format!("{text}.")
     }
 }
 

@@ -78,8 +78,27 @@ impl Report for CutReport {
     const JSON: JsonLayout = JsonLayout::CompactSorted;
 }
 
+/// A drawing given where a G-code program is expected: said as such, with the commands that
+/// make the program (its first line would otherwise be refused as too long for GRBL).
+fn refuse_a_plan_file(input: &std::path::Path) -> Result<(), CliError> {
+    let extension = input
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match extension.as_deref() {
+        Some(ext @ ("svg" | "dxf" | "lbrn" | "lbrn2")) => Err(CliError::Usage(format!(
+            "{} is a drawing (.{ext}), not a G-code program: make one with `kerfmeter gcode {} \
+             --kerf-um K -o plan.gcode`, or measure and cut in one go with `kerfmeter job`",
+            input.display(),
+            input.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// Stream the file; Ctrl-C stops the cutter.
 pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
+    refuse_a_plan_file(&args.input)?;
     let program = std::fs::read_to_string(&args.input).map_err(|e| kerfmeter::Error::File {
         path: args.input.clone(),
         message: format!("cannot read the G-code program: {e}"),

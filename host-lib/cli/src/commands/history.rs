@@ -76,7 +76,11 @@ impl fmt::Display for HistoryReport {
             return Ok(());
         }
         let n = records.len();
-        let noun = if n == 1 { "measurement" } else { "measurements" };
+        let noun = if n == 1 {
+            "measurement"
+        } else {
+            "measurements"
+        };
         writeln!(
             f,
             "{n} {kind} {noun} in {}, newest first",
