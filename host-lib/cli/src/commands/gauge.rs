@@ -249,7 +249,7 @@ impl fmt::Display for GaugeReport {
         if let Some(gc) = &self.gcode {
             writeln!(
                 f,
-                "G-code: spiral centre at ({}, {}) mm, {}, {} contours, {:.1} mm cut; needs GRBL $32=1, $30={}",
+                "G-code: spiral centre at ({:.3}, {:.3}) mm, {}, {} contours, {:.1} mm cut; needs GRBL $32=1, $30={}",
                 gc.at_mm[0],
                 gc.at_mm[1],
                 gc.settings,
