@@ -1170,7 +1170,7 @@ fn runs_are_recorded_listed_newest_first_and_a_drift_is_warned() {
         "5",
     ]);
     let text = stdout(&out);
-    assert!(text.starts_with("1 simulated measurements"), "{text}");
+    assert!(text.starts_with("1 simulated measurement in"), "{text}");
     assert!(!text.contains("warning"), "{text}");
     // The simulated records are not among the real ones.
     let out = kerfmeter(&["--db", path(&db), "history"]);
