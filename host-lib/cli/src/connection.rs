@@ -11,6 +11,11 @@ use kerfmeter::{Kerfmeter, Options};
 
 use crate::error::CliError;
 
+/// The simulated device's kerf, µm, when none is given.
+const SIM_KERF_UM: f64 = 150.0;
+/// The simulated device's seed when none is given.
+const SIM_SEED: u64 = 1;
+
 /// Flags every command takes (cloned by `kerfmeter serve`, which re-opens the device with them).
 #[derive(Args, Clone)]
 pub struct Global {
@@ -22,13 +27,13 @@ pub struct Global {
     #[arg(long, global = true)]
     pub sim: bool,
     /// Simulated device: true kerf of the cut gauges, µm.
-    #[arg(long, global = true, default_value_t = 150.0, value_name = "UM")]
+    #[arg(long, global = true, default_value_t = SIM_KERF_UM, value_name = "UM")]
     pub sim_kerf_um: f64,
     /// Simulated device: gauge-to-gauge spread (SD) of the simulated cutter's kerf, µm.
     #[arg(long, global = true, default_value_t = 0.0, value_name = "UM")]
     pub sim_kerf_sd_um: f64,
     /// Simulated device: seed of every random number (same seed, same result).
-    #[arg(long, global = true, default_value_t = 1)]
+    #[arg(long, global = true, default_value_t = SIM_SEED)]
     pub sim_seed: u64,
     /// Simulated device: inject a fault (parity, magnet-lost, miso-stuck, no-inset,
     /// motor-disconnected, driver-fault, over-current, host-silent, prong-slip).
@@ -105,13 +110,17 @@ impl Global {
         })
     }
 
-    /// True when a flag that only the simulated device understands was given.
+    /// True when a flag that only the simulated device understands was given (the kerf, its
+    /// spread and the seed, which have defaults, when they differ from them).
     fn sim_flags_given(&self) -> bool {
         self.sim_fault.is_some()
             || self.sim_realtime
             || self.sim_material.is_some()
             || self.sim_plant_file.is_some()
             || !self.sim_plant.is_empty()
+            || self.sim_kerf_um != SIM_KERF_UM
+            || self.sim_kerf_sd_um != 0.0
+            || self.sim_seed != SIM_SEED
     }
 
     /// A fresh twin cutting `kerf_um` with `seed` (the other simulated flags as given).
@@ -131,8 +140,9 @@ impl Global {
         }
         if self.sim_flags_given() {
             return Err(CliError::Usage(
-                "--sim-fault, --sim-realtime, --sim-material, --sim-plant and --sim-plant-file \
-                 need --sim"
+                "the --sim-… options (--sim-kerf-um, --sim-seed, --sim-fault, --sim-material, \
+                 --sim-plant, …) set up the simulated device: add --sim, or leave them out to use \
+                 the real one"
                     .into(),
             ));
         }

@@ -278,6 +278,19 @@ fn cut_refuses_a_drawing_and_fault_messages_read_as_sentences() {
 }
 
 #[test]
+fn simulator_options_without_sim_are_refused_not_ignored() {
+    for args in [
+        &["--sim-kerf-um", "200", "run"][..],
+        &["--sim-seed", "7", "status"][..],
+        &["--sim-fault", "parity", "run"][..],
+    ] {
+        let out = kerfmeter(args);
+        assert_eq!(code(&out), 2, "{args:?}: {}", stderr(&out));
+        assert!(stderr(&out).contains("add --sim"), "{}", stderr(&out));
+    }
+}
+
+#[test]
 fn a_refused_plan_leaves_the_output_as_it_was() {
     // The output is written as it is made, into a temporary file: `--strict`'s refusal of an
     // open cut path comes after that, and must neither replace the output nor leave the
