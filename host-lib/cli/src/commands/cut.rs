@@ -14,6 +14,8 @@ use std::time::Duration;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use kerfmeter::grbl::protocol::{MachineState, prepare};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, CutterError, StreamProgress};
+use kerfmeter_plan::PlanFormat;
+use kerfmeter_plan::lightburn::is_project_path;
 use serde::Serialize;
 
 use crate::connection::Global;
@@ -81,19 +83,16 @@ impl Report for CutReport {
 /// A drawing given where a G-code program is expected: said as such, with the commands that
 /// make the program (its first line would otherwise be refused as too long for GRBL).
 fn refuse_a_plan_file(input: &std::path::Path) -> Result<(), CliError> {
-    let extension = input
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match extension.as_deref() {
-        Some(ext @ ("svg" | "dxf" | "lbrn" | "lbrn2")) => Err(CliError::Usage(format!(
-            "{} is a drawing (.{ext}), not a G-code program: make one with `kerfmeter gcode {} \
-             --kerf-um K -o plan.gcode`, or measure and cut in one go with `kerfmeter job`",
-            input.display(),
-            input.display()
-        ))),
-        _ => Ok(()),
+    if PlanFormat::of(input).is_err() && !is_project_path(input) {
+        return Ok(());
     }
+    let ext = input.extension().unwrap_or_default().to_string_lossy();
+    Err(CliError::Usage(format!(
+        "{} is a drawing (.{ext}), not a G-code program: make one with `kerfmeter gcode {} \
+         --kerf-um K -o plan.gcode`, or measure and cut in one go with `kerfmeter job`",
+        input.display(),
+        input.display()
+    )))
 }
 
 /// Stream the file; Ctrl-C stops the cutter.

@@ -14,6 +14,8 @@ use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 use crate::record::parse_label;
 
+use super::dilate::plural;
+
 #[derive(Args)]
 pub struct HistoryArgs {
     /// Only this label's measurements.
@@ -76,14 +78,10 @@ impl fmt::Display for HistoryReport {
             return Ok(());
         }
         let n = records.len();
-        let noun = if n == 1 {
-            "measurement"
-        } else {
-            "measurements"
-        };
         writeln!(
             f,
-            "{n} {kind} {noun} in {}, newest first",
+            "{n} {kind} measurement{} in {}, newest first",
+            plural(n),
             self.db.display()
         )?;
         write!(

@@ -453,7 +453,7 @@ impl Setup {
         };
         let gauge_at_mm = match args.gauge_at_mm {
             Some(at) => at,
-            None => free_spot(args, &layout)?,
+            None => free_spot(&layout)?,
         };
         let placement = Placement {
             gauge_at_mm,
@@ -607,7 +607,7 @@ fn gauge_extent_mm(drawing: &kerfmeter_plan::gauge::GaugeDrawing) -> Result<[[f6
 }
 
 /// A free spot on the bed for the gauge, beside the plan's cuts (as placed).
-fn free_spot(args: &JobArgs, layout: &Layout) -> Result<[f64; 2]> {
+fn free_spot(layout: &Layout) -> Result<[f64; 2]> {
     let gauge_box = layout.gauge_extent_mm;
     let plan_box = layout.plan_box_mm;
     free_spot_mm(plan_box, gauge_box, layout.bed_mm, layout.margin_mm).ok_or_else(|| {
@@ -615,8 +615,8 @@ fn free_spot(args: &JobArgs, layout: &Layout) -> Result<[f64; 2]> {
             "no room for the gauge ({:.0} × {:.0} mm) on the {} × {} mm bed beside the plan, which fills ({:.1}, {:.1})–({:.1}, {:.1}) mm: give --gauge-at-mm X,Y, or --bed-mm W,H if the bed is larger",
             gauge_box[1][0] - gauge_box[0][0],
             gauge_box[1][1] - gauge_box[0][1],
-            args.bed_mm[0],
-            args.bed_mm[1],
+            layout.bed_mm[0],
+            layout.bed_mm[1],
             plan_box[0][0],
             plan_box[0][1],
             plan_box[1][0],
