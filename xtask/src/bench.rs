@@ -500,33 +500,32 @@ impl Report {
     /// The target figures (`--json`): mean Ramping step, worst step in any state, mean kerf
     /// solve, in whole instructions; one JSON object, its keys in that order.
     fn summary(&self) -> Result<String> {
-        let get = |group: &str, name: &str| {
-            self.find(group, name)
-                .with_context(|| format!("no `STAT {group} {name}` in the benchmark's output"))
-        };
-        let ramping = get("step", "ramping")?;
-        let all_steps = get("step", "all")?;
-        let kerf = get("kerf", "all")?;
+        let (mean, worst) = self.step_figures()?;
+        let kerf = self.stat("kerf", "all")?;
         Ok(format!(
-            "{{\"step_mean_instructions\": {}, \"step_worst_instructions\": {}, \
+            "{{\"step_mean_instructions\": {mean}, \"step_worst_instructions\": {worst}, \
              \"kerf_solve_instructions\": {}}}",
-            ramping.mean().round() as u64,
-            all_steps.max,
             kerf.mean().round() as u64,
         ))
+    }
+
+    /// A statistic the benchmark must have printed.
+    fn stat(&self, group: &str, name: &str) -> Result<&Stat> {
+        self.find(group, name)
+            .with_context(|| format!("no `STAT {group} {name}` in the benchmark's output"))
+    }
+
+    /// The figures the targets are on, whole instructions: the mean Ramping step and the worst
+    /// step in any state.
+    fn step_figures(&self) -> Result<(u64, u64)> {
+        let mean = self.stat("step", "ramping")?.mean().round() as u64;
+        Ok((mean, self.stat("step", "all")?.max))
     }
 
     /// Fail when the mean Ramping step or the worst step passes its target
     /// ([`TARGET_MEAN_STEP`], [`TARGET_WORST_STEP`]).
     fn check_targets(&self) -> Result<()> {
-        let ramping = self
-            .find("step", "ramping")
-            .context("no Ramping step in the benchmark's output")?;
-        let worst = self
-            .find("step", "all")
-            .context("no step in the benchmark's output")?
-            .max;
-        let mean = ramping.mean().round() as u64;
+        let (mean, worst) = self.step_figures()?;
         anyhow::ensure!(
             mean <= TARGET_MEAN_STEP && worst <= TARGET_WORST_STEP,
             "the control step is over its targets: mean Ramping step {mean} instructions (target \
