@@ -20,6 +20,18 @@ fn kerfmeter(args: &[&str]) -> Output {
         .expect("the kerfmeter binary runs")
 }
 
+/// `kerfmeter dilate INPUT --kerf-um KERF_UM -o OUTPUT`.
+fn dilate(input: &Path, kerf_um: &str, output: &Path) -> Output {
+    kerfmeter(&[
+        "dilate",
+        path(input),
+        "--kerf-um",
+        kerf_um,
+        "-o",
+        path(output),
+    ])
+}
+
 fn code(out: &Output) -> i32 {
     out.status.code().expect("exited, not killed")
 }
@@ -122,14 +134,7 @@ fn dilate_never_writes_over_its_input_nor_into_another_format() {
     let before = std::fs::read(&input).unwrap();
     let same = dir.path().join(".").join("box_generator.svg");
     for output in [input.clone(), same] {
-        let out = kerfmeter(&[
-            "dilate",
-            path(&input),
-            "--kerf-um",
-            "150",
-            "-o",
-            path(&output),
-        ]);
+        let out = dilate(&input, "150", &output);
         assert!(
             stderr(&out).contains("inputs are never overwritten"),
             "{}",
@@ -138,7 +143,7 @@ fn dilate_never_writes_over_its_input_nor_into_another_format() {
         assert_eq!(code(&out), 2);
     }
     let dxf = dir.path().join("x.dxf");
-    let out = kerfmeter(&["dilate", path(&input), "--kerf-um", "150", "-o", path(&dxf)]);
+    let out = dilate(&input, "150", &dxf);
     assert!(stderr(&out).contains("format"), "{}", stderr(&out));
     assert_eq!(code(&out), 2);
     assert_eq!(std::fs::read(&input).unwrap(), before);
@@ -148,14 +153,7 @@ fn dilate_never_writes_over_its_input_nor_into_another_format() {
 fn dilate_writes_the_output_atomically_and_reports_it() {
     let (dir, input) = box_plan();
     let output = dir.path().join("box-k200.svg");
-    let out = kerfmeter(&[
-        "dilate",
-        path(&input),
-        "--kerf-um",
-        "200",
-        "-o",
-        path(&output),
-    ]);
+    let out = dilate(&input, "200", &output);
     assert_eq!(code(&out), 0, "{}", stderr(&out));
     assert!(
         stdout(&out).contains("each cut moved 100 µm"),
@@ -218,14 +216,7 @@ fn a_plan_with_no_cut_is_refused_and_the_json_report_has_one_format_key() {
 fn negative_numbers_get_the_options_message_and_usage_errors_honour_json() {
     let (dir, input) = box_plan();
     let output = dir.path().join("out.svg");
-    let neg = kerfmeter(&[
-        "dilate",
-        path(&input),
-        "--kerf-um",
-        "-150",
-        "-o",
-        path(&output),
-    ]);
+    let neg = dilate(&input, "-150", &output);
     assert_eq!(code(&neg), 2);
     assert!(
         stderr(&neg).contains("between 0 and 5000 µm, got -150"),
@@ -670,14 +661,7 @@ Command line (remove spaces between dashes): boxes ABox - -burn=0.1
 fn an_already_compensated_plan_is_refused_like_any_plan_error_and_the_flags_lead_on() {
     let (dir, input) = boxes_plan();
     let out_file = dir.path().join("out.svg");
-    let refused = kerfmeter(&[
-        "dilate",
-        path(&input),
-        "--kerf-um",
-        "150",
-        "-o",
-        path(&out_file),
-    ]);
+    let refused = dilate(&input, "150", &out_file);
     assert_eq!(code(&refused), 4, "{}", stderr(&refused));
     for needle in [
         "boxes.py compensated this plan with --burn 0.1 (mm",
@@ -727,14 +711,7 @@ fn an_already_compensated_plan_is_refused_like_any_plan_error_and_the_flags_lead
 
     // The output is this tool's own: refused too, and on top only when asked.
     let again = dir.path().join("again.svg");
-    let refused = kerfmeter(&[
-        "dilate",
-        path(&out_file),
-        "--kerf-um",
-        "150",
-        "-o",
-        path(&again),
-    ]);
+    let refused = dilate(&out_file, "150", &again);
     assert_eq!(code(&refused), 4);
     assert!(
         stderr(&refused).contains("kerfmeter"),

@@ -230,19 +230,18 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("out.svg");
         std::fs::write(&out, "earlier").unwrap();
-        let seen = write_atomically_with(&out, |w| -> Result<usize> {
+        let written = write_atomically_with(&out, |w| -> Result<()> {
             w.write_all(b"half").unwrap();
             w.flush().unwrap();
             // Interrupted here (what a Ctrl-C handler does before it exits; only this test's
             // folder, as other tests write beside it).
             remove_unfinished_where(|p| p.starts_with(dir.path()));
-            Ok(std::fs::read_dir(dir.path()).unwrap().count())
+            // The temporary file is gone while the write is under way: only the output is left.
+            assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+            Ok(())
         });
-        // The temporary file was gone while the write was under way; only the output is left.
-        assert!(
-            seen.is_err() || seen.as_ref().is_ok_and(|n| *n == 1),
-            "{seen:?}"
-        );
+        // Its temporary file gone, the write cannot complete.
+        assert!(written.is_err(), "{written:?}");
         let names: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()
             .map(|e| e.unwrap().file_name())
