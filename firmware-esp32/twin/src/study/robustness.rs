@@ -45,8 +45,9 @@
 //! twin's log for that run id) is within the tolerance; *flagged* when a quality flag that
 //! distrusts the number is set ([`distrusted`]: any but the advisory `decimated`, which only
 //! says the curve is coarse, and `play-modelled`); otherwise it is an *unflagged wrong
-//! reading*, the one ending the issue forbids ("never a wrong number without a flag"). The default tolerance, [`TOLERANCE_UM`], is the
-//! device's own accuracy target for this sweep (issue 12: max |error| ≤ 5 µm); in a 4 mm MDF
+//! reading*, the one ending the issue forbids ("never a wrong number without a flag"). The
+//! default tolerance, [`TOLERANCE_UM`], is the device's own accuracy target for this sweep
+//! (issue 12: max |error| ≤ 5 µm); in a 4 mm MDF
 //! box joint 5 µm of interference is some 8 N of assembly force per finger, a quarter of the
 //! fit window. Any other ending is a typed fault or refusal (allowed), or a failure of the sweep
 //! itself: no end within the limit, an answer that does not belong, a panic.
