@@ -68,7 +68,8 @@ pub fn run(args: &FuzzArgs) -> Result<()> {
         std::fs::create_dir_all(&corpus)?;
         let seeds = root().join("fuzz/seeds").join(target);
         let mut cmd = nightly_cargo();
-        cmd.args(["fuzz", "run", target]).arg(&corpus);
+        // `-O`: the assertions are the fuzz crate's profile's (see fuzz/Cargo.toml).
+        cmd.args(["fuzz", "run", "-O", target]).arg(&corpus);
         if seeds.is_dir() {
             cmd.arg(&seeds);
         }
