@@ -113,6 +113,13 @@ struct RobustnessArgs {
     /// Seed of the draws (the same seed gives the same draws and results).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Hold a plant parameter at one value in every draw (repeatable): `--set supply_v=24` is
+    /// the sweep on a 24 V rail.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    held: Vec<String>,
+    /// The joint's assembly force each run measures at, N (default: the run's 55 N).
+    #[arg(long)]
+    force_n: Option<f64>,
     /// Print one JSON object instead of text.
     #[arg(long)]
     json: bool,
@@ -314,6 +321,12 @@ fn robustness(args: &RobustnessArgs, release: bool) -> Result<()> {
     let mut cmd = twin_example("robustness", release);
     cmd.args(["--draws", &args.draws.to_string()]);
     cmd.args(["--seed", &args.seed.to_string()]);
+    for held in &args.held {
+        cmd.args(["--set", held]);
+    }
+    if let Some(force) = args.force_n {
+        cmd.args(["--force-n", &force.to_string()]);
+    }
     cmd.arg("--out-dir")
         .arg(root().join("target").join("robustness"));
     if let Some(tolerance) = args.tolerance_um {
@@ -407,6 +420,8 @@ fn test(args: &TestArgs) -> Result<()> {
                     &RobustnessArgs {
                         draws: TEST_SWEEP_DRAWS,
                         seed: 1,
+                        held: Vec::new(),
+                        force_n: None,
                         json: false,
                         strict: !args.lenient_robustness,
                         tolerance_um: None,

@@ -2,9 +2,9 @@
 //! from its documented range, one measurement each, every ending classified
 //! (`kerfmeter_twin::study::robustness` has the rules).
 //!
-//! Usage: `robustness [--draws N] [--seed S] [--json] [--strict] [--tolerance-um T]
-//! [--threads N] [--worst N] [--out-dir DIR] [--replay DRAW [--ablate]] [--hang-s S]` (`--help` says what
-//! each does).
+//! Usage: `robustness [--draws N] [--seed S] [--set NAME=VALUE]... [--force-n F] [--json]
+//! [--strict] [--tolerance-um T] [--threads N] [--worst N] [--out-dir DIR]
+//! [--replay DRAW [--ablate]] [--hang-s S]` (`--help` says what each does).
 //!
 //! Prints the success rate, the device-added error over the readings, every failure by its
 //! typed fault or refusal, the unflagged wrong readings and the worst readings, each with the
@@ -28,10 +28,11 @@ use std::time::{Duration, Instant};
 
 use clap::Parser;
 
+use kerfmeter_protocol::RunParams;
 use kerfmeter_twin::plant::PARAMS;
 use kerfmeter_twin::study::robustness::{
-    Class, Draw, DrawReport, ErrorStats, Scale, Summary, TOLERANCE_UM, classify, failure_name,
-    run_draw, scale,
+    Class, Draw, DrawReport, ErrorStats, Scale, Summary, Sweep, TOLERANCE_UM, classify,
+    failure_name, run_draw, scale,
 };
 use kerfmeter_twin::study::{Outcome, available_threads, parallel_map};
 use serde_json::{Value, json};
@@ -47,6 +48,14 @@ struct Args {
     /// Seed of the draws: the same seed gives the same draws on any number of threads.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Hold a plant parameter at one value in every draw instead of drawing it (repeatable):
+    /// `--set supply_v=24` is the sweep on a 24 V rail. `kerfmeter --sim --help` lists the
+    /// parameters and their ranges.
+    #[arg(long = "set", value_name = "NAME=VALUE", value_parser = held_param)]
+    held: Vec<(String, f64)>,
+    /// The joint's assembly force each run measures at, N (`kerfmeter run --force-n`).
+    #[arg(long, default_value_t = RunParams::DEFAULT.target_force_n)]
+    force_n: f32,
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
@@ -77,11 +86,39 @@ struct Args {
     hang_s: u64,
 }
 
+/// `NAME=VALUE` with a number (the name and the range are checked by [`Sweep::fix`]).
+fn held_param(text: &str) -> Result<(String, f64), String> {
+    text.split_once('=')
+        .and_then(|(name, value)| Some((name.trim().to_owned(), value.trim().parse().ok()?)))
+        .ok_or_else(|| format!("`{text}` is not NAME=VALUE with a number (e.g. supply_v=24)"))
+}
+
+/// The sweep the arguments describe, or why not.
+fn sweep_of(args: &Args) -> Result<Sweep, String> {
+    let mut sweep = Sweep::new(args.seed);
+    for (name, value) in &args.held {
+        sweep.fix(name, *value).map_err(|e| e.to_string())?;
+    }
+    sweep.run.target_force_n = args.force_n;
+    sweep
+        .run
+        .validate()
+        .map_err(|field| {
+            let (lo, hi) = field.range();
+            format!("--force-n {}: must be between {lo} and {hi} N", args.force_n)
+        })?;
+    Ok(sweep)
+}
+
 fn main() {
     let args = Args::parse();
+    let sweep = sweep_of(&args).unwrap_or_else(|message| {
+        eprintln!("error: {message}");
+        std::process::exit(2);
+    });
     let ok = match args.replay {
-        Some(index) => replay(&args, index),
-        None => run_sweep(&args),
+        Some(index) => replay(&args, &sweep.draw(index)),
+        None => run_sweep(&args, &sweep),
     };
     if !ok {
         std::process::exit(1);
@@ -89,7 +126,7 @@ fn main() {
 }
 
 /// The whole sweep; whether it passes.
-fn run_sweep(args: &Args) -> bool {
+fn run_sweep(args: &Args, sweep: &Sweep) -> bool {
     let progress = Progress::new(args.draws);
     let watch = Watchdog::start(Duration::from_secs(args.hang_s));
     let reports = parallel_map(
@@ -97,7 +134,7 @@ fn run_sweep(args: &Args) -> bool {
         args.threads,
         &|index| {
             watch.begin(index);
-            let report = run_draw(&Draw::new(args.seed, index));
+            let report = run_draw(&sweep.draw(index));
             watch.end(index);
             report
         },
@@ -119,8 +156,8 @@ fn run_sweep(args: &Args) -> bool {
 }
 
 /// One draw alone, in full; whether it ended properly.
-fn replay(args: &Args, index: u32) -> bool {
-    let report = run_draw(&Draw::new(args.seed, index));
+fn replay(args: &Args, draw: &Draw) -> bool {
+    let report = run_draw(draw);
     write_plant_file(args, &report.draw);
     let class = classify(&report.outcome, args.tolerance_um);
     if args.json {
@@ -340,18 +377,41 @@ fn write_plant_file(args: &Args, draw: &Draw) {
 /// (each `kerfmeter --sim` starts a fresh twin) and the noise differs, as the host polls at other
 /// instants.
 fn replay_commands(args: &Args, draw: &Draw) -> (String, String) {
+    let held: String = args
+        .held
+        .iter()
+        .map(|(name, value)| format!(" --set {name}={value}"))
+        .collect();
+    let force = if args.force_n == RunParams::DEFAULT.target_force_n {
+        String::new()
+    } else {
+        format!(" --force-n {}", args.force_n)
+    };
     let exact = format!(
-        "cargo xtask robustness --seed {} --replay {}",
+        "cargo xtask robustness --seed {}{held}{force} --replay {}",
         draw.seed, draw.index
     );
     let cli = format!(
-        "kerfmeter --sim --sim-kerf-um {:.3} --sim-kerf-sd-um {:.3} --sim-seed {} --sim-plant-file {} run",
+        "kerfmeter --sim --sim-kerf-um {:.3} --sim-kerf-sd-um {:.3} --sim-seed {} --sim-plant-file {} run{force}",
         draw.kerf_um,
         draw.kerf_sd_um,
         draw.twin_seed,
         plant_file(args, draw).display()
     );
     (exact, cli)
+}
+
+/// The held parameters, `NAME=VALUE, …`, or `none`.
+fn held_text(args: &Args) -> String {
+    if args.held.is_empty() {
+        return "none".to_owned();
+    }
+    let held: Vec<String> = args
+        .held
+        .iter()
+        .map(|(name, value)| format!("{name}={value}"))
+        .collect();
+    held.join(", ")
 }
 
 /// One line on how a draw ended, then the most unusual parameters and the replay commands.
@@ -422,12 +482,14 @@ fn print_sweep(args: &Args, summary: &Summary, listed: &Listed) {
     let count = |class| summary.of_class(class).len();
     let readings = summary.readings();
     println!(
-        "Kerfmeter robustness sweep: {} draws, seed {}, every plant parameter drawn from its range, kerf {}–{} µm, 55 N over 3 fingers of 4 mm",
+        "Kerfmeter robustness sweep: {} draws, seed {}, every plant parameter drawn from its range, kerf {}–{} µm, {} N over 3 fingers of 4 mm",
         summary.draws,
         args.seed,
         kerfmeter_twin::study::robustness::KERF_RANGE_UM.0,
-        kerfmeter_twin::study::robustness::KERF_RANGE_UM.1
+        kerfmeter_twin::study::robustness::KERF_RANGE_UM.1,
+        args.force_n
     );
+    println!("held at one value: {}", held_text(args));
     println!(
         "drawn log-uniformly (range over 10×): {}; every other parameter uniformly",
         log_uniform_names().join(", ")
@@ -547,6 +609,8 @@ fn sweep_json(args: &Args, summary: &Summary, listed: &Listed) -> Value {
     json!({
         "seed": args.seed,
         "draws": summary.draws,
+        "held": args.held.iter().map(|(name, value)| (name.clone(), json!(value))).collect::<serde_json::Map<_, _>>(),
+        "force_n": args.force_n,
         "tolerance_um": args.tolerance_um,
         "log_uniform_params": log_uniform_names(),
         "readings": summary.readings(),

@@ -1,7 +1,8 @@
 //! The robustness sweep (`cargo xtask robustness --draws N --seed S`): many twins, each with every
 //! plant parameter drawn from its documented range ([`PARAMS`]), a kerf and a gauge-to-gauge
 //! spread, each running one measurement with `RunParams::DEFAULT` (55 N over three fingers of
-//! 4 mm stock) from a reset.
+//! 4 mm stock) from a reset. A [`Sweep`] may hold some plant parameters at one value in every
+//! draw (`--set supply_v=24`: the sweep on a 24 V rail) and run at another force (`--force-n`).
 //!
 //! # How a draw is made
 //!
@@ -57,7 +58,7 @@ use std::collections::BTreeMap;
 use kerfmeter_protocol::{DeviceConfig, ErrorCode, ParamField, QualityFlags, RunParams};
 
 use super::{Outcome, configure, mean_sd, measure, quantile, stream};
-use crate::plant::{COPPER_TEMPCO_PER_C, PARAMS, ParamSpec, PlantParams};
+use crate::plant::{COPPER_TEMPCO_PER_C, PARAMS, ParamSpec, PlantParamError, PlantParams, param};
 use crate::{Twin, TwinOptions};
 
 /// A range spanning more than this ratio (with a positive minimum) is drawn log-uniformly.
@@ -109,7 +110,55 @@ pub fn fraction_of(spec: &ParamSpec, value: f64) -> f64 {
     }
 }
 
-/// One draw: a twin's kerf, spread, seed and every plant parameter.
+/// What every draw of a sweep shares: its seed, the plant parameters held at one value, the run.
+#[derive(Clone)]
+pub struct Sweep {
+    /// The sweep's seed.
+    pub seed: u64,
+    /// Plant parameters held at one value in every draw instead of drawn (a sweep at one
+    /// supply voltage, say), each within its range.
+    pub fixed: Vec<(&'static ParamSpec, f64)>,
+    /// The run each draw measures with.
+    pub run: RunParams,
+}
+
+impl Sweep {
+    /// The sweep with `seed`: every parameter drawn, `RunParams::DEFAULT`.
+    pub fn new(seed: u64) -> Self {
+        Self {
+            seed,
+            fixed: Vec::new(),
+            run: RunParams::DEFAULT,
+        }
+    }
+
+    /// Hold the parameter `name` at `value` in every draw (within its range, or an error).
+    pub fn fix(&mut self, name: &str, value: f64) -> Result<(), PlantParamError> {
+        PlantParams::default().set(name, value)?;
+        let spec = param(name)?;
+        self.fixed.retain(|(held, _)| held.name != spec.name);
+        self.fixed.push((spec, value));
+        Ok(())
+    }
+
+    /// Draw number `index`.
+    pub fn draw(&self, index: u32) -> Draw {
+        let seed = self.seed;
+        let uniform =
+            |key: &str, (lo, hi): (f64, f64)| lo + stream(seed, index, key).uniform() * (hi - lo);
+        Draw {
+            seed,
+            index,
+            twin_seed: stream(seed, index, "twin_seed").next_u64(),
+            kerf_um: uniform("kerf_um", KERF_RANGE_UM),
+            kerf_sd_um: uniform("kerf_sd_um", KERF_SD_RANGE_UM),
+            plant: draw_plant(seed, index, &self.fixed),
+            run: self.run,
+        }
+    }
+}
+
+/// One draw: a twin's kerf, spread, seed and every plant parameter, and the run it measures.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Draw {
     /// The sweep's seed.
@@ -124,21 +173,14 @@ pub struct Draw {
     pub kerf_sd_um: f64,
     /// Every plant parameter.
     pub plant: PlantParams,
+    /// The run it measures with.
+    pub run: RunParams,
 }
 
 impl Draw {
-    /// Draw number `index` of the sweep with `seed`.
+    /// Draw number `index` of the sweep with `seed`, nothing held, the default run.
     pub fn new(seed: u64, index: u32) -> Self {
-        let uniform =
-            |key: &str, (lo, hi): (f64, f64)| lo + stream(seed, index, key).uniform() * (hi - lo);
-        Self {
-            seed,
-            index,
-            twin_seed: stream(seed, index, "twin_seed").next_u64(),
-            kerf_um: uniform("kerf_um", KERF_RANGE_UM),
-            kerf_sd_um: uniform("kerf_sd_um", KERF_SD_RANGE_UM),
-            plant: draw_plant(seed, index),
-        }
+        Sweep::new(seed).draw(index)
     }
 
     /// The twin this draw builds.
@@ -173,23 +215,30 @@ impl Draw {
     }
 }
 
-/// Every plant parameter of draw `index`, redrawn until consistent.
-fn draw_plant(seed: u64, index: u32) -> PlantParams {
+/// Every plant parameter of draw `index`, those `fixed` at their values, redrawn until
+/// consistent. A held parameter does not move the others' draws.
+fn draw_plant(seed: u64, index: u32, fixed: &[(&'static ParamSpec, f64)]) -> PlantParams {
     for attempt in 0..MAX_ATTEMPTS {
         let mut plant = PlantParams::default();
         for spec in PARAMS {
             let key = format!("{}#{attempt}", spec.name);
-            let value = value_at(spec, stream(seed, index, &key).uniform());
+            let drawn = value_at(spec, stream(seed, index, &key).uniform());
+            let value = fixed
+                .iter()
+                .find(|(held, _)| held.name == spec.name)
+                .map_or(drawn, |&(_, value)| value);
             plant
                 .set(spec.name, value)
-                .expect("a value drawn within the range is accepted");
+                .expect("a value drawn or held within the range is accepted");
         }
         if plant.validate().is_ok() {
             plant.winding_temp_c = reachable_winding_temp_c(&plant);
             return plant;
         }
     }
-    panic!("no consistent plant parameters in {MAX_ATTEMPTS} draws: check the ranges");
+    panic!(
+        "no consistent plant parameters in {MAX_ATTEMPTS} draws: check the ranges and the values held"
+    );
 }
 
 /// The drawn boot temperature of the winding, held to what the build can reach (module docs):
@@ -256,11 +305,12 @@ pub struct DrawReport {
 /// Build the draw's twin and run its one measurement, catching a panic.
 pub fn run_draw(draw: &Draw) -> DrawReport {
     let options = draw.options();
+    let run = draw.run;
     let ran = std::panic::catch_unwind(move || {
         let mut twin = Twin::new(options);
         twin.advance_ticks(SETTLE_TICKS);
         let outcome = match configure(&mut twin, &device_config(&options.plant)) {
-            Ok(()) => measure(&mut twin, &RunParams::DEFAULT),
+            Ok(()) => measure(&mut twin, &run),
             Err(ending) => ending,
         };
         (outcome, twin.motor_safe(), twin.now_us() / 1000)
@@ -283,21 +333,6 @@ fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
         .map(|s| (*s).to_owned())
         .or_else(|| payload.downcast_ref::<String>().cloned())
         .unwrap_or_else(|| "panic".to_owned())
-}
-
-/// Run draws 0..`draws` of the sweep with `seed` on `threads` threads, in draw order.
-pub fn sweep(
-    seed: u64,
-    draws: u32,
-    threads: usize,
-    progress: &(dyn Fn(usize) + Sync),
-) -> Vec<DrawReport> {
-    super::parallel_map(
-        draws,
-        threads,
-        &|index| run_draw(&Draw::new(seed, index)),
-        progress,
-    )
 }
 
 /// Whether `flags` distrust the number: any flag but the advisory ones
@@ -498,7 +533,6 @@ impl Summary {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plant::param;
     use crate::study::Phase;
     use kerfmeter_protocol::{Fault, KerfResult};
 
@@ -519,6 +553,31 @@ mod tests {
         assert_ne!(Draw::new(3, 4).plant, Draw::new(3, 5).plant);
         assert_ne!(Draw::new(3, 4).plant, Draw::new(4, 4).plant);
         assert_ne!(Draw::new(3, 4).twin_seed, Draw::new(3, 5).twin_seed);
+    }
+
+    #[test]
+    fn a_held_parameter_is_the_same_in_every_draw_and_moves_no_other() {
+        let mut sweep = Sweep::new(3);
+        sweep.fix("supply_v", 24.0).unwrap();
+        for index in 0..20 {
+            let (held, free) = (sweep.draw(index), Draw::new(3, index));
+            assert_eq!(held.plant.supply_v, 24.0);
+            assert_eq!(held.kerf_um, free.kerf_um);
+            assert_eq!(held.plant.gear_ratio, free.plant.gear_ratio);
+            assert_eq!(held.plant.validate(), Ok(()));
+        }
+        // The last value given wins; a value out of range or an unknown name is refused.
+        sweep.fix("supply_v", 9.0).unwrap();
+        assert_eq!(sweep.draw(0).plant.supply_v, 9.0);
+        assert_eq!(sweep.fixed.len(), 1);
+        assert!(matches!(
+            sweep.fix("supply_v", 40.0),
+            Err(PlantParamError::OutOfRange { .. })
+        ));
+        assert!(matches!(
+            sweep.fix("supply_volts", 12.0),
+            Err(PlantParamError::Unknown(_))
+        ));
     }
 
     #[test]
