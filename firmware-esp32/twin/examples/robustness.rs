@@ -100,13 +100,13 @@ fn sweep_of(args: &Args) -> Result<Sweep, String> {
         sweep.fix(name, *value).map_err(|e| e.to_string())?;
     }
     sweep.run.target_force_n = args.force_n;
-    sweep
-        .run
-        .validate()
-        .map_err(|field| {
-            let (lo, hi) = field.range();
-            format!("--force-n {}: must be between {lo} and {hi} N", args.force_n)
-        })?;
+    sweep.run.validate().map_err(|field| {
+        let (lo, hi) = field.range();
+        format!(
+            "--force-n {}: must be between {lo} and {hi} N",
+            args.force_n
+        )
+    })?;
     Ok(sweep)
 }
 

@@ -10,6 +10,7 @@ use kerfmeter::job::JobError;
 use kerfmeter::lightburn::LightBurnError;
 use kerfmeter::{Category, Error};
 use kerfmeter_plan::PlanError;
+use kerfmeter_plan::compensation::FoundCompensation;
 
 /// Exit code for bad arguments (clap uses it too).
 const EXIT_USAGE: u8 = 2;
@@ -75,6 +76,14 @@ impl CliError {
             | CliError::History(kerfmeter_history::Error::NoDataDir) => Category::Usage,
             CliError::History(_) => Category::File,
             CliError::LightBurn(e) => e.category(),
+        }
+    }
+
+    /// The compensation a plan was refused for already carrying, if that is the error.
+    pub fn compensation_found(&self) -> Option<&FoundCompensation> {
+        match self {
+            CliError::Plan(e) => e.compensation_found(),
+            _ => None,
         }
     }
 

@@ -142,6 +142,7 @@ fn parse_cli() -> Result<Cli, ExitCode> {
             error: message.trim_start_matches("error: ").to_owned(),
             fault: None,
             conditions: Vec::new(),
+            compensation_found: None,
         };
         print_line(&to_json(&report, JsonLayout::CompactSorted));
         return Err(ExitCode::from(2));
@@ -171,6 +172,7 @@ fn main() -> ExitCode {
                     error: e.to_string(),
                     fault: e.fault(),
                     conditions: e.conditions(),
+                    compensation_found: e.compensation_found().cloned(),
                 };
                 print_line(&to_json(&report, JsonLayout::CompactSorted));
             } else {

@@ -6,6 +6,7 @@ use std::fmt;
 use std::io::Write as _;
 
 use kerfmeter::protocol::{KerfResult, QualityFlags};
+use kerfmeter_plan::compensation::FoundCompensation;
 use serde::Serialize;
 
 use crate::error::CliError;
@@ -77,6 +78,10 @@ pub struct ErrorReport {
     /// The idle conditions that refused the request (`no-magnet`, `driver-fault`, ...); empty
     /// when none did.
     pub conditions: Vec<&'static str>,
+    /// The compensation a plan already carries, when that is why it was refused (what
+    /// `dilate --json` reports as `compensation_found`); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compensation_found: Option<FoundCompensation>,
 }
 
 /// A kerf result as JSON: the device's own fields (`flags` as its bits), and `flag_names`, the

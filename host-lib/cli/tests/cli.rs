@@ -671,6 +671,25 @@ fn an_already_compensated_plan_is_refused_like_any_plan_error_and_the_flags_lead
         assert!(stderr(&refused).contains(needle), "{}", stderr(&refused));
     }
     assert!(!out_file.exists());
+    // With --json the refusal says what it found as data, as a success would.
+    let refused = kerfmeter(&[
+        "--json",
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "150",
+        "-o",
+        path(&out_file),
+    ]);
+    assert_eq!(code(&refused), 4);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&refused)).unwrap();
+    assert!(json["error"].as_str().unwrap().contains("--recompensate"));
+    assert_eq!(json["compensation_found"]["by"], "boxes_py");
+    assert_eq!(
+        json["compensation_found"]["offset_um"],
+        serde_json::json!([100.0, 100.0])
+    );
+    assert!(!out_file.exists());
 
     // Undo the burn, apply the kerf: the part comes out 150 µm larger than drawn, not 350.
     let args = [

@@ -738,6 +738,16 @@ fn a_plan_is_dilated_by_the_last_kerf_from_its_text() {
     let content = dilated["content"].as_str().unwrap();
     assert!(content.contains("kerfmeter:compensation") && content != plan);
     assert!(dilated["report"]["cut_rules"].is_string(), "{dilated}");
+    // Its own output again: a plan error whose data says what compensation it found.
+    let twice = ws.call(
+        "dilate",
+        json!({ "plan": content, "format": "svg", "kerf_um": 150 }),
+    );
+    assert_eq!(code(&twice), -32005, "{twice}");
+    assert_eq!(
+        twice["error"]["data"]["compensation_found"]["by"], "kerfmeter",
+        "{twice}"
+    );
     let bad = ws.call(
         "dilate",
         json!({ "plan": "<svg", "format": "svg", "kerf_um": 150 }),

@@ -70,6 +70,8 @@ pub enum CompensatedBy {
     BoxesPy,
     /// This tool (`kerfmeter dilate`).
     Kerfmeter,
+    /// LightBurn: its layers' Kerf Offsets (a `.lbrn2` project).
+    LightBurn,
 }
 
 /// A range of values, µm: one value when both ends agree (a uniform kerf), else a kerf map's.
@@ -77,7 +79,7 @@ pub enum CompensatedBy {
 pub struct RangeUm(pub [f64; 2]);
 
 impl RangeUm {
-    fn one(v: f64) -> RangeUm {
+    pub(crate) fn one(v: f64) -> RangeUm {
         RangeUm([v, v])
     }
 
@@ -150,6 +152,7 @@ impl FoundCompensation {
                 self.offset_um,
                 self.rules.as_deref().unwrap_or("(not recorded)")
             ),
+            CompensatedBy::LightBurn => format!("Kerf Offsets already set: {}", self.found_in),
         }
     }
 }
@@ -311,7 +314,10 @@ pub(crate) fn treatment(
     // boxes.py's loops span about one burn; leave room for its 1 µm rounding.
     let corner_loop_max_mm = Some(4.0 * found.offset_um.0[1] / 1000.0 + 0.005);
     match policy {
-        IfCompensated::Refuse => Err(PlanError::AlreadyCompensated(refusal(found, kerf))),
+        IfCompensated::Refuse => Err(PlanError::AlreadyCompensated {
+            message: refusal(found, kerf),
+            found: Box::new(found.clone()),
+        }),
         IfCompensated::DilateAnyway => Ok(Treatment {
             offsetting: Offsetting::Dilate,
             corner_loop_max_mm,
@@ -319,10 +325,13 @@ pub(crate) fn treatment(
             action: "dilate_anyway",
         }),
         IfCompensated::Recompensate if !found.offset_um.is_uniform() => {
-            Err(PlanError::AlreadyCompensated(format!(
-                "{}; it varies over the bed (a kerf map), so it cannot be undone here: recompensate the original plan instead (nothing was written)",
-                found.describe()
-            )))
+            Err(PlanError::AlreadyCompensated {
+                message: format!(
+                    "{}; it varies over the bed (a kerf map), so it cannot be undone here: recompensate the original plan instead (nothing was written)",
+                    found.describe()
+                ),
+                found: Box::new(found.clone()),
+            })
         }
         IfCompensated::Recompensate => Ok(Treatment {
             offsetting: Offsetting::Recompensate {

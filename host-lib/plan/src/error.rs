@@ -5,6 +5,8 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::compensation::FoundCompensation;
+
 /// Result of every fallible function of this crate.
 pub type Result<T, E = PlanError> = std::result::Result<T, E>;
 
@@ -24,11 +26,17 @@ pub enum PlanError {
     /// or cuts cross. The message lists every problem found, with positions.
     #[error("{0}")]
     CannotDilate(String),
-    /// The plan says it is already compensated for the kerf (boxes.py's `--burn`, or this tool's
-    /// own output): dilating it again would compensate twice. The message names what was found
-    /// and the two ways on (`--recompensate`, `--already-compensated-ok`).
-    #[error("{0}")]
-    AlreadyCompensated(String),
+    /// The plan says it is already compensated for the kerf (boxes.py's `--burn`, this tool's
+    /// own output, a LightBurn project's Kerf Offsets): dilating it again would compensate twice.
+    /// The message names what was found and the two ways on (`--recompensate`,
+    /// `--already-compensated-ok`).
+    #[error("{message}")]
+    AlreadyCompensated {
+        /// What was found, why it is refused and what to do.
+        message: String,
+        /// What was found, for a caller to act on (`--json`'s `compensation_found`).
+        found: Box<FoundCompensation>,
+    },
     /// A LightBurn project that cannot be read or set (not its XML, a layer without an index, a
     /// Kerf Offset that is not a number, too large a file).
     #[error("{0}")]
@@ -76,6 +84,16 @@ impl PlanError {
         PlanError::InFile {
             path: path.to_owned(),
             source: Box::new(self),
+        }
+    }
+
+    /// The compensation the plan was refused for already carrying, if that is the error (said
+    /// of a file or not).
+    pub fn compensation_found(&self) -> Option<&FoundCompensation> {
+        match self {
+            PlanError::AlreadyCompensated { found, .. } => Some(found),
+            PlanError::InFile { source, .. } => source.compensation_found(),
+            _ => None,
         }
     }
 

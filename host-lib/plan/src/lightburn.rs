@@ -41,7 +41,9 @@ use std::path::Path;
 use roxmltree::{Document, Node, ParsingOptions};
 use serde::Serialize;
 
-use crate::compensation::{self, AppliedCompensation, IfCompensated};
+use crate::compensation::{
+    self, AppliedCompensation, CompensatedBy, FoundCompensation, IfCompensated, RangeUm,
+};
 use crate::dilate::KerfSource;
 use crate::error::{PlanError, Problems, Result};
 use crate::selectors;
@@ -103,8 +105,8 @@ pub struct LightBurnSummary {
     pub kerf_offset_mm: f64,
     /// Every layer, in file order.
     pub layers: Vec<LayerOutcome>,
-    /// The Kerf Offsets found already set on the layers to set, in words (`None`: none).
-    pub compensation_found: Option<String>,
+    /// The Kerf Offsets found already set on the layers to set (`None`: none).
+    pub compensation_found: Option<FoundCompensation>,
     /// What was applied, as recorded in the output.
     pub compensation_applied: AppliedCompensation,
 }
@@ -152,7 +154,10 @@ pub fn set_kerf_offset(
     let chosen = choose(&layers, &options.layers)?;
     let found = found_offsets(&layers, &chosen);
     if let (Some(found), IfCompensated::Refuse) = (&found, options.if_compensated) {
-        return Err(PlanError::AlreadyCompensated(refusal(found, kerf_um)));
+        return Err(PlanError::AlreadyCompensated {
+            message: refusal(found, kerf_um),
+            found: Box::new(found.clone()),
+        });
     }
     let half_mm = kerf_um / 2000.0;
     let mut edits = Vec::new();
@@ -400,24 +405,38 @@ fn choose(layers: &[Layer], wanted: &[String]) -> Result<Vec<usize>> {
 }
 
 /// The non-zero Kerf Offsets already on the chosen layers, in words.
-fn found_offsets(layers: &[Layer], chosen: &[usize]) -> Option<String> {
-    let found: Vec<String> = chosen
+/// The Kerf Offsets already set on the chosen layers' passes, if any.
+fn found_offsets(layers: &[Layer], chosen: &[usize]) -> Option<FoundCompensation> {
+    let found: Vec<(String, f64)> = chosen
         .iter()
         .flat_map(|&i| layers[i].passes.iter().map(move |p| (&layers[i], p)))
         .filter_map(|(l, p)| {
             let mm = p.kerf.as_ref()?.mm;
             (mm != 0.0).then(|| match p.sub_layer {
-                None => format!("{}: {mm} mm", l.describe()),
-                Some(s) => format!("{} sub-layer {s}: {mm} mm", l.describe()),
+                None => (format!("{}: {mm} mm", l.describe()), mm),
+                Some(s) => (format!("{} sub-layer {s}: {mm} mm", l.describe()), mm),
             })
         })
         .collect();
-    (!found.is_empty()).then(|| format!("Kerf Offsets already set: {}", found.join("; ")))
+    let offsets_um = found.iter().map(|&(_, mm)| mm * 1000.0);
+    let lo_um = offsets_um.clone().fold(f64::INFINITY, f64::min);
+    let hi_um = offsets_um.fold(f64::NEG_INFINITY, f64::max);
+    let places: Vec<String> = found.into_iter().map(|(place, _)| place).collect();
+    (!places.is_empty()).then(|| FoundCompensation {
+        by: CompensatedBy::LightBurn,
+        offset_um: RangeUm([lo_um, hi_um]),
+        kerf_um: None,
+        rules: None,
+        version: None,
+        found_in: places.join("; "),
+        default_burn: false,
+    })
 }
 
-fn refusal(found: &str, kerf_um: f64) -> String {
+fn refusal(found: &FoundCompensation, kerf_um: f64) -> String {
     format!(
-        "{found}. The project is already compensated for a kerf; setting it again could compensate twice and make every joint too loose; nothing was written. Either replace those offsets by this kerf's ({} mm) with --recompensate, or add this kerf's on top with --already-compensated-ok.",
+        "{}. The project is already compensated for a kerf; setting it again could compensate twice and make every joint too loose; nothing was written. Either replace those offsets by this kerf's ({} mm) with --recompensate, or add this kerf's on top with --already-compensated-ok.",
+        found.describe(),
         format_mm(kerf_um / 2000.0)
     )
 }

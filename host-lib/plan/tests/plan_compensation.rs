@@ -226,7 +226,13 @@ fn boxes_py_plans_are_refused_naming_the_burn_and_both_ways_on() {
     for inner in [Inner::Loop, Inner::Backarc] {
         let e = run(&burnt(0.1, inner, 3), 150.0, IfCompensated::Refuse).unwrap_err();
         let msg = e.to_string();
-        assert!(matches!(e, PlanError::AlreadyCompensated(_)), "{msg}");
+        let PlanError::AlreadyCompensated { found, .. } = &e else {
+            panic!("{msg}");
+        };
+        assert_eq!(
+            (found.by, found.offset_um.0),
+            (CompensatedBy::BoxesPy, [100.0, 100.0])
+        );
         for needle in [
             "boxes.py compensated this plan with --burn 0.1 (mm",
             "100 µm outside the parts",
@@ -511,7 +517,11 @@ fn own_dxf_outputs_are_recorded_refused_and_recompensated() {
     let (once, _) = dilate_dxf(&bytes, &kerf(150.0), &opts(IfCompensated::Refuse)).unwrap();
     assert!(String::from_utf8_lossy(&once).starts_with("999"));
     let e = dilate_dxf(&once, &kerf(150.0), &opts(IfCompensated::Refuse)).unwrap_err();
-    assert!(matches!(e, PlanError::AlreadyCompensated(_)), "{e}");
+    let PlanError::AlreadyCompensated { found, .. } = &e else {
+        panic!("{e}");
+    };
+    assert_eq!(found.by, CompensatedBy::Kerfmeter);
+    assert_eq!(found.kerf_um.map(|k| k.0), Some([150.0, 150.0]));
     assert!(e.to_string().contains("a DXF 999 comment"), "{e}");
     // Recompensated for 100 µm = the original dilated by 100 µm; the inner corner stays sharp.
     let (re, s) = dilate_dxf(&once, &kerf(100.0), &opts(IfCompensated::Recompensate)).unwrap();

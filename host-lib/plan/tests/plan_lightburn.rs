@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use kerfmeter_plan::PlanError;
-use kerfmeter_plan::compensation::IfCompensated;
+use kerfmeter_plan::compensation::{CompensatedBy, IfCompensated};
 use kerfmeter_plan::lightburn::{
     LightBurnOptions, MAX_PROJECT_BYTES, set_kerf_offset, set_kerf_offset_file,
 };
@@ -158,7 +158,12 @@ fn a_layer_that_is_not_a_cut_layer_or_not_there_is_refused() {
 fn a_project_already_compensated_is_refused_replaced_or_added_to() {
     let input = read("lightburn_compensated.lbrn2");
     let e = set_kerf_offset(&input, 150.0, &LightBurnOptions::default()).unwrap_err();
-    assert!(matches!(e, PlanError::AlreadyCompensated(_)), "{e}");
+    let PlanError::AlreadyCompensated { found, .. } = &e else {
+        panic!("{e}");
+    };
+    assert_eq!(found.by, CompensatedBy::LightBurn);
+    assert!(found.offset_um.0[1] >= 80.0, "{:?}", found.offset_um);
+    assert!(found.found_in.contains("0.08 mm"), "{}", found.found_in);
     let msg = e.to_string();
     for needle in [
         "layer 0 \"C00\" (Cut): 0.08 mm",
@@ -190,7 +195,7 @@ fn an_output_is_refused_again_and_recompensating_it_keeps_one_record() {
     let input = read("lightburn_2x_layers.lbrn2");
     let (once, _) = set_kerf_offset(&input, 150.0, &LightBurnOptions::default()).unwrap();
     let e = set_kerf_offset(&once, 150.0, &LightBurnOptions::default()).unwrap_err();
-    assert!(matches!(e, PlanError::AlreadyCompensated(_)), "{e}");
+    assert!(matches!(e, PlanError::AlreadyCompensated { .. }), "{e}");
     let replace = LightBurnOptions {
         if_compensated: IfCompensated::Recompensate,
         ..LightBurnOptions::default()

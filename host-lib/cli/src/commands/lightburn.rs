@@ -140,7 +140,7 @@ impl fmt::Display for LightBurnReport {
             }
         }
         if let Some(found) = &s.compensation_found {
-            writeln!(f, "  found: {found}")?;
+            writeln!(f, "  found: {}", found.describe())?;
             let what = match s.compensation_applied.action.as_str() {
                 "recompensate" => "replaced by this kerf's (--recompensate)",
                 _ => "kept, this kerf's added on top (--already-compensated-ok)",

@@ -51,7 +51,8 @@
 //! refused, with HTTP 413, 401 or 403); -32601 no such method; -32602 bad params (the message
 //! names the field); -32000 the device refused or failed (`data.kind`, `data.fault`,
 //! `data.conditions`); -32001 busy: a run, reset or self-test is going; -32002 aborted; -32003
-//! the device is not connected; -32004 no cutter configured; -32005 a plan error; -32006 the
+//! the device is not connected; -32004 no cutter configured; -32005 a plan error
+//! (`data.compensation_found` when the plan is already compensated); -32006 the
 //! history database could not be read (HTTP 500); -32603 the server failed inside the call (a
 //! bug: the device was told to stop, and is opened afresh for the next call).
 //!

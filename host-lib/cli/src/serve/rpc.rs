@@ -89,7 +89,12 @@ impl From<&CliError> for RpcError {
             CliError::Meter(kerfmeter::Error::InvalidArgument(_))
             | CliError::Plan(kerfmeter_plan::PlanError::InvalidArgument(_))
             | CliError::Usage(_) => RpcError::new(INVALID_PARAMS, message),
-            CliError::Plan(_) => RpcError::new(PLAN_ERROR, message),
+            CliError::Plan(_) => RpcError {
+                data: e
+                    .compensation_found()
+                    .map(|found| json!({ "compensation_found": found })),
+                ..RpcError::new(PLAN_ERROR, message)
+            },
             CliError::History(_) => RpcError::new(HISTORY_ERROR, message),
             CliError::Meter(m) => RpcError {
                 data: Some(json!({
