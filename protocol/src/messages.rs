@@ -290,6 +290,32 @@ impl ParamField {
         }
     }
 
+    /// What the field is, in words, and its unit (empty for a ratio), for messages to a user
+    /// who set it through a command's option rather than by this name.
+    pub const fn words(self) -> (&'static str, &'static str) {
+        match self {
+            Self::PitchUmPerDeg => ("the gauge's spiral pitch", "µm/°"),
+            Self::RadiusMm => ("the gauge's spiral radius", "mm"),
+            Self::ProngRadiusMm => ("the prong radius", "mm"),
+            Self::HoleRadiusMm => ("the gauge's prong-hole radius", "mm"),
+            Self::HoleDistanceMm => ("the prong holes' distance from the centre", "mm"),
+            Self::DisengageDeg => ("the gauge's disengage angle", "°"),
+            Self::ThicknessMm => ("the sheet thickness", "mm"),
+            Self::TargetForceN => ("the joint's assembly force", "N"),
+            Self::ContactAreaMm2 => ("the joint's contact area", "mm²"),
+            Self::MaxTorqueNm => ("the torque cap", "N·m"),
+            Self::RampRateNmPerS => ("the torque ramp rate", "N·m/s"),
+            Self::MaxTimeMs => ("the run's time limit", "ms"),
+            Self::HostTimeoutMs => ("the host-silence timeout", "ms"),
+            Self::TorquePerDutyNm => ("the torque per unit duty at 12 V", "N·m"),
+            Self::BreakawayDuty => ("the breakaway duty", ""),
+            Self::EncoderZeroRaw => ("the encoder's zero", "counts"),
+            Self::GearRatio => ("the gear ratio", ""),
+            Self::MaxCurrentA => ("the over-current threshold", "A"),
+            Self::TorquePerAmpNm => ("the torque per amp", "N·m/A"),
+        }
+    }
+
     /// The accepted range (inclusive) of the field. Cross-field rules (the hole must fit inside
     /// the spiral, the hole must be larger than the prong) are reported on the dependent field.
     pub const fn range(self) -> (f32, f32) {

@@ -461,13 +461,9 @@ impl Kerfmeter {
     /// # Ok::<(), kerfmeter::Error>(())
     /// ```
     pub fn set_config(&mut self, config: &DeviceConfig) -> Result<ConfigReport> {
-        config.validate().map_err(|field| {
-            let (lo, hi) = field.range();
-            Error::InvalidArgument(format!(
-                "{} is out of range (allowed {lo} to {hi})",
-                field.name()
-            ))
-        })?;
+        config
+            .validate()
+            .map_err(|field| Error::InvalidArgument(crate::error::out_of_range(field, None)))?;
         match self.call(Request::SetConfig(*config))? {
             Response::Config(c) => Ok(c),
             other => Err(unexpected("SetConfig", &other)),

@@ -102,12 +102,11 @@ pub fn describe_invalid(params: &RunParams, field: ParamField) -> String {
         ParamField::HostTimeoutMs => params.host_timeout_ms as f32,
         _ => f32::NAN,
     };
-    let (lo, hi) = field.range();
-    let mut message = format!(
-        "{} = {value} is out of range (allowed {lo} to {hi})",
-        field.name()
-    );
+    let mut message = crate::error::out_of_range(field, Some(value).filter(|v| !v.is_nan()));
     match field {
+        ParamField::ContactAreaMm2 => {
+            message.push_str("; it is fingers × 2 × thickness × finger length")
+        }
         ParamField::HoleRadiusMm => message.push_str("; the hole must also be larger than the prong"),
         ParamField::HoleDistanceMm => message.push_str(
             "; the prong holes must also lie inside the spiral (distance + hole radius < spiral radius)",
@@ -151,8 +150,18 @@ mod tests {
             ..JointSpec::default()
         };
         let e = j.run_params(GaugeGeometry::PAPER).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "the sheet thickness (thickness_mm) = 80 mm is out of range (allowed 0.5 to 25 mm)"
+        );
+        let j = JointSpec {
+            force_n: Some(0.0),
+            ..JointSpec::default()
+        };
+        let e = j.run_params(GaugeGeometry::PAPER).unwrap_err().to_string();
         assert!(
-            e.contains("thickness_mm = 80") && e.contains("0.5 to 25"),
+            e.contains("the joint's assembly force (target_force_n) = 0 N")
+                && e.contains("1 to 500 N"),
             "{e}"
         );
         let j = JointSpec {
