@@ -96,6 +96,16 @@ pub fn plot_curve(curve: &Curve, result: Option<&KerfResult>, path: &Path) -> Re
     kerfmeter::files::make_readable(path)
 }
 
+/// The axis range that holds every value: from 0, or below it when a value is negative (the
+/// back-off's torque, a hub that turned back past zero), to the largest value or at least
+/// `least`; widened by `margin` of its length at each end that holds values.
+fn span(values: impl Iterator<Item = f32>, least: f32, margin: f32) -> std::ops::Range<f32> {
+    let (lo, hi) = values.fold((0.0f32, least), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    let pad = (hi - lo) * margin;
+    let lo = if lo < 0.0 { lo - pad } else { 0.0 };
+    lo..hi + pad
+}
+
 fn draw<DB: DrawingBackend>(
     area: DrawingArea<DB, plotters::coord::Shift>,
     curve: &Curve,
@@ -106,18 +116,8 @@ where
 {
     let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
     area.fill(&WHITE).map_err(e)?;
-    let max_angle = curve
-        .samples
-        .iter()
-        .map(|s| s.angle_deg)
-        .fold(1.0f32, f32::max)
-        * 1.05;
-    let max_torque = curve
-        .samples
-        .iter()
-        .map(|s| s.torque_nm)
-        .fold(0.05f32, f32::max)
-        * 1.1;
+    let angles = span(curve.samples.iter().map(|s| s.angle_deg), 1.0, 0.05);
+    let torques = span(curve.samples.iter().map(|s| s.torque_nm), 0.05, 0.1);
     let title = match result {
         Some(r) => format!(
             "Run {}: kerf {:.1} µm at {:.1} N",
@@ -130,7 +130,7 @@ where
         .margin(20)
         .x_label_area_size(50)
         .y_label_area_size(70)
-        .build_cartesian_2d(0f32..max_angle, 0f32..max_torque)
+        .build_cartesian_2d(angles, torques)
         .map_err(e)?;
     chart
         .configure_mesh()
@@ -171,4 +171,22 @@ where
         .map_err(e)?;
     area.present().map_err(e)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::span;
+
+    #[test]
+    fn an_axis_holds_negative_values_and_starts_at_zero_otherwise() {
+        assert_eq!(span([0.5, 10.0].into_iter(), 1.0, 0.1), 0.0..11.0);
+        // A hub that turned back past zero: the axis reaches below it, with the margin.
+        let r = span([-1.0, 9.0].into_iter(), 1.0, 0.1);
+        assert!(
+            (r.start + 2.0).abs() < 1e-6 && (r.end - 10.0).abs() < 1e-6,
+            "{r:?}"
+        );
+        // Nothing drawn yet still gives an axis of some length.
+        assert_eq!(span(std::iter::empty(), 0.05, 0.1), 0.0..0.055);
+    }
 }
