@@ -311,7 +311,12 @@ pub fn run_on(
             kerf: sim_kerf,
         }),
     };
-    let mut dilate = |kerf_um: f64| setup.dilate_and_write(args, kerf_um);
+    let mut written = false;
+    let mut dilate = |kerf_um: f64| {
+        let gcode = setup.dilate_and_write(args, kerf_um)?;
+        written = true;
+        Ok(gcode)
+    };
     let mut measured = false;
     let report = run_job(devices, &request, &mut dilate, cancel, &mut |e| {
         measured |= matches!(e, JobEvent::Finished(Stage::Measure, _));
@@ -322,6 +327,13 @@ pub fn run_on(
         Err(e) => {
             if measured {
                 record_after_failure(g, args, setup, session);
+            }
+            if written {
+                eprintln!(
+                    "note: the dilated plan {} and its G-code {} were written before the job stopped: they are complete, but the plan was not cut (or not all of it)",
+                    args.output.display(),
+                    setup.gcode_out.display()
+                );
             }
             return Err(job_error(e));
         }
