@@ -16,6 +16,13 @@ use crate::sim::Twin;
 /// promptly.
 const LOCK_STEP_BATCH_TICKS: u64 = 50;
 
+/// How far a real-time twin catches up at once, µs. A twin thread descheduled for longer (a
+/// loaded machine) would otherwise run the whole gap in one burst after taking the host's
+/// waiting bytes, so the device would see the host silent for as long as the twin was (a
+/// `HostSilent` fault that a device, which is never descheduled, could not have). The excess is
+/// dropped: simulated time falls behind the wall clock by it.
+const MAX_CATCH_UP_US: u64 = 100_000;
+
 /// How simulated time relates to the wall clock when serving a twin.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Pace {
@@ -112,6 +119,8 @@ pub fn serve<P: Read + Write + ?Sized>(
     let mut out = Vec::new();
     let started = Instant::now();
     let sim_start_us = served.now_us();
+    // Wall time dropped from the simulation (see MAX_CATCH_UP_US), µs.
+    let mut dropped_us = 0;
     while !stop.load(Ordering::Relaxed) {
         let n = match port.read(&mut buf) {
             Ok(0) => break,
@@ -136,9 +145,13 @@ pub fn serve<P: Read + Write + ?Sized>(
             // Every tick that starts by the wall clock (ticks come about a period apart; a
             // flash stall holds them back until the wall clock catches up).
             Pace::RealTime => {
-                let wall_us = started.elapsed().as_micros() as u64;
+                let wall_us = started.elapsed().as_micros() as u64 - dropped_us;
                 match (sim_start_us + wall_us).checked_sub(served.next_tick_us()) {
-                    Some(behind_us) => behind_us / PERIOD_US + 1,
+                    Some(behind_us) => {
+                        let excess_us = behind_us.saturating_sub(MAX_CATCH_UP_US);
+                        dropped_us += excess_us;
+                        (behind_us - excess_us) / PERIOD_US + 1
+                    }
                     None => 0,
                 }
             }
@@ -160,4 +173,82 @@ pub(crate) fn is_timeout(e: &io::Error) -> bool {
 pub(crate) fn is_hangup(e: &io::Error) -> bool {
     e.raw_os_error() == Some(5)
         || matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::UnexpectedEof)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    /// A clock that counts the ticks it is told to run.
+    #[derive(Default)]
+    struct Clock {
+        ticks: u64,
+    }
+
+    impl Served for Clock {
+        fn receive(&mut self, _: &[u8], _: &mut dyn FnMut(&[u8])) {}
+
+        fn now_us(&self) -> u64 {
+            self.ticks * PERIOD_US
+        }
+
+        fn advance_ticks(&mut self, ticks: u64) {
+            self.ticks += ticks;
+        }
+    }
+
+    /// A port whose reads time out, but whose third read stalls for `stall` (the serving thread
+    /// descheduled), and which hangs up after `reads` reads.
+    struct StallingPort {
+        reads: u32,
+        stall: Duration,
+    }
+
+    impl Read for StallingPort {
+        fn read(&mut self, _: &mut [u8]) -> io::Result<usize> {
+            self.reads = self.reads.saturating_sub(1);
+            match self.reads {
+                0 => Ok(0),
+                3 => {
+                    std::thread::sleep(self.stall);
+                    Err(ErrorKind::TimedOut.into())
+                }
+                _ => {
+                    std::thread::sleep(Duration::from_millis(2));
+                    Err(ErrorKind::TimedOut.into())
+                }
+            }
+        }
+    }
+
+    impl Write for StallingPort {
+        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+            Ok(buf.len())
+        }
+
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_real_time_twin_descheduled_for_long_does_not_run_the_gap_at_once() {
+        let mut port = StallingPort {
+            reads: 6,
+            stall: Duration::from_millis(600),
+        };
+        let mut clock = Clock::default();
+        let started = Instant::now();
+        serve(&mut port, &mut clock, &AtomicBool::new(false), Pace::RealTime).unwrap();
+        let wall_ms = started.elapsed().as_millis() as u64;
+        let sim_ms = clock.now_us() / 1000;
+        // The 600 ms stall is run as 100 ms (the catch-up allowed), not in full: the simulation
+        // ends some 500 ms behind the wall clock, and it did run the 100 ms.
+        assert!(
+            sim_ms + 450 < wall_ms,
+            "simulated {sim_ms} ms in {wall_ms} ms of wall time with a 600 ms stall"
+        );
+        assert!(sim_ms >= 100, "{sim_ms}");
+    }
 }
