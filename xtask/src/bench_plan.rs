@@ -19,6 +19,12 @@
 //! * **GEOS**: shapely buffering the same parts (polygons with holes, arcs flattened) by the same
 //!   half kerf, when the Python given by `--python` has shapely; otherwise "unavailable".
 //!
+//! After each table the targets are judged on it (met, or by how much not): the largest
+//! plan's command within GEOS's time on the same parts, every 4× the parts at most 5× the time,
+//! and the largest plan's peak memory under 10× its file (the small plans' peaks are the
+//! process's fixed ~9 MB). Judged, not enforced: wall times on a shared two-core machine vary
+//! by tens of per cent from run to run, so the command exits 0 either way.
+//!
 //! This is a benchmark, not a test: `cargo xtask test` does not run it.
 
 use std::path::{Path, PathBuf};
@@ -231,8 +237,49 @@ pub fn run(args: &BenchPlanArgs) -> Result<()> {
             });
         }
         print_table(format, &rows, args.runs);
+        print_targets(&rows);
     }
     Ok(())
+}
+
+/// Growth of the command's time per step of sizes: (time ratio, parts ratio).
+fn growths(rows: &[Row]) -> Vec<(f64, f64)> {
+    rows.windows(2)
+        .map(|w| {
+            let time = w[1].command.time.as_secs_f64() / w[0].command.time.as_secs_f64();
+            (time, w[1].parts as f64 / w[0].parts as f64)
+        })
+        .collect()
+}
+
+/// The three targets, judged on these rows.
+fn print_targets(rows: &[Row]) {
+    let Some(largest) = rows.last() else { return };
+    let verdict = |met: bool| if met { "met" } else { "NOT met" };
+    let command_s = largest.command.time.as_secs_f64();
+    let time = match &largest.geos {
+        Ok(geos_s) => format!(
+            "{}: {command_s:.3} s against GEOS's {geos_s:.3} s ({:.2}×)",
+            verdict(command_s <= *geos_s),
+            command_s / geos_s
+        ),
+        Err(why) => format!("not judged: GEOS {why}"),
+    };
+    let worst_growth = growths(rows)
+        .into_iter()
+        .map(|(time, parts)| time * 4.0 / parts)
+        .fold(0.0, f64::max);
+    let ratio = largest.command.max_rss_bytes as f64 / largest.file_bytes as f64;
+    println!("targets at {} contours:", 4 * largest.parts);
+    println!("  the whole command within GEOS's time: {time}");
+    println!(
+        "  4× the parts at most 5× the time: {}: at most {worst_growth:.2}× per 4×",
+        verdict(worst_growth <= 5.0)
+    );
+    println!(
+        "  peak memory under 10× the file: {}: {ratio:.1}×",
+        verdict(ratio < 10.0)
+    );
 }
 
 fn print_table(format: &str, rows: &[Row], runs: usize) {

@@ -240,7 +240,13 @@ mod tests {
         };
         let mut clock = Clock::default();
         let started = Instant::now();
-        serve(&mut port, &mut clock, &AtomicBool::new(false), Pace::RealTime).unwrap();
+        serve(
+            &mut port,
+            &mut clock,
+            &AtomicBool::new(false),
+            Pace::RealTime,
+        )
+        .unwrap();
         let wall_ms = started.elapsed().as_millis() as u64;
         let sim_ms = clock.now_us() / 1000;
         // The 600 ms stall is run as 100 ms (the catch-up allowed), not in full: the simulation

@@ -671,16 +671,16 @@ fn an_already_compensated_plan_is_refused_like_any_plan_error_and_the_flags_lead
         assert!(stderr(&refused).contains(needle), "{}", stderr(&refused));
     }
     assert!(!out_file.exists());
-    // With --json the refusal says what it found as data, as a success would.
-    let refused = kerfmeter(&[
-        "--json",
+    let args = [
         "dilate",
         path(&input),
         "--kerf-um",
         "150",
         "-o",
         path(&out_file),
-    ]);
+    ];
+    // With --json the refusal says what it found as data, as a success would.
+    let refused = kerfmeter(&[&["--json"][..], &args[..]].concat());
     assert_eq!(code(&refused), 4);
     let json: serde_json::Value = serde_json::from_str(&stdout(&refused)).unwrap();
     assert!(json["error"].as_str().unwrap().contains("--recompensate"));
@@ -692,14 +692,6 @@ fn an_already_compensated_plan_is_refused_like_any_plan_error_and_the_flags_lead
     assert!(!out_file.exists());
 
     // Undo the burn, apply the kerf: the part comes out 150 µm larger than drawn, not 350.
-    let args = [
-        "dilate",
-        path(&input),
-        "--kerf-um",
-        "150",
-        "-o",
-        path(&out_file),
-    ];
     let done = kerfmeter(&[&["--json"][..], &args[..], &["--recompensate"]].concat());
     assert_eq!(code(&done), 0, "{}", stderr(&done));
     let json: serde_json::Value = serde_json::from_str(&stdout(&done)).unwrap();
