@@ -17,52 +17,58 @@ const SIM_KERF_UM: f64 = 150.0;
 const SIM_SEED: u64 = 1;
 
 /// Flags every command takes (cloned by `kerfmeter serve`, which re-opens the device with them).
+/// Where every command's help lists the options that are not its own: how to reach the device
+/// and how to print.
+const GLOBAL_HEADING: &str = "Device and output (any command)";
+/// ... and how the simulated device is set up (with `--sim`).
+const SIM_HEADING: &str = "Simulated device (with --sim)";
+
 #[derive(Args, Clone)]
 pub struct Global {
     /// Serial port of the device (e.g. /dev/ttyACM0). Also from KERFMETER_PORT.
-    #[arg(long, global = true, env = "KERFMETER_PORT", conflicts_with = "sim")]
+    #[arg(long, global = true, help_heading = GLOBAL_HEADING, env = "KERFMETER_PORT", conflicts_with = "sim")]
     pub port: Option<String>,
     /// Use the simulated device (the digital twin) instead of hardware; with `lightburn`, a
     /// LightBurn twin instead of LightBurn.
-    #[arg(long, global = true)]
+    #[arg(long, global = true, help_heading = GLOBAL_HEADING)]
     pub sim: bool,
     /// Simulated device: true kerf of the cut gauges, µm.
-    #[arg(long, global = true, default_value_t = SIM_KERF_UM, value_name = "UM")]
+    #[arg(long, global = true, help_heading = SIM_HEADING, default_value_t = SIM_KERF_UM, value_name = "UM")]
     pub sim_kerf_um: f64,
     /// Simulated device: gauge-to-gauge spread (SD) of the simulated cutter's kerf, µm.
-    #[arg(long, global = true, default_value_t = 0.0, value_name = "UM")]
+    #[arg(long, global = true, help_heading = SIM_HEADING, default_value_t = 0.0, value_name = "UM")]
     pub sim_kerf_sd_um: f64,
     /// Simulated device: seed of every random number (same seed, same result).
-    #[arg(long, global = true, default_value_t = SIM_SEED)]
+    #[arg(long, global = true, help_heading = SIM_HEADING, default_value_t = SIM_SEED)]
     pub sim_seed: u64,
     /// Simulated device: inject a fault (parity, magnet-lost, miso-stuck, no-inset,
     /// motor-disconnected, driver-fault, over-current, host-silent, prong-slip).
-    #[arg(long, global = true, value_name = "NAME")]
+    #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "NAME")]
     pub sim_fault: Option<kerfmeter::sim::SimFault>,
     /// Simulated device: run in real time instead of as fast as the host keeps up.
-    #[arg(long, global = true)]
+    #[arg(long, global = true, help_heading = SIM_HEADING)]
     pub sim_realtime: bool,
     /// Simulated device: the gauge's material (mdf, plywood, acrylic, cardboard), setting the
     /// contact's stiffness and friction and their spread.
-    #[arg(long, global = true, value_name = "NAME")]
+    #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "NAME")]
     pub sim_material: Option<SimMaterial>,
     /// Simulated device: plant parameters from a JSON object of numbers ({"supply_v": 24, ...}),
     /// applied over the material.
-    #[arg(long, global = true, value_name = "FILE")]
+    #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "FILE")]
     pub sim_plant_file: Option<PathBuf>,
     /// Simulated device: set one plant parameter, applied last (repeatable), e.g. supply_v=24.
     /// An unknown name lists every parameter with its range.
-    #[arg(long, global = true, value_name = "NAME=VALUE")]
+    #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "NAME=VALUE")]
     pub sim_plant: Vec<String>,
     /// Print one JSON object instead of text.
-    #[arg(long, global = true)]
+    #[arg(long, global = true, help_heading = GLOBAL_HEADING)]
     pub json: bool,
     /// The measurement history's SQLite file [default: kerfmeter/history.sqlite3 in the user's
     /// data directory]. Also from KERFMETER_DB.
-    #[arg(long, global = true, env = "KERFMETER_DB", value_name = "FILE")]
+    #[arg(long, global = true, help_heading = GLOBAL_HEADING, env = "KERFMETER_DB", value_name = "FILE")]
     pub db: Option<PathBuf>,
     /// Per-attempt response timeout, ms.
-    #[arg(long, global = true, default_value_t = 300, value_parser = clap::value_parser!(u64).range(10..=60_000))]
+    #[arg(long, global = true, help_heading = GLOBAL_HEADING, default_value_t = 300, value_parser = clap::value_parser!(u64).range(10..=60_000))]
     pub timeout_ms: u64,
 }
 
