@@ -29,7 +29,7 @@ use std::time::{Duration, Instant};
 use clap::Parser;
 
 use kerfmeter_protocol::RunParams;
-use kerfmeter_twin::plant::PARAMS;
+use kerfmeter_twin::plant::{PARAMS, ParamSpec};
 use kerfmeter_twin::study::robustness::{
     Class, Draw, DrawReport, ErrorStats, Scale, Summary, Sweep, TOLERANCE_UM, classify,
     failure_name, run_draw, scale,
@@ -49,8 +49,8 @@ struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Hold a plant parameter at one value in every draw instead of drawing it (repeatable):
-    /// `--set supply_v=24` is the sweep on a 24 V rail. `kerfmeter --sim --help` lists the
-    /// parameters and their ranges.
+    /// `--set supply_v=24` is the sweep on a 24 V rail. An unknown name lists the parameters
+    /// and their ranges.
     #[arg(long = "set", value_name = "NAME=VALUE", value_parser = held_param)]
     held: Vec<(String, f64)>,
     /// The joint's assembly force each run measures at, N (`kerfmeter run --force-n`).
@@ -155,6 +155,14 @@ fn run_sweep(args: &Args, sweep: &Sweep) -> bool {
     summary.all_ended_safely() && !(args.strict && unflagged_wrong > 0)
 }
 
+/// How a parameter came by its value: held by `--set`, or drawn (how, from what range).
+fn how_set(args: &Args, spec: &ParamSpec) -> String {
+    if args.held.iter().any(|(name, _)| name == spec.name) {
+        return "held by --set".to_owned();
+    }
+    format!("drawn {} in {}..={}", scale_name(spec), spec.min, spec.max)
+}
+
 /// One draw alone, in full; whether it ended properly.
 fn replay(args: &Args, draw: &Draw) -> bool {
     let report = run_draw(draw);
@@ -169,14 +177,12 @@ fn replay(args: &Args, draw: &Draw) -> bool {
         for spec in PARAMS {
             let value = spec.get(&report.draw.plant);
             println!(
-                "  {:<30} {:>12} {:<6} (default {}, drawn {} in {}..={})",
+                "  {:<30} {:>12} {:<6} (default {}, {})",
                 spec.name,
                 number(value),
                 spec.unit,
                 number(spec.default_value()),
-                scale_name(spec),
-                spec.min,
-                spec.max
+                how_set(args, spec)
             );
         }
     }
@@ -354,9 +360,18 @@ impl<'a> Listed<'a> {
     }
 }
 
+/// `DIR/seed<S>-draw<D>.json`, with what the sweep held and its force when not the default
+/// (`seed1-draw4-supply_v=24-force=40.json`): sweeps of one seed at two supplies must not
+/// overwrite each other's plants.
 fn plant_file(args: &Args, draw: &Draw) -> PathBuf {
-    args.out_dir
-        .join(format!("seed{}-draw{}.json", draw.seed, draw.index))
+    let mut name = format!("seed{}-draw{}", draw.seed, draw.index);
+    for (param, value) in &args.held {
+        name.push_str(&format!("-{param}={value}"));
+    }
+    if args.force_n != RunParams::DEFAULT.target_force_n {
+        name.push_str(&format!("-force={}", args.force_n));
+    }
+    args.out_dir.join(name + ".json")
 }
 
 fn write_plant_file(args: &Args, draw: &Draw) {
@@ -482,7 +497,7 @@ fn print_sweep(args: &Args, summary: &Summary, listed: &Listed) {
     let count = |class| summary.of_class(class).len();
     let readings = summary.readings();
     println!(
-        "Kerfmeter robustness sweep: {} draws, seed {}, every plant parameter drawn from its range, kerf {}–{} µm, {} N over 3 fingers of 4 mm",
+        "Kerfmeter robustness sweep: {} draws, seed {}, every plant parameter drawn from its range unless held, kerf {}–{} µm, {} N over 3 fingers of 4 mm",
         summary.draws,
         args.seed,
         kerfmeter_twin::study::robustness::KERF_RANGE_UM.0,

@@ -26,7 +26,9 @@ mod params;
 pub use cut::{Cutter, CutterKerf, GaugeCut};
 pub use gauge::tapered_contact_force_n;
 pub use motor::{COPPER_TEMPCO_PER_C, Electrical, UVLO_HYSTERESIS_V};
-pub use params::{Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_table};
+pub use params::{
+    FRICTION_PAIRS, Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_table,
+};
 
 use kerfmeter_protocol::spiral::force_for_torque_n;
 use kerfmeter_protocol::{GaugeGeometry, JamDirection, RunParams};

@@ -369,6 +369,12 @@ pub fn param_table() -> String {
         .collect()
 }
 
+/// The (kinetic, static) friction pairs: kinetic never above static ([`PlantParams::validate`]).
+pub const FRICTION_PAIRS: [(&str, &str); 2] = [
+    ("gear_kinetic_nm", "gear_static_nm"),
+    ("inset_kinetic_nm", "inset_static_nm"),
+];
+
 /// The parameter called `name`.
 pub fn param(name: &str) -> Result<&'static ParamSpec, PlantParamError> {
     PARAMS
@@ -457,20 +463,8 @@ impl PlantParams {
                 });
             }
         }
-        for (kinetic, kinetic_nm, stat, static_nm) in [
-            (
-                "gear_kinetic_nm",
-                self.gear_kinetic_nm,
-                "gear_static_nm",
-                self.gear_static_nm,
-            ),
-            (
-                "inset_kinetic_nm",
-                self.inset_kinetic_nm,
-                "inset_static_nm",
-                self.inset_static_nm,
-            ),
-        ] {
+        for (kinetic, stat) in FRICTION_PAIRS {
+            let (kinetic_nm, static_nm) = (param(kinetic)?.get(self), param(stat)?.get(self));
             if kinetic_nm > static_nm {
                 return Err(PlantParamError::Inconsistent(format!(
                     "{kinetic} ({kinetic_nm}) must not exceed {stat} ({static_nm})"

@@ -58,7 +58,9 @@ use std::collections::BTreeMap;
 use kerfmeter_protocol::{DeviceConfig, ErrorCode, ParamField, QualityFlags, RunParams};
 
 use super::{Outcome, configure, mean_sd, measure, quantile, stream};
-use crate::plant::{COPPER_TEMPCO_PER_C, PARAMS, ParamSpec, PlantParamError, PlantParams, param};
+use crate::plant::{
+    COPPER_TEMPCO_PER_C, FRICTION_PAIRS, PARAMS, ParamSpec, PlantParamError, PlantParams, param,
+};
 use crate::{Twin, TwinOptions};
 
 /// A range spanning more than this ratio (with a positive minimum) is drawn log-uniformly.
@@ -132,12 +134,25 @@ impl Sweep {
         }
     }
 
-    /// Hold the parameter `name` at `value` in every draw (within its range, or an error).
+    /// Hold the parameter `name` at `value` in every draw: within its range, and leaving a
+    /// consistent friction pair possible (a held kinetic friction not above its static partner's
+    /// range or held value), or an error and nothing held.
     pub fn fix(&mut self, name: &str, value: f64) -> Result<(), PlantParamError> {
         PlantParams::default().set(name, value)?;
         let spec = param(name)?;
-        self.fixed.retain(|(held, _)| held.name != spec.name);
-        self.fixed.push((spec, value));
+        let mut fixed = self.fixed.clone();
+        fixed.retain(|(held, _)| held.name != spec.name);
+        fixed.push((spec, value));
+        for (kinetic, stat) in FRICTION_PAIRS {
+            let lowest_kinetic = held_value(&fixed, kinetic).unwrap_or(param(kinetic)?.min);
+            let highest_static = held_value(&fixed, stat).unwrap_or(param(stat)?.max);
+            if lowest_kinetic > highest_static {
+                return Err(PlantParamError::Inconsistent(format!(
+                    "{kinetic} ({lowest_kinetic}) must not exceed {stat} (at most {highest_static})"
+                )));
+            }
+        }
+        self.fixed = fixed;
         Ok(())
     }
 
@@ -215,30 +230,55 @@ impl Draw {
     }
 }
 
+/// The value `name` is held at, if it is.
+fn held_value(fixed: &[(&'static ParamSpec, f64)], name: &str) -> Option<f64> {
+    fixed
+        .iter()
+        .find(|(held, _)| held.name == name)
+        .map(|&(_, value)| value)
+}
+
 /// Every plant parameter of draw `index`, those `fixed` at their values, redrawn until
-/// consistent. A held parameter does not move the others' draws.
+/// consistent. Where one side of a friction pair is held, the other is brought to it instead
+/// (kinetic no higher, static no lower: [`Sweep::fix`] made sure it can be), since a held value
+/// near its partner's limit would leave few draws consistent. A held winding temperature is
+/// taken as it is, not held to what the build can reach. Other parameters' draws do not move.
 fn draw_plant(seed: u64, index: u32, fixed: &[(&'static ParamSpec, f64)]) -> PlantParams {
     for attempt in 0..MAX_ATTEMPTS {
         let mut plant = PlantParams::default();
         for spec in PARAMS {
             let key = format!("{}#{attempt}", spec.name);
             let drawn = value_at(spec, stream(seed, index, &key).uniform());
-            let value = fixed
-                .iter()
-                .find(|(held, _)| held.name == spec.name)
-                .map_or(drawn, |&(_, value)| value);
+            let value = held_value(fixed, spec.name).unwrap_or(drawn);
             plant
                 .set(spec.name, value)
                 .expect("a value drawn or held within the range is accepted");
         }
+        meet_held_frictions(&mut plant, fixed);
         if plant.validate().is_ok() {
-            plant.winding_temp_c = reachable_winding_temp_c(&plant);
+            if held_value(fixed, "winding_temp_c").is_none() {
+                plant.winding_temp_c = reachable_winding_temp_c(&plant);
+            }
             return plant;
         }
     }
     panic!(
         "no consistent plant parameters in {MAX_ATTEMPTS} draws: check the ranges and the values held"
     );
+}
+
+/// Bring the drawn side of each friction pair with one side held to the held one.
+fn meet_held_frictions(plant: &mut PlantParams, fixed: &[(&'static ParamSpec, f64)]) {
+    for (kinetic, stat) in FRICTION_PAIRS {
+        let value = |name| param(name).expect("a known name").get(plant);
+        let (kinetic_nm, static_nm) = (value(kinetic), value(stat));
+        let met = match (held_value(fixed, kinetic), held_value(fixed, stat)) {
+            (Some(_), None) if static_nm < kinetic_nm => plant.set(stat, kinetic_nm),
+            (None, Some(_)) if kinetic_nm > static_nm => plant.set(kinetic, static_nm),
+            _ => Ok(()),
+        };
+        met.expect("Sweep::fix left the partner's range room for the held value");
+    }
 }
 
 /// The drawn boot temperature of the winding, held to what the build can reach (module docs):
@@ -578,6 +618,36 @@ mod tests {
             sweep.fix("supply_volts", 12.0),
             Err(PlantParamError::Unknown(_))
         ));
+    }
+
+    #[test]
+    fn a_held_friction_brings_its_partner_and_a_held_winding_temperature_stays() {
+        let mut sweep = Sweep::new(5);
+        // Above most static frictions drawn: each is raised to it, none is drawn in vain.
+        sweep.fix("gear_kinetic_nm", 0.079).unwrap();
+        sweep.fix("inset_static_nm", 0.0011).unwrap();
+        sweep.fix("winding_temp_c", 120.0).unwrap();
+        for index in 0..30 {
+            let plant = sweep.draw(index).plant;
+            assert_eq!(plant.validate(), Ok(()));
+            assert!(plant.gear_static_nm >= 0.079, "{}", plant.gear_static_nm);
+            assert!(
+                plant.inset_kinetic_nm <= 0.0011,
+                "{}",
+                plant.inset_kinetic_nm
+            );
+            assert_eq!(plant.winding_temp_c, 120.0);
+        }
+        // A pair that cannot agree is refused, and the earlier holds stand.
+        assert!(matches!(
+            sweep.fix("gear_static_nm", 0.05),
+            Err(PlantParamError::Inconsistent(_))
+        ));
+        assert!(matches!(
+            sweep.fix("inset_kinetic_nm", 0.02),
+            Err(PlantParamError::Inconsistent(_))
+        ));
+        assert_eq!(sweep.fixed.len(), 3);
     }
 
     #[test]
