@@ -215,6 +215,29 @@ pub enum ErrorCode {
 /// paper's gauge) that a run turns through before the prongs drag the inset.
 pub const START_TOLERANCE_DEG: f32 = 1.0;
 
+/// A value out of its field's range, as a message ([`ParamField::out_of_range`]): "the joint's
+/// assembly force (target_force_n) = 0 N is out of range (allowed 1 to 500 N)".
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutOfRange {
+    /// The field.
+    pub field: ParamField,
+    /// The value given, where known.
+    pub value: Option<f32>,
+}
+
+impl core::fmt::Display for OutOfRange {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let (what, unit) = self.field.words();
+        let (lo, hi) = self.field.range();
+        let space = if unit.is_empty() { "" } else { " " };
+        write!(f, "{what} ({})", self.field.name())?;
+        if let Some(value) = self.value {
+            write!(f, " = {value}{space}{unit}")?;
+        }
+        write!(f, " is out of range (allowed {lo} to {hi}{space}{unit})")
+    }
+}
+
 /// A parameter of [`RunParams`] or [`DeviceConfig`], named in [`ErrorCode::InvalidParam`].
 #[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -316,6 +339,12 @@ impl ParamField {
         }
     }
 
+    /// The message for `value` (`None`: not known) out of this field's range, said in words
+    /// with the field's name and unit; `to_string()` it, or write it into a message.
+    pub const fn out_of_range(self, value: Option<f32>) -> OutOfRange {
+        OutOfRange { field: self, value }
+    }
+
     /// The accepted range (inclusive) of the field. Cross-field rules (the hole must fit inside
     /// the spiral, the hole must be larger than the prong) are reported on the dependent field.
     pub const fn range(self) -> (f32, f32) {
@@ -356,6 +385,38 @@ pub(crate) const fn varint_len(mut n: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn text(o: OutOfRange) -> heapless::String<160> {
+        let mut s = heapless::String::new();
+        core::fmt::write(&mut s, format_args!("{o}")).unwrap();
+        s
+    }
+
+    #[test]
+    fn a_value_out_of_range_is_said_in_words_with_its_name_and_unit() {
+        assert_eq!(
+            text(ParamField::TargetForceN.out_of_range(Some(0.0))),
+            "the joint's assembly force (target_force_n) = 0 N is out of range (allowed 1 to 500 N)"
+        );
+        let (lo, hi) = ParamField::GearRatio.range();
+        let unknown = text(ParamField::GearRatio.out_of_range(None));
+        assert!(
+            unknown.starts_with("the gear ratio (gear_ratio) is out of range (allowed"),
+            "{unknown}"
+        );
+        assert!(unknown.ends_with(lo_to_hi(lo, hi).as_str()), "{unknown}");
+        // Every field has words.
+        for field in ParamField::ALL {
+            assert!(field.words().0.starts_with("the "), "{field:?}");
+        }
+    }
+
+    /// "lo to hi)" for a unitless field.
+    fn lo_to_hi(lo: f32, hi: f32) -> heapless::String<40> {
+        let mut s = heapless::String::new();
+        core::fmt::write(&mut s, format_args!("{lo} to {hi})")).unwrap();
+        s
+    }
 
     #[test]
     fn param_field_all_is_every_variant_in_wire_order() {

@@ -113,6 +113,27 @@ impl RunParams {
         host_timeout_ms: 1_000,
     };
 
+    /// The value of `field` in these parameters (`None` for a configuration field).
+    pub fn value_of(&self, field: ParamField) -> Option<f32> {
+        let g = &self.gauge;
+        Some(match field {
+            ParamField::PitchUmPerDeg => g.pitch_um_per_deg,
+            ParamField::RadiusMm => g.radius_mm,
+            ParamField::ProngRadiusMm => g.prong_radius_mm,
+            ParamField::HoleRadiusMm => g.hole_radius_mm,
+            ParamField::HoleDistanceMm => g.hole_distance_mm,
+            ParamField::DisengageDeg => g.disengage_deg,
+            ParamField::ThicknessMm => self.thickness_mm,
+            ParamField::TargetForceN => self.target_force_n,
+            ParamField::ContactAreaMm2 => self.contact_area_mm2,
+            ParamField::MaxTorqueNm => self.max_torque_nm,
+            ParamField::RampRateNmPerS => self.ramp_rate_nm_per_s,
+            ParamField::MaxTimeMs => self.max_time_ms as f32,
+            ParamField::HostTimeoutMs => self.host_timeout_ms as f32,
+            _ => return None,
+        })
+    }
+
     /// Check every field against its physically sensible range.
     ///
     /// Returns the first offending field. Ranges are deliberately generous (they reject nonsense and

@@ -463,7 +463,7 @@ impl Kerfmeter {
     pub fn set_config(&mut self, config: &DeviceConfig) -> Result<ConfigReport> {
         config
             .validate()
-            .map_err(|field| Error::InvalidArgument(crate::error::out_of_range(field, None)))?;
+            .map_err(|field| Error::InvalidArgument(field.out_of_range(None).to_string()))?;
         match self.call(Request::SetConfig(*config))? {
             Response::Config(c) => Ok(c),
             other => Err(unexpected("SetConfig", &other)),

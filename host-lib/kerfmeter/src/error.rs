@@ -1,8 +1,7 @@
 //! Host-side errors: every failure a caller can meet, each with a message that says what to do.
 
 use kerfmeter_protocol::{
-    Conditions, ErrorCode, Fault, ParamField, ProtocolVersion, REFERENCE_SUPPLY_V, SUPPLY_MAX_V,
-    SUPPLY_MIN_V,
+    Conditions, ErrorCode, Fault, ProtocolVersion, REFERENCE_SUPPLY_V, SUPPLY_MAX_V, SUPPLY_MIN_V,
 };
 
 /// Result of every fallible call of this crate.
@@ -192,26 +191,6 @@ pub enum Category {
     File,
 }
 
-/// A value out of its field's range, said in words with the field's name and unit:
-/// "the joint's assembly force (target_force_n) = 0 N is out of range (allowed 1 to 500 N)".
-pub fn out_of_range(field: ParamField, value: Option<f32>) -> String {
-    let (what, unit) = field.words();
-    let (lo, hi) = field.range();
-    let with_unit = |v: f32| {
-        if unit.is_empty() {
-            v.to_string()
-        } else {
-            format!("{v} {unit}")
-        }
-    };
-    let value = value.map_or(String::new(), |v| format!(" = {}", with_unit(v)));
-    format!(
-        "{what} ({}){value} is out of range (allowed {lo} to {})",
-        field.name(),
-        with_unit(hi)
-    )
-}
-
 /// A sentence for a device error code, saying what to do about it.
 pub fn describe_error_code(code: ErrorCode) -> String {
     match code {
@@ -224,7 +203,7 @@ pub fn describe_error_code(code: ErrorCode) -> String {
             "a fault is latched ({}); fix the cause, then `clear-fault` or `reset`",
             describe_fault(f)
         ),
-        ErrorCode::InvalidParam(field) => out_of_range(field, None),
+        ErrorCode::InvalidParam(field) => field.out_of_range(None).to_string(),
         ErrorCode::NoSamples => "there are no (more) samples for that run".into(),
         ErrorCode::Storage => {
             "the configuration could not be saved to flash; the old one stays in use".into()

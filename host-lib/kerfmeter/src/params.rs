@@ -85,24 +85,7 @@ pub fn check(params: &RunParams) -> Result<()> {
 
 /// A sentence saying which value is out of which range.
 pub fn describe_invalid(params: &RunParams, field: ParamField) -> String {
-    let g = &params.gauge;
-    let value = match field {
-        ParamField::PitchUmPerDeg => g.pitch_um_per_deg,
-        ParamField::RadiusMm => g.radius_mm,
-        ParamField::ProngRadiusMm => g.prong_radius_mm,
-        ParamField::HoleRadiusMm => g.hole_radius_mm,
-        ParamField::HoleDistanceMm => g.hole_distance_mm,
-        ParamField::DisengageDeg => g.disengage_deg,
-        ParamField::ThicknessMm => params.thickness_mm,
-        ParamField::TargetForceN => params.target_force_n,
-        ParamField::ContactAreaMm2 => params.contact_area_mm2,
-        ParamField::MaxTorqueNm => params.max_torque_nm,
-        ParamField::RampRateNmPerS => params.ramp_rate_nm_per_s,
-        ParamField::MaxTimeMs => params.max_time_ms as f32,
-        ParamField::HostTimeoutMs => params.host_timeout_ms as f32,
-        _ => f32::NAN,
-    };
-    let mut message = crate::error::out_of_range(field, Some(value).filter(|v| !v.is_nan()));
+    let mut message = field.out_of_range(params.value_of(field)).to_string();
     match field {
         ParamField::ContactAreaMm2 => {
             message.push_str("; it is fingers × 2 × thickness × finger length")

@@ -120,10 +120,9 @@ pub fn check_geometry(g: &GaugeGeometry) -> Result<()> {
         ..RunParams::DEFAULT
     };
     if let Err(field) = params.validate() {
-        let (lo, hi) = field.range();
         return Err(PlanError::InvalidArgument(format!(
-            "gauge {} is out of range (allowed {lo} to {hi}, and the holes must fit inside the spiral with the hole larger than the prong)",
-            field.name()
+            "{}; the holes must also fit inside the spiral, each larger than the prong",
+            field.out_of_range(params.value_of(field))
         )));
     }
     let a = start_radius_mm(g);
