@@ -71,6 +71,7 @@ pub enum CompensatedBy {
     /// This tool (`kerfmeter dilate`).
     Kerfmeter,
     /// LightBurn: its layers' Kerf Offsets (a `.lbrn2` project).
+    #[serde(rename = "lightburn")]
     LightBurn,
 }
 
@@ -113,8 +114,8 @@ impl fmt::Display for RangeUm {
 pub struct FoundCompensation {
     /// Who made it.
     pub by: CompensatedBy,
-    /// How far the drawn cuts already lie outside the parts, µm: boxes.py's burn, or this tool's
-    /// total offset.
+    /// How far the drawn cuts already lie outside the parts, µm: boxes.py's burn, this tool's
+    /// total offset, or the range of a LightBurn project's Kerf Offsets (negative inwards).
     pub offset_um: RangeUm,
     /// The kerf it was made for, µm (this tool's records).
     pub kerf_um: Option<RangeUm>,
