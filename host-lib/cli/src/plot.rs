@@ -116,8 +116,17 @@ where
 {
     let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
     area.fill(&WHITE).map_err(e)?;
-    let angles = span(curve.samples.iter().map(|s| s.angle_deg), 1.0, 0.05);
-    let torques = span(curve.samples.iter().map(|s| s.torque_nm), 0.05, 0.1);
+    // The jam's marker is inside the axes too.
+    let jam = result.map(|r| (r.angle_deg, r.torque_at_jam_nm));
+    let points = || {
+        curve
+            .samples
+            .iter()
+            .map(|s| (s.angle_deg, s.torque_nm))
+            .chain(jam)
+    };
+    let angles = span(points().map(|(angle, _)| angle), 1.0, 0.05);
+    let torques = span(points().map(|(_, torque)| torque), 0.05, 0.1);
     let title = match result {
         Some(r) => format!(
             "Run {}: kerf {:.1} µm at {:.1} N",

@@ -401,3 +401,23 @@ fn svg_outputs_are_byte_for_byte_what_they_were() {
         "many parts"
     );
 }
+
+/// The fuzz find whose control point lies kilometres out (it tripped cavalier_contours' own
+/// tolerance assert, which the build a user runs does not have): refused with a message, as
+/// the CLI refuses it.
+#[test]
+fn a_plan_with_a_control_point_kilometres_out_is_refused_not_dilated() {
+    let text =
+        std::fs::read_to_string(tests_dir().join("corpus/fuzz-regressions/far-control-point.svg"))
+            .unwrap();
+    let opts = SvgOptions {
+        assume_units: Some(AssumedUnits::Mm),
+        ..SvgOptions::default()
+    };
+    let e = dilate_svg(&text, &kerf(), &opts).unwrap_err();
+    assert!(
+        matches!(e, kerfmeter_plan::PlanError::CannotDilate(_)),
+        "{e}"
+    );
+    assert!(e.to_string().contains("narrower than the kerf"), "{e}");
+}

@@ -311,12 +311,8 @@ pub fn run_on(
             kerf: sim_kerf,
         }),
     };
-    let mut written = false;
-    let mut dilate = |kerf_um: f64| {
-        let gcode = setup.dilate_and_write(args, kerf_um)?;
-        written = true;
-        Ok(gcode)
-    };
+    let mut written = Vec::new();
+    let mut dilate = |kerf_um: f64| setup.dilate_and_write(args, kerf_um, &mut written);
     let mut measured = false;
     let report = run_job(devices, &request, &mut dilate, cancel, &mut |e| {
         measured |= matches!(e, JobEvent::Finished(Stage::Measure, _));
@@ -328,11 +324,11 @@ pub fn run_on(
             if measured {
                 record_after_failure(g, args, setup, session);
             }
-            if written {
+            if !written.is_empty() {
+                let files: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
                 eprintln!(
-                    "note: the dilated plan {} and its G-code {} were written before the job stopped: they are complete, but the plan was not cut (or not all of it)",
-                    args.output.display(),
-                    setup.gcode_out.display()
+                    "note: written before the job stopped, complete: {}; the plan was not cut (or not all of it)",
+                    files.join(" and ")
                 );
             }
             return Err(job_error(e));
@@ -518,10 +514,18 @@ impl Setup {
     }
 
     /// The loop's dilate stage: dilate, write the plan and the G-code, hand the G-code back.
-    fn dilate_and_write(&self, args: &JobArgs, kerf_um: f64) -> Result<String, String> {
+    /// Each file is named in `written` once it is.
+    fn dilate_and_write(
+        &self,
+        args: &JobArgs,
+        kerf_um: f64,
+        written: &mut Vec<PathBuf>,
+    ) -> Result<String, String> {
         let (bytes, gcode) = self.dilated(args, kerf_um).map_err(|e| e.to_string())?;
         write_atomically(&args.output, &bytes).map_err(|e| e.to_string())?;
+        written.push(args.output.clone());
         write_atomically(&self.gcode_out, gcode.as_bytes()).map_err(|e| e.to_string())?;
+        written.push(self.gcode_out.clone());
         Ok(gcode)
     }
 
