@@ -74,7 +74,7 @@ pub use messages::{
 };
 pub use params::{
     DeviceConfig, EncoderPlacement, GaugeGeometry, JamDirection, REFERENCE_SUPPLY_V, RunParams,
-    SUPPLY_MAX_V, SUPPLY_MIN_V,
+    SUPPLY_MAX_V, SUPPLY_MIN_V, WhyInvalid,
 };
 pub use report::{
     Conditions, Fault, KerfResult, QualityFlags, RunState, SAMPLES_PER_CHUNK, Sample, SampleChunk,

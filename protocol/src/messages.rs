@@ -411,6 +411,22 @@ mod tests {
         }
     }
 
+    #[test]
+    fn a_value_in_range_against_a_rule_is_said_as_that_rule() {
+        let mut params = RunParams::DEFAULT;
+        params.gauge.hole_radius_mm = params.gauge.prong_radius_mm - 0.1;
+        let field = params.validate().unwrap_err();
+        let mut s: heapless::String<300> = heapless::String::new();
+        core::fmt::write(&mut s, format_args!("{}", params.why_invalid(field))).unwrap();
+        assert!(s.contains("is smaller than the prong radius"), "{s}");
+        assert!(!s.contains("out of range"), "{s}");
+        params.gauge.hole_radius_mm = f32::NAN;
+        s.clear();
+        let field = params.validate().unwrap_err();
+        core::fmt::write(&mut s, format_args!("{}", params.why_invalid(field))).unwrap();
+        assert!(s.contains("= NaN mm is out of range"), "{s}");
+    }
+
     /// "lo to hi)" for a unitless field.
     fn lo_to_hi(lo: f32, hi: f32) -> heapless::String<40> {
         let mut s = heapless::String::new();

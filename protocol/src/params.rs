@@ -134,6 +134,16 @@ impl RunParams {
         })
     }
 
+    /// Why `field` (as [`validate`](Self::validate) returned it) is refused, as a message: out
+    /// of its range, or within it but against the rule that ties it to another field (a hole
+    /// smaller than its prong, holes outside the spiral).
+    pub fn why_invalid(&self, field: ParamField) -> WhyInvalid<'_> {
+        WhyInvalid {
+            params: self,
+            field,
+        }
+    }
+
     /// Check every field against its physically sensible range.
     ///
     /// Returns the first offending field. Ranges are deliberately generous (they reject nonsense and
@@ -164,6 +174,40 @@ impl RunParams {
         check(self.max_time_ms as f32, ParamField::MaxTimeMs)?;
         check(self.host_timeout_ms as f32, ParamField::HostTimeoutMs)?;
         Ok(())
+    }
+}
+
+/// Why a field of [`RunParams`] is refused ([`RunParams::why_invalid`]); `Display` says it.
+#[derive(Debug, Clone, Copy)]
+pub struct WhyInvalid<'a> {
+    params: &'a RunParams,
+    field: ParamField,
+}
+
+impl core::fmt::Display for WhyInvalid<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let value = self.params.value_of(self.field);
+        let (lo, hi) = self.field.range();
+        let g = &self.params.gauge;
+        match self.field {
+            _ if !value.is_some_and(|v| (lo..=hi).contains(&v)) => {
+                write!(f, "{}", self.field.out_of_range(value))
+            }
+            ParamField::HoleRadiusMm => write!(
+                f,
+                "the gauge's prong-hole radius (hole_radius_mm = {} mm) is smaller than the prong \
+                 radius (prong_radius_mm = {} mm): the prong would not enter its hole",
+                g.hole_radius_mm, g.prong_radius_mm
+            ),
+            ParamField::HoleDistanceMm => write!(
+                f,
+                "the prong holes (hole_distance_mm = {} mm from the centre, hole_radius_mm = {} mm) \
+                 must lie inside the spiral (radius_mm = {} mm) and farther from the centre than \
+                 a hole's play (hole − prong radius)",
+                g.hole_distance_mm, g.hole_radius_mm, g.radius_mm
+            ),
+            _ => write!(f, "{}", self.field.out_of_range(value)),
+        }
     }
 }
 

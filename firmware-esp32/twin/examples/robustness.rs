@@ -466,10 +466,12 @@ fn scale_name(spec: &kerfmeter_twin::plant::ParamSpec) -> &'static str {
 }
 
 /// The parameters drawn log-uniformly.
-fn log_uniform_names() -> Vec<&'static str> {
+/// The parameters drawn log-uniformly (held ones are not drawn).
+fn log_uniform_names(args: &Args) -> Vec<&'static str> {
     PARAMS
         .iter()
         .filter(|spec| scale(spec) == Scale::LogUniform)
+        .filter(|spec| !args.held.iter().any(|(name, _)| name == spec.name))
         .map(|spec| spec.name)
         .collect()
 }
@@ -507,7 +509,7 @@ fn print_sweep(args: &Args, summary: &Summary, listed: &Listed) {
     println!("held at one value: {}", held_text(args));
     println!(
         "drawn log-uniformly (range over 10×): {}; every other parameter uniformly",
-        log_uniform_names().join(", ")
+        log_uniform_names(args).join(", ")
     );
     println!(
         "success: {readings}/{} readings ({:.1} %): {} correct, {} flagged, {} unflagged wrong (|error| > {} µm, no flag)",
@@ -627,7 +629,7 @@ fn sweep_json(args: &Args, summary: &Summary, listed: &Listed) -> Value {
         "held": args.held.iter().map(|(name, value)| (name.clone(), json!(value))).collect::<serde_json::Map<_, _>>(),
         "force_n": args.force_n,
         "tolerance_um": args.tolerance_um,
-        "log_uniform_params": log_uniform_names(),
+        "log_uniform_params": log_uniform_names(args),
         "readings": summary.readings(),
         "success_rate": summary.readings() as f64 / summary.draws.max(1) as f64,
         "classes": classes,

@@ -83,18 +83,12 @@ pub fn check(params: &RunParams) -> Result<()> {
         .map_err(|field| Error::InvalidArgument(describe_invalid(params, field)))
 }
 
-/// A sentence saying which value is out of which range.
+/// A sentence saying which value is refused and why (out of its range, or against a rule that
+/// ties it to another field); the contact area says what it is made of.
 pub fn describe_invalid(params: &RunParams, field: ParamField) -> String {
-    let mut message = field.out_of_range(params.value_of(field)).to_string();
-    match field {
-        ParamField::ContactAreaMm2 => {
-            message.push_str("; it is fingers × 2 × thickness × finger length")
-        }
-        ParamField::HoleRadiusMm => message.push_str("; the hole must also be larger than the prong"),
-        ParamField::HoleDistanceMm => message.push_str(
-            "; the prong holes must also lie inside the spiral (distance + hole radius < spiral radius)",
-        ),
-        _ => {}
+    let mut message = params.why_invalid(field).to_string();
+    if field == ParamField::ContactAreaMm2 {
+        message.push_str("; it is fingers × 2 × thickness × finger length");
     }
     message
 }

@@ -121,8 +121,8 @@ pub fn check_geometry(g: &GaugeGeometry) -> Result<()> {
     };
     if let Err(field) = params.validate() {
         return Err(PlanError::InvalidArgument(format!(
-            "{}; the holes must also fit inside the spiral, each larger than the prong",
-            field.out_of_range(params.value_of(field))
+            "gauge: {}",
+            params.why_invalid(field)
         )));
     }
     let a = start_radius_mm(g);
