@@ -323,3 +323,75 @@ fn a_gcode_out_over_the_plan_or_in_a_missing_directory_is_refused_before_anythin
     }
     assert!(!out_svg.exists());
 }
+
+/// `kerfmeter-twin` with `args`, and the first line it prints (its port or cutter URL).
+fn twin(args: &[&str]) -> (std::process::Child, String) {
+    use std::io::BufRead;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kerfmeter-twin"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("the kerfmeter-twin binary runs");
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    (child, line.trim().to_owned())
+}
+
+/// G-code lines a controller counts (neither blank, nor a comment, nor a `$` command).
+fn gcode_lines(program: &str) -> usize {
+    program
+        .lines()
+        .map(str::trim)
+        .filter(|l| {
+            !l.is_empty() && !l.starts_with(';') && !l.starts_with('(') && !l.starts_with('$')
+        })
+        .count()
+}
+
+#[test]
+fn a_job_stopped_while_streaming_says_which_complete_files_it_wrote() {
+    let (dir, plan) = plate_plan();
+    let out_svg = dir.path().join("out.svg");
+    let base = ["job", path(&plan), "-o", path(&out_svg)];
+    // The controller counts every G-code line since boot. Each stage's program, with the closing
+    // line the sender adds, goes through once in check mode ($C) and once for real: the job's
+    // real lines come after the other stages' (twice each) and the job's own check pass. Refuse
+    // the one half-way through them.
+    let dry_run = [
+        &["--json"][..],
+        &base[..],
+        &["--cutter", "sim", "--dry-run"],
+    ]
+    .concat();
+    let dry = kerfmeter(&dry_run);
+    assert_eq!(code(&dry), 0, "{}", stderr(&dry));
+    let dry: serde_json::Value = serde_json::from_str(&stdout(&dry)).unwrap();
+    let sent = |s: &serde_json::Value| gcode_lines(s["gcode"].as_str().unwrap()) + 1;
+    let stages = dry["stages"].as_array().unwrap();
+    let (job, others): (Vec<_>, Vec<_>) = stages.iter().partition(|s| s["stage"] == "stream-job");
+    let job_lines = sent(job[0]);
+    let before_job: usize = others.iter().map(|s| 2 * sent(s)).sum::<usize>() + job_lines;
+    let refused_line = (before_job + job_lines / 2).to_string();
+    let (mut device, port) = twin(&[]);
+    let (mut cutter, url) = twin(&[
+        "--cutter",
+        "--tcp",
+        "0",
+        "--cutter-error-on-line",
+        &refused_line,
+    ]);
+    let out = kerfmeter(&[&["--port", &port][..], &base[..], &["--cutter", &url]].concat());
+    let _ = (device.kill(), cutter.kill(), device.wait(), cutter.wait());
+    assert_ne!(code(&out), 0, "{}", stderr(&out));
+    let message = stderr(&out);
+    assert!(
+        message.contains("note: written before the job stopped, complete:")
+            && message.contains("out.svg and ")
+            && message.contains("out.gcode"),
+        "{message}"
+    );
+    assert!(out_svg.exists() && dir.path().join("out.gcode").exists());
+}

@@ -68,6 +68,10 @@ struct Args {
     /// nothing until spoken to).
     #[arg(long, requires = "tcp")]
     cutter_no_greeting: bool,
+    /// Cutter twin: answer the Nth G-code line since boot (1 = the first) with GRBL's
+    /// `error:20` (unsupported command), as a controller refusing a line mid-job does.
+    #[arg(long, value_name = "N", requires = "cutter", value_parser = clap::value_parser!(u32).range(1..))]
+    cutter_error_on_line: Option<u32>,
 }
 
 fn main() -> ExitCode {
@@ -135,6 +139,7 @@ fn serve_cutter(args: &Args) -> ExitCode {
     let options = CutterOptions {
         laser_mode: !args.cutter_no_laser_mode,
         boot_in_alarm: args.cutter_alarm,
+        error_on_line: args.cutter_error_on_line.map(|line| (line, 20)),
         ..CutterOptions::default()
     };
     let pace = if args.realtime {
