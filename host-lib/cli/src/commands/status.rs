@@ -35,12 +35,17 @@ pub struct StatusReport {
     /// The device's conditions, for the text's sentences.
     #[serde(skip)]
     raw: Status,
+    /// The device is the simulated one, whose steps take no time (the text says so).
+    #[serde(skip)]
+    simulated: bool,
 }
 
 /// Ask the device for its status.
 pub fn run(g: &Global) -> Result<StatusReport, CliError> {
-    let status = g.connect()?.meter.status()?;
-    Ok(StatusReport::from(status))
+    let mut session = g.connect()?;
+    let mut report = StatusReport::from(session.meter.status()?);
+    report.simulated = session.sim.is_some();
+    Ok(report)
 }
 
 impl From<Status> for StatusReport {
@@ -60,6 +65,7 @@ impl From<Status> for StatusReport {
             torque_nm: s.torque_nm,
             angle_deg: s.angle_deg,
             raw: s,
+            simulated: false,
         }
     }
 }
@@ -104,7 +110,12 @@ impl fmt::Display for StatusReport {
             Some(v) => writeln!(f, "supply:       {v:.2} V")?,
             None => writeln!(f, "supply:       not measured")?,
         }
-        writeln!(f, "longest step: {} µs", self.longest_step_us)?;
+        let unmodelled = if self.simulated && self.longest_step_us == 0 {
+            " (the simulated device does not model a step's duration; a board measures it)"
+        } else {
+            ""
+        };
+        writeln!(f, "longest step: {} µs{unmodelled}", self.longest_step_us)?;
         writeln!(f, "longest gap:  {} µs", self.longest_gap_us)?;
         writeln!(f, "run id:       {}", self.run_id)?;
         write!(
