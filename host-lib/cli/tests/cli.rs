@@ -392,6 +392,16 @@ fn gauge_writes_the_paper_gauge_and_refuses_a_test_piece_without_its_kerf() {
     let out = kerfmeter(&["gauge", "-o", path(&dxf), "--test-piece"]);
     assert_eq!(code(&out), 2);
     assert!(!dxf.exists());
+    // A name it cannot draw says every format it can, G-code included.
+    let txt = dir.path().join("gauge.txt");
+    let out = kerfmeter(&["gauge", "-o", path(&txt)]);
+    assert_eq!(code(&out), 2);
+    assert!(
+        stderr(&out).contains(".svg, .dxf or a G-code extension (.gcode"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!txt.exists());
 }
 
 #[test]

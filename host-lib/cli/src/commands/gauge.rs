@@ -19,7 +19,7 @@ use kerfmeter_plan::{PlanError, PlanFormat};
 use kerfmeter_protocol::{GaugeGeometry, JamDirection};
 use serde::Serialize;
 
-use super::gcode::{CutArgs, is_gcode, parse_xy};
+use super::gcode::{CutArgs, GCODE_EXTENSIONS, is_gcode, parse_xy};
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
 
@@ -295,7 +295,14 @@ pub fn draw(args: &GaugeArgs) -> Result<(Vec<u8>, GaugeReport)> {
             )
             .into());
         }
-        match PlanFormat::of(&args.output)? {
+        let format = PlanFormat::of(&args.output).map_err(|_| {
+            PlanError::InvalidArgument(format!(
+                "{}: the gauge's file name must end in .svg, .dxf or a G-code extension ({})",
+                args.output.display(),
+                GCODE_EXTENSIONS.map(|e| format!(".{e}")).join(", ")
+            ))
+        })?;
+        match format {
             PlanFormat::Svg => (GaugeFormat::Svg, gauge::to_svg(&drawing).into_bytes(), None),
             PlanFormat::Dxf => (GaugeFormat::Dxf, gauge::to_dxf(&drawing)?, None),
         }

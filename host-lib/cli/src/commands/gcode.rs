@@ -26,7 +26,7 @@ use crate::progress::plan_progress;
 type Result<T, E = CliError> = std::result::Result<T, E>;
 
 /// Extensions of G-code files.
-const GCODE_EXTENSIONS: [&str; 4] = ["gcode", "nc", "ngc", "gc"];
+pub const GCODE_EXTENSIONS: [&str; 4] = ["gcode", "nc", "ngc", "gc"];
 
 /// Whether `path` names a G-code file (by its extension).
 pub fn is_gcode(path: &Path) -> bool {
