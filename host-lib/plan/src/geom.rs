@@ -339,6 +339,13 @@ fn biarc(p0: V2, t0: V2, p1: V2, t1: V2) -> Option<(V2, f64, f64)> {
     ))
 }
 
+/// How many times a curve is halved at most while fitting: 65,536 biarc pairs, far more than
+/// any drawn curve needs at the tolerances used.
+const MAX_FIT_DEPTH: u32 = 16;
+/// Beyond this distance from the origin (drawing units, mm for the readers) a curve is not
+/// refined: no plan is that large, and f64 cannot hold such a curve to a µm.
+const FIT_LIMIT: f64 = 1e7;
+
 /// Approximate the curve `f` (position and tangent at a parameter) between `t0` and `t1` by
 /// biarcs within `tol`, appending vertices (each with the bulge of the arc that leaves it) to
 /// `out`. The end point `f(t1)` itself is *not* appended. Returns the largest deviation seen.
@@ -395,7 +402,11 @@ where
             (s.to_vec(), e)
         }
     };
-    if error <= tol || depth >= 24 || (t1 - t0).abs() < 1e-12 {
+    // A curve kilometres out (a hostile file's circle of radius 1e25 through a skewing INSERT)
+    // never meets the tolerance in f64: it is left coarse, and refused later for its
+    // coordinates, instead of being split 2^24 ways (gigabytes and minutes: a fuzz find).
+    let far = |p: V2| !(p.x.abs() <= FIT_LIMIT && p.y.abs() <= FIT_LIMIT);
+    if error <= tol || depth >= MAX_FIT_DEPTH || far(p0) || far(p1) || (t1 - t0).abs() < 1e-12 {
         for (a, _, bulge) in segments {
             out.push(PlineVertex::new(a.x, a.y, bulge));
         }
