@@ -187,10 +187,9 @@ pub struct WhyInvalid<'a> {
 impl core::fmt::Display for WhyInvalid<'_> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         let value = self.params.value_of(self.field);
-        let (lo, hi) = self.field.range();
         let g = &self.params.gauge;
         match self.field {
-            _ if !value.is_some_and(|v| (lo..=hi).contains(&v)) => {
+            _ if value.is_none_or(|v| check(v, self.field).is_err()) => {
                 write!(f, "{}", self.field.out_of_range(value))
             }
             ParamField::HoleRadiusMm => write!(

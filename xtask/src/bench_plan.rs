@@ -273,11 +273,11 @@ fn print_targets(rows: &[Row]) {
     };
     // Each step's time ratio taken to 4× the parts (t^(ln 4 / ln p)): the sizes may grow by
     // other factors than 4.
-    let per_4x: Vec<f64> = growths(rows)
+    let worst_per_4x = growths(rows)
         .into_iter()
         .map(|(time, parts)| time.powf(4f64.ln() / parts.ln()))
-        .collect();
-    let growth = match per_4x.iter().copied().reduce(f64::max) {
+        .reduce(f64::max);
+    let growth = match worst_per_4x {
         Some(worst) => format!("{}: at most {worst:.2}× per 4×", verdict(worst <= 5.0)),
         None => "not judged: one size only".to_owned(),
     };

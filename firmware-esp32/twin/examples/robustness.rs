@@ -155,9 +155,14 @@ fn run_sweep(args: &Args, sweep: &Sweep) -> bool {
     summary.all_ended_safely() && !(args.strict && unflagged_wrong > 0)
 }
 
+/// Whether `--set` holds the parameter.
+fn is_held(args: &Args, spec: &ParamSpec) -> bool {
+    args.held.iter().any(|(name, _)| name == spec.name)
+}
+
 /// How a parameter came by its value: held by `--set`, or drawn (how, from what range).
 fn how_set(args: &Args, spec: &ParamSpec) -> String {
-    if args.held.iter().any(|(name, _)| name == spec.name) {
+    if is_held(args, spec) {
         return "held by --set".to_owned();
     }
     format!("drawn {} in {}..={}", scale_name(spec), spec.min, spec.max)
@@ -465,13 +470,12 @@ fn scale_name(spec: &kerfmeter_twin::plant::ParamSpec) -> &'static str {
     }
 }
 
-/// The parameters drawn log-uniformly.
 /// The parameters drawn log-uniformly (held ones are not drawn).
 fn log_uniform_names(args: &Args) -> Vec<&'static str> {
     PARAMS
         .iter()
         .filter(|spec| scale(spec) == Scale::LogUniform)
-        .filter(|spec| !args.held.iter().any(|(name, _)| name == spec.name))
+        .filter(|spec| !is_held(args, spec))
         .map(|spec| spec.name)
         .collect()
 }
