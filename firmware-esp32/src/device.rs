@@ -174,6 +174,7 @@ impl<S: ConfigPersist> Handler for Device<S> {
             Request::GetConfig => self.config_report(),
             Request::SetConfig(config) => self.set_config(config),
             Request::GetSelfTest => Response::SelfTest(controller.self_test_report().copied()),
+            Request::ConfirmHubAtZero => started(controller.confirm_hub_at_zero()),
         }
     }
 }
@@ -264,6 +265,7 @@ mod tests {
             Request::GetConfig,
             Request::SetConfig(DeviceConfig::DEFAULT),
             Request::GetSelfTest,
+            Request::ConfirmHubAtZero,
         ];
         for r in &requests {
             let answer = d.handle(r);

@@ -14,7 +14,8 @@
 //!    from now on.
 //!
 //! Changes of the encoder's own settings ([`EncoderSettings`]: zero, placement, gear ratio,
-//! sense) reach the encoder driver here, and only those restart its turn counting: any other
+//! sense) reach the encoder driver here, and only those, and a hub turn the user has confirmed
+//! (`Controller::encoder_epoch`), restart its turn counting: any other
 //! configuration change (current limit, torque constant, ...) leaves the count alone, so that a
 //! hub standing away from zero (in `Done`) keeps its true angle. The controller accepts a change of
 //! a motor-shaft encoder's settings only with the hub at zero (see `Controller::set_config`),
@@ -49,8 +50,9 @@ where
     pub motor: G2Motor<PWM, DIR, SLP, FLT>,
     diagnostics_countdown: u32,
     motor_error: bool,
-    /// The encoder settings last given to the driver.
-    applied: Option<EncoderSettings>,
+    /// The encoder settings last given to the driver, and the controller's encoder epoch then
+    /// (a confirmed hub turn restarts the count too).
+    applied: Option<(EncoderSettings, u16)>,
     /// The motor current from the current-sense readings and the duties applied.
     current: MotorCurrent,
 }
@@ -88,9 +90,13 @@ where
         supply_v: Option<f32>,
         device: &mut Device<S>,
     ) -> MotorOutput {
-        let settings = EncoderSettings::from_config(device.controller().config());
+        let controller = device.controller();
+        let settings = (
+            EncoderSettings::from_config(controller.config()),
+            controller.encoder_epoch(),
+        );
         if self.applied != Some(settings) {
-            self.encoder.set_settings(settings);
+            self.encoder.set_settings(settings.0);
             self.applied = Some(settings);
         }
         let angle_deg = self.encoder.read_hub_deg().map_err(|e| match e {

@@ -108,7 +108,11 @@ pub use report::{
 ///   [`QualityFlags::ADVISORY`]) marks a result read with the model's play instead, and
 ///   `GetKerf` answers only once a run has ended (the back-off completes the result). Every
 ///   2.3 frame keeps its bytes.
-pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 4 };
+/// - 2.5 (minor, additive): [`Conditions::HUB_TURN_UNKNOWN`] (a new bit, 5, blocking a run
+///   only: [`Conditions::BLOCKING_RUN`]) stands after power-up with the encoder on the motor
+///   shaft until [`Request::ConfirmHubAtZero`] (appended) says the hub is at its zero mark. An
+///   older device answers that request `UnknownRequest`; every 2.4 frame keeps its bytes.
+pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 5 };
 
 /// USB vendor id of the ESP32-C3/C6 USB-Serial-JTAG port (Espressif).
 pub const USB_VID_ESPRESSIF: u16 = 0x303A;

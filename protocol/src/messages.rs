@@ -50,6 +50,13 @@ pub enum Request {
     SetConfig(DeviceConfig),
     /// The last self-test's report (`None` before the first, or while one runs).
     GetSelfTest,
+    /// The user says the hub stands at its zero mark, within half a motor turn (protocol 2.5).
+    /// With the encoder on the motor shaft the device cannot tell after power-up which motor turn
+    /// the hub is on ([`Conditions::HUB_TURN_UNKNOWN`]); this restarts the encoder's turn count
+    /// on the motor turn nearest the zero and clears that condition (a `Reset` then brings the
+    /// hub to zero exactly). Answered `Ok`; refused while the motor may be driven (`Busy`). With
+    /// the encoder on the output shaft there is nothing to confirm: `Ok`, nothing changes.
+    ConfirmHubAtZero,
 }
 
 /// What the device answers.

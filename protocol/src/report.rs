@@ -128,7 +128,7 @@ impl core::fmt::Debug for Conditions {
             write!(f, "{sep}{name}")?;
             sep = "|";
         }
-        let unknown = self.0 & !Self::BLOCKING.0;
+        let unknown = self.0 & !Self::BLOCKING_RUN.0;
         if unknown != 0 {
             write!(f, "{sep}{unknown:#x}")?;
         }
@@ -159,14 +159,24 @@ impl Conditions {
     pub const SUPPLY_OUT_OF_RANGE: Self = Self(1 << 4);
     /// Every condition above blocks a run, a reset and a self-test.
     pub const BLOCKING: Self = Self(0b1_1111);
+    /// The encoder is on the motor shaft and the device cannot tell which motor turn the hub is
+    /// on (protocol 2.5): set at power-up, as the encoder fixes the hub only modulo one motor turn
+    /// (360°/gear ratio of hub angle) and its count may then take the wrong one, which would
+    /// align the prongs a motor turn away from the gauge's holes. Blocks a run only (a reset
+    /// turns the hub to the nearest zero of the count, a self-test needs no zero) until the user
+    /// has turned the hub to its zero mark and sent [`Request::ConfirmHubAtZero`](crate::Request).
+    pub const HUB_TURN_UNKNOWN: Self = Self(1 << 5);
+    /// What blocks a run: every [`Conditions::BLOCKING`] one and [`Conditions::HUB_TURN_UNKNOWN`].
+    pub const BLOCKING_RUN: Self = Self::BLOCKING.union(Self::HUB_TURN_UNKNOWN);
 
     /// Names of the conditions, for messages and JSON.
-    pub const NAMES: [(Self, &'static str); 5] = [
+    pub const NAMES: [(Self, &'static str); 6] = [
         (Self::NO_MAGNET, "no-magnet"),
         (Self::ENCODER_DIAGNOSTICS, "encoder-diagnostics"),
         (Self::ENCODER_UNREADABLE, "encoder-unreadable"),
         (Self::DRIVER_FAULT, "driver-fault"),
         (Self::SUPPLY_OUT_OF_RANGE, "supply-out-of-range"),
+        (Self::HUB_TURN_UNKNOWN, "hub-turn-unknown"),
     ];
 
     /// No condition.
@@ -432,10 +442,13 @@ mod tests {
         let c = Conditions::NO_MAGNET.union(Conditions::DRIVER_FAULT);
         assert_eq!(format!("{c:?}"), "Conditions(no-magnet|driver-fault)");
         assert_eq!(format!("{:?}", Conditions::empty()), "Conditions()");
-        assert_eq!(format!("{:?}", Conditions(0x60)), "Conditions(0x60)");
         assert_eq!(
-            format!("{:?}", Conditions(0x30)),
-            "Conditions(supply-out-of-range|0x20)"
+            format!("{:?}", Conditions(0x60)),
+            "Conditions(hub-turn-unknown|0x40)"
+        );
+        assert_eq!(
+            format!("{:?}", Conditions(0x50)),
+            "Conditions(supply-out-of-range|0x40)"
         );
     }
 }

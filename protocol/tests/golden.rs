@@ -6,7 +6,9 @@
 //! Protocol 2.1 only added: `ErrorCode::SupplyTooLow`, the `SUPPLY_OUT_OF_RANGE` condition and
 //! the `SUPPLY_LIMITED` flag (new frames below; every older frame's bytes stand). Protocol 2.2
 //! only added the `TORQUE_MISMATCH` flag, bit 8 (its frame below); protocol 2.3 only the
-//! `FORCE_SENSITIVE` flag, bit 9 (its frame below). Each golden frame is also
+//! `FORCE_SENSITIVE` flag, bit 9 (its frame below); protocol 2.4 only a flag's meaning; protocol
+//! 2.5 only the `HUB_TURN_UNKNOWN` condition and the `ConfirmHubAtZero` request (its frame
+//! below). Each golden frame is also
 //! mutated byte by byte: no mutation may be accepted.
 
 mod common;
@@ -72,6 +74,14 @@ fn golden_requests() -> Vec<(&'static str, Envelope<Request>)> {
             Envelope {
                 seq: 65535,
                 body: Request::SetConfig(DeviceConfig::DEFAULT),
+            },
+        ),
+        // Protocol 2.5: appended.
+        (
+            "0005070c238800",
+            Envelope {
+                seq: 7,
+                body: Request::ConfirmHubAtZero,
             },
         ),
     ]

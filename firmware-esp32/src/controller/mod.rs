@@ -130,8 +130,8 @@
 //! a run (see `supply.rs`).
 
 use kerfmeter_protocol::{
-    Conditions, DeviceConfig, ErrorCode, Fault, JamDirection, KerfResult, RunParams, RunState,
-    Sample, SampleChunk, SelfTestReport, Status,
+    Conditions, DeviceConfig, EncoderPlacement, ErrorCode, Fault, JamDirection, KerfResult,
+    RunParams, RunState, Sample, SampleChunk, SelfTestReport, Status,
 };
 
 use crate::as5048a::{COUNTS_PER_TURN, DiagnosticFault};
@@ -317,6 +317,9 @@ pub struct Controller {
     last_diagnostics: Option<DiagnosticsReading>,
     /// The idle conditions as of the last tick (see [`Controller::conditions`]).
     conditions: Conditions,
+    /// Moved on by `ConfirmHubAtZero`: the encoder driver restarts its turn count when it
+    /// changes ([`Controller::encoder_epoch`]).
+    encoder_epoch: u16,
     /// The motor supply, filtered, and the duty scale it gives (the winding's factor included).
     supply: SupplyFilter,
     /// The winding's resistance over the calibration's, from the current at the jams.
@@ -333,8 +336,12 @@ pub struct Controller {
 }
 
 impl Controller {
-    /// A controller in `Idle`, motor safe.
+    /// A controller in `Idle`, motor safe; with the encoder on the motor shaft, its hub's turn
+    /// unknown until confirmed ([`Conditions::HUB_TURN_UNKNOWN`], `reset.rs`).
     pub fn new(config: DeviceConfig) -> Self {
+        let motor_shaft = config.encoder_placement == EncoderPlacement::MotorShaft;
+        let mut conditions = Conditions::empty();
+        conditions.set(Conditions::HUB_TURN_UNKNOWN, motor_shaft);
         Self {
             config,
             state: State::Idle,
@@ -351,7 +358,8 @@ impl Controller {
             motion: Motion::new(),
             consecutive_encoder_errors: 0,
             last_diagnostics: None,
-            conditions: Conditions::empty(),
+            conditions,
+            encoder_epoch: 0,
             supply: SupplyFilter::new(),
             winding: WindingEstimate::new(),
             applied_duty: 0.0,
@@ -376,6 +384,10 @@ impl Controller {
             return Err(ErrorCode::Busy);
         }
         self.check_config_change(&config)?;
+        if config.encoder_placement == EncoderPlacement::OutputShaft {
+            // Absolute over the hub's turn: nothing to confirm.
+            self.conditions.set(Conditions::HUB_TURN_UNKNOWN, false);
+        }
         self.config = config;
         Ok(())
     }
@@ -517,18 +529,19 @@ impl Controller {
     }
 
     /// Refuses with `Faulted` or `Busy` unless the motor is at rest with no fault latched, and
-    /// with `Blocked` while a blocking idle condition stands.
-    fn refuse_unless_ready(&self) -> Result<(), ErrorCode> {
+    /// with `Blocked` while one of the `blocking` idle conditions stands.
+    fn refuse_unless_ready(&self, blocking: Conditions) -> Result<(), ErrorCode> {
         match self.state {
             State::Fault(f) => Err(ErrorCode::Faulted(f)),
-            State::Idle | State::Done => self.refuse_if_blocked(),
+            State::Idle | State::Done => self.refuse_if_blocked(blocking),
             _ => Err(ErrorCode::Busy),
         }
     }
 
-    /// Refuses with `Blocked` while a blocking idle condition stands.
-    fn refuse_if_blocked(&self) -> Result<(), ErrorCode> {
-        let blocking = self.conditions.intersection(Conditions::BLOCKING);
+    /// Refuses with `Blocked` while one of the `blocking` idle conditions stands
+    /// ([`Conditions::BLOCKING`], or [`Conditions::BLOCKING_RUN`] for a run).
+    fn refuse_if_blocked(&self, blocking: Conditions) -> Result<(), ErrorCode> {
+        let blocking = self.conditions.intersection(blocking);
         if blocking.is_empty() {
             Ok(())
         } else {
@@ -639,8 +652,8 @@ impl Controller {
     /// One encoder LSB as hub angle, degrees.
     fn lsb_deg(&self) -> f32 {
         let turns_per_hub_turn = match self.config.encoder_placement {
-            kerfmeter_protocol::EncoderPlacement::OutputShaft => 1.0,
-            kerfmeter_protocol::EncoderPlacement::MotorShaft => self.config.gear_ratio,
+            EncoderPlacement::OutputShaft => 1.0,
+            EncoderPlacement::MotorShaft => self.config.gear_ratio,
         };
         360.0 / f32::from(COUNTS_PER_TURN) / turns_per_hub_turn
     }

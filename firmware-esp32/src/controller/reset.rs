@@ -1,9 +1,24 @@
 //! Reset: drive the hub back to its zero position (prongs aligned for the next gauge), clearing
 //! the last result and any latched fault; `ResetFailed` when the hub does not get there in time.
-//! Also the rule that keeps the zero true across configuration changes (a motor-shaft encoder's
-//! settings change only at zero).
+//! Also what keeps a motor-shaft encoder's zero true: its settings change only at zero, and
+//! after power-up a run waits for the user to confirm the hub's turn.
+//!
+//! # The hub's turn with the encoder on the motor shaft
+//!
+//! Such an encoder sees the hub only modulo one motor turn (360°/gear ratio of hub angle: 17° at
+//! the reference 21:1), and its turn count starts at power-up on the motor turn nearest the
+//! zero. A hub switched off away from zero (mid-run, in `Done`, turned by hand) then comes up a
+//! whole number of motor turns out: a reset would align the prongs that far from the gauge's
+//! holes, and a run would read the offset as kerf. No sensor on the device can tell which turn
+//! it is, so it does not guess: from power-up [`Conditions::HUB_TURN_UNKNOWN`] stands and
+//! refuses a run (not a reset or a self-test) until the user has turned the hub to its zero
+//! mark, within half a motor turn, and sent `ConfirmHubAtZero`
+//! ([`Controller::confirm_hub_at_zero`]), which restarts the count there. An output-shaft
+//! encoder is absolute over the hub's turn and needs none of this.
 
-use kerfmeter_protocol::{DeviceConfig, EncoderPlacement, ErrorCode, Fault, START_TOLERANCE_DEG};
+use kerfmeter_protocol::{
+    Conditions, DeviceConfig, EncoderPlacement, ErrorCode, Fault, START_TOLERANCE_DEG,
+};
 
 use crate::as5048a::EncoderSettings;
 
@@ -40,13 +55,38 @@ impl Controller {
         }
     }
 
+    /// The user says the hub stands at its zero mark, within half a motor turn
+    /// (`ConfirmHubAtZero`; see the module docs): with the encoder on the motor shaft its turn
+    /// count restarts at the next tick on the motor turn nearest the zero
+    /// ([`Controller::encoder_epoch`]) and [`Conditions::HUB_TURN_UNKNOWN`] is cleared; until that
+    /// tick has read the hub again a run is refused as `NotAtZero`. On the output shaft nothing
+    /// changes. Refused (`Busy`) while the motor may be driven.
+    pub fn confirm_hub_at_zero(&mut self) -> Result<(), ErrorCode> {
+        if self.is_active() {
+            return Err(ErrorCode::Busy);
+        }
+        if self.config.encoder_placement == EncoderPlacement::MotorShaft {
+            self.encoder_epoch = self.encoder_epoch.wrapping_add(1);
+            self.have_angle = false;
+            self.conditions.set(Conditions::HUB_TURN_UNKNOWN, false);
+        }
+        Ok(())
+    }
+
+    /// How many times the user has confirmed the hub's turn since boot (wrapping): the encoder
+    /// driver restarts its turn count when this changes, as it does for a change of its settings
+    /// (`hardware.rs`).
+    pub fn encoder_epoch(&self) -> u16 {
+        self.encoder_epoch
+    }
+
     /// Start driving the hub back to zero (`Reset`): clears the last result and leaves a latched
     /// fault. Refused (`Busy`) while a run, reset or self-test is in progress, and (`Blocked`)
     /// while a blocking idle condition stands.
     pub fn start_reset(&mut self) -> Result<(), ErrorCode> {
         match self.state {
             State::Idle | State::Done | State::Fault(_) => {
-                self.refuse_if_blocked()?;
+                self.refuse_if_blocked(Conditions::BLOCKING)?;
                 self.result = None;
                 self.consecutive_encoder_errors = 0;
                 self.torque_nm = 0.0;

@@ -31,8 +31,8 @@
 //! the host reads the sweep at other forces with it.
 
 use kerfmeter_protocol::{
-    EncoderPlacement, ErrorCode, KerfResult, QualityFlags, REFERENCE_SUPPLY_V, RunParams,
-    START_TOLERANCE_DEG, Sample,
+    Conditions, EncoderPlacement, ErrorCode, KerfResult, QualityFlags, REFERENCE_SUPPLY_V,
+    RunParams, START_TOLERANCE_DEG, Sample,
 };
 
 use super::supply::{millivolts, needed_supply_v};
@@ -214,7 +214,7 @@ impl Controller {
     /// samples as they were; one refused as not at zero has already switched the jam frame to the
     /// new gauge's sense.
     pub fn start_run(&mut self, params: &RunParams) -> Result<(), ErrorCode> {
-        self.refuse_unless_ready()?;
+        self.refuse_unless_ready(Conditions::BLOCKING_RUN)?;
         params.validate().map_err(ErrorCode::InvalidParam)?;
         self.check_supply_for(params)?;
         // The gauge's sense defines the jam frame: re-express the angle in the new one.

@@ -23,7 +23,7 @@
 //! 1 mV of noise; the `sense_study` example).
 
 use kerfmeter_protocol::{
-    ErrorCode, REFERENCE_SUPPLY_V, SelfTestItem, SelfTestReport, TestOutcome,
+    Conditions, ErrorCode, REFERENCE_SUPPLY_V, SelfTestItem, SelfTestReport, TestOutcome,
 };
 
 use super::winding::PLAUSIBLE_FACTOR;
@@ -89,7 +89,7 @@ impl Controller {
     /// while a run, reset or self-test is in progress (`Busy`) and with a fault latched
     /// (`Faulted`).
     pub fn start_self_test(&mut self) -> Result<(), ErrorCode> {
-        self.refuse_unless_ready()?;
+        self.refuse_unless_ready(Conditions::BLOCKING)?;
         self.self_test = None;
         self.self_test_partial = NOT_RUN;
         self.torque_nm = 0.0;

@@ -974,6 +974,51 @@ fn a_motor_shaft_encoder_setting_changes_only_at_zero() {
 }
 
 #[test]
+fn a_motor_shaft_encoder_blocks_runs_from_power_up_until_the_hub_is_confirmed() {
+    let motor_shaft = DeviceConfig {
+        encoder_placement: EncoderPlacement::MotorShaft,
+        ..DeviceConfig::DEFAULT
+    };
+    let mut s = Script::new();
+    s.c = Controller::new(motor_shaft);
+    s.tick();
+    let unknown = Conditions::HUB_TURN_UNKNOWN;
+    assert_eq!(s.c.conditions(), unknown);
+    assert_eq!(
+        s.host().start_run(&RunParams::DEFAULT),
+        Err(ErrorCode::Blocked(unknown))
+    );
+    // A reset and a self-test need no known turn.
+    assert_eq!(s.host().start_reset(), Ok(()));
+    s.host().abort();
+    // Confirmed: the encoder's count restarts (a new epoch) and, once the hub has been read
+    // again, a run may start.
+    let epoch = s.c.encoder_epoch();
+    assert_eq!(s.host().confirm_hub_at_zero(), Ok(()));
+    assert_eq!(s.c.encoder_epoch(), epoch.wrapping_add(1));
+    assert!(s.c.conditions().is_empty());
+    assert_eq!(
+        s.host().start_run(&RunParams::DEFAULT),
+        Err(ErrorCode::NotAtZero)
+    );
+    s.tick();
+    assert_eq!(s.host().start_run(&RunParams::DEFAULT), Ok(()));
+    // Not while the motor may be driven.
+    assert_eq!(s.host().confirm_hub_at_zero(), Err(ErrorCode::Busy));
+    // An output-shaft encoder: nothing to confirm, at boot or after a change to it.
+    assert!(
+        Controller::new(DeviceConfig::DEFAULT)
+            .conditions()
+            .is_empty()
+    );
+    let mut c = Controller::new(motor_shaft);
+    assert_eq!(c.set_config(DeviceConfig::DEFAULT), Ok(()));
+    assert!(c.conditions().is_empty());
+    assert_eq!(c.confirm_hub_at_zero(), Ok(()));
+    assert_eq!(c.encoder_epoch(), 0);
+}
+
+#[test]
 fn a_reset_keeps_what_its_speed_loop_learnt_across_the_settle_band() {
     let mut s = Script::new();
     s.angle_deg = 0.6;
@@ -1741,6 +1786,8 @@ fn no_back_off_after_a_light_hold_or_with_the_encoder_on_the_motor() {
     ] {
         let mut s = Script::new();
         s.c = Controller::new(config);
+        // The scripted hub stands at its mark (a motor-shaft encoder's turn, confirmed).
+        assert_eq!(s.c.confirm_hub_at_zero(), Ok(()));
         s.tick();
         assert!(!run_to_the_end(&mut s, params));
         assert_eq!(s.state(), RunState::Done);

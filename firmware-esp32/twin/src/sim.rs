@@ -373,6 +373,12 @@ impl Twin {
         self.magnet_on_motor_shaft = on_motor;
     }
 
+    /// Someone turns the hub by hand to `cw_deg` (clockwise-positive seen from above), prongs
+    /// lifted ([`Plant::turn_hub_by_hand`]); between requests, with the motor at rest.
+    pub fn turn_hub_by_hand(&mut self, cw_deg: f64) {
+        self.plant.turn_hub_by_hand(cw_deg);
+    }
+
     /// True when the motor bridge is in its safe state (duty 0 or driver asleep).
     pub fn motor_safe(&self) -> bool {
         self.pwm.duty() == 0.0 || !self.slp.is_high()

@@ -6,8 +6,8 @@ mod common;
 use common::measure;
 
 use kerfmeter_protocol::{
-    DeviceConfig, EncoderPlacement, ErrorCode, Fault, KerfResult, Request, Response, RunParams,
-    RunState, Status,
+    Conditions, DeviceConfig, EncoderPlacement, ErrorCode, Fault, KerfResult, Request, Response,
+    RunParams, RunState, Status,
 };
 use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{Twin, TwinOptions};
@@ -83,6 +83,14 @@ fn measure_right(t: &mut Twin) -> KerfResult {
     k
 }
 
+/// Reset, check the hub came to its true zero (the mark), and measure right.
+fn reset_to_the_mark_and_measure_right(t: &mut Twin) {
+    reset(t).unwrap();
+    let hub_deg = t.plant().hub_cw_deg();
+    assert!(hub_deg.abs() < 0.5, "{hub_deg}");
+    measure_right(t);
+}
+
 #[test]
 fn a_set_config_in_done_keeps_a_motor_shaft_encoders_zero() {
     let mut t = motor_shaft_twin(31);
@@ -101,13 +109,7 @@ fn a_set_config_in_done_keeps_a_motor_shaft_encoders_zero() {
         "{done_deg} → {after_deg}"
     );
     // ...the reset finds the true zero, and the next gauge reads right.
-    reset(&mut t).unwrap();
-    assert!(
-        t.plant().hub_cw_deg().abs() < 0.5,
-        "{}",
-        t.plant().hub_cw_deg()
-    );
-    measure_right(&mut t);
+    reset_to_the_mark_and_measure_right(&mut t);
 }
 
 #[test]
@@ -136,6 +138,62 @@ fn a_motor_shaft_encoders_settings_change_only_at_zero() {
         (after_deg - (before_deg - shift_deg)).abs() < 0.05,
         "{before_deg} → {after_deg}, expected a shift of {shift_deg}"
     );
+}
+
+#[test]
+fn after_power_up_a_motor_shaft_encoder_runs_only_once_the_hub_is_confirmed_at_its_mark() {
+    let turn_deg = 360.0 / 21.0;
+    let mut t = motor_shaft_twin(33);
+    measure_right(&mut t);
+    // The power goes with the hub in `Done`, well past half a motor turn from zero: the count
+    // comes up a whole number of motor turns out.
+    let hub_deg = t.plant().hub_cw_deg();
+    assert!(hub_deg > turn_deg, "{hub_deg}");
+    t.reboot();
+    t.advance_ticks(20);
+    let s = status(&mut t);
+    assert!(s.conditions.contains(Conditions::HUB_TURN_UNKNOWN), "{s:?}");
+    let off_turns = (hub_deg - f64::from(s.angle_deg)) / turn_deg;
+    assert!(
+        off_turns.round() >= 1.0 && (off_turns - off_turns.round()).abs() < 0.05,
+        "reads {}° with the hub at {hub_deg}°",
+        s.angle_deg
+    );
+    // A run is refused as such...
+    assert_eq!(
+        t.request(&Request::Run(RunParams::DEFAULT)),
+        Response::Error(ErrorCode::Blocked(Conditions::HUB_TURN_UNKNOWN))
+    );
+    // ...while a reset is not, and shows what a run would have started from: the count's zero,
+    // whole motor turns off the mark.
+    reset(&mut t).unwrap();
+    let false_zero_turns = t.plant().hub_cw_deg() / turn_deg;
+    assert!(
+        false_zero_turns.round() >= 1.0
+            && (false_zero_turns - false_zero_turns.round()).abs() < 0.05,
+        "{false_zero_turns}"
+    );
+    // The user turns the hub to its mark (a little off) and confirms: the count restarts there,
+    // the condition goes, and after a reset the next gauge reads right.
+    t.turn_hub_by_hand(2.0);
+    assert_eq!(t.request(&Request::ConfirmHubAtZero), Response::Ok);
+    t.advance_ticks(20);
+    let s = status(&mut t);
+    assert!(s.conditions.is_empty(), "{s:?}");
+    assert!((s.angle_deg - 2.0).abs() < 0.2, "{}", s.angle_deg);
+    reset_to_the_mark_and_measure_right(&mut t);
+}
+
+#[test]
+fn an_output_shaft_encoder_needs_no_confirmation() {
+    let mut t = twin(PlantParams::default(), 34);
+    measure_right(&mut t);
+    t.reboot();
+    t.advance_ticks(20);
+    assert!(status(&mut t).conditions.is_empty());
+    assert_eq!(t.request(&Request::ConfirmHubAtZero), Response::Ok);
+    reset(&mut t).unwrap();
+    measure_right(&mut t);
 }
 
 /// `kerfmeter run --samples 3` on a weak motor: reset, run, three times; every reset must end at

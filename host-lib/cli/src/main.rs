@@ -72,6 +72,9 @@ enum Command {
     Abort,
     /// Leave a latched fault (fix its cause first).
     ClearFault,
+    /// Say the hub stands at its zero mark (turned there by hand, prongs lifted): with the
+    /// encoder on the motor shaft the device refuses runs after every power-up until told so.
+    ConfirmZero,
     /// Check the encoder, magnet, drive direction and torque constant (no gauge under the prongs).
     SelfTest,
     /// Read or change the device configuration (stored in its flash).
@@ -216,6 +219,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::Reset => emit(json, &reset::run(g)?),
         Command::Abort => emit(json, &abort::run(g)?),
         Command::ClearFault => emit(json, &clear_fault::run(g)?),
+        Command::ConfirmZero => emit(json, &confirm_zero::run(g)?),
         Command::SelfTest => emit(json, &self_test::run(g)?),
         Command::Config(c) => emit(json, &config::run(g, c)?),
         Command::Map(args) => emit(json, &map::run(g, args)?),

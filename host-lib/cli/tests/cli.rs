@@ -554,6 +554,22 @@ fn status_reports_state_conditions_supply_and_timing_as_text_and_json() {
     assert!(status["longest_step_us"].is_u64(), "{status}");
 }
 
+/// `confirm-zero` says what it did: nothing on the twin's output-shaft encoder, which knows
+/// the hub's angle at power-up (the motor-shaft case is the twin's own test, `twin_motion.rs`).
+#[test]
+fn confirm_zero_says_an_output_shaft_encoder_needs_no_confirmation() {
+    let out = kerfmeter(&["--sim", "confirm-zero"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("nothing to confirm: the encoder is on the output shaft"),
+        "{}",
+        stdout(&out)
+    );
+    let out = kerfmeter(&["--sim", "--json", "confirm-zero"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert_eq!(stdout(&out).trim(), r#"{"ok":true}"#);
+}
+
 /// A motor supply under the driver's under-voltage lockout holds FLT low from boot, and is below
 /// the rated 9 V: two idle conditions, shown by `status`, that refuse a run with a typed error
 /// (exit 4) and latch nothing, so the device stays configurable.

@@ -810,7 +810,7 @@ fn the_gauge_is_drawn_as_the_gauge_command_draws_it() {
 }
 
 #[test]
-fn self_test_and_clear_fault_answer_as_the_cli_does() {
+fn self_test_clear_fault_and_confirm_zero_answer_as_the_cli_does() {
     let server = Server::start(&["--sim", "--sim-fault", "motor-disconnected"], &[]);
     let mut ws = server.ws();
     let failed = ws.call("self_test", json!({}));
@@ -825,6 +825,10 @@ fn self_test_and_clear_fault_answer_as_the_cli_does() {
     assert!(reasons.contains(&"direction"), "{failed}");
     assert_eq!(
         result(&ws.call("clear_fault", json!({}))),
+        &json!({ "ok": true })
+    );
+    assert_eq!(
+        result(&ws.call("confirm_hub_at_zero", json!({}))),
         &json!({ "ok": true })
     );
     let healthy = Server::sim(false);

@@ -213,7 +213,7 @@ impl Kerfmeter {
         if let RunState::Fault(fault) = status.state {
             return Err(Error::Fault { fault });
         }
-        let blocking = status.conditions.intersection(Conditions::BLOCKING);
+        let blocking = status.conditions.intersection(Conditions::BLOCKING_RUN);
         if !blocking.is_empty() {
             // The reset (and the run) would be refused: say so before trying either.
             return Err(Error::Device {
@@ -398,6 +398,19 @@ impl Kerfmeter {
         match self.call(Request::ClearFault)? {
             Response::Ok => Ok(()),
             other => Err(unexpected("ClearFault", &other)),
+        }
+    }
+
+    /// Tell the device that the hub stands at its zero mark, within half a motor turn (protocol
+    /// 2.5). With the encoder on the motor shaft a device refuses runs after power-up
+    /// ([`Conditions::HUB_TURN_UNKNOWN`]) until told so, as it cannot know which motor turn the
+    /// hub is on; its turn count restarts at the mark. Only the user can say it: turn the hub to
+    /// its mark (by hand, prongs lifted) and look before calling this. Nothing changes with the
+    /// encoder on the output shaft. An older device answers with `UnknownRequest`.
+    pub fn confirm_hub_at_zero(&mut self) -> Result<()> {
+        match self.call(Request::ConfirmHubAtZero)? {
+            Response::Ok => Ok(()),
+            other => Err(unexpected("ConfirmHubAtZero", &other)),
         }
     }
 

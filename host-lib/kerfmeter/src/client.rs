@@ -374,6 +374,7 @@ pub(crate) fn request_name(request: &Request) -> &'static str {
         Request::GetConfig => "GetConfig",
         Request::SetConfig(_) => "SetConfig",
         Request::GetSelfTest => "GetSelfTest",
+        Request::ConfirmHubAtZero => "ConfirmHubAtZero",
     }
 }
 

@@ -267,6 +267,9 @@ fn describe_condition(condition: Conditions) -> &'static str {
         Conditions::SUPPLY_OUT_OF_RANGE => {
             "the motor supply is outside the rated 9–26 V (`kerfmeter status` shows it): use a supply within that range"
         }
+        Conditions::HUB_TURN_UNKNOWN => {
+            "the encoder is on the motor shaft and, since power-up, the device cannot tell which motor turn the hub is on: lift the prongs, turn the hub to its zero mark by hand (`kerfmeter reset` first brings it to the nearest zero it knows), then run `kerfmeter confirm-zero`"
+        }
         _ => "an unknown condition (a newer firmware?)",
     }
 }

@@ -552,6 +552,12 @@ impl PyKerfmeter {
         self.with(py, |meter| meter.clear_fault())
     }
 
+    /// Say the hub stands at its zero mark (turned there by hand, prongs lifted): with the
+    /// encoder on the motor shaft the device refuses runs after power-up until told so.
+    fn confirm_hub_at_zero(&self, py: Python<'_>) -> PyResult<()> {
+        self.with(py, |meter| meter.confirm_hub_at_zero())
+    }
+
     /// Run the self-test (no gauge under the prongs) and return its report as a dict.
     fn self_test<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let report = self.with_progress(py, None, |meter, stopper| {

@@ -87,6 +87,7 @@ pub fn request() -> impl Strategy<Value = Request> {
         Just(Request::GetConfig),
         config().prop_map(Request::SetConfig),
         Just(Request::GetSelfTest),
+        Just(Request::ConfirmHubAtZero),
     ]
 }
 

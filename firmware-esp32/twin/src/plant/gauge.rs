@@ -98,6 +98,10 @@ pub(super) struct Gauge {
     pub(super) cut: GaugeCut,
     pub(super) inset_present: bool,
     pub(super) coupled: bool,
+    /// The prongs came down off their holes (the hub further from them than its play): they
+    /// rest on the gauge's face and turn freely until the hub brings them over the holes, where
+    /// they drop in ([`Gauge::land`]).
+    on_face: bool,
     pub(super) inset_rad: f64,
     /// The last play computed each way (forward, backward), and the inset's angle it was
     /// computed at.
@@ -112,6 +116,7 @@ impl Gauge {
             cut,
             inset_present: true,
             coupled: true,
+            on_face: false,
             inset_rad: 0.0,
             play_cache: Cell::new([None; 2]),
         }
@@ -275,7 +280,7 @@ impl Gauge {
     /// Whether a prong presses the inset forward (jam direction) and backward with the hub at
     /// `hub_rad` (only the side the hub stands on can be pressed).
     fn pressing(&self, hub_rad: f64) -> (bool, bool) {
-        if !(self.inset_present && self.coupled) {
+        if !(self.inset_present && self.coupled) || self.on_face {
             return (false, false);
         }
         let rel = hub_rad - self.inset_rad;
@@ -310,11 +315,28 @@ impl Gauge {
         )
     }
 
-    /// The hub has moved to `hub_rad`: a prong at a side of its hole drags the inset along, to
+    /// The prongs come down with the hub at `hub_rad`: into the holes when it stands within its
+    /// play of them, else onto the gauge's face (a hub a motor turn off its zero; see
+    /// [`Gauge::drag`] for when they drop in).
+    pub(super) fn land(&mut self, hub_rad: f64) {
+        self.on_face = !self.within_play(hub_rad);
+    }
+
+    /// True when the prongs, with the hub at `hub_rad`, stand over the holes (within the play).
+    fn within_play(&self, hub_rad: f64) -> bool {
+        let rel = hub_rad - self.inset_rad;
+        rel <= self.side_play_rad(true) && rel >= -self.side_play_rad(false)
+    }
+
+    /// The hub has moved to `hub_rad`: prongs resting on the gauge's face drop into the holes
+    /// once over them; a prong at a side of its hole drags the inset along, to
     /// where the prong touches its face (the first prong to touch decides: pushed forward, the
     /// inset ends up as far as the further-ahead of the two places; pulled back, the other way).
     pub(super) fn drag(&mut self, hub_rad: f64) {
-        if !(self.inset_present && self.coupled) {
+        if self.on_face {
+            self.on_face = !self.within_play(hub_rad);
+        }
+        if !(self.inset_present && self.coupled) || self.on_face {
             return;
         }
         let rel = hub_rad - self.inset_rad;

@@ -87,9 +87,11 @@ impl Plant {
     }
 
     /// A new gauge, cut as `cut` says, under the prongs: its holes are cut at the zero position
-    /// (displaced as the cut says), wherever the hub stands within the play.
+    /// (displaced as the cut says). The prongs go into them with the hub anywhere within the
+    /// play; further off (a hub that is not where the device believes its zero is) they rest on
+    /// the gauge's face until the hub turns them over the holes, where they drop in.
     pub fn place_gauge(&mut self, cut: GaugeCut) {
-        self.gauge = Gauge::new(self.gauge.geometry, cut);
+        self.place_gauge_of(self.gauge.geometry, cut);
     }
 
     /// A new gauge of physical `geometry` (a gauge cut from other G-code than the device was
@@ -97,6 +99,19 @@ impl Plant {
     /// [`Plant::place_gauge`] places one.
     pub fn place_gauge_of(&mut self, geometry: GaugeGeometry, cut: GaugeCut) {
         self.gauge = Gauge::new(geometry, cut);
+        self.gauge.land(self.hub_rad);
+    }
+
+    /// Someone turns the hub by hand to `cw_deg` (clockwise-positive seen from above) with the
+    /// prongs lifted (they are lifted first) and the motor at rest.
+    pub fn turn_hub_by_hand(&mut self, cw_deg: f64) {
+        self.lift_prongs();
+        let cw_rad = cw_deg.to_radians();
+        self.hub_rad = match self.gauge.geometry.jam_direction {
+            JamDirection::Clockwise => cw_rad,
+            JamDirection::CounterClockwise => -cw_rad,
+        };
+        self.hub_rad_per_s = 0.0;
     }
 
     /// The physical geometry of the gauge in place.
@@ -306,6 +321,37 @@ mod tests {
             assert!(ticks < 10_000, "never jammed");
         }
         pl
+    }
+
+    #[test]
+    fn prongs_let_down_off_the_holes_ride_the_gauge_until_they_drop_in() {
+        // The hub a motor turn (17°, gear ratio 21) behind the gauge's holes when the prongs
+        // come down: they rest on the face and the inset does not follow until they are over
+        // the holes; from there the hub drags it as usual.
+        let mut pl = plant(150.0);
+        pl.turn_hub_by_hand(-360.0 / 21.0);
+        pl.place_gauge(GaugeCut::nominal(&PlantParams::default(), 150.0));
+        let (play, _) = pl.play_deg();
+        let bridge = Bridge {
+            duty: 0.3,
+            direction: 1.0,
+            awake: true,
+        };
+        while pl.hub_deg() < play / 2.0 {
+            pl.tick(&bridge);
+            assert_eq!(pl.inset_deg(), 0.0, "hub at {}°", pl.hub_deg());
+        }
+        let jammed = jam(pl);
+        assert!(jammed.inset_deg() > 10.0, "{}", jammed.inset_deg());
+        // A hub ahead of the holes never finds them going forward: nothing to drag.
+        let mut ahead = plant(150.0);
+        ahead.turn_hub_by_hand(360.0 / 21.0);
+        ahead.place_gauge(GaugeCut::nominal(&PlantParams::default(), 150.0));
+        for _ in 0..300 {
+            ahead.tick(&bridge);
+        }
+        assert!(ahead.hub_deg() > 40.0, "{}", ahead.hub_deg());
+        assert_eq!(ahead.inset_deg(), 0.0);
     }
 
     #[test]

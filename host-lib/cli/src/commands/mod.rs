@@ -4,6 +4,7 @@
 pub mod abort;
 pub mod clear_fault;
 pub mod config;
+pub mod confirm_zero;
 pub mod cut;
 pub mod dilate;
 pub mod gauge;

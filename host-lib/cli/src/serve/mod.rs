@@ -27,6 +27,7 @@
 //! | `reset_kerfmeter` | | `{"reset": true}` |
 //! | `abort` | | `{"aborted": true}`, at any time, also during another client's run |
 //! | `clear_fault` | | `kerfmeter clear-fault --json` (`{"ok": true}`) |
+//! | `confirm_hub_at_zero` | | `kerfmeter confirm-zero --json` (`{"ok": true}`): the hub stands at its zero mark (encoder on the motor shaft, after power-up) |
 //! | `self_test` | | `kerfmeter self-test --json` (a failed item is `passed: false`, not an error) |
 //! | `dilate` | `plan` (text) or `plan_base64`, `format` (`"svg"`/`"dxf"`, required), `kerf_um` (µm, or `"last"`: the device's last result; required), and `kerfmeter dilate`'s rules: `cut_colors`, `cut_max_width_mm`, `cut_layers`, `units`, `strict`, `already_compensated_ok`, `recompensate` | `{"kerf_um", "format", "content": the dilated plan's text, "report": {"kerf_um", "cut_rules", ... what `dilate --json` says was found and done}}` |
 //! | `gauge` | `format` (`"svg"` default, `"dxf"`), and `kerfmeter gauge`'s options with `_` for `-`: `pitch_um_per_deg`, `radius_mm`, `prong_radius_mm`, `hole_radius_mm`, `hole_distance_mm`, `jam_direction` (`"cw"`/`"ccw"`), `disengage_deg`, `test_piece`, `thickness_mm`, `finger_width_mm`, `test_piece_kerf_um`, `label` | `{"format", "content": the drawing's text, "report": gauge --json's report without the file}` |

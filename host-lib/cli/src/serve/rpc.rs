@@ -330,6 +330,7 @@ pub async fn dispatch(
         "get_kerf_value" => Call::Kerf,
         "reset_kerfmeter" => Call::Reset,
         "clear_fault" => Call::ClearFault,
+        "confirm_hub_at_zero" => Call::ConfirmZero,
         "self_test" => Call::SelfTest,
         "run_kerfmeter" => Call::Run(run_call(&mut params)?),
         "abort" => {

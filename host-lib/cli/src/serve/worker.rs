@@ -39,7 +39,7 @@ use super::Cutter;
 use super::plans::{JobCall, hide_history_db, job_answer};
 use super::rpc::{Caller, INTERNAL_ERROR, NOT_CONNECTED, RpcError, notification};
 use crate::commands::run::RunReport;
-use crate::commands::{Done, info, job, self_test, status};
+use crate::commands::{Done, confirm_zero, info, job, self_test, status};
 use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::ResultJson;
@@ -65,6 +65,8 @@ pub enum Call {
     Reset,
     /// `clear_fault`.
     ClearFault,
+    /// `confirm_hub_at_zero`.
+    ConfirmZero,
     /// `self_test` (long).
     SelfTest,
     /// Stop the motor (sent only when nothing long runs; see [`Device::abort`]).
@@ -518,6 +520,7 @@ fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliErr
             s.meter.clear_fault()?;
             to_value(&Done::new("fault cleared"))
         }
+        Call::ConfirmZero => to_value(&confirm_zero::confirm(s)?),
         Call::SelfTest => to_value(&self_test::test(s, |_| shared.stop_requested())?),
         Call::Abort => {
             s.meter.abort()?;
