@@ -33,7 +33,7 @@
 //! polling never looks silent to the device's watchdog — or follows the wall clock in real-time
 //! mode.
 
-use kerfmeter_protocol::{DeviceConfig, Request, Response, RunState};
+use kerfmeter_protocol::{DeviceConfig, EncoderPlacement, Request, Response, RunState};
 
 use crate::cutter::Segment;
 use crate::encoder::EncoderErrors;
@@ -156,7 +156,29 @@ impl Twin {
             (p.flash_write_ms * 1000.0).round() as u64,
             options.seed ^ FLASH_STREAM,
         ));
-        Self::boot(options, flash, 0, 0)
+        let mut twin = Self::boot(options, flash, 0, 0);
+        if options.encoder_on_motor_shaft {
+            twin.store_motor_shaft_config();
+        }
+        twin
+    }
+
+    /// Put the magnet on the motor shaft, store the configuration that says so, as a user would
+    /// (`kerfmeter config set --encoder-placement motor`, hub at zero), and power-cycle.
+    fn store_motor_shaft_config(&mut self) {
+        self.set_magnet_on_motor_shaft(true);
+        // The controller takes an encoder change only once it has read the hub at zero.
+        self.advance_ticks(5);
+        let config = DeviceConfig {
+            encoder_placement: EncoderPlacement::MotorShaft,
+            ..*self.device.controller().config()
+        };
+        let answer = self.request(&Request::SetConfig(config));
+        assert!(
+            matches!(answer, Response::Config(report) if report.saved),
+            "the twin could not store its motor-shaft configuration: {answer:?}"
+        );
+        self.reboot();
     }
 
     /// Boot a twin that records its runs' truths in `truths` (shared with the caller).

@@ -185,6 +185,30 @@ fn after_power_up_a_motor_shaft_encoder_runs_only_once_the_hub_is_confirmed_at_i
 }
 
 #[test]
+fn a_twin_made_with_its_encoder_on_the_motor_shaft_comes_up_waiting_for_the_confirmation() {
+    let mut t = Twin::new(TwinOptions {
+        encoder_on_motor_shaft: true,
+        ..TwinOptions::default()
+    });
+    t.advance_ticks(20);
+    assert!(
+        status(&mut t)
+            .conditions
+            .contains(Conditions::HUB_TURN_UNKNOWN)
+    );
+    match t.request(&Request::GetConfig) {
+        Response::Config(report) => {
+            assert_eq!(report.config, MOTOR_SHAFT);
+            assert!(report.saved && !report.defaults_in_use, "{report:?}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(t.request(&Request::ConfirmHubAtZero), Response::Ok);
+    t.advance_ticks(20);
+    measure_right(&mut t);
+}
+
+#[test]
 fn an_output_shaft_encoder_needs_no_confirmation() {
     let mut t = twin(PlantParams::default(), 34);
     measure_right(&mut t);

@@ -45,6 +45,10 @@ pub struct Global {
     /// motor-disconnected, driver-fault, over-current, host-silent, prong-slip).
     #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "NAME")]
     pub sim_fault: Option<kerfmeter::sim::SimFault>,
+    /// Simulated device: the encoder on the motor shaft, so configured in its flash: from
+    /// power-up it refuses runs until `confirm-zero` (its hub stands at its mark).
+    #[arg(long, global = true, help_heading = SIM_HEADING)]
+    pub sim_encoder_on_motor_shaft: bool,
     /// Simulated device: run in real time instead of as fast as the host keeps up.
     #[arg(long, global = true, help_heading = SIM_HEADING)]
     pub sim_realtime: bool,
@@ -112,6 +116,7 @@ impl Global {
             fault: self.sim_fault,
             realtime: self.sim_realtime,
             plant,
+            encoder_on_motor_shaft: self.sim_encoder_on_motor_shaft,
             ..SimOptions::default()
         })
     }
@@ -121,6 +126,7 @@ impl Global {
     fn sim_flags_given(&self) -> bool {
         self.sim_fault.is_some()
             || self.sim_realtime
+            || self.sim_encoder_on_motor_shaft
             || self.sim_material.is_some()
             || self.sim_plant_file.is_some()
             || !self.sim_plant.is_empty()

@@ -554,10 +554,35 @@ fn status_reports_state_conditions_supply_and_timing_as_text_and_json() {
     assert!(status["longest_step_us"].is_u64(), "{status}");
 }
 
-/// `confirm-zero` says what it did: nothing on the twin's output-shaft encoder, which knows
-/// the hub's angle at power-up (the motor-shaft case is the twin's own test, `twin_motion.rs`).
+/// A device with its encoder on the motor shaft refuses a run after power-up, saying why and
+/// what to do (exit 4), and shows the condition in `status`; `confirm-zero` says what it did
+/// there, and that an output-shaft encoder needs nothing.
 #[test]
-fn confirm_zero_says_an_output_shaft_encoder_needs_no_confirmation() {
+fn a_motor_shaft_encoder_refuses_runs_until_confirm_zero() {
+    let motor = ["--sim", "--sim-encoder-on-motor-shaft"];
+    let out = kerfmeter(&[&motor[..], &["run"]].concat());
+    assert_eq!(code(&out), 4, "{}", stderr(&out));
+    for words in ["motor shaft", "zero mark", "`kerfmeter confirm-zero`"] {
+        assert!(
+            stderr(&out).contains(words),
+            "{words:?} in {}",
+            stderr(&out)
+        );
+    }
+    let out = kerfmeter(&[&motor[..], &["--json", "status"]].concat());
+    let status: serde_json::Value = serde_json::from_str(&stdout(&out)).expect("JSON");
+    assert_eq!(
+        status["conditions"],
+        serde_json::json!(["hub-turn-unknown"])
+    );
+    let out = kerfmeter(&[&motor[..], &["confirm-zero"]].concat());
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("hub confirmed at its zero mark"),
+        "{}",
+        stdout(&out)
+    );
+
     let out = kerfmeter(&["--sim", "confirm-zero"]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));
     assert!(

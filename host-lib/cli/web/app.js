@@ -221,6 +221,8 @@ function showStatus(s) {
     ["Hub", `${fmt(s.angle_deg, 2)}° at ${fmt(s.torque_nm, 3)} N·m`],
     ["Run id", String(s.run_id)],
   ]);
+  // Only the user can say where the hub is: offered while the device waits for that.
+  $("confirm-zero").hidden = !(s.conditions ?? []).includes("hub-turn-unknown");
 }
 
 /** Poll the status while nothing runs (a run streams its own progress). */
@@ -746,6 +748,7 @@ function start() {
   $("abort").addEventListener("click", abort);
   $("reset").addEventListener("click", () => guarded(() => rpc.call("reset_kerfmeter").then(refreshStatus)));
   $("clear-fault").addEventListener("click", () => guarded(() => rpc.call("clear_fault").then(refreshStatus)));
+  $("confirm-zero").addEventListener("click", () => guarded(() => rpc.call("confirm_hub_at_zero").then(refreshStatus)));
   $("self-test").addEventListener("click", () => guarded(async () => {
     $("progress").textContent = "Self-test running…";
     const out = await rpc.call("self_test");

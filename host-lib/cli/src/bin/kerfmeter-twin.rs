@@ -38,6 +38,10 @@ struct Args {
     /// Follow the wall clock (default: run ahead of the host in lock-step, much faster).
     #[arg(long)]
     realtime: bool,
+    /// The encoder on the motor shaft, so configured in the twin's flash: from power-up it
+    /// refuses runs until `kerfmeter confirm-zero` (its hub stands at its mark).
+    #[arg(long)]
+    encoder_on_motor_shaft: bool,
     /// The gauge's material (mdf, plywood, acrylic, cardboard): the contact's stiffness and
     /// friction and their spread.
     #[arg(long, visible_alias = "sim-material", value_name = "NAME")]
@@ -97,6 +101,7 @@ fn main() -> ExitCode {
         fault: args.fault,
         realtime: args.realtime,
         plant,
+        encoder_on_motor_shaft: args.encoder_on_motor_shaft,
         ..TwinOptions::default()
     };
     // This process keeps the client side open (without locking it: the pair takes no lock, and a

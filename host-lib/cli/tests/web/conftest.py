@@ -134,3 +134,13 @@ def token_server(tmp_path):
 
 
 TOKEN = "page-test-token-0123456789"
+
+
+@pytest.fixture
+def motor_shaft_server(tmp_path):
+    """A server on a twin whose encoder is on the motor shaft: it comes up waiting for the user
+    to confirm the hub at its zero mark."""
+    s = Server(tmp_path, realtime=False, extra=["--sim-encoder-on-motor-shaft"])
+    s.start()
+    yield s
+    s.stop()

@@ -119,6 +119,9 @@ def test_page_shows_the_device_and_measures(browser, server):
     assert "Firmware" in info and "Board" in info, info
     wait(browser, lambda d: "State" in text(d, "status"), message="no status")
 
+    # An output-shaft encoder has nothing to confirm.
+    assert not browser.find_element(By.ID, "confirm-zero").is_displayed()
+
     kerf_um = measure(browser, server, "birch-3mm", samples=2)
 
     # The twin cuts 150 µm gauges by default.
@@ -271,6 +274,22 @@ def test_rpc_errors_and_device_notifications_are_shown(browser, fast_server):
     )
     banner = browser.find_element(By.ID, "device-banner")
     assert banner.is_displayed() and "port closed" in banner.text
+    assert js_errors(browser) == []
+
+
+def test_a_motor_shaft_device_is_confirmed_at_its_mark_from_the_page(browser, motor_shaft_server):
+    open_page(browser, motor_shaft_server)
+    wait(browser, lambda d: "hub-turn-unknown" in text(d, "status"), message="no condition")
+    button = browser.find_element(By.ID, "confirm-zero")
+    assert button.is_displayed()
+    button.click()
+    wait(
+        browser,
+        lambda d: "Conditions" in text(d, "status") and "hub-turn-unknown" not in text(d, "status"),
+        message="the condition stayed",
+    )
+    assert not browser.find_element(By.ID, "confirm-zero").is_displayed()
+    assert text(browser, "errors") == ""
     assert js_errors(browser) == []
 
 
