@@ -79,10 +79,14 @@ impl CliError {
         }
     }
 
-    /// The compensation a plan was refused for already carrying, if that is the error.
-    pub fn compensation_found(&self) -> Option<&FoundCompensation> {
+    /// The compensation a plan (or a running LightBurn's project) was refused for already
+    /// carrying, if that is the error.
+    pub fn compensation_found(&self) -> Option<FoundCompensation> {
         match self {
-            CliError::Plan(e) => e.compensation_found(),
+            CliError::Plan(e) => e.compensation_found().cloned(),
+            CliError::LightBurn(LightBurnError::AlreadyCompensated { found, offsets_um }) => {
+                FoundCompensation::lightburn(found.join("; "), offsets_um)
+            }
             _ => None,
         }
     }

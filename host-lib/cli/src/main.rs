@@ -175,7 +175,7 @@ fn main() -> ExitCode {
                     error: e.to_string(),
                     fault: e.fault(),
                     conditions: e.conditions(),
-                    compensation_found: e.compensation_found().cloned(),
+                    compensation_found: e.compensation_found(),
                 };
                 print_line(&to_json(&report, JsonLayout::CompactSorted));
             } else {

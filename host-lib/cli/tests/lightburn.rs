@@ -206,6 +206,31 @@ fn sim_pairs_with_and_applies_to_a_lightburn_twin_and_keeps_no_secret() {
     assert_eq!(json["kerf_offset"], 0.075, "{json}");
     assert_eq!(json["layers"].as_array().unwrap().len(), 2, "{json}");
     assert!(!pairing.exists(), "a simulated pairing is not kept");
+    // A layer already offset: refused, and the JSON error names what was found as `dilate`'s
+    // does for a project file.
+    let out = with_pairing(&[
+        "--sim",
+        "--json",
+        "lightburn",
+        "apply",
+        "--kerf-um",
+        "150",
+        "--layers",
+        "Old",
+    ]);
+    assert_eq!(code(&out), 2, "{}", text(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let found = &json["compensation_found"];
+    assert_eq!(found["by"], "lightburn", "{json}");
+    assert_eq!(
+        found["offset_um"],
+        serde_json::json!([50.0, 50.0]),
+        "{json}"
+    );
+    assert!(
+        json["error"].as_str().unwrap().contains("--recompensate"),
+        "{json}"
+    );
     // The twin is the twin: a real LightBurn's address does not go with --sim.
     let out = with_pairing(&[
         "--sim",

@@ -137,6 +137,19 @@ pub enum LightBurnError {
     /// The layers asked for, or the offsets found, stop the change.
     #[error("{0}")]
     Layers(String),
+    /// A chosen layer already has a Kerf Offset, and neither `--recompensate` nor
+    /// `--already-compensated-ok` said what to do with it: nothing was changed.
+    #[error(
+        "Kerf Offsets already set ({}): the project is already compensated; nothing was changed. Replace them by this kerf's with --recompensate, or add this kerf's on top with --already-compensated-ok",
+        found.join("; ")
+    )]
+    AlreadyCompensated {
+        /// Each such layer with its passes' Kerf Offsets as LightBurn shows them, e.g.
+        /// `layer 0 "Cut": 0.05 mm`.
+        found: Vec<String>,
+        /// Every non-zero Kerf Offset among them, µm (positive outwards).
+        offsets_um: Vec<f64>,
+    },
     /// The pairing file cannot be read or written.
     #[error("{}: {message}", path.display())]
     PairingFile {
@@ -151,7 +164,9 @@ impl LightBurnError {
     /// What kind of failure this is.
     pub fn category(&self) -> Category {
         match self {
-            LightBurnError::Layers(_) | LightBurnError::Unpaired { .. } => Category::Usage,
+            LightBurnError::Layers(_)
+            | LightBurnError::Unpaired { .. }
+            | LightBurnError::AlreadyCompensated { .. } => Category::Usage,
             LightBurnError::PairingFile { .. } => Category::File,
             _ => Category::Communication,
         }
@@ -422,7 +437,7 @@ pub fn apply_kerf(
     let (unit, per_mm) = distance_unit(&client.signed(secret, "GET /api/units", None)?)?;
     let cuts = line_cuts(&client.signed(secret, "GET /api/cuts", None)?)?;
     let chosen = choose(client, secret, cuts, layers)?;
-    refuse_compensated(&chosen, existing, unit)?;
+    refuse_compensated(&chosen, existing, unit, per_mm)?;
     let offset = kerf_um / 2000.0 * per_mm;
     let mut set = Vec::new();
     for cut in chosen {
@@ -631,8 +646,14 @@ fn choose(
         .collect())
 }
 
-/// Refuse layers that already have a Kerf Offset, unless told what to do with it.
-fn refuse_compensated(chosen: &[LineCut], existing: ExistingOffset, unit: &str) -> Result<()> {
+/// Refuse layers that already have a Kerf Offset, unless told what to do with it; `unit` is the
+/// display unit, `per_mm` of it in a millimetre.
+fn refuse_compensated(
+    chosen: &[LineCut],
+    existing: ExistingOffset,
+    unit: &str,
+    per_mm: f64,
+) -> Result<()> {
     let found: Vec<String> = chosen
         .iter()
         .filter(|c| c.passes.iter().any(|p| p.kerf != 0.0))
@@ -649,10 +670,13 @@ fn refuse_compensated(chosen: &[LineCut], existing: ExistingOffset, unit: &str) 
     if found.is_empty() || existing != ExistingOffset::Refuse {
         return Ok(());
     }
-    Err(LightBurnError::Layers(format!(
-        "Kerf Offsets already set ({}): the project is already compensated; nothing was changed. Replace them by this kerf's with --recompensate, or add this kerf's on top with --already-compensated-ok",
-        found.join("; ")
-    )))
+    let offsets_um = chosen
+        .iter()
+        .flat_map(|c| &c.passes)
+        .filter(|p| p.kerf != 0.0)
+        .map(|p| p.kerf / per_mm * 1000.0)
+        .collect();
+    Err(LightBurnError::AlreadyCompensated { found, offsets_um })
 }
 
 /// The body of `POST /api/cuts/{index}`: the new Kerf Offset of each Line pass.

@@ -257,6 +257,14 @@ fn layers_asked_for_must_be_line_layers_and_not_already_compensated() {
     )
     .unwrap_err();
     assert!(e.to_string().contains("layer 3 \"Old\": 0.05 mm"), "{e}");
+    match &e {
+        LightBurnError::AlreadyCompensated { found, offsets_um } => {
+            assert_eq!(found, &["layer 3 \"Old\": 0.05 mm"]);
+            assert_eq!(offsets_um.len(), 1);
+            assert!((offsets_um[0] - 50.0).abs() < 1e-9, "{offsets_um:?}");
+        }
+        other => panic!("{other:?}"),
+    }
     assert!(fake.posts().is_empty());
     let a = apply_kerf(
         &client,

@@ -130,6 +130,22 @@ pub struct FoundCompensation {
 }
 
 impl FoundCompensation {
+    /// LightBurn's Kerf Offsets `offsets_um` (µm, positive outwards; at least one) found in
+    /// `found_in` (its layers, in words): from a `.lbrn2` project or from a running LightBurn.
+    pub fn lightburn(found_in: String, offsets_um: &[f64]) -> Option<Self> {
+        let lo_um = offsets_um.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi_um = offsets_um.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (!offsets_um.is_empty()).then_some(FoundCompensation {
+            by: CompensatedBy::LightBurn,
+            offset_um: RangeUm([lo_um, hi_um]),
+            kerf_um: None,
+            rules: None,
+            version: None,
+            found_in,
+            default_burn: false,
+        })
+    }
+
     /// What was found, in words, e.g. "boxes.py compensated this plan with --burn 0.1 (mm)".
     pub fn describe(&self) -> String {
         match self.by {

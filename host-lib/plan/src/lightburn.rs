@@ -41,9 +41,7 @@ use std::path::Path;
 use roxmltree::{Document, Node, ParsingOptions};
 use serde::Serialize;
 
-use crate::compensation::{
-    self, AppliedCompensation, CompensatedBy, FoundCompensation, IfCompensated, RangeUm,
-};
+use crate::compensation::{self, AppliedCompensation, FoundCompensation, IfCompensated};
 use crate::dilate::KerfSource;
 use crate::error::{PlanError, Problems, Result};
 use crate::selectors;
@@ -404,7 +402,6 @@ fn choose(layers: &[Layer], wanted: &[String]) -> Result<Vec<usize>> {
     Ok(chosen)
 }
 
-/// The non-zero Kerf Offsets already on the chosen layers, in words.
 /// The Kerf Offsets already set on the chosen layers' passes, if any.
 fn found_offsets(layers: &[Layer], chosen: &[usize]) -> Option<FoundCompensation> {
     let found: Vec<(String, f64)> = chosen
@@ -418,19 +415,9 @@ fn found_offsets(layers: &[Layer], chosen: &[usize]) -> Option<FoundCompensation
             })
         })
         .collect();
-    let offsets_um = found.iter().map(|&(_, mm)| mm * 1000.0);
-    let lo_um = offsets_um.clone().fold(f64::INFINITY, f64::min);
-    let hi_um = offsets_um.fold(f64::NEG_INFINITY, f64::max);
+    let offsets_um: Vec<f64> = found.iter().map(|&(_, mm)| mm * 1000.0).collect();
     let places: Vec<String> = found.into_iter().map(|(place, _)| place).collect();
-    (!places.is_empty()).then(|| FoundCompensation {
-        by: CompensatedBy::LightBurn,
-        offset_um: RangeUm([lo_um, hi_um]),
-        kerf_um: None,
-        rules: None,
-        version: None,
-        found_in: places.join("; "),
-        default_burn: false,
-    })
+    FoundCompensation::lightburn(places.join("; "), &offsets_um)
 }
 
 fn refusal(found: &FoundCompensation, kerf_um: f64) -> String {
