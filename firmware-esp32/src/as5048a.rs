@@ -32,13 +32,15 @@
 //! - **Multi-turn unwrap**, gear ratio and placement (motor or output shaft), counting sense and
 //!   zero come from [`EncoderSettings`]; the driver reports the *hub* angle.
 //! - **Turn counting** starts at the first reading (boot) and restarts only when the settings
-//!   change ([`As5048a::set_settings`]; the control tick calls it only when
-//!   [`EncoderSettings::from_config`] differs, never for other configuration fields). On the
-//!   output shaft the first reading is the hub angle itself. On the motor shaft it fixes the hub
-//!   only modulo one motor turn (360°/gear ratio of hub angle): the count takes the motor turn
-//!   nearest the zero, so a motor-shaft encoder must (re)start with the hub at zero. At boot
-//!   that is the user's part (the hub is left at zero by the last `Reset`, or turned there by
-//!   hand); for a configuration change the controller enforces it (`NotAtZero` away from zero).
+//!   change or the user confirms the hub at its mark ([`As5048a::set_settings`]; the control
+//!   tick calls it only when [`EncoderSettings::from_config`] or the controller's encoder epoch
+//!   differs, never for other configuration fields). On the output shaft the first reading is
+//!   the hub angle itself. On the motor shaft it fixes the hub only modulo one motor turn
+//!   (360°/gear ratio of hub angle): the count takes the motor turn nearest the zero, so a
+//!   motor-shaft encoder must (re)start with the hub at zero. At boot, and after a change onto
+//!   the motor shaft, the controller refuses runs until the user has confirmed the hub at its
+//!   mark (`Conditions::HUB_TURN_UNKNOWN`, `ConfirmHubAtZero`); a change of its settings it takes
+//!   only at zero (`NotAtZero` away from it).
 
 use embedded_hal::spi::{Operation, SpiDevice};
 use kerfmeter_protocol::{DeviceConfig, EncoderPlacement};
@@ -438,11 +440,9 @@ impl<SPI: SpiDevice<u8>> As5048a<SPI> {
             }
             None => {
                 // First reading: the turn that puts the hub nearest its zero. (On the motor
-                // shaft that assumes the hub boots within ±180°/gear ratio of zero: a motor-shaft
-                // encoder cannot tell hub positions a motor turn apart.)
-                // Issue 12, protocol revision: after a boot, a motor-shaft zero is this
-                // assumption; a status condition ("zero not confirmed") and a request to confirm
-                // it would let the host ask the user, who can see the prongs.
+                // shaft that assumes the hub stands within ±180°/gear ratio of zero: a motor-shaft
+                // encoder cannot tell hub positions a motor turn apart. After a boot the controller
+                // refuses runs until the user has confirmed it, `Conditions::HUB_TURN_UNKNOWN`.)
                 let offset = raw_counts - i32::from(self.settings.zero_raw);
                 self.turns = if offset > half {
                     -1

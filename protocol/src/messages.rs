@@ -197,8 +197,9 @@ pub enum ErrorCode {
     /// within [`START_TOLERANCE_DEG`]: send `Reset` first.
     NotAtZero,
     /// `Run`, `Reset` or `SelfTest` refused: these blocking idle conditions stand (no magnet,
-    /// driver FLT low with the motor supply off, ...). Nothing is latched: fix the cause and
-    /// retry; `GetStatus` shows when they are gone.
+    /// driver FLT low with the motor supply off, ...; for `Run` also a motor-shaft hub turn not
+    /// confirmed, [`Conditions::BLOCKING_RUN`]). Nothing is latched: fix the cause and retry;
+    /// `GetStatus` shows when they are gone.
     Blocked(Conditions),
     /// `Run` refused (protocol 2.1): the torque the run may ask for (the most its target force
     /// needs, at most its `max_torque_nm`) needs more than full duty at the measured motor

@@ -111,10 +111,12 @@ pub struct Status {
 }
 
 /// Idle conditions: what the inputs say is wrong while the motor is at rest, updated every tick
-/// and cleared when it goes away. A condition latches no fault and blocks no configuration; a
+/// and cleared when it goes away (and, from protocol 2.5, [`Conditions::HUB_TURN_UNKNOWN`],
+/// which the user clears). A condition latches no fault and blocks no configuration; a
 /// [`Conditions::BLOCKING`] one refuses `Run`, `Reset` and `SelfTest` with
-/// `ErrorCode::Blocked(conditions)`. During a run, reset or self-test the same inputs latch the
-/// typed [`Fault`] instead (the motor is made safe that tick).
+/// `ErrorCode::Blocked(conditions)`, `HUB_TURN_UNKNOWN` `Run` only
+/// ([`Conditions::BLOCKING_RUN`]). During a run, reset or self-test the inputs latch the typed
+/// [`Fault`] instead (the motor is made safe that tick).
 #[derive(Serialize, Deserialize, MaxSize, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Conditions(pub u16);

@@ -127,7 +127,9 @@
 //! and `ClearFault` does not re-latch at once, but they refuse `Run`, `Reset` and `SelfTest`
 //! with `ErrorCode::Blocked` (a latched fault is reported first, as `Faulted`). A measured supply
 //! outside the rated 9–26 V is a condition too, judged at rest only, and latches nothing during
-//! a run (see `supply.rs`).
+//! a run (see `supply.rs`). One condition comes from no input: `HUB_TURN_UNKNOWN`, a motor-shaft
+//! encoder's hub turn not confirmed since power-up (or since the change onto the motor shaft),
+//! which refuses a run only and goes when the user confirms the hub at its mark (`reset.rs`).
 
 use kerfmeter_protocol::{
     Conditions, DeviceConfig, EncoderPlacement, ErrorCode, Fault, JamDirection, KerfResult,
@@ -384,10 +386,15 @@ impl Controller {
             return Err(ErrorCode::Busy);
         }
         self.check_config_change(&config)?;
-        if config.encoder_placement == EncoderPlacement::OutputShaft {
-            // Absolute over the hub's turn: nothing to confirm.
-            self.conditions.set(Conditions::HUB_TURN_UNKNOWN, false);
-        }
+        // On the output shaft the encoder is absolute over the hub's turn: nothing to confirm. A
+        // change onto the motor shaft was judged "at zero" by the old settings, which cannot
+        // tell one motor turn from the next: the user confirms the hub at its mark.
+        let motor_shaft = config.encoder_placement == EncoderPlacement::MotorShaft;
+        let onto_motor_shaft =
+            motor_shaft && self.config.encoder_placement != EncoderPlacement::MotorShaft;
+        let unknown = self.conditions.contains(Conditions::HUB_TURN_UNKNOWN) || onto_motor_shaft;
+        self.conditions
+            .set(Conditions::HUB_TURN_UNKNOWN, motor_shaft && unknown);
         self.config = config;
         Ok(())
     }
@@ -477,8 +484,9 @@ impl Controller {
     }
 
     /// The idle conditions as of the last tick, in every state: what the inputs say is wrong
-    /// (see `faults.rs`). While idle they only block a run, reset or self-test; during one the
-    /// same inputs latch a fault.
+    /// (see `faults.rs`), and whether a motor-shaft encoder's hub turn awaits the user's
+    /// confirmation. While idle they only block a run, reset or self-test (that one a run only);
+    /// during one the inputs latch a fault.
     pub fn conditions(&self) -> Conditions {
         self.conditions
     }

@@ -1019,6 +1019,33 @@ fn a_motor_shaft_encoder_blocks_runs_from_power_up_until_the_hub_is_confirmed() 
 }
 
 #[test]
+fn a_change_onto_the_motor_shaft_needs_the_hub_confirmed() {
+    // Output → motor shaft "at zero" by the output-shaft settings, which read any whole motor
+    // turn as zero: the hub's turn is unknown until the user confirms it.
+    let motor_shaft = DeviceConfig {
+        encoder_placement: EncoderPlacement::MotorShaft,
+        ..DeviceConfig::DEFAULT
+    };
+    let mut s = Script::new();
+    assert_eq!(s.host().set_config(motor_shaft), Ok(()));
+    assert_eq!(s.c.conditions(), Conditions::HUB_TURN_UNKNOWN);
+    // Not cleared by a round trip through the output shaft either.
+    assert_eq!(s.host().set_config(DeviceConfig::DEFAULT), Ok(()));
+    assert!(s.c.conditions().is_empty());
+    assert_eq!(s.host().set_config(motor_shaft), Ok(()));
+    assert_eq!(s.c.conditions(), Conditions::HUB_TURN_UNKNOWN);
+    // Confirmed, a change of another field or of its own settings at zero keeps it confirmed.
+    assert_eq!(s.host().confirm_hub_at_zero(), Ok(()));
+    s.tick();
+    let rezeroed = DeviceConfig {
+        encoder_zero_raw: 100,
+        ..motor_shaft
+    };
+    assert_eq!(s.host().set_config(rezeroed), Ok(()));
+    assert!(s.c.conditions().is_empty());
+}
+
+#[test]
 fn a_reset_keeps_what_its_speed_loop_learnt_across_the_settle_band() {
     let mut s = Script::new();
     s.angle_deg = 0.6;

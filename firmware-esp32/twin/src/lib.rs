@@ -43,13 +43,15 @@
 //!   dragging the inset; the inset's friction on the table; the spiral's gap with a kerf tapered
 //!   through the sheet, so that the contact spreads down the face (quadratic, then linear at the
 //!   face's stiffness), self-locking; the contact's stiffness and μ spread gauge to gauge; a
-//!   prong slipping out of its hole.
+//!   prong slipping out of its hole; prongs let down off the holes riding the gauge's face until
+//!   they drop in (a hub whose zero is a motor turn out).
 //! - The encoder: the AS5048A's SPI protocol (parity, error flag and register, pipelined
 //!   replies), its integral non-linearity (1st–3rd harmonics) and a magnet's eccentricity (a
 //!   once-per-turn error), drawn once per twin, relative to the zero the user set; 14-bit
 //!   quantisation and a few LSB of noise; the chip-select setup and hold times each frame
 //!   carries. The magnet sits on the output shaft, or on the motor shaft
-//!   (`Twin::set_magnet_on_motor_shaft`, turning `gear_ratio` times per hub turn).
+//!   (`Twin::set_magnet_on_motor_shaft`, turning `gear_ratio` times per hub turn;
+//!   `TwinOptions::encoder_on_motor_shaft` boots a twin so configured in its flash).
 //! - The current sense as the G2 produces it: the current only in the drive phase of each 20 kHz
 //!   PWM period (about zero while braking or chopping), through the board's RC filter on the pin
 //!   (`cs_filter_tau_us`, 1 ms by default; 0 removes it), sampled once per tick, one conversion

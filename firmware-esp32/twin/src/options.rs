@@ -144,9 +144,9 @@ pub struct TwinOptions {
     pub plant: PlantParams,
     /// The gauge that is cut (its sense and pitch must match what the host sends for a reading).
     pub gauge: GaugeGeometry,
-    /// The encoder's magnet on the motor shaft, configured so in flash: the twin stores that
-    /// configuration and reboots, so it comes up as such a device does after power-up, its hub's
-    /// turn unknown until confirmed (`Conditions::HUB_TURN_UNKNOWN`). The hub stands at its mark.
+    /// The encoder's magnet on the motor shaft, and a configuration saying so in the twin's flash
+    /// before it boots: it comes up as such a device does after power-up, its hub's turn unknown
+    /// until confirmed (`Conditions::HUB_TURN_UNKNOWN`). The hub stands at its mark.
     pub encoder_on_motor_shaft: bool,
 }
 

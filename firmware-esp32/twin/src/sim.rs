@@ -45,7 +45,7 @@ use crate::timing::{HostBursts, SimWatchdog, TickClock};
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
 use kerfmeter_firmware::board::partition::{ConfigStorage, OpenedConfig, open_config_partition};
-use kerfmeter_firmware::config_store::ConfigSource;
+use kerfmeter_firmware::config_store::{ConfigSource, FlashConfigStore};
 use kerfmeter_firmware::controller::PERIOD_US;
 use kerfmeter_firmware::device::{Device, WithMotor};
 use kerfmeter_firmware::fakes::as5048a::{FakeAs5048a, MisoFault};
@@ -156,29 +156,14 @@ impl Twin {
             (p.flash_write_ms * 1000.0).round() as u64,
             options.seed ^ FLASH_STREAM,
         ));
-        let mut twin = Self::boot(options, flash, 0, 0);
-        if options.encoder_on_motor_shaft {
-            twin.store_motor_shaft_config();
-        }
-        twin
-    }
-
-    /// Put the magnet on the motor shaft, store the configuration that says so, as a user would
-    /// (`kerfmeter config set --encoder-placement motor`, hub at zero), and power-cycle.
-    fn store_motor_shaft_config(&mut self) {
-        self.set_magnet_on_motor_shaft(true);
-        // The controller takes an encoder change only once it has read the hub at zero.
-        self.advance_ticks(5);
-        let config = DeviceConfig {
-            encoder_placement: EncoderPlacement::MotorShaft,
-            ..*self.device.controller().config()
+        let flash = if options.encoder_on_motor_shaft {
+            with_motor_shaft_config(flash)
+        } else {
+            flash
         };
-        let answer = self.request(&Request::SetConfig(config));
-        assert!(
-            matches!(answer, Response::Config(report) if report.saved),
-            "the twin could not store its motor-shaft configuration: {answer:?}"
-        );
-        self.reboot();
+        let mut twin = Self::boot(options, flash, 0, 0);
+        twin.magnet_on_motor_shaft = options.encoder_on_motor_shaft;
+        twin
     }
 
     /// Boot a twin that records its runs' truths in `truths` (shared with the caller).
@@ -717,6 +702,18 @@ impl Twin {
         self.options.fault = None;
         self.fault_struck = false;
     }
+}
+
+/// `flash` (blank) holding the record of a configuration with the encoder on the motor shaft,
+/// as a user's `kerfmeter config set --encoder-placement motor` leaves it before a power cycle.
+fn with_motor_shaft_config(flash: RamFlash) -> RamFlash {
+    let config = DeviceConfig {
+        encoder_placement: EncoderPlacement::MotorShaft,
+        ..DeviceConfig::DEFAULT
+    };
+    let mut store = FlashConfigStore::new(flash, FLASH_RANGE);
+    embassy_futures::block_on(store.save(&config)).expect("a blank RAM flash takes one record");
+    store.release()
 }
 
 /// The configuration, opened on `flash` as the board opens it at boot, the flash powered on

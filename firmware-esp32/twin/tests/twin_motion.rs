@@ -67,7 +67,13 @@ fn motor_shaft_twin(seed: u64) -> Twin {
     let mut t = twin(PlantParams::default(), seed);
     t.set_magnet_on_motor_shaft(true);
     assert_eq!(set_config(&mut t, MOTOR_SHAFT), Ok(()));
-    assert!(status(&mut t).angle_deg.abs() < 0.5);
+    // The change onto the motor shaft: the user confirms the hub at its mark.
+    let s = status(&mut t);
+    assert_eq!(s.conditions, Conditions::HUB_TURN_UNKNOWN);
+    assert_eq!(t.request(&Request::ConfirmHubAtZero), Response::Ok);
+    t.advance_ticks(20);
+    let s = status(&mut t);
+    assert!(s.conditions.is_empty() && s.angle_deg.abs() < 0.5, "{s:?}");
     t
 }
 

@@ -575,6 +575,13 @@ fn a_motor_shaft_encoder_refuses_runs_until_confirm_zero() {
         status["conditions"],
         serde_json::json!(["hub-turn-unknown"])
     );
+    let out = kerfmeter(&[&motor[..], &["reset"]].concat());
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("may be whole motor turns from its mark"),
+        "{}",
+        stdout(&out)
+    );
     let out = kerfmeter(&[&motor[..], &["confirm-zero"]].concat());
     assert_eq!(code(&out), 0, "{}", stderr(&out));
     assert!(

@@ -810,7 +810,7 @@ fn the_gauge_is_drawn_as_the_gauge_command_draws_it() {
 }
 
 #[test]
-fn self_test_clear_fault_and_confirm_zero_answer_as_the_cli_does() {
+fn self_test_and_clear_fault_answer_as_the_cli_does() {
     let server = Server::start(&["--sim", "--sim-fault", "motor-disconnected"], &[]);
     let mut ws = server.ws();
     let failed = ws.call("self_test", json!({}));
@@ -827,13 +827,26 @@ fn self_test_clear_fault_and_confirm_zero_answer_as_the_cli_does() {
         result(&ws.call("clear_fault", json!({}))),
         &json!({ "ok": true })
     );
+    let healthy = Server::sim(false);
+    let passed = healthy.ws().call("self_test", json!({}));
+    assert_eq!(result(&passed)["passed"], true, "{passed}");
+}
+
+#[test]
+fn a_motor_shaft_device_is_confirmed_at_its_mark_over_rpc() {
+    let server = Server::start(&["--sim", "--sim-encoder-on-motor-shaft"], &[]);
+    let mut ws = server.ws();
+    let status = ws.call("status", json!({}));
+    assert_eq!(result(&status)["conditions"], json!(["hub-turn-unknown"]));
+    let refused = ws.call("run_kerfmeter", json!({}));
+    let message = refused["error"]["message"].as_str().unwrap_or_default();
+    assert!(message.contains("confirm-zero"), "{refused}");
     assert_eq!(
         result(&ws.call("confirm_hub_at_zero", json!({}))),
         &json!({ "ok": true })
     );
-    let healthy = Server::sim(false);
-    let passed = healthy.ws().call("self_test", json!({}));
-    assert_eq!(result(&passed)["passed"], true, "{passed}");
+    let status = ws.call("status", json!({}));
+    assert_eq!(result(&status)["conditions"], json!([]), "{status}");
 }
 
 /// A small plan: a plate with a hole.

@@ -748,7 +748,13 @@ function start() {
   $("abort").addEventListener("click", abort);
   $("reset").addEventListener("click", () => guarded(() => rpc.call("reset_kerfmeter").then(refreshStatus)));
   $("clear-fault").addEventListener("click", () => guarded(() => rpc.call("clear_fault").then(refreshStatus)));
-  $("confirm-zero").addEventListener("click", () => guarded(() => rpc.call("confirm_hub_at_zero").then(refreshStatus)));
+  $("confirm-zero").addEventListener("click", () => {
+    // The device takes the user's word for it: ask once more, so a stray click gives no false zero.
+    const sure = window.confirm(
+      "Do the prongs line up with the hub's zero mark (turned there by hand, prongs lifted)? " +
+      "The device takes your word for it.");
+    if (sure) guarded(() => rpc.call("confirm_hub_at_zero").then(refreshStatus));
+  });
   $("self-test").addEventListener("click", () => guarded(async () => {
     $("progress").textContent = "Self-test running…";
     const out = await rpc.call("self_test");

@@ -215,7 +215,8 @@ impl Kerfmeter {
         }
         let blocking = status.conditions.intersection(Conditions::BLOCKING_RUN);
         if !blocking.is_empty() {
-            // The reset (and the run) would be refused: say so before trying either.
+            // The run (and for most conditions the reset) would be refused: say so before
+            // trying either.
             return Err(Error::Device {
                 request: "Run",
                 code: ErrorCode::Blocked(blocking),

@@ -404,9 +404,12 @@ impl PyKerfmeter {
 
     /// Start the digital twin (the real firmware on simulated hardware) in this process and
     /// connect to it. `fault` injects a named fault ("no-inset", "magnet-lost", ...); `plant`
-    /// sets the twin's physics by name (e.g. `supply_v=24`).
+    /// sets the twin's physics by name (e.g. `supply_v=24`); `encoder_on_motor_shaft` boots a
+    /// twin so configured, which refuses runs until `confirm_hub_at_zero()`.
     #[staticmethod]
-    #[pyo3(signature = (kerf_um = 150.0, seed = 1, fault = None, kerf_sd_um = 0.0, realtime = false, **plant))]
+    #[pyo3(signature = (kerf_um = 150.0, seed = 1, fault = None, kerf_sd_um = 0.0, realtime = false, encoder_on_motor_shaft = false, **plant))]
+    // Python's keyword arguments, one each.
+    #[allow(clippy::too_many_arguments)]
     fn sim(
         py: Python<'_>,
         kerf_um: f64,
@@ -414,9 +417,13 @@ impl PyKerfmeter {
         fault: Option<&str>,
         kerf_sd_um: f64,
         realtime: bool,
+        encoder_on_motor_shaft: bool,
         plant: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
-        let options = sim_options(kerf_um, seed, fault, kerf_sd_um, realtime, plant)?;
+        let options = SimOptions {
+            encoder_on_motor_shaft,
+            ..sim_options(kerf_um, seed, fault, kerf_sd_um, realtime, plant)?
+        };
         let (sim, meter) = py
             .detach(|| SimDevice::connect(options, Options::default()))
             .map_err(|e| errors::device(py, e))?;

@@ -53,6 +53,17 @@ def test_a_fault_names_itself_with_the_librarys_message():
         assert m.status()["state"] == "Idle"
 
 
+def test_a_motor_shaft_encoder_is_confirmed_at_its_mark_before_a_run():
+    with kerfmeter.Kerfmeter.sim(encoder_on_motor_shaft=True) as m:
+        hub_turn_unknown = 1 << 5  # the protocol's Conditions bit
+        assert m.status()["conditions"] == hub_turn_unknown
+        with pytest.raises(kerfmeter.KerfmeterError, match="confirm-zero"):
+            m.run_kerfmeter()
+        m.confirm_hub_at_zero()
+        assert m.status()["conditions"] == 0
+        assert m.run_kerfmeter().kerf_um == pytest.approx(150, abs=15)
+
+
 def test_bad_arguments_are_refused_before_anything_moves(meter):
     with pytest.raises(kerfmeter.BadArgumentError, match="thickness"):
         meter.run_kerfmeter(thickness_mm=-1)

@@ -1,6 +1,10 @@
 //! The gauge under the prongs, as its [`GaugeCut`] says it was cut: the inset's angle, the hole
 //! play it is dragged through, the spiral's gap and its contact, and the truth an ideal device
-//! would read on it.
+//! would read on it. Prongs let down with the hub further from the holes than the play (a hub a
+//! motor turn off its zero) rest on the gauge's face and turn freely until the hub brings them
+//! over the holes, where they drop in ([`Gauge::land`]); the model takes the hub within a
+//! fraction of a turn of the holes (a hub half a turn round, where the two prongs would swap
+//! holes, is not modelled).
 //!
 //! # Hole play
 //!

@@ -13,16 +13,18 @@ pub fn run(g: &Global) -> Result<Done, CliError> {
     confirm(&mut g.connect()?)
 }
 
-/// [`run`] on an open session (the server's `confirm_hub_at_zero`).
+/// [`run`] on an open session (the server's `confirm_hub_at_zero`). With the encoder on the
+/// output shaft nothing is sent, so that this works with a device older than protocol 2.5 too.
 pub fn confirm(session: &mut Session) -> Result<Done, CliError> {
-    let placement = session.meter.config()?.config.encoder_placement;
-    session.meter.confirm_hub_at_zero()?;
-    Ok(Done::new(match placement {
+    match session.meter.config()?.config.encoder_placement {
         EncoderPlacement::MotorShaft => {
-            "hub confirmed at its zero mark: the encoder's turn count restarted there; `kerfmeter reset` brings the hub to zero exactly"
+            session.meter.confirm_hub_at_zero()?;
+            Ok(Done::new(
+                "hub confirmed at its zero mark: the encoder's turn count restarted there; `kerfmeter reset` brings the hub to zero exactly",
+            ))
         }
-        EncoderPlacement::OutputShaft => {
-            "nothing to confirm: the encoder is on the output shaft, which knows the hub's angle at power-up"
-        }
-    }))
+        EncoderPlacement::OutputShaft => Ok(Done::new(
+            "nothing to confirm: the encoder is on the output shaft, which knows the hub's angle at power-up",
+        )),
+    }
 }

@@ -282,7 +282,13 @@ def test_a_motor_shaft_device_is_confirmed_at_its_mark_from_the_page(browser, mo
     wait(browser, lambda d: "hub-turn-unknown" in text(d, "status"), message="no condition")
     button = browser.find_element(By.ID, "confirm-zero")
     assert button.is_displayed()
+    # Dismissed, the question changes nothing; accepted, the device is told.
     button.click()
+    browser.switch_to.alert.dismiss()
+    time.sleep(0.5)
+    assert "hub-turn-unknown" in text(browser, "status")
+    button.click()
+    browser.switch_to.alert.accept()
     wait(
         browser,
         lambda d: "Conditions" in text(d, "status") and "hub-turn-unknown" not in text(d, "status"),

@@ -87,6 +87,7 @@ class Kerfmeter:
         fault: Optional[str] = None,
         kerf_sd_um: float = 0.0,
         realtime: bool = False,
+        encoder_on_motor_shaft: bool = False,
         **plant: float,
     ) -> Kerfmeter: ...
     def run_kerfmeter(
