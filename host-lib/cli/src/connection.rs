@@ -46,7 +46,9 @@ pub struct Global {
     #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "NAME")]
     pub sim_fault: Option<kerfmeter::sim::SimFault>,
     /// Simulated device: the encoder on the motor shaft, so configured in its flash: from
-    /// power-up it refuses runs until `confirm-zero` (its hub stands at its mark).
+    /// power-up it refuses runs until `confirm-zero` (its hub stands at its mark). Every --sim
+    /// command starts a fresh twin: to confirm, then measure, use one that lives on (`serve`,
+    /// or `kerfmeter-twin --encoder-on-motor-shaft` and --port).
     #[arg(long, global = true, help_heading = SIM_HEADING)]
     pub sim_encoder_on_motor_shaft: bool,
     /// Simulated device: run in real time instead of as fast as the host keeps up.

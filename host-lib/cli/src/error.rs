@@ -60,6 +60,15 @@ pub enum CliError {
 }
 
 impl CliError {
+    /// Whether the command's report, already printed, says this failure itself (a failed
+    /// self-test's items, a run's `curve_error`): `--json` then prints no second object.
+    pub fn is_in_report(&self) -> bool {
+        matches!(
+            self,
+            CliError::SelfTestFailed | CliError::AfterMeasuring { .. }
+        )
+    }
+
     /// What kind of failure this is.
     pub fn category(&self) -> Category {
         match self {

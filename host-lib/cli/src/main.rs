@@ -170,7 +170,7 @@ fn main() -> ExitCode {
     match run(&cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            if cli.global.json {
+            if cli.global.json && !e.is_in_report() {
                 let report = ErrorReport {
                     error: e.to_string(),
                     fault: e.fault(),
@@ -178,7 +178,7 @@ fn main() -> ExitCode {
                     compensation_found: e.compensation_found(),
                 };
                 print_line(&to_json(&report, JsonLayout::CompactSorted));
-            } else {
+            } else if !cli.global.json {
                 eprintln!("error: {e}");
             }
             ExitCode::from(exit_code(&e))

@@ -81,10 +81,10 @@ fn a_failed_self_test_exits_4_like_any_device_failure() {
         "self-test",
     ]);
     assert_eq!(code(&out), 4);
+    // One JSON object, the report, which says the failure itself.
     let text = stdout(&out);
-    let first: serde_json::Value =
-        serde_json::from_str(text.lines().next().unwrap()).expect("JSON");
-    assert_eq!(first["passed"], false, "{text}");
+    let report: serde_json::Value = serde_json::from_str(&text).expect("one JSON object");
+    assert_eq!(report["passed"], false, "{text}");
 
     // The failed items are explained in words.
     let out = kerfmeter(&["--sim", "--sim-fault", "motor-disconnected", "self-test"]);
@@ -462,7 +462,7 @@ fn the_simulated_plant_is_set_by_name_file_and_material_and_checked() {
 }
 
 #[test]
-fn a_plot_that_cannot_be_written_does_not_hide_the_measured_kerf() {
+fn a_plot_that_cannot_be_written_is_refused_before_measuring() {
     let out = kerfmeter(&[
         "--sim",
         "--json",
@@ -470,20 +470,12 @@ fn a_plot_that_cannot_be_written_does_not_hide_the_measured_kerf() {
         "--plot",
         "/nonexistent-kerfmeter-dir/curve.svg",
     ]);
-    assert_ne!(code(&out), 0, "the plot was asked for and not made");
-    // The report, then the error's own JSON.
-    let text = stdout(&out);
-    let mut documents = serde_json::Deserializer::from_str(&text).into_iter::<serde_json::Value>();
-    let json = documents.next().unwrap().unwrap();
-    let error = documents.next().unwrap().unwrap();
-    assert!(
-        error["error"]
-            .as_str()
-            .unwrap()
-            .contains("measured and recorded")
-    );
-    assert!(json["kerf_um"].as_f64().unwrap() > 0.0, "{json}");
-    assert!(json["curve_error"].is_string(), "{json}");
+    assert_eq!(code(&out), 4, "{}", stdout(&out));
+    // One JSON object: the error, naming the plot's path; no kerf was measured.
+    let json: serde_json::Value = serde_json::from_str(&stdout(&out)).expect("one JSON object");
+    let error = json["error"].as_str().unwrap();
+    assert!(error.contains("/nonexistent-kerfmeter-dir"), "{json}");
+    assert!(json.get("kerf_um").is_none(), "{json}");
 }
 
 #[test]
@@ -586,6 +578,12 @@ fn a_motor_shaft_encoder_refuses_runs_until_confirm_zero() {
     assert_eq!(code(&out), 0, "{}", stderr(&out));
     assert!(
         stdout(&out).contains("hub confirmed at its zero mark"),
+        "{}",
+        stdout(&out)
+    );
+    // Each --sim command is a fresh twin: the confirmation says it does not carry over.
+    assert!(
+        stdout(&out).contains("starts a fresh one"),
         "{}",
         stdout(&out)
     );
@@ -1231,8 +1229,27 @@ fn runs_are_recorded_listed_newest_first_and_a_drift_is_warned() {
         "5",
     ]);
     let text = stdout(&out);
-    assert!(text.starts_with("1 simulated measurement in"), "{text}");
+    assert!(
+        text.starts_with("1 simulated measurement labelled \"mdf\" in"),
+        "{text}"
+    );
     assert!(!text.contains("warning"), "{text}");
+    // A limit reached says there may be more; a label with none says so.
+    let listed = |args: &[&str]| {
+        let out = kerfmeter(&[&["--sim", "--db", path(&db), "history"], args].concat());
+        stdout(&out)
+    };
+    let text = listed(&["--limit", "2"]);
+    assert!(
+        text.starts_with("the newest 2 simulated measurements in")
+            && text.contains("(--limit 2: there may be more)"),
+        "{text}"
+    );
+    let text = listed(&["--label", "nope"]);
+    assert!(
+        text.starts_with("no simulated measurements labelled \"nope\" in"),
+        "{text}"
+    );
     // The simulated records are not among the real ones.
     let out = kerfmeter(&["--db", path(&db), "history"]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));

@@ -36,6 +36,12 @@ pub struct HistoryReport {
     /// The records and the drift warnings.
     #[serde(flatten)]
     pub listing: Listing,
+    /// The label asked for, for the text.
+    #[serde(skip)]
+    label: Option<String>,
+    /// The most records asked for, for the text.
+    #[serde(skip)]
+    limit: u32,
 }
 
 /// List the history as `args` say.
@@ -55,7 +61,7 @@ pub fn list(
     let db = g.db_path()?;
     // Read-only: listing creates nothing, and no file yet is an empty history.
     let listing = History::open_to_read(&db)?.listing(&Query {
-        label,
+        label: label.clone(),
         limit: Some(limit as usize),
         simulated,
     })?;
@@ -63,24 +69,39 @@ pub fn list(
         db,
         simulated,
         listing,
+        label,
+        limit,
     })
 }
 
 impl fmt::Display for HistoryReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let kind = if self.simulated { "simulated" } else { "real" };
+        let labelled = match &self.label {
+            Some(label) => format!(" labelled {label:?}"),
+            None => String::new(),
+        };
         let records = &self.listing.records;
         if records.is_empty() {
-            write!(f, "no {kind} measurements in {}", self.db.display())?;
+            write!(
+                f,
+                "no {kind} measurements{labelled} in {}",
+                self.db.display()
+            )?;
             if !self.simulated {
                 write!(f, " (simulated ones are listed with --sim)")?;
             }
             return Ok(());
         }
         let n = records.len();
+        let (which, more) = if n == self.limit as usize {
+            ("the newest ", format!(" (--limit {n}: there may be more)"))
+        } else {
+            ("", String::new())
+        };
         writeln!(
             f,
-            "{n} {kind} measurement{} in {}, newest first",
+            "{which}{n} {kind} measurement{}{labelled} in {}{more}, newest first",
             plural(n),
             self.db.display()
         )?;

@@ -124,6 +124,8 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
     let params = joint.run_params(GaugeGeometry::PAPER)?;
     if let Some(plot) = &args.plot {
         plot::PlotFormat::for_path(plot)?;
+        // Before the gauge is measured: a plot that cannot be written is found now.
+        kerfmeter::files::ensure_writable(plot)?;
     }
     let mut s = g.connect()?;
     let measurement = measure(g, args, &mut s, &params)?;
