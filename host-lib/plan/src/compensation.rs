@@ -73,6 +73,9 @@ pub enum CompensatedBy {
     /// LightBurn: its layers' Kerf Offsets (a `.lbrn2` project).
     #[serde(rename = "lightburn")]
     LightBurn,
+    /// This tool's gauge drawing (`kerfmeter gauge`): cut as drawn, never dilated (its test
+    /// piece, if any, is already dilated).
+    KerfmeterGauge,
 }
 
 /// A range of values, µm: one value when both ends agree (a uniform kerf), else a kerf map's.
@@ -170,7 +173,59 @@ impl FoundCompensation {
                 self.rules.as_deref().unwrap_or("(not recorded)")
             ),
             CompensatedBy::LightBurn => format!("Kerf Offsets already set: {}", self.found_in),
+            CompensatedBy::KerfmeterGauge => format!(
+                "this is the Kerfmeter gauge ({TOOL} gauge {}, found in {}), cut as drawn: its spiral's gap is what measures the laser's own kerf{}",
+                self.version.as_deref().unwrap_or("(unknown version)"),
+                self.found_in,
+                self.kerf_um.map_or(String::new(), |k| format!(
+                    ", and its test piece is already dilated by {k} µm"
+                ))
+            ),
         }
+    }
+}
+
+/// The record a gauge drawing carries (`kerfmeter gauge`), so that `dilate` refuses it: it is
+/// cut as drawn, its test piece (if any) already dilated by `test_piece_kerf_um`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GaugeRecord {
+    /// The kerf the test piece is dilated by, µm; `None` without a test piece.
+    pub test_piece_kerf_um: Option<f64>,
+}
+
+impl GaugeRecord {
+    /// The record as `key=value` fields after [`MARKER`] (one line, no `--`).
+    fn record_line(&self) -> String {
+        let test_piece = self
+            .test_piece_kerf_um
+            .map_or(String::new(), |k| format!(" test_piece_kerf_um={k}"));
+        // A quoted value last: the comment's words follow a `:` right after it.
+        format!(
+            "{MARKER} tool={TOOL} version={} drawing=gauge offset_um=0{test_piece} rules=\"cut as drawn\"",
+            env!("CARGO_PKG_VERSION")
+        )
+    }
+
+    /// The words after the record.
+    fn words(&self) -> &'static str {
+        "the Kerfmeter gauge: cut it as drawn, never dilated (kerfmeter dilate refuses it)"
+    }
+
+    /// The XML comment recording it in an SVG.
+    pub fn svg_comment(&self) -> String {
+        format!(
+            "<!-- {} -->",
+            comment_safe(&format!("{}: {}", self.record_line(), self.words()))
+        )
+    }
+
+    /// The `999` comments recording it in a DXF, with the file's line ending.
+    pub fn dxf_comments(&self, eol: &str) -> String {
+        format!(
+            "999{eol}{}{eol}999{eol}{}{eol}",
+            self.record_line(),
+            self.words()
+        )
     }
 }
 
@@ -320,6 +375,9 @@ pub(crate) fn treatment(
     policy: IfCompensated,
     kerf: &KerfSource,
 ) -> Result<Treatment> {
+    if let Some(gauge) = found.filter(|f| f.by == CompensatedBy::KerfmeterGauge) {
+        return gauge_treatment(gauge, policy);
+    }
     let Some(found) = found.filter(|f| f.offset_um.0[1] > 0.0) else {
         return Ok(Treatment {
             offsetting: Offsetting::Dilate,
@@ -359,6 +417,31 @@ pub(crate) fn treatment(
             action: "recompensate",
         }),
     }
+}
+
+/// A gauge drawing is cut as drawn: refused, unless dilated anyway on the user's word (never
+/// "recompensated": its spiral carries no compensation to undo).
+fn gauge_treatment(gauge: &FoundCompensation, policy: IfCompensated) -> Result<Treatment> {
+    if policy == IfCompensated::DilateAnyway {
+        return Ok(Treatment {
+            offsetting: Offsetting::Dilate,
+            corner_loop_max_mm: None,
+            carried_um: RangeUm::one(0.0),
+            action: "dilate_anyway",
+        });
+    }
+    Err(PlanError::AlreadyCompensated {
+        message: format!(
+            "{}. Dilating it would widen the spiral's gap, so the device would read a kerf too small{}; cut it as it is (nothing was written; --already-compensated-ok dilates it anyway).",
+            gauge.describe(),
+            if gauge.kerf_um.is_some() {
+                ", and compensate the test piece twice"
+            } else {
+                ""
+            }
+        ),
+        found: Box::new(gauge.clone()),
+    })
 }
 
 /// The refusal: what was found, why it is refused, and the two ways on.
@@ -456,10 +539,21 @@ fn own_record(fields: &[(String, String)], found_in: &str) -> Option<FoundCompen
     if get("tool").is_some_and(|t| t != TOOL) {
         return None;
     }
+    let gauge = get("drawing") == Some("gauge");
+    // A gauge records its test piece's kerf (the spiral carries none).
+    let kerf_key = if gauge {
+        "test_piece_kerf_um"
+    } else {
+        "kerf_um"
+    };
     Some(FoundCompensation {
-        by: CompensatedBy::Kerfmeter,
+        by: if gauge {
+            CompensatedBy::KerfmeterGauge
+        } else {
+            CompensatedBy::Kerfmeter
+        },
         offset_um: RangeUm::parse(get("offset_um")?)?,
-        kerf_um: get("kerf_um").and_then(RangeUm::parse),
+        kerf_um: get(kerf_key).and_then(RangeUm::parse),
         rules: get("rules").map(str::to_string),
         version: get("version").map(str::to_string),
         found_in: found_in.into(),

@@ -44,6 +44,7 @@ use kerfmeter_protocol::spiral::{pitch_mm_per_rad, start_radius_mm};
 use kerfmeter_protocol::{GaugeGeometry, JamDirection, RunParams};
 use serde::Serialize;
 
+use super::compensation::GaugeRecord;
 use super::dilate::{self, Contour, KerfSource};
 use super::geom::{Affine, CURVE_TOLERANCE_MM, Pline, V2, fit_biarcs, segment_distance, v2};
 use super::svg::write_pline;
@@ -101,6 +102,8 @@ pub struct GaugeDrawing {
     pub holes: [(V2, f64); 2],
     /// Test-piece parts (tab, slot), already dilated, with their names.
     pub test_piece: Vec<(String, Pline)>,
+    /// The kerf the test piece is dilated by, µm (`None` without one): recorded in the drawing.
+    pub test_piece_kerf_um: Option<f64>,
     /// Label lines, each with its baseline start; and the text height, mm.
     pub label: Option<(Vec<(String, V2)>, f64)>,
 }
@@ -338,8 +341,16 @@ pub fn build(g: &GaugeGeometry, opts: &GaugeOptions) -> Result<GaugeDrawing> {
         max_deviation_mm: max_dev,
         holes,
         test_piece,
+        test_piece_kerf_um: opts.test_piece.map(|spec| spec.kerf_um),
         label,
     })
+}
+
+/// What the drawing records of itself, so that `dilate` refuses it (cut as drawn).
+fn record(d: &GaugeDrawing) -> GaugeRecord {
+    GaugeRecord {
+        test_piece_kerf_um: d.test_piece_kerf_um,
+    }
 }
 
 fn fmt6(v: f64) -> String {
@@ -382,6 +393,7 @@ pub fn to_svg(d: &GaugeDrawing) -> String {
         fmt6(w),
         fmt6(h)
     );
+    let _ = writeln!(s, "  {}", record(d).svg_comment());
     let _ = writeln!(s, "  <title>Kerfmeter spiral gauge</title>");
     let _ = writeln!(
         s,
@@ -501,7 +513,8 @@ pub fn to_dxf(d: &GaugeDrawing) -> Result<Vec<u8>> {
             drawing.add_entity(on(Entity::new(EntityType::Text(t)), "ENGRAVE"));
         }
     }
-    let mut out = Vec::new();
+    // The `dxf` crate writes no comments, and ends every line with CR LF.
+    let mut out = record(d).dxf_comments("\r\n").into_bytes();
     drawing
         .save(&mut out)
         .map_err(|e| PlanError::Dxf(format!("cannot write the DXF: {e}")))?;

@@ -593,3 +593,45 @@ fn boxes_py_reference_rectangle_drawn_without_burn_is_only_dilated() {
             .all(|&x| x < 1e-4)
     );
 }
+
+#[test]
+fn the_gauge_drawing_is_cut_as_drawn_never_dilated() {
+    use kerfmeter_plan::gauge::{self, GaugeOptions, TestPieceSpec};
+    let geometry = kerfmeter_protocol::GaugeGeometry::PAPER;
+    let plain = gauge::build(&geometry, &GaugeOptions::default()).unwrap();
+    let with_piece = gauge::build(
+        &geometry,
+        &GaugeOptions {
+            test_piece: Some(TestPieceSpec {
+                thickness_mm: 3.0,
+                finger_width_mm: 6.0,
+                kerf_um: 150.0,
+            }),
+            ..GaugeOptions::default()
+        },
+    )
+    .unwrap();
+    for (drawing, piece) in [(&plain, false), (&with_piece, true)] {
+        let svg = gauge::to_svg(drawing);
+        let e = run(&svg, 150.0, IfCompensated::Refuse).unwrap_err();
+        let found = e.compensation_found().expect("found").clone();
+        assert_eq!(found.by, CompensatedBy::KerfmeterGauge, "{e}");
+        assert!(e.to_string().contains("cut it as it is"), "{e}");
+        assert_eq!(
+            e.to_string().contains("compensate the test piece twice"),
+            piece,
+            "{e}"
+        );
+        // Nothing to undo: recompensating is refused too; dilating anyway is the user's word.
+        assert!(run(&svg, 150.0, IfCompensated::Recompensate).is_err());
+        assert!(run(&svg, 150.0, IfCompensated::DilateAnyway).is_ok());
+        let dxf = gauge::to_dxf(drawing).unwrap();
+        let opts = DxfOptions {
+            if_compensated: IfCompensated::Refuse,
+            ..DxfOptions::default()
+        };
+        let e = dilate_dxf(&dxf, &KerfSource::Uniform(150.0), &opts).unwrap_err();
+        let found = e.compensation_found().expect("found in the DXF");
+        assert_eq!(found.by, CompensatedBy::KerfmeterGauge, "{e}");
+    }
+}

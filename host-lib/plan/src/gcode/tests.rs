@@ -190,11 +190,15 @@ fn the_svg_is_flipped_into_the_machine_frame_with_its_box_at_the_origin() {
 
 #[test]
 fn a_dxf_is_cut_on_its_dilated_contours() {
-    // The gauge's own DXF as a plan: LWPOLYLINE bulges and CIRCLEs, y up.
+    // The gauge's own DXF as a plan: LWPOLYLINE bulges and CIRCLEs, y up (dilated only on the
+    // user's word: a gauge is cut as drawn).
     let d = gauge::build(&GaugeGeometry::PAPER, &GaugeOptions::default()).unwrap();
     let bytes = gauge::to_dxf(&d).unwrap();
-    let (cuts, _) =
-        dilate_dxf_cuts(&bytes, &KerfSource::Uniform(150.0), &DxfOptions::default()).unwrap();
+    let opts = DxfOptions {
+        if_compensated: crate::compensation::IfCompensated::DilateAnyway,
+        ..DxfOptions::default()
+    };
+    let (cuts, _) = dilate_dxf_cuts(&bytes, &KerfSource::Uniform(150.0), &opts).unwrap();
     assert_eq!(cuts.len(), 3);
     assert!(cuts.iter().all(|c| c.group.layer.is_some()));
     check_geometry(&cuts, false);
