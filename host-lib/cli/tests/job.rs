@@ -200,7 +200,12 @@ fn the_dry_run_prints_every_stage_and_opens_nothing() {
         text.contains("G0 X130.0000 Y35.0000\nG1 Z-2.0000"),
         "{text}"
     );
-    assert!(text.contains("kerf applied: 200.0 um"), "{text}");
+    // The dry run's kerf is not passed off as measured.
+    assert!(
+        text.contains("kerf applied: 200.0 um, not measured: a dry run"),
+        "{text}"
+    );
+    assert!(!text.contains("measured by kerfmeter job"), "{text}");
     assert!(!out_svg.exists());
 }
 

@@ -151,7 +151,8 @@ impl fmt::Display for OpenPath {
 pub struct PlanSummary {
     /// `svg` or `dxf`.
     pub format: String,
-    /// Length of one drawing unit of the document's root space, mm.
+    /// Length of one drawing unit, mm: in an SVG the root's user unit (what its `viewBox`
+    /// makes of the `width`), in a DXF the `$INSUNITS` (or `--units`) unit.
     pub mm_per_unit: f64,
     /// Elements (SVG) or entities (DXF) that are cuts by the rules.
     pub cut_elements: usize,

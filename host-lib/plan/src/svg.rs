@@ -307,10 +307,10 @@ struct Rendered {
 /// the source again, to name and place the cuts.
 fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     let mut plan = Plan::new("svg");
-    let (tagged, use_by_id, shapes_len) = {
+    let (tagged, use_by_id, shapes_len, mm_per_px) = {
         let doc = parse(&text)?;
         let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
-        plan.summary.mm_per_unit = mm_per_px;
+        plan.summary.mm_per_unit = user_unit_mm(doc.root_element(), mm_per_px);
         plan.summary.compensation_found = compensation::find_in_svg(&doc);
         for _ in doc
             .descendants()
@@ -320,14 +320,14 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         }
         let (shapes, uses) = shapes_and_uses(&doc);
         let (tagged, use_by_id) = tagged(&text, &shapes, &uses)?;
-        (tagged, use_by_id, shapes.len())
+        (tagged, use_by_id, shapes.len(), mm_per_px)
     };
     drop(text);
     let tree = usvg::Tree::from_str(&tagged.text, &usvg::Options::default())
         .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
     let mut walk = Walk {
         rules: &opts.rules,
-        mm_per_px: plan.summary.mm_per_unit,
+        mm_per_px,
         shapes_len,
         use_by_id: &use_by_id,
         // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
@@ -936,6 +936,39 @@ impl Format for SvgPlan<'_> {
 }
 
 /// mm per usvg pixel (user unit of the root), from the root's `width`/`height`.
+/// The length of the root's user unit, mm, as the report says it: usvg's px (`mm_per_px`) times
+/// the px in one user unit, which a `viewBox` sets (`width` over the box's width) and which is
+/// otherwise one px.
+fn user_unit_mm(root: Node, mm_per_px: f64) -> f64 {
+    let view_box_w = root
+        .attribute("viewBox")
+        .and_then(|v| svgtypes::ViewBox::from_str(v).ok())
+        .map(|v| v.w);
+    let width_px = root
+        .attribute("width")
+        .and_then(|s| svgtypes::Length::from_str(s).ok())
+        .and_then(|l| length_px(&l));
+    match (view_box_w, width_px) {
+        (Some(vb), Some(w)) if vb > 0.0 && w > 0.0 => mm_per_px * w / vb,
+        _ => mm_per_px,
+    }
+}
+
+/// An absolute (or px) length in px at 96 per inch, as usvg counts them.
+fn length_px(l: &svgtypes::Length) -> Option<f64> {
+    use svgtypes::LengthUnit;
+    let per_unit = match l.unit {
+        LengthUnit::None | LengthUnit::Px => 1.0,
+        LengthUnit::Mm => 96.0 / 25.4,
+        LengthUnit::Cm => 96.0 / 2.54,
+        LengthUnit::In => 96.0,
+        LengthUnit::Pt => 96.0 / 72.0,
+        LengthUnit::Pc => 16.0,
+        _ => return None,
+    };
+    Some(l.number * per_unit)
+}
+
 fn document_scale(
     root: Node,
     assume: Option<AssumedUnits>,
@@ -1609,6 +1642,26 @@ mod tests {
             "--cut-max-width-mm",
         ] {
             assert!(e.contains(said), "{said:?} in {e}");
+        }
+    }
+
+    #[test]
+    fn the_report_gives_the_root_user_unit() {
+        let rect = r##"<rect x="10" y="10" width="20" height="20" fill="none" stroke="#FF0000" stroke-width="0.1"/>"##;
+        for (root, unit_mm) in [
+            (r#"width="100mm" height="60mm" viewBox="0 0 100 60""#, 1.0),
+            (r#"width="100mm" height="60mm" viewBox="0 0 1000 600""#, 0.1),
+            (r#"width="10cm" height="6cm" viewBox="0 0 100 60""#, 1.0),
+            (r#"width="100mm" height="60mm""#, 25.4 / 96.0),
+        ] {
+            let svg = format!(r#"<svg xmlns="http://www.w3.org/2000/svg" {root}>{rect}</svg>"#);
+            let (_, s) =
+                dilate_svg(&svg, &KerfSource::Uniform(150.0), &SvgOptions::default()).unwrap();
+            assert!(
+                (s.mm_per_unit - unit_mm).abs() < 1e-9,
+                "{root}: {}",
+                s.mm_per_unit
+            );
         }
     }
 

@@ -491,8 +491,9 @@ impl Setup {
         })
     }
 
-    /// The job's dilated plan (the file's bytes) and G-code at `kerf_um`.
-    fn dilated(&self, args: &JobArgs, kerf_um: f64) -> Result<(Vec<u8>, String)> {
+    /// The job's dilated plan (the file's bytes) and G-code at `kerf_um`, which the job
+    /// `measured` (else it is `--dry-run-kerf-um`'s, and the G-code's header says so).
+    fn dilated(&self, args: &JobArgs, kerf_um: f64, measured: bool) -> Result<(Vec<u8>, String)> {
         let dilation = dilation_args(args, kerf_um);
         let (_, kerf) = dilation.kerf()?;
         let options = dilation.options(true, Default::default())?;
@@ -500,7 +501,11 @@ impl Setup {
         let (format, cuts, _) = dilate_file_cuts(&args.input, &kerf, &options)?;
         let provenance = Provenance {
             source: args.input.display().to_string(),
-            kerf: format!("{kerf_um:.1} um, measured by kerfmeter job"),
+            kerf: if measured {
+                format!("{kerf_um:.1} um, measured by kerfmeter job")
+            } else {
+                format!("{kerf_um:.1} um, not measured: a dry run")
+            },
         };
         let (program, _) = plan_program(
             &cuts,
@@ -521,7 +526,9 @@ impl Setup {
         kerf_um: f64,
         written: &mut Vec<PathBuf>,
     ) -> Result<String, String> {
-        let (bytes, gcode) = self.dilated(args, kerf_um).map_err(|e| e.to_string())?;
+        let (bytes, gcode) = self
+            .dilated(args, kerf_um, true)
+            .map_err(|e| e.to_string())?;
         write_atomically(&args.output, &bytes).map_err(|e| e.to_string())?;
         written.push(args.output.clone());
         write_atomically(&self.gcode_out, gcode.as_bytes()).map_err(|e| e.to_string())?;
@@ -531,7 +538,7 @@ impl Setup {
 
     /// Every stage's program, the job's dilated by `--dry-run-kerf-um`.
     fn dry_run(&self, args: &JobArgs) -> Result<DryRunReport> {
-        let (_, job) = self.dilated(args, args.dry_run_kerf_um)?;
+        let (_, job) = self.dilated(args, args.dry_run_kerf_um, false)?;
         let p = &self.placement;
         let programs = [
             (Stage::CutGauge, self.gauge_gcode.clone()),
