@@ -69,8 +69,8 @@ pub struct Global {
     /// Print one JSON object instead of text.
     #[arg(long, global = true, help_heading = GLOBAL_HEADING)]
     pub json: bool,
-    /// The measurement history's SQLite file [default: kerfmeter/history.sqlite3 in the user's
-    /// data directory]. Also from KERFMETER_DB.
+    /// The measurement history's SQLite file, in a folder that exists [default:
+    /// kerfmeter/history.sqlite3 in the user's data directory]. Also from KERFMETER_DB.
     #[arg(long, global = true, help_heading = GLOBAL_HEADING, env = "KERFMETER_DB", value_name = "FILE")]
     pub db: Option<PathBuf>,
     /// Per-attempt response timeout, ms.
@@ -93,6 +93,15 @@ impl Global {
             Some(db) => Ok(db.clone()),
             None => kerfmeter_history::History::default_path(),
         }
+    }
+
+    /// Before a measurement: the folder of a history the user named (`--db`, `KERFMETER_DB`)
+    /// exists. The history is written once the gauge is measured, when a mistyped folder could
+    /// only be warned about.
+    pub fn check_db_folder(&self) -> Result<(), kerfmeter_history::Error> {
+        self.db
+            .as_deref()
+            .map_or(Ok(()), kerfmeter_history::History::check_folder)
     }
 
     /// The client's options.

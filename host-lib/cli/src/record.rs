@@ -72,7 +72,13 @@ pub fn record(g: &Global, meter: &Kerfmeter, m: &Measured<'_>) -> Recorded {
         }
     };
     let new = new_record(meter, m);
-    let outcome = History::open(&db).and_then(|mut h| {
+    // The user's data directory may not have its folder yet; a path the user gave must.
+    let open = if g.db.is_some() {
+        History::open
+    } else {
+        History::open_creating_folder
+    };
+    let outcome = open(&db).and_then(|mut h| {
         let id = h.record(&new)?;
         // A drift that cannot be worked out is no reason to call the record lost.
         Ok((id, h.drift_at(id).ok().flatten()))

@@ -1261,6 +1261,22 @@ fn runs_are_recorded_listed_newest_first_and_a_drift_is_warned() {
 }
 
 #[test]
+fn a_history_in_a_folder_that_does_not_exist_is_refused_before_measuring() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("no-such-folder").join("history.sqlite3");
+    let out = kerfmeter(&["--sim", "--json", "--db", path(&db), "run"]);
+    assert_eq!(code(&out), 4, "{}", stdout(&out));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&out)).expect("one JSON object");
+    let error = json["error"].as_str().unwrap();
+    assert!(error.contains("folder does not exist"), "{json}");
+    assert!(json.get("kerf_um").is_none(), "{json}");
+    assert!(
+        !dir.path().join("no-such-folder").exists(),
+        "a mistyped folder is not made"
+    );
+}
+
+#[test]
 fn a_history_that_cannot_be_written_warns_and_keeps_the_measurement() {
     let dir = tempfile::tempdir().unwrap();
     let not_a_db = dir.path().join("notes.txt");

@@ -43,6 +43,15 @@ pub enum Error {
         /// Why.
         source: std::io::Error,
     },
+    /// The database's folder does not exist (a path given by the user: not made).
+    #[error(
+        "{}: the history's folder does not exist; give a file in an existing folder (--db or KERFMETER_DB)",
+        path.display()
+    )]
+    NoFolder {
+        /// The folder.
+        path: PathBuf,
+    },
     /// The system names no data directory for this user.
     #[error(
         "this system names no data directory for the history (no HOME?); give a file with --db or KERFMETER_DB"

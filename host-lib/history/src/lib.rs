@@ -155,14 +155,34 @@ impl History {
         Ok(dir.join("kerfmeter").join("history.sqlite3"))
     }
 
-    /// Open (or create, with its folder) the database at `path` and bring its schema up to date.
-    pub fn open(path: &Path) -> Result<History, Error> {
+    /// Whether the database at `path` has a folder to be made in ([`Error::NoFolder`] if not):
+    /// checked before a measurement, so that a mistyped folder is said before the gauge is used.
+    pub fn check_folder(path: &Path) -> Result<(), Error> {
+        match path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            Some(dir) if !dir.is_dir() => Err(Error::NoFolder {
+                path: dir.to_owned(),
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// [`History::open`], making the database's folder first: for the user's data directory
+    /// ([`History::default_path`]), which may not exist yet. A path the user gave is opened with
+    /// [`History::open`], so that a mistyped folder is said, not made.
+    pub fn open_creating_folder(path: &Path) -> Result<History, Error> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|source| Error::Folder {
                 path: dir.to_owned(),
                 source,
             })?;
         }
+        History::open(path)
+    }
+
+    /// Open (or create) the database at `path`, in a folder that exists, and bring its schema up
+    /// to date.
+    pub fn open(path: &Path) -> Result<History, Error> {
+        History::check_folder(path)?;
         let sql = |source| Error::sqlite(path, source);
         let mut conn = Connection::open(path).map_err(sql)?;
         conn.busy_timeout(BUSY_TIMEOUT).map_err(sql)?;

@@ -34,8 +34,12 @@ fn all(label: Option<&str>, simulated: bool) -> Query {
 fn records_persist_newest_first_and_the_simulated_ones_apart() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("nested/folder/history.sqlite3");
+    // A folder that does not exist is made only when asked (the user's data directory).
+    let refused = History::open(&db).unwrap_err();
+    assert!(matches!(refused, Error::NoFolder { .. }), "{refused:?}");
+    assert!(!dir.path().join("nested").exists());
     {
-        let mut h = History::open(&db).unwrap();
+        let mut h = History::open_creating_folder(&db).unwrap();
         h.record(&measurement(Some("birch"), 150.0, false)).unwrap();
         h.record(&measurement(Some("mdf"), 170.0, false)).unwrap();
         h.record(&measurement(Some("birch"), 999.0, true)).unwrap();
@@ -157,7 +161,7 @@ fn reading_creates_nothing_and_never_waits_for_a_writer() {
     assert!(!dir.path().join("not").exists(), "nothing created to read");
     drop(empty);
 
-    let mut h = History::open(&db).unwrap();
+    let mut h = History::open_creating_folder(&db).unwrap();
     h.record(&measurement(Some("birch"), 150.0, false)).unwrap();
     // Another program is writing: its transaction holds the write lock, uncommitted.
     let writer = rusqlite::Connection::open(&db).unwrap();

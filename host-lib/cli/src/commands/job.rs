@@ -263,6 +263,7 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
         return Ok(JobOutcome::DryRun(setup.dry_run(args)?));
     }
     check_machines(g, args)?;
+    g.check_db_folder()?;
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))

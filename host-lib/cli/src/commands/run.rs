@@ -127,6 +127,7 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
         // Before the gauge is measured: a plot that cannot be written is found now.
         kerfmeter::files::ensure_writable(plot)?;
     }
+    g.check_db_folder()?;
     let mut s = g.connect()?;
     let measurement = measure(g, args, &mut s, &params)?;
     // Recorded before anything else can fail: the measurement is made.
