@@ -38,7 +38,9 @@ pub struct Global {
     /// Simulated device: gauge-to-gauge spread (SD) of the simulated cutter's kerf, µm.
     #[arg(long, global = true, help_heading = SIM_HEADING, default_value_t = 0.0, value_name = "UM")]
     pub sim_kerf_sd_um: f64,
-    /// Simulated device: seed of every random number (same seed, same result).
+    /// Simulated device: seed of every random number (same seed, same gauges and plant; a
+    /// reading can still move by tenths of a µm, as the host's requests reach the twin when the
+    /// machine's scheduling lets them).
     #[arg(long, global = true, help_heading = SIM_HEADING, default_value_t = SIM_SEED)]
     pub sim_seed: u64,
     /// Simulated device: inject a fault (parity, magnet-lost, miso-stuck, no-inset,
