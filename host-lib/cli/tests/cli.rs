@@ -402,6 +402,18 @@ fn gauge_writes_the_paper_gauge_and_refuses_a_test_piece_without_its_kerf() {
         stderr(&out)
     );
     assert!(!txt.exists());
+    // A kerf for a test piece that is not drawn: refused, not ignored.
+    let dir2 = tempfile::tempdir().unwrap();
+    let out = kerfmeter(&[
+        "gauge",
+        "-o",
+        path(&dir2.path().join("g.svg")),
+        "--test-piece-kerf-um",
+        "150",
+    ]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    assert!(stderr(&out).contains("add it"), "{}", stderr(&out));
+    assert!(!dir2.path().join("g.svg").exists());
 }
 
 #[test]

@@ -254,6 +254,25 @@ fn mixed_simulated_and_real_machines_and_a_full_bed_are_refused() {
         "{}",
         stderr(&out)
     );
+    // A bed smaller than the plan: that is what is said, not that the gauge has no room.
+    let out = kerfmeter(&[
+        "--sim",
+        "job",
+        path(&plan),
+        "--cutter",
+        "sim",
+        "-o",
+        o,
+        "--bed-mm",
+        "30,20",
+    ]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("the plan as placed fills")
+            && stderr(&out).contains("beyond the 30 × 20 mm bed"),
+        "{}",
+        stderr(&out)
+    );
     let out = kerfmeter(&[
         "--sim",
         "job",

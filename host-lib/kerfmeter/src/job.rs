@@ -172,17 +172,10 @@ impl Placement {
     /// job's moves go, made before anything moves.
     pub fn check_layout(&self, layout: &Layout) -> Result<(), JobError> {
         self.check()?;
+        layout.check_plan_on_bed()?;
         let bed = layout.bed_box_mm();
         let [bw, bh] = layout.bed_mm;
         let plan = layout.plan_box_mm;
-        if !contains(bed, plan) {
-            return Err(JobError::Invalid(format!(
-                "the plan as placed fills {}, beyond the {bw} × {bh} mm bed {}: move it with \
-                 --origin-mm X,Y, or give the bed's size with --bed-mm W,H if it is larger",
-                show_box(plan),
-                show_box(bed)
-            )));
-        }
         let gauge = placed(layout.gauge_extent_mm, self.gauge_at_mm);
         let [gx, gy] = self.gauge_at_mm;
         if !contains(bed, gauge) {
@@ -252,6 +245,22 @@ impl Layout {
     /// The bed as a box, mm.
     fn bed_box_mm(&self) -> [[f64; 2]; 2] {
         [[0.0, 0.0], self.bed_mm]
+    }
+
+    /// The plan as placed lies on the bed (checked first: a plan off the bed leaves no room
+    /// for the gauge either, and that is not what to fix).
+    pub fn check_plan_on_bed(&self) -> Result<(), JobError> {
+        let (bed, plan) = (self.bed_box_mm(), self.plan_box_mm);
+        let [bw, bh] = self.bed_mm;
+        if contains(bed, plan) {
+            return Ok(());
+        }
+        Err(JobError::Invalid(format!(
+            "the plan as placed fills {}, beyond the {bw} × {bh} mm bed {}: move it with \
+             --origin-mm X,Y, or give the bed's size with --bed-mm W,H if it is larger",
+            show_box(plan),
+            show_box(bed)
+        )))
     }
 }
 

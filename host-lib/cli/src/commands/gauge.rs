@@ -143,7 +143,12 @@ impl GaugeArgs {
 
     fn options(&self) -> Result<GaugeOptions, PlanError> {
         let test_piece = match (self.test_piece, self.test_piece_kerf_um) {
-            (false, _) => None,
+            (false, None) => None,
+            (false, Some(_)) => {
+                return Err(PlanError::InvalidArgument(
+                    "--test-piece-kerf-um is the kerf of the test piece, which is drawn only with --test-piece: add it, or leave the kerf out".into(),
+                ));
+            }
             (true, None) => {
                 return Err(PlanError::InvalidArgument(
                     "--test-piece needs --test-piece-kerf-um (the kerf to dilate it by)".into(),
