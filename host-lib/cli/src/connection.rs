@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
-use kerfmeter::sim::{PlantParams, SimDevice, SimMaterial, SimOptions};
+use kerfmeter::sim::{PlantParamError, PlantParams, SimDevice, SimMaterial, SimOptions};
 use kerfmeter::{Kerfmeter, Options};
 
 use crate::error::CliError;
@@ -121,7 +121,14 @@ impl Global {
             self.sim_plant_file.as_deref(),
             &self.sim_plant,
         )
-        .map_err(|e| CliError::Usage(e.to_string()))?;
+        .map_err(|e| match e {
+            // A file that cannot be read or parsed is a file error (exit 4), as for a plan.
+            PlantParamError::File { path, reason } => CliError::Meter(kerfmeter::Error::File {
+                path: path.into(),
+                message: format!("plant parameter file: {reason}"),
+            }),
+            other => CliError::Usage(other.to_string()),
+        })?;
         Ok(SimOptions {
             kerf_um,
             kerf_sd_um: self.sim_kerf_sd_um,

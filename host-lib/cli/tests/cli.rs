@@ -440,9 +440,13 @@ fn the_simulated_plant_is_set_by_name_file_and_material_and_checked() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("plant.json");
     std::fs::write(&file, r#"{"supply_v": "high"}"#).unwrap();
+    // A plant file that cannot be read or parsed is a file error (exit 4), as a plan's is.
     let out = kerfmeter(&["--sim", "--sim-plant-file", path(&file), "info"]);
-    assert_eq!(code(&out), 2);
+    assert_eq!(code(&out), 4);
     assert!(stderr(&out).contains("plant.json"), "{}", stderr(&out));
+    let missing = dir.path().join("missing.json");
+    let out = kerfmeter(&["--sim", "--sim-plant-file", path(&missing), "info"]);
+    assert_eq!(code(&out), 4, "{}", stderr(&out));
 
     // Accepted: the run's JSON carries the truth beside the reading, and a stiffer material
     // compresses less, so its truth is lower.

@@ -64,6 +64,13 @@ impl JointSpec {
                 self.fingers
             )));
         }
+        // Said as itself: out of range it would be said only as the contact area it makes.
+        if !(self.finger_length_mm > 0.0 && self.finger_length_mm.is_finite()) {
+            return Err(Error::InvalidArgument(format!(
+                "the finger length (finger_length_mm) must be more than 0 mm, got {} mm",
+                self.finger_length_mm
+            )));
+        }
         let params = RunParams {
             gauge,
             thickness_mm: self.thickness_mm as f32,
@@ -104,6 +111,16 @@ mod tests {
         assert!((j.contact_area_mm2() - 151.2).abs() < 1e-9);
         let p = j.run_params(GaugeGeometry::PAPER).unwrap();
         assert_eq!(p.target_force_n, 55.0);
+    }
+
+    #[test]
+    fn a_finger_length_of_nothing_is_said_as_itself() {
+        let j = JointSpec {
+            finger_length_mm: -1.0,
+            ..JointSpec::default()
+        };
+        let e = j.run_params(GaugeGeometry::PAPER).unwrap_err().to_string();
+        assert!(e.contains("finger length (finger_length_mm)"), "{e}");
     }
 
     #[test]

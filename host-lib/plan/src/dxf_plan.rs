@@ -232,8 +232,8 @@ fn units_mm(
         (Some(mm), None) => Ok(mm),
         (None, Some(u)) => {
             summary.notes.push(format!(
-                "the drawing does not say its units; one unit taken as {:?} ({} mm) as asked",
-                u,
+                "the drawing does not say its units; one unit taken as {} ({} mm) as asked",
+                u.name(),
                 u.mm()
             ));
             Ok(u.mm())

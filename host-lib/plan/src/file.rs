@@ -183,6 +183,7 @@ fn read_plan(input: &Path) -> Result<(PlanFormat, Vec<u8>)> {
         path: input.to_owned(),
         source,
     })?;
+    crate::source_file::refuse_empty(input, &bytes)?;
     Ok((format, bytes))
 }
 

@@ -43,6 +43,7 @@ pub(crate) fn read_plan_file(path: &Path) -> Result<(Vec<u8>, Option<SourceFile>
     let regular = file.metadata().map_err(io)?.is_file();
     let mut bytes = Vec::new();
     file.read_to_end(&mut bytes).map_err(io)?;
+    refuse_empty(path, &bytes)?;
     let source = regular.then(|| {
         let keys = RandomState::new();
         SourceFile {
@@ -54,6 +55,21 @@ pub(crate) fn read_plan_file(path: &Path) -> Result<(Vec<u8>, Option<SourceFile>
         }
     });
     Ok((bytes, source))
+}
+
+/// A plan file with nothing in it (or only blanks) is said to be empty, not taken for a drawing
+/// that lacks its units or its cuts.
+pub(crate) fn refuse_empty(path: &Path, bytes: &[u8]) -> Result<()> {
+    if !bytes.iter().all(u8::is_ascii_whitespace) {
+        return Ok(());
+    }
+    Err(PlanError::Io {
+        path: path.to_owned(),
+        source: std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            "the file is empty: no drawing to read (was it saved?)",
+        ),
+    })
 }
 
 impl SourceFile {

@@ -1003,8 +1003,8 @@ fn document_scale(
         _ => match assume {
             Some(u) => {
                 summary.notes.push(format!(
-                    "the file does not say its units; one user unit taken as {:?} ({} mm) as asked",
-                    u,
+                    "the file does not say its units; one user unit taken as {} ({} mm) as asked",
+                    u.name(),
                     u.mm()
                 ));
                 Ok(u.mm())
