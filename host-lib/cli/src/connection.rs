@@ -32,7 +32,8 @@ pub struct Global {
     /// LightBurn twin instead of LightBurn.
     #[arg(long, global = true, help_heading = GLOBAL_HEADING)]
     pub sim: bool,
-    /// Simulated device: true kerf of the cut gauges, µm.
+    /// Simulated device: nominal kerf of the gauges its cutter cuts, µm (each gauge's true kerf
+    /// adds the cut's own bias and spread, which `run --json` reports as sim_truth_um).
     #[arg(long, global = true, help_heading = SIM_HEADING, default_value_t = SIM_KERF_UM, value_name = "UM")]
     pub sim_kerf_um: f64,
     /// Simulated device: gauge-to-gauge spread (SD) of the simulated cutter's kerf, µm.

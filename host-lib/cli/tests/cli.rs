@@ -373,6 +373,23 @@ fn a_kerf_map_file_gives_each_part_its_own_kerf() {
     assert!(
         hi > 200.0 && hi < 230.0,
         "side B's centroid is near x = 120: {hi}"
+    ); // The text's headline names the map, not one kerf for every part.
+    let text_out = dir.path().join("out-text.svg");
+    let out = kerfmeter(&[
+        "dilate",
+        path(&input),
+        "--kerf-um",
+        "150",
+        "--map",
+        path(&map_path),
+        "-o",
+        path(&text_out),
+    ]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("by the kerf map (150 µm at its reference cell"),
+        "{}",
+        stdout(&out)
     );
 }
 

@@ -160,22 +160,31 @@ pub struct DilateReport {
 impl fmt::Display for DilateReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let s = &self.summary;
+        // With a map each part has its own kerf: the headline names the map's reference.
+        let by = match &self.map {
+            Some(_) => format!(
+                "by the kerf map ({} µm at its reference cell; each cut moved half its part's kerf)",
+                self.kerf_um
+            ),
+            None => format!(
+                "by {} µm (each cut moved {} µm)",
+                self.kerf_um,
+                moved_um(s, self.kerf_um)
+            ),
+        };
         match (&self.output, self.dry_run) {
             (Some(out), false) => writeln!(
                 f,
-                "dilated {} → {} ({}) by {} µm (each cut moved {} µm)",
+                "dilated {} → {} ({}) {by}",
                 self.input.display(),
                 out.display(),
                 self.format,
-                self.kerf_um,
-                moved_um(s, self.kerf_um)
             )?,
             _ => writeln!(
                 f,
-                "dry run, nothing written: {} ({}) by {} µm",
+                "dry run, nothing written: {} ({}) {by}",
                 self.input.display(),
                 self.format,
-                self.kerf_um
             )?,
         }
         writeln!(
