@@ -759,6 +759,18 @@ fn a_plan_is_dilated_by_the_last_kerf_from_its_text() {
         json!({ "plan": plan, "format": "svg", "kerf_um": -5 }),
     );
     assert_eq!(code(&negative), -32602, "{negative}");
+    let empty = ws.call(
+        "dilate",
+        json!({ "plan": " \n", "format": "svg", "kerf_um": 150 }),
+    );
+    assert_eq!(code(&empty), -32602, "{empty}");
+    assert!(
+        empty["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("empty"),
+        "{empty}"
+    );
     let no_format = ws.call("dilate", json!({ "plan": plan, "kerf_um": 150 }));
     assert!(
         no_format["error"]["message"]

@@ -4,7 +4,7 @@
 //! ```no_run
 //! use kerfmeter_history::{History, NewRecord, Query};
 //!
-//! let mut history = History::open(&History::default_path()?)?;
+//! let mut history = History::open_creating_folder(&History::default_path()?)?;
 //! let id = history.record(&NewRecord {
 //!     device_id: "esp32c3:A0:76:4E:12:34:56".into(),
 //!     firmware: "0.1.0".into(),
@@ -118,6 +118,11 @@ pub struct Listing {
     pub drift: Vec<Drift>,
 }
 
+/// The folder `path` names, if it names one (a bare file name is in the current folder).
+fn folder_of(path: &Path) -> Option<&Path> {
+    path.parent().filter(|d| !d.as_os_str().is_empty())
+}
+
 /// An open history database.
 #[derive(Debug)]
 pub struct History {
@@ -158,7 +163,7 @@ impl History {
     /// Whether the database at `path` has a folder to be made in ([`Error::NoFolder`] if not):
     /// checked before a measurement, so that a mistyped folder is said before the gauge is used.
     pub fn check_folder(path: &Path) -> Result<(), Error> {
-        match path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        match folder_of(path) {
             Some(dir) if !dir.is_dir() => Err(Error::NoFolder {
                 path: dir.to_owned(),
             }),
@@ -170,7 +175,7 @@ impl History {
     /// ([`History::default_path`]), which may not exist yet. A path the user gave is opened with
     /// [`History::open`], so that a mistyped folder is said, not made.
     pub fn open_creating_folder(path: &Path) -> Result<History, Error> {
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if let Some(dir) = folder_of(path) {
             std::fs::create_dir_all(dir).map_err(|source| Error::Folder {
                 path: dir.to_owned(),
                 source,

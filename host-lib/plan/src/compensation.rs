@@ -23,6 +23,11 @@
 //!   free-text header variables (`$HYPERLINKBASE`, `$PROJECTNAME`, `$MENU`) mean something to CAD
 //!   programs, so the comments are added to the written bytes and looked for in the first lines
 //!   of a file read.
+//! * **This tool's gauge** (`kerfmeter gauge`, [`GaugeRecord`]): the same kind of comment with
+//!   `drawing=gauge` (and the test piece's kerf, when there is one). A gauge is cut as drawn: its
+//!   spiral's gap is what measures the kerf. It is refused at any other kerf than 0, with that
+//!   reason and none of the two ways on (there is nothing to recompensate);
+//!   `--already-compensated-ok` still dilates it.
 //!
 //! **What is done** ([`IfCompensated`]): a compensated plan is refused by default
 //! ([`PlanError::AlreadyCompensated`], naming what was found and the two ways on);
@@ -120,7 +125,7 @@ pub struct FoundCompensation {
     /// How far the drawn cuts already lie outside the parts, µm: boxes.py's burn, this tool's
     /// total offset, or the range of a LightBurn project's Kerf Offsets (negative inwards).
     pub offset_um: RangeUm,
-    /// The kerf it was made for, µm (this tool's records).
+    /// The kerf it was made for, µm (this tool's records; for its gauge, the test piece's).
     pub kerf_um: Option<RangeUm>,
     /// The cut rules it used (this tool's records).
     pub rules: Option<String>,
@@ -208,7 +213,7 @@ impl GaugeRecord {
 
     /// The words after the record.
     fn words(&self) -> &'static str {
-        "the Kerfmeter gauge: cut it as drawn, never dilated (kerfmeter dilate refuses it)"
+        GAUGE_WORDS
     }
 
     /// The XML comment recording it in an SVG.
@@ -288,7 +293,7 @@ impl AppliedCompensation {
     /// The `999` comments recording this compensation in a DXF, with the file's line ending.
     pub(crate) fn dxf_record(&self, eol: &str) -> String {
         let human = format!(
-            "the cuts of this drawing lie {} um outside its parts (kerf {} um); do not dilate it again",
+            "{DXF_WORDS}{} um outside its parts (kerf {} um); do not dilate it again",
             self.offset_um, self.kerf_um
         );
         format!("999{eol}{}{eol}999{eol}{human}{eol}", self.record_line())
@@ -314,6 +319,19 @@ impl AppliedCompensation {
 /// Whether a comment's text is a record of this tool's.
 pub(crate) fn is_record(comment: &str) -> bool {
     comment.trim_start().starts_with(MARKER)
+}
+
+/// How the words of a dilated DXF's record begin (the `999` comment after the record line).
+const DXF_WORDS: &str = "the cuts of this drawing lie ";
+/// The words of a gauge drawing's record.
+const GAUGE_WORDS: &str =
+    "the Kerfmeter gauge: cut it as drawn, never dilated (kerfmeter dilate refuses it)";
+
+/// Whether a comment is one this tool writes with a record (the record line, or the words after
+/// it, a dilated plan's or a gauge's): an earlier record's, dropped when a plan is written again.
+pub(crate) fn is_own_comment(comment: &str) -> bool {
+    let text = comment.trim_start();
+    is_record(text) || text.starts_with(DXF_WORDS) || text.starts_with(GAUGE_WORDS)
 }
 
 /// The record of a compensation set as a setting rather than drawn (LightBurn's Kerf Offset):
@@ -376,7 +394,7 @@ pub(crate) fn treatment(
     kerf: &KerfSource,
 ) -> Result<Treatment> {
     if let Some(gauge) = found.filter(|f| f.by == CompensatedBy::KerfmeterGauge) {
-        return gauge_treatment(gauge, policy);
+        return gauge_treatment(gauge, policy, kerf);
     }
     let Some(found) = found.filter(|f| f.offset_um.0[1] > 0.0) else {
         return Ok(Treatment {
@@ -419,20 +437,31 @@ pub(crate) fn treatment(
     }
 }
 
-/// A gauge drawing is cut as drawn: refused, unless dilated anyway on the user's word (never
+/// A gauge drawing is cut as drawn: at a kerf of 0 (its cuts as drawn, as `gcode` makes them)
+/// it passes; otherwise it is refused, unless dilated anyway on the user's word (never
 /// "recompensated": its spiral carries no compensation to undo).
-fn gauge_treatment(gauge: &FoundCompensation, policy: IfCompensated) -> Result<Treatment> {
-    if policy == IfCompensated::DilateAnyway {
+fn gauge_treatment(
+    gauge: &FoundCompensation,
+    policy: IfCompensated,
+    kerf: &KerfSource,
+) -> Result<Treatment> {
+    let as_drawn = matches!(kerf, KerfSource::Uniform(k) if *k == 0.0);
+    if as_drawn || policy == IfCompensated::DilateAnyway {
         return Ok(Treatment {
             offsetting: Offsetting::Dilate,
             corner_loop_max_mm: None,
             carried_um: RangeUm::one(0.0),
-            action: "dilate_anyway",
+            action: if as_drawn { "dilate" } else { "dilate_anyway" },
         });
     }
+    let recompensate = if policy == IfCompensated::Recompensate {
+        " --recompensate does not apply: the spiral carries no compensation to undo."
+    } else {
+        ""
+    };
     Err(PlanError::AlreadyCompensated {
         message: format!(
-            "{}. Dilating it would widen the spiral's gap, so the device would read a kerf too small{}; cut it as it is (nothing was written; --already-compensated-ok dilates it anyway).",
+            "{}. Dilating it would widen the spiral's gap, so the device would read a kerf too small{}; cut it as it is, nothing was written (for its G-code: `kerfmeter gauge -o gauge.gcode --at-mm X,Y`; --already-compensated-ok dilates it anyway).{recompensate}",
             gauge.describe(),
             if gauge.kerf_um.is_some() {
                 ", and compensate the test piece twice"

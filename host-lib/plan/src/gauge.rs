@@ -35,6 +35,8 @@
 //!   `ENGRAVE`) naming the geometry and the jam direction, and optionally the paper's test piece
 //!   beside the gauge: a one-finger box-joint pair (a tab part and a slot part, finger width × sheet
 //!   thickness) dilated by a given kerf with the plan-dilation code, to check a fit by hand.
+//! * **Record**: a comment saying the drawing is the gauge, to be cut as drawn (with the test
+//!   piece's kerf), so that `dilate` refuses it ([`crate::compensation::GaugeRecord`]).
 
 use std::f64::consts::TAU;
 use std::fmt::Write as _;

@@ -67,7 +67,7 @@ pub(crate) fn refuse_empty(path: &Path, bytes: &[u8]) -> Result<()> {
         path: path.to_owned(),
         source: std::io::Error::new(
             std::io::ErrorKind::InvalidData,
-            "the file is empty: no drawing to read (was it saved?)",
+            "it is empty: there is no drawing in it (was it saved?)",
         ),
     })
 }

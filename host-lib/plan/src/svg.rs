@@ -935,22 +935,27 @@ impl Format for SvgPlan<'_> {
     }
 }
 
-/// mm per usvg pixel (user unit of the root), from the root's `width`/`height`.
 /// The length of the root's user unit, mm, as the report says it: usvg's px (`mm_per_px`) times
-/// the px in one user unit, which a `viewBox` sets (`width` over the box's width) and which is
-/// otherwise one px.
+/// the px in one user unit, which a `viewBox` sets (the page over the box, the smaller of the two
+/// ways as SVG's default `preserveAspectRatio` fits it) and which is otherwise one px.
 fn user_unit_mm(root: Node, mm_per_px: f64) -> f64 {
-    let view_box_w = root
+    let view_box = root
         .attribute("viewBox")
-        .and_then(|v| svgtypes::ViewBox::from_str(v).ok())
-        .map(|v| v.w);
-    let width_px = root
-        .attribute("width")
-        .and_then(|s| svgtypes::Length::from_str(s).ok())
-        .and_then(|l| length_px(&l));
-    match (view_box_w, width_px) {
-        (Some(vb), Some(w)) if vb > 0.0 && w > 0.0 => mm_per_px * w / vb,
-        _ => mm_per_px,
+        .and_then(|v| svgtypes::ViewBox::from_str(v).ok());
+    let size_px = |name: &str| {
+        root.attribute(name)
+            .and_then(|s| svgtypes::Length::from_str(s).ok())
+            .and_then(|l| length_px(&l))
+    };
+    let scale =
+        |page: Option<f64>, view: f64| page.filter(|p| *p > 0.0 && view > 0.0).map(|p| p / view);
+    let Some(v) = view_box else {
+        return mm_per_px;
+    };
+    match (scale(size_px("width"), v.w), scale(size_px("height"), v.h)) {
+        (Some(x), Some(y)) => mm_per_px * x.min(y),
+        (Some(s), None) | (None, Some(s)) => mm_per_px * s,
+        (None, None) => mm_per_px,
     }
 }
 
@@ -969,6 +974,8 @@ fn length_px(l: &svgtypes::Length) -> Option<f64> {
     Some(l.number * per_unit)
 }
 
+/// mm per usvg pixel, from the root's `width`/`height` (absolute units), or as the user says
+/// (`--units`) where they are not absolute.
 fn document_scale(
     root: Node,
     assume: Option<AssumedUnits>,
@@ -1003,7 +1010,7 @@ fn document_scale(
         _ => match assume {
             Some(u) => {
                 summary.notes.push(format!(
-                    "the file does not say its units; one user unit taken as {} ({} mm) as asked",
+                    "the file does not say its units; one unit of its unitless width and height taken as {} ({} mm) as asked (the report gives the user unit this makes)",
                     u.name(),
                     u.mm()
                 ));

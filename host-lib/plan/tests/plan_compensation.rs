@@ -623,8 +623,17 @@ fn the_gauge_drawing_is_cut_as_drawn_never_dilated() {
             "{e}"
         );
         // Nothing to undo: recompensating is refused too; dilating anyway is the user's word.
-        assert!(run(&svg, 150.0, IfCompensated::Recompensate).is_err());
-        assert!(run(&svg, 150.0, IfCompensated::DilateAnyway).is_ok());
+        let e = run(&svg, 150.0, IfCompensated::Recompensate).unwrap_err();
+        assert!(
+            e.to_string().contains("--recompensate does not apply"),
+            "{e}"
+        );
+        // At a kerf of 0 (its cuts as drawn, as `gcode` makes them) it passes.
+        assert!(run(&svg, 0.0, IfCompensated::Refuse).is_ok());
+        // Dilated anyway, the output carries one record, this dilation's, and no gauge words.
+        let (out, _) = run(&svg, 150.0, IfCompensated::DilateAnyway).unwrap();
+        assert_eq!(out.matches("kerfmeter-compensation").count(), 1, "{out}");
+        assert!(!out.contains("drawing=gauge") && !out.contains("cut it as drawn"));
         let dxf = gauge::to_dxf(drawing).unwrap();
         let opts = DxfOptions {
             if_compensated: IfCompensated::Refuse,
@@ -633,5 +642,13 @@ fn the_gauge_drawing_is_cut_as_drawn_never_dilated() {
         let e = dilate_dxf(&dxf, &KerfSource::Uniform(150.0), &opts).unwrap_err();
         let found = e.compensation_found().expect("found in the DXF");
         assert_eq!(found.by, CompensatedBy::KerfmeterGauge, "{e}");
+        let anyway = DxfOptions {
+            if_compensated: IfCompensated::DilateAnyway,
+            ..DxfOptions::default()
+        };
+        let (out, _) = dilate_dxf(&dxf, &KerfSource::Uniform(150.0), &anyway).unwrap();
+        let out = String::from_utf8_lossy(&out);
+        assert_eq!(out.matches("kerfmeter-compensation").count(), 1);
+        assert!(!out.contains("drawing=gauge") && !out.contains("cut it as drawn"));
     }
 }

@@ -10,16 +10,18 @@ use crate::error::CliError;
 
 /// Confirm the hub at its zero mark; says what that changed.
 pub fn run(g: &Global) -> Result<Done, CliError> {
-    confirm(&mut g.connect()?)
+    // Each `--sim` command is a twin of its own, gone when the command ends.
+    confirm(&mut g.connect()?, g.sim)
 }
 
-/// [`run`] on an open session (the server's `confirm_hub_at_zero`). With the encoder on the
-/// output shaft nothing is sent, so that this works with a device older than protocol 2.5 too.
-pub fn confirm(session: &mut Session) -> Result<Done, CliError> {
+/// [`run`] on an open session (the server's `confirm_hub_at_zero`, whose twin lives on:
+/// `one_shot_twin` false). With the encoder on the output shaft nothing is sent, so that this
+/// works with a device older than protocol 2.5 too.
+pub fn confirm(session: &mut Session, one_shot_twin: bool) -> Result<Done, CliError> {
     match session.meter.config()?.config.encoder_placement {
         EncoderPlacement::MotorShaft => {
             session.meter.confirm_hub_at_zero()?;
-            Ok(Done::new(if session.sim.is_some() {
+            Ok(Done::new(if one_shot_twin {
                 "hub confirmed at its zero mark; but this simulated device ends with this command, and the next --sim command starts a fresh one: to confirm and then measure, use a twin that lives on (`kerfmeter --sim --sim-encoder-on-motor-shaft serve`, or `kerfmeter-twin --encoder-on-motor-shaft` and --port)"
             } else {
                 "hub confirmed at its zero mark: the encoder's turn count restarted there; `kerfmeter reset` brings the hub to zero exactly"

@@ -94,14 +94,19 @@ impl fmt::Display for HistoryReport {
             return Ok(());
         }
         let n = records.len();
-        let (which, more) = if n == self.limit as usize {
-            ("the newest ", format!(" (--limit {n}: there may be more)"))
+        let order = if n == self.limit as usize {
+            format!(" (--limit {n}: there may be more)")
         } else {
-            ("", String::new())
+            ", newest first".to_owned()
+        };
+        let which = if n == self.limit as usize {
+            "the newest "
+        } else {
+            ""
         };
         writeln!(
             f,
-            "{which}{n} {kind} measurement{}{labelled} in {}{more}, newest first",
+            "{which}{n} {kind} measurement{}{labelled} in {}{order}",
             plural(n),
             self.db.display()
         )?;

@@ -632,7 +632,7 @@ fn gauge_extent_mm(drawing: &kerfmeter_plan::gauge::GaugeDrawing) -> Result<[[f6
 
 /// A free spot on the bed for the gauge, beside the plan's cuts (as placed).
 fn free_spot(layout: &Layout) -> Result<[f64; 2]> {
-    layout.check_plan_on_bed()?;
+    layout.check_plan_on_bed().map_err(job_error)?;
     let gauge_box = layout.gauge_extent_mm;
     let plan_box = layout.plan_box_mm;
     free_spot_mm(plan_box, gauge_box, layout.bed_mm, layout.margin_mm).ok_or_else(|| {

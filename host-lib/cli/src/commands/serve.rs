@@ -46,6 +46,8 @@ fn cutter_address(text: &str) -> Result<String, String> {
 
 /// Serve until Ctrl-C.
 pub fn run(g: &Global, args: &ServeArgs) -> Result<Done, CliError> {
+    // Every measurement the server makes is recorded: a mistyped --db is said now.
+    g.check_db_folder()?;
     let security = Security::new(args.listen, args.token.clone(), &args.allow_origins)?;
     let cutter = args.cutter.clone().map(|address| Cutter {
         address,

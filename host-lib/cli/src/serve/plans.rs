@@ -93,6 +93,15 @@ fn dilate_plan(
 
 /// The plan: `plan` (text) or `plan_base64`, exactly one.
 fn plan_bytes(p: &mut Params) -> Result<Vec<u8>, RpcError> {
+    let bytes = given_plan(p)?;
+    if bytes.iter().all(u8::is_ascii_whitespace) {
+        return Err(RpcError::param("plan", "empty: there is no drawing in it"));
+    }
+    Ok(bytes)
+}
+
+/// The plan as given, `plan` (text) or `plan_base64`.
+fn given_plan(p: &mut Params) -> Result<Vec<u8>, RpcError> {
     match (p.string("plan")?, p.string("plan_base64")?) {
         (Some(text), None) => Ok(text.into_bytes()),
         (None, Some(b64)) => BASE64

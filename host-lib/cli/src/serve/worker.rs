@@ -520,7 +520,7 @@ fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliErr
             s.meter.clear_fault()?;
             to_value(&Done::new("fault cleared"))
         }
-        Call::ConfirmZero => to_value(&confirm_zero::confirm(s)?),
+        Call::ConfirmZero => to_value(&confirm_zero::confirm(s, false)?),
         Call::SelfTest => to_value(&self_test::test(s, |_| shared.stop_requested())?),
         Call::Abort => {
             s.meter.abort()?;

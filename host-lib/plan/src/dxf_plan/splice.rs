@@ -161,8 +161,7 @@ fn value_span(bytes: &[u8], p: &Pair) -> Span {
 
 /// Pairs of a record of this tool: its record line, and the words after it.
 fn is_old_record(value: &[u8]) -> bool {
-    let text = String::from_utf8_lossy(value);
-    crate::compensation::is_record(&text) || text.starts_with("the cuts of this drawing lie ")
+    crate::compensation::is_own_comment(&String::from_utf8_lossy(value))
 }
 
 impl Layout {
