@@ -19,7 +19,9 @@
 
 use std::process::ExitCode;
 
-use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
+use clap::error::ErrorKind;
+use clap::parser::ValueSource;
+use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod commands;
 mod connection;
@@ -130,9 +132,11 @@ fn one_malloc_arena() {}
 /// `--json` a usage error is printed as `{"error": …}` on stdout, like every other error.
 fn parse_cli() -> Result<Cli, ExitCode> {
     let command = negative_numbers_are_values(Cli::command());
-    let parsed = command
-        .try_get_matches()
-        .and_then(|matches| Cli::from_arg_matches(&matches));
+    let parsed = command.try_get_matches().and_then(|matches| {
+        let cli = Cli::from_arg_matches(&matches)?;
+        refuse_unused_device_flags(&cli.command, &matches)?;
+        Ok(cli)
+    });
     let e = match parsed {
         Ok(cli) => return Ok(cli),
         Err(e) => e,
@@ -151,6 +155,54 @@ fn parse_cli() -> Result<Cli, ExitCode> {
         return Err(ExitCode::from(2));
     }
     e.exit()
+}
+
+/// The global flags that reach the device or set up its twin (by their ids).
+const DEVICE_FLAGS: [&str; 12] = [
+    "port",
+    "sim",
+    "sim_kerf_um",
+    "sim_kerf_sd_um",
+    "sim_seed",
+    "sim_fault",
+    "sim_encoder_on_motor_shaft",
+    "sim_realtime",
+    "sim_material",
+    "sim_plant_file",
+    "sim_plant",
+    "timeout_ms",
+];
+
+/// Of [`DEVICE_FLAGS`], those `command` has no use for: it does not talk to the device
+/// (`lightburn` and `history` take `--sim` for a LightBurn twin and the simulated records).
+fn unused_device_flags(command: &Command) -> &'static [&'static str] {
+    match command {
+        Command::Gauge(_) | Command::Dilate(_) | Command::Gcode(_) | Command::Cut(_) => {
+            &DEVICE_FLAGS
+        }
+        Command::Lightburn(_) | Command::History(_) => &DEVICE_FLAGS[2..],
+        _ => &[],
+    }
+}
+
+/// A device flag typed for a command that does not use the device is refused, not ignored: a
+/// `--sim-fault` on `dilate` would let the user believe something was tested. (A port from
+/// `KERFMETER_PORT` is the environment's, not the user's word for this command.)
+fn refuse_unused_device_flags(command: &Command, matches: &ArgMatches) -> Result<(), clap::Error> {
+    let typed = unused_device_flags(command)
+        .iter()
+        .find(|id| matches.value_source(id) == Some(ValueSource::CommandLine));
+    let Some(id) = typed else {
+        return Ok(());
+    };
+    let name = matches.subcommand_name().unwrap_or("this command");
+    Err(Cli::command().error(
+        ErrorKind::ArgumentConflict,
+        format!(
+            "`kerfmeter {name}` does not use the device: --{} has no effect on it; leave it out",
+            id.replace('_', "-")
+        ),
+    ))
 }
 
 /// `command` and all its subcommands take negative numbers as values.

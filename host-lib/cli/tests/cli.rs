@@ -282,6 +282,51 @@ fn simulator_options_without_sim_are_refused_not_ignored() {
 }
 
 #[test]
+fn device_flags_on_a_command_without_the_device_are_refused_not_ignored() {
+    let (_dir, plan) = box_plan();
+    let dilate_args = ["dilate", path(&plan), "--kerf-um", "150", "--dry-run"];
+    for flags in [
+        &["--sim-fault", "parity"][..],
+        &["--port", "/dev/ttyACM0"][..],
+        &["--sim"][..],
+    ] {
+        let out = kerfmeter(&[flags, &dilate_args[..]].concat());
+        assert_eq!(code(&out), 2, "{flags:?}: {}", stderr(&out));
+        let flag = flags[0];
+        assert!(
+            stderr(&out).contains(&format!(
+                "`kerfmeter dilate` does not use the device: {flag}"
+            )),
+            "{}",
+            stderr(&out)
+        );
+    }
+    // The same with --json: one object on stdout.
+    let out = kerfmeter(&[&["--json", "--sim-seed", "3"][..], &dilate_args[..]].concat());
+    assert_eq!(code(&out), 2);
+    assert!(
+        stdout(&out).contains("--sim-seed has no effect"),
+        "{}",
+        stdout(&out)
+    );
+    // history takes --sim (the simulated records), not the twin's settings.
+    let out = kerfmeter(&["--sim", "--sim-kerf-um", "90", "history"]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("--sim-kerf-um has no effect"),
+        "{}",
+        stderr(&out)
+    );
+    // A port from the environment is not the user's word for this command.
+    let out = Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+        .args(dilate_args)
+        .env("KERFMETER_PORT", "/dev/ttyACM0")
+        .output()
+        .unwrap();
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+}
+
+#[test]
 fn a_refused_plan_leaves_the_output_as_it_was() {
     // The output is written as it is made, into a temporary file: `--strict`'s refusal of an
     // open cut path comes after that, and must neither replace the output nor leave the
@@ -606,6 +651,19 @@ fn a_motor_shaft_encoder_refuses_runs_until_confirm_zero() {
         stdout(&out).contains("may be whole motor turns from its mark"),
         "{}",
         stdout(&out)
+    );
+    // A script is warned as a reader is.
+    let out = kerfmeter(&[&motor[..], &["--json", "reset"]].concat());
+    let reset: serde_json::Value = serde_json::from_str(&stdout(&out)).expect("JSON");
+    assert!(
+        reset["warning"].as_str().unwrap().contains("confirm-zero"),
+        "{reset}"
+    );
+    let out = kerfmeter(&[&motor[..], &["--json", "confirm-zero"]].concat());
+    let confirmed: serde_json::Value = serde_json::from_str(&stdout(&out)).expect("JSON");
+    assert!(
+        confirmed["warning"].as_str().unwrap().contains("fresh one"),
+        "{confirmed}"
     );
     let out = kerfmeter(&[&motor[..], &["confirm-zero"]].concat());
     assert_eq!(code(&out), 0, "{}", stderr(&out));

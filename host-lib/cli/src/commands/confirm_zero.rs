@@ -21,11 +21,16 @@ pub fn confirm(session: &mut Session, one_shot_twin: bool) -> Result<Done, CliEr
     match session.meter.config()?.config.encoder_placement {
         EncoderPlacement::MotorShaft => {
             session.meter.confirm_hub_at_zero()?;
-            Ok(Done::new(if one_shot_twin {
-                "hub confirmed at its zero mark; but this simulated device ends with this command, and the next --sim command starts a fresh one: to confirm and then measure, use a twin that lives on (`kerfmeter --sim --sim-encoder-on-motor-shaft serve`, or `kerfmeter-twin --encoder-on-motor-shaft` and --port)"
+            Ok(if one_shot_twin {
+                Done::with_warning(
+                    "hub confirmed at its zero mark",
+                    "but this simulated device ends with this command, and the next --sim command starts a fresh one: to confirm and then measure, use a twin that lives on (`kerfmeter --sim --sim-encoder-on-motor-shaft serve`, or `kerfmeter-twin --encoder-on-motor-shaft` and --port)",
+                )
             } else {
-                "hub confirmed at its zero mark: the encoder's turn count restarted there; `kerfmeter reset` brings the hub to zero exactly"
-            }))
+                Done::new(
+                    "hub confirmed at its zero mark: the encoder's turn count restarted there; `kerfmeter reset` brings the hub to zero exactly",
+                )
+            })
         }
         EncoderPlacement::OutputShaft => Ok(Done::new(
             "nothing to confirm: the encoder is on the output shaft, which knows the hub's angle at power-up",

@@ -33,6 +33,10 @@ pub struct Done {
     /// The sentence printed as text.
     #[serde(skip)]
     pub done: &'static str,
+    /// What the user must still know or do, printed after `done` and in the JSON (absent when
+    /// there is nothing).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub warning: Option<&'static str>,
     /// Always true: a failure is an error, not a report.
     pub ok: bool,
 }
@@ -40,13 +44,29 @@ pub struct Done {
 impl Done {
     /// The report of a command that did what `done` says.
     pub fn new(done: &'static str) -> Self {
-        Done { done, ok: true }
+        Done {
+            done,
+            warning: None,
+            ok: true,
+        }
+    }
+
+    /// ... and that leaves the user `warning` to heed.
+    pub fn with_warning(done: &'static str, warning: &'static str) -> Self {
+        Done {
+            warning: Some(warning),
+            ..Done::new(done)
+        }
     }
 }
 
 impl fmt::Display for Done {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.done)
+        f.write_str(self.done)?;
+        match self.warning {
+            Some(w) => write!(f, "; {w}"),
+            None => Ok(()),
+        }
     }
 }
 

@@ -39,7 +39,7 @@ use super::Cutter;
 use super::plans::{JobCall, hide_history_db, job_answer};
 use super::rpc::{Caller, INTERNAL_ERROR, NOT_CONNECTED, RpcError, notification};
 use crate::commands::run::RunReport;
-use crate::commands::{Done, confirm_zero, info, job, self_test, status};
+use crate::commands::{Done, confirm_zero, info, job, reset, self_test, status};
 use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::ResultJson;
@@ -514,7 +514,10 @@ fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliErr
         Call::Kerf => to_value(&s.meter.get_kerf_value()?.as_ref().map(ResultJson::from)),
         Call::Reset => {
             s.meter.reset_kerfmeter_until(|_| shared.stop_requested())?;
-            json!({ "reset": true })
+            match reset::warning(&mut s.meter)? {
+                Some(w) => json!({ "reset": true, "warning": w }),
+                None => json!({ "reset": true }),
+            }
         }
         Call::ClearFault => {
             s.meter.clear_fault()?;
