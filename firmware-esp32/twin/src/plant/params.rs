@@ -443,7 +443,9 @@ impl PlantParams {
             let value = value
                 .as_f64()
                 .ok_or_else(|| file_error(format!("{name}: {value} is not a number")))?;
-            self.set(name, value)?;
+            // Named with the file, as what is wrong is in it.
+            self.set(name, value)
+                .map_err(|e| file_error(e.to_string()))?;
         }
         Ok(())
     }
@@ -599,6 +601,14 @@ mod tests {
         assert!(err.contains("supply_v: \"24\" is not a number"), "{err}");
         std::fs::write(&path, "[1, 2]").unwrap();
         assert!(q.apply_file(&path).is_err());
+        // A name or value the twin refuses is said with the file it is in.
+        std::fs::write(&path, r#"{"voltage": 24}"#).unwrap();
+        let err = q.apply_file(&path).unwrap_err();
+        assert!(matches!(err, PlantParamError::File { .. }), "{err:?}");
+        assert!(
+            err.to_string()
+                .contains("plant.json: unknown plant parameter `voltage`")
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
