@@ -539,29 +539,37 @@ impl<'w> SvgPlan<'w> {
 
     /// Trace the instances' subpaths (by instance; `paths[k]` and `names[k]` are instance `k`'s
     /// path data and name) on any core, freeing each one's path data as it goes (it is kept, as
-    /// segments, only for elements with an open subpath, which is written back as drawn).
+    /// segments, only for elements with an open subpath, which is written back as drawn). With
+    /// them, the farthest reach and the instance that has it.
     fn trace_all(
         &mut self,
         paths: Vec<tiny_skia_path::Path>,
         names: &[String],
-    ) -> Vec<Vec<Traced>> {
-        self.instances
+    ) -> (Vec<Vec<Traced>>, Reach, usize) {
+        let (traced, reaches): (Vec<Vec<Traced>>, Vec<Reach>) = self
+            .instances
             .par_iter_mut()
             .zip(paths)
             .zip(names)
             .map(|((inst, path), name)| {
                 let segs = subpaths_of(&path);
                 drop(path);
-                let traced = trace(inst, &segs, name);
+                let reach = Reach::of(inst, &segs);
+                let traced = trace(inst, &segs, reach.eps_mm(), name);
                 inst.subpath_count = segs.len();
                 let all_closed = traced.len() == segs.len()
                     && traced.iter().all(|t| matches!(t, Traced::Closed(..)));
                 if !all_closed {
                     inst.drawn = segs;
                 }
-                traced
+                (traced, reach)
             })
-            .collect()
+            .unzip();
+        let farthest = (0..reaches.len())
+            .max_by(|&a, &b| reaches[a].held_to_mm().total_cmp(&reaches[b].held_to_mm()))
+            .unwrap_or(0);
+        let reach = reaches.get(farthest).copied().unwrap_or_default();
+        (traced, reach, farthest)
     }
 
     /// How to name an instance in messages.
@@ -868,7 +876,10 @@ impl Format for SvgPlan<'_> {
         };
         self.instances = instances;
         let (names, boxes_reference) = self.read_source(&plan.summary)?;
-        let traced = self.trace_all(paths, &names);
+        let (traced, reach, farthest) = self.trace_all(paths, &names);
+        if let Some(name) = names.get(farthest) {
+            check_reach(reach, name, &mut plan.summary)?;
+        }
         drop(names);
         plan.summary.cut_elements = self.instances.len();
         Self::contours(&mut plan, traced);
@@ -1171,10 +1182,9 @@ fn place(instances: &mut [Instance], text: &str, el: &Elements) {
     }
 }
 
-/// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm; `name`
-/// names the instance.
-fn trace(inst: &Instance, subpaths: &[Vec<Seg>], name: &str) -> Vec<Traced> {
-    let eps = coordinate_eps(inst, subpaths);
+/// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm, ends within
+/// `eps` mm (see [`Reach::eps_mm`]) meeting; `name` names the instance.
+fn trace(inst: &Instance, subpaths: &[Vec<Seg>], eps: f64, name: &str) -> Vec<Traced> {
     let n_sub = subpaths.len();
     let mut traced = Vec::with_capacity(n_sub);
     for (si, segs) in subpaths.iter().enumerate() {
@@ -1208,25 +1218,70 @@ fn trace(inst: &Instance, subpaths: &[Vec<Seg>], name: &str) -> Vec<Traced> {
     traced
 }
 
-/// Rounding uncertainty of an instance's coordinates (`subpaths`) in document mm (usvg keeps
-/// `f32`).
-fn coordinate_eps(inst: &Instance, subpaths: &[Vec<Seg>]) -> f64 {
-    let mut local = 0.0f64;
-    let mut doc = 0.0f64;
-    for s in subpaths.iter().flatten() {
-        let pts: &[P32] = match s {
-            Seg::M(a) | Seg::L(a) => std::slice::from_ref(a),
-            Seg::Q(a, _) => std::slice::from_ref(a),
-            Seg::C(a, _, _) => std::slice::from_ref(a),
-            Seg::Z => &[],
-        };
-        for p in pts.iter().map(|p| p.v2()) {
-            local = local.max(p.x.abs()).max(p.y.abs());
-            let q = inst.to_doc.apply(p);
-            doc = doc.max(q.x.abs()).max(q.y.abs());
+/// How far an instance's coordinates reach from the origin, in document mm: through its own
+/// coordinates (scaled to mm) and in the document. usvg keeps them in `f32`, whose step grows
+/// with the distance.
+#[derive(Clone, Copy, Default)]
+struct Reach {
+    local_mm: f64,
+    doc_mm: f64,
+}
+
+impl Reach {
+    /// The reach of `inst`'s `subpaths`.
+    fn of(inst: &Instance, subpaths: &[Vec<Seg>]) -> Self {
+        let mut local = 0.0f64;
+        let mut doc = 0.0f64;
+        for s in subpaths.iter().flatten() {
+            let pts: &[P32] = match s {
+                Seg::M(a) | Seg::L(a) => std::slice::from_ref(a),
+                Seg::Q(a, _) => std::slice::from_ref(a),
+                Seg::C(a, _, _) => std::slice::from_ref(a),
+                Seg::Z => &[],
+            };
+            for p in pts.iter().map(|p| p.v2()) {
+                local = local.max(p.x.abs()).max(p.y.abs());
+                let q = inst.to_doc.apply(p);
+                doc = doc.max(q.x.abs()).max(q.y.abs());
+            }
+        }
+        Reach {
+            local_mm: local * inst.to_doc.mean_scale(),
+            doc_mm: doc,
         }
     }
-    4.0 * f64::from(f32::EPSILON) * (local * inst.to_doc.mean_scale() + doc + 1e-3)
+
+    /// Rounding uncertainty of the coordinates in document mm, with a margin: within it, ends
+    /// meet.
+    fn eps_mm(self) -> f64 {
+        4.0 * f64::from(f32::EPSILON) * (self.local_mm + self.doc_mm + 1e-3)
+    }
+
+    /// How finely single precision holds the farthest coordinate, ± mm (half its step).
+    fn held_to_mm(self) -> f64 {
+        0.5 * f64::from(f32::EPSILON) * self.local_mm.max(self.doc_mm)
+    }
+}
+
+/// Beyond this (± mm) a drawing is too far from the origin to be dilated: at 10 µm, 170 m out.
+const FARTHEST_HELD_TO_MM: f64 = 0.01;
+
+/// A drawing reaching `reach` (its farthest instance's, named `name`) is refused when single
+/// precision holds it to worse than [`FARTHEST_HELD_TO_MM`]; noted in `summary` when worse than
+/// the 0.1 µm the output keeps (1.7 m out).
+fn check_reach(reach: Reach, name: &str, summary: &mut PlanSummary) -> Result<()> {
+    let (far_mm, held_um) = (reach.local_mm.max(reach.doc_mm), reach.held_to_mm() * 1e3);
+    if reach.held_to_mm() > FARTHEST_HELD_TO_MM {
+        return Err(bad(format!(
+            "{name} reaches {far_mm:.0} mm from the origin, where an SVG's coordinates are held only to ±{held_um:.0} µm (single precision); move the drawing near the origin"
+        )));
+    }
+    if held_um > 0.1 {
+        summary.notes.push(format!(
+            "{name} reaches {far_mm:.0} mm from the origin, where an SVG's coordinates are held to ±{held_um:.2} µm (single precision), not 0.1 µm"
+        ));
+    }
+    Ok(())
 }
 
 /// Decimal places that keep 0.01 µm in the element's coordinates.

@@ -404,7 +404,8 @@ fn svg_outputs_are_byte_for_byte_what_they_were() {
 
 /// The fuzz find whose control point lies kilometres out (it tripped cavalier_contours' own
 /// tolerance assert, which the build a user runs does not have): refused with a message, as
-/// the CLI refuses it.
+/// the CLI refuses it; for where it reaches, which single precision cannot hold (it was refused
+/// as a hole narrower than the kerf, which the rounding had made of it).
 #[test]
 fn a_plan_with_a_control_point_kilometres_out_is_refused_not_dilated() {
     let text =
@@ -415,9 +416,9 @@ fn a_plan_with_a_control_point_kilometres_out_is_refused_not_dilated() {
         ..SvgOptions::default()
     };
     let e = dilate_svg(&text, &kerf(), &opts).unwrap_err();
+    assert!(matches!(e, kerfmeter_plan::PlanError::Svg(_)), "{e}");
     assert!(
-        matches!(e, kerfmeter_plan::PlanError::CannotDilate(_)),
+        e.to_string().contains("reaches 3464772 mm from the origin"),
         "{e}"
     );
-    assert!(e.to_string().contains("narrower than the kerf"), "{e}");
 }

@@ -248,3 +248,32 @@ fn progress_is_told_stage_by_stage_with_every_contour_counted() {
     assert_eq!(counted.len(), 100, "{counted:?}");
     assert_eq!(counted.iter().max(), Some(&300));
 }
+
+/// A drawing far from the origin, where single precision (usvg's) cannot hold its coordinates,
+/// is refused for that, not for what the rounding made of its shapes; nearer, but beyond the
+/// 0.1 µm the output keeps, it dilates with a note saying how finely it was held.
+#[test]
+fn a_drawing_far_from_the_origin_is_refused_for_its_precision_and_noted_nearer() {
+    let square = |x_mm: f64| {
+        format!(
+            "{HEAD}<path id=\"far\" stroke=\"red\" stroke-width=\"0.1\" fill=\"none\" d=\"M{x_mm} 10 h15 v15 h-15 Z\"/></svg>"
+        )
+    };
+    let why = refusal(&square(5.0e6), 150.0);
+    assert!(
+        why.contains("reaches 5000015 mm from the origin") && why.contains("move the drawing"),
+        "{why}"
+    );
+    let opts = SvgOptions::default();
+    let (_, summary) = dilate_svg(&square(2000.0), &KerfSource::Uniform(150.0), &opts).unwrap();
+    assert!(
+        summary
+            .notes
+            .iter()
+            .any(|n| n.contains("reaches 2015 mm") && n.contains("not 0.1 µm")),
+        "{:?}",
+        summary.notes
+    );
+    let (_, summary) = dilate_svg(&square(500.0), &KerfSource::Uniform(150.0), &opts).unwrap();
+    assert!(summary.notes.is_empty(), "{:?}", summary.notes);
+}
