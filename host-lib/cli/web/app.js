@@ -72,6 +72,9 @@ const rpc = {
       const reply = await fetch("/api/status", { headers: authorization() });
       if (reply.status === 401) {
         setLink("disconnected", "Refused: this server wants a token (open the page as /?token=TOKEN)");
+      } else if (reply.status === 403) {
+        const body = await reply.json().catch(() => null);
+        setLink("disconnected", `Refused: ${body?.error?.message ?? "this server does not answer this page"}`);
       }
     } catch {
       // The server is down: "unreachable" says it.

@@ -12,9 +12,11 @@
 //!   one given with `--allow-origin`, is refused (403): browsers send `Origin` with both, so
 //!   another site's page cannot start a run. An `--allow-origin` must be `http(s)://HOST[:PORT]`:
 //!   `null`, which sandboxed frames and `file:` pages send, and `*` are refused at startup. The
-//!   server's own origins: `http://` + the address listened on, and, on loopback, `http://` +
-//!   the `Host` header when that names a loopback host (`localhost`, `127.0.0.1`, `[::1]`, with
-//!   any port). A request without `Origin` comes
+//!   server's own origins: `http://` + the address listened on, and `http://` + the `Host`
+//!   header: on loopback when that names a loopback host (`localhost`, `127.0.0.1`, `[::1]`,
+//!   with any port), off loopback (with a token) whatever name the page reached the server by,
+//!   so that its own page works at `http://myhost.lan:7878/?token=…` on a `0.0.0.0` listen.
+//!   A request without `Origin` comes
 //!   from a program, not a browser: it is let through (on loopback it is local; elsewhere it
 //!   carries the token).
 //! * **Host.** On loopback, a request whose `Host` is not a loopback name is refused (403): a
@@ -166,8 +168,13 @@ impl Security {
     fn origin_ok(&self, origin: &str, host: Option<&str>) -> bool {
         let origin = normalize(origin);
         let own = format!("http://{}", self.listen);
+        // The page's own origin is also `http://` + the `Host` it was asked by: on loopback a
+        // loopback name (any other is refused, [`Self::host_ok`]); off loopback any name the
+        // server is reached by (its host name, any of its addresses, for a `0.0.0.0` listen),
+        // as the token guards every call there: a page that reached the server by another name,
+        // a DNS-rebinding one included, cannot act without it.
         let via_host = host
-            .filter(|h| self.listen.ip().is_loopback() && is_loopback_host(h))
+            .filter(|h| self.token.is_some() || is_loopback_host(h))
             .map(|h| format!("http://{}", h.to_ascii_lowercase()));
         origin == own
             || via_host.is_some_and(|o| o == origin)
@@ -310,6 +317,24 @@ mod tests {
         assert!(!s.origin_ok("http://evil.example", Some("127.0.0.1:7878")));
         assert!(!s.origin_ok("http://localhost:9999", Some("localhost:7878")));
         assert!(!s.origin_ok("null", Some("127.0.0.1:7878")));
+    }
+
+    /// Off loopback the page is opened by whatever name reaches the server (a `0.0.0.0`
+    /// listen has no address of its own to compare with); the token guards it there.
+    #[test]
+    fn off_loopback_the_page_s_own_origin_is_the_host_it_was_asked_by() {
+        let s = Security::new(
+            "0.0.0.0:7878".parse().unwrap(),
+            Some("abcdefghijklmnop1234".into()),
+            &[],
+        )
+        .unwrap();
+        assert!(s.origin_ok("http://192.0.2.2:7878", Some("192.0.2.2:7878")));
+        assert!(s.origin_ok("http://MyHost.lan:7878", Some("myhost.lan:7878")));
+        assert!(!s.origin_ok("http://evil.example", Some("myhost.lan:7878")));
+        assert!(!s.origin_ok("http://myhost.lan:7878", None));
+        // On loopback without a token, only loopback names count.
+        assert!(!loopback().origin_ok("http://evil.example:7878", Some("evil.example:7878")));
     }
 
     #[test]
