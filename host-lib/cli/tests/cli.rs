@@ -223,6 +223,31 @@ fn negative_numbers_get_the_options_message_and_usage_errors_honour_json() {
         "{}",
         stderr(&neg)
     );
+    // An X,Y pair may start with a minus (a prong left of the nozzle; a plan placed at -10).
+    let gcode = dir.path().join("out.gcode");
+    let xy = kerfmeter(&[
+        "gcode",
+        path(&input),
+        "--kerf-um",
+        "150",
+        "-o",
+        path(&gcode),
+        "--feed-mm-per-min",
+        "600",
+        "--power-percent",
+        "80",
+        "--origin-mm",
+        "-10,5",
+    ]);
+    // (Read as a pair: the plan is then refused for its open slit, not for the argument.)
+    assert_ne!(code(&xy), 2, "{}", stderr(&xy));
+    assert!(stderr(&xy).contains("open cut path"), "{}", stderr(&xy));
+    let gauge = kerfmeter(&["gauge", "-o", path(&gcode), "--at-mm", "-5,20"]);
+    assert!(
+        !stderr(&gauge).contains("unexpected argument"),
+        "{}",
+        stderr(&gauge)
+    );
     let bogus = kerfmeter(&["--json", "run", "--bogus"]);
     assert_eq!(code(&bogus), 2);
     let report: serde_json::Value = serde_json::from_str(&stdout(&bogus)).unwrap();

@@ -419,3 +419,62 @@ fn a_job_stopped_while_streaming_says_which_complete_files_it_wrote() {
     );
     assert!(out_svg.exists() && dir.path().join("out.gcode").exists());
 }
+
+/// A plan that records a compensation is refused before the gauge is cut, with the job's own
+/// ways on (its flags exist); `--recompensate` then runs it. A gauge drawing is refused too: it
+/// was cut and measured before its dilation refused it.
+#[test]
+fn a_compensated_plan_or_a_gauge_is_refused_before_anything_moves() {
+    let (dir, plan) = plate_plan();
+    let first = dir.path().join("first.svg");
+    let made = kerfmeter(&[
+        "dilate",
+        path(&plan),
+        "--kerf-um",
+        "150",
+        "-o",
+        path(&first),
+    ]);
+    assert_eq!(code(&made), 0, "{}", stderr(&made));
+    let gauge = dir.path().join("gauge.svg");
+    let made = kerfmeter(&["gauge", "-o", path(&gauge)]);
+    assert_eq!(code(&made), 0, "{}", stderr(&made));
+    let db = dir.path().join("history.sqlite3");
+    let job = |input: &Path, extra: &[&str]| {
+        let out_svg = dir.path().join("out.svg");
+        let base = [
+            "--sim",
+            "--json",
+            "--db",
+            path(&db),
+            "job",
+            path(input),
+            "--cutter",
+            "sim",
+            "-o",
+            path(&out_svg),
+        ];
+        kerfmeter(&[&base[..], extra].concat())
+    };
+    for (input, words) in [
+        (&first, "--recompensate"),
+        (&gauge, "a gauge is cut as drawn"),
+    ] {
+        let out = job(input, &[]);
+        assert_eq!(code(&out), 4, "{}", stderr(&out));
+        let json: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+        let error = json["error"].as_str().unwrap();
+        assert!(
+            error.contains(words) && error.contains("nothing was cut"),
+            "{error}"
+        );
+        assert!(json["compensation_found"]["by"].is_string(), "{json}");
+    }
+    // Nothing was measured: the history is empty.
+    let listed = kerfmeter(&["--sim", "--json", "--db", path(&db), "history"]);
+    let listed: serde_json::Value = serde_json::from_str(&stdout(&listed)).unwrap();
+    assert_eq!(listed["records"], serde_json::json!([]), "{listed}");
+    // The flag the refusal names is the job's own.
+    let out = job(&first, &["--recompensate"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+}

@@ -119,7 +119,7 @@ pub struct GaugeArgs {
     pub label: bool,
     /// G-code: where the spiral centre goes on the machine, mm [default: the drawing's
     /// lower-left corner at 0,0].
-    #[arg(long, value_name = "X,Y", value_parser = parse_xy)]
+    #[arg(long, value_name = "X,Y", allow_hyphen_values = true, value_parser = parse_xy)]
     pub at_mm: Option<[f64; 2]>,
     /// G-code: how to cut the gauge (required: the job's own settings, since the kerf depends on
     /// them).

@@ -131,7 +131,7 @@ pub struct GcodeArgs {
     #[command(flatten)]
     pub cut: CutArgs,
     /// Where the lower-left corner of the cuts' bounding box goes on the machine, mm.
-    #[arg(long, value_name = "X,Y", value_parser = parse_xy, default_value = "0,0")]
+    #[arg(long, value_name = "X,Y", allow_hyphen_values = true, value_parser = parse_xy, default_value = "0,0")]
     pub origin_mm: [f64; 2],
 }
 

@@ -43,6 +43,7 @@ use kerfmeter::job::{
     free_spot_mm, run_job,
 };
 use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
+use kerfmeter_plan::compensation::{CompensatedBy, FoundCompensation};
 use kerfmeter_plan::gauge::{GaugeOptions, build};
 use kerfmeter_plan::gcode::{
     GcodeOptions, Mapping, Provenance, gauge_cuts, gauge_program, placed_box, plan_program,
@@ -90,13 +91,13 @@ pub struct JobArgs {
     pub force_n: Option<f64>,
     /// Where the gauge's spiral centre goes on the bed, mm [default: a free spot beside the plan
     /// on the --bed-mm bed].
-    #[arg(long, value_name = "X,Y", value_parser = parse_xy)]
+    #[arg(long, value_name = "X,Y", allow_hyphen_values = true, value_parser = parse_xy)]
     pub gauge_at_mm: Option<[f64; 2]>,
     /// The bed's size, mm, from the machine origin (to find a free spot for the gauge).
-    #[arg(long, value_name = "W,H", value_parser = parse_xy, default_value = "600,400")]
+    #[arg(long, value_name = "W,H", allow_hyphen_values = true, value_parser = parse_xy, default_value = "600,400")]
     pub bed_mm: [f64; 2],
     /// The prongs' axis relative to the laser nozzle, mm (see the README to calibrate it).
-    #[arg(long, value_name = "DX,DY", value_parser = parse_xy, default_value = "0,0")]
+    #[arg(long, value_name = "DX,DY", allow_hyphen_values = true, value_parser = parse_xy, default_value = "0,0")]
     pub prong_offset_mm: [f64; 2],
     /// Z that lowers the prongs into the gauge's holes, mm.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
@@ -108,7 +109,7 @@ pub struct JobArgs {
     #[arg(long, default_value_t = 300.0)]
     pub plunge_feed_mm_per_min: f64,
     /// Where the lower-left corner of the plan's cuts goes on the machine, mm.
-    #[arg(long, value_name = "X,Y", value_parser = parse_xy, default_value = "0,0")]
+    #[arg(long, value_name = "X,Y", allow_hyphen_values = true, value_parser = parse_xy, default_value = "0,0")]
     pub origin_mm: [f64; 2],
     /// Cut settings by colour or layer (TOML), for the job; the gauge takes its default.
     #[arg(long, value_name = "PROFILE.toml")]
@@ -131,6 +132,15 @@ pub struct JobArgs {
     /// $INSUNITS).
     #[arg(long, value_parser = units_parser())]
     pub units: Option<AssumedUnits>,
+    /// A plan that says it is already compensated (a boxes.py --burn, this tool's own output)
+    /// is refused before anything moves; dilate it by the full measured kerf on top anyway.
+    #[arg(long, conflicts_with = "recompensate")]
+    pub already_compensated_ok: bool,
+    /// Undo the compensation the plan records (boxes.py's burn, this tool's earlier offset) and
+    /// apply the measured kerf instead: each cut moves by kerf/2 − burn, inner corners kept
+    /// sharp.
+    #[arg(long)]
+    pub recompensate: bool,
     /// Print every stage's G-code to stdout; move nothing, open neither machine.
     #[arg(long)]
     pub dry_run: bool,
@@ -598,18 +608,55 @@ fn dilation_args(args: &JobArgs, kerf_um: f64) -> DilationArgs {
         cut_max_width_mm: args.cut_max_width_mm,
         cut_layers: args.cut_layers.clone(),
         units: args.units,
-        already_compensated_ok: false,
-        recompensate: false,
+        already_compensated_ok: args.already_compensated_ok,
+        recompensate: args.recompensate,
     }
 }
 
-/// Read and check the plan (its cuts at kerf 0, as `gcode` would refuse them) and give back the
-/// bounding box of its cuts as placed on the machine, mm.
+/// A plan that says it is compensated, refused before anything moves unless the user chose what
+/// to do (at kerf 0, as the setup reads it, a gauge drawing passes and a compensation is only
+/// found: the job's dilation by the measured kerf would refuse it after the gauge was cut).
+fn refuse_compensated(args: &JobArgs, found: Option<&FoundCompensation>) -> Result<()> {
+    let Some(found) = found else {
+        return Ok(());
+    };
+    if args.already_compensated_ok || args.recompensate && found.by != CompensatedBy::KerfmeterGauge
+    {
+        return Ok(());
+    }
+    let message = if found.by == CompensatedBy::KerfmeterGauge {
+        format!(
+            "{}: a gauge is cut as drawn, not dilated as a job's plan (dilated, its spiral's gap would widen and read a kerf too small); nothing was cut. Give the plan of the parts to cut (--already-compensated-ok dilates this one anyway)",
+            found.describe()
+        )
+    } else {
+        format!(
+            "{}. The job would dilate it by the kerf it measures and compensate it twice, making every joint too loose; nothing was cut. Give --recompensate (undo that compensation and apply the measured kerf instead) or --already-compensated-ok (dilate it by the full kerf anyway)",
+            found.describe()
+        )
+    };
+    let error = PlanError::AlreadyCompensated {
+        message,
+        found: Box::new(found.clone()),
+    };
+    Err(error.in_file(&args.input).into())
+}
+
+/// Read and check the plan (its cuts at kerf 0, as `gcode` would refuse them, and the
+/// compensation it records) and give back the bounding box of its cuts as placed on the
+/// machine, mm.
 fn placed_plan_box(args: &JobArgs, options: &GcodeOptions) -> Result<[[f64; 2]; 2]> {
-    let dilation = dilation_args(args, 0.0);
+    // Read as drawn whatever it records (the kerf is not measured yet), then judged by the
+    // job's own rule.
+    let dilation = DilationArgs {
+        already_compensated_ok: true,
+        recompensate: false,
+        ..dilation_args(args, 0.0)
+    };
     let (_, kerf) = dilation.kerf()?;
     let dilate_options = dilation.options(true, Default::default())?;
-    let (format, cuts, _) = dilate_file_cuts(&args.input, &kerf, &dilate_options)?;
+    let (format, cuts, summary) = dilate_file_cuts(&args.input, &kerf, &dilate_options)?;
+    refuse_compensated(args, summary.compensation_found.as_ref())?;
     let plines = || cuts.iter().map(|c| &c.pline);
     let mapping = Mapping::for_plan(plines(), format == PlanFormat::Svg, options.origin_mm);
     placed_box(plines(), &mapping).ok_or_else(|| {

@@ -355,6 +355,8 @@ const JOB_PARAMS: &[&str] = &[
     "cut_max_width_mm",
     "cut_layer",
     "units",
+    "already_compensated_ok",
+    "recompensate",
     "unlock",
 ];
 
