@@ -852,7 +852,10 @@ fn a_motor_shaft_device_is_confirmed_at_its_mark_over_rpc() {
     assert_eq!(result(&status)["conditions"], json!(["hub-turn-unknown"]));
     let refused = ws.call("run_kerfmeter", json!({}));
     let message = refused["error"]["message"].as_str().unwrap_or_default();
-    assert!(message.contains("confirm-zero"), "{refused}");
+    assert!(
+        message.contains("the `confirm_hub_at_zero` method"),
+        "{refused}"
+    );
     assert_eq!(
         result(&ws.call("confirm_hub_at_zero", json!({}))),
         &json!({ "ok": true })

@@ -58,11 +58,8 @@ impl JointSpec {
 
     /// The device's run parameters for this joint on `gauge`, checked.
     pub fn run_params(&self, gauge: GaugeGeometry) -> Result<RunParams> {
-        if self.fingers == 0 || self.fingers > 100 {
-            return Err(Error::InvalidArgument(format!(
-                "fingers must be between 1 and 100, got {}",
-                self.fingers
-            )));
+        if self.fingers == 0 || self.fingers > MAX_FINGERS {
+            return Err(fingers_out_of_range(self.fingers));
         }
         // Said as itself: out of range it would be said only as the contact area it makes.
         if !(self.finger_length_mm > 0.0 && self.finger_length_mm.is_finite()) {
@@ -83,6 +80,16 @@ impl JointSpec {
     }
 }
 
+/// The most fingers a joint may have.
+pub const MAX_FINGERS: u32 = 100;
+
+/// The refusal of a finger count (any integer a caller was given) outside 1 to [`MAX_FINGERS`].
+pub fn fingers_out_of_range(fingers: impl std::fmt::Display) -> Error {
+    Error::InvalidArgument(format!(
+        "fingers must be between 1 and {MAX_FINGERS}, got {fingers}"
+    ))
+}
+
 /// Check run parameters with the device's own ranges, with a message that names the value.
 pub fn check(params: &RunParams) -> Result<()> {
     params
@@ -96,6 +103,10 @@ pub fn describe_invalid(params: &RunParams, field: ParamField) -> String {
     let mut message = params.why_invalid(field).to_string();
     if field == ParamField::ContactAreaMm2 {
         message.push_str("; it is fingers × 2 × thickness × finger length");
+    }
+    // The force is given as `--force-n` (or `force_n`), not by its name on the wire.
+    if field == ParamField::TargetForceN {
+        message = message.replace("(target_force_n)", "(--force-n, force_n)");
     }
     message
 }
@@ -154,7 +165,7 @@ mod tests {
         };
         let e = j.run_params(GaugeGeometry::PAPER).unwrap_err().to_string();
         assert!(
-            e.contains("the joint's assembly force (target_force_n) = 0 N")
+            e.contains("the joint's assembly force (--force-n, force_n) = 0 N")
                 && e.contains("1 to 500 N"),
             "{e}"
         );

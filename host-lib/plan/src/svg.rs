@@ -279,6 +279,11 @@ fn parse(text: &str) -> Result<Document<'_>> {
     )
     .map_err(|e| bad(format!("not a readable SVG file (XML error: {e})")))?;
     let root = doc.root_element();
+    if root.tag_name().name() == "svg" && root.tag_name().namespace().is_none() {
+        return Err(bad(format!(
+            "not an SVG document: its root <svg> lacks the SVG namespace; add xmlns=\"{SVG_NS}\" to it"
+        )));
+    }
     if root.tag_name().name() != "svg" || root.tag_name().namespace() != Some(SVG_NS) {
         return Err(bad(format!(
             "not an SVG document: the root element is <{}>",

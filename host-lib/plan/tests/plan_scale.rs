@@ -277,3 +277,14 @@ fn a_drawing_far_from_the_origin_is_refused_for_its_precision_and_noted_nearer()
     let (_, summary) = dilate_svg(&square(500.0), &KerfSource::Uniform(150.0), &opts).unwrap();
     assert!(summary.notes.is_empty(), "{:?}", summary.notes);
 }
+
+/// An `<svg>` root without the SVG namespace is told what it lacks, not that its root is
+/// `<svg>`.
+#[test]
+fn an_svg_root_without_its_namespace_is_told_to_add_it() {
+    let why = refusal("<svg width=\"10mm\" height=\"10mm\"/>", 150.0);
+    assert!(
+        why.contains("add xmlns=\"http://www.w3.org/2000/svg\""),
+        "{why}"
+    );
+}

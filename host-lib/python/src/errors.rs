@@ -4,6 +4,7 @@
 //! takes one base, so that class is made with `type()` when the module is imported.
 
 use kerfmeter::Category;
+use kerfmeter::wording::{Interface, in_words_of};
 use kerfmeter_plan::PlanError as RustPlanError;
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyValueError};
@@ -96,7 +97,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 
 /// The Python exception for a library error: by its category, a fault with its name in `fault`.
 pub fn device(py: Python<'_>, error: kerfmeter::Error) -> PyErr {
-    let message = error.to_string();
+    let message = in_words_of(Interface::Python, &error.to_string());
     if matches!(error, kerfmeter::Error::Cancelled) {
         return PyKeyboardInterrupt::new_err(message);
     }
@@ -120,6 +121,6 @@ pub fn device(py: Python<'_>, error: kerfmeter::Error) -> PyErr {
 pub fn plan(error: RustPlanError) -> PyErr {
     match error {
         RustPlanError::InvalidArgument(m) => BadArgumentError::new_err(m),
-        other => PlanError::new_err(other.to_string()),
+        other => PlanError::new_err(in_words_of(Interface::Python, &other.to_string())),
     }
 }

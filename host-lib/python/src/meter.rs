@@ -185,9 +185,12 @@ fn client_options(timeout_ms: u64) -> Options {
 fn run_params(
     thickness_mm: f64,
     force_n: Option<f64>,
-    fingers: u32,
+    fingers: i64,
     finger_length_mm: f64,
 ) -> kerfmeter::Result<kerfmeter::protocol::RunParams> {
+    // Any integer Python gives is refused as a bad argument, not as an overflow.
+    let fingers =
+        u32::try_from(fingers).map_err(|_| kerfmeter::params::fingers_out_of_range(fingers))?;
     let joint = JointSpec {
         thickness_mm,
         fingers,
@@ -442,7 +445,7 @@ impl PyKerfmeter {
         py: Python<'_>,
         thickness_mm: f64,
         force_n: Option<f64>,
-        fingers: u32,
+        fingers: i64,
         finger_length_mm: f64,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<PyKerfResult> {
@@ -477,17 +480,21 @@ impl PyKerfmeter {
     fn measure(
         &self,
         py: Python<'_>,
-        n: usize,
+        n: i64,
         thickness_mm: f64,
         force_n: Option<f64>,
-        fingers: u32,
+        fingers: i64,
         finger_length_mm: f64,
         before_gauge: Option<Py<PyAny>>,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<PyMeasurement> {
-        if n == 0 {
-            return Err(BadArgumentError::new_err("measure at least one gauge"));
-        }
+        let n = match usize::try_from(n) {
+            Ok(n) if n > 0 => n,
+            _ => {
+                let why = format!("measure at least one gauge, got n={n}");
+                return Err(BadArgumentError::new_err(why));
+            }
+        };
         let params = run_params(thickness_mm, force_n, fingers, finger_length_mm)
             .map_err(|e| errors::device(py, e))?;
         let mut runs = Vec::with_capacity(n);

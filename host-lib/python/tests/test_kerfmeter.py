@@ -57,7 +57,7 @@ def test_a_motor_shaft_encoder_is_confirmed_at_its_mark_before_a_run():
     with kerfmeter.Kerfmeter.sim(encoder_on_motor_shaft=True) as m:
         hub_turn_unknown = 1 << 5  # the protocol's Conditions bit
         assert m.status()["conditions"] == hub_turn_unknown
-        with pytest.raises(kerfmeter.KerfmeterError, match="confirm-zero"):
+        with pytest.raises(kerfmeter.KerfmeterError, match="confirm_hub_at_zero"):
             m.run_kerfmeter()
         m.confirm_hub_at_zero()
         assert m.status()["conditions"] == 0
@@ -78,6 +78,14 @@ def test_bad_arguments_are_refused_before_anything_moves(meter):
         kerfmeter.Kerfmeter.sim(no_such_plant_parameter=1.0)
     with pytest.raises(kerfmeter.BadArgumentError):
         meter.measure(0)
+    # A negative count is a bad argument too, not an OverflowError.
+    with pytest.raises(kerfmeter.BadArgumentError, match="fingers must be between 1 and 100"):
+        meter.run_kerfmeter(fingers=-1)
+    with pytest.raises(kerfmeter.BadArgumentError, match="n=-2"):
+        meter.measure(-2)
+    # The force is named as the caller gives it.
+    with pytest.raises(kerfmeter.BadArgumentError, match="force_n"):
+        meter.run_kerfmeter(force_n=1e9)
 
 
 def test_a_closed_meter_says_so():

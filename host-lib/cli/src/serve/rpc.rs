@@ -12,6 +12,7 @@ use serde_json::{Map, Value, json};
 
 use super::worker::{Call, Device, RunCall};
 use crate::error::CliError;
+use kerfmeter::wording::Interface;
 
 /// Not JSON.
 pub const PARSE_ERROR: i32 = -32700;
@@ -80,7 +81,7 @@ impl RpcError {
 
 impl From<&CliError> for RpcError {
     fn from(e: &CliError) -> Self {
-        let message = e.to_string();
+        let message = kerfmeter::wording::in_words_of(Interface::Server, &e.to_string());
         match e {
             CliError::Meter(kerfmeter::Error::Cancelled) => RpcError::new(ABORTED, message),
             CliError::Meter(m) if m.category() == Category::Communication => {
@@ -364,7 +365,7 @@ fn run_call(p: &mut Params) -> Result<RunCall, RpcError> {
     let joint = JointSpec {
         thickness_mm: p.f64("thickness_mm")?.unwrap_or(defaults.thickness_mm),
         fingers: p
-            .u32_in("fingers", 1..=u32::MAX)?
+            .u32_in("fingers", 1..=kerfmeter::params::MAX_FINGERS)?
             .unwrap_or(defaults.fingers),
         finger_length_mm: p
             .f64("finger_length_mm")?
