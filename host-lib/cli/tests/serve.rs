@@ -328,6 +328,16 @@ fn the_three_calls_work_over_http() {
         "{e}"
     );
     assert_eq!(server.get("/api/nothing").0, 404);
+    // A method a route does not take, or no route at all: the same error object.
+    let (code, e) = server.http("DELETE", "/api/info", &[], b"");
+    assert_eq!(code, 405, "{e}");
+    assert!(
+        e["error"]["message"].as_str().unwrap().contains("GET"),
+        "{e}"
+    );
+    let (code, e) = server.get("/nowhere");
+    assert_eq!(code, 404, "{e}");
+    assert_eq!(e["error"]["code"], -32600, "{e}");
     assert_eq!(server.get("/api/run").0, 404);
 }
 
@@ -893,6 +903,13 @@ fn a_job_runs_on_the_servers_cutter_with_its_stages_told() {
             .unwrap()
             .contains("measured by kerfmeter job")
     );
+    // Where the server keeps its copy is not the caller's business.
+    let gcode = job["gcode"].as_str().unwrap();
+    assert!(
+        gcode.contains("(source: the plan sent to kerfmeter serve)"),
+        "{gcode:.400}"
+    );
+    assert!(!gcode.contains("/tmp"), "{gcode:.400}");
     assert!(job["report"].get("input").is_none(), "{job}");
     let stages: Vec<&str> = job["report"]["stages"]
         .as_array()

@@ -79,8 +79,29 @@ pub fn router(device: Device, security: Arc<Security>) -> Router {
         router = router.route(path, get(page));
     }
     router
+        .method_not_allowed_fallback(method_not_allowed)
+        .fallback(not_found)
         .layer(axum::middleware::from_fn_with_state(security, guard))
         .with_state(AppState { device })
+}
+
+/// A route asked with a method it does not take (`DELETE /api/info`): said as every other
+/// failure is, `{"error": …}`.
+async fn method_not_allowed() -> Response {
+    let why = "this route takes GET (reads) or POST (actions) only";
+    error_response(
+        StatusCode::METHOD_NOT_ALLOWED,
+        &RpcError::new(rpc::INVALID_REQUEST, why),
+    )
+}
+
+/// No such route: said as every other failure is.
+async fn not_found() -> Response {
+    let why = "no such route: the page is at /, the API at /api/NAME and /rpc";
+    error_response(
+        StatusCode::NOT_FOUND,
+        &RpcError::new(rpc::INVALID_REQUEST, why),
+    )
 }
 
 /// The HTTP status for a JSON-RPC error code.

@@ -462,7 +462,12 @@ pub fn job_answer(call: &JobCall, report: &JobCliReport) -> Result<Value, CliErr
         })
     };
     let content = String::from_utf8_lossy(&read(&call.args.output)?).into_owned();
-    let gcode = String::from_utf8_lossy(&read(&call.dir.path().join("job.gcode"))?).into_owned();
+    let gcode = String::from_utf8_lossy(&read(&call.dir.path().join("job.gcode"))?)
+        // Its header names the plan's source: the server's own copy, which is not the caller's.
+        .replace(
+            &call.args.input.display().to_string(),
+            "the plan sent to kerfmeter serve",
+        );
     let kerf_um = report["kerf_um"].clone();
     Ok(json!({
         "kerf_um": kerf_um, "label": call.label, "report": report, "content": content,
