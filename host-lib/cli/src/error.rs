@@ -5,12 +5,17 @@
 //! line, raised an alarm or was stopped (Ctrl-C), or a file could not be read or written; 5 the
 //! cutter failed and could not be stopped: its laser may still be on.
 
+use std::path::PathBuf;
+
 use kerfmeter::grbl::CutterError;
 use kerfmeter::job::JobError;
 use kerfmeter::lightburn::LightBurnError;
 use kerfmeter::{Category, Error};
 use kerfmeter_plan::PlanError;
 use kerfmeter_plan::compensation::FoundCompensation;
+use serde::Serialize;
+
+use crate::record::Recorded;
 
 /// Exit code for bad arguments (clap uses it too).
 const EXIT_USAGE: u8 = 2;
@@ -39,6 +44,16 @@ pub enum CliError {
     /// The automatic loop stopped (the cutter stopped, the laser off, unless it says otherwise).
     #[error(transparent)]
     Job(#[from] JobError),
+    /// The automatic loop stopped after its measurement: the error, and what the job had by
+    /// then (the kerf, its record in the history, the files written), which `--json` reports
+    /// beside the error.
+    #[error("{source}")]
+    JobAfterMeasuring {
+        /// Why the loop stopped.
+        source: JobError,
+        /// What it had done.
+        so_far: Box<JobSoFar>,
+    },
     /// The measurement history could not be read.
     #[error(transparent)]
     History(#[from] kerfmeter_history::Error),
@@ -57,6 +72,18 @@ pub enum CliError {
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
+}
+
+/// What a job that stopped after measuring had done (in `--json`'s error object).
+#[derive(Debug, Clone, Serialize)]
+pub struct JobSoFar {
+    /// The kerf the device measured, µm (`null` when its result could not be read back).
+    pub kerf_um: Option<f32>,
+    /// Where it was recorded, or why not.
+    pub history: Option<Recorded>,
+    /// The files written before the job stopped, each complete (the plan was not cut, or not
+    /// all of it).
+    pub written: Vec<PathBuf>,
 }
 
 impl CliError {
@@ -80,11 +107,19 @@ impl CliError {
             CliError::SelfTestFailed => Category::Device,
             CliError::AfterMeasuring { category, .. } => *category,
             CliError::Cutter(e) => e.category(),
-            CliError::Job(e) => e.category(),
+            CliError::Job(e) | CliError::JobAfterMeasuring { source: e, .. } => e.category(),
             CliError::History(kerfmeter_history::Error::Invalid(_))
             | CliError::History(kerfmeter_history::Error::NoDataDir) => Category::Usage,
             CliError::History(_) => Category::File,
             CliError::LightBurn(e) => e.category(),
+        }
+    }
+
+    /// What a job that stopped after measuring had done, if this is such a stop.
+    pub fn job_so_far(&self) -> Option<JobSoFar> {
+        match self {
+            CliError::JobAfterMeasuring { so_far, .. } => Some(so_far.as_ref().clone()),
+            _ => None,
         }
     }
 
@@ -103,15 +138,19 @@ impl CliError {
     /// The device fault behind the error, if any (named as in the protocol).
     pub fn fault(&self) -> Option<String> {
         match self {
-            CliError::Meter(m) | CliError::Job(JobError::Device { source: m, .. }) => {
-                m.fault().map(|f| format!("{f:?}"))
-            }
+            CliError::Meter(m)
+            | CliError::Job(JobError::Device { source: m, .. })
+            | CliError::JobAfterMeasuring {
+                source: JobError::Device { source: m, .. },
+                ..
+            } => m.fault().map(|f| format!("{f:?}")),
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
             | CliError::AfterMeasuring { .. }
             | CliError::Cutter(_)
             | CliError::Job(_)
+            | CliError::JobAfterMeasuring { .. }
             | CliError::History(_)
             | CliError::LightBurn(_) => None,
         }
@@ -127,6 +166,7 @@ impl CliError {
             | CliError::AfterMeasuring { .. }
             | CliError::Cutter(_)
             | CliError::Job(_)
+            | CliError::JobAfterMeasuring { .. }
             | CliError::History(_)
             | CliError::LightBurn(_) => Vec::new(),
         }
@@ -138,7 +178,9 @@ impl CliError {
 pub fn exit_code(e: &CliError) -> u8 {
     let laser_may_be_on = match e {
         CliError::Cutter(cutter) => cutter.laser_may_be_on(),
-        CliError::Job(job) => job.laser_may_be_on(),
+        CliError::Job(job) | CliError::JobAfterMeasuring { source: job, .. } => {
+            job.laser_may_be_on()
+        }
         _ => false,
     };
     if laser_may_be_on {

@@ -150,6 +150,7 @@ fn parse_cli() -> Result<Cli, ExitCode> {
             fault: None,
             conditions: Vec::new(),
             compensation_found: None,
+            job_so_far: None,
         };
         print_line(&to_json(&report, JsonLayout::CompactSorted));
         return Err(ExitCode::from(2));
@@ -228,6 +229,7 @@ fn main() -> ExitCode {
                     fault: e.fault(),
                     conditions: e.conditions(),
                     compensation_found: e.compensation_found(),
+                    job_so_far: e.job_so_far(),
                 };
                 print_line(&to_json(&report, JsonLayout::CompactSorted));
             } else if !cli.global.json {

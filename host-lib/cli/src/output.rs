@@ -9,7 +9,7 @@ use kerfmeter::protocol::{KerfResult, QualityFlags};
 use kerfmeter_plan::compensation::FoundCompensation;
 use serde::Serialize;
 
-use crate::error::CliError;
+use crate::error::{CliError, JobSoFar};
 
 /// How a report is laid out as JSON.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -82,6 +82,10 @@ pub struct ErrorReport {
     /// `dilate --json` reports as `compensation_found`); absent otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub compensation_found: Option<FoundCompensation>,
+    /// A job that stopped after measuring: its kerf, history record and files written
+    /// (`kerf_um`, `history`, `written` beside the error); absent otherwise.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub job_so_far: Option<JobSoFar>,
 }
 
 /// A kerf result as JSON: the device's own fields (`flags` as its bits), and `flag_names`, the

@@ -478,3 +478,40 @@ fn a_compensated_plan_or_a_gauge_is_refused_before_anything_moves() {
     let out = job(&first, &["--recompensate"]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));
 }
+
+/// A job that stops after its measurement (here its plan's parts, 0.1 mm apart, would merge at
+/// the kerf measured) says in its `--json` error what it had: the kerf, its record, the files.
+#[test]
+fn a_job_stopped_after_measuring_reports_its_kerf_and_record_in_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan = dir.path().join("close.svg");
+    std::fs::write(
+        &plan,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
+  <rect x="5" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
+  <rect x="25.1" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
+</svg>"#,
+    )
+    .unwrap();
+    let db = dir.path().join("history.sqlite3");
+    let out_svg = dir.path().join("out.svg");
+    let out = kerfmeter(&[
+        "--sim",
+        "--json",
+        "--db",
+        path(&db),
+        "job",
+        path(&plan),
+        "--cutter",
+        "sim",
+        "-o",
+        path(&out_svg),
+    ]);
+    assert_eq!(code(&out), 4, "{}", stderr(&out));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    assert!(json["error"].as_str().unwrap().contains("merge"), "{json}");
+    assert!(json["kerf_um"].as_f64().unwrap() > 100.0, "{json}");
+    assert_eq!(json["history"]["id"], 1, "{json}");
+    assert_eq!(json["written"], serde_json::json!([]), "{json}");
+    assert!(!out_svg.exists());
+}

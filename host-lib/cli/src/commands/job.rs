@@ -57,7 +57,7 @@ use super::dilate::{DilationArgs, plan_output_format, units_parser};
 use super::gauge::GAUGE_SETTINGS;
 use super::gcode::{CutArgs, parse_xy};
 use crate::connection::{Global, Session};
-use crate::error::CliError;
+use crate::error::{CliError, JobSoFar};
 use crate::output::{JsonLayout, Report};
 use crate::progress::show;
 use crate::record::{Measured, Recorded, parse_label, record};
@@ -331,10 +331,9 @@ pub fn run_on(
     });
     let report = match report {
         Ok(report) => report,
+        Err(e) if !measured => return Err(job_error(e)),
         Err(e) => {
-            if measured {
-                record_after_failure(g, args, setup, session);
-            }
+            let (kerf_um, history) = record_after_failure(g, args, setup, session);
             if !written.is_empty() {
                 let files: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
                 eprintln!(
@@ -342,7 +341,18 @@ pub fn run_on(
                     files.join(" and ")
                 );
             }
-            return Err(job_error(e));
+            let so_far = JobSoFar {
+                kerf_um,
+                history,
+                written,
+            };
+            return Err(match job_error(e) {
+                CliError::Job(source) => CliError::JobAfterMeasuring {
+                    source,
+                    so_far: Box::new(so_far),
+                },
+                other => other,
+            });
         }
     };
     let history = record_kerf(g, args, setup, session, &report.kerf);
@@ -387,14 +397,30 @@ fn record_kerf(
 }
 
 /// A job that failed after its measurement: record the device's last result, saying so on
-/// stderr (the command fails with the job's error).
-fn record_after_failure(g: &Global, args: &JobArgs, setup: &Setup, session: &mut Session) {
-    let note = match session.meter.get_kerf_value() {
-        Ok(Some(kerf)) => record_kerf(g, args, setup, session, &kerf).to_string(),
-        Ok(None) => "warning: not recorded in the history: the device kept no result".into(),
-        Err(e) => format!("warning: not recorded in the history: cannot read the result: {e}"),
+/// stderr (the command fails with the job's error); the kerf and its record, for `--json`.
+fn record_after_failure(
+    g: &Global,
+    args: &JobArgs,
+    setup: &Setup,
+    session: &mut Session,
+) -> (Option<f32>, Option<Recorded>) {
+    let (kerf_um, history, note) = match session.meter.get_kerf_value() {
+        Ok(Some(kerf)) => {
+            let recorded = record_kerf(g, args, setup, session, &kerf);
+            let note = recorded.to_string();
+            (Some(kerf.kerf_um), Some(recorded), note)
+        }
+        Ok(None) => {
+            let note = "warning: not recorded in the history: the device kept no result";
+            (None, None, note.to_owned())
+        }
+        Err(e) => {
+            let note = format!("warning: not recorded in the history: cannot read the result: {e}");
+            (None, None, note)
+        }
     };
     eprintln!("the job failed after its measurement; {note}");
+    (kerf_um, history)
 }
 
 /// Refuse a simulated device with a real cutter, and the other way round (see the module doc).

@@ -105,6 +105,17 @@ impl From<&CliError> for RpcError {
                 })),
                 ..RpcError::new(DEVICE_ERROR, message)
             },
+            // What the job measured before it stopped (where the server keeps files is not the
+            // caller's business: no paths).
+            CliError::JobAfterMeasuring { so_far, .. } => RpcError {
+                data: Some(json!({
+                    "kind": "Job",
+                    "fault": e.fault(),
+                    "kerf_um": so_far.kerf_um,
+                    "history_id": so_far.history.as_ref().and_then(|h| h.id),
+                })),
+                ..RpcError::new(DEVICE_ERROR, message)
+            },
             _ => RpcError {
                 data: Some(json!({ "kind": variant_name(e), "fault": e.fault() })),
                 ..RpcError::new(DEVICE_ERROR, message)
