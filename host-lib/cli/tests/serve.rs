@@ -1024,3 +1024,21 @@ fn a_client_that_vanishes_without_closing_has_its_run_aborted() {
     assert_eq!(result(&status)["torque_nm"], 0.0, "{status}");
     drop(gone);
 }
+
+/// A server stopped mid-run (SIGTERM) aborts the run and answers its caller so, and tells
+/// `run_finished`, before its connections close.
+#[test]
+fn a_server_stopped_mid_run_answers_the_run_aborted_before_it_closes() {
+    let server = Server::sim(true);
+    let mut ws = server.ws();
+    let id = ws.send("run_kerfmeter", json!({ "samples": 5 }));
+    ws.notification("run_started");
+    let killed = Command::new("kill")
+        .args(["-TERM", &server.child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let answer = ws.response(id);
+    assert_eq!(code(&answer), -32002, "{answer}");
+    ws.notification("run_finished");
+}

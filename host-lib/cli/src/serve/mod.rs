@@ -61,7 +61,8 @@
 //!
 //! See [`worker`]: one thread owns the device; a second run is refused at once; `abort` is
 //! heard within one status poll; a client that disconnects mid-run aborts it; a vanished device
-//! is re-opened when it answers again. Ctrl-C (or SIGTERM, or SIGHUP) aborts whatever runs, waits for the
+//! is re-opened when it answers again. Ctrl-C (or SIGTERM, or SIGHUP) aborts whatever runs (its
+//! caller is answered "aborted", -32002, and every client told `run_finished`), waits for the
 //! device to be safe, and stops the server.
 //!
 //! # Security
@@ -89,6 +90,7 @@ mod rpc;
 mod security;
 mod worker;
 
+use std::future::IntoFuture;
 use std::net::SocketAddr;
 use std::sync::Arc;
 
@@ -152,13 +154,37 @@ async fn listen_and_serve(
         .map_err(|e| CliError::Usage(format!("cannot listen on {listen}: {e}")))?;
     let security = Arc::new(security.bound_to(bound));
     print_line(&format!("Listening on http://{bound}/"));
-    let app = http::router(device, security);
+    let app = http::router(device.clone(), security);
+    let serving = axum::serve(listener, app).into_future();
+    tokio::pin!(serving);
     tokio::select! {
-        served = axum::serve(listener, app) => served
-            .map_err(|e| CliError::Usage(format!("the server stopped: {e}"))),
-        () = stop_signal() => Ok(()),
+        served = &mut serving => {
+            return served.map_err(|e| CliError::Usage(format!("the server stopped: {e}")));
+        }
+        () = stop_signal() => {}
     }
+    // Abort what runs while still serving, so that its caller hears the answer ("aborted") and
+    // `run_finished` before the connections close.
+    device.stop_running();
+    let answered = async {
+        while device.is_busy() {
+            tokio::time::sleep(BUSY_POLL).await;
+        }
+        tokio::time::sleep(ANSWER_FLUSH).await;
+    };
+    tokio::select! {
+        _ = &mut serving => {}
+        _ = tokio::time::timeout(SHUTDOWN_WAIT, answered) => {}
+    }
+    Ok(())
 }
+
+/// How often a stopping server looks whether the call it aborted has ended.
+const BUSY_POLL: std::time::Duration = std::time::Duration::from_millis(20);
+
+/// How long a stopping server goes on serving once the aborted call has ended, for its answer
+/// and notifications to be written.
+const ANSWER_FLUSH: std::time::Duration = std::time::Duration::from_millis(150);
 
 /// Ctrl-C, or SIGTERM or SIGHUP (the terminal closed) where there are such: each stops the
 /// server safely rather than killing it mid-run.

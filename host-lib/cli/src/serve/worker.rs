@@ -274,6 +274,11 @@ impl Device {
         Ok(json!({ "aborted": true }))
     }
 
+    /// Whether a long call (a run, reset, self-test or job) is going.
+    pub fn is_busy(&self) -> bool {
+        self.shared.busy.load(Ordering::SeqCst)
+    }
+
     /// Tell the long call going, if any, to stop (without waiting).
     pub fn stop_running(&self) {
         self.shared.stop.store(true, Ordering::SeqCst);
