@@ -149,8 +149,11 @@ impl<S: ConfigPersist> Device<S> {
 }
 
 impl<S: ConfigPersist> Handler for Device<S> {
-    fn handle(&mut self, request: &Request) -> Response {
+    fn host_activity(&mut self) {
         self.controller.host_activity(self.now_us);
+    }
+
+    fn handle(&mut self, request: &Request) -> Response {
         let controller = &mut self.controller;
         match request {
             Request::GetInfo => Response::Info(self.info.clone()),
@@ -219,6 +222,10 @@ impl<S: ConfigPersist, M: MotorSafe> Handler for WithMotor<'_, S, M> {
             device.motor_asleep = self.motor.safe().is_ok();
         }
         device.handle(request)
+    }
+
+    fn host_activity(&mut self) {
+        self.device.host_activity();
     }
 }
 
@@ -299,6 +306,8 @@ mod tests {
                 if let Some(request) = &keep_alive
                     && tick % 100 == 0
                 {
+                    // As the link gives every request it receives.
+                    d.host_activity();
                     d.handle(request);
                 }
             }

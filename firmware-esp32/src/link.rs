@@ -67,6 +67,11 @@ pub struct Received {
 pub trait Handler {
     /// Carry out `request` (or refuse it) and say what to answer.
     fn handle(&mut self, request: &Request) -> Response;
+
+    /// The host was heard: a request came (one to carry out, a retry answered from memory, or
+    /// one this firmware does not know). For the run's communication watchdog. No default: a
+    /// wrapper that forgot to pass it on would fault every run `HostSilent`.
+    fn host_activity(&mut self);
 }
 
 /// Counters for diagnostics.
@@ -158,6 +163,9 @@ impl Link {
             };
             input = rest;
             done.frames += 1;
+            if result.is_ok() || matches!(&result, Err(FrameError::Decode(e)) if e.seq.is_some()) {
+                handler.host_activity();
+            }
             let reply = match result {
                 Ok(request) => Some(self.answer(request, handler)),
                 Err(FrameError::Decode(e)) => e.seq.map(|seq| {
@@ -272,9 +280,14 @@ mod tests {
     struct Counter {
         runs: u32,
         handled: u32,
+        heard: u32,
     }
 
     impl Handler for Counter {
+        fn host_activity(&mut self) {
+            self.heard += 1;
+        }
+
         fn handle(&mut self, request: &Request) -> Response {
             self.handled += 1;
             match request {
@@ -319,6 +332,9 @@ mod tests {
         assert_eq!(first[0].seq, 5);
         assert_eq!(h.runs, 1);
         assert_eq!(link.stats().replayed, 1);
+        // The retry is the host heard all the same (a host whose answers get lost retries
+        // until one comes through: it is not silent).
+        assert_eq!(h.heard, 2);
     }
 
     #[test]
@@ -344,6 +360,8 @@ mod tests {
         assert_eq!(r.len(), 1);
         assert_eq!(r[0].seq, 2);
         assert_eq!(h.handled, 1);
+        // Garbage is not the host.
+        assert_eq!(h.heard, 1);
     }
 
     #[test]
@@ -362,6 +380,7 @@ mod tests {
             }]
         );
         assert_eq!(h.handled, 0);
+        assert_eq!(h.heard, 1);
     }
 
     #[test]

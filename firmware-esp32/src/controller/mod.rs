@@ -395,6 +395,15 @@ impl Controller {
         let unknown = self.conditions.contains(Conditions::HUB_TURN_UNKNOWN) || onto_motor_shaft;
         self.conditions
             .set(Conditions::HUB_TURN_UNKNOWN, motor_shaft && unknown);
+        // The winding's factor was measured against the old calibration's reference
+        // resistance: after a new one (a mismatch corrected) it would scale every duty by a
+        // ratio that no longer holds, until the next settle measured it again.
+        let recalibrated = config.torque_per_amp_nm != self.config.torque_per_amp_nm
+            || config.torque_per_duty_nm != self.config.torque_per_duty_nm;
+        if recalibrated {
+            self.winding = WindingEstimate::new();
+            self.supply.set_winding_factor(self.winding.factor());
+        }
         self.config = config;
         Ok(())
     }
@@ -518,21 +527,14 @@ impl Controller {
         self.torque_nm = 0.0;
     }
 
-    /// Leave a latched fault (the motor stays safe); nothing happens without one. The encoder's
-    /// conditions are forgotten too, as a fault's cause is meant to be fixed by now: they stand
-    /// again at the next failed read or diagnostics reading (within the diagnostics period), and
-    /// a run started meanwhile latches the typed fault then. Driver FLT is read every tick and
-    /// stays.
+    /// Leave a latched fault (the motor stays safe); nothing happens without one. The idle
+    /// conditions stay as the inputs last said: the encoder's clear at its next good read or
+    /// diagnostics reading (within the diagnostics period), so a run asked for meanwhile is
+    /// refused with the condition rather than started on an encoder that was failing (it drove
+    /// up to a diagnostics period blind when they were forgotten here).
     pub fn clear_fault(&mut self) {
         if let State::Fault(_) = self.state {
             self.state = State::Idle;
-            self.consecutive_encoder_errors = 0;
-            self.conditions.set(
-                Conditions::NO_MAGNET
-                    .union(Conditions::ENCODER_DIAGNOSTICS)
-                    .union(Conditions::ENCODER_UNREADABLE),
-                false,
-            );
         }
     }
 
@@ -701,7 +703,8 @@ impl Controller {
         let duty = reference_duty * self.supply.duty_scale();
         let clockwise = self.jam_frame(self.torque_nm) > 0.0;
         MotorOutput {
-            duty: duty.min(1.0),
+            // Not a number (nothing known makes one) drives nothing rather than full duty.
+            duty: if duty.is_nan() { 0.0 } else { duty.min(1.0) },
             dir_high: clockwise != self.config.motor_inverted,
             awake: true,
         }

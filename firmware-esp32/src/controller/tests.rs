@@ -1073,10 +1073,11 @@ fn a_reset_keeps_what_its_speed_loop_learnt_across_the_settle_band() {
     );
 }
 
-/// After a magnet fault is cleared the stale reading does not block the reset that follows; a
-/// new failing reading blocks again.
+/// After a magnet fault is cleared, the condition stands until the encoder's next diagnostics
+/// reading says the magnet is back: a run asked for meanwhile is refused with it, not driven on
+/// an encoder that was failing; a good reading clears it.
 #[test]
-fn clear_fault_forgets_the_encoders_stale_conditions() {
+fn clear_fault_keeps_the_encoders_conditions_until_a_good_reading() {
     let mut s = Script::new();
     s.start(RunParams::DEFAULT);
     s.tick();
@@ -1086,19 +1087,22 @@ fn clear_fault_forgets_the_encoders_stale_conditions() {
     assert_eq!(s.state(), RunState::Fault(Fault::Magnet));
     assert_eq!(s.c.conditions(), Conditions::NO_MAGNET);
     s.host().clear_fault();
-    assert_eq!(s.c.conditions(), Conditions::empty());
+    assert_eq!(s.state(), RunState::Idle);
     s.tick();
     assert_eq!(
         s.c.conditions(),
-        Conditions::empty(),
+        Conditions::NO_MAGNET,
         "until the next reading"
     );
-    s.tick_with(&lost);
-    assert_eq!(s.state(), RunState::Idle);
     assert_eq!(
-        s.host().start_reset(),
+        s.host().start_run(&RunParams::DEFAULT),
         Err(ErrorCode::Blocked(Conditions::NO_MAGNET))
     );
+    let mut back = s.inputs();
+    back.diagnostics = Some(Ok(GOOD_DIAGNOSTICS));
+    s.tick_with(&back);
+    assert_eq!(s.c.conditions(), Conditions::empty());
+    assert_eq!(s.host().start_reset(), Ok(()));
 }
 
 /// The self-test's torque-constant item from scripted currents: a winding of the resistance the
@@ -1272,6 +1276,20 @@ fn a_current_that_disagrees_with_the_duty_flags_a_torque_mismatch() {
             result.flags
         );
         assert_eq!(s.c.winding.factor(), held, "held to the plausible range");
+        // The calibration corrected: the factor measured against the wrong one is forgotten,
+        // so the next ramp drives what the new calibration says, not 1.61 or 0.76 times it.
+        let corrected = DeviceConfig {
+            torque_per_duty_nm: s.c.config().torque_per_duty_nm / factor,
+            ..*s.c.config()
+        };
+        back_to_zero(&mut s);
+        assert_eq!(s.host().set_config(corrected), Ok(()));
+        assert_eq!(s.c.winding.factor(), 1.0);
+        assert!(
+            (s.c.supply.duty_scale() - 1.0).abs() < 0.05,
+            "{}",
+            s.c.supply.duty_scale()
+        );
     }
     // Near the range's edges: explained, no mismatch (on 24 V, where full duty gives the
     // torque). A winding cooler than the factor the run started from was driven too hard at the

@@ -91,6 +91,8 @@ pub(super) struct Pacing {
     last_start_us: Option<u64>,
     /// Late time not yet repaid, µs.
     debt_us: u32,
+    /// Whether the last step was counted (the motor could be driven then).
+    last_counted: bool,
 }
 
 impl Pacing {
@@ -99,12 +101,18 @@ impl Pacing {
         Self {
             last_start_us: None,
             debt_us: 0,
+            last_counted: false,
         }
     }
 
     /// A step starts at `now_us`; `counted` while the motor may be driven (at rest the debt is
     /// forgiven: a gap there leaves no stale output behind, and a flash write makes long ones).
-    pub(super) fn step(&mut self, now_us: u64, counted: bool) -> Pace {
+    /// A gap counts only between two counted steps: one that began at rest left the motor safe
+    /// through it, even when a request served in it (after a `SetConfig`'s flash write in the
+    /// same pass) started a run before this step.
+    pub(super) fn step(&mut self, now_us: u64, active: bool) -> Pace {
+        let counted = active && self.last_counted;
+        self.last_counted = active;
         // In u32 (saturated past an hour): a u64 division is a library call on the C3.
         let gap_us = self
             .last_start_us
@@ -226,6 +234,11 @@ mod tests {
         assert!(!p.step(501_000, true).overrun);
         assert!(!p.step(507_000, true).overrun);
         assert!(!p.step(513_000, true).overrun);
+        // A run started by a request served after a rest step's long flash write: that gap
+        // was spent at rest, not late in the run; the run's own gaps count from the next.
+        p.step(514_000, false);
+        assert!(!p.step(914_000, true).overrun);
+        assert!(p.step(915_000 + u64::from(MAX_GAP) + 1, true).overrun);
     }
 
     #[test]

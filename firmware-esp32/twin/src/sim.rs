@@ -440,7 +440,11 @@ impl Twin {
     pub fn try_request(&mut self, request: &Request) -> Option<Response> {
         self.queue_burst();
         self.client_turn();
-        let response = self.serve_host(Sender::Client, |handler, _| handler.handle(request))?;
+        // Heard, then handled, as the link does with every request it receives.
+        let response = self.serve_host(Sender::Client, |handler, _| {
+            handler.host_activity();
+            handler.handle(request)
+        })?;
         self.pass_frames += 1;
         Some(response)
     }
@@ -805,6 +809,12 @@ impl TwinHandler<'_> {
 }
 
 impl Handler for TwinHandler<'_> {
+    fn host_activity(&mut self) {
+        if !self.core.reset {
+            self.device.host_activity();
+        }
+    }
+
     fn handle(&mut self, request: &Request) -> Response {
         // After a watchdog reset the answer is never sent: any will do.
         let Some(response) = self.timed(request) else {

@@ -22,6 +22,8 @@ struct TestDevice {
 }
 
 impl Handler for TestDevice {
+    fn host_activity(&mut self) {}
+
     fn handle(&mut self, request: &Request) -> Response {
         match request {
             Request::Run(_) => {
