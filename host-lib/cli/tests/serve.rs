@@ -1042,3 +1042,20 @@ fn a_server_stopped_mid_run_answers_the_run_aborted_before_it_closes() {
     assert_eq!(code(&answer), -32002, "{answer}");
     ws.notification("run_finished");
 }
+
+/// A reset clears a latched fault: its answer names the fault, so that it does not vanish
+/// unseen.
+#[test]
+fn a_reset_names_the_fault_it_cleared() {
+    let server = Server::start(&["--sim", "--sim-fault", "no-inset"], &[]);
+    let mut ws = server.ws();
+    let run = ws.call("run_kerfmeter", json!({}));
+    assert_eq!(code(&run), -32000, "{run}");
+    let fault = run["error"]["data"]["fault"].clone();
+    assert!(fault.is_string(), "{run}");
+    let reset = ws.call("reset_kerfmeter", json!({}));
+    assert_eq!(result(&reset)["cleared_fault"], fault, "{reset}");
+    // A second reset has nothing to clear.
+    let again = ws.call("reset_kerfmeter", json!({}));
+    assert_eq!(result(&again), &json!({ "reset": true }), "{again}");
+}

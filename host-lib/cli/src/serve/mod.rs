@@ -24,7 +24,7 @@
 //! | `status` | | `kerfmeter status --json` |
 //! | `run_kerfmeter` | `thickness_mm`, `force_n`, `fingers`, `finger_length_mm`, `samples` (1..=50), `label` | `kerfmeter run --json` (`kerf_um` at the top level, `summary`, `runs`, `force_n`, `thickness_mm`, `label`, `history`: where it was recorded and its drift warning, ...) plus `curve`: `{"run_id", "points": [[torque_nm, angle_deg], ...]}` of the last run, or `null` with `curve_error` when it could not be read (the kerf stands); each of `runs` has its quality flags as bits (`flags`) and by name (`flag_names`) |
 //! | `get_kerf_value` | | the device's last result (`kerf_um` at its top level, `flag_names`), or `null` |
-//! | `reset_kerfmeter` | | `{"reset": true}`, with a `warning` when the hub's zero is only the encoder count's (hub-turn-unknown) |
+//! | `reset_kerfmeter` | | `{"reset": true}`, with `cleared_fault` (its name) when a fault was latched, and a `warning` when the hub's zero is only the encoder count's (hub-turn-unknown) |
 //! | `abort` | | `{"aborted": true}`, at any time, also during another client's run |
 //! | `clear_fault` | | `kerfmeter clear-fault --json` (`{"ok": true}`) |
 //! | `confirm_hub_at_zero` | | `kerfmeter confirm-zero --json` (`{"ok": true}`): the hub stands at its zero mark (encoder on the motor shaft, after power-up) |

@@ -518,11 +518,16 @@ fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliErr
         Call::Status => to_value(&status::StatusReport::from(s.meter.status()?)),
         Call::Kerf => to_value(&s.meter.get_kerf_value()?.as_ref().map(ResultJson::from)),
         Call::Reset => {
+            let cleared_fault = reset::latched_fault(&mut s.meter)?;
             s.meter.reset_kerfmeter_until(|_| shared.stop_requested())?;
-            match reset::warning(&mut s.meter)? {
-                Some(w) => json!({ "reset": true, "warning": w }),
-                None => json!({ "reset": true }),
+            let mut answer = json!({ "reset": true });
+            if let Some(w) = reset::warning(&mut s.meter)? {
+                answer["warning"] = json!(w);
             }
+            if let Some(fault) = cleared_fault {
+                answer["cleared_fault"] = json!(format!("{fault:?}"));
+            }
+            answer
         }
         Call::ClearFault => {
             s.meter.clear_fault()?;
