@@ -315,6 +315,8 @@ pub struct Controller {
     angle_deg: f32,
     have_angle: bool,
     motion: Motion,
+    /// The farthest from zero a reset may take the hub, degrees (set as it starts).
+    reset_limit_deg: f32,
     consecutive_encoder_errors: u16,
     last_diagnostics: Option<DiagnosticsReading>,
     /// The idle conditions as of the last tick (see [`Controller::conditions`]).
@@ -358,6 +360,7 @@ impl Controller {
             angle_deg: 0.0,
             have_angle: false,
             motion: Motion::new(),
+            reset_limit_deg: 0.0,
             consecutive_encoder_errors: 0,
             last_diagnostics: None,
             conditions,

@@ -23,8 +23,9 @@ use kerfmeter_protocol::{
 use crate::as5048a::EncoderSettings;
 
 use super::{
-    Controller, Motion, RESET_MAX_SPEED_DEG_PER_S, RESET_MAX_TORQUE_NM, RESET_RELEASE_DEG,
-    RESET_SETTLE_TICKS, RESET_SPEED_PER_DEG, RESET_TIMEOUT_TICKS, RESET_TOLERANCE_DEG, State,
+    Controller, Motion, RESET_AWAY_DEG, RESET_MAX_SPEED_DEG_PER_S, RESET_MAX_TORQUE_NM,
+    RESET_RELEASE_DEG, RESET_SETTLE_TICKS, RESET_SPEED_PER_DEG, RESET_TIMEOUT_TICKS,
+    RESET_TOLERANCE_DEG, State,
 };
 
 impl Controller {
@@ -91,6 +92,7 @@ impl Controller {
                 self.consecutive_encoder_errors = 0;
                 self.torque_nm = 0.0;
                 self.motion = Motion::new();
+                self.reset_limit_deg = self.angle_deg.abs() + RESET_AWAY_DEG;
                 self.state = State::Resetting {
                     ticks: 0,
                     settled: 0,
@@ -114,6 +116,10 @@ impl Controller {
     pub(super) fn reset_step(&mut self, ticks: u32, settled: u32) {
         if ticks >= RESET_TIMEOUT_TICKS {
             self.latch(Fault::ResetFailed);
+            return;
+        }
+        if self.angle_deg.abs() > self.reset_limit_deg {
+            self.latch(Fault::ReverseMotion);
             return;
         }
         let band_deg = if settled > 0 {

@@ -697,6 +697,25 @@ fn a_late_step_in_a_reset_is_ridden_through() {
     assert_eq!(s.state(), RunState::Idle);
 }
 
+/// A reset that drives the hub away from zero (a motor or encoder sense set wrong) faults as
+/// soon as the hub is well past where it started, not after the whole timeout's turns.
+#[test]
+fn a_reset_driving_the_wrong_way_faults_at_once() {
+    let mut s = Script::new();
+    s.angle_deg = 10.0;
+    s.tick();
+    assert_eq!(s.host().start_reset(), Ok(()));
+    let mut ticks = 0;
+    let f = run_until_fault(&mut s, |s, _| {
+        ticks += 1;
+        // Driven towards zero, the hub turns away.
+        s.angle_deg += 0.1;
+        s.inputs()
+    });
+    assert_eq!(f, Fault::ReverseMotion);
+    assert!(ticks < 400, "{ticks} ticks");
+}
+
 #[test]
 fn a_blocked_reset_fails_with_a_typed_fault() {
     let mut s = Script::new();

@@ -310,6 +310,11 @@ pub const RESET_SETTLE_TICKS: u32 = 50;
 /// Reset gives up (`ResetFailed`) after this many ticks: a free hub returns from the disengage
 /// angle (about 165° at most) in under three seconds at the speeds above.
 pub const RESET_TIMEOUT_TICKS: u32 = 5_000;
+/// How much farther from zero than where it started a reset may take the hub, degrees, before it
+/// is judged to drive the wrong way (`ReverseMotion`: a motor or encoder sense set wrong pushed
+/// it away for the whole timeout, several turns). Beyond any overshoot past zero, which the
+/// speed loop's slowing near zero keeps to a fraction of a degree.
+pub const RESET_AWAY_DEG: f32 = 20.0;
 
 // ---- Self-test ---------------------------------------------------------------------------------
 
