@@ -400,7 +400,15 @@ fn test(args: &TestArgs) -> Result<()> {
         ),
         (
             "host tests",
-            Box::new(|| run_cmd(cargo().args(["test", "--workspace"]))),
+            // Never on a board by chance: the acceptance suite takes a real device whenever
+            // KERFMETER_PORT is set (`cargo xtask hil --port` is the way to it).
+            Box::new(|| {
+                run_cmd(
+                    cargo()
+                        .args(["test", "--workspace"])
+                        .env_remove("KERFMETER_PORT"),
+                )
+            }),
         ),
         (
             "python package (pip install ./host-lib/python, pytest)",

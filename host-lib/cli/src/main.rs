@@ -174,6 +174,21 @@ const DEVICE_FLAGS: [&str; 12] = [
     "timeout_ms",
 ];
 
+/// [`DEVICE_FLAGS`] but `--sim` (which `lightburn` and `history` take).
+const DEVICE_FLAGS_BUT_SIM: [&str; 11] = [
+    "port",
+    "sim_kerf_um",
+    "sim_kerf_sd_um",
+    "sim_seed",
+    "sim_fault",
+    "sim_encoder_on_motor_shaft",
+    "sim_realtime",
+    "sim_material",
+    "sim_plant_file",
+    "sim_plant",
+    "timeout_ms",
+];
+
 /// Of [`DEVICE_FLAGS`], those `command` has no use for: it does not talk to the device
 /// (`lightburn` and `history` take `--sim` for a LightBurn twin and the simulated records).
 fn unused_device_flags(command: &Command) -> &'static [&'static str] {
@@ -181,7 +196,7 @@ fn unused_device_flags(command: &Command) -> &'static [&'static str] {
         Command::Gauge(_) | Command::Dilate(_) | Command::Gcode(_) | Command::Cut(_) => {
             &DEVICE_FLAGS
         }
-        Command::Lightburn(_) | Command::History(_) => &DEVICE_FLAGS[2..],
+        Command::Lightburn(_) | Command::History(_) => &DEVICE_FLAGS_BUT_SIM,
         _ => &[],
     }
 }

@@ -342,6 +342,8 @@ fn device_flags_on_a_command_without_the_device_are_refused_not_ignored() {
         "{}",
         stderr(&out)
     );
+    let out = kerfmeter(&["--port", "/dev/ttyACM0", "history"]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
     // A port from the environment is not the user's word for this command.
     let out = Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
         .args(dilate_args)
