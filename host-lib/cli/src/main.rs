@@ -160,22 +160,8 @@ fn parse_cli() -> Result<Cli, ExitCode> {
 
 /// The global flags that reach the device or set up its twin (by their ids).
 const DEVICE_FLAGS: [&str; 12] = [
-    "port",
+    // First, so that the rest are `DEVICE_FLAGS[1..]`: what `lightburn` and `history` refuse.
     "sim",
-    "sim_kerf_um",
-    "sim_kerf_sd_um",
-    "sim_seed",
-    "sim_fault",
-    "sim_encoder_on_motor_shaft",
-    "sim_realtime",
-    "sim_material",
-    "sim_plant_file",
-    "sim_plant",
-    "timeout_ms",
-];
-
-/// [`DEVICE_FLAGS`] but `--sim` (which `lightburn` and `history` take).
-const DEVICE_FLAGS_BUT_SIM: [&str; 11] = [
     "port",
     "sim_kerf_um",
     "sim_kerf_sd_um",
@@ -196,7 +182,7 @@ fn unused_device_flags(command: &Command) -> &'static [&'static str] {
         Command::Gauge(_) | Command::Dilate(_) | Command::Gcode(_) | Command::Cut(_) => {
             &DEVICE_FLAGS
         }
-        Command::Lightburn(_) | Command::History(_) => &DEVICE_FLAGS_BUT_SIM,
+        Command::Lightburn(_) | Command::History(_) => &DEVICE_FLAGS[1..],
         _ => &[],
     }
 }
