@@ -91,8 +91,8 @@ pub(super) struct Pacing {
     last_start_us: Option<u64>,
     /// Late time not yet repaid, µs.
     debt_us: u32,
-    /// Whether the last step was counted (the motor could be driven then).
-    last_counted: bool,
+    /// Whether the last step was active (the motor could be driven then).
+    last_active: bool,
 }
 
 impl Pacing {
@@ -101,18 +101,18 @@ impl Pacing {
         Self {
             last_start_us: None,
             debt_us: 0,
-            last_counted: false,
+            last_active: false,
         }
     }
 
-    /// A step starts at `now_us`; `counted` while the motor may be driven (at rest the debt is
+    /// A step starts at `now_us`; `active` while the motor may be driven (at rest the debt is
     /// forgiven: a gap there leaves no stale output behind, and a flash write makes long ones).
-    /// A gap counts only between two counted steps: one that began at rest left the motor safe
+    /// A gap counts only between two active steps: one that began at rest left the motor safe
     /// through it, even when a request served in it (after a `SetConfig`'s flash write in the
     /// same pass) started a run before this step.
     pub(super) fn step(&mut self, now_us: u64, active: bool) -> Pace {
-        let counted = active && self.last_counted;
-        self.last_counted = active;
+        let counted = active && self.last_active;
+        self.last_active = active;
         // In u32 (saturated past an hour): a u64 division is a library call on the C3.
         let gap_us = self
             .last_start_us

@@ -407,25 +407,20 @@ pub(crate) fn treatment(
     // boxes.py's loops span about one burn; leave room for its 1 µm rounding.
     let corner_loop_max_mm = Some(4.0 * found.offset_um.0[1] / 1000.0 + 0.005);
     match policy {
-        IfCompensated::Refuse => Err(PlanError::AlreadyCompensated {
-            message: refusal(found, kerf),
-            found: Box::new(found.clone()),
-        }),
+        IfCompensated::Refuse => Err(refused(found, refusal(found, Some(kerf)))),
         IfCompensated::DilateAnyway => Ok(Treatment {
             offsetting: Offsetting::Dilate,
             corner_loop_max_mm,
             carried_um: found.offset_um,
             action: "dilate_anyway",
         }),
-        IfCompensated::Recompensate if !found.offset_um.is_uniform() => {
-            Err(PlanError::AlreadyCompensated {
-                message: format!(
-                    "{}; it varies over the bed (a kerf map), so it cannot be undone here: recompensate the original plan instead (nothing was written)",
-                    found.describe()
-                ),
-                found: Box::new(found.clone()),
-            })
-        }
+        IfCompensated::Recompensate if !found.offset_um.is_uniform() => Err(refused(
+            found,
+            format!(
+                "{}; it varies over the bed (a kerf map), so it cannot be undone here: recompensate the original plan instead (nothing was written)",
+                found.describe()
+            ),
+        )),
         IfCompensated::Recompensate => Ok(Treatment {
             offsetting: Offsetting::Recompensate {
                 burn_mm: found.offset_um.0[0] / 1000.0,
@@ -434,6 +429,42 @@ pub(crate) fn treatment(
             carried_um: found.offset_um,
             action: "recompensate",
         }),
+    }
+}
+
+/// The check of a plan a job will dilate by the kerf it has yet to measure, made before anything
+/// moves: refused, with the same reasons and ways on as [`treatment`] would give once the kerf is
+/// known (after the gauge was cut and measured), unless `policy` says what to do. A gauge drawing
+/// is refused whatever `policy` but [`IfCompensated::DilateAnyway`].
+pub fn check_before_measuring(
+    found: Option<&FoundCompensation>,
+    policy: IfCompensated,
+) -> Result<()> {
+    let Some(found) = found else {
+        return Ok(());
+    };
+    let gauge = found.by == CompensatedBy::KerfmeterGauge;
+    let refuse = match policy {
+        IfCompensated::DilateAnyway => false,
+        IfCompensated::Recompensate => gauge,
+        IfCompensated::Refuse => gauge || found.offset_um.0[1] > 0.0,
+    };
+    if !refuse {
+        return Ok(());
+    }
+    let message = if gauge {
+        gauge_refusal(found, policy, None)
+    } else {
+        refusal(found, None)
+    };
+    Err(refused(found, message))
+}
+
+/// A compensated plan refused with `message`.
+fn refused(found: &FoundCompensation, message: String) -> PlanError {
+    PlanError::AlreadyCompensated {
+        message,
+        found: Box::new(found.clone()),
     }
 }
 
@@ -454,38 +485,62 @@ fn gauge_treatment(
             action: if as_drawn { "dilate" } else { "dilate_anyway" },
         });
     }
+    Err(refused(gauge, gauge_refusal(gauge, policy, Some(kerf))))
+}
+
+/// Why a gauge drawing is not dilated, and the ways on: by the `kerf` given (`dilate`, `gcode`),
+/// or, with none, by a job's (which would dilate it as the plan of its parts).
+fn gauge_refusal(
+    gauge: &FoundCompensation,
+    policy: IfCompensated,
+    kerf: Option<&KerfSource>,
+) -> String {
     let recompensate = if policy == IfCompensated::Recompensate {
         " --recompensate does not apply: the spiral carries no compensation to undo."
     } else {
         ""
     };
-    Err(PlanError::AlreadyCompensated {
-        message: format!(
-            "{}. Dilating it would widen the spiral's gap, so the device would read a kerf too small{}; cut it as it is, nothing was written (for its G-code: `kerfmeter gauge -o gauge.gcode --at-mm X,Y`; --already-compensated-ok dilates it anyway).{recompensate}",
-            gauge.describe(),
-            if gauge.kerf_um.is_some() {
-                ", and compensate the test piece twice"
-            } else {
-                ""
-            }
+    let twice = if gauge.kerf_um.is_some() {
+        ", and compensate the test piece twice"
+    } else {
+        ""
+    };
+    let what = gauge.describe();
+    match kerf {
+        Some(_) => format!(
+            "{what}. Dilating it would widen the spiral's gap, so the device would read a kerf too small{twice}; cut it as it is, nothing was written (for its G-code: `kerfmeter gauge -o gauge.gcode --at-mm X,Y`; --already-compensated-ok dilates it anyway).{recompensate}"
         ),
-        found: Box::new(gauge.clone()),
-    })
+        None => format!(
+            "{what}: a gauge is cut as drawn, not dilated as a job's plan (dilated, its spiral's gap would widen, so the device would read a kerf too small{twice}); nothing was cut. Give the plan of the parts to cut (--already-compensated-ok dilates this one anyway).{recompensate}"
+        ),
+    }
 }
 
-/// The refusal: what was found, why it is refused, and the two ways on.
-fn refusal(found: &FoundCompensation, kerf: &KerfSource) -> String {
+/// The refusal of a plan compensated elsewhere or before: what was found, why it is refused, and
+/// the two ways on. By the `kerf` given (`dilate`, `gcode`: with the net move when it is one
+/// figure), or, with none, by the kerf a job would measure.
+fn refusal(found: &FoundCompensation, kerf: Option<&KerfSource>) -> String {
     let burn_um = found.offset_um.0[0];
     let net = match kerf {
-        KerfSource::Uniform(k) => format!(
+        Some(KerfSource::Uniform(k)) => format!(
             " = {} − {burn_um} = {} µm",
             k / 2.0,
             ((k / 2.0 - burn_um) * 1000.0).round() / 1000.0
         ),
-        KerfSource::Map(_) => String::new(),
+        _ => String::new(),
+    };
+    let (twice, undone) = match kerf {
+        Some(_) => (
+            "Dilating it by the kerf again would compensate twice",
+            "nothing was written",
+        ),
+        None => (
+            "The job would dilate it by the kerf it measures and compensate it twice",
+            "nothing was cut",
+        ),
     };
     format!(
-        "{}. Dilating it by the kerf again would compensate twice and make every joint too loose; nothing was written. Either undo that compensation and apply the measured kerf instead with --recompensate (each cut moves by kerf/2 − burn{net}, inner corners kept sharp), or dilate it by the full kerf anyway with --already-compensated-ok.",
+        "{}. {twice} and make every joint too loose; {undone}. Either undo that compensation and apply the measured kerf instead with --recompensate (each cut moves by kerf/2 − burn{net}, inner corners kept sharp), or dilate it by the full kerf anyway with --already-compensated-ok.",
         found.describe()
     )
 }
@@ -867,5 +922,55 @@ mod tests {
             "{svg}"
         );
         assert_eq!(RangeUm::parse("120..160"), Some(RangeUm([120.0, 160.0])));
+    }
+
+    /// A job checks the plan before it cuts the gauge: refused for the reasons a dilation by the
+    /// kerf it measures would refuse it then, unless the user said what to do.
+    #[test]
+    fn a_job_refuses_a_compensated_plan_before_measuring_as_its_dilation_would() {
+        let found = |by, offset_um: f64| FoundCompensation {
+            by,
+            offset_um: RangeUm([offset_um, offset_um]),
+            kerf_um: None,
+            rules: None,
+            version: None,
+            found_in: "here".into(),
+            default_burn: false,
+        };
+        let (boxes, gauge) = (
+            found(CompensatedBy::BoxesPy, 100.0),
+            found(CompensatedBy::KerfmeterGauge, 0.0),
+        );
+        let message = |f: &FoundCompensation, policy| match check_before_measuring(Some(f), policy)
+        {
+            Err(PlanError::AlreadyCompensated { message, .. }) => Some(message),
+            Err(other) => panic!("{other}"),
+            Ok(()) => None,
+        };
+        let refused = message(&boxes, IfCompensated::Refuse).expect("refused");
+        assert!(
+            refused.contains("The job would dilate it by the kerf it measures")
+                && refused.contains("nothing was cut")
+                && refused.contains("--recompensate")
+                && !refused.contains(" = "),
+            "{refused}"
+        );
+        assert_eq!(message(&boxes, IfCompensated::Recompensate), None);
+        assert_eq!(message(&boxes, IfCompensated::DilateAnyway), None);
+        for policy in [IfCompensated::Refuse, IfCompensated::Recompensate] {
+            let refused = message(&gauge, policy).expect("a gauge is refused");
+            assert!(refused.contains("a gauge is cut as drawn"), "{refused}");
+            assert_eq!(
+                refused.contains("--recompensate does not apply"),
+                policy == IfCompensated::Recompensate
+            );
+        }
+        assert_eq!(message(&gauge, IfCompensated::DilateAnyway), None);
+        assert!(check_before_measuring(None, IfCompensated::Refuse).is_ok());
+        // A plan recorded as dilated by nothing carries nothing to undo.
+        assert_eq!(
+            message(&found(CompensatedBy::Kerfmeter, 0.0), IfCompensated::Refuse),
+            None
+        );
     }
 }

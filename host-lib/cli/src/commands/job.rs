@@ -43,7 +43,7 @@ use kerfmeter::job::{
     free_spot_mm, run_job,
 };
 use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
-use kerfmeter_plan::compensation::{CompensatedBy, FoundCompensation};
+use kerfmeter_plan::compensation::check_before_measuring;
 use kerfmeter_plan::gauge::{GaugeOptions, build};
 use kerfmeter_plan::gcode::{
     GcodeOptions, Mapping, Provenance, gauge_cuts, gauge_program, placed_box, plan_program,
@@ -639,35 +639,6 @@ fn dilation_args(args: &JobArgs, kerf_um: f64) -> DilationArgs {
     }
 }
 
-/// A plan that says it is compensated, refused before anything moves unless the user chose what
-/// to do (at kerf 0, as the setup reads it, a gauge drawing passes and a compensation is only
-/// found: the job's dilation by the measured kerf would refuse it after the gauge was cut).
-fn refuse_compensated(args: &JobArgs, found: Option<&FoundCompensation>) -> Result<()> {
-    let Some(found) = found else {
-        return Ok(());
-    };
-    if args.already_compensated_ok || args.recompensate && found.by != CompensatedBy::KerfmeterGauge
-    {
-        return Ok(());
-    }
-    let message = if found.by == CompensatedBy::KerfmeterGauge {
-        format!(
-            "{}: a gauge is cut as drawn, not dilated as a job's plan (dilated, its spiral's gap would widen and read a kerf too small); nothing was cut. Give the plan of the parts to cut (--already-compensated-ok dilates this one anyway)",
-            found.describe()
-        )
-    } else {
-        format!(
-            "{}. The job would dilate it by the kerf it measures and compensate it twice, making every joint too loose; nothing was cut. Give --recompensate (undo that compensation and apply the measured kerf instead) or --already-compensated-ok (dilate it by the full kerf anyway)",
-            found.describe()
-        )
-    };
-    let error = PlanError::AlreadyCompensated {
-        message,
-        found: Box::new(found.clone()),
-    };
-    Err(error.in_file(&args.input).into())
-}
-
 /// Read and check the plan (its cuts at kerf 0, as `gcode` would refuse them, and the
 /// compensation it records) and give back the bounding box of its cuts as placed on the
 /// machine, mm.
@@ -682,7 +653,11 @@ fn placed_plan_box(args: &JobArgs, options: &GcodeOptions) -> Result<[[f64; 2]; 
     let (_, kerf) = dilation.kerf()?;
     let dilate_options = dilation.options(true, Default::default())?;
     let (format, cuts, summary) = dilate_file_cuts(&args.input, &kerf, &dilate_options)?;
-    refuse_compensated(args, summary.compensation_found.as_ref())?;
+    // At kerf 0 a gauge drawing passes and a compensation is only found: refused now, before
+    // anything moves, as the dilation by the measured kerf would refuse it after the gauge.
+    let policy = dilation_args(args, 0.0).if_compensated();
+    check_before_measuring(summary.compensation_found.as_ref(), policy)
+        .map_err(|e| e.in_file(&args.input))?;
     let plines = || cuts.iter().map(|c| &c.pline);
     let mapping = Mapping::for_plan(plines(), format == PlanFormat::Svg, options.origin_mm);
     placed_box(plines(), &mapping).ok_or_else(|| {
