@@ -60,7 +60,7 @@ enum Cmd {
     /// 1 kHz on a 160 MHz ESP32-C3 (`--json`: the target figures alone). A benchmark: not part
     /// of `test`.
     BenchStep(bench::BenchArgs),
-    /// The whole `kerfmeter dilate` command on generated plans of 400 to 10,000 contours (SVG
+    /// The whole `kerfmeter dilate` command on generated plans of 624 to 10,000 contours (SVG
     /// and DXF): time, growth per 4× the parts, the kernel's share, peak memory against the
     /// file's size, and GEOS buffering the same parts. A benchmark: not part of `test`.
     BenchPlan(bench_plan::BenchPlanArgs),
@@ -103,6 +103,10 @@ struct AccuracyArgs {
     /// A smaller grid (3 kerfs × 2 stocks × 5 seeds).
     #[arg(long)]
     quick: bool,
+    /// Set a plant parameter for every run (repeatable): `--plant kerf_taper_um=0` turns the
+    /// gauge's taper off (`kerfmeter-twin --list-plant` names them all).
+    #[arg(long = "plant", value_name = "NAME=VALUE")]
+    plant: Vec<String>,
 }
 
 #[derive(clap::Args)]
@@ -300,6 +304,9 @@ fn accuracy(args: &AccuracyArgs) -> Result<()> {
     cmd.args(["--seeds", &args.seeds.to_string()]);
     if args.quick {
         cmd.arg("--quick");
+    }
+    for setting in &args.plant {
+        cmd.args(["--plant", setting]);
     }
     run_cmd(&mut cmd)
 }

@@ -613,6 +613,8 @@ fn the_twin_binary_lists_and_checks_its_plant() {
     ] {
         assert!(table.contains(name), "{name} missing from\n{table}");
     }
+    // Each with its whole description: what it is, and where its default comes from.
+    assert!(table.contains("Reference build 12 V"), "{table}");
     let out = twin(&["--sim-plant", "supply_v=99"]);
     assert_eq!(code(&out), 2);
     assert!(stderr(&out).contains("supply_v must be between 6 and 28 V"));
@@ -808,6 +810,17 @@ fn config_help_says_the_torque_calibration_is_at_the_reference_supply() {
     let help = stdout(&out);
     let reference = format!("{} V supply", kerfmeter::protocol::REFERENCE_SUPPLY_V);
     assert_eq!(help.matches(&reference).count(), 2, "{help}");
+}
+
+#[test]
+fn gauge_help_names_no_flag_the_gauge_lacks() {
+    let out = kerfmeter(&["gauge", "--help"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let help = stdout(&out);
+    assert!(
+        help.contains("--feed-mm-per-min") && !help.contains("--profile"),
+        "{help}"
+    );
 }
 
 /// A square part as boxes.py writes it with `--burn 0.1`: drawn 0.1 mm outside (corners rounded

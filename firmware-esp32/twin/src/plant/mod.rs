@@ -27,7 +27,8 @@ pub use cut::{Cutter, CutterKerf, GaugeCut};
 pub use gauge::tapered_contact_force_n;
 pub use motor::{COPPER_TEMPCO_PER_C, Electrical, UVLO_HYSTERESIS_V};
 pub use params::{
-    FRICTION_PAIRS, Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_table,
+    FRICTION_PAIRS, Material, PARAMS, ParamSpec, PlantParamError, PlantParams, param, param_list,
+    param_table,
 };
 
 use kerfmeter_protocol::spiral::force_for_torque_n;

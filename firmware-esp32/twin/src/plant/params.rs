@@ -355,18 +355,51 @@ pub enum PlantParamError {
 pub fn param_table() -> String {
     PARAMS
         .iter()
-        .map(|p| {
-            format!(
-                "  {:<30} {} ..= {} {}  (default {})  {}\n",
-                p.name,
-                p.min,
-                p.max,
-                p.unit,
-                p.default_value(),
-                p.summary()
-            )
-        })
+        .map(|p| format!("{}  {}\n", param_head(p), p.summary()))
         .collect()
+}
+
+/// Every parameter with its range, unit and default, and its whole description (what it is,
+/// then where its default and range come from): what `kerfmeter-twin --list-plant` prints.
+pub fn param_list() -> String {
+    let mut list = String::new();
+    for p in PARAMS {
+        list.push_str(&param_head(p));
+        list.push('\n');
+        for line in p.doc.lines().map(str::trim).filter(|l| !l.is_empty()) {
+            list.push_str("      ");
+            list.push_str(line);
+            list.push('\n');
+        }
+    }
+    list
+}
+
+/// A parameter's name, range, unit and default on one line.
+fn param_head(p: &ParamSpec) -> String {
+    format!(
+        "  {:<30} {} ..= {} {}  (default {})",
+        p.name,
+        p.min,
+        p.max,
+        p.unit,
+        six_figures(p.default_value())
+    )
+}
+
+/// `v` to six significant figures, without trailing zeros (a default worked out from others,
+/// such as a resistance from a stall current, prints as 2.14286, not 2.142857142857143).
+fn six_figures(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return v.to_string();
+    }
+    let decimals = (5 - v.abs().log10().floor() as i32).max(0) as usize;
+    let text = format!("{v:.decimals$}");
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        text
+    }
 }
 
 /// The (kinetic, static) friction pairs: kinetic never above static ([`PlantParams::validate`]).
@@ -489,6 +522,18 @@ impl PlantParams {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn defaults_are_listed_to_six_figures() {
+        assert_eq!(six_figures(2.142857142857143), "2.14286");
+        assert_eq!(six_figures(0.010689990281827018), "0.01069");
+        assert_eq!(six_figures(12.0), "12");
+        assert_eq!(six_figures(0.0), "0");
+        assert_eq!(six_figures(-0.05), "-0.05");
+        assert_eq!(six_figures(2.5e-7), "0.00000025");
+        assert_eq!(six_figures(123456789.0), "123456789");
+    }
+
     use super::*;
 
     #[test]

@@ -12,7 +12,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use kerfmeter_twin::cutter::{CutterOptions, CutterServer};
-use kerfmeter_twin::plant::{Material, PlantParams, param_table};
+use kerfmeter_twin::plant::{Material, PlantParams, param_list};
 use kerfmeter_twin::{InjectedFault, Pace, PtyTwin, StartError, TwinOptions};
 
 #[derive(Parser)]
@@ -81,7 +81,7 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     if args.list_plant {
-        print!("{}", param_table());
+        print!("{}", param_list());
         return ExitCode::SUCCESS;
     }
     if args.cutter {

@@ -76,6 +76,11 @@ impl From<JamDirectionArg> for JamDirection {
 
 /// `kerfmeter gauge`: write the spiral gauge to cut.
 #[derive(Debug, Clone, clap::Args)]
+// The cut-setting flags are `gcode`'s, whose help speaks of its --profile; the gauge has none.
+#[command(
+    mut_arg("feed_mm_per_min", |a| a.help("G-code: feed while cutting, mm/min")),
+    mut_arg("power_percent", |a| a.help("G-code: laser power, percent of full power"))
+)]
 pub struct GaugeArgs {
     /// Output file: .svg, .dxf or .gcode.
     #[arg(short, long, value_name = "FILE")]
