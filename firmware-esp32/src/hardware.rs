@@ -35,6 +35,27 @@ use crate::motor::{G2Motor, MotorOutput};
 /// Diagnostics are read this often (ticks), and after every read error.
 pub const DIAGNOSTICS_PERIOD_TICKS: u32 = 50;
 
+/// When the diagnostics are due: on the first tick, then every [`DIAGNOSTICS_PERIOD_TICKS`]
+/// ticks, counted again from any tick they are read on at once.
+#[derive(Debug, Default)]
+struct DiagnosticsDue {
+    /// Ticks until they are due (0: this one).
+    ticks_left: u32,
+}
+
+impl DiagnosticsDue {
+    /// Whether they are read on this tick; `now` reads them whatever the count.
+    fn tick(&mut self, now: bool) -> bool {
+        if now || self.ticks_left == 0 {
+            self.ticks_left = DIAGNOSTICS_PERIOD_TICKS - 1;
+            true
+        } else {
+            self.ticks_left -= 1;
+            false
+        }
+    }
+}
+
 /// The encoder and motor drivers of one device.
 pub struct Hardware<SPI, PWM, DIR, SLP, FLT>
 where
@@ -48,7 +69,7 @@ where
     pub encoder: As5048a<SPI>,
     /// The motor driver.
     pub motor: G2Motor<PWM, DIR, SLP, FLT>,
-    diagnostics_countdown: u32,
+    diagnostics_due: DiagnosticsDue,
     motor_error: bool,
     /// The encoder settings last given to the driver, and the controller's encoder epoch then
     /// (a confirmed hub turn restarts the count too).
@@ -70,7 +91,7 @@ where
         Self {
             encoder,
             motor,
-            diagnostics_countdown: 0,
+            diagnostics_due: DiagnosticsDue::default(),
             motor_error: false,
             applied: None,
             current: MotorCurrent::new(),
@@ -105,8 +126,7 @@ where
             EncoderError::ErrorFlag(_) => EncoderFault::ErrorFlag,
             EncoderError::Jump => EncoderFault::Jump,
         });
-        let diagnostics = if self.diagnostics_countdown == 0 || angle_deg.is_err() {
-            self.diagnostics_countdown = DIAGNOSTICS_PERIOD_TICKS;
+        let diagnostics = if self.diagnostics_due.tick(angle_deg.is_err()) {
             match self.encoder.diagnostics() {
                 Ok(d) => Some(Ok(DiagnosticsReading {
                     magnitude: d.magnitude,
@@ -117,7 +137,6 @@ where
                 Err(DiagnosticsError::Read(_)) => None,
             }
         } else {
-            self.diagnostics_countdown -= 1;
             None
         };
         let driver_fault = self.motor_error || self.motor.fault().unwrap_or(true);
@@ -142,5 +161,22 @@ where
     /// The motor current's conversion (for checks).
     pub fn current(&self) -> &MotorCurrent {
         &self.current
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn diagnostics_are_due_on_the_first_tick_then_every_period_and_after_a_read_error() {
+        let mut due = DiagnosticsDue::default();
+        let read_on: Vec<u32> = (0..160).filter(|_| due.tick(false)).collect();
+        let period = DIAGNOSTICS_PERIOD_TICKS;
+        assert_eq!(read_on, [0, period, 2 * period, 3 * period]);
+        // A read error at once, and the period counted again from it.
+        let mut due = DiagnosticsDue::default();
+        let read_on: Vec<u32> = (0..80).filter(|&t| due.tick(t == 7)).collect();
+        assert_eq!(read_on, [0, 7, 7 + period]);
     }
 }

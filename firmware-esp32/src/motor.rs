@@ -5,8 +5,9 @@
 //! under-voltage).
 //!
 //! **Safe state** — duty 0, SLP low (asleep), DIR low — is set before anything else when the
-//! driver is constructed, whenever the output asks for no torque, and when the driver is dropped
-//! (the glue losing control of the motor). A pin error while going safe is reported, and the
+//! driver is constructed, whenever the output asks for the driver asleep
+//! ([`MotorOutput::SAFE`]; [`MotorOutput::BRAKE`], awake at duty 0, is driven as any output), and
+//! when the driver is dropped (the glue losing control of the motor). A pin error while going safe is reported, and the
 //! remaining pins are still driven safe.
 
 use embedded_hal::digital::{InputPin, OutputPin};

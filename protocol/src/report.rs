@@ -28,7 +28,8 @@ pub enum Fault {
     OverCurrent,
     /// The motor driver pulled its FLT line low (over-temperature, short, under-voltage).
     DriverFault,
-    /// The host sent nothing for `RunParams::host_timeout_ms` during a run.
+    /// The host sent nothing for `RunParams::host_timeout_ms` during a run, or for a
+    /// second during a reset or a self-test (the firmware's default host timeout).
     HostSilent,
     /// A control step ran late: the loop could not keep its rate.
     StepOverrun,

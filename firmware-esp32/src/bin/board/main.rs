@@ -35,9 +35,10 @@
 //!   the chunks not taken in [`REQUEST_CHUNKS`], for the next pass. It never awaits anything but
 //!   its ticker: received bytes are taken with `try_receive`, responses are queued with
 //!   `try_write`, and a response that does not fit the queue is dropped (the host retries the same `seq`, and the link
-//!   answers the retry from memory without carrying the request out twice). It is the only
-//!   feeder of the hardware watchdog ([`WATCHDOG_TIMEOUT_MS`], 50 ms), so a stalled control loop
-//!   resets the chip; the configuration flash lengthens it around each of its operations.
+//!   answers the retry from memory without carrying the request out twice). It feeds the
+//!   hardware watchdog ([`WATCHDOG_TIMEOUT_MS`], 50 ms), so a stalled control loop resets the
+//!   chip; the only other feeder is the configuration flash, which lengthens it around each of its
+//!   operations (always with the motor asleep) and restores it after.
 //! - [`usb_rx_task`]: USB-Serial-JTAG bytes in, forwarded in chunks of up to [`CHUNK_LEN`] bytes.
 //!   It waits for room in the queue when the host sends faster than the control task takes
 //!   frames; the USB FIFO then fills and the host's writes wait: back-pressure, nothing dropped.
@@ -67,7 +68,10 @@
 //! LEDC channel stopped, `DIR` low: `board::emergency`), without the motor driver, which the
 //! panic may have struck mid-use. Only then does it print the message and backtrace to UART0
 //! (milliseconds at 115200 baud) and spin with interrupts off. Nobody feeds the watchdog any
-//! more, so it resets the chip within [`WATCHDOG_TIMEOUT_MS`]. From reset on, the pins are
+//! more, so it resets the chip within [`WATCHDOG_TIMEOUT_MS`] (within the flash's longer window
+//! when the panic strikes in a flash operation). A panic during boot, before the watchdog is
+//! started (esp-hal's init stops the chip's watchdogs), halts the chip with the bridge safe until
+//! it is reset or power-cycled. From reset on, the pins are
 //! high-impedance inputs and the board's pull-down resistor on the G2's `SLP` input (a wiring
 //! requirement, see `board::pins`) keeps the driver asleep.
 
@@ -206,8 +210,8 @@ fn open_config(flash: esp_hal::peripherals::FLASH<'static>) -> OpenedConfig<Conf
     opened
 }
 
-/// The fixed-rate control tick; owns the device, the link and the drivers. The only feeder of
-/// the watchdog.
+/// The fixed-rate control tick; owns the device, the link and the drivers. It feeds the
+/// watchdog (the configuration flash only opens and closes its windows around its operations).
 ///
 /// The [`Device`] (its controller holds the run's sample log, ≈24 KiB) and the [`Link`] are built
 /// here from the opened configuration rather than passed in: a large async-fn argument would be stored twice in the task's
