@@ -366,3 +366,22 @@ proptest::proptest! {
         grbl.receive(&[SOFT_RESET]);
     }
 }
+
+/// G53 moves in machine coordinates for its block alone, under G91 too (the twin's work offset is
+/// zero, so they are the work ones), and only with G0 or G1.
+#[test]
+fn g53_moves_to_machine_coordinates_for_its_block() {
+    let mut grbl = cutter(CutterOptions::default());
+    said(&mut grbl);
+    for l in ["G21G91", "G0Z5", "G0Z5", "G53G0Z-2", "G0Z1"] {
+        assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
+    }
+    grbl.advance_us(10_000_000);
+    grbl.receive(b"?");
+    let status = said(&mut grbl);
+    assert!(
+        status.starts_with("<Idle|MPos:0.000,0.000,-1.000|"),
+        "{status}"
+    );
+    assert_eq!(line(&mut grbl, "G2G53X1I1"), "error:30\r\n");
+}

@@ -515,3 +515,65 @@ fn a_job_stopped_after_measuring_reports_its_kerf_and_record_in_json() {
     assert_eq!(json["written"], serde_json::json!([]), "{json}");
     assert!(!out_svg.exists());
 }
+
+/// Ctrl-C while the cutter connects (here a networked controller that never says a word) ends
+/// the job there, as it ends a `cut`: it does not wait out the controller's silence. The device
+/// is the twin on a pseudo-terminal (`--sim` takes only the simulated cutter).
+#[test]
+fn ctrl_c_while_the_cutter_connects_ends_the_job() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+    let mut device = Command::new(env!("CARGO_BIN_EXE_kerfmeter-twin"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut port = String::new();
+    BufReader::new(device.stdout.take().unwrap())
+        .read_line(&mut port)
+        .unwrap();
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    listener.set_nonblocking(true).unwrap();
+    let url = format!("grbl+tcp://{}", listener.local_addr().unwrap());
+    let (dir, plan) = plate_plan();
+    let out_svg = dir.path().join("out.svg");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+        .args(["--port", port.trim(), "job", path(&plan), "--cutter", &url])
+        .args(["-o", path(&out_svg)])
+        .env_remove("KERFMETER_CUTTER")
+        .env("KERFMETER_DB", dir.path().join("history.sqlite3"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Connected: the job now waits for a banner that never comes.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let silent = loop {
+        match listener.accept() {
+            Ok((stream, _)) => break stream,
+            Err(_) if Instant::now() < deadline && child.try_wait().unwrap().is_none() => {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err(_) => {
+                let _ = child.kill();
+                let out = child.wait_with_output().unwrap();
+                panic!("the job never connected: {}", stderr(&out));
+            }
+        }
+    };
+    std::thread::sleep(Duration::from_millis(200));
+    let interrupted = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(interrupted.success());
+    let out = child.wait_with_output().unwrap();
+    drop(silent);
+    let _ = device.kill();
+    let _ = device.wait();
+    let message = stderr(&out);
+    assert_eq!(code(&out), 4, "{message}");
+    assert!(message.contains("cancelled while connecting"), "{message}");
+    assert!(!out_svg.exists());
+}

@@ -20,6 +20,12 @@
 //!   centre minus the offset ([`Placement::head_over_gauge_mm`]). Where the head ended (the
 //!   controller's reported position) plus the offset is where the prongs landed, which the
 //!   simulated device is told ([`SimLink`]).
+//! - The gauge and the plan are cut at one height: where the head stood when the job began (the
+//!   user's focus, [`CutHeight`]). The gauge programs and the plan's make no Z move; after the
+//!   prongs are lifted to the travel height the head goes back down to that height (`G53` when the
+//!   controller reports its machine position), so the plan is cut as the gauge was, in focus. A
+//!   stop in the stages that lower, hold or lift the prongs moves nothing: its error says the
+//!   prongs may still be down ([`Stage::prongs_note`]).
 //! - A gauge position can be chosen on a free spot of the bed beside the plan ([`free_spot_mm`]).
 //! - Before anything moves, [`Placement::check_layout`] checks every move the job plans: the
 //!   plan and the gauge on the bed, the gauge a margin clear of the plan, the head's move over
@@ -36,6 +42,7 @@ use serde::Serialize;
 
 use crate::client::Kerfmeter;
 use crate::error::Error;
+use crate::grbl::protocol::Status;
 use crate::grbl::{Cutter, CutterError, StreamProgress};
 use crate::{Category, Progress};
 
@@ -94,6 +101,18 @@ impl Stage {
             Stage::Lift => "lifting the prongs",
             Stage::Dilate => "dilating the plan",
             Stage::StreamJob => "cutting the job",
+        }
+    }
+
+    /// What to do before the head moves again when the loop stopped in this stage: in the
+    /// stages that lower, hold and lift the prongs they may still be down in the gauge (a stop
+    /// moves nothing, not even Z). Empty for the other stages.
+    pub fn prongs_note(self) -> &'static str {
+        match self {
+            Stage::Lower | Stage::Measure | Stage::Lift => {
+                ". The prongs may still be down in the gauge: lift them (jog Z up to the travel height) before anything moves the head"
+            }
+            _ => "",
         }
     }
 }
@@ -224,6 +243,33 @@ impl Placement {
     /// The program that lifts the prongs clear (laser off).
     pub fn lift_program(&self) -> String {
         format!("G21 G90\nM5 S0\nG0 Z{:.4}\n", self.travel_z_mm)
+    }
+}
+
+/// The height the job cuts at: where the head stood when the job began (the user's focus), in
+/// the coordinates the controller reports it in. The gauge is cut there, and the head comes back
+/// to it once the prongs are lifted, so that the plan is cut as the gauge was.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CutHeight {
+    /// Machine Z, mm (`MPos`): gone back to with `G53`, whatever the work offset.
+    Machine(f64),
+    /// Work Z, mm (`WPos`, a controller set to report it): gone back to in work coordinates.
+    Work(f64),
+}
+
+impl CutHeight {
+    /// The height in `status`, when it reports a position.
+    pub fn of(status: &Status) -> Option<Self> {
+        let machine = status.position_mm.map(|p| Self::Machine(p[2]));
+        machine.or(status.work_position_mm.map(|p| Self::Work(p[2])))
+    }
+
+    /// The program that takes the head back to it, straight down or up (laser off).
+    pub fn return_program(self) -> String {
+        match self {
+            Self::Machine(z) => format!("G21 G90\nM5 S0\nG53 G0 Z{z:.4}\n"),
+            Self::Work(z) => format!("G21 G90\nM5 S0\nG0 Z{z:.4}\n"),
+        }
     }
 }
 
@@ -368,7 +414,7 @@ pub enum JobError {
     #[error("{0}")]
     Invalid(String),
     /// The cutter failed (it stopped itself, or says it could not).
-    #[error("{stage} ({}): {source}", stage.describe())]
+    #[error("{stage} ({}): {source}{}", stage.describe(), stage.prongs_note())]
     Cutter {
         /// The stage.
         stage: Stage,
@@ -406,8 +452,9 @@ pub enum JobError {
     },
     /// The cancel flag was set.
     #[error(
-        "cancelled while {}: the cutter was stopped (laser off) and the device run aborted",
-        stage.describe()
+        "cancelled while {}: the cutter was stopped (laser off) and the device run aborted{}",
+        stage.describe(),
+        stage.prongs_note()
     )]
     Cancelled {
         /// The stage it was in.
@@ -525,6 +572,9 @@ struct Loop<'a, 'r> {
 
 impl Loop<'_, '_> {
     fn all(&mut self, dilate: &mut Dilate<'_>) -> Result<JobReport, JobError> {
+        // Ctrl-C while the cutter connected: nothing moves, not even the device's reset.
+        self.check_cancel(Stage::CutGauge)?;
+        let cut_height = self.cut_height()?;
         self.devices
             .meter
             .prepare_for_run()
@@ -539,7 +589,7 @@ impl Loop<'_, '_> {
         let at = self.timed(Stage::Lower, |l| l.stream(Stage::Lower, &lower))?;
         let landing_mm = self.landing_mm(at);
         let kerf = self.timed(Stage::Measure, |l| l.measure(landing_mm))?;
-        let lift = self.request.placement.lift_program();
+        let lift = self.request.placement.lift_program() + &cut_height.return_program();
         self.timed(Stage::Lift, |l| l.stream(Stage::Lift, &lift))?;
         let kerf_um = kerf.kerf_um;
         let job_gcode = self.timed(Stage::Dilate, |_| {
@@ -603,6 +653,17 @@ impl Loop<'_, '_> {
                 progress(JobEvent::Cutter(Stage::StreamJob, p))
             })
             .map_err(|e| cutter_error(Stage::StreamJob, e))
+    }
+
+    /// Where the head stands before anything moves: the height the gauge and the plan are cut at.
+    fn cut_height(&mut self) -> Result<CutHeight, JobError> {
+        let status =
+            (self.devices.cutter.status()).map_err(|e| cutter_error(Stage::CutGauge, e))?;
+        CutHeight::of(&status).ok_or_else(|| {
+            JobError::Motion(
+                "the cutter reports no position (neither MPos nor WPos), so the plan could not be cut at the height the gauge is cut at; nothing was cut".into(),
+            )
+        })
     }
 
     /// Poll the controller until it reports Idle (a stream already waits for it; this checks it

@@ -314,6 +314,32 @@ fn an_alarm_mid_job_stops_and_is_reported_with_the_laser_off() {
     assert!(!record.segments.last().unwrap().complete);
 }
 
+/// An alarm whose `ALARM:N` line was lost shows only in the status reports: the stream ends on
+/// it instead of waiting for an Idle that never comes.
+#[test]
+fn an_alarm_seen_only_in_the_status_ends_the_job() {
+    // At the last line (the driver's closing M5, line 5): no line after it is refused for the
+    // alarm (`error:9`), only the status reports can show it.
+    let mut cutter = sim(SimCutterOptions {
+        unannounced_alarm_on_line: Some(5),
+        ..SimCutterOptions::default()
+    });
+    let program = "G21 G90\nM4 S0\nG1 X10 S800 F600\nG1 Y10\n";
+    let error = stream(&mut cutter, program).unwrap_err();
+    let CutterError::StoppedItself {
+        state,
+        after: Some((line, _)),
+    } = error.cause()
+    else {
+        panic!("{error}");
+    };
+    assert_eq!((state.as_str(), *line), ("Alarm", 5), "{error}");
+    assert!(error.to_string().ends_with("laser is off"), "{error}");
+    let record = log(&cutter).snapshot();
+    assert_eq!(record.laser_power_s, 0.0);
+    assert_eq!(record.alarms, [2]);
+}
+
 #[test]
 fn cancelling_mid_stream_stops_the_cutter_with_the_laser_off() {
     let mut cutter = sim(SimCutterOptions::default());

@@ -160,6 +160,9 @@ fn the_loop_measures_the_gauge_the_cutter_cut_and_cuts_the_job_dilated_by_it() {
         ..SimOptions::default()
     };
     let mut rig = rig(device, twin);
+    // The head stands at its cutting height (its focus), not at the machine's zero.
+    let cancel = AtomicBool::new(false);
+    (rig.cutter.stream("G21 G90\nG0 Z2\n", &cancel, &mut |_| {})).unwrap();
     let (result, started) = run(&mut rig, 4, &mut |_, _| {});
     let report = result.unwrap();
     assert_eq!(started, Stage::ALL);
@@ -189,6 +192,16 @@ fn the_loop_measures_the_gauge_the_cutter_cut_and_cuts_the_job_dilated_by_it() {
         .expect("a plunge");
     assert_eq!(plunge.power_s, 0.0);
     assert!((plunge.end[0] - 215.0).abs() < 1e-6 && (plunge.end[1] - 72.5).abs() < 1e-6);
+    // The gauge and the job were cut at the height the head stood at, the job after the head came
+    // back down from the travel height (it was cut 6 mm higher, out of focus).
+    let cuts: Vec<_> = record.segments.iter().filter(|s| s.power_s > 0.0).collect();
+    assert!(cuts.iter().any(|s| s.end[0] < JOB_X0_MM - 1.0), "the gauge");
+    assert!(cuts.iter().any(|s| s.end[0] >= JOB_X0_MM - 1.0), "the job");
+    assert!(
+        cuts.iter().all(|s| s.start[2] == 2.0 && s.end[2] == 2.0),
+        "{:?}",
+        cuts.iter().map(|s| s.end[2]).collect::<Vec<_>>()
+    );
 }
 
 #[test]
@@ -313,6 +326,11 @@ fn cancel_during_the_measurement_aborts_the_run_and_cuts_nothing_more() {
         "{error}"
     );
     assert!(!started.contains(&Stage::Lift));
+    // Nothing moves after a cancel, not even the prongs: the error says they may be down.
+    assert!(
+        error.to_string().contains("prongs may still be down"),
+        "{error}"
+    );
     assert!(!laser_safe_and_job_cut(&record(&rig)));
     let status = rig.meter.status().unwrap();
     assert_ne!(status.state, kerfmeter::protocol::RunState::Ramping);

@@ -37,6 +37,8 @@ pub mod codes {
     pub const MISSING_VALUE: u8 = 28;
     /// Axis words no command uses.
     pub const UNUSED_AXIS_WORDS: u8 = 31;
+    /// G53 with a motion mode other than G0 or G1.
+    pub const G53_INVALID_MOTION_MODE: u8 = 30;
     /// An arc whose end does not lie on its circle.
     pub const INVALID_TARGET: u8 = 33;
     /// An arc without I or J.
@@ -81,6 +83,8 @@ pub struct Block {
     pub motion: Option<Motion>,
     /// G4.
     pub dwell: bool,
+    /// G53: this block's axis words are machine coordinates (absolute, whatever G90/G91 say).
+    pub machine_coords: bool,
     /// P (G4's pause, seconds).
     pub p: Option<f64>,
     /// G20 (`false`) or G21 (`true`).
@@ -205,7 +209,12 @@ fn g_word(block: &mut Block, number: u16) -> Result<(), u8> {
         1 => modal(&mut block.motion, Motion::Linear),
         2 => modal(&mut block.motion, Motion::Arc { clockwise: true }),
         3 => modal(&mut block.motion, Motion::Arc { clockwise: false }),
-        4 if block.dwell => Err(codes::MODAL_GROUP_VIOLATION),
+        // G4 and G53 share GRBL's non-modal group: one of them a block.
+        4 | 53 if block.dwell || block.machine_coords => Err(codes::MODAL_GROUP_VIOLATION),
+        53 => {
+            block.machine_coords = true;
+            Ok(())
+        }
         4 => {
             block.dwell = true;
             Ok(())
@@ -259,6 +268,8 @@ mod tests {
         assert_eq!(parse("10"), Err(codes::EXPECTED_COMMAND_LETTER));
         assert_eq!(parse("G28"), Err(codes::UNSUPPORTED_COMMAND));
         assert_eq!(parse("G0 G1 X1"), Err(codes::MODAL_GROUP_VIOLATION));
+        assert_eq!(parse("G53 G4 P1"), Err(codes::MODAL_GROUP_VIOLATION));
+        assert!(parse("G53 G0 Z5").unwrap().machine_coords);
         assert_eq!(parse("G1 X1 X2"), Err(codes::REPEATED_WORD));
         assert_eq!(parse("S-1"), Err(codes::NEGATIVE_VALUE));
         assert_eq!(parse(&"G1X1".repeat(30)), Err(codes::LINE_OVERFLOW));

@@ -16,6 +16,8 @@ const RAW_LINE_MAX: usize = 256;
 const ALARM_HARD_LIMIT: u8 = 1;
 /// The alarm a reset during motion raises.
 const ALARM_ABORT_CYCLE: u8 = 3;
+/// GRBL's soft-limit alarm (a target beyond the machine's travel).
+const ALARM_SOFT_LIMIT: u8 = 2;
 
 /// How a cutter twin is set up, and the faults injected into it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,6 +32,10 @@ pub struct CutterOptions {
     pub hard_limit_after_ms: Option<u64>,
     /// Answer the Nth G-code line since boot (1 = the first) with `error:` this code.
     pub error_on_line: Option<(u32, u8)>,
+    /// At the Nth G-code line it runs (1 = the first; check mode's lines not counted), go into
+    /// alarm (a soft limit, `ALARM:2`: motion stops, the laser off) with the `ALARM:2` line lost
+    /// on the way, as on a noisy line: only its status reports say it is in alarm.
+    pub unannounced_alarm_on_line: Option<u32>,
     /// How what the laser traces is cut: kerf, its spread and the machine's repeatability (the
     /// one kerf model, [`crate::plant::Cutter`], made by [`CutterKerf::cutter`]). The device
     /// twin measures a traced gauge cut so ([`crate::Twin::place_traced_gauge_cut_by`]).
@@ -44,6 +50,7 @@ impl Default for CutterOptions {
             max_power_s: 1000.0,
             hard_limit_after_ms: None,
             error_on_line: None,
+            unannounced_alarm_on_line: None,
             kerf: CutterKerf::default(),
         }
     }
@@ -111,6 +118,8 @@ pub struct Grbl {
     /// Check mode (`$C`): lines are parsed and answered, nothing moves.
     pub(super) check_mode: bool,
     gcode_lines: u32,
+    /// G-code lines run outside check mode since boot.
+    lines_run: u32,
     motion_us: u64,
 }
 
@@ -136,6 +145,7 @@ impl Grbl {
             critical: false,
             check_mode: false,
             gcode_lines: 0,
+            lines_run: 0,
             motion_us: 0,
         };
         grbl.banner();
@@ -456,9 +466,23 @@ impl Grbl {
 
     /// Record and announce alarm `code`: motion stops, the laser goes off.
     fn raise(&mut self, code: u8) {
+        self.enter_alarm(code);
+        self.say(&format!("ALARM:{code}"));
+    }
+
+    /// Go into alarm `code` (recorded, not announced).
+    fn enter_alarm(&mut self, code: u8) {
         self.alarm = Some(code);
         self.log.lock().alarms.push(code);
-        self.say(&format!("ALARM:{code}"));
+    }
+
+    /// The soft-limit alarm of [`CutterOptions::unannounced_alarm_on_line`]: motion stops where
+    /// it is, the queue is dropped, and no `ALARM:2` line reaches the sender.
+    fn unannounced_soft_limit(&mut self) {
+        self.finish_move(false);
+        self.queue.clear();
+        self.enter_alarm(ALARM_SOFT_LIMIT);
+        self.publish();
     }
 
     /// A limit switch tripped: everything stops, and only a reset is heard.
@@ -531,6 +555,7 @@ impl Grbl {
         {
             return Some(error(code));
         }
+
         let plan = match self.plan(&block, number) {
             Ok(plan) => plan,
             Err(code) => return Some(error(code)),
@@ -546,6 +571,11 @@ impl Grbl {
         let full = plan.step.is_some() && self.queue.len() >= PLANNER_BLOCKS;
         if full || (plan.sync && self.busy()) {
             return None;
+        }
+        self.lines_run += 1;
+        if self.options.unannounced_alarm_on_line == Some(self.lines_run) {
+            self.unannounced_soft_limit();
+            return Some(ok());
         }
         self.commit(plan);
         Some(ok())
@@ -610,6 +640,9 @@ impl Grbl {
             }
             (false, None) => {}
         }
+        if block.machine_coords && matches!(modal.motion, Motion::Arc { .. }) {
+            return Err(codes::G53_INVALID_MOTION_MODE);
+        }
         if block.has_axes() {
             plan.step = self.motion(block, &modal, scale, number)?;
         } else if block.offsets.iter().any(Option::is_some) {
@@ -641,7 +674,9 @@ impl Grbl {
         let mut target = self.plan_pos;
         for (axis, word) in target.iter_mut().zip(block.axes) {
             if let Some(value) = word {
-                *axis = if modal.absolute { 0.0 } else { *axis } + value * scale;
+                // The twin's work offset is zero: machine coordinates (G53) are work ones.
+                let absolute = modal.absolute || block.machine_coords;
+                *axis = if absolute { 0.0 } else { *axis } + value * scale;
             }
         }
         let max_rate = self.settings.max_rate_mm_per_min();

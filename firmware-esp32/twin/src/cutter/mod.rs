@@ -41,8 +41,8 @@
 //!   re-initialising loses them), prints the banner, and keeps an alarm until `$X`.
 //! - Injected faults ([`CutterOptions`]): boot in alarm (as a machine with homing enabled), a
 //!   hard limit after some motion time (`ALARM:1`, then nothing but a reset is heard, not even
-//!   `?`, as in GRBL's code), an
-//!   `error:N` for the Nth G-code line.
+//!   `?`, as in GRBL's code), an `error:N` for the Nth G-code line, and a soft-limit alarm at
+//!   the Nth line run whose `ALARM:2` line is lost (only the status reports show it).
 //!
 //! Everything it did is recorded in its [`CutterLog`] ([`trace`]). What it cuts is what its laser
 //! traced, with the kerf, spread and repeatability of [`CutterOptions::kerf`] (the one kerf

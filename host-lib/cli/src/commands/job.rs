@@ -295,11 +295,11 @@ pub fn run_on(
     args: &JobArgs,
     setup: &Setup,
     session: &mut Session,
-    cancel: &AtomicBool,
+    cancel: &Arc<AtomicBool>,
     on_event: &mut dyn FnMut(JobEvent<'_>),
 ) -> Result<JobCliReport> {
     check_machines(g, args)?;
-    let (mut cutter, sim_kerf) = open_cutter(g, args)?;
+    let (mut cutter, sim_kerf) = open_cutter(g, args, cancel)?;
     if !g.json {
         eprintln!(
             "job on {} (GRBL {}); gauge at ({:.1}, {:.1}) mm; Ctrl-C stops the cutter and the device",
@@ -442,24 +442,32 @@ fn check_machines(g: &Global, args: &JobArgs) -> Result<()> {
     }
 }
 
-/// Open the cutter; the simulated one cuts with `--sim-kerf-um` and `--sim-kerf-sd-um`, and its
-/// kerf model is handed back for the device twin.
+/// Open the cutter (given up as soon as `cancel` is set: Ctrl-C while a controller boots); the
+/// simulated one cuts with `--sim-kerf-um` and `--sim-kerf-sd-um`, and its kerf model is handed
+/// back for the device twin.
 fn open_cutter(
     g: &Global,
     args: &JobArgs,
+    cancel: &Arc<AtomicBool>,
 ) -> Result<(Cutter, Option<kerfmeter_twin::plant::CutterKerf>)> {
     let options = ConnectOptions {
         unlock: args.unlock,
         ..ConnectOptions::default()
     };
     if args.cutter != CutterAddress::Sim {
-        return Ok((Cutter::open(&args.cutter, options)?, None));
+        return Ok((
+            Cutter::open_cancellable(&args.cutter, options, cancel.clone())?,
+            None,
+        ));
     }
     let mut twin = SimCutterOptions::default();
     twin.kerf.kerf_um = g.sim_kerf_um;
     twin.kerf.kerf_sd_um = g.sim_kerf_sd_um;
     let kerf = twin.kerf;
-    Ok((Cutter::sim(twin, options)?, Some(kerf)))
+    Ok((
+        Cutter::sim_cancellable(twin, options, cancel.clone())?,
+        Some(kerf),
+    ))
 }
 
 /// What the loop needs, made from the arguments before anything moves.
@@ -580,7 +588,12 @@ impl Setup {
         let programs = [
             (Stage::CutGauge, self.gauge_gcode.clone()),
             (Stage::Lower, p.lower_program()),
-            (Stage::Lift, p.lift_program()),
+            // The cut height is read from the cutter when the job begins.
+            (
+                Stage::Lift,
+                p.lift_program()
+                    + "(then back to the height the head stood at when the job began: G53 G0 Z<its machine Z>)\n",
+            ),
             (Stage::StreamJob, job),
         ];
         Ok(DryRunReport {

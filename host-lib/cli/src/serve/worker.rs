@@ -121,7 +121,7 @@ struct Shared {
     /// A long call holds the device.
     busy: AtomicBool,
     /// The long call going should stop.
-    stop: AtomicBool,
+    stop: Arc<AtomicBool>,
     /// The device answered last time it was asked.
     connected: AtomicBool,
     /// The device last opened is the digital twin (in process or behind a PTY).
@@ -181,7 +181,7 @@ impl Device {
         let shared = Arc::new(Shared {
             gate: Mutex::new(()),
             busy: AtomicBool::new(false),
-            stop: AtomicBool::new(false),
+            stop: Arc::new(AtomicBool::new(false)),
             connected: AtomicBool::new(false),
             twin: AtomicBool::new(false),
             quit: AtomicBool::new(false),

@@ -171,7 +171,9 @@ impl Cutter {
             CutterAddress::Serial { path, baud } => open_serial(path, *baud)?,
             CutterAddress::Tcp { host_port } => open_tcp(host_port, &cancel)?,
             #[cfg(feature = "sim")]
-            CutterAddress::Sim => return Self::sim(Default::default(), options),
+            CutterAddress::Sim => {
+                return Self::sim_cancellable(Default::default(), options, cancel);
+            }
             #[cfg(not(feature = "sim"))]
             CutterAddress::Sim => {
                 return Err(CutterError::Sim(
@@ -238,6 +240,9 @@ impl Cutter {
     }
 
     fn handshake(&mut self) -> Result<(), CutterError> {
+        // The wait for a banner is extended while a controller prints its boot log: the error
+        // says how long it really was.
+        let started = Instant::now();
         let mut seen = Vec::new();
         if !self.await_banner(self.options.banner_wait, &mut seen)? {
             // A networked controller need not greet, and may be running another client's job:
@@ -245,10 +250,9 @@ impl Cutter {
             self.refuse_if_busy(&mut seen)?;
             self.write(&[SOFT_RESET])?;
             if !self.await_banner(self.options.reply_timeout, &mut seen)? {
-                let waited = self.options.banner_wait + self.options.reply_timeout;
                 return Err(CutterError::NoBanner {
                     address: self.address.clone(),
-                    waited_ms: waited.as_millis() as u64,
+                    waited_ms: started.elapsed().as_millis() as u64,
                     seen,
                 });
             }
@@ -451,6 +455,7 @@ impl Cutter {
         if self.settings.get(&REPORT_INCHES_SETTING) == Some(&1.0) {
             const MM_PER_INCH: f64 = 25.4;
             status.position_mm = status.position_mm.map(|p| p.map(|v| v * MM_PER_INCH));
+            status.work_position_mm = status.work_position_mm.map(|p| p.map(|v| v * MM_PER_INCH));
             status.feed_mm_per_min = status.feed_mm_per_min.map(|f| f * MM_PER_INCH);
         }
         status
@@ -617,6 +622,12 @@ impl Cutter {
                 } else {
                     0
                 };
+                if matches!(s.state, MachineState::Alarm | MachineState::Sleep) {
+                    return Err(CutterError::StoppedItself {
+                        state: s.state.to_string(),
+                        after: streamer.last_answered().map(|l| (l.number, l.text.clone())),
+                    });
+                }
                 status = Some(s);
             }
             progress(&StreamProgress::of(streamer, status.clone(), false));

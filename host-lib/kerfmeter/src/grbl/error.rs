@@ -155,6 +155,18 @@ pub enum CutterError {
         /// Where the last status report before it had the head, mm (machine position).
         last_position_mm: Option<[f64; 3]>,
     },
+    /// The controller reported a state that ends any job (alarm, sleep) during it, with no
+    /// `ALARM:N` line before (a controller that reports its alarm only by its state).
+    #[error(
+        "the cutter reported {state} during the job, without an alarm message; it runs no more of it. {}",
+        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} ({t})")).unwrap_or_else(|| "It had accepted no line yet".into())
+    )]
+    StoppedItself {
+        /// The state it reported.
+        state: String,
+        /// The last line accepted before it: file line number and text.
+        after: Option<(usize, String)>,
+    },
     /// The controller restarted during the job.
     #[error(
         "the cutter restarted during the job (its banner came again); the job is lost. Check its power and cable"
@@ -243,6 +255,7 @@ impl CutterError {
             | Self::CheckRejected { .. }
             | Self::HeldTooLong { .. }
             | Self::Alarm { .. }
+            | Self::StoppedItself { .. }
             | Self::Cancelled { .. }
             | Self::ConnectCancelled { .. }
             | Self::LaserNotOff { .. }

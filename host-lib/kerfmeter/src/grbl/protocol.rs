@@ -42,7 +42,7 @@ pub const S_MAX_TAG: &str = "(S_MAX=";
 /// without a positive number, or two that disagree, make a bad line.
 pub fn declared_s_max(program: &str) -> Result<Option<f64>, BadLine> {
     let mut found: Option<f64> = None;
-    for (index, raw) in program.lines().enumerate() {
+    for (index, raw) in program_lines(program).enumerate() {
         let Some(rest) = raw.trim().strip_prefix(S_MAX_TAG) else {
             continue;
         };
@@ -69,13 +69,23 @@ pub fn declared_s_max(program: &str) -> Result<Option<f64>, BadLine> {
     Ok(found)
 }
 
+/// The lines of a program as GRBL reads them: a line ends at `\n`, `\r\n` or a lone `\r`
+/// (GRBL ends a line at either character, so a file saved with old Mac line ends is as many
+/// lines as it looks, not one).
+fn program_lines(program: &str) -> impl Iterator<Item = &str> {
+    program.split('\n').flat_map(|line| {
+        let line = line.strip_suffix('\r').unwrap_or(line);
+        line.split('\r')
+    })
+}
+
 /// Clean a G-code program into the lines to stream: comments (`;...`, `(...)`), spaces, `%`
 /// delimiters and empty lines go. Refused: characters GRBL would take as realtime commands or
 /// cannot read, `$` system commands (run them on their own, not inside a job), and lines longer
 /// than GRBL's line buffer.
 pub fn prepare(program: &str) -> Result<Vec<ProgramLine>, BadLine> {
     let mut lines = Vec::new();
-    for (index, raw) in program.lines().enumerate() {
+    for (index, raw) in program_lines(program).enumerate() {
         let number = index + 1;
         let bad = |reason: String| BadLine { number, reason };
         let text = clean(raw).map_err(bad)?;
@@ -292,6 +302,8 @@ pub struct Status {
     pub state: MachineState,
     /// Machine position, mm (`MPos`; `None` when it reports `WPos` only).
     pub position_mm: Option<[f64; 3]>,
+    /// Work position, mm (`WPos`, which a controller reports instead of `MPos` with `$10=0`).
+    pub work_position_mm: Option<[f64; 3]>,
     /// Feed now, mm/min, and spindle (laser) value (`FS`).
     pub feed_mm_per_min: Option<f64>,
     /// The spindle (laser) value now (`FS`).
@@ -308,6 +320,7 @@ impl Status {
         let mut status = Status {
             state: MachineState::parse(fields.next()?),
             position_mm: None,
+            work_position_mm: None,
             feed_mm_per_min: None,
             spindle_s: None,
             buffer_free: None,
@@ -319,6 +332,7 @@ impl Status {
             let numbers: Vec<f64> = value.split(',').filter_map(|v| v.parse().ok()).collect();
             match (name, numbers.as_slice()) {
                 ("MPos", [x, y, z, ..]) => status.position_mm = Some([*x, *y, *z]),
+                ("WPos", [x, y, z, ..]) => status.work_position_mm = Some([*x, *y, *z]),
                 ("FS", [feed, s]) => {
                     status.feed_mm_per_min = Some(*feed);
                     status.spindle_s = Some(*s);
@@ -460,6 +474,25 @@ mod tests {
         assert!(prepare("G1 X1 (a ! in a comment is fine)\n").is_ok());
     }
 
+    /// GRBL ends a line at `\r` as at `\n`: a file with old Mac line ends is not one line (it
+    /// was: `X30` then `Y30` became one diagonal move).
+    #[test]
+    fn a_lone_carriage_return_ends_a_line_as_in_grbl() {
+        let texts = |program: &str| -> Vec<(usize, String)> {
+            let lines = prepare(program).unwrap();
+            lines.into_iter().map(|l| (l.number, l.text)).collect()
+        };
+        let expected = [
+            (1, "G21G90".to_owned()),
+            (2, "G1X30F600".into()),
+            (3, "Y30".into()),
+        ];
+        assert_eq!(texts("G21 G90\rG1 X30 F600\rY30\r"), expected);
+        assert_eq!(texts("G21 G90\r\nG1 X30 F600\r\nY30\r\n"), expected);
+        assert_eq!(texts("G21 G90\nG1 X30 F600\nY30"), expected);
+        assert_eq!(declared_s_max("G1X1\r(S_MAX=255)\r"), Ok(Some(255.0)));
+    }
+
     #[test]
     fn the_window_follows_a_smaller_receive_buffer_from_build_info() {
         assert_eq!(rx_buffer_from_build_info("[OPT:V,15,128]"), Some(128));
@@ -497,6 +530,13 @@ mod tests {
                 planner_blocks: 15,
                 rx_bytes: 128
             })
+        );
+        let Reply::Status(s) = parse_reply("<Idle|WPos:1.000,2.000,-3.500|FS:0,0>") else {
+            panic!("not a status");
+        };
+        assert_eq!(
+            (s.position_mm, s.work_position_mm),
+            (None, Some([1.0, 2.0, -3.5]))
         );
     }
 
