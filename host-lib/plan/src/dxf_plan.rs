@@ -976,6 +976,25 @@ fn closed_pline(verts: Vec<PlineVertex<f64>>) -> Pline {
     pl
 }
 
+/// An ellipse's parameters (finite) as a start in [0, 2π) and an end after it, at most a full
+/// turn on: the sweep from start to end, counter-clockwise, taken modulo a turn (none is a full
+/// one, more than one is one). Reduced, not stepped a turn at a time: a parameter of 1e17 no
+/// longer changes when 2π is added to it.
+fn ellipse_span(t0: f64, t1: f64) -> (f64, f64) {
+    let tau = std::f64::consts::TAU;
+    let sweep = t1 - t0;
+    let sweep = if sweep > tau {
+        tau
+    } else {
+        match sweep.rem_euclid(tau) {
+            s if s > 0.0 && s.is_finite() => s,
+            _ => tau,
+        }
+    };
+    let start = t0.rem_euclid(tau);
+    (start, start + sweep)
+}
+
 /// An `ELLIPSE` (or elliptic arc), by biarcs. Its centre and axis are in the coordinates of its
 /// block (or model space), whatever its normal; a −z normal reverses its sense.
 fn ellipse(el: &dxf::entities::Ellipse, frame: &Affine, place: Place, i: usize) -> Read {
@@ -983,18 +1002,12 @@ fn ellipse(el: &dxf::entities::Ellipse, frame: &Affine, place: Place, i: usize) 
     // Minor axis = ratio · (normal × major).
     let mn = v2(-mj.y, mj.x).scale(el.minor_axis_ratio * el.normal.z.signum());
     let c = v2(el.center.x, el.center.y);
-    let (t0, mut t1) = (el.start_parameter, el.end_parameter);
+    let (t0, t1) = (el.start_parameter, el.end_parameter);
     if !(t0.is_finite() && t1.is_finite() && mj.length() > 0.0) {
         return Read::Nothing;
     }
-    let tau = std::f64::consts::TAU;
-    if t1 - t0 > tau {
-        t1 = t0 + tau;
-    }
-    while t1 <= t0 {
-        t1 += tau;
-    }
-    let full = (t1 - t0 - tau).abs() < 1e-9;
+    let (t0, t1) = ellipse_span(t0, t1);
+    let full = (t1 - t0 - std::f64::consts::TAU).abs() < 1e-9;
     let f = |u: f64| {
         let t = t0 + (t1 - t0) * u;
         let pos = c + mj.scale(t.cos()) + mn.scale(t.sin());
@@ -1380,6 +1393,24 @@ fn new_lwpolyline(like: &EntityCommon, p: &Pline, scale: f64) -> Entity {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_ellipse_span_is_one_turn_at_most_and_huge_parameters_end() {
+        let tau = std::f64::consts::TAU;
+        let close =
+            |(a, b): (f64, f64), (c, d): (f64, f64)| (a - c).abs() < 1e-12 && (b - d).abs() < 1e-12;
+        assert!(close(ellipse_span(0.0, tau), (0.0, tau)));
+        assert!(close(ellipse_span(1.0, 3.0), (1.0, 3.0)));
+        assert!(close(ellipse_span(5.0, 7.0), (5.0, 7.0)));
+        assert!(close(ellipse_span(3.0, 1.0), (3.0, 1.0 + tau)));
+        assert!(close(ellipse_span(0.0, 3.0 * tau), (0.0, tau)));
+        assert!(close(ellipse_span(2.0, 2.0), (2.0, 2.0 + tau)));
+        // Stepping a turn at a time never ended here.
+        let (start, end) = ellipse_span(1e17, 1e17);
+        assert!((0.0..tau).contains(&start) && (end - start - tau).abs() < 1e-9);
+        let (start, end) = ellipse_span(1e12, 0.0);
+        assert!((0.0..tau).contains(&start) && end > start && end - start <= tau);
+    }
     use dxf::entities::{Circle, Insert, Line};
 
     fn drawing(units: Units) -> Drawing {

@@ -112,6 +112,10 @@ impl PlanError {
 #[derive(Debug, Default)]
 pub(crate) struct Problems(Vec<String>);
 
+/// The problems an error lists; the rest are counted (an array of 90,000 bad copies printed its
+/// one problem 90,000 times, 16 MB of message).
+const SHOWN: usize = 50;
+
 impl Problems {
     /// Note one problem.
     pub(crate) fn push(&mut self, problem: String) {
@@ -119,13 +123,17 @@ impl Problems {
     }
 
     /// `Ok` when there were none; otherwise one error (made by `kind`, e.g. [`PlanError::Svg`])
-    /// listing them, one a line. For problems reading a file.
+    /// listing them (the first 50), one a line. For problems reading a file.
     pub(crate) fn into_error(self, kind: fn(String) -> PlanError) -> Result<()> {
         if self.0.is_empty() {
-            Ok(())
-        } else {
-            Err(kind(self.0.join("\n")))
+            return Ok(());
         }
+        let n = self.0.len();
+        let mut msg = self.0[..n.min(SHOWN)].join("\n");
+        if n > SHOWN {
+            msg.push_str(&format!("\n… and {} more", n - SHOWN));
+        }
+        Err(kind(msg))
     }
 
     /// `Ok` when there were none; otherwise [`PlanError::CannotDilate`] listing them (the first
@@ -134,7 +142,6 @@ impl Problems {
         if self.0.is_empty() {
             return Ok(());
         }
-        const SHOWN: usize = 50;
         let n = self.0.len();
         let mut msg = format!(
             "cannot dilate this plan ({n} problem{}; nothing was written):",
@@ -148,5 +155,24 @@ impl Problems {
             msg.push_str(&format!("\n  … and {} more", n - SHOWN));
         }
         Err(PlanError::CannotDilate(msg))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_error_lists_fifty_problems_and_counts_the_rest() {
+        let mut problems = Problems::default();
+        for k in 0..90_000 {
+            problems.push(format!("copy {k} is bad"));
+        }
+        let Err(PlanError::Svg(message)) = problems.into_error(PlanError::Svg) else {
+            panic!("an error");
+        };
+        assert_eq!(message.lines().count(), 51, "{message}");
+        assert!(message.ends_with("… and 89950 more"), "{message}");
+        assert!(Problems::default().into_error(PlanError::Svg).is_ok());
     }
 }

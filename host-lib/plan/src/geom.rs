@@ -27,6 +27,10 @@ pub type V2 = Vector2<f64>;
 /// stray from the true curve, mm (0.05 µm).
 pub const CURVE_TOLERANCE_MM: f64 = 5e-5;
 
+/// A fitted arc that strays less than this from its chord, mm, is written as its chord (half
+/// the curve tolerance: the fit and the straightening stay within 0.1 µm together).
+const FLAT_SAGITTA_MM: f64 = CURVE_TOLERANCE_MM / 2.0;
+
 /// Shorthand for a vector.
 pub fn v2(x: f64, y: f64) -> V2 {
     Vector2::new(x, y)
@@ -294,6 +298,17 @@ pub fn cubic_as_arc(p0: V2, p1: V2, p2: V2, p3: V2, eps: f64) -> Option<f64> {
     Some((sweep / 4.0).tan())
 }
 
+/// The bulge of a fitted arc from `a` to `b`, or 0 (a straight segment) when the arc is nearly
+/// straight (turning less than 0.0004 rad) and strays less than [`FLAT_SAGITTA_MM`] from its
+/// chord: a nearly straight stretch of a curve (a spline whose control points sit a few nm off a
+/// line, as 6-decimal rounding leaves them) fits arcs of kilometres' radius, which readers refuse
+/// as far beyond any bed. The short, curved arcs of a tight curve are kept.
+fn straightened(a: V2, b: V2, bulge: f64) -> f64 {
+    // The sagitta is half the chord times the bulge.
+    let flat = bulge.abs() < 1e-4 && (b - a).length() / 2.0 * bulge.abs() < FLAT_SAGITTA_MM;
+    if flat { 0.0 } else { bulge }
+}
+
 /// Bulge of the arc from `p` (leaving along unit tangent `t`) to `q`.
 fn bulge_from_start_tangent(p: V2, t: V2, q: V2) -> f64 {
     let chord = q - p;
@@ -407,8 +422,8 @@ where
     // coordinates, instead of being split 2^24 ways (gigabytes and minutes: a fuzz find).
     let far = |p: V2| !(p.x.abs() <= FIT_LIMIT && p.y.abs() <= FIT_LIMIT);
     if error <= tol || depth >= MAX_FIT_DEPTH || far(p0) || far(p1) || (t1 - t0).abs() < 1e-12 {
-        for (a, _, bulge) in segments {
-            out.push(PlineVertex::new(a.x, a.y, bulge));
+        for (a, b, bulge) in segments {
+            out.push(PlineVertex::new(a.x, a.y, straightened(a, b, bulge)));
         }
         return error;
     }

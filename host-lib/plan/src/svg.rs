@@ -317,18 +317,19 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
         plan.summary.mm_per_unit = user_unit_mm(doc.root_element(), mm_per_px);
         plan.summary.compensation_found = compensation::find_in_svg(&doc);
-        for _ in doc
-            .descendants()
-            .filter(|n| n.has_tag_name((SVG_NS, "text")))
-        {
-            plan.summary.pass("text");
+        for n in doc.descendants() {
+            if n.has_tag_name((SVG_NS, "text")) {
+                plan.summary.pass("text");
+            } else if n.has_tag_name((SVG_NS, "image")) {
+                plan.summary.pass("image");
+            }
         }
         let (shapes, uses) = shapes_and_uses(&doc);
         let (tagged, use_by_id) = tagged(&text, &shapes, &uses)?;
         (tagged, use_by_id, shapes.len(), mm_per_px)
     };
     drop(text);
-    let tree = usvg::Tree::from_str(&tagged.text, &usvg::Options::default())
+    let tree = usvg::Tree::from_str(&tagged.text, &usvg_options())
         .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
     let mut walk = Walk {
         rules: &opts.rules,
@@ -359,6 +360,20 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         paths,
     };
     Ok((tagged.untagged(), rendered))
+}
+
+/// usvg's options: no image is ever loaded. An `<image>` is not a cut (the source counts them as
+/// passed through), and loading one would read any file or device its `href` names (`/dev/zero`,
+/// a FIFO: unbounded memory, or a wait for ever; a server's plan naming a local file) or parse an
+/// embedded SVG again for every clone of it.
+fn usvg_options() -> usvg::Options<'static> {
+    usvg::Options {
+        image_href_resolver: usvg::ImageHrefResolver {
+            resolve_data: Box::new(|_, _, _| None),
+            resolve_string: Box::new(|_, _| None),
+        },
+        ..usvg::Options::default()
+    }
 }
 
 /// The shape elements and the `<use>` elements of a document, each in document order (an
@@ -1069,7 +1084,8 @@ impl Walk<'_> {
                     }
                 }
                 usvg::Node::Path(p) => self.path(p, uses),
-                usvg::Node::Image(_) => self.summary.pass("image"),
+                // Never loaded (see `usvg_options`): the source counted them.
+                usvg::Node::Image(_) => {}
                 #[allow(unreachable_patterns)]
                 _ => self.summary.pass("other"),
             }
@@ -1849,6 +1865,29 @@ mod tests {
             "<svg>\n  <path style=\"a\" d=\"M0 0\"/><use id=\"u\" x=\"1\" href=\"#a\"/>é<rect style=\"b\"/></svg>"
         );
         assert_eq!(tagged.untagged(), src);
+    }
+
+    /// No image is loaded: an `href` may name any file or device (`/dev/zero`, a FIFO).
+    #[test]
+    fn images_are_passed_through_and_never_loaded() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("a.png");
+        std::fs::write(&png, b"\x89PNG\r\n\x1a\n not really a picture").unwrap();
+        let href = png.to_str().unwrap();
+        let options = usvg_options();
+        assert!((options.image_href_resolver.resolve_string)(href, &options).is_none());
+        let defaults = usvg::Options::default();
+        assert!(
+            (defaults.image_href_resolver.resolve_string)(href, &defaults).is_some(),
+            "usvg's own resolver reads the file"
+        );
+        let body = format!(
+            r#"<image href="{href}" width="10" height="10"/>
+<rect x="0" y="0" width="10" height="10" fill="none" stroke="red" stroke-width="0.1"/>"#
+        );
+        let (_, summary) = run(&body, 150.0).unwrap();
+        assert_eq!(summary.passed_through.get("image"), Some(&1));
+        assert_eq!(summary.contours_dilated, 1);
     }
 
     #[test]

@@ -52,6 +52,7 @@ fn expectations() -> Vec<(&'static str, Expect)> {
         ("corpus/freecad_r2004_ellipse_spline_cm.dxf", Dilates(4)),
         ("corpus/fusion_r2018_blocks_inch.dxf", Dilates(13)),
         ("corpus/inkscape_r14_spline.dxf", Dilates(2)),
+        ("corpus/cad_r2000_straight_spline.dxf", Dilates(2)),
         (
             "corpus/refused_fit_point_spline.dxf",
             Refused(&["SPLINE 33 on layer CUT", "fit points only", "polyline"]),
