@@ -46,6 +46,7 @@
 //! What was applied is recorded in `999` comments at the top of the file (see
 //! [`compensation`]).
 
+use std::cell::Cell;
 use std::collections::{HashMap, HashSet};
 use std::io::Cursor;
 
@@ -351,7 +352,15 @@ struct DxfPlan<'o> {
     rest_blocks: Vec<dxf::Block>,
     /// The units assumed for a drawing that did not say, to write into it (set by `read`).
     assumed: Option<Units>,
+    /// Vertices the cut entities read so far came to (curves flattened, blocks expanded), against
+    /// [`MAX_READ_VERTICES`].
+    vertices_read: Cell<usize>,
 }
+
+/// More vertices than this in a drawing's cuts, once its curves are flattened and its blocks
+/// expanded, are refused: the dilation of as many needs gigabytes. A hostile file of
+/// a few hundred bytes (a 4 km ellipse in a 300 × 300 array) asked for billions.
+const MAX_READ_VERTICES: usize = 5_000_000;
 
 impl<'o> DxfPlan<'o> {
     /// The plan of a loaded `drawing` whose file recorded the compensation `found`: a
@@ -380,6 +389,7 @@ impl<'o> DxfPlan<'o> {
             retargets: Vec::new(),
             rest_blocks: Vec::new(),
             assumed: None,
+            vertices_read: Cell::new(0),
         })
     }
 }
@@ -395,6 +405,15 @@ enum Read {
 }
 
 impl Read {
+    /// How many vertices it holds.
+    fn vertex_count(&self) -> usize {
+        match self {
+            Read::Closed(pl, _) => pl.vertex_count(),
+            Read::Piece(p) => p.vertices.len(),
+            Read::Nothing => 0,
+        }
+    }
+
     /// Whether the read geometry is usable: finite coordinates within [`MAX_COORDINATE_MM`] of
     /// the origin, and arcs of finite bulge no larger than that in radius.
     fn is_usable(&self) -> bool {
@@ -760,7 +779,19 @@ impl DxfPlan<'_> {
         frame: &Affine,
         summary: &mut PlanSummary,
     ) -> Result<Read, String> {
+        let so_far = self.vertices_read.get();
+        if so_far > MAX_READ_VERTICES {
+            // Refused once, when the count went over: the rest is not read.
+            return Ok(Read::Nothing);
+        }
         let read = self.read_cut(e, place, index, frame, summary)?;
+        self.vertices_read.set(so_far + read.vertex_count());
+        if self.vertices_read.get() > MAX_READ_VERTICES {
+            return Err(format!(
+                "the drawing's cuts come to more than {MAX_READ_VERTICES} vertices, its curves flattened and its blocks expanded, by {} (a curve kilometres long, or an array of many copies?); check the drawing and its units, or explode and simplify it in the CAD program",
+                label(e)
+            ));
+        }
         if !read.is_usable() {
             return Err(format!(
                 "{} has a point or an arc that is not a number or reaches more than 10 km from the origin; check the drawing and its units",
@@ -1053,6 +1084,12 @@ fn spline(
             (frame.apply(p), frame.apply_vector(d))
         };
         sink.curve(&f, f(1.0).0);
+        if sink.vertex_count() > MAX_READ_VERTICES {
+            // Kilometres of wiggles at the curve tolerance: refused before it fills the memory.
+            return Err(format!(
+                "it comes to more than {MAX_READ_VERTICES} vertices when flattened (a curve kilometres long?); check the drawing and its units"
+            ));
+        }
     }
     if sp.is_closed() {
         sink.close();
@@ -1731,5 +1768,39 @@ mod tests {
             .to_string();
         assert!(e.contains("\"LOOP\" inside itself"), "{e}");
         assert!(e.contains("\"GONE\", which is not in the file"), "{e}");
+    }
+
+    /// A few hundred bytes: an array of 316 × 316 copies of a block of 50 circles (5 million
+    /// contours, which ran out of memory) is refused for its size before it is read.
+    #[test]
+    fn an_array_of_a_large_block_is_refused_for_the_entities_it_comes_to() {
+        let mut d = drawing(Units::Millimeters);
+        let circles = (0..50)
+            .map(|k| {
+                let mut c = Entity::new(EntityType::Circle(dxf::entities::Circle::new(
+                    Point::new(f64::from(k), 0.0, 0.0),
+                    0.4,
+                )));
+                c.common.color = dxf::Color::from_index(1);
+                c
+            })
+            .collect();
+        d.add_block(dxf::Block {
+            name: "S".into(),
+            entities: circles,
+            ..Default::default()
+        });
+        d.add_entity(Entity::new(EntityType::Insert(Insert {
+            name: "S".into(),
+            column_count: 316,
+            row_count: 316,
+            column_spacing: 60.0,
+            row_spacing: 2.0,
+            ..Default::default()
+        })));
+        let e = dilate_drawing(d, &KerfSource::Uniform(100.0), &DxfOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("come to more than 1000000 entities"), "{e}");
     }
 }

@@ -553,6 +553,12 @@ impl PathSink {
         }
     }
 
+    /// The vertices drawn so far.
+    pub fn vertex_count(&self) -> usize {
+        let done: usize = self.done.iter().map(|s| s.pline.vertex_count()).sum();
+        done + self.current.len()
+    }
+
     /// Close the current subpath (back to its start).
     pub fn close(&mut self) {
         self.flush(true);

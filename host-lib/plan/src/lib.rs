@@ -53,6 +53,7 @@ pub mod compensation;
 mod decimal;
 pub mod dilate;
 pub mod dxf_plan;
+mod entities;
 mod error;
 pub mod file;
 pub mod gauge;

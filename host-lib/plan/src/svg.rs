@@ -65,6 +65,7 @@ use std::fmt::Write as _;
 use std::io::Write;
 use std::ops::Range;
 use std::str::FromStr;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use cavalier_contours::polyline::PlineSource;
 use rayon::prelude::*;
@@ -74,6 +75,7 @@ use usvg::tiny_skia_path::{self, PathSegment};
 use super::compensation::{self, CompensatedBy, IfCompensated};
 use super::decimal::{Scaled, decimals_for_step};
 use super::dilate::KerfSource;
+use super::entities;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
 use super::pipeline::{self, Format, Plan};
@@ -83,6 +85,10 @@ use super::source_file::{Copier, SourceFile};
 use crate::error::{PlanError, Problems, Result};
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
+/// More vertices than this in a drawing's cuts, once their curves are flattened, are refused: the
+/// dilation of as many needs gigabytes, and a small hostile file of curves metres long asks for
+/// billions (each is fitted within 0.05 µm).
+const MAX_TRACED_VERTICES: usize = 5_000_000;
 const XLINK_NS: &str = "http://www.w3.org/1999/xlink";
 const SODIPODI_NS: &str = "http://sodipodi.sourceforge.net/DTD/sodipodi-0.dtd";
 const INKSCAPE_NS: &str = "http://www.inkscape.org/namespaces/inkscape";
@@ -268,8 +274,18 @@ pub(crate) fn dilate_svg_cuts(
     )
 }
 
-/// The source as XML, refused unless its root is an SVG `<svg>`.
+/// The source as XML, refused unless its root is an SVG `<svg>`, or before it is parsed when its
+/// entities would expand it many times over (see [`entities`]).
 fn parse(text: &str) -> Result<Document<'_>> {
+    if let Err(added) = entities::check(text) {
+        let mb = |bytes: u64| bytes as f64 / 1e6;
+        return Err(bad(format!(
+            "not a usable SVG file: the entities of its document type declaration would add {:.0} MB to its {:.1} MB (at most {:.0} MB); remove the DTD's entities, or write them out",
+            mb(added),
+            mb(text.len() as u64),
+            mb(entities::limit_bytes(text.len()))
+        )));
+    }
     let doc = Document::parse_with_options(
         text,
         ParsingOptions {
@@ -315,6 +331,7 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     let (tagged, use_by_id, shapes_len, mm_per_px) = {
         let doc = parse(&text)?;
         let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
+        check_view_box(doc.root_element())?;
         plan.summary.mm_per_unit = user_unit_mm(doc.root_element(), mm_per_px);
         plan.summary.compensation_found = compensation::find_in_svg(&doc);
         for n in doc.descendants() {
@@ -565,7 +582,8 @@ impl<'w> SvgPlan<'w> {
         &mut self,
         paths: Vec<tiny_skia_path::Path>,
         names: &[String],
-    ) -> (Vec<Vec<Traced>>, Reach, usize) {
+    ) -> Result<(Vec<Vec<Traced>>, Reach, usize)> {
+        let vertices = AtomicUsize::new(0);
         let (traced, reaches): (Vec<Vec<Traced>>, Vec<Reach>) = self
             .instances
             .par_iter_mut()
@@ -575,7 +593,7 @@ impl<'w> SvgPlan<'w> {
                 let segs = subpaths_of(&path);
                 drop(path);
                 let reach = Reach::of(inst, &segs);
-                let traced = trace(inst, &segs, reach.eps_mm(), name);
+                let traced = trace(inst, &segs, reach.eps_mm(), name, &vertices);
                 inst.subpath_count = segs.len();
                 let all_closed = traced.len() == segs.len()
                     && traced.iter().all(|t| matches!(t, Traced::Closed(..)));
@@ -589,7 +607,12 @@ impl<'w> SvgPlan<'w> {
             .max_by(|&a, &b| reaches[a].held_to_mm().total_cmp(&reaches[b].held_to_mm()))
             .unwrap_or(0);
         let reach = reaches.get(farthest).copied().unwrap_or_default();
-        (traced, reach, farthest)
+        if vertices.load(Ordering::Relaxed) > MAX_TRACED_VERTICES {
+            return Err(bad(format!(
+                "the drawing's cuts come to more than {MAX_TRACED_VERTICES} vertices once their curves are flattened (curves metres long and full of turns?); check the drawing and its units"
+            )));
+        }
+        Ok((traced, reach, farthest))
     }
 
     /// How to name an instance in messages.
@@ -896,7 +919,7 @@ impl Format for SvgPlan<'_> {
         };
         self.instances = instances;
         let (names, boxes_reference) = self.read_source(&plan.summary)?;
-        let (traced, reach, farthest) = self.trace_all(paths, &names);
+        let (traced, reach, farthest) = self.trace_all(paths, &names)?;
         if let Some(name) = names.get(farthest) {
             check_reach(reach, name, &mut plan.summary)?;
         }
@@ -964,6 +987,35 @@ impl Format for SvgPlan<'_> {
         };
         self.write_document(edits, &contour_of, &mut plan.summary, sink)
     }
+}
+
+/// Refuse a root `viewBox` that draws nothing or maps the page absurdly: renderers take a zero or
+/// negative one to switch rendering off, and usvg drops one it cannot use and takes a user unit
+/// for a pixel, so the output would be dilated in other units than the file's readers see.
+fn check_view_box(root: Node) -> Result<()> {
+    let Some(text) = root.attribute("viewBox") else {
+        return Ok(());
+    };
+    let numbers: Vec<f64> = text
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|t| !t.is_empty())
+        .map(|t| t.parse::<f64>().unwrap_or(f64::NAN))
+        .collect();
+    let usable = match numbers[..] {
+        [x, y, w, h] => {
+            [x, y, w, h].iter().all(|v| v.is_finite() && v.abs() < 1e9)
+                && w > 0.0
+                && h > 0.0
+                && w.min(h) > 1e-9 * w.max(h).max(1.0)
+        }
+        _ => false,
+    };
+    if usable {
+        return Ok(());
+    }
+    Err(bad(format!(
+        "its root viewBox=\"{text}\" is not a usable box (four finite numbers, width and height above zero and within reason): a zero one draws nothing, and programs read such a file differently; fix or remove the viewBox"
+    )))
 }
 
 /// The length of the root's user unit, mm, as the report says it: usvg's px (`mm_per_px`) times
@@ -1205,7 +1257,13 @@ fn place(instances: &mut [Instance], text: &str, el: &Elements) {
 
 /// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm, ends within
 /// `eps` mm (see [`Reach::eps_mm`]) meeting; `name` names the instance.
-fn trace(inst: &Instance, subpaths: &[Vec<Seg>], eps: f64, name: &str) -> Vec<Traced> {
+fn trace(
+    inst: &Instance,
+    subpaths: &[Vec<Seg>],
+    eps: f64,
+    name: &str,
+    vertices: &AtomicUsize,
+) -> Vec<Traced> {
     let n_sub = subpaths.len();
     let mut traced = Vec::with_capacity(n_sub);
     for (si, segs) in subpaths.iter().enumerate() {
@@ -1220,7 +1278,13 @@ fn trace(inst: &Instance, subpaths: &[Vec<Seg>], eps: f64, name: &str) -> Vec<Tr
                 Seg::C(a, b, c) => sink.cubic_to(doc(a), doc(b), doc(c)),
                 Seg::Z => sink.close(),
             }
+            if vertices.load(Ordering::Relaxed) + sink.vertex_count() > MAX_TRACED_VERTICES {
+                // Refused by the caller: nothing more is traced.
+                vertices.store(usize::MAX, Ordering::Relaxed);
+                return traced;
+            }
         }
+        vertices.fetch_add(sink.vertex_count(), Ordering::Relaxed);
         let Some(sub) = sink.finish().into_iter().next() else {
             continue;
         };
@@ -1888,6 +1952,42 @@ mod tests {
         let (_, summary) = run(&body, 150.0).unwrap();
         assert_eq!(summary.passed_through.get("image"), Some(&1));
         assert_eq!(summary.contours_dilated, 1);
+    }
+
+    /// 250 KB that roxmltree would have grown to 5 GB (one large entity used many times).
+    #[test]
+    fn entities_that_would_grow_the_file_many_times_over_are_refused_unparsed() {
+        let svg = format!(
+            "<!DOCTYPE svg [<!ENTITY big \"{}\">]><svg xmlns=\"{SVG_NS}\"><desc>{}</desc></svg>",
+            "x".repeat(100_000),
+            "&big;".repeat(50_000)
+        );
+        let error = dilate_svg(&svg, &KerfSource::Uniform(150.0), &SvgOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains("entities of its document type declaration would add 5000 MB"),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn a_view_box_that_draws_nothing_or_maps_absurdly_is_refused() {
+        for view_box in [
+            "0 0 0 0",
+            "0 0 1e-300 1e-300",
+            "0 0 1e300 1e300",
+            "0 0 -5 5",
+            "a b c d",
+        ] {
+            let svg = format!(
+                r#"<svg xmlns="{SVG_NS}" width="100mm" height="100mm" viewBox="{view_box}"><rect width="10" height="10" fill="none" stroke="red" stroke-width="0.1"/></svg>"#
+            );
+            let error = dilate_svg(&svg, &KerfSource::Uniform(150.0), &SvgOptions::default())
+                .unwrap_err()
+                .to_string();
+            assert!(error.contains("not a usable box"), "{view_box}: {error}");
+        }
     }
 
     #[test]

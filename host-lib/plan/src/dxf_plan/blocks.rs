@@ -30,6 +30,10 @@ const MAX_NESTING: usize = 16;
 /// More block instances than this in one drawing are refused (a damaged array count).
 const MAX_INSTANCES: usize = 100_000;
 
+/// More entities than this read through block instances (each instance's entities) are refused:
+/// 100,000 instances of a block of 50 circles ran out of memory.
+const MAX_EXPANDED_ENTITIES: usize = 1_000_000;
+
 /// What a block's copy changes: entity `k` removed (`None`, a cut) or its `INSERT` pointed at
 /// another block (`Some(name)`).
 type BlockEdits = Vec<(usize, Option<String>)>;
@@ -48,6 +52,8 @@ pub(super) struct Expansion<'d> {
     retargets: Vec<(usize, String)>,
     /// Block instances seen.
     instances: usize,
+    /// Entities met through them (each instance's block entities).
+    expanded_entities: usize,
     /// The blocks being expanded, outermost first (upper-case names).
     stack: Vec<String>,
 }
@@ -67,6 +73,7 @@ impl<'d> Expansion<'d> {
             rest: Vec::new(),
             retargets: Vec::new(),
             instances: 0,
+            expanded_entities: 0,
             stack: Vec::new(),
         }
     }
@@ -230,8 +237,8 @@ impl DxfPlan<'_> {
         plan: &mut Plan<Origin>,
         problems: &mut Problems,
     ) -> Option<String> {
-        if st.instances > MAX_INSTANCES {
-            // Said once, when the count was passed.
+        if st.instances > MAX_INSTANCES || st.expanded_entities > MAX_EXPANDED_ENTITIES {
+            // Said once, when a count was passed.
             return None;
         }
         let key = ins.name.to_uppercase();
@@ -271,6 +278,15 @@ impl DxfPlan<'_> {
         if st.instances > MAX_INSTANCES {
             problems.push(format!(
                 "{via}: more than {MAX_INSTANCES} block instances in the drawing; explode the blocks in the CAD program"
+            ));
+            return None;
+        }
+        st.expanded_entities = (st.expanded_entities)
+            .saturating_add(frames.len().saturating_mul(block.entities.len()));
+        if st.expanded_entities > MAX_EXPANDED_ENTITIES {
+            problems.push(format!(
+                "{via}: its copies of block \"{}\" come to more than {MAX_EXPANDED_ENTITIES} entities in the drawing, with the blocks read before; explode and simplify the blocks in the CAD program",
+                ins.name
             ));
             return None;
         }
