@@ -433,7 +433,7 @@ pub(crate) fn treatment(
 }
 
 /// The check of a plan a job will dilate by the kerf it has yet to measure, made before anything
-/// moves: refused, with the same reasons and ways on as [`treatment`] would give once the kerf is
+/// moves: refused, with the same reasons and ways on as its dilation would give once the kerf is
 /// known (after the gauge was cut and measured), unless `policy` says what to do. A gauge drawing
 /// is refused whatever `policy` but [`IfCompensated::DilateAnyway`].
 pub fn check_before_measuring(

@@ -13,6 +13,7 @@ import urllib.request
 
 import pytest
 from selenium import webdriver
+from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.chrome.options import Options
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
@@ -66,9 +67,14 @@ def browser(tmp_path, downloads):
 
 
 def wait(driver, what, timeout=LOAD_TIMEOUT_S, message=""):
-    return WebDriverWait(driver, timeout, poll_frequency=0.1).until(
-        lambda d: what(d), message
-    )
+    # An element the page re-renders between finding it and reading it (the history table after
+    # a measurement) is looked for again at the next poll, not a failure.
+    return WebDriverWait(
+        driver,
+        timeout,
+        poll_frequency=0.1,
+        ignored_exceptions=(StaleElementReferenceException,),
+    ).until(lambda d: what(d), message)
 
 
 def text(driver, element_id):
