@@ -239,10 +239,16 @@ fn units_mm(
             ));
             Ok(u.mm())
         }
-        (None, None) => Err(PlanError::Units(format!(
-            "unknown units: $INSUNITS is {:?} (R12 files and many exports leave it unset); save the drawing in mm, or say what one unit is with --units mm|cm|in",
-            drawing.header.default_drawing_units
-        ))),
+        (None, None) => {
+            // The dxf crate reads a code it does not know as unitless too.
+            let said = match drawing.header.default_drawing_units {
+                Units::Unitless => "unset, 0 (unitless) or a code that names no unit".to_owned(),
+                other => format!("{other:?}"),
+            };
+            Err(PlanError::Units(format!(
+                "unknown units: $INSUNITS is {said} (R12 files and many exports leave it unset); save the drawing in mm, or say what one unit is with --units mm|cm|in"
+            )))
+        }
     }
 }
 
