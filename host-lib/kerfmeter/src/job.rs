@@ -657,8 +657,8 @@ impl Loop<'_, '_> {
 
     /// Where the head stands before anything moves: the height the gauge and the plan are cut at.
     fn cut_height(&mut self) -> Result<CutHeight, JobError> {
-        let status =
-            (self.devices.cutter.status()).map_err(|e| cutter_error(Stage::CutGauge, e))?;
+        let status = self.devices.cutter.status();
+        let status = status.map_err(|e| cutter_error(Stage::CutGauge, e))?;
         CutHeight::of(&status).ok_or_else(|| {
             JobError::Motion(
                 "the cutter reports no position (neither MPos nor WPos), so the plan could not be cut at the height the gauge is cut at; nothing was cut".into(),

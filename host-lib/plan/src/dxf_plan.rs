@@ -61,7 +61,7 @@ use super::dilate::KerfSource;
 use super::geom::{Affine, CURVE_TOLERANCE_MM, PathSink, Pline, V2, arc_geom, fit_biarcs, v2};
 use super::nurbs::Nurbs;
 use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
-use super::pipeline::{self, Format, Plan};
+use super::pipeline::{self, Format, MAX_CUT_VERTICES, Plan};
 use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
 use crate::error::{PlanError, Problems, Result};
@@ -359,14 +359,9 @@ struct DxfPlan<'o> {
     /// The units assumed for a drawing that did not say, to write into it (set by `read`).
     assumed: Option<Units>,
     /// Vertices the cut entities read so far came to (curves flattened, blocks expanded), against
-    /// [`MAX_READ_VERTICES`].
+    /// [`MAX_CUT_VERTICES`].
     vertices_read: Cell<usize>,
 }
-
-/// More vertices than this in a drawing's cuts, once its curves are flattened and its blocks
-/// expanded, are refused: the dilation of as many needs gigabytes. A hostile file of
-/// a few hundred bytes (a 4 km ellipse in a 300 × 300 array) asked for billions.
-const MAX_READ_VERTICES: usize = 5_000_000;
 
 impl<'o> DxfPlan<'o> {
     /// The plan of a loaded `drawing` whose file recorded the compensation `found`: a
@@ -786,15 +781,16 @@ impl DxfPlan<'_> {
         summary: &mut PlanSummary,
     ) -> Result<Read, String> {
         let so_far = self.vertices_read.get();
-        if so_far > MAX_READ_VERTICES {
+        if so_far > MAX_CUT_VERTICES {
             // Refused once, when the count went over: the rest is not read.
             return Ok(Read::Nothing);
         }
         let read = self.read_cut(e, place, index, frame, summary)?;
-        self.vertices_read.set(so_far + read.vertex_count());
-        if self.vertices_read.get() > MAX_READ_VERTICES {
+        let now = so_far + read.vertex_count();
+        self.vertices_read.set(now);
+        if now > MAX_CUT_VERTICES {
             return Err(format!(
-                "the drawing's cuts come to more than {MAX_READ_VERTICES} vertices, its curves flattened and its blocks expanded, by {} (a curve kilometres long, or an array of many copies?); check the drawing and its units, or explode and simplify it in the CAD program",
+                "the drawing's cuts come to more than {MAX_CUT_VERTICES} vertices, its curves flattened and its blocks expanded, by {} (a curve kilometres long, or an array of many copies?); check the drawing and its units, or explode and simplify it in the CAD program",
                 label(e)
             ));
         }
@@ -1090,10 +1086,10 @@ fn spline(
             (frame.apply(p), frame.apply_vector(d))
         };
         sink.curve(&f, f(1.0).0);
-        if sink.vertex_count() > MAX_READ_VERTICES {
+        if sink.vertex_count() > MAX_CUT_VERTICES {
             // Kilometres of wiggles at the curve tolerance: refused before it fills the memory.
             return Err(format!(
-                "it comes to more than {MAX_READ_VERTICES} vertices when flattened (a curve kilometres long?); check the drawing and its units"
+                "it comes to more than {MAX_CUT_VERTICES} vertices when flattened (a curve kilometres long?); check the drawing and its units"
             ));
         }
     }

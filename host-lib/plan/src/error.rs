@@ -128,12 +128,7 @@ impl Problems {
         if self.0.is_empty() {
             return Ok(());
         }
-        let n = self.0.len();
-        let mut msg = self.0[..n.min(SHOWN)].join("\n");
-        if n > SHOWN {
-            msg.push_str(&format!("\n… and {} more", n - SHOWN));
-        }
-        Err(kind(msg))
+        Err(kind(self.listing("", "")))
     }
 
     /// `Ok` when there were none; otherwise [`PlanError::CannotDilate`] listing them (the first
@@ -143,18 +138,23 @@ impl Problems {
             return Ok(());
         }
         let n = self.0.len();
-        let mut msg = format!(
-            "cannot dilate this plan ({n} problem{}; nothing was written):",
-            if n == 1 { "" } else { "s" }
-        );
-        for p in self.0.iter().take(SHOWN) {
-            msg.push_str("\n  - ");
-            msg.push_str(p);
+        Err(PlanError::CannotDilate(format!(
+            "cannot dilate this plan ({n} problem{}; nothing was written):\n{}",
+            if n == 1 { "" } else { "s" },
+            self.listing("  ", "- ")
+        )))
+    }
+
+    /// The first [`SHOWN`] problems, one a line after `indent` and `bullet`, and a line (after
+    /// `indent`) counting the rest.
+    fn listing(&self, indent: &str, bullet: &str) -> String {
+        let mut lines: Vec<String> = (self.0.iter().take(SHOWN))
+            .map(|p| format!("{indent}{bullet}{p}"))
+            .collect();
+        if self.0.len() > SHOWN {
+            lines.push(format!("{indent}… and {} more", self.0.len() - SHOWN));
         }
-        if n > SHOWN {
-            msg.push_str(&format!("\n  … and {} more", n - SHOWN));
-        }
-        Err(PlanError::CannotDilate(msg))
+        lines.join("\n")
     }
 }
 
@@ -174,5 +174,22 @@ mod tests {
         assert_eq!(message.lines().count(), 51, "{message}");
         assert!(message.ends_with("… and 89950 more"), "{message}");
         assert!(Problems::default().into_error(PlanError::Svg).is_ok());
+        // The geometry's problems: under a heading, bulleted, the rest counted alike.
+        let mut problems = Problems::default();
+        for k in 0..52 {
+            problems.push(format!("loop {k} crosses itself"));
+        }
+        let Err(PlanError::CannotDilate(message)) = problems.cannot_dilate() else {
+            panic!("an error");
+        };
+        let lines: Vec<&str> = message.lines().collect();
+        assert_eq!(
+            (lines[0], lines[1], lines[51]),
+            (
+                "cannot dilate this plan (52 problems; nothing was written):",
+                "  - loop 0 crosses itself",
+                "  … and 2 more"
+            )
+        );
     }
 }

@@ -20,6 +20,12 @@ use crate::progress::{Progress, Stage};
 use crate::recompensate;
 use crate::rules::CutRules;
 
+/// More vertices than this in a plan's cuts, once its curves are flattened (and a DXF's blocks
+/// expanded), are refused as they are read, in every format: the dilation of as many needs
+/// gigabytes, and a small hostile file (a 4 km ellipse in a 300 × 300 array, curves kilometres
+/// long fitted within 0.05 µm) asks for billions.
+pub(crate) const MAX_CUT_VERTICES: usize = 5_000_000;
+
 /// A closed cut contour and what it came from in the file.
 pub(crate) struct Cut<O> {
     /// The contour, document space (mm), with its label for messages.

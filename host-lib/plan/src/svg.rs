@@ -78,17 +78,13 @@ use super::dilate::KerfSource;
 use super::entities;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
-use super::pipeline::{self, Format, Plan};
+use super::pipeline::{self, Format, MAX_CUT_VERTICES, Plan};
 use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
 use super::source_file::{Copier, SourceFile};
 use crate::error::{PlanError, Problems, Result};
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
-/// More vertices than this in a drawing's cuts, once their curves are flattened, are refused: the
-/// dilation of as many needs gigabytes, and a small hostile file of curves metres long asks for
-/// billions (each is fitted within 0.05 µm).
-const MAX_TRACED_VERTICES: usize = 5_000_000;
 const XLINK_NS: &str = "http://www.w3.org/1999/xlink";
 const SODIPODI_NS: &str = "http://sodipodi.sourceforge.net/DTD/sodipodi-0.dtd";
 const INKSCAPE_NS: &str = "http://www.inkscape.org/namespaces/inkscape";
@@ -274,18 +270,10 @@ pub(crate) fn dilate_svg_cuts(
     )
 }
 
-/// The source as XML, refused unless its root is an SVG `<svg>`, or before it is parsed when its
-/// entities would expand it many times over (see [`entities`]).
+/// The source as XML, refused unless its root is an SVG `<svg>`. The first parse of a source
+/// ([`render`]'s) checks its entities before it (see [`check_entities`]); every later one parses
+/// the same text (a file read again is checked against the hash of the first reading).
 fn parse(text: &str) -> Result<Document<'_>> {
-    if let Err(added) = entities::check(text) {
-        let mb = |bytes: u64| bytes as f64 / 1e6;
-        return Err(bad(format!(
-            "not a usable SVG file: the entities of its document type declaration would add {:.0} MB to its {:.1} MB (at most {:.0} MB); remove the DTD's entities, or write them out",
-            mb(added),
-            mb(text.len() as u64),
-            mb(entities::limit_bytes(text.len()))
-        )));
-    }
     let doc = Document::parse_with_options(
         text,
         ParsingOptions {
@@ -328,6 +316,7 @@ struct Rendered {
 /// the source again, to name and place the cuts.
 fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     let mut plan = Plan::new("svg");
+    check_entities(&text)?;
     let (tagged, use_by_id, shapes_len, mm_per_px) = {
         let doc = parse(&text)?;
         let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
@@ -377,6 +366,21 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         paths,
     };
     Ok((tagged.untagged(), rendered))
+}
+
+/// Refuse a source whose document type declaration's entities would expand it many times over,
+/// before any parse (see [`entities`]).
+fn check_entities(text: &str) -> Result<()> {
+    let Err(added) = entities::check(text) else {
+        return Ok(());
+    };
+    let mb = |bytes: u64| bytes as f64 / 1e6;
+    Err(bad(format!(
+        "not a usable SVG file: the entities of its document type declaration would add {:.0} MB to its {:.1} MB (at most {:.0} MB); remove the DTD's entities, or write them out",
+        mb(added),
+        mb(text.len() as u64),
+        mb(entities::limit_bytes(text.len()))
+    )))
 }
 
 /// usvg's options: no image is ever loaded. An `<image>` is not a cut (the source counts them as
@@ -607,9 +611,9 @@ impl<'w> SvgPlan<'w> {
             .max_by(|&a, &b| reaches[a].held_to_mm().total_cmp(&reaches[b].held_to_mm()))
             .unwrap_or(0);
         let reach = reaches.get(farthest).copied().unwrap_or_default();
-        if vertices.load(Ordering::Relaxed) > MAX_TRACED_VERTICES {
+        if vertices.load(Ordering::Relaxed) > MAX_CUT_VERTICES {
             return Err(bad(format!(
-                "the drawing's cuts come to more than {MAX_TRACED_VERTICES} vertices once their curves are flattened (curves metres long and full of turns?); check the drawing and its units"
+                "the drawing's cuts come to more than {MAX_CUT_VERTICES} vertices once their curves are flattened (curves metres long and full of turns?); check the drawing and its units"
             )));
         }
         Ok((traced, reach, farthest))
@@ -1278,7 +1282,10 @@ fn trace(
                 Seg::C(a, b, c) => sink.cubic_to(doc(a), doc(b), doc(c)),
                 Seg::Z => sink.close(),
             }
-            if vertices.load(Ordering::Relaxed) + sink.vertex_count() > MAX_TRACED_VERTICES {
+            // A curve may flatten to thousands of vertices (a line or move adds one): the budget
+            // is watched after each.
+            let curve = matches!(s, Seg::Q(..) | Seg::C(..));
+            if curve && vertices.load(Ordering::Relaxed) + sink.vertex_count() > MAX_CUT_VERTICES {
                 // Refused by the caller: nothing more is traced.
                 vertices.store(usize::MAX, Ordering::Relaxed);
                 return traced;
