@@ -68,6 +68,7 @@ use crate::error::{PlanError, Problems, Result};
 
 mod blocks;
 mod splice;
+mod values;
 
 use splice::{Change, Layout, Precision, Splice};
 
@@ -169,8 +170,8 @@ pub(crate) fn dilate_dxf_owned(
 fn load(bytes: &[u8], progress: &Progress) -> Result<(Drawing, Option<FoundCompensation>)> {
     let found = compensation::find_in_dxf(bytes);
     progress.start(Stage::Reading, 0);
-    let drawing = Drawing::load(&mut Cursor::new(bytes))
-        .map_err(|e| bad(format!("not a readable DXF file: {e}")))?;
+    let drawing =
+        Drawing::load(&mut Cursor::new(bytes)).map_err(|e| bad(values::load_error(bytes, &e)))?;
     Ok((drawing, found))
 }
 

@@ -1,0 +1,162 @@
+//! Why an ASCII DXF the `dxf` crate could not load cannot be read, when the cause is a value its
+//! group code cannot hold (a 90 code of 4294967295, a coordinate of `1,5`) or a group code no DXF
+//! has. The crate stops on such a pair, but what it reports is often a pair after it ("the code
+//! pair 70/1 was not expected at this time"), which sends the user to the wrong line. Only a file
+//! that failed to load is scanned, so a good file costs nothing.
+
+use dxf::ExpectedType;
+
+/// A code pair whose value its group code cannot hold, or whose code is not a group code.
+#[derive(Debug, PartialEq)]
+pub(super) struct BadPair {
+    /// The line of the group code (1 is the file's first line, as the crate counts).
+    pub code_line: usize,
+    /// What is wrong, to follow "line N: ".
+    pub what: String,
+}
+
+/// The first code pair of an ASCII DXF (`bytes`) that the `dxf` crate cannot parse, by the
+/// crate's own rules (shorts and booleans as any decimal number, 90–99 codes as 32-bit
+/// integers, 160–169 as 64-bit ones), or `None` (a binary DXF is not scanned).
+pub(super) fn first_bad_pair(bytes: &[u8]) -> Option<BadPair> {
+    if bytes.starts_with(b"AutoCAD Binary DXF") {
+        return None;
+    }
+    let text = String::from_utf8_lossy(bytes);
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let mut lines = text.lines().map(str::trim).enumerate();
+    while let Some((k, code_text)) = lines.next() {
+        let code_line = k + 1;
+        if code_text.is_empty() {
+            return None;
+        }
+        let Ok(code) = code_text.parse::<i32>() else {
+            let what = format!(
+                "`{}` stands where a group code (a whole number) should",
+                short(code_text)
+            );
+            return Some(BadPair { code_line, what });
+        };
+        let Some(wanted) = ExpectedType::new(code) else {
+            let what = format!("{code} is not a DXF group code");
+            return Some(BadPair { code_line, what });
+        };
+        let (_, value) = lines.next()?;
+        if let Some(needs) = unreadable(&wanted, value) {
+            let what = format!(
+                "group code {code} has the value `{}`, which {needs}",
+                short(value)
+            );
+            return Some(BadPair { code_line, what });
+        }
+    }
+    None
+}
+
+/// What a value of type `wanted` must be, when `value` is not that.
+fn unreadable(wanted: &ExpectedType, value: &str) -> Option<&'static str> {
+    match wanted {
+        ExpectedType::Integer => value
+            .parse::<i32>()
+            .err()
+            .map(|_| "must be a whole number from -2147483648 to 2147483647"),
+        ExpectedType::Long => value
+            .parse::<i64>()
+            .err()
+            .map(|_| "must be a whole number (64 bits)"),
+        ExpectedType::Short | ExpectedType::Boolean | ExpectedType::Double => value
+            .parse::<f64>()
+            .err()
+            .map(|_| "must be a number (with a point for decimals)"),
+        ExpectedType::Str | ExpectedType::Binary => None,
+    }
+}
+
+/// `text`, cut to 40 characters for a message.
+fn short(text: &str) -> String {
+    match text.char_indices().nth(40) {
+        Some((at, _)) => format!("{}…", &text[..at]),
+        None => text.to_owned(),
+    }
+}
+
+/// The line the crate's error names, when it names one.
+pub(super) fn line_of(e: &dxf::DxfError) -> Option<usize> {
+    use dxf::DxfError as E;
+    match e {
+        E::ParseFloatError(_, o)
+        | E::ParseIntError(_, o)
+        | E::ParseError(o)
+        | E::UnexpectedCode(_, o)
+        | E::UnexpectedByte(_, o)
+        | E::UnexpectedEnumValue(o)
+        | E::ExpectedTableType(o)
+        | E::WrongValueType(o) => Some(*o),
+        E::UnexpectedCodePair(pair, _) => Some(pair.offset),
+        _ => None,
+    }
+}
+
+/// The message for a DXF the crate could not load with `e`: the first bad pair in `bytes`, when
+/// there is one at or before the line the crate stopped at; the crate's own words otherwise.
+pub(super) fn load_error(bytes: &[u8], e: &dxf::DxfError) -> String {
+    let bad = first_bad_pair(bytes).filter(|b| line_of(e).is_none_or(|stop| b.code_line <= stop));
+    match bad {
+        Some(b) => format!(
+            "not a readable DXF file: line {}: {}; the file is damaged or breaks the DXF format: export it again",
+            b.code_line, b.what
+        ),
+        None => format!("not a readable DXF file: {e}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entity(pairs: &str) -> String {
+        format!("  0\nSECTION\n  2\nENTITIES\n  0\nLWPOLYLINE\n{pairs}  0\nENDSEC\n  0\nEOF\n")
+    }
+
+    #[test]
+    fn a_value_too_large_for_its_code_is_found_on_its_own_line() {
+        let text = entity(" 90\n4294967295\n 70\n1\n");
+        let bad = first_bad_pair(text.as_bytes()).expect("a bad pair");
+        assert_eq!(bad.code_line, 7);
+        assert!(bad.what.contains("group code 90"), "{}", bad.what);
+        assert!(bad.what.contains("4294967295"), "{}", bad.what);
+    }
+
+    #[test]
+    fn a_decimal_comma_and_an_unknown_code_are_found() {
+        let comma = entity(" 10\n1,5\n");
+        let what = first_bad_pair(comma.as_bytes()).expect("comma").what;
+        assert!(what.contains("must be a number"), "{what}");
+        let code = entity("1234\nx\n");
+        let what = first_bad_pair(code.as_bytes()).expect("code").what;
+        assert_eq!(what, "1234 is not a DXF group code");
+        let word = entity("ten\nx\n");
+        assert!(first_bad_pair(word.as_bytes()).is_some());
+    }
+
+    #[test]
+    fn good_files_shorts_written_as_decimals_and_binary_files_have_none() {
+        let good = entity(" 90\n-4\n 70\n1.0\n 10\n-2.5e3\n  1\n90\n");
+        assert_eq!(first_bad_pair(good.as_bytes()), None);
+        let bom = format!("\u{feff}{good}");
+        assert_eq!(first_bad_pair(bom.as_bytes()), None);
+        assert_eq!(first_bad_pair(b"AutoCAD Binary DXF\r\n\x1a\0 90"), None);
+    }
+
+    #[test]
+    fn the_crate_stopping_on_a_later_pair_names_the_bad_one() {
+        let text = entity(" 90\n4294967295\n 70\n1\n 10\n0\n 20\n0\n");
+        let e = dxf::Drawing::load(&mut std::io::Cursor::new(text.as_bytes()))
+            .expect_err("the crate refuses it");
+        let message = load_error(text.as_bytes(), &e);
+        assert!(
+            message.starts_with("not a readable DXF file: line 7: group code 90"),
+            "{message}"
+        );
+    }
+}
