@@ -84,6 +84,10 @@ use super::rules::{CutRules, Rgb, Verdict};
 use super::source_file::{Copier, SourceFile};
 use crate::error::{PlanError, Problems, Result};
 
+mod path_data;
+
+use path_data::Flaw;
+
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
 const XLINK_NS: &str = "http://www.w3.org/1999/xlink";
 const SODIPODI_NS: &str = "http://sodipodi.sourceforge.net/DTD/sodipodi-0.dtd";
@@ -317,7 +321,7 @@ struct Rendered {
 fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     let mut plan = Plan::new("svg");
     check_entities(&text)?;
-    let (tagged, use_by_id, shapes_len, mm_per_px) = {
+    let (tagged, use_by_id, shapes_len, mm_per_px, broken) = {
         let doc = parse(&text)?;
         let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
         check_view_box(doc.root_element())?;
@@ -331,8 +335,9 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
             }
         }
         let (shapes, uses) = shapes_and_uses(&doc);
+        let broken = broken_paths(&text, &shapes)?;
         let (tagged, use_by_id) = tagged(&text, &shapes, &uses)?;
-        (tagged, use_by_id, shapes.len(), mm_per_px)
+        (tagged, use_by_id, shapes.len(), mm_per_px, broken)
     };
     drop(text);
     let tree = usvg::Tree::from_str(&tagged.text, &usvg_options())
@@ -358,6 +363,7 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
             "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
         )));
     }
+    check_broken(&broken, &instances, &mut plan.summary)?;
     instances.shrink_to_fit();
     paths.shrink_to_fit();
     let rendered = Rendered {
@@ -366,6 +372,73 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         paths,
     };
     Ok((tagged.untagged(), rendered))
+}
+
+/// A `<path>` whose data breaks off (see [`path_data`]): its index among the shapes, its name
+/// and svgtypes' words for where.
+struct BrokenPath {
+    shape: usize,
+    name: String,
+    why: String,
+}
+
+/// The `<path>` elements among `shapes` (of the source `text`) whose data breaks off, named; a
+/// path with a coordinate too far for single precision is refused.
+fn broken_paths(text: &str, shapes: &[Node]) -> Result<Vec<BrokenPath>> {
+    let flawed = path_data::flawed(shapes);
+    if flawed.is_empty() {
+        return Ok(Vec::new());
+    }
+    let lines = LineIndex::new(text);
+    let mut broken = Vec::new();
+    for f in flawed {
+        let name = describe(&lines, shapes[f.shape]);
+        match f.flaw {
+            Flaw::TooFar(v) => {
+                return Err(bad(format!(
+                    "{name} has the coordinate {v:e} in its path data, more than an SVG's single-precision coordinates can hold (a damaged file or a unit mistake); fix its path data"
+                )));
+            }
+            Flaw::BreaksOff(why) => broken.push(BrokenPath {
+                shape: f.shape,
+                name,
+                why,
+            }),
+        }
+    }
+    Ok(broken)
+}
+
+/// A cut among the `broken` paths is refused: SVG viewers draw it only up to its error, and its
+/// dilation would be written without the rest. The others pass through unchanged, in a note
+/// naming the first three.
+fn check_broken(
+    broken: &[BrokenPath],
+    instances: &[Instance],
+    summary: &mut PlanSummary,
+) -> Result<()> {
+    if broken.is_empty() {
+        return Ok(());
+    }
+    let cuts: HashSet<usize> = instances.iter().map(|i| i.element).collect();
+    if let Some(b) = broken.iter().find(|b| cuts.contains(&b.shape)) {
+        return Err(bad(format!(
+            "the cut {} has an error in its path data ({}): SVG viewers draw it only up to there, and its dilation would be written without the rest; fix its path data",
+            b.name, b.why
+        )));
+    }
+    let mut listed: Vec<String> = (broken.iter().take(3))
+        .map(|b| format!("{} ({})", b.name, b.why))
+        .collect();
+    if broken.len() > 3 {
+        listed.push(format!("and {} more", broken.len() - 3));
+    }
+    summary.notes.push(format!(
+        "{} path(s) that are not cuts have an error in their path data (SVG viewers draw them only up to it); passed through unchanged: {}",
+        broken.len(),
+        listed.join("; ")
+    ));
+    Ok(())
 }
 
 /// Refuse a source whose document type declaration's entities would expand it many times over,
@@ -1776,6 +1849,40 @@ mod tests {
         assert!(out.ends_with("</svg>") && !out.contains(cut), "{out}");
         assert_eq!(s.contours_dilated, 1);
         assert_eq!(s.passed_through.get("text"), Some(&1));
+    }
+
+    #[test]
+    fn path_data_that_breaks_off_is_refused_in_a_cut_and_noted_elsewhere() {
+        const CUT: &str = r#"<rect id="c" x="10" y="10" width="5" height="5" stroke="red" stroke-width="0.1" fill="none"/>"#;
+        // A cut: usvg would read the first square only; its dilation would lose the second.
+        let broken = r#"<path id="b" d="M40 40 H60 V60 H40 Z M70 70 L NaN 80 H90 Z" stroke="red" stroke-width="0.1" fill="none"/>"#;
+        let e = run(&format!("{CUT}{broken}"), 150.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the cut path \"b\" has an error in its path data"),
+            "{e}"
+        );
+        // An engraving (green): passed through as it is, with a note.
+        let green = broken.replace("red", "#00ff00");
+        let (out, s) = run(&format!("{CUT}{green}"), 150.0).unwrap();
+        assert!(out.contains(&green), "{out}");
+        assert!(
+            s.notes
+                .iter()
+                .any(|n| n.contains("1 path(s) that are not cuts") && n.contains("path \"b\"")),
+            "{:?}",
+            s.notes
+        );
+    }
+
+    #[test]
+    fn a_coordinate_single_precision_cannot_hold_is_refused_by_name() {
+        // usvg drops such a path whole: the plan would have said "nothing drawn".
+        let far = r#"<path d="M10 10 H30 V30 H10 Z M70 70 L80 70 L1e39 80 Z" stroke="red" stroke-width="0.1" fill="none"/>"#;
+        let e = run(far, 150.0).unwrap_err().to_string();
+        assert!(e.contains("<path> at line 1, column"), "{e}");
+        assert!(e.contains("the coordinate 1e39"), "{e}");
     }
 
     #[test]

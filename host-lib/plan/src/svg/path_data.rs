@@ -1,0 +1,133 @@
+//! The `d` of a plan's `<path>` elements, checked as the source writes it, before usvg reads it.
+//!
+//! usvg reads path data as SVG viewers draw it: up to its first error, silently. A cut whose data
+//! breaks off part way (`L NaN 80`, a stray letter) is dilated, and written back, without its
+//! tail, so the user is told (a note naming the paths). And a path with a coordinate that single
+//! precision cannot hold (`1e39`) is dropped by usvg whole, which left "nothing drawn" as the
+//! only clue: it is refused here, by name.
+
+use rayon::prelude::*;
+use roxmltree::Node;
+use svgtypes::{PathParser, PathSegment as S};
+
+/// Coordinates beyond this (in the path's own units) are refused: far past anything drawable
+/// (a drawing beyond 170 m is refused anyway, see the reach check), and near the single
+/// precision's limit (3.4e38), where usvg drops the whole path.
+const FARTHEST_COORDINATE: f64 = 1e30;
+
+/// What is wrong with a path's data.
+#[derive(Debug, PartialEq)]
+pub(super) enum Flaw {
+    /// The data breaks off: svgtypes' words, and where.
+    BreaksOff(String),
+    /// A coordinate beyond [`FARTHEST_COORDINATE`].
+    TooFar(f64),
+}
+
+/// The first flaw of the path data `d`, if any.
+pub(super) fn flaw(d: &str) -> Option<Flaw> {
+    // The current point and the subpath's start, to make relative coordinates absolute.
+    let (mut at, mut start) = ([0.0, 0.0], [0.0, 0.0]);
+    for segment in PathParser::from(d) {
+        let segment = match segment {
+            Ok(s) => s,
+            Err(e) => return Some(Flaw::BreaksOff(e.to_string())),
+        };
+        let (points, end) = absolute(&segment, at, start);
+        let far = (points.iter().flatten().flatten())
+            .find(|v| !v.is_finite() || v.abs() > FARTHEST_COORDINATE);
+        if let Some(&v) = far {
+            return Some(Flaw::TooFar(v));
+        }
+        if matches!(segment, S::MoveTo { .. }) {
+            start = end;
+        }
+        at = end;
+    }
+    None
+}
+
+/// The points a segment names (control points and end; a closing segment none), made absolute
+/// from the current point `at` (the subpath's `start` is where a closing segment ends), and its
+/// end point.
+fn absolute(s: &S, at: [f64; 2], start: [f64; 2]) -> ([Option<[f64; 2]>; 3], [f64; 2]) {
+    let from = |abs: bool, x: f64, y: f64| if abs { [x, y] } else { [at[0] + x, at[1] + y] };
+    let (controls, end) = match *s {
+        S::MoveTo { abs, x, y }
+        | S::LineTo { abs, x, y }
+        | S::SmoothQuadratic { abs, x, y }
+        | S::EllipticalArc { abs, x, y, .. } => ([None, None], from(abs, x, y)),
+        S::HorizontalLineTo { abs, x } => ([None, None], [if abs { x } else { at[0] + x }, at[1]]),
+        S::VerticalLineTo { abs, y } => ([None, None], [at[0], if abs { y } else { at[1] + y }]),
+        S::Quadratic { abs, x1, y1, x, y }
+        | S::SmoothCurveTo {
+            abs,
+            x2: x1,
+            y2: y1,
+            x,
+            y,
+        } => ([Some(from(abs, x1, y1)), None], from(abs, x, y)),
+        S::CurveTo {
+            abs,
+            x1,
+            y1,
+            x2,
+            y2,
+            x,
+            y,
+        } => (
+            [Some(from(abs, x1, y1)), Some(from(abs, x2, y2))],
+            from(abs, x, y),
+        ),
+        S::ClosePath { .. } => return ([None; 3], start),
+    };
+    ([controls[0], controls[1], Some(end)], end)
+}
+
+/// A `<path>` whose data has a flaw: its index among the shapes, and its flaw.
+pub(super) struct Flawed {
+    pub shape: usize,
+    pub flaw: Flaw,
+}
+
+/// The `<path>` elements among `shapes` whose data has a flaw (in document order).
+pub(super) fn flawed(shapes: &[Node]) -> Vec<Flawed> {
+    (shapes.par_iter().enumerate())
+        .filter(|(_, n)| n.tag_name().name() == "path")
+        .filter_map(|(shape, n)| {
+            let flaw = flaw(n.attribute("d")?)?;
+            Some(Flawed { shape, flaw })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn good_data_has_no_flaw() {
+        assert_eq!(
+            flaw("M10 10 H30 V30 H10 Z m 5 5 l 1 0 a 2 2 0 0 1 2 2 z"),
+            None
+        );
+        assert_eq!(flaw(""), None);
+        assert_eq!(flaw("M1e29 0 L0 0"), None);
+    }
+
+    #[test]
+    fn data_that_breaks_off_says_where() {
+        let Some(Flaw::BreaksOff(why)) = flaw("M10 10 H30 V30 Z M70 70 L NaN 80 H90 Z") else {
+            panic!("a flaw expected");
+        };
+        assert!(why.contains("position"), "{why}");
+        assert!(matches!(flaw("M10 10 L"), Some(Flaw::BreaksOff(_))));
+    }
+
+    #[test]
+    fn coordinates_single_precision_cannot_hold_are_too_far() {
+        assert_eq!(flaw("M70 70 L80 70 L1e39 80 Z"), Some(Flaw::TooFar(1e39)));
+        // Relative steps add up to the absolute coordinate that is too far.
+        assert_eq!(flaw("M0 0 l 8e29 0 l 8e29 0"), Some(Flaw::TooFar(1.6e30)));
+    }
+}
