@@ -379,6 +379,8 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
 struct BrokenPath {
     shape: usize,
     name: String,
+    /// `path data` or `points`.
+    data: &'static str,
     why: String,
 }
 
@@ -393,15 +395,20 @@ fn broken_paths(text: &str, shapes: &[Node]) -> Result<Vec<BrokenPath>> {
     let mut broken = Vec::new();
     for f in flawed {
         let name = describe(&lines, shapes[f.shape]);
+        let data = match shapes[f.shape].tag_name().name() {
+            "path" => "path data",
+            _ => "points",
+        };
         match f.flaw {
             Flaw::TooFar(v) => {
                 return Err(bad(format!(
-                    "{name} has the coordinate {v:e} in its path data, more than an SVG's single-precision coordinates can hold (a damaged file or a unit mistake); fix its path data"
+                    "{name} has the coordinate {v:e} in its {data}, more than an SVG's single-precision coordinates can hold (a damaged file or a unit mistake); fix its {data}"
                 )));
             }
             Flaw::BreaksOff(why) => broken.push(BrokenPath {
                 shape: f.shape,
                 name,
+                data,
                 why,
             }),
         }
@@ -423,18 +430,18 @@ fn check_broken(
     let cuts: HashSet<usize> = instances.iter().map(|i| i.element).collect();
     if let Some(b) = broken.iter().find(|b| cuts.contains(&b.shape)) {
         return Err(bad(format!(
-            "the cut {} has an error in its path data ({}): SVG viewers draw it only up to there, and its dilation would be written without the rest; fix its path data",
-            b.name, b.why
+            "the cut {} has an error in its {} ({}): SVG viewers draw it only up to there, and its dilation would be written without the rest; fix its {}",
+            b.name, b.data, b.why, b.data
         )));
     }
     let mut listed: Vec<String> = (broken.iter().take(3))
-        .map(|b| format!("{} ({})", b.name, b.why))
+        .map(|b| format!("{} ({}: {})", b.name, b.data, b.why))
         .collect();
     if broken.len() > 3 {
         listed.push(format!("and {} more", broken.len() - 3));
     }
     summary.notes.push(format!(
-        "{} path(s) that are not cuts have an error in their path data (SVG viewers draw them only up to it); passed through unchanged: {}",
+        "{} path(s) that are not cuts have an error in their path data or points (SVG viewers draw them only up to it); passed through unchanged: {}",
         broken.len(),
         listed.join("; ")
     ));
@@ -1873,6 +1880,16 @@ mod tests {
                 .any(|n| n.contains("1 path(s) that are not cuts") && n.contains("path \"b\"")),
             "{:?}",
             s.notes
+        );
+    }
+
+    #[test]
+    fn a_cut_polygon_whose_points_break_off_is_refused() {
+        let polygon = r#"<polygon id="p" points="10,10 30,10 30,30 10" stroke="red" stroke-width="0.1" fill="none"/>"#;
+        let e = run(polygon, 150.0).unwrap_err().to_string();
+        assert!(
+            e.contains("the cut polygon \"p\" has an error in its points"),
+            "{e}"
         );
     }
 

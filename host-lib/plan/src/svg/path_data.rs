@@ -1,4 +1,4 @@
-//! The `d` of a plan's `<path>` elements, checked as the source writes it, before usvg reads it.
+//! The `d` of a plan's `<path>` elements (and the `points` of its polygons and polylines), checked as the source writes it, before usvg reads it.
 //!
 //! usvg reads path data as SVG viewers draw it: up to its first error, silently. A cut whose data
 //! breaks off part way (`L NaN 80`, a stray letter) is dilated, and written back, without its
@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 use roxmltree::Node;
-use svgtypes::{PathParser, PathSegment as S};
+use svgtypes::{NumberListParser, PathParser, PathSegment as S};
 
 /// Coordinates beyond this (in the path's own units) are refused: far past anything drawable
 /// (a drawing beyond 170 m is refused anyway, see the reach check), and near the single
@@ -93,12 +93,31 @@ pub(super) struct Flawed {
 /// The `<path>` elements among `shapes` whose data has a flaw (in document order).
 pub(super) fn flawed(shapes: &[Node]) -> Vec<Flawed> {
     (shapes.par_iter().enumerate())
-        .filter(|(_, n)| n.tag_name().name() == "path")
         .filter_map(|(shape, n)| {
-            let flaw = flaw(n.attribute("d")?)?;
+            let flaw = match n.tag_name().name() {
+                "path" => flaw(n.attribute("d")?),
+                "polygon" | "polyline" => points_flaw(n.attribute("points")?),
+                _ => None,
+            }?;
             Some(Flawed { shape, flaw })
         })
         .collect()
+}
+
+/// The first flaw of a `<polygon>`'s or `<polyline>`'s `points`, if any: usvg reads them up to
+/// the first that is not a number, and drops an odd one at the end.
+pub(super) fn points_flaw(points: &str) -> Option<Flaw> {
+    let mut count = 0;
+    for number in NumberListParser::from(points) {
+        match number {
+            Ok(v) if !v.is_finite() || v.abs() > FARTHEST_COORDINATE => {
+                return Some(Flaw::TooFar(v));
+            }
+            Ok(_) => count += 1,
+            Err(e) => return Some(Flaw::BreaksOff(e.to_string())),
+        }
+    }
+    (count % 2 == 1).then(|| Flaw::BreaksOff(format!("{count} numbers: the last has no pair")))
 }
 
 #[cfg(test)]
@@ -122,6 +141,20 @@ mod tests {
         };
         assert!(why.contains("position"), "{why}");
         assert!(matches!(flaw("M10 10 L"), Some(Flaw::BreaksOff(_))));
+    }
+
+    #[test]
+    fn points_that_break_off_or_lack_a_pair_are_flaws() {
+        assert_eq!(points_flaw("10,10 30,10 30 30"), None);
+        assert!(matches!(
+            points_flaw("10,10 30,10 x 30"),
+            Some(Flaw::BreaksOff(_))
+        ));
+        assert!(matches!(
+            points_flaw("10,10 30,10 30"),
+            Some(Flaw::BreaksOff(_))
+        ));
+        assert_eq!(points_flaw("10,10 1e39,10 30,30"), Some(Flaw::TooFar(1e39)));
     }
 
     #[test]
