@@ -126,11 +126,12 @@ pub(super) struct Run {
     /// the probe found it, as a fraction of the commanded torque (`None` also where the check's
     /// estimate was implausible: then it measures nothing).
     pub(super) hold_torque_error: Option<f32>,
-    /// The approach's start: (commanded torque, hub angle) on the last ramping tick whose torque
-    /// was at most [`APPROACH_FRACTION`] of its target. From there to the jam the hub moved into
-    /// the contact with the torque, so the two give the contact's compliance where the hub's
-    /// static friction hides it from the probe (`FORCE_SENSITIVE`).
-    pub(super) approach: Option<(f32, f32)>,
+    /// The approach's start: (commanded torque, hub angle, the ramp's target there), all N·m but
+    /// the angle, on the last ramping tick whose torque was at most [`APPROACH_FRACTION`] of its
+    /// target. From there to the jam the hub moved into the contact with the torque, so the two
+    /// give the contact's compliance where the hub's static friction hides it from the probe
+    /// (`FORCE_SENSITIVE`).
+    pub(super) approach: Option<(f32, f32, f32)>,
     /// The held jam waiting for its kerf solve: (median angle, drift, torque). The hold's last
     /// tick takes the median and the first releasing tick solves it, so that no tick pays for
     /// both (each is some 5–8k instructions: together over the worst-step budget).
@@ -327,7 +328,7 @@ impl Controller {
         let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * dt_s;
         self.torque_nm = ramped.min(speed_capped).clamp(0.0, target);
         if self.torque_nm <= APPROACH_FRACTION * target {
-            self.run.approach = Some((self.torque_nm, self.angle_deg));
+            self.run.approach = Some((self.torque_nm, self.angle_deg, target));
         }
         if self.speed_deg_per_s() < PRESSING_SPEED_DEG_PER_S {
             let drive_v = self.drive_v();
@@ -729,7 +730,7 @@ impl Controller {
             .max(self.approach_sensitivity_um(held))
             .max(self.settle_sensitivity_um(held));
         if held.overshoot > OVERSHOOT_LIMIT
-            || self.pressed_harder_than_held(held, probe)
+            || self.pressed_harder_than_held(held)
             || sensitivity_um > FORCE_SENSITIVITY_LIMIT_UM
         {
             self.run.flags.insert(QualityFlags::FORCE_SENSITIVE);
@@ -741,9 +742,8 @@ impl Controller {
     /// then could not move the hub (by [`PRESSED_PROBE_STILL_LSB`]): a contact that crushed under
     /// the ramp while the falling target followed the inset down, which the self-locking spiral
     /// keeps. A sound contact the probe moves, or the hold's drive is its highest.
-    fn pressed_harder_than_held(&self, held: &HeldJam, (rise_deg, _): (f32, f32)) -> bool {
-        let probe_still = rise_deg.abs() < PRESSED_PROBE_STILL_LSB * self.lsb_deg();
-        held.pressed_over > PRESSED_OVER_LIMIT && probe_still
+    fn pressed_harder_than_held(&self, held: &HeldJam) -> bool {
+        held.pressed_over > PRESSED_OVER_LIMIT && self.probe_was_still()
     }
 
     /// The result from the held jam's median angle at its torque (the hold's flags are in the
@@ -813,14 +813,38 @@ impl Controller {
     }
 
     /// The approach to `held` ([`Run::approach`]): how far the hub turned, degrees, while the
-    /// torque rose how much, N·m, from the approach's start to the held jam; `None` where the
-    /// torque rose by less than [`MIN_APPROACH_FRACTION`] of the held one (a jam reached at the
-    /// approach's start measures nothing).
+    /// torque rose how much, N·m, from the approach's start to the held jam. Where the torque
+    /// rose by less than [`MIN_APPROACH_FRACTION`] of the held one, the rise is the force's,
+    /// as a share of the held torque, where the probe could not move the hub: the target for
+    /// the run's force falls along the spiral, so a contact giving way at that force lets the
+    /// hub turn on far with no rise in torque (on the twin a contact yielding at 178 N turned
+    /// the hub 26° so, read 38 µm high and was not flagged). `None` where neither rose by that
+    /// much (a jam reached at the approach's start, or a target held by the run's cap or the
+    /// supply, measures nothing), or the torque did not and the probe moved the hub.
     fn approach_turn(&self, held: &HeldJam) -> Option<(f32, f32)> {
-        let (start_nm, start_deg) = self.run.approach?;
+        let (start_nm, start_deg, start_target_nm) = self.run.approach?;
+        let turn_deg = (held.angle_deg - start_deg).max(0.0);
+        let least_nm = MIN_APPROACH_FRACTION * held.torque_nm;
         let rise_nm = held.torque_nm - start_nm;
-        (rise_nm >= MIN_APPROACH_FRACTION * held.torque_nm)
-            .then(|| ((held.angle_deg - start_deg).max(0.0), rise_nm))
+        if rise_nm >= least_nm {
+            return Some((turn_deg, rise_nm));
+        }
+        // The torque hardly rose, but the target for the run's force falls along the spiral: a
+        // hub that turned on far at the target's force was carried by a contact giving way
+        // (crushing past its yield), whose compliance the force's rise gives. Judged so only
+        // where the probe could not move the hub, as the pressing test is: a probe that moved
+        // it measured the contact itself, and a free hub crawling to the jam at high torque (a
+        // high-ratio build) turns as far with no contact to give way.
+        let force_rise_nm = held.torque_nm * (1.0 - start_nm / start_target_nm.max(f32::EPSILON));
+        (force_rise_nm >= least_nm && self.probe_was_still()).then_some((turn_deg, force_rise_nm))
+    }
+
+    /// Whether the probe after the hold turned the hub by less than
+    /// [`PRESSED_PROBE_STILL_LSB`] (static friction held it; also before any probe).
+    fn probe_was_still(&self) -> bool {
+        self.run
+            .probe
+            .is_none_or(|(rise_deg, _)| rise_deg.abs() < PRESSED_PROBE_STILL_LSB * self.lsb_deg())
     }
 
     /// How far a torque error of the run's uncertainty would move the reading, µm, judged from

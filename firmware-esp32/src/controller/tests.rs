@@ -7,7 +7,7 @@ use kerfmeter_protocol::{
 };
 
 use super::*;
-use kerfmeter_protocol::spiral::kerf_from_angle;
+use kerfmeter_protocol::spiral::{kerf_from_angle, torque_for_force_nm};
 
 /// A controller and a clock, fed scripted hub angles.
 struct Script {
@@ -1951,6 +1951,57 @@ fn a_contact_that_crushed_on_the_way_in_is_flagged_force_sensitive() {
         QualityFlags::empty(),
         "{rigid:?}"
     );
+}
+
+#[test]
+fn a_contact_that_gave_way_at_the_runs_force_along_the_spiral_is_flagged_force_sensitive() {
+    // The hub meets the contact at 30°, where it gives way (crushing past its yield): from there
+    // the hub turns on, too fast for the pressing test (60 °/s), whenever the torque stands at
+    // 90 % of the target for the run's force at its angle, to 60°, where the contact holds. The
+    // target falls along the spiral, so the torque hardly rises from the approach's start to
+    // the hold, while the force rises by a fifth over 30° of turn: a compliance far past the
+    // limit, which the probe (held by static friction) cannot see. Flagged (it was not: on the
+    // twin, a contact yielding at 178 N read 38 µm high, unflagged). Not flagged: a contact
+    // that holds at 30°, and the same turn where the probe then moves the hub (0.2°, some 10
+    // LSB: the probe measured the contact, and a free hub crawling to the jam turns as far).
+    let run = |gives_way: bool, probe_moves: bool| {
+        let mut s = Script::new();
+        let params = RunParams::DEFAULT;
+        s.start(params);
+        let mut probed_deg = 0.0;
+        for _ in 0..20_000 {
+            let inset_deg = s.angle_deg - s.c.run.zero_kerf_play_deg;
+            let target_nm = torque_for_force_nm(&params, params.target_force_n, inset_deg);
+            let ramping = matches!(s.c.state, State::Ramping);
+            let free = s.angle_deg < 30.0 && s.c.torque_nm > 0.0;
+            let giving = gives_way && ramping && s.angle_deg < 60.0;
+            if free || (giving && s.c.torque_nm >= 0.9 * target_nm) {
+                s.angle_deg += 0.06;
+            }
+            if probe_moves && matches!(s.c.state, State::Probing { .. }) && probed_deg < 0.2 {
+                s.angle_deg += 0.01;
+                probed_deg += 0.01;
+            }
+            s.tick();
+            if matches!(s.state(), RunState::Done | RunState::Fault(_)) {
+                break;
+            }
+        }
+        *s.c.result().expect("a result")
+    };
+    let gave_way = run(true, false);
+    assert!(
+        gave_way.flags.contains(QualityFlags::FORCE_SENSITIVE),
+        "{gave_way:?}"
+    );
+    for (gives_way, probe_moves) in [(false, false), (true, true)] {
+        let r = run(gives_way, probe_moves);
+        assert_eq!(
+            r.flags.distrusting(),
+            QualityFlags::empty(),
+            "gives way {gives_way}, probe moves {probe_moves}: {r:?}"
+        );
+    }
 }
 
 #[test]
