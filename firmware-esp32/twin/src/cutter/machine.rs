@@ -464,6 +464,13 @@ impl Grbl {
         self.publish();
     }
 
+    /// Motion stops where it is (the move under way ends there) and the queued moves are
+    /// dropped: what an alarm does to the planner.
+    fn stop_where_it_is(&mut self) {
+        self.finish_move(false);
+        self.queue.clear();
+    }
+
     /// Record and announce alarm `code`: motion stops, the laser goes off.
     fn raise(&mut self, code: u8) {
         self.enter_alarm(code);
@@ -479,16 +486,14 @@ impl Grbl {
     /// The soft-limit alarm of [`CutterOptions::unannounced_alarm_on_line`]: motion stops where
     /// it is, the queue is dropped, and no `ALARM:2` line reaches the sender.
     fn unannounced_soft_limit(&mut self) {
-        self.finish_move(false);
-        self.queue.clear();
+        self.stop_where_it_is();
         self.enter_alarm(ALARM_SOFT_LIMIT);
         self.publish();
     }
 
     /// A limit switch tripped: everything stops, and only a reset is heard.
     fn hard_limit(&mut self) {
-        self.finish_move(false);
-        self.queue.clear();
+        self.stop_where_it_is();
         self.pending = None;
         self.raw_line.clear();
         self.raise(ALARM_HARD_LIMIT);
