@@ -10,6 +10,21 @@ pub(crate) fn decimals_for_step(step: f64) -> usize {
     (-step.log10() - 1e-6).ceil().clamp(0.0, 12.0) as usize
 }
 
+/// Every power of ten a float holds exactly, 10⁰ to 10²².
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// 10^`exponent`: from a table where the float is exact (the same value `powi` gives there, for
+/// a look-up instead of a call per number written), by `powi` elsewhere.
+pub(crate) fn pow10(exponent: i32) -> f64 {
+    usize::try_from(exponent)
+        .ok()
+        .and_then(|k| POW10.get(k).copied())
+        .unwrap_or_else(|| 10f64.powi(exponent))
+}
+
 /// `n / 10^digits` as decimal text: the integer part (at least one digit), then a point and the
 /// fraction without its trailing zeros, or no point when the fraction is zero. No sign: that is
 /// the caller's.
@@ -62,6 +77,13 @@ impl Scaled {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn powers_of_ten_are_powi_s() {
+        for e in -30..=30 {
+            assert_eq!(pow10(e).to_bits(), 10f64.powi(e).to_bits(), "10^{e}");
+        }
+    }
 
     #[test]
     fn scaled_integers_print_as_decimals_without_trailing_zeros() {

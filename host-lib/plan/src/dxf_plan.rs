@@ -56,7 +56,7 @@ use dxf::enums::{AcadVersion, Units};
 use dxf::{Drawing, LwPolylineVertex, Point, Vector};
 
 use super::compensation::{self, FoundCompensation, IfCompensated};
-use super::decimal::decimals_for_step;
+use super::decimal::{decimals_for_step, pow10};
 use super::dilate::KerfSource;
 use super::geom::{Affine, CURVE_TOLERANCE_MM, PathSink, Pline, V2, arc_geom, fit_biarcs, v2};
 use super::nurbs::Nurbs;
@@ -1388,7 +1388,7 @@ const BULGE_DIGITS: i32 = 10;
 
 /// `v` rounded to `digits` decimals.
 fn rounded(v: f64, digits: i32) -> f64 {
-    let m = 10f64.powi(digits);
+    let m = pow10(digits);
     let r = (v * m).round() / m;
     if r.is_finite() { r } else { v }
 }

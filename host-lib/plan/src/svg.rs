@@ -73,7 +73,7 @@ use roxmltree::{Document, Node, ParsingOptions};
 use usvg::tiny_skia_path::{self, PathSegment};
 
 use super::compensation::{self, CompensatedBy, IfCompensated};
-use super::decimal::{Scaled, decimals_for_step};
+use super::decimal::{Scaled, decimals_for_step, pow10};
 use super::dilate::KerfSource;
 use super::entities;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
@@ -1467,7 +1467,7 @@ fn num(v: f64, digits: usize, out: &mut String) {
     // Fast path: round to an integer count of the last decimal, ties to even as float
     // formatting does, and print that. Where the product itself rounds across a tie (rare), the
     // last decimal differs by one: 0.01 µm in mm.
-    let scaled = (v * 10f64.powi(digits as i32)).round_ties_even();
+    let scaled = (v * pow10(digits as i32)).round_ties_even();
     if digits <= 12 && scaled.abs() < 1e15 {
         if scaled != 0.0 && scaled < 0.0 {
             out.push('-');
@@ -1500,6 +1500,9 @@ fn point(p: V2, digits: usize, out: &mut String) {
 pub(crate) fn write_pline(p: &Pline, to_local: &Affine, digits: usize, out: &mut String) {
     let n = p.vertex_count();
     let mirror = to_local.det() < 0.0;
+    // The image of a circle of radius 1: every arc's ellipse is this one scaled.
+    let (unit_rx, unit_ry, rot) = to_local.circle_image(1.0);
+    let rot_deg = rot.to_degrees();
     out.push('M');
     let v0 = p.at(0);
     point(to_local.apply(v2(v0.x, v0.y)), digits, out);
@@ -1509,15 +1512,14 @@ pub(crate) fn write_pline(p: &Pline, to_local: &Affine, digits: usize, out: &mut
         let q = to_local.apply(v2(b.x, b.y));
         match arc_geom(v2(a.x, a.y), v2(b.x, b.y), a.bulge) {
             Some(g) => {
-                let (rx, ry, rot) = to_local.circle_image(g.radius);
                 let large = g.sweep.abs() > std::f64::consts::PI;
                 let sweep = (g.sweep > 0.0) != mirror;
                 out.push_str(" A");
-                num(rx, digits, out);
+                num(g.radius * unit_rx, digits, out);
                 out.push(' ');
-                num(ry, digits, out);
+                num(g.radius * unit_ry, digits, out);
                 out.push(' ');
-                num(rot.to_degrees(), 6, out);
+                num(rot_deg, 6, out);
                 let _ = write!(out, " {} {} ", u8::from(large), u8::from(sweep));
                 point(q, digits, out);
             }

@@ -40,7 +40,7 @@ use cavalier_contours::polyline::PlineSource;
 use rayon::prelude::*;
 
 use super::rounded;
-use crate::decimal::Scaled;
+use crate::decimal::{Scaled, pow10};
 use crate::geom::Pline;
 
 /// Changed entities whose text is made at once, on any core, before it is put in its place (the
@@ -565,7 +565,7 @@ fn number(v: f64, out: &mut Vec<u8>) {
 /// is at least a last decimal away, more than the value's float step. Beyond, or not finite, the
 /// float is formatted.
 fn fixed(v: f64, digits: i32, out: &mut Vec<u8>) {
-    let m = 10f64.powi(digits);
+    let m = pow10(digits);
     let n = (v * m).round();
     if !(n.abs() < 1e15 && (0..=19).contains(&digits)) {
         number(rounded(v, digits), out);
