@@ -48,7 +48,6 @@
 
 use std::cell::Cell;
 use std::collections::{HashMap, HashSet};
-use std::io::Cursor;
 
 use cavalier_contours::polyline::{PlineCreation, PlineSource, PlineSourceMut, PlineVertex};
 use dxf::entities::{Entity, EntityCommon, EntityType, LwPolyline};
@@ -170,8 +169,7 @@ pub(crate) fn dilate_dxf_owned(
 fn load(bytes: &[u8], progress: &Progress) -> Result<(Drawing, Option<FoundCompensation>)> {
     let found = compensation::find_in_dxf(bytes);
     progress.start(Stage::Reading, 0);
-    let drawing =
-        Drawing::load(&mut Cursor::new(bytes)).map_err(|e| bad(values::load_error(bytes, &e)))?;
+    let drawing = values::load(bytes).map_err(bad)?;
     Ok((drawing, found))
 }
 

@@ -45,6 +45,14 @@ fn expectations() -> Vec<(&'static str, Expect)> {
             Refused(&["path \"bowtie\"", "(10.000, 10.000) mm", "crosses itself"]),
         ),
         (
+            "corpus/refused_broken_path_data.svg",
+            Refused(&[
+                "the cut path \"tail\"",
+                "error in its path data",
+                "position 36",
+            ]),
+        ),
+        (
             "corpus/r12_polyline_unitless.dxf",
             DilatesWithUnits(AssumedUnits::Mm, 3),
         ),
@@ -60,6 +68,10 @@ fn expectations() -> Vec<(&'static str, Expect)> {
         (
             "corpus/refused_missing_block.dxf",
             Refused(&["INSERT 33", "\"MISSING\"", "not in the file"]),
+        ),
+        (
+            "corpus/refused_damaged_value.dxf",
+            Refused(&["line 201", "group code 90", "4294967295", "export it again"]),
         ),
         ("fixtures/box_generator.svg", Dilates(4)),
         ("fixtures/inkscape_layers.svg", Dilates(6)),
@@ -184,6 +196,10 @@ impl Rng {
 /// bytes removed or repeated, a number replaced by an extreme one.
 fn mutate(bytes: &[u8], rng: &mut Rng) -> Vec<u8> {
     let mut b = bytes.to_vec();
+    if b.is_empty() {
+        // A file already cut to nothing (damaged twice over).
+        return b;
+    }
     let at = rng.below(b.len());
     match rng.below(5) {
         0 => b.truncate(at),

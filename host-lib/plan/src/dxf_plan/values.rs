@@ -1,10 +1,29 @@
-//! Why an ASCII DXF the `dxf` crate could not load cannot be read, when the cause is a value its
-//! group code cannot hold (a 90 code of 4294967295, a coordinate of `1,5`) or a group code no DXF
-//! has. The crate stops on such a pair, but what it reports is often a pair after it ("the code
-//! pair 70/1 was not expected at this time"), which sends the user to the wrong line. Only a file
-//! that failed to load is scanned, so a good file costs nothing.
+//! Loading a DXF with the `dxf` crate, and why one it could not load cannot be read, when the
+//! cause is a value its group code cannot hold (a 90 code of 4294967295, a coordinate of `1,5`)
+//! or a group code no DXF has. The crate stops on such a pair, but what it reports is often a
+//! pair after it ("the code pair 70/1 was not expected at this time"), which sends the user to
+//! the wrong line. Only a file that failed to load is scanned, so a good file costs nothing.
+//!
+//! The crate can also panic on a damaged file where overflow is checked (a layer colour of
+//! −32768, which it negates; a debug or fuzzing build): such a panic is caught and reported as a
+//! file that cannot be read, never a crash.
 
-use dxf::ExpectedType;
+use std::io::Cursor;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+use dxf::{Drawing, ExpectedType};
+
+/// The drawing in `bytes`, or why it cannot be read (the message, without the crate's panic).
+pub(super) fn load(bytes: &[u8]) -> Result<Drawing, String> {
+    match catch_unwind(AssertUnwindSafe(|| Drawing::load(&mut Cursor::new(bytes)))) {
+        Ok(Ok(drawing)) => Ok(drawing),
+        Ok(Err(e)) => Err(load_error(bytes, &e)),
+        Err(_) => Err(match first_bad_pair(bytes) {
+            Some(b) => bad_pair_message(&b),
+            None => "not a readable DXF file: the dxf crate failed on it; the file is damaged or breaks the DXF format: export it again".to_owned(),
+        }),
+    }
+}
 
 /// A code pair whose value its group code cannot hold, or whose code is not a group code.
 #[derive(Debug, PartialEq)]
@@ -64,7 +83,14 @@ fn unreadable(wanted: &ExpectedType, value: &str) -> Option<&'static str> {
             .parse::<i64>()
             .err()
             .map(|_| "must be a whole number (64 bits)"),
-        ExpectedType::Short | ExpectedType::Boolean | ExpectedType::Double => value
+        ExpectedType::Short | ExpectedType::Boolean => match value.parse::<f64>() {
+            Err(_) => Some("must be a number (with a point for decimals)"),
+            Ok(v) if !(-32767.0..=32767.0).contains(&v) => {
+                Some("must be a whole number from -32767 to 32767")
+            }
+            Ok(_) => None,
+        },
+        ExpectedType::Double => value
             .parse::<f64>()
             .err()
             .map(|_| "must be a number (with a point for decimals)"),
@@ -102,12 +128,17 @@ pub(super) fn line_of(e: &dxf::DxfError) -> Option<usize> {
 pub(super) fn load_error(bytes: &[u8], e: &dxf::DxfError) -> String {
     let bad = first_bad_pair(bytes).filter(|b| line_of(e).is_none_or(|stop| b.code_line <= stop));
     match bad {
-        Some(b) => format!(
-            "not a readable DXF file: line {}: {}; the file is damaged or breaks the DXF format: export it again",
-            b.code_line, b.what
-        ),
+        Some(b) => bad_pair_message(&b),
         None => format!("not a readable DXF file: {e}"),
     }
+}
+
+/// The message for a file that cannot be read because of the code pair `b`.
+fn bad_pair_message(b: &BadPair) -> String {
+    format!(
+        "not a readable DXF file: line {}: {}; the file is damaged or breaks the DXF format: export it again",
+        b.code_line, b.what
+    )
 }
 
 #[cfg(test)]
@@ -149,11 +180,25 @@ mod tests {
     }
 
     #[test]
+    fn a_short_the_crate_would_negate_past_its_range_is_caught_and_named() {
+        // A layer colour of −1e308: the crate reads it as −32768 and negates it, which panics
+        // where overflow is checked; the panic is caught either way.
+        let text = "  0\nSECTION\n  2\nTABLES\n  0\nTABLE\n  2\nLAYER\n  0\nLAYER\n  2\nCUT\n 62\n-1e308\n  0\nENDTAB\n  0\nENDSEC\n  0\nEOF\n";
+        let bad = first_bad_pair(text.as_bytes()).expect("a bad pair");
+        assert_eq!(bad.code_line, 13);
+        assert!(bad.what.contains("-32767 to 32767"), "{}", bad.what);
+        if let Err(message) = load(text.as_bytes()) {
+            assert!(
+                message.starts_with("not a readable DXF file: line 13"),
+                "{message}"
+            );
+        }
+    }
+
+    #[test]
     fn the_crate_stopping_on_a_later_pair_names_the_bad_one() {
         let text = entity(" 90\n4294967295\n 70\n1\n 10\n0\n 20\n0\n");
-        let e = dxf::Drawing::load(&mut std::io::Cursor::new(text.as_bytes()))
-            .expect_err("the crate refuses it");
-        let message = load_error(text.as_bytes(), &e);
+        let message = load(text.as_bytes()).expect_err("the crate refuses it");
         assert!(
             message.starts_with("not a readable DXF file: line 7: group code 90"),
             "{message}"
