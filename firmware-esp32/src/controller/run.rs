@@ -802,10 +802,14 @@ impl Controller {
     /// rise (a slip on the way, stick-slip, counts in full: it is what a torque error that size
     /// does). The probe after the hold cannot see this where the drive train's and the inset's
     /// static friction hold the hub at the jam: a torque 10 % higher does not break it loose,
-    /// and the probe reads a stiff contact. Zero where the torque rose by less than
-    /// [`MIN_APPROACH_FRACTION`] of the held one (a jam reached at the approach's start).
+    /// and the probe reads a stiff contact. Where the torque rose by less than
+    /// [`MIN_APPROACH_FRACTION`] of the held one, the force's rise is taken, if the probe could
+    /// not move the hub ([`Controller::approach_force_turn`]); zero otherwise.
     fn approach_sensitivity_um(&self, held: &HeldJam) -> f32 {
-        let Some((turn_deg, rise_nm)) = self.approach_turn(held) else {
+        let approach = self
+            .approach_turn(held)
+            .or_else(|| self.approach_force_turn(held));
+        let Some((turn_deg, rise_nm)) = approach else {
             return 0.0;
         };
         let turn_um = self.run.params.gauge.pitch_um_per_deg * turn_deg;
@@ -813,30 +817,38 @@ impl Controller {
     }
 
     /// The approach to `held` ([`Run::approach`]): how far the hub turned, degrees, while the
-    /// torque rose how much, N·m, from the approach's start to the held jam. Where the torque
-    /// rose by less than [`MIN_APPROACH_FRACTION`] of the held one, the rise is the force's,
-    /// as a share of the held torque, where the probe could not move the hub: the target for
-    /// the run's force falls along the spiral, so a contact giving way at that force lets the
-    /// hub turn on far with no rise in torque (on the twin a contact yielding at 178 N turned
-    /// the hub 26° so, read 38 µm high and was not flagged). `None` where neither rose by that
-    /// much (a jam reached at the approach's start, or a target held by the run's cap or the
-    /// supply, measures nothing), or the torque did not and the probe moved the hub.
+    /// torque rose how much, N·m, from the approach's start to the held jam; `None` where the
+    /// torque rose by less than [`MIN_APPROACH_FRACTION`] of the held one (a jam reached at the
+    /// approach's start, or one the target followed down along the spiral: see
+    /// [`Controller::approach_force_turn`]).
     fn approach_turn(&self, held: &HeldJam) -> Option<(f32, f32)> {
-        let (start_nm, start_deg, start_target_nm) = self.run.approach?;
-        let turn_deg = (held.angle_deg - start_deg).max(0.0);
-        let least_nm = MIN_APPROACH_FRACTION * held.torque_nm;
+        let (start_nm, start_deg, _) = self.run.approach?;
         let rise_nm = held.torque_nm - start_nm;
-        if rise_nm >= least_nm {
-            return Some((turn_deg, rise_nm));
+        (rise_nm >= MIN_APPROACH_FRACTION * held.torque_nm)
+            .then(|| ((held.angle_deg - start_deg).max(0.0), rise_nm))
+    }
+
+    /// The approach to `held` where the torque hardly rose ([`Controller::approach_turn`] is
+    /// `None`) and the probe could not move the hub: how far the hub turned, degrees, while the
+    /// force rose how much, as a share of the held torque, N·m. The target for the run's force
+    /// falls along the spiral, so a contact giving way at that force (crushing past its yield)
+    /// lets the hub turn on far with no rise in torque, while the force rose from at most
+    /// [`APPROACH_FRACTION`] of the target to all of it (on the twin a contact yielding at
+    /// 178 N turned the hub 26° so, read 38 µm high and was not flagged). Only for the flag: the
+    /// winding check's allowance keeps the torque's rise, which such a contact would make
+    /// unbounded. Where the probe moved the hub it measured the contact itself, and a free hub
+    /// crawling to the jam at high torque (a high-ratio build) turns as far with no contact to
+    /// give way: `None`.
+    fn approach_force_turn(&self, held: &HeldJam) -> Option<(f32, f32)> {
+        let (start_nm, start_deg, start_target_nm) = self.run.approach?;
+        if self.approach_turn(held).is_some() || !self.probe_was_still() {
+            return None;
         }
-        // The torque hardly rose, but the target for the run's force falls along the spiral: a
-        // hub that turned on far at the target's force was carried by a contact giving way
-        // (crushing past its yield), whose compliance the force's rise gives. Judged so only
-        // where the probe could not move the hub, as the pressing test is: a probe that moved
-        // it measured the contact itself, and a free hub crawling to the jam at high torque (a
-        // high-ratio build) turns as far with no contact to give way.
         let force_rise_nm = held.torque_nm * (1.0 - start_nm / start_target_nm.max(f32::EPSILON));
-        (force_rise_nm >= least_nm && self.probe_was_still()).then_some((turn_deg, force_rise_nm))
+        Some((
+            (held.angle_deg - start_deg).max(0.0),
+            force_rise_nm.max(f32::EPSILON),
+        ))
     }
 
     /// Whether the probe after the hold turned the hub by less than

@@ -151,11 +151,12 @@ pub const PRESSED_OVER_LIMIT: f32 = 0.15;
 /// A probe that turned the hub by less than this, encoder LSB, did not move it
 /// ([`PRESSED_OVER_LIMIT`]).
 pub const PRESSED_PROBE_STILL_LSB: f32 = 2.0;
-/// An approach whose torque rose by less than this fraction of the held torque is judged by
-/// the force's rise instead, where the probe could not move the hub (the target falls along the
-/// spiral: a contact giving way at the run's force turns the hub on with no rise in torque);
-/// one whose force did not rise by this much either (the jam was reached as the approach
-/// started) measures nothing: the reading is judged without it.
+/// An approach whose torque rose by less than this fraction of the held torque measures no
+/// compliance for the winding check's allowance; for the `FORCE_SENSITIVE` flag it is judged by
+/// the force's rise instead (at least a fifth: from at most [`APPROACH_FRACTION`] of the target
+/// to all of it), where the probe could not move the hub (the target falls along the spiral: a
+/// contact giving way at the run's force turns the hub on with no rise in torque), and is
+/// judged without it where the probe moved the hub.
 pub const MIN_APPROACH_FRACTION: f32 = 0.05;
 /// The turn since the run's first settle measures nothing where the force rose by less than
 /// this fraction of the settle's (a jam creeping in at the target's force). Over the

@@ -418,7 +418,8 @@ fn broken_paths(text: &str, shapes: &[Node]) -> Result<Vec<BrokenPath>> {
 
 /// A cut among the `broken` paths is refused: SVG viewers draw it only up to its error, and its
 /// dilation would be written without the rest. The others pass through unchanged, in a note
-/// naming the first three.
+/// naming the first three: not drawn as cuts, or (a cut's colour) drawing nothing before the
+/// error, which usvg then drops.
 fn check_broken(
     broken: &[BrokenPath],
     instances: &[Instance],
@@ -441,7 +442,7 @@ fn check_broken(
         listed.push(format!("and {} more", broken.len() - 3));
     }
     summary.notes.push(format!(
-        "{} path(s) that are not cuts have an error in their path data or points (SVG viewers draw them only up to it); passed through unchanged: {}",
+        "{} path(s) not read as cuts (not drawn as cuts, or drawing nothing before the error) have an error in their path data or points (SVG viewers draw them only up to it); passed through unchanged: {}",
         broken.len(),
         listed.join("; ")
     ));
@@ -1879,7 +1880,7 @@ mod tests {
         assert!(
             s.notes
                 .iter()
-                .any(|n| n.contains("1 path(s) that are not cuts") && n.contains("path \"b\"")),
+                .any(|n| n.contains("1 path(s) not read as cuts") && n.contains("path \"b\"")),
             "{:?}",
             s.notes
         );

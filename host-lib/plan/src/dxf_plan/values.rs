@@ -18,7 +18,7 @@ pub(super) fn load(bytes: &[u8]) -> Result<Drawing, String> {
     match catch_unwind(AssertUnwindSafe(|| Drawing::load(&mut Cursor::new(bytes)))) {
         Ok(Ok(drawing)) => Ok(drawing),
         Ok(Err(e)) => Err(load_error(bytes, &e)),
-        Err(_) => Err(match first_bad_pair(bytes) {
+        Err(_) => Err(match first_bad_pair_reading(bytes, Shorts::InRange) {
             Some(b) => bad_pair_message(&b),
             None => "not a readable DXF file: the dxf crate failed on it; the file is damaged or breaks the DXF format: export it again".to_owned(),
         }),
@@ -34,11 +34,26 @@ pub(super) struct BadPair {
     pub what: String,
 }
 
+/// How strictly shorts are read.
+#[derive(Clone, Copy, PartialEq)]
+enum Shorts {
+    /// As the crate does: any decimal number (it saturates what a short cannot hold).
+    AsTheCrate,
+    /// Also within a short's range less its lowest value, which the crate negates (the panic
+    /// path: [`load`]).
+    InRange,
+}
+
 /// The first code pair of an ASCII DXF (`bytes`) that the `dxf` crate cannot parse, by the
 /// crate's own rules (shorts and booleans as any decimal number, 90–99 codes as 32-bit
-/// integers, 160–169 as 64-bit ones), or `None` (a binary DXF is not scanned).
+/// integers, 160–169 as 64-bit ones), or `None` (a binary DXF or a DXB is not scanned).
 pub(super) fn first_bad_pair(bytes: &[u8]) -> Option<BadPair> {
-    if bytes.starts_with(b"AutoCAD Binary DXF") {
+    first_bad_pair_reading(bytes, Shorts::AsTheCrate)
+}
+
+/// [`first_bad_pair`], shorts read as `shorts` says.
+fn first_bad_pair_reading(bytes: &[u8], shorts: Shorts) -> Option<BadPair> {
+    if bytes.starts_with(b"AutoCAD Binary DXF") || bytes.starts_with(b"AutoCAD DXB") {
         return None;
     }
     let text = String::from_utf8_lossy(bytes);
@@ -61,7 +76,7 @@ pub(super) fn first_bad_pair(bytes: &[u8]) -> Option<BadPair> {
             return Some(BadPair { code_line, what });
         };
         let (_, value) = lines.next()?;
-        if let Some(needs) = unreadable(&wanted, value) {
+        if let Some(needs) = unreadable(&wanted, value, shorts) {
             let what = format!(
                 "group code {code} has the value `{}`, which {needs}",
                 short(value)
@@ -73,7 +88,7 @@ pub(super) fn first_bad_pair(bytes: &[u8]) -> Option<BadPair> {
 }
 
 /// What a value of type `wanted` must be, when `value` is not that.
-fn unreadable(wanted: &ExpectedType, value: &str) -> Option<&'static str> {
+fn unreadable(wanted: &ExpectedType, value: &str, shorts: Shorts) -> Option<&'static str> {
     match wanted {
         ExpectedType::Integer => value
             .parse::<i32>()
@@ -85,7 +100,7 @@ fn unreadable(wanted: &ExpectedType, value: &str) -> Option<&'static str> {
             .map(|_| "must be a whole number (64 bits)"),
         ExpectedType::Short | ExpectedType::Boolean => match value.parse::<f64>() {
             Err(_) => Some("must be a number (with a point for decimals)"),
-            Ok(v) if !(-32767.0..=32767.0).contains(&v) => {
+            Ok(v) if shorts == Shorts::InRange && !(-32767.0..=32767.0).contains(&v) => {
                 Some("must be a whole number from -32767 to 32767")
             }
             Ok(_) => None,
@@ -98,12 +113,22 @@ fn unreadable(wanted: &ExpectedType, value: &str) -> Option<&'static str> {
     }
 }
 
-/// `text`, cut to 40 characters for a message.
+/// `text`, cut to 40 characters for a message, control characters escaped (a file whose lines
+/// end in a lone CR is one line here).
 fn short(text: &str) -> String {
-    match text.char_indices().nth(40) {
+    let cut = match text.char_indices().nth(40) {
         Some((at, _)) => format!("{}…", &text[..at]),
         None => text.to_owned(),
-    }
+    };
+    cut.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 /// The line the crate's error names, when it names one.
@@ -180,19 +205,31 @@ mod tests {
     }
 
     #[test]
-    fn a_short_the_crate_would_negate_past_its_range_is_caught_and_named() {
+    fn a_short_beyond_its_range_is_named_only_where_the_crate_panicked() {
         // A layer colour of −1e308: the crate reads it as −32768 and negates it, which panics
-        // where overflow is checked; the panic is caught either way.
+        // where overflow is checked (this test's build); the panic is caught and the value named.
         let text = "  0\nSECTION\n  2\nTABLES\n  0\nTABLE\n  2\nLAYER\n  0\nLAYER\n  2\nCUT\n 62\n-1e308\n  0\nENDTAB\n  0\nENDSEC\n  0\nEOF\n";
-        let bad = first_bad_pair(text.as_bytes()).expect("a bad pair");
+        let bad = first_bad_pair_reading(text.as_bytes(), Shorts::InRange).expect("a bad pair");
         assert_eq!(bad.code_line, 13);
         assert!(bad.what.contains("-32767 to 32767"), "{}", bad.what);
-        if let Err(message) = load(text.as_bytes()) {
+        if cfg!(debug_assertions) {
+            let message = load(text.as_bytes()).expect_err("the crate panics");
             assert!(
                 message.starts_with("not a readable DXF file: line 13"),
                 "{message}"
             );
         }
+        // Where the crate failed of itself, a short it read (saturated) is not blamed.
+        assert_eq!(first_bad_pair(text.as_bytes()), None);
+    }
+
+    #[test]
+    fn a_file_with_lone_cr_line_ends_is_named_readably() {
+        let what = first_bad_pair(b"  0\rSECTION\r")
+            .expect("one long line")
+            .what;
+        assert!(what.contains("\\r") && !what.contains('\r'), "{what}");
+        assert_eq!(first_bad_pair(b"AutoCAD DXB 1.0\r\n\x1a\0"), None);
     }
 
     #[test]

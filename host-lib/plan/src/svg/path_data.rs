@@ -1,10 +1,10 @@
 //! The `d` of a plan's `<path>` elements (and the `points` of its polygons and polylines), checked as the source writes it, before usvg reads it.
 //!
 //! usvg reads path data as SVG viewers draw it: up to its first error, silently. A cut whose data
-//! breaks off part way (`L NaN 80`, a stray letter) is dilated, and written back, without its
-//! tail, so the user is told (a note naming the paths). And a path with a coordinate that single
-//! precision cannot hold (`1e39`) is dropped by usvg whole, which left "nothing drawn" as the
-//! only clue: it is refused here, by name.
+//! breaks off part way (`L NaN 80`, a stray letter) would be dilated, and written back, without
+//! its tail: it is refused (another path with such data passes through, in a note). And a path
+//! with a coordinate or an arc radius that single precision cannot hold (`1e39`) is dropped by
+//! usvg whole, which left "nothing drawn" as the only clue: it is refused here, by name.
 
 use rayon::prelude::*;
 use roxmltree::Node;
@@ -47,16 +47,20 @@ pub(super) fn flaw(d: &str) -> Option<Flaw> {
     None
 }
 
-/// The points a segment names (control points and end; a closing segment none), made absolute
+/// The points a segment names (control points and end, an arc's radii as a point; a closing
+/// segment none), made absolute
 /// from the current point `at` (the subpath's `start` is where a closing segment ends), and its
 /// end point.
 fn absolute(s: &S, at: [f64; 2], start: [f64; 2]) -> ([Option<[f64; 2]>; 3], [f64; 2]) {
     let from = |abs: bool, x: f64, y: f64| if abs { [x, y] } else { [at[0] + x, at[1] + y] };
     let (controls, end) = match *s {
-        S::MoveTo { abs, x, y }
-        | S::LineTo { abs, x, y }
-        | S::SmoothQuadratic { abs, x, y }
-        | S::EllipticalArc { abs, x, y, .. } => ([None, None], from(abs, x, y)),
+        S::MoveTo { abs, x, y } | S::LineTo { abs, x, y } | S::SmoothQuadratic { abs, x, y } => {
+            ([None, None], from(abs, x, y))
+        }
+        // The radii too: a huge one puts the arc's curves as far out.
+        S::EllipticalArc {
+            abs, rx, ry, x, y, ..
+        } => ([Some([rx, ry]), None], from(abs, x, y)),
         S::HorizontalLineTo { abs, x } => ([None, None], [if abs { x } else { at[0] + x }, at[1]]),
         S::VerticalLineTo { abs, y } => ([None, None], [at[0], if abs { y } else { at[1] + y }]),
         S::Quadratic { abs, x1, y1, x, y }
@@ -162,5 +166,9 @@ mod tests {
         assert_eq!(flaw("M70 70 L80 70 L1e39 80 Z"), Some(Flaw::TooFar(1e39)));
         // Relative steps add up to the absolute coordinate that is too far.
         assert_eq!(flaw("M0 0 l 8e29 0 l 8e29 0"), Some(Flaw::TooFar(1.6e30)));
+        assert_eq!(
+            flaw("M0 0 A 1e39 1e39 0 1 1 10 10"),
+            Some(Flaw::TooFar(1e39))
+        );
     }
 }
