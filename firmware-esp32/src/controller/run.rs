@@ -828,10 +828,11 @@ impl Controller {
             .then(|| ((held.angle_deg - start_deg).max(0.0), rise_nm))
     }
 
-    /// The approach to `held` where the torque hardly rose ([`Controller::approach_turn`] is
-    /// `None`) and the probe could not move the hub: how far the hub turned, degrees, while the
-    /// force rose how much, as a share of the held torque, N·m. The target for the run's force
-    /// falls along the spiral, so a contact giving way at that force (crushing past its yield)
+    /// The approach to `held`, for one whose torque hardly rose ([`Controller::approach_turn`]
+    /// is `None`: its caller asks that first), where the probe could not move the hub: how far
+    /// the hub turned, degrees, while the force rose how much, as a share of the held torque,
+    /// N·m. The target for the run's force falls along the spiral, so a contact giving way at
+    /// that force (crushing past its yield)
     /// lets the hub turn on far with no rise in torque, while the force rose from at most
     /// [`APPROACH_FRACTION`] of the target to all of it (on the twin a contact yielding at
     /// 178 N turned the hub 26° so, read 38 µm high and was not flagged). Only for the flag: the
@@ -841,7 +842,7 @@ impl Controller {
     /// give way: `None`.
     fn approach_force_turn(&self, held: &HeldJam) -> Option<(f32, f32)> {
         let (start_nm, start_deg, start_target_nm) = self.run.approach?;
-        if self.approach_turn(held).is_some() || !self.probe_was_still() {
+        if !self.probe_was_still() {
             return None;
         }
         let force_rise_nm = held.torque_nm * (1.0 - start_nm / start_target_nm.max(f32::EPSILON));

@@ -374,8 +374,8 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     Ok((tagged.untagged(), rendered))
 }
 
-/// A `<path>` whose data breaks off (see [`path_data`]): its index among the shapes, its name
-/// and svgtypes' words for where.
+/// A `<path>`, `<polygon>` or `<polyline>` whose path data or points break off (see
+/// [`path_data`]): its index among the shapes, its name and svgtypes' words for where.
 struct BrokenPath {
     shape: usize,
     name: String,
@@ -384,8 +384,8 @@ struct BrokenPath {
     why: String,
 }
 
-/// The `<path>` elements among `shapes` (of the source `text`) whose data breaks off, named; a
-/// path with a coordinate too far for single precision is refused.
+/// The elements among `shapes` (of the source `text`) whose path data or points break off,
+/// named; one with a coordinate too far for single precision is refused.
 fn broken_paths(text: &str, shapes: &[Node]) -> Result<Vec<BrokenPath>> {
     let flawed = path_data::flawed(shapes);
     if flawed.is_empty() {
@@ -394,11 +394,7 @@ fn broken_paths(text: &str, shapes: &[Node]) -> Result<Vec<BrokenPath>> {
     let lines = LineIndex::new(text);
     let mut broken = Vec::new();
     for f in flawed {
-        let name = describe(&lines, shapes[f.shape]);
-        let data = match shapes[f.shape].tag_name().name() {
-            "path" => "path data",
-            _ => "points",
-        };
+        let (name, data) = (describe(&lines, shapes[f.shape]), f.data);
         match f.flaw {
             Flaw::TooFar(v) => {
                 return Err(bad(format!(

@@ -27,11 +27,11 @@ pub(super) fn load(bytes: &[u8]) -> Result<Drawing, String> {
 
 /// A code pair whose value its group code cannot hold, or whose code is not a group code.
 #[derive(Debug, PartialEq)]
-pub(super) struct BadPair {
+struct BadPair {
     /// The line of the group code (1 is the file's first line, as the crate counts).
-    pub code_line: usize,
+    code_line: usize,
     /// What is wrong, to follow "line N: ".
-    pub what: String,
+    what: String,
 }
 
 /// How strictly shorts are read.
@@ -47,7 +47,7 @@ enum Shorts {
 /// The first code pair of an ASCII DXF (`bytes`) that the `dxf` crate cannot parse, by the
 /// crate's own rules (shorts and booleans as any decimal number, 90–99 codes as 32-bit
 /// integers, 160–169 as 64-bit ones), or `None` (a binary DXF or a DXB is not scanned).
-pub(super) fn first_bad_pair(bytes: &[u8]) -> Option<BadPair> {
+fn first_bad_pair(bytes: &[u8]) -> Option<BadPair> {
     first_bad_pair_reading(bytes, Shorts::AsTheCrate)
 }
 
@@ -132,7 +132,7 @@ fn short(text: &str) -> String {
 }
 
 /// The line the crate's error names, when it names one.
-pub(super) fn line_of(e: &dxf::DxfError) -> Option<usize> {
+fn line_of(e: &dxf::DxfError) -> Option<usize> {
     use dxf::DxfError as E;
     match e {
         E::ParseFloatError(_, o)
@@ -150,7 +150,7 @@ pub(super) fn line_of(e: &dxf::DxfError) -> Option<usize> {
 
 /// The message for a DXF the crate could not load with `e`: the first bad pair in `bytes`, when
 /// there is one at or before the line the crate stopped at; the crate's own words otherwise.
-pub(super) fn load_error(bytes: &[u8], e: &dxf::DxfError) -> String {
+fn load_error(bytes: &[u8], e: &dxf::DxfError) -> String {
     let bad = first_bad_pair(bytes).filter(|b| line_of(e).is_none_or(|stop| b.code_line <= stop));
     match bad {
         Some(b) => bad_pair_message(&b),

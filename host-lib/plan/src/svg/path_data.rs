@@ -88,22 +88,28 @@ fn absolute(s: &S, at: [f64; 2], start: [f64; 2]) -> ([Option<[f64; 2]>; 3], [f6
     ([controls[0], controls[1], Some(end)], end)
 }
 
-/// A `<path>` whose data has a flaw: its index among the shapes, and its flaw.
+/// A `<path>`, `<polygon>` or `<polyline>` whose geometry has a flaw: its index among the
+/// shapes, which geometry it is for a message (`path data` or `points`), and its flaw.
 pub(super) struct Flawed {
     pub shape: usize,
+    pub data: &'static str,
     pub flaw: Flaw,
 }
 
-/// The `<path>` elements among `shapes` whose data has a flaw (in document order).
+/// The elements among `shapes` whose path data or points have a flaw (in document order).
 pub(super) fn flawed(shapes: &[Node]) -> Vec<Flawed> {
     (shapes.par_iter().enumerate())
         .filter_map(|(shape, n)| {
-            let flaw = match n.tag_name().name() {
-                "path" => flaw(n.attribute("d")?),
-                "polygon" | "polyline" => points_flaw(n.attribute("points")?),
-                _ => None,
-            }?;
-            Some(Flawed { shape, flaw })
+            let (data, flaw) = match n.tag_name().name() {
+                "path" => ("path data", flaw(n.attribute("d")?)),
+                "polygon" | "polyline" => ("points", points_flaw(n.attribute("points")?)),
+                _ => return None,
+            };
+            Some(Flawed {
+                shape,
+                data,
+                flaw: flaw?,
+            })
         })
         .collect()
 }
