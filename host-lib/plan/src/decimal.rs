@@ -25,53 +25,36 @@ pub(crate) fn pow10(exponent: i32) -> f64 {
         .unwrap_or_else(|| 10f64.powi(exponent))
 }
 
-/// `n / 10^digits` as decimal text: the integer part (at least one digit), then a point and the
-/// fraction without its trailing zeros, or no point when the fraction is zero. No sign: that is
-/// the caller's.
-pub(crate) struct Scaled {
-    buf: [u8; 40],
-    start: usize,
-}
-
-impl Scaled {
-    /// The text of `n / 10^digits` (`digits` at most 19).
-    pub fn new(n: u64, digits: usize) -> Scaled {
-        let digits = digits.min(19);
-        let unit = 10u64.pow(digits as u32);
-        let (int, mut frac, mut places) = (n / unit, n % unit, digits);
-        while places > 0 && frac % 10 == 0 {
-            frac /= 10;
-            places -= 1;
-        }
-        let mut s = Scaled {
-            buf: [b'0'; 40],
-            start: 40,
-        };
-        if places > 0 {
-            s.push_digits(frac, places);
-            s.start -= 1;
-            s.buf[s.start] = b'.';
-        }
-        s.push_digits(int, 1);
-        s
+/// Write `n / 10^digits` (`digits` at most 19) as decimal text through `push`: the integer part
+/// (at least one digit), then a point and the fraction without its trailing zeros, or no point
+/// when the fraction is zero; whether a point was written. No sign: that is the caller's.
+///
+/// The trailing zeros of `n` are dropped (a division by the constant 10 is a multiplication), its
+/// digits written by `itoa`, and the point put in, straight into the caller's text: dividing by
+/// `10^digits` computed at run time took two hardware divisions a number, and going through a
+/// buffer of its own cost as much again.
+pub(crate) fn write_scaled(mut n: u64, digits: usize, mut push: impl FnMut(&str)) -> bool {
+    const ZEROS: &str = "0000000000000000000";
+    let mut places = digits.min(19);
+    while places > 0 && n.is_multiple_of(10) {
+        n /= 10;
+        places -= 1;
     }
-
-    /// The decimal digits of `v`, at least `width` of them (zeros in front), before the text
-    /// so far.
-    fn push_digits(&mut self, mut v: u64, width: usize) {
-        let end = self.start;
-        while v > 0 || end - self.start < width {
-            self.start -= 1;
-            self.buf[self.start] = b'0' + (v % 10) as u8;
-            v /= 10;
-        }
+    let mut ints = itoa::Buffer::new();
+    let all = ints.format(n);
+    if places == 0 {
+        push(all);
+    } else if all.len() > places {
+        let (int, frac) = all.split_at(all.len() - places);
+        push(int);
+        push(".");
+        push(frac);
+    } else {
+        push("0.");
+        push(&ZEROS[..places - all.len()]);
+        push(all);
     }
-
-    /// The text.
-    pub fn as_str(&self) -> &str {
-        // Only ASCII digits and a point were written.
-        std::str::from_utf8(&self.buf[self.start..]).unwrap_or("0")
-    }
+    places > 0
 }
 
 #[cfg(test)]
@@ -97,9 +80,16 @@ mod tests {
             (10, 1, "1"),
             (123_456_789_012_345, 10, "12345.6789012345"),
             (u64::MAX, 0, "18446744073709551615"),
+            (u64::MAX, 19, "1.8446744073709551615"),
+            (1, 19, "0.0000000000000000001"),
+            (10_000_000_000_000_000_000, 19, "1"),
+            (123, 3, "0.123"),
         ];
         for (n, digits, text) in cases {
-            assert_eq!(Scaled::new(n, digits).as_str(), text, "{n} / 10^{digits}");
+            let mut written = String::new();
+            let point = write_scaled(n, digits, |s| written.push_str(s));
+            assert_eq!(written, text, "{n} / 10^{digits}");
+            assert_eq!(point, text.contains('.'), "{n} / 10^{digits}");
         }
     }
 }

@@ -677,9 +677,9 @@ fn offset_all(
         Offsetting::Recompensate { burn_mm } => burn_mm,
     };
     let counter = progress.counter(Stage::Dilating, drawn.get().len());
-    let one = |i: usize, c: &Contour| {
+    let one = |i: usize, label: &str, pline: Pline| {
         let grow = parts[part_index[i]].kerf_um / 2000.0 - already_mm;
-        let offset = offset_one(c, roles[i], grow, how);
+        let offset = offset_one(label, pline, roles[i], grow, how);
         counter.step();
         offset
     };
@@ -687,15 +687,17 @@ fn offset_all(
         Drawn::Lent(contours) => contours
             .par_iter()
             .enumerate()
-            .map(|(i, c)| one(i, c))
+            .map(|(i, c)| one(i, &c.label, c.pline.clone()))
             .collect(),
         Drawn::Given(contours) => contours
             .par_iter_mut()
             .enumerate()
             .map(|(i, c)| {
-                let offset = one(i, c);
-                c.pline = Pline::new_closed();
-                offset
+                one(
+                    i,
+                    &c.label,
+                    std::mem::replace(&mut c.pline, Pline::new_closed()),
+                )
             })
             .collect(),
     };
@@ -760,13 +762,20 @@ fn merge_problem(contours: &[Contour], pa: &Part, pb: &Part, x: V2) -> String {
 /// Offset one contour: `grow` > 0 moves it away from the part's material by that many mm
 /// (outwards for an outer contour, into the hole for a hole).
 /// With [`Offsetting::Recompensate`] the drawn corners stay sharp where the contour moves into
-/// the material (`grow` < 0).
-fn offset_one(c: &Contour, role: Role, grow: f64, how: Offsetting) -> Result<Pline, String> {
+/// the material (`grow` < 0). `label` names the drawn contour `p` in messages.
+fn offset_one(
+    label: &str,
+    mut p: Pline,
+    role: Role,
+    grow: f64,
+    how: Offsetting,
+) -> Result<Pline, String> {
     if grow == 0.0 {
-        return Ok(c.pline.clone());
+        return Ok(p);
     }
-    let ccw = c.pline.area() > 0.0;
-    let mut p = c.pline.clone();
+    // Where the contour starts as drawn, for messages.
+    let first = first_point(&p);
+    let ccw = p.area() > 0.0;
     if !ccw {
         p.invert_direction_mut();
     }
@@ -784,8 +793,8 @@ fn offset_one(c: &Contour, role: Role, grow: f64, how: Offsetting) -> Result<Pli
             .map_err(|x| {
                 format!(
                     "{} at {}: its inner corner near {} cannot be kept sharp when its compensation is undone (a feature there is narrower than the change, {:.1} µm); recompensate the original drawing or use --already-compensated-ok",
-                    c.label,
-                    at(first_point(&c.pline)),
+                    label,
+                    at(first),
                     at(x),
                     grow.abs() * 1000.0
                 )
@@ -807,18 +816,18 @@ fn offset_one(c: &Contour, role: Role, grow: f64, how: Offsetting) -> Result<Pli
         }
         (Role::Hole, 0, _) => Err(format!(
             "the hole {} at {} is narrower than the kerf ({kerf_um:.1} µm) and would vanish: it could not be cut at its size",
-            c.label,
-            at(first_point(&c.pline))
+            label,
+            at(first)
         )),
         (Role::Hole, _, _) => Err(format!(
             "the hole {} at {} has a neck narrower than the kerf ({kerf_um:.1} µm): shrunk, it would split in two",
-            c.label,
-            at(first_point(&c.pline))
+            label,
+            at(first)
         )),
         (Role::Outer, _, _) => Err(format!(
             "the part {} at {} has a gap narrower than the kerf ({kerf_um:.1} µm) that would close around a void",
-            c.label,
-            at(first_point(&c.pline))
+            label,
+            at(first)
         )),
     }
 }

@@ -1282,47 +1282,40 @@ fn join_pieces(pieces: Vec<Piece>) -> Vec<Piece> {
             (p.y / JOIN_MM).round() as i64,
         )
     };
+    let ends_of: Vec<(V2, V2)> = pieces.iter().map(|p| (p.start(), p.end())).collect();
     let mut ends: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-    for (i, p) in pieces.iter().enumerate() {
-        ends.entry(key(p.start())).or_default().push(i);
-        ends.entry(key(p.end())).or_default().push(i);
+    for (i, &(start, end)) in ends_of.iter().enumerate() {
+        ends.entry(key(start)).or_default().push(i);
+        ends.entry(key(end)).or_default().push(i);
     }
-    let mut used = vec![false; pieces.len()];
-    let near = |q: V2, used: &[bool], ends: &HashMap<(i64, i64), Vec<usize>>| -> Option<usize> {
+    // A piece is taken out of its slot as it joins a chain (moved, never copied).
+    let mut slots: Vec<Option<Piece>> = pieces.into_iter().map(Some).collect();
+    // The free piece with an end at `q`, turned to start there (`forward`) or to end there.
+    let take_at = |q: V2, forward: bool, slots: &mut [Option<Piece>]| -> Option<Piece> {
         let (kx, ky) = key(q);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                if let Some(list) = ends.get(&(kx + dx, ky + dy)) {
-                    for &j in list {
-                        if !used[j]
-                            && ((pieces[j].start() - q).length() <= JOIN_MM
-                                || (pieces[j].end() - q).length() <= JOIN_MM)
-                        {
-                            return Some(j);
-                        }
-                    }
-                }
-            }
-        }
-        None
+        let j = (-1..=1)
+            .flat_map(|dx| (-1..=1).map(move |dy| (kx + dx, ky + dy)))
+            .filter_map(|k| ends.get(&k))
+            .flatten()
+            .copied()
+            .find(|&j| {
+                let (s, e) = ends_of[j];
+                slots[j].is_some() && ((s - q).length() <= JOIN_MM || (e - q).length() <= JOIN_MM)
+            })?;
+        let piece = slots[j].take()?;
+        let (start, end) = ends_of[j];
+        let kept = (if forward { start } else { end } - q).length() <= JOIN_MM;
+        Some(if kept { piece } else { piece.reversed() })
     };
     let mut chains = Vec::new();
-    for i in 0..pieces.len() {
-        if used[i] {
+    for i in 0..slots.len() {
+        let Some(mut chain) = slots[i].take() else {
             continue;
-        }
-        used[i] = true;
-        let mut chain = pieces[i].clone();
+        };
         // Forward.
         while (chain.end() - chain.start()).length() > JOIN_MM {
-            let Some(j) = near(chain.end(), &used, &ends) else {
+            let Some(next) = take_at(chain.end(), true, &mut slots) else {
                 break;
-            };
-            used[j] = true;
-            let next = if (pieces[j].start() - chain.end()).length() <= JOIN_MM {
-                pieces[j].clone()
-            } else {
-                pieces[j].clone().reversed()
             };
             chain.append(next);
         }
@@ -1331,14 +1324,8 @@ fn join_pieces(pieces: Vec<Piece>) -> Vec<Piece> {
         let mut before: Vec<Piece> = Vec::new();
         let mut start = chain.start();
         while (chain.end() - start).length() > JOIN_MM {
-            let Some(j) = near(start, &used, &ends) else {
+            let Some(prev) = take_at(start, false, &mut slots) else {
                 break;
-            };
-            used[j] = true;
-            let prev = if (pieces[j].end() - start).length() <= JOIN_MM {
-                pieces[j].clone()
-            } else {
-                pieces[j].clone().reversed()
             };
             start = prev.start();
             before.push(prev);

@@ -73,7 +73,7 @@ use roxmltree::{Document, Node, ParsingOptions};
 use usvg::tiny_skia_path::{self, PathSegment};
 
 use super::compensation::{self, CompensatedBy, IfCompensated};
-use super::decimal::{Scaled, decimals_for_step, pow10};
+use super::decimal::{decimals_for_step, pow10, write_scaled};
 use super::dilate::KerfSource;
 use super::entities;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
@@ -1469,7 +1469,7 @@ fn num(v: f64, digits: usize, out: &mut String) {
         if scaled != 0.0 && scaled < 0.0 {
             out.push('-');
         }
-        out.push_str(Scaled::new(scaled.abs() as u64, digits).as_str());
+        write_scaled(scaled.abs() as u64, digits, |s| out.push_str(s));
         return;
     }
     let mut s = format!("{v:.digits$}");

@@ -40,7 +40,7 @@ use cavalier_contours::polyline::PlineSource;
 use rayon::prelude::*;
 
 use super::rounded;
-use crate::decimal::{Scaled, pow10};
+use crate::decimal::{pow10, write_scaled};
 use crate::geom::Pline;
 
 /// Changed entities whose text is made at once, on any core, before it is put in its place (the
@@ -502,8 +502,8 @@ impl Out {
                 2
             };
             self.bytes.extend_from_slice(&b"  "[..width]);
-            self.bytes
-                .extend_from_slice(Scaled::new(code as u64, 0).as_str().as_bytes());
+            let bytes = &mut self.bytes;
+            write_scaled(code as u64, 0, |s| bytes.extend_from_slice(s.as_bytes()));
         } else {
             let _ = write!(self.bytes, "{code:>3}");
         }
@@ -574,9 +574,9 @@ fn fixed(v: f64, digits: i32, out: &mut Vec<u8>) {
     if (n / m).is_sign_negative() {
         out.push(b'-');
     }
-    let text = Scaled::new(n.abs() as u64, digits as usize);
-    out.extend_from_slice(text.as_str().as_bytes());
-    if !text.as_str().contains('.') {
+    if !write_scaled(n.abs() as u64, digits as usize, |s| {
+        out.extend_from_slice(s.as_bytes())
+    }) {
         out.extend_from_slice(b".0");
     }
 }
