@@ -85,8 +85,10 @@ use super::source_file::{Copier, SourceFile};
 use crate::error::{PlanError, Problems, Result};
 
 mod path_data;
+mod slices;
 
 use path_data::Flaw;
+use slices::Slicing;
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
 const XLINK_NS: &str = "http://www.w3.org/1999/xlink";
@@ -319,9 +321,31 @@ struct Rendered {
 /// is gone. Of usvg's tree only the cut paths' data is kept (a tenth of the tree). Reading parses
 /// the source again, to name and place the cuts.
 fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
+    render_sliced(text, opts, Slices::WherePaying)
+}
+
+/// A document at least this long is rendered in slices, on every core (see [`slices`]); below,
+/// slicing gains less than it costs.
+const SLICE_MIN_BYTES: usize = 256 * 1024;
+
+/// When a document is rendered in slices (see [`slices`]).
+#[derive(Clone, Copy, PartialEq)]
+enum Slices {
+    /// A document of at least [`SLICE_MIN_BYTES`], where slicing pays.
+    WherePaying,
+    /// Never (to compare).
+    #[cfg(test)]
+    Never,
+    /// Wherever a document can be sliced (to compare).
+    #[cfg(test)]
+    WherePossible,
+}
+
+/// [`render`], slicing the document as `slices` says.
+fn render_sliced(text: String, opts: &SvgOptions, slices: Slices) -> Result<(String, Rendered)> {
     let mut plan = Plan::new("svg");
     check_entities(&text)?;
-    let (tagged, use_by_id, shapes_len, mm_per_px, broken) = {
+    let (tagged, use_by_id, shapes_len, mm_per_px, broken, slicing) = {
         let doc = parse(&text)?;
         let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
         check_view_box(doc.root_element())?;
@@ -337,31 +361,42 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         let (shapes, uses) = shapes_and_uses(&doc);
         let broken = broken_paths(&text, &shapes)?;
         let (tagged, use_by_id) = tagged(&text, &shapes, &uses)?;
-        (tagged, use_by_id, shapes.len(), mm_per_px, broken)
+        let count = 4 * rayon::current_num_threads();
+        let slicing = match slices {
+            Slices::WherePaying if text.len() >= SLICE_MIN_BYTES => Slicing::plan(&doc, count),
+            Slices::WherePaying => None,
+            #[cfg(test)]
+            Slices::Never => None,
+            #[cfg(test)]
+            Slices::WherePossible => Slicing::possible(&doc, count),
+        }
+        .map(|s| s.moved(tagged.positions()));
+        (tagged, use_by_id, shapes.len(), mm_per_px, broken, slicing)
     };
     drop(text);
-    let tree = usvg::Tree::from_str(&tagged.text, &usvg_options())
-        .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
-    let mut walk = Walk {
+    let looking = Looking {
         rules: &opts.rules,
         mm_per_px,
         shapes_len,
         use_by_id: &use_by_id,
-        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
-        // grown by doubling, these vectors held up to twice their room at the peak of reading.
-        instances: Vec::with_capacity(shapes_len),
-        paths: Vec::with_capacity(shapes_len),
-        seen: HashSet::new(),
-        summary: &mut plan.summary,
-        unidentified: 0,
     };
-    walk.group(tree.root(), &mut Vec::new());
-    let (unidentified, mut instances, mut paths) = (walk.unidentified, walk.instances, walk.paths);
-    drop(tree);
+    let found = match slicing.map(|s| looking.render_slices(&tagged.text, &s)) {
+        Some(Some(found)) => found,
+        _ => looking.render_whole(&tagged.text)?,
+    };
+    let Found {
+        mut instances,
+        mut paths,
+        passed,
+        unidentified,
+    } = found;
     if unidentified > 0 {
         return Err(bad(format!(
             "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
         )));
+    }
+    for (reason, n) in passed {
+        *plan.summary.passed_through.entry(reason).or_default() += n;
     }
     check_broken(&broken, &instances, &mut plan.summary)?;
     instances.shrink_to_fit();
@@ -372,6 +407,81 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         paths,
     };
     Ok((tagged.untagged(), rendered))
+}
+
+/// What rendering looks for in a document (see [`Walk`]).
+struct Looking<'a> {
+    rules: &'a CutRules,
+    mm_per_px: f64,
+    shapes_len: usize,
+    use_by_id: &'a HashMap<String, usize>,
+}
+
+/// What rendering a document (or a slice of it) found: its cut instances, their path data, what
+/// passed through (by reason) and how many cut paths had no tag.
+#[derive(Default)]
+struct Found {
+    instances: Vec<Instance>,
+    paths: Vec<tiny_skia_path::Path>,
+    passed: BTreeMap<String, usize>,
+    unidentified: usize,
+}
+
+impl Looking<'_> {
+    /// Render the whole tagged copy `text` at once.
+    fn render_whole(&self, text: &str) -> Result<Found> {
+        let tree = usvg::Tree::from_str(text, &usvg_options())
+            .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
+        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
+        // grown by doubling, these vectors held up to twice their room at the peak of reading.
+        Ok(self.walk(&tree, self.shapes_len))
+    }
+
+    /// Render the slices of the tagged copy `text` on any core and put what they found together
+    /// in document order; `None` when a slice cannot be rendered (the whole document is, then,
+    /// for its error).
+    fn render_slices(&self, text: &str, slicing: &Slicing) -> Option<Found> {
+        let each: Vec<Option<Found>> = (0..slicing.len())
+            .into_par_iter()
+            .map(|k| {
+                let tree = usvg::Tree::from_str(&slicing.text(text, k), &usvg_options()).ok()?;
+                let mut found = self.walk(&tree, self.shapes_len / slicing.len());
+                found.instances.shrink_to_fit();
+                found.paths.shrink_to_fit();
+                Some(found)
+            })
+            .collect();
+        let mut all = Found {
+            instances: Vec::with_capacity(self.shapes_len),
+            paths: Vec::with_capacity(self.shapes_len),
+            ..Found::default()
+        };
+        for found in each {
+            let found = found?;
+            all.instances.extend(found.instances);
+            all.paths.extend(found.paths);
+            for (reason, n) in found.passed {
+                *all.passed.entry(reason).or_default() += n;
+            }
+            all.unidentified += found.unidentified;
+        }
+        Some(all)
+    }
+
+    /// The cut instances of a rendered tree, with room for `room` of them from the start.
+    fn walk(&self, tree: &usvg::Tree, room: usize) -> Found {
+        let mut walk = Walk {
+            looking: self,
+            seen: HashSet::new(),
+            found: Found {
+                instances: Vec::with_capacity(room),
+                paths: Vec::with_capacity(room),
+                ..Found::default()
+            },
+        };
+        walk.group(tree.root(), &mut Vec::new());
+        walk.found
+    }
 }
 
 /// A `<path>`, `<polygon>` or `<polyline>` whose path data or points break off (see
@@ -553,6 +663,25 @@ impl Tagged {
         })
     }
 
+    /// Where each byte of the source is in the tagged text (a position where a tag was inserted
+    /// is taken to be after the tag).
+    fn positions(&self) -> impl Fn(usize) -> usize {
+        // Tag k was inserted at source position tags[k].start less the tags before it; `after[k]`
+        // is the length of tags 0..=k.
+        let mut inserted_at = Vec::with_capacity(self.tags.len());
+        let mut after = Vec::with_capacity(self.tags.len());
+        let mut before = 0;
+        for tag in &self.tags {
+            inserted_at.push(tag.start - before);
+            before += tag.len();
+            after.push(before);
+        }
+        move |at| {
+            let k = inserted_at.partition_point(|&i| i <= at);
+            at + if k == 0 { 0 } else { after[k - 1] }
+        }
+    }
+
     /// The source again: the text without the tags.
     fn untagged(self) -> String {
         let tagged_len: usize = self.tags.iter().map(Range::len).sum();
@@ -609,6 +738,27 @@ fn tagged(text: &str, shapes: &[Node], uses: &[Node]) -> Result<(Tagged, HashMap
         }
     }
     Ok((Tagged::new(text, tags)?, use_by_id))
+}
+
+/// Write a batch of instances' new geometry (`made`, in document order) and, before each edit of
+/// it, the other `edits` that come first.
+fn write_batch(
+    made: Vec<Option<Result<Vec<Edit>>>>,
+    edits: &mut std::iter::Peekable<std::vec::IntoIter<Edit>>,
+    out: &mut EditWriter,
+    summary: &mut PlanSummary,
+) -> Result<()> {
+    for geometry in made.into_iter().flatten() {
+        summary.changed_elements += 1;
+        // On a tie the geometry goes first, as it did when all edits were sorted at once.
+        for e in sorted(geometry?) {
+            while let Some(x) = edits.next_if(|x| edit_key(x) < edit_key(&e)) {
+                out.apply(x)?;
+            }
+            out.apply(e)?;
+        }
+    }
+    Ok(())
 }
 
 /// An SVG document in the plan pipeline: the source text and the cut instances found by
@@ -819,21 +969,22 @@ impl<'w> SvgPlan<'w> {
             _ => Src::Text(&self.text),
         };
         let mut out = EditWriter::new(src, sink);
-        for batch in direct.chunks(WRITE_BATCH) {
-            let made: Vec<Option<Result<Vec<Edit>>>> = batch
+        let batches: Vec<&[usize]> = direct.chunks(WRITE_BATCH).collect();
+        let make = |batch: &[usize]| -> Vec<Option<Result<Vec<Edit>>>> {
+            batch
                 .par_iter()
                 .map(|&ii| self.instance_edits(ii, &self.instances[ii], contour_of))
-                .collect();
-            for geometry in made.into_iter().flatten() {
-                summary.changed_elements += 1;
-                // On a tie the geometry goes first, as it did when all edits were sorted at once.
-                for e in sorted(geometry?) {
-                    while let Some(x) = edits.next_if(|x| edit_key(x) < edit_key(&e)) {
-                        out.apply(x)?;
-                    }
-                    out.apply(e)?;
-                }
-            }
+                .collect()
+        };
+        let mut made = batches.first().map(|b| make(b));
+        for k in 0..batches.len() {
+            let current = made.take().unwrap_or_default();
+            // The next batch is made on the pool while this thread writes this one.
+            let written = rayon::in_place_scope(|scope| {
+                scope.spawn(|_| made = batches.get(k + 1).map(|b| make(b)));
+                write_batch(current, &mut edits, &mut out, summary)
+            });
+            written?;
         }
         for x in edits {
             out.apply(x)?;
@@ -1191,15 +1342,9 @@ fn document_scale(
 
 /// The walk over usvg's tree: the cut instances found, and each one's path data (a copy).
 struct Walk<'a> {
-    rules: &'a CutRules,
-    mm_per_px: f64,
-    shapes_len: usize,
-    use_by_id: &'a HashMap<String, usize>,
-    instances: Vec<Instance>,
-    paths: Vec<tiny_skia_path::Path>,
+    looking: &'a Looking<'a>,
     seen: HashSet<(usize, Option<usize>)>,
-    summary: &'a mut PlanSummary,
-    unidentified: usize,
+    found: Found,
 }
 
 impl Walk<'_> {
@@ -1207,7 +1352,7 @@ impl Walk<'_> {
         for child in g.children() {
             match child {
                 usvg::Node::Group(c) => {
-                    let u = self.use_by_id.get(c.id()).copied();
+                    let u = self.looking.use_by_id.get(c.id()).copied();
                     if let Some(u) = u {
                         uses.push(u);
                     }
@@ -1220,15 +1365,21 @@ impl Walk<'_> {
                 // Never loaded (see `usvg_options`): the source counted them.
                 usvg::Node::Image(_) => {}
                 #[allow(unreachable_patterns)]
-                _ => self.summary.pass("other"),
+                _ => self.pass("other"),
             }
         }
     }
 
+    /// Count an element passed through for `reason`.
+    fn pass(&mut self, reason: &str) {
+        *self.found.passed.entry(reason.to_owned()).or_default() += 1;
+    }
+
     fn path(&mut self, p: &usvg::Path, uses: &[usize]) {
-        let to_doc = Affine::scale(self.mm_per_px).then_after(&affine(p.abs_transform()));
+        let look = self.looking;
+        let to_doc = Affine::scale(look.mm_per_px).then_after(&affine(p.abs_transform()));
         if !p.is_visible() {
-            self.summary.pass("hidden");
+            self.pass("hidden");
             return;
         }
         let stroke = p.stroke().and_then(|s| match s.paint() {
@@ -1240,16 +1391,16 @@ impl Walk<'_> {
             _ => None,
         });
         let filled = p.fill().is_some_and(|f| f.opacity().get() > 0.0);
-        match self
+        match look
             .rules
             .classify_svg(stroke.map(|(c, w, _)| (c, w)), filled)
         {
-            Verdict::Keep(reason) => self.summary.pass(reason),
+            Verdict::Keep(reason) => self.pass(&reason),
             Verdict::Cut => {
                 let code = stroke.map(|s| s.2).unwrap_or(0.0);
                 let element = code as usize;
-                if code.fract() != 0.0 || element == 0 || element > self.shapes_len {
-                    self.unidentified += 1;
+                if code.fract() != 0.0 || element == 0 || element > look.shapes_len {
+                    self.found.unidentified += 1;
                     return;
                 }
                 // usvg drops ids inside clones, so only the outermost <use> is seen; a cut
@@ -1270,8 +1421,8 @@ impl Walk<'_> {
                     start: 0,
                     slots: Vec::new(),
                 };
-                self.instances.push(instance);
-                self.paths.push(p.data().clone());
+                self.found.instances.push(instance);
+                self.found.paths.push(p.data().clone());
             }
         }
     }
@@ -1821,6 +1972,67 @@ mod tests {
             &KerfSource::Uniform(kerf_um),
             &SvgOptions::default(),
         )
+    }
+
+    /// What rendering found, as text to compare: the error, or the source given back, what passed
+    /// through and every cut instance with its path data.
+    fn found_text(rendered: &Result<(String, Rendered)>) -> String {
+        let (src, r) = match rendered {
+            Err(e) => return format!("error: {e}"),
+            Ok(ok) => ok,
+        };
+        let mut text = format!("{src}\n{:?}\n", r.plan.summary.passed_through);
+        for (i, p) in r.instances.iter().zip(&r.paths) {
+            let (element, via, to_doc, stroke) = (i.element, i.via_use, i.to_doc, i.stroke);
+            let _ = writeln!(text, "{element} {via:?} {to_doc:?} {stroke:?} {p:?}");
+        }
+        text
+    }
+
+    /// A plan of `parts` parts in groups of their own: clones of shared definitions, a gradient,
+    /// paths, rectangles and circles, and a `<use>` of a path in the same group.
+    fn grouped_plan(parts: usize) -> String {
+        let mut body = String::from(
+            r##"<defs><linearGradient id="lg"/><path id="hole" d="M1 1h2v2h-2z"/></defs>"##,
+        );
+        for k in 0..parts {
+            let (x, y) = (k % 10 * 12, k / 10 * 12);
+            body += &format!(
+                r##"<g transform="translate({x} {y})" stroke="red" fill="none"><path id="o{k}" d="M0 0h10v10h-10z"/><use href="#hole"/><circle cx="7" cy="7" r="1"/><rect x="5" y="1" width="3" height="2" stroke="blue"/><use href="#o{k}" x="200"/><path d="M0 11h9" fill="url(#lg)"/></g>"##
+            );
+        }
+        format!("{HEAD}{body}</svg>")
+    }
+
+    #[test]
+    fn rendering_in_slices_finds_what_rendering_whole_does() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests");
+        let mut texts: Vec<(String, String)> = ["corpus", "fixtures"]
+            .iter()
+            .flat_map(|d| std::fs::read_dir(format!("{dir}/{d}")).expect("test files"))
+            .map(|e| e.expect("entry").path())
+            .filter(|p| p.extension().is_some_and(|x| x == "svg"))
+            .map(|p| {
+                (
+                    p.display().to_string(),
+                    std::fs::read_to_string(&p).expect("SVG"),
+                )
+            })
+            .collect();
+        texts.push(("grouped plan".into(), grouped_plan(40)));
+        let opts = SvgOptions {
+            assume_units: Some(AssumedUnits::Mm),
+            ..SvgOptions::default()
+        };
+        let mut sliced = 0;
+        for (name, text) in &texts {
+            let whole = render_sliced(text.clone(), &opts, Slices::Never);
+            let in_slices = render_sliced(text.clone(), &opts, Slices::WherePossible);
+            assert_eq!(found_text(&whole), found_text(&in_slices), "{name}");
+            let doc = parse(text);
+            sliced += usize::from(doc.is_ok_and(|d| Slicing::possible(&d, 8).is_some()));
+        }
+        assert!(sliced >= 4, "only {sliced} of the files were sliced");
     }
 
     #[test]
