@@ -150,9 +150,12 @@ pub fn dilate_dxf(
     kerf: &KerfSource,
     opts: &DxfOptions,
 ) -> Result<(Vec<u8>, PlanSummary)> {
-    let (drawing, found) = load(bytes, &opts.progress)?;
+    // Where the entities are in the file (for the splice) is found on another core while the
+    // `dxf` crate parses it.
+    let (loaded, layout) = rayon::join(|| load(bytes, &opts.progress), || Layout::scan(bytes));
+    let (drawing, found) = loaded?;
     let (changes, summary) = dilate_loaded(drawing, kerf, opts, found)?;
-    Ok((save(changes, &summary, bytes)?, summary))
+    Ok((save(changes, &summary, bytes, layout)?, summary))
 }
 
 /// [`dilate_dxf`] on bytes it owns (the file read by the command).
@@ -175,16 +178,21 @@ fn load(bytes: &[u8], progress: &Progress) -> Result<(Drawing, Option<FoundCompe
 
 /// The dilated drawing's file: the record of what was applied first, as `999` comments (the
 /// `dxf` crate writes none), then the input's bytes with the changed entities spliced in (see the
-/// `splice` submodule); or, where that cannot be done, the changed drawing written whole by the
-/// `dxf` crate.
-fn save(changes: Changes, summary: &PlanSummary, input: &[u8]) -> Result<Vec<u8>> {
+/// `splice` submodule; `layout` is the input's); or, where that cannot be done, the changed
+/// drawing written whole by the `dxf` crate.
+fn save(
+    changes: Changes,
+    summary: &PlanSummary,
+    input: &[u8],
+    layout: Option<Layout>,
+) -> Result<Vec<u8>> {
     let record = |eol: &str| {
         summary
             .compensation_applied
             .as_ref()
             .map(|applied| applied.dxf_record(eol))
     };
-    if let Some(out) = changes.splice(input, record("\n").as_deref()) {
+    if let Some(out) = changes.splice(input, layout, record("\n").as_deref()) {
         return Ok(out);
     }
     let drawing = changes.apply();
@@ -593,9 +601,15 @@ impl Changes {
         self.drawing
     }
 
-    /// The input `bytes` with the changes spliced in (see the `splice` submodule), `record`
-    /// first; `None` when that cannot be done and the drawing must be written whole.
-    fn splice(&self, bytes: &[u8], record: Option<&str>) -> Option<Vec<u8>> {
+    /// The input `bytes` (laid out as `layout` says) with the changes spliced in (see the
+    /// `splice` submodule), `record` first; `None` when that cannot be done and the drawing must
+    /// be written whole.
+    fn splice(
+        &self,
+        bytes: &[u8],
+        layout: Option<Layout>,
+        record: Option<&str>,
+    ) -> Option<Vec<u8>> {
         if self.drawing.header.version < AcadVersion::R2000
             || self.assumed.is_some()
             || !self.retargets.is_empty()
@@ -603,7 +617,7 @@ impl Changes {
         {
             return None;
         }
-        let mut splice = Splice::new(Layout::scan(bytes)?);
+        let mut splice = Splice::new(layout?);
         let entities: Vec<&Entity> = self.drawing.entities().collect();
         for (origin, d) in &self.cuts {
             if !splice_cut(&mut splice, bytes, &entities, self.scale, origin, d) {
