@@ -44,21 +44,21 @@
 //!   element, see [`compensation`]), replacing an earlier record of this
 //!   tool's.
 //!
-//! **Memory.** The dilated document is several times its source (every rounded corner an arc), so
-//! it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of elements'
-//! path data at a time. No step holds more than it needs: the source's XML tree is dropped, and
-//! so is the source itself, while usvg parses the tagged copy (the source is made again from the
-//! copy, whose insertions are known), and of usvg's tree only the cut paths' data is kept; the
-//! source is parsed again to name the cuts and find where their new path data goes (byte
-//! ranges, a few per element), and that tree goes before the cuts are traced, each path's data
-//! freed as it is traced (writing parses the source once more only to copy the targets of
-//! `<use>` clones, and G-code's cut order parses it again for the cuts' Inkscape layers). A plan
-//! read from a file ([`crate::file::dilate_file_into`], what the CLI uses) does not hold its
-//! text while its cuts are dilated: the file is read again, checked unchanged, as the output is
-//! written. The kernel frees each drawn contour as it is offset. The peak is usvg's parse (the
-//! tagged copy, usvg's XML tree of it and its own tree); the end of the dilation (the dilated
-//! contours, cavalier's 24 bytes a vertex, and what each cut needs to be written back) is a
-//! little lower.
+//! **Memory and cores.** The dilated document is several times its source (every rounded corner
+//! an arc), so it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch
+//! of elements' path data at a time, the next batch made on the other cores while this one is
+//! written. No step holds more than it needs. The source is parsed once while it is read: to tag
+//! it for usvg, and, once usvg has rendered the tagged copy, to name the cuts and find where their
+//! new path data goes (byte ranges, a few per element); that tree goes before the cuts are traced,
+//! each path's data freed as it is traced (writing parses the source once more only to copy the
+//! targets of `<use>` clones, and G-code's cut order parses it again for the cuts' Inkscape
+//! layers). usvg renders a large plan in slices, on every core (the `slices` submodule): a slice's tree is
+//! a fraction of the whole document's, and of each tree only the cut paths' data is kept. A plan
+//! read from a file ([`crate::file::dilate_file_into`], what the CLI uses) does not hold its text
+//! while its cuts are dilated: the file is read again, checked unchanged, as the output is
+//! written. The kernel frees each drawn contour as it is offset. The peak is the end of the
+//! dilation (the dilated contours, cavalier's 24 bytes a vertex, and what each cut needs to be
+//! written back), in a heap left fragmented by the reading before it.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -304,22 +304,32 @@ fn parse(text: &str) -> Result<Document<'_>> {
 }
 
 /// The document as usvg renders it: the plan begun (units, the compensation recorded, what
-/// passes through) and each cut instance with its path data (element coordinates).
+/// passes through) and each cut instance with its path data (element coordinates), placed in the
+/// source and named.
 struct Rendered {
     plan: Plan<(usize, usize)>,
     instances: Vec<Instance>,
     /// `paths[k]` is the path data of `instances[k]`.
     paths: Vec<tiny_skia_path::Path>,
+    /// `names[k]` names `instances[k]` in messages.
+    names: Vec<String>,
+    /// Whether each instance is of boxes.py's reference rectangle (empty unless the plan is
+    /// boxes.py's).
+    boxes_reference: Vec<bool>,
+    /// Where this tool's compensation record goes in the source.
+    records: Records,
+    /// Where each line of the source starts.
+    lines: LineIndex,
 }
 
 /// Render the document with usvg and find its cut instances; the source is given back.
 ///
-/// Memory: this is the largest step of reading, so nothing else large is alive during it. The
-/// XML tree of the source (parsed here to check it, read its size and records, and tag its
-/// elements, see [`tagged`]) goes before usvg parses the tagged copy, and so does the source
-/// itself: it is made again from the tagged copy, whose insertions are known, once usvg's tree
-/// is gone. Of usvg's tree only the cut paths' data is kept (a tenth of the tree). Reading parses
-/// the source again, to name and place the cuts.
+/// Memory: this is the largest step of reading. The source and its XML tree (parsed here to check
+/// it, read its size and records, tag its elements, see [`tagged`], and place and name the cuts
+/// found) are held while usvg renders the tagged copy, which it does in slices on every core (see
+/// [`slices`]) where it can: a slice's tree is a fraction of the whole document's. Of usvg's trees
+/// only the cut paths' data is kept (a tenth of a tree). The source's tree goes before the cuts
+/// are traced.
 fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     render_sliced(text, opts, Slices::WherePaying)
 }
@@ -345,45 +355,42 @@ enum Slices {
 fn render_sliced(text: String, opts: &SvgOptions, slices: Slices) -> Result<(String, Rendered)> {
     let mut plan = Plan::new("svg");
     check_entities(&text)?;
-    let (tagged, use_by_id, shapes_len, mm_per_px, broken, slicing) = {
-        let doc = parse(&text)?;
-        let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
-        check_view_box(doc.root_element())?;
-        plan.summary.mm_per_unit = user_unit_mm(doc.root_element(), mm_per_px);
-        plan.summary.compensation_found = compensation::find_in_svg(&doc);
-        for n in doc.descendants() {
-            if n.has_tag_name((SVG_NS, "text")) {
-                plan.summary.pass("text");
-            } else if n.has_tag_name((SVG_NS, "image")) {
-                plan.summary.pass("image");
-            }
+    let doc = parse(&text)?;
+    let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
+    check_view_box(doc.root_element())?;
+    plan.summary.mm_per_unit = user_unit_mm(doc.root_element(), mm_per_px);
+    plan.summary.compensation_found = compensation::find_in_svg(&doc);
+    for n in doc.descendants() {
+        if n.has_tag_name((SVG_NS, "text")) {
+            plan.summary.pass("text");
+        } else if n.has_tag_name((SVG_NS, "image")) {
+            plan.summary.pass("image");
         }
-        let (shapes, uses) = shapes_and_uses(&doc);
-        let broken = broken_paths(&text, &shapes)?;
-        let (tagged, use_by_id) = tagged(&text, &shapes, &uses)?;
-        let count = 4 * rayon::current_num_threads();
-        let slicing = match slices {
-            Slices::WherePaying if text.len() >= SLICE_MIN_BYTES => Slicing::plan(&doc, count),
-            Slices::WherePaying => None,
-            #[cfg(test)]
-            Slices::Never => None,
-            #[cfg(test)]
-            Slices::WherePossible => Slicing::possible(&doc, count),
-        }
-        .map(|s| s.moved(tagged.positions()));
-        (tagged, use_by_id, shapes.len(), mm_per_px, broken, slicing)
-    };
-    drop(text);
+    }
+    let el = Elements::of(&doc);
+    let broken = broken_paths(&text, &el.shapes)?;
+    let (tagged, use_by_id) = tagged(&text, &el.shapes, &el.uses)?;
+    let count = 4 * rayon::current_num_threads();
+    let slicing = match slices {
+        Slices::WherePaying if text.len() >= SLICE_MIN_BYTES => Slicing::plan(&doc, count),
+        Slices::WherePaying => None,
+        #[cfg(test)]
+        Slices::Never => None,
+        #[cfg(test)]
+        Slices::WherePossible => Slicing::possible(&doc, count),
+    }
+    .map(|s| s.moved(tagged.positions()));
     let looking = Looking {
         rules: &opts.rules,
         mm_per_px,
-        shapes_len,
+        shapes_len: el.shapes.len(),
         use_by_id: &use_by_id,
     };
     let found = match slicing.map(|s| looking.render_slices(&tagged.text, &s)) {
         Some(Some(found)) => found,
         _ => looking.render_whole(&tagged.text)?,
     };
+    drop(tagged);
     let Found {
         mut instances,
         mut paths,
@@ -401,12 +408,85 @@ fn render_sliced(text: String, opts: &SvgOptions, slices: Slices) -> Result<(Str
     check_broken(&broken, &instances, &mut plan.summary)?;
     instances.shrink_to_fit();
     paths.shrink_to_fit();
+    let lines = LineIndex::new(&text);
+    let source = Source {
+        lines: &lines,
+        el: &el,
+    };
+    source.check_uses(&instances)?;
+    place(&mut instances, &text, &el);
+    let names = (instances.iter()).map(|inst| source.label(inst)).collect();
+    let boxes_reference = source.boxes_references(&instances, &plan.summary);
+    let records = Records {
+        old: compensation::own_svg_records(&doc),
+        at: doc.root_element().first_child().map(|n| n.range().start),
+    };
+    drop(el);
+    drop(doc);
     let rendered = Rendered {
         plan,
         instances,
         paths,
+        names,
+        boxes_reference,
+        records,
+        lines,
     };
-    Ok((tagged.untagged(), rendered))
+    Ok((text, rendered))
+}
+
+/// The source as its cut instances are named: its lines and elements.
+struct Source<'s, 'd, 'a> {
+    lines: &'s LineIndex,
+    el: &'s Elements<'d, 'a>,
+}
+
+impl Source<'_, '_, '_> {
+    /// How to name an instance in messages.
+    fn label(&self, inst: &Instance) -> String {
+        let el = self.el;
+        let mut s = describe(self.lines, el.shapes[inst.element]);
+        if let Some(u) = inst.via_use {
+            s.push_str(&format!(" via <use> {}", describe(self.lines, el.uses[u])));
+        }
+        s
+    }
+
+    /// Refuse cuts reached through nested `<use>` clones (they cannot be copied one by one).
+    fn check_uses(&self, instances: &[Instance]) -> Result<()> {
+        let el = self.el;
+        let mut problems = Problems::default();
+        for inst in instances {
+            if let Some(u) = inst.via_use {
+                // `ancestors()` starts at the node itself: the target may be the shape.
+                let target = use_target(el.uses[u], &el.ids);
+                let inside =
+                    target.is_some_and(|t| el.shapes[inst.element].ancestors().any(|a| a == t));
+                if !inside {
+                    problems.push(format!(
+                        "{} is reached through nested <use> clones; unlink the clones first (Inkscape: Edit ▸ Clone ▸ Unlink Clone)",
+                        self.label(inst)
+                    ));
+                }
+            }
+        }
+        problems.into_error(PlanError::Svg)
+    }
+
+    /// In a boxes.py plan, which instances are of its reference rectangle, which boxes.py draws
+    /// without burn (by instance; empty for other plans).
+    fn boxes_references(&self, instances: &[Instance], summary: &PlanSummary) -> Vec<bool> {
+        let boxes = summary
+            .compensation_found
+            .as_ref()
+            .is_some_and(|f| f.by == CompensatedBy::BoxesPy);
+        if !boxes {
+            return Vec::new();
+        }
+        (instances.iter())
+            .map(|inst| compensation::is_boxes_reference(self.el.shapes[inst.element]))
+            .collect()
+    }
 }
 
 /// What rendering looks for in a document (see [`Walk`]).
@@ -633,8 +713,8 @@ struct Records {
     at: Option<usize>,
 }
 
-/// The source with tags inserted (see [`tagged`]), and where they are, so that the source can be
-/// made again from it.
+/// The source with tags inserted (see [`tagged`]), and where they are, so that a place in the
+/// source can be found in it.
 struct Tagged {
     text: String,
     /// The inserted tags' ranges in `text`, in order.
@@ -680,19 +760,6 @@ impl Tagged {
             let k = inserted_at.partition_point(|&i| i <= at);
             at + if k == 0 { 0 } else { after[k - 1] }
         }
-    }
-
-    /// The source again: the text without the tags.
-    fn untagged(self) -> String {
-        let tagged_len: usize = self.tags.iter().map(Range::len).sum();
-        let mut src = String::with_capacity(self.text.len() - tagged_len);
-        let mut pos = 0;
-        for tag in &self.tags {
-            src.push_str(&self.text[pos..tag.start]);
-            pos = tag.end;
-        }
-        src.push_str(&self.text[pos..]);
-        src
     }
 }
 
@@ -765,8 +832,9 @@ fn write_batch(
 /// rendering it. A contour's origin is (instance, subpath).
 ///
 /// No XML tree of the source is kept between the steps (it was a fifth of the peak memory, held
-/// through the dilation): reading parses the source to name the cuts and find where their new
-/// path data goes, and drops it; writing parses it again only for cuts reached through `<use>`,
+/// through the dilation): rendering parses the source once, to tag it for usvg and then to name
+/// the cuts and find where their new path data goes, and drops it before the cuts are traced;
+/// writing parses it again only for cuts reached through `<use>`,
 /// whose targets are copied. A plan read from a file does not even hold the source's text while
 /// its cuts are dilated: the file is read again as the output is written (see [`SourceFile`]).
 struct SvgPlan<'w> {
@@ -791,11 +859,11 @@ impl<'w> SvgPlan<'w> {
     fn new(
         text: String,
         file: Option<SourceFile>,
-        rendered: Rendered,
+        mut rendered: Rendered,
         out: &'w mut (dyn Write + Sync),
     ) -> Self {
         SvgPlan {
-            lines: LineIndex::new(&text),
+            lines: std::mem::take(&mut rendered.lines),
             text,
             file,
             instances: Vec::new(),
@@ -846,35 +914,6 @@ impl<'w> SvgPlan<'w> {
         Ok((traced, reach, farthest))
     }
 
-    /// How to name an instance in messages.
-    fn label(&self, el: &Elements, inst: &Instance) -> String {
-        let mut s = describe(&self.lines, el.shapes[inst.element]);
-        if let Some(u) = inst.via_use {
-            s.push_str(&format!(" via <use> {}", describe(&self.lines, el.uses[u])));
-        }
-        s
-    }
-
-    /// Refuse cuts reached through nested `<use>` clones (they cannot be copied one by one).
-    fn check_uses(&self, el: &Elements) -> Result<()> {
-        let mut problems = Problems::default();
-        for inst in &self.instances {
-            if let Some(u) = inst.via_use {
-                // `ancestors()` starts at the node itself: the target may be the shape.
-                let target = use_target(el.uses[u], &el.ids);
-                let inside =
-                    target.is_some_and(|t| el.shapes[inst.element].ancestors().any(|a| a == t));
-                if !inside {
-                    problems.push(format!(
-                        "{} is reached through nested <use> clones; unlink the clones first (Inkscape: Edit ▸ Clone ▸ Unlink Clone)",
-                        self.label(el, inst)
-                    ));
-                }
-            }
-        }
-        problems.into_error(PlanError::Svg)
-    }
-
     /// Each instance's traced subpaths (by instance), in document order: closed ones are cuts,
     /// the rest open paths.
     fn contours(plan: &mut Plan<(usize, usize)>, traced: Vec<Vec<Traced>>) {
@@ -886,40 +925,6 @@ impl<'w> SvgPlan<'w> {
                 }
             }
         }
-    }
-
-    /// In a boxes.py plan, which instances are of its reference rectangle, which boxes.py draws
-    /// without burn (by instance; empty for other plans).
-    fn boxes_references(&self, el: &Elements, summary: &PlanSummary) -> Vec<bool> {
-        let boxes = summary
-            .compensation_found
-            .as_ref()
-            .is_some_and(|f| f.by == CompensatedBy::BoxesPy);
-        if !boxes {
-            return Vec::new();
-        }
-        (self.instances.iter())
-            .map(|inst| compensation::is_boxes_reference(el.shapes[inst.element]))
-            .collect()
-    }
-
-    /// Everything reading needs from the source's XML tree, found in one parse that is dropped
-    /// before the cuts are traced (the tree and the traced contours held at once were the peak
-    /// of reading): the uses checked, the instances placed, the compensation records found, and
-    /// each instance's name and whether it is of boxes.py's reference rectangle.
-    fn read_source(&mut self, summary: &PlanSummary) -> Result<(Vec<String>, Vec<bool>)> {
-        let doc = parse(&self.text)?;
-        let el = Elements::of(&doc);
-        self.check_uses(&el)?;
-        place(&mut self.instances, &self.text, &el);
-        self.records = Records {
-            old: compensation::own_svg_records(&doc),
-            at: doc.root_element().first_child().map(|n| n.range().start),
-        };
-        let names = (self.instances.iter())
-            .map(|inst| self.label(&el, inst))
-            .collect();
-        Ok((names, self.boxes_references(&el, summary)))
     }
 
     /// The new geometry of the instances reached through `<use>`, as edits by `<use>`: their
@@ -1145,12 +1150,16 @@ impl Format for SvgPlan<'_> {
             mut plan,
             instances,
             paths,
+            names,
+            boxes_reference,
+            records,
+            lines: _,
         }) = self.rendered.take()
         else {
             return Err(bad("internal error: the SVG was read twice"));
         };
         self.instances = instances;
-        let (names, boxes_reference) = self.read_source(&plan.summary)?;
+        self.records = records;
         let (traced, reach, farthest) = self.trace_all(paths, &names)?;
         if let Some(name) = names.get(farthest) {
             check_reach(reach, name, &mut plan.summary)?;
@@ -1172,8 +1181,8 @@ impl Format for SvgPlan<'_> {
 
     fn groups(&self, plan: &Plan<(usize, usize)>) -> Vec<CutGroup> {
         // The layers are read from the source parsed again (only G-code asks for them, and it
-        // parsed in `read`: a failure now would be a bug, not bad input). The cuts' path never
-        // reads from a file (`dilate_svg_cuts` keeps its text), so the text is here.
+        // parsed when it was rendered: a failure now would be a bug, not bad input). The cuts'
+        // path never reads from a file (`dilate_svg_cuts` keeps its text), so the text is here.
         debug_assert!(
             self.file.is_none(),
             "the cuts' groups need the source's text"
@@ -1935,6 +1944,7 @@ fn describe(lines: &LineIndex, n: Node) -> String {
 /// Line and column numbers of byte offsets in a text, each found by a binary search over the
 /// lines' starts. (roxmltree's `Document::text_pos_at` counts from the start of the document
 /// every time, which made naming every element of a large file quadratic in its size.)
+#[derive(Default)]
 struct LineIndex {
     /// Byte offset of the start of each line.
     starts: Vec<usize>,
@@ -2251,7 +2261,7 @@ mod tests {
     }
 
     #[test]
-    fn the_source_is_made_again_from_its_tagged_copy() {
+    fn tags_are_inserted_in_order_and_source_positions_follow_them() {
         let src = "<svg>\n  <path d=\"M0 0\"/><use href=\"#a\"/>é<rect/></svg>";
         let at = |needle: &str| src.find(needle).unwrap();
         let insert = |at: usize, text: &str| Edit {
@@ -2270,7 +2280,12 @@ mod tests {
             tagged.text,
             "<svg>\n  <path style=\"a\" d=\"M0 0\"/><use id=\"u\" x=\"1\" href=\"#a\"/>é<rect style=\"b\"/></svg>"
         );
-        assert_eq!(tagged.untagged(), src);
+        // Every byte of the source is found where it went in the tagged text.
+        let position = tagged.positions();
+        for (i, b) in src.bytes().enumerate() {
+            assert_eq!(tagged.text.as_bytes()[position(i)], b, "source byte {i}");
+        }
+        assert_eq!(position(src.len()), tagged.text.len());
     }
 
     /// No image is loaded: an `href` may name any file or device (`/dev/zero`, a FIFO).
