@@ -44,21 +44,21 @@
 //!   element, see [`compensation`]), replacing an earlier record of this
 //!   tool's.
 //!
-//! **Memory and cores.** The dilated document is several times its source (every rounded corner
-//! an arc), so it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch
-//! of elements' path data at a time, the next batch made on the other cores while this one is
-//! written. No step holds more than it needs. The source is parsed once while it is read: to tag
-//! it for usvg, and, once usvg has rendered the tagged copy, to name the cuts and find where their
-//! new path data goes (byte ranges, a few per element); that tree goes before the cuts are traced,
-//! each path's data freed as it is traced (writing parses the source once more only to copy the
-//! targets of `<use>` clones, and G-code's cut order parses it again for the cuts' Inkscape
-//! layers). usvg renders a large plan in slices, on every core (the `slices` submodule): a slice's tree is
-//! a fraction of the whole document's, and of each tree only the cut paths' data is kept. A plan
-//! read from a file ([`crate::file::dilate_file_into`], what the CLI uses) does not hold its text
-//! while its cuts are dilated: the file is read again, checked unchanged, as the output is
-//! written. The kernel frees each drawn contour as it is offset. The peak is the end of the
-//! dilation (the dilated contours, cavalier's 24 bytes a vertex, and what each cut needs to be
-//! written back), in a heap left fragmented by the reading before it.
+//! **Memory and cores.** The dilated document is several times its source (every rounded corner an
+//! arc), so it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of
+//! elements' path data at a time, the next batch made on the other cores while this one is written.
+//! No step holds more than it needs. The source is parsed once while it is read: to tag it for
+//! usvg, and, once usvg has rendered the tagged copy, to name the cuts and find where their new
+//! path data goes (byte ranges, a few per element); that tree goes before the cuts are traced, each
+//! path's data freed as it is traced (writing parses the source once more only to copy the targets
+//! of `<use>` clones, and G-code's cut order parses it again for the cuts' Inkscape layers). usvg
+//! renders a large plan in slices, on every core (the `slices` submodule): a slice's tree is a
+//! fraction of the whole document's, and of each tree only the cut paths' data is kept. A plan read
+//! from a file ([`crate::file::dilate_file_into`], what the CLI uses) does not hold its text while
+//! its cuts are dilated: the file is read again, checked unchanged, as the output is written. The
+//! kernel frees each drawn contour as it is offset. The peak is the end of the dilation (the
+//! dilated contours, cavalier's 24 bytes a vertex, and what each cut needs to be written back), in
+//! a heap left fragmented by the reading before it.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
