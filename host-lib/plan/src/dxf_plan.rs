@@ -151,7 +151,8 @@ pub fn dilate_dxf(
     opts: &DxfOptions,
 ) -> Result<(Vec<u8>, PlanSummary)> {
     // Where the entities are in the file (for the splice) is found on another core while the
-    // `dxf` crate parses it.
+    // `dxf` crate parses it (wasted, a small part of the parse's time, on a file that is written
+    // whole or fails to load).
     let (loaded, layout) = rayon::join(|| load(bytes, &opts.progress), || Layout::scan(bytes));
     let (drawing, found) = loaded?;
     let (changes, summary) = dilate_loaded(drawing, kerf, opts, found)?;

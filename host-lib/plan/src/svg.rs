@@ -47,18 +47,19 @@
 //! **Memory and cores.** The dilated document is several times its source (every rounded corner an
 //! arc), so it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of
 //! elements' path data at a time, the next batch made on the other cores while this one is written.
-//! No step holds more than it needs. The source is parsed once while it is read: to tag it for
-//! usvg, and, once usvg has rendered the tagged copy, to name the cuts and find where their new
-//! path data goes (byte ranges, a few per element); that tree goes before the cuts are traced, each
-//! path's data freed as it is traced (writing parses the source once more only to copy the targets
-//! of `<use>` clones, and G-code's cut order parses it again for the cuts' Inkscape layers). usvg
-//! renders a large plan in slices, on every core (the `slices` submodule): a slice's tree is a
-//! fraction of the whole document's, and of each tree only the cut paths' data is kept. A plan read
-//! from a file ([`crate::file::dilate_file_into`], what the CLI uses) does not hold its text while
-//! its cuts are dilated: the file is read again, checked unchanged, as the output is written. The
-//! kernel frees each drawn contour as it is offset. The peak is the end of the dilation (the
-//! dilated contours, cavalier's 24 bytes a vertex, and what each cut needs to be written back), in
-//! a heap left fragmented by the reading before it.
+//! No step holds more than it needs. The source is parsed to tag it for usvg and, once usvg has
+//! rendered the tagged copy, to name the cuts and find where their new path data goes (byte ranges,
+//! a few per element). A large plan is rendered in slices, on every core (the `slices` submodule),
+//! while the source and its tree are held (a slice's tree is a fraction of the whole document's); a
+//! document rendered whole is rendered without them, and the source is made again from the tagged
+//! copy and parsed again. Of usvg's trees only the cut paths' data is kept; the source's tree goes
+//! before the cuts are traced, each path's data freed as it is traced (writing parses the source
+//! once more only to copy the targets of `<use>` clones, and G-code's cut order parses it again for
+//! the cuts' Inkscape layers). A plan read from a file ([`crate::file::dilate_file_into`], what the
+//! CLI uses) does not hold its text while its cuts are dilated: the file is read again, checked
+//! unchanged, as the output is written. The kernel frees each drawn contour as it is offset. The
+//! peak is the end of the dilation (the dilated contours, cavalier's 24 bytes a vertex, and what
+//! each cut needs to be written back), in a heap left fragmented by the reading before it.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -224,8 +225,8 @@ pub fn dilate_svg(
 
 /// Dilate the cuts of an SVG plan, writing the edited document to `out` as it is made (it is
 /// never held whole: with its arcs written out, it is several times the size of the source).
-/// The source `text` is taken, not lent: it is not held while usvg parses its tagged copy (see
-/// `render`). On an error, part of the document may have been written. An error writing to
+/// The source `text` is taken, not lent: it is not held while usvg renders the whole tagged copy
+/// (see `render`). On an error, part of the document may have been written. An error writing to
 /// `out` is a [`PlanError::Write`] (whose path the caller sets).
 pub fn dilate_svg_into(
     text: String,
@@ -324,12 +325,14 @@ struct Rendered {
 
 /// Render the document with usvg and find its cut instances; the source is given back.
 ///
-/// Memory: this is the largest step of reading. The source and its XML tree (parsed here to check
-/// it, read its size and records, tag its elements, see [`tagged`], and place and name the cuts
-/// found) are held while usvg renders the tagged copy, which it does in slices on every core (see
-/// [`slices`]) where it can: a slice's tree is a fraction of the whole document's. Of usvg's trees
-/// only the cut paths' data is kept (a tenth of a tree). The source's tree goes before the cuts
-/// are traced.
+/// Memory: this is the largest step of reading. The source is parsed (to check it, read its size
+/// and records, and tag its elements, see [`tagged`]); then usvg renders the tagged copy, and the
+/// cuts it finds are placed in the source and named. Where the document is rendered in slices, on
+/// every core (the `slices` submodule), the source and its tree are kept for that: a slice's tree
+/// is a fraction of the whole document's. Where it is rendered whole, they go first, the whole
+/// tree being the largest thing reading makes, and the source is made again from the tagged copy
+/// and parsed again after. Of usvg's trees only the cut paths' data is kept (a tenth of a tree);
+/// the source's tree goes before the cuts are traced.
 fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     render_sliced(text, opts, Slices::WherePaying)
 }
@@ -353,44 +356,129 @@ enum Slices {
 
 /// [`render`], slicing the document as `slices` says.
 fn render_sliced(text: String, opts: &SvgOptions, slices: Slices) -> Result<(String, Rendered)> {
-    let mut plan = Plan::new("svg");
     check_entities(&text)?;
+    let whole = {
+        let doc = parse(&text)?;
+        let el = Elements::of(&doc);
+        let first = FirstLook::of(&text, &doc, &el, opts)?;
+        let count = 4 * rayon::current_num_threads();
+        let slicing = match slices {
+            Slices::WherePaying if text.len() >= SLICE_MIN_BYTES => Slicing::plan(&doc, count),
+            Slices::WherePaying => None,
+            #[cfg(test)]
+            Slices::Never => None,
+            #[cfg(test)]
+            Slices::WherePossible => Slicing::possible(&doc, count),
+        }
+        .map(|s| s.moved(first.tagged.positions()));
+        let found = slicing.and_then(|s| first.looking(opts).render_slices(&first.tagged.text, &s));
+        match found {
+            Some(found) => {
+                #[cfg(test)]
+                RENDERED_IN_SLICES.with(|n| n.set(n.get() + 1));
+                let FirstLook {
+                    plan,
+                    broken,
+                    tagged,
+                    ..
+                } = first;
+                drop(tagged);
+                Rendering::Done(finish(plan, found, &broken, &text, &doc, &el)?)
+            }
+            None => Rendering::Whole(first),
+        }
+    };
+    let first = match whole {
+        Rendering::Done(rendered) => return Ok((text, rendered)),
+        Rendering::Whole(first) => first,
+    };
+    // Rendered whole, the source and its tree are not held while usvg renders the tagged copy
+    // (its tree of the whole document is the largest thing reading makes): the source is made
+    // again from the copy, whose insertions are known, and parsed again.
+    drop(text);
+    let found = first.looking(opts).render_whole(&first.tagged.text)?;
+    let FirstLook {
+        plan,
+        broken,
+        tagged,
+        ..
+    } = first;
+    let text = tagged.untagged();
     let doc = parse(&text)?;
-    let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
-    check_view_box(doc.root_element())?;
-    plan.summary.mm_per_unit = user_unit_mm(doc.root_element(), mm_per_px);
-    plan.summary.compensation_found = compensation::find_in_svg(&doc);
-    for n in doc.descendants() {
-        if n.has_tag_name((SVG_NS, "text")) {
-            plan.summary.pass("text");
-        } else if n.has_tag_name((SVG_NS, "image")) {
-            plan.summary.pass("image");
+    let el = Elements::of(&doc);
+    let rendered = finish(plan, found, &broken, &text, &doc, &el)?;
+    drop(el);
+    drop(doc);
+    Ok((text, rendered))
+}
+
+/// How far rendering got while the source's first tree was held: done (in slices), or to be
+/// done whole.
+enum Rendering {
+    Done(Rendered),
+    Whole(FirstLook),
+}
+
+/// What the first parse of the source finds before usvg renders it: the plan begun, the tagged
+/// copy, the `<use>` elements by id, the scale and the broken paths.
+struct FirstLook {
+    plan: Plan<(usize, usize)>,
+    tagged: Tagged,
+    use_by_id: HashMap<String, usize>,
+    shapes_len: usize,
+    mm_per_px: f64,
+    broken: Vec<BrokenPath>,
+}
+
+impl FirstLook {
+    /// Look at the source `text`, parsed as `doc` with elements `el`.
+    fn of(text: &str, doc: &Document, el: &Elements, opts: &SvgOptions) -> Result<FirstLook> {
+        let mut plan = Plan::new("svg");
+        let root = doc.root_element();
+        let mm_per_px = document_scale(root, opts.assume_units, &mut plan.summary)?;
+        check_view_box(root)?;
+        plan.summary.mm_per_unit = user_unit_mm(root, mm_per_px);
+        plan.summary.compensation_found = compensation::find_in_svg(doc);
+        for n in doc.descendants() {
+            if is_svg(n, "text") {
+                plan.summary.pass("text");
+            } else if is_svg(n, "image") {
+                plan.summary.pass("image");
+            }
+        }
+        let broken = broken_paths(text, &el.shapes)?;
+        let (tagged, use_by_id) = tagged(text, &el.shapes, &el.uses)?;
+        Ok(FirstLook {
+            plan,
+            tagged,
+            use_by_id,
+            shapes_len: el.shapes.len(),
+            mm_per_px,
+            broken,
+        })
+    }
+
+    /// What rendering looks for.
+    fn looking<'a>(&'a self, opts: &'a SvgOptions) -> Looking<'a> {
+        Looking {
+            rules: &opts.rules,
+            mm_per_px: self.mm_per_px,
+            shapes_len: self.shapes_len,
+            use_by_id: &self.use_by_id,
         }
     }
-    let el = Elements::of(&doc);
-    let broken = broken_paths(&text, &el.shapes)?;
-    let (tagged, use_by_id) = tagged(&text, &el.shapes, &el.uses)?;
-    let count = 4 * rayon::current_num_threads();
-    let slicing = match slices {
-        Slices::WherePaying if text.len() >= SLICE_MIN_BYTES => Slicing::plan(&doc, count),
-        Slices::WherePaying => None,
-        #[cfg(test)]
-        Slices::Never => None,
-        #[cfg(test)]
-        Slices::WherePossible => Slicing::possible(&doc, count),
-    }
-    .map(|s| s.moved(tagged.positions()));
-    let looking = Looking {
-        rules: &opts.rules,
-        mm_per_px,
-        shapes_len: el.shapes.len(),
-        use_by_id: &use_by_id,
-    };
-    let found = match slicing.map(|s| looking.render_slices(&tagged.text, &s)) {
-        Some(Some(found)) => found,
-        _ => looking.render_whole(&tagged.text)?,
-    };
-    drop(tagged);
+}
+
+/// The rendered document: the instances `found` checked, placed in the source `text` (parsed as
+/// `doc` with elements `el`) and named; `broken` are its shapes whose path data breaks off.
+fn finish(
+    mut plan: Plan<(usize, usize)>,
+    found: Found,
+    broken: &[BrokenPath],
+    text: &str,
+    doc: &Document,
+    el: &Elements,
+) -> Result<Rendered> {
     let Found {
         mut instances,
         mut paths,
@@ -402,28 +490,21 @@ fn render_sliced(text: String, opts: &SvgOptions, slices: Slices) -> Result<(Str
             "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
         )));
     }
-    for (reason, n) in passed {
-        *plan.summary.passed_through.entry(reason).or_default() += n;
-    }
-    check_broken(&broken, &instances, &mut plan.summary)?;
+    add_counts(&mut plan.summary.passed_through, passed);
+    check_broken(broken, &instances, &mut plan.summary)?;
     instances.shrink_to_fit();
     paths.shrink_to_fit();
-    let lines = LineIndex::new(&text);
-    let source = Source {
-        lines: &lines,
-        el: &el,
-    };
+    let lines = LineIndex::new(text);
+    let source = Source { lines: &lines, el };
     source.check_uses(&instances)?;
-    place(&mut instances, &text, &el);
+    place(&mut instances, text, el);
     let names = (instances.iter()).map(|inst| source.label(inst)).collect();
     let boxes_reference = source.boxes_references(&instances, &plan.summary);
     let records = Records {
-        old: compensation::own_svg_records(&doc),
+        old: compensation::own_svg_records(doc),
         at: doc.root_element().first_child().map(|n| n.range().start),
     };
-    drop(el);
-    drop(doc);
-    let rendered = Rendered {
+    Ok(Rendered {
         plan,
         instances,
         paths,
@@ -431,8 +512,7 @@ fn render_sliced(text: String, opts: &SvgOptions, slices: Slices) -> Result<(Str
         boxes_reference,
         records,
         lines,
-    };
-    Ok((text, rendered))
+    })
 }
 
 /// The source as its cut instances are named: its lines and elements.
@@ -489,6 +569,20 @@ impl Source<'_, '_, '_> {
     }
 }
 
+/// Add the counts by reason `from` to `into`.
+fn add_counts(into: &mut BTreeMap<String, usize>, from: BTreeMap<String, usize>) {
+    for (reason, n) in from {
+        *into.entry(reason).or_default() += n;
+    }
+}
+
+#[cfg(test)]
+thread_local! {
+    /// How many documents were rendered in slices on this thread (for the tests to see that
+    /// they were).
+    static RENDERED_IN_SLICES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
 /// What rendering looks for in a document (see [`Walk`]).
 struct Looking<'a> {
     rules: &'a CutRules,
@@ -540,9 +634,7 @@ impl Looking<'_> {
             let found = found?;
             all.instances.extend(found.instances);
             all.paths.extend(found.paths);
-            for (reason, n) in found.passed {
-                *all.passed.entry(reason).or_default() += n;
-            }
+            add_counts(&mut all.passed, found.passed);
             all.unidentified += found.unidentified;
         }
         Some(all)
@@ -669,17 +761,21 @@ fn usvg_options() -> usvg::Options<'static> {
 fn shapes_and_uses<'d, 'a>(doc: &'d Document<'a>) -> (Vec<Node<'d, 'a>>, Vec<Node<'d, 'a>>) {
     let shapes = doc
         .descendants()
-        .filter(|n| {
-            n.is_element()
-                && n.tag_name().namespace() == Some(SVG_NS)
-                && SHAPES.contains(&n.tag_name().name())
-        })
+        .filter(|n| SHAPES.iter().any(|shape| is_svg(*n, shape)))
         .collect();
-    let uses = doc
-        .descendants()
-        .filter(|n| n.is_element() && n.has_tag_name((SVG_NS, "use")))
-        .collect();
+    let uses = doc.descendants().filter(|n| is_svg(*n, "use")).collect();
     (shapes, uses)
+}
+
+/// Whether `n` is an SVG element as usvg reads them: in SVG's namespace, or in none (under a
+/// prefixed root, `<s:svg xmlns:s="…">`, an unprefixed element has no namespace).
+fn in_svg_namespace(n: Node) -> bool {
+    n.is_element() && matches!(n.tag_name().namespace(), None | Some(SVG_NS))
+}
+
+/// Whether `n` is the SVG element `name` (see [`in_svg_namespace`]).
+fn is_svg(n: Node, name: &str) -> bool {
+    in_svg_namespace(n) && n.tag_name().name() == name
 }
 
 /// The elements of a parsed source that cuts are named and written by.
@@ -714,7 +810,7 @@ struct Records {
 }
 
 /// The source with tags inserted (see [`tagged`]), and where they are, so that a place in the
-/// source can be found in it.
+/// source can be found in it and the source made again from it.
 struct Tagged {
     text: String,
     /// The inserted tags' ranges in `text`, in order.
@@ -745,7 +841,7 @@ impl Tagged {
 
     /// Where each byte of the source is in the tagged text (a position where a tag was inserted
     /// is taken to be after the tag).
-    fn positions(&self) -> impl Fn(usize) -> usize {
+    fn positions(&self) -> impl Fn(usize) -> usize + use<> {
         // Tag k was inserted at source position tags[k].start less the tags before it; `after[k]`
         // is the length of tags 0..=k.
         let mut inserted_at = Vec::with_capacity(self.tags.len());
@@ -760,6 +856,19 @@ impl Tagged {
             let k = inserted_at.partition_point(|&i| i <= at);
             at + if k == 0 { 0 } else { after[k - 1] }
         }
+    }
+
+    /// The source again: the text without the tags.
+    fn untagged(self) -> String {
+        let tagged_len: usize = self.tags.iter().map(Range::len).sum();
+        let mut src = String::with_capacity(self.text.len() - tagged_len);
+        let mut pos = 0;
+        for tag in &self.tags {
+            src.push_str(&self.text[pos..tag.start]);
+            pos = tag.end;
+        }
+        src.push_str(&self.text[pos..]);
+        src
     }
 }
 
@@ -955,8 +1064,9 @@ impl<'w> SvgPlan<'w> {
 
     /// Write the document with `edits` applied and the instances drawn directly (not through
     /// `<use>`) given their dilated geometry. That geometry is made batch by batch as the
-    /// document is written (each batch's path data on any core), so no more than a batch of it
-    /// is held at once: the path data of a whole plan is larger than its file.
+    /// document is written (each batch's path data on any core, the next one while this one is
+    /// written), so no more than two batches of it are held at once: the path data of a whole
+    /// plan is larger than its file.
     fn write_document(
         &self,
         edits: Vec<Edit>,
@@ -1087,9 +1197,7 @@ impl<'w> SvgPlan<'w> {
             entry.1.push_str(&clone);
         }
         for (at, (target, clones)) in inserts {
-            let in_defs = target
-                .parent_element()
-                .is_some_and(|p| p.has_tag_name((SVG_NS, "defs")));
+            let in_defs = target.parent_element().is_some_and(|p| is_svg(p, "defs"));
             let text = if in_defs {
                 clones
             } else {
@@ -2037,12 +2145,32 @@ mod tests {
         let mut sliced = 0;
         for (name, text) in &texts {
             let whole = render_sliced(text.clone(), &opts, Slices::Never);
+            let before = RENDERED_IN_SLICES.with(|n| n.get());
             let in_slices = render_sliced(text.clone(), &opts, Slices::WherePossible);
             assert_eq!(found_text(&whole), found_text(&in_slices), "{name}");
-            let doc = parse(text);
-            sliced += usize::from(doc.is_ok_and(|d| Slicing::possible(&d, 8).is_some()));
+            sliced += RENDERED_IN_SLICES.with(|n| n.get()) - before;
         }
         assert!(sliced >= 4, "only {sliced} of the files were sliced");
+    }
+
+    #[test]
+    fn under_a_prefixed_root_unprefixed_cuts_are_read_as_usvg_draws_them() {
+        // Unprefixed elements under `<s:svg xmlns:s=…>` have no namespace; usvg draws them as
+        // SVG, so they are cuts like the prefixed ones (not left untagged, and so taken for
+        // another element).
+        let doc = format!(
+            r#"<s:svg xmlns:s="{SVG_NS}" width="100mm" height="100mm" viewBox="0 0 100 100"><s:rect x="1" y="1" width="5" height="5" fill="none" stroke="red" stroke-width="0.1"/><s:rect x="11" y="1" width="5" height="5" fill="none" stroke="red" stroke-width="0.1"/><s:rect x="21" y="1" width="5" height="5" fill="none" stroke="red" stroke-width="0.1"/><s:rect x="31" y="1" width="5" height="5" fill="none" stroke="red" stroke-width="0.1"/><rect id="plain" x="41" y="1" width="5" height="5" fill="none" stroke="red" stroke-width="0.1"/></s:svg>"#
+        );
+        let (out, summary) =
+            dilate_svg(&doc, &KerfSource::Uniform(200.0), &SvgOptions::default()).expect("dilated");
+        assert_eq!(summary.contours_dilated, 5, "{summary:?}");
+        assert!(
+            out.contains(
+                r#"<path id="plain" fill="none" stroke="red" stroke-width="0.1" d="M41 0.9 "#
+            ),
+            "{out}"
+        );
+        assert_eq!(out.matches("<s:path").count(), 4, "{out}");
     }
 
     #[test]
@@ -2286,6 +2414,7 @@ mod tests {
             assert_eq!(tagged.text.as_bytes()[position(i)], b, "source byte {i}");
         }
         assert_eq!(position(src.len()), tagged.text.len());
+        assert_eq!(tagged.untagged(), src);
     }
 
     /// No image is loaded: an `href` may name any file or device (`/dev/zero`, a FIFO).

@@ -10,8 +10,11 @@
 //!
 //! A document is sliced only where that cannot change what is drawn:
 //! * its root has a `viewBox` (without one usvg may size the document by what it contains);
-//! * it has no `<style>` element (a stylesheet's selectors may depend on the siblings a slice
-//!   leaves out, `:first-child`, `+`, `~`);
+//! * it has no `<style>` element, in any namespace as usvg reads them (a stylesheet's selectors
+//!   may depend on the siblings a slice leaves out, `:first-child`, `+`, `~`);
+//! * it cannot come near usvg's limit of a million nodes, its `<use>` copies counted (each slice
+//!   is checked alone: a document usvg refuses whole must still be refused), nor has clones of
+//!   clones (whose copies this count does not see);
 //! * every reference (`href="#id"`, `url(#id)`) from a drawing child stays within that child or
 //!   goes into a child that draws nothing (which every slice has), and no child that draws nothing
 //!   refers into a drawing child.
@@ -26,7 +29,9 @@ use std::ops::Range;
 
 use roxmltree::{Document, Node};
 
+#[cfg(test)]
 use super::SVG_NS;
+use super::in_svg_namespace;
 
 /// The root's children that draw nothing where they stand: a slice keeps all of them.
 const DRAW_NOTHING: [&str; 14] = [
@@ -70,7 +75,7 @@ impl Slicing {
     /// How `doc` can be cut into at most `count` slices, whether or not that pays.
     pub fn possible(doc: &Document, count: usize) -> Option<Slicing> {
         let root = doc.root_element();
-        if !root.has_attribute("viewBox") || has_style_sheet(doc) {
+        if !root.has_attribute("viewBox") || has_style_sheet(doc) || near_node_limit(doc) {
             return None;
         }
         let children: Vec<Node> = root.children().filter(Node::is_element).collect();
@@ -139,16 +144,57 @@ impl Slicing {
     }
 }
 
-/// Whether `n` (a child of the root) draws nothing where it stands: an SVG element that is only
-/// drawn where it is referred to, or describes, or an element of another namespace (which usvg
-/// does not draw).
+/// Whether `n` (a child of the root) draws nothing where it stands: an element that is only drawn
+/// where it is referred to, or describes, or an element of a namespace other than SVG's (usvg
+/// draws elements of no namespace as SVG's).
 fn draws_nothing(n: Node) -> bool {
-    n.tag_name().namespace() != Some(SVG_NS) || DRAW_NOTHING.contains(&n.tag_name().name())
+    !in_svg_namespace(n) || DRAW_NOTHING.contains(&n.tag_name().name())
 }
 
-/// Whether the document has a `<style>` element.
+/// Whether the document has a `<style>` element (usvg reads one in any namespace).
 fn has_style_sheet(doc: &Document) -> bool {
-    doc.descendants().any(|n| n.has_tag_name((SVG_NS, "style")))
+    doc.descendants()
+        .any(|n| n.is_element() && n.tag_name().name() == "style")
+}
+
+/// usvg refuses a document of more than a million nodes, the copies its `<use>` elements make
+/// counted; a document of half as many is not sliced.
+const SLICED_NODES_MAX: usize = 500_000;
+
+/// Whether the document's elements, each `<use>` counted with its target's, could come near
+/// usvg's limit, or a `<use>` copies another one (whose copies are not counted here).
+fn near_node_limit(doc: &Document) -> bool {
+    let elements = || doc.descendants().filter(Node::is_element);
+    let mut by_id: HashMap<&str, Node> = HashMap::new();
+    for n in elements() {
+        if let Some(id) = n.attribute("id") {
+            by_id.entry(id).or_insert(n);
+        }
+    }
+    let is_use = |n: &Node| n.tag_name().name() == "use";
+    let mut nodes = 0usize;
+    for n in elements() {
+        nodes += 1;
+        let target = is_use(&n)
+            .then(|| n.attributes().find(|a| a.name() == "href"))
+            .flatten()
+            .and_then(|a| a.value().trim().strip_prefix('#'))
+            .and_then(|id| by_id.get(id));
+        if let Some(target) = target {
+            let mut copied = 0;
+            for d in target.descendants().filter(Node::is_element) {
+                if is_use(&d) {
+                    return true;
+                }
+                copied += 1;
+            }
+            nodes += copied;
+        }
+        if nodes > SLICED_NODES_MAX {
+            return true;
+        }
+    }
+    false
 }
 
 /// Whether every reference stays in place (see the module's documentation): `children` are the
@@ -279,6 +325,18 @@ mod tests {
         let twice =
             g("a", "<path id=\"p\" d=\"M0 0H1\"/>") + &g("b", "<path id=\"p\" d=\"M0 0H1\"/>");
         assert_eq!(slicing(&twice, 2), None);
+        // A style sheet, in any namespace.
+        let css = "<style xmlns=\"\">g:first-child path { stroke: red }</style>".to_string()
+            + &g("a", "<path d=\"M0 0H1\"/>")
+            + &g("b", "<path d=\"M0 0H1\"/>");
+        assert_eq!(slicing(&css, 2), None);
+        // Clones of clones.
+        let nested = g(
+            "a",
+            "<path id=\"p\" d=\"M0 0H1\"/><use id=\"u\" href=\"#p\"/>",
+        ) + &g("b", "<path d=\"M0 0H1\"/>")
+            + "<defs><use id=\"v\" href=\"#a\"/></defs>";
+        assert_eq!(slicing(&nested, 2), None);
         // A style sheet.
         let css = "<style>g:first-child path { stroke: red }</style>".to_string()
             + &g("a", "<path d=\"M0 0H1\"/>")
@@ -297,6 +355,36 @@ mod tests {
         let doc = Document::parse(&text).expect("XML");
         assert_eq!(Slicing::possible(&doc, 4), None);
         assert_eq!(slicing("<defs/><g/>", 4), None);
+    }
+
+    #[test]
+    fn elements_of_no_namespace_draw_as_usvg_draws_them() {
+        // Under a prefixed root, unprefixed elements have no namespace: usvg draws them.
+        let text = format!(
+            "<s:svg xmlns:s=\"{SVG_NS}\" viewBox=\"0 0 9 9\"><s:g id=\"a\"><s:path d=\"M0 0H1\"/></s:g><g id=\"b\"><path d=\"M0 0H1\"/></g><x:meta xmlns:x=\"urn:x\"/><m xmlns=\"urn:m\"/></s:svg>"
+        );
+        let doc = Document::parse(&text).expect("XML");
+        let s = Slicing::possible(&doc, 2).expect("sliced");
+        let slices: Vec<String> = (0..s.len()).map(|k| s.text(&text, k)).collect();
+        assert_eq!(slices.len(), 2, "{slices:?}");
+        assert!(slices[1].contains("id=\"b\"") && !slices[0].contains("id=\"b\""));
+        assert!(
+            slices
+                .iter()
+                .all(|s| s.contains("<x:meta") && s.contains("<m "))
+        );
+    }
+
+    #[test]
+    fn a_document_near_usvg_s_node_limit_is_not_sliced() {
+        let clones = "<use href=\"#many\"/>".repeat(60);
+        let many = format!("<g id=\"many\">{}</g>", "<path d=\"M0 0\"/>".repeat(10_000));
+        assert_eq!(
+            slicing(&format!("<defs>{many}</defs><g>{clones}</g><g/>"), 2),
+            None
+        );
+        let few = "<use href=\"#many\"/>".repeat(2);
+        assert!(slicing(&format!("<defs>{many}</defs><g>{few}</g><g/>"), 2).is_some());
     }
 
     #[test]
