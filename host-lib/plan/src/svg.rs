@@ -79,7 +79,7 @@ use super::dilate::KerfSource;
 use super::entities;
 use super::geom::{Affine, PathSink, Pline, V2, arc_geom, v2};
 use super::outcome::{AssumedUnits, CutGroup, CutPath, PlanSummary};
-use super::pipeline::{self, Format, MAX_CUT_VERTICES, Plan};
+use super::pipeline::{self, Cut, Format, MAX_CUT_VERTICES, Plan};
 use super::progress::{Progress, Stage};
 use super::rules::{CutRules, Rgb, Verdict};
 use super::source_file::{Copier, SourceFile};
@@ -194,8 +194,46 @@ struct Edit {
 /// Edits inside the targets of `<use>` elements, by `<use>` (index into the `<use>` elements).
 type CloneEdits = BTreeMap<usize, Vec<Edit>>;
 
-/// The dilated contour of each (instance, subpath) that is a cut, with the cut's label.
-type ContourOf<'p> = HashMap<(usize, usize), (&'p Pline, &'p str)>;
+/// The dilated contour of each (instance, subpath) that is a cut, with the cut's label. A
+/// contour is freed once its instance is written (see [`Contours::free`]).
+struct Contours<'p> {
+    plines: Vec<Pline>,
+    labels: Vec<&'p str>,
+    by_origin: HashMap<(usize, usize), usize>,
+}
+
+impl<'p> Contours<'p> {
+    /// The dilated contours `dilated` of `cuts` (in the same order).
+    fn new(cuts: &'p [Cut<(usize, usize)>], dilated: Vec<Pline>) -> Self {
+        Contours {
+            by_origin: cuts
+                .iter()
+                .enumerate()
+                .map(|(k, c)| (c.origin, k))
+                .collect(),
+            labels: cuts.iter().map(|c| c.contour.label.as_str()).collect(),
+            plines: dilated,
+        }
+    }
+
+    /// The dilated contour of subpath `si` of instance `ii`, if it is a cut, and its label.
+    fn get(&self, ii: usize, si: usize) -> Option<(&Pline, &'p str)> {
+        let &k = self.by_origin.get(&(ii, si))?;
+        Some((self.plines.get(k)?, self.labels[k]))
+    }
+
+    /// Free the dilated contours of the instances `written` (of `instances`): their memory goes
+    /// to the path data written next, rather than the arena growing by as much.
+    fn free(&mut self, written: &[usize], instances: &[Instance]) {
+        for &ii in written {
+            for si in 0..instances[ii].subpath_count {
+                if let Some(&k) = self.by_origin.get(&(ii, si)) {
+                    self.plines[k] = Pline::new_closed();
+                }
+            }
+        }
+    }
+}
 
 /// A subpath of an instance traced into document mm.
 enum Traced {
@@ -1040,7 +1078,7 @@ impl<'w> SvgPlan<'w> {
     /// targets are copied whole (see [`Self::clone_uses`]), so these are made before writing.
     fn clone_geometry_edits(
         &self,
-        contour_of: &ContourOf,
+        contours: &Contours,
         summary: &mut PlanSummary,
     ) -> Result<CloneEdits> {
         let made: Vec<(usize, Option<Result<Vec<Edit>>>)> = self
@@ -1049,7 +1087,7 @@ impl<'w> SvgPlan<'w> {
             .enumerate()
             .filter_map(|(ii, inst)| {
                 let u = inst.via_use?;
-                Some((u, self.instance_edits(ii, inst, contour_of)))
+                Some((u, self.instance_edits(ii, inst, contours)))
             })
             .collect();
         let mut clone_edits: CloneEdits = BTreeMap::new();
@@ -1070,7 +1108,7 @@ impl<'w> SvgPlan<'w> {
     fn write_document(
         &self,
         edits: Vec<Edit>,
-        contour_of: &ContourOf,
+        contours: &mut Contours,
         summary: &mut PlanSummary,
         sink: &mut (dyn Write + Sync),
     ) -> Result<()> {
@@ -1085,18 +1123,20 @@ impl<'w> SvgPlan<'w> {
         };
         let mut out = EditWriter::new(src, sink);
         let batches: Vec<&[usize]> = direct.chunks(WRITE_BATCH).collect();
-        let make = |batch: &[usize]| -> Vec<Option<Result<Vec<Edit>>>> {
+        let make = |batch: &[usize], contours: &Contours| -> Vec<Option<Result<Vec<Edit>>>> {
             batch
                 .par_iter()
-                .map(|&ii| self.instance_edits(ii, &self.instances[ii], contour_of))
+                .map(|&ii| self.instance_edits(ii, &self.instances[ii], contours))
                 .collect()
         };
-        let mut made = batches.first().map(|b| make(b));
-        for k in 0..batches.len() {
+        let mut made = batches.first().map(|b| make(b, contours));
+        for (k, batch) in batches.iter().enumerate() {
             let current = made.take().unwrap_or_default();
+            contours.free(batch, &self.instances);
+            let contours = &*contours;
             // The next batch is made on the pool while this thread writes this one.
             let written = rayon::in_place_scope(|scope| {
-                scope.spawn(|_| made = batches.get(k + 1).map(|b| make(b)));
+                scope.spawn(|_| made = batches.get(k + 1).map(|b| make(b, contours)));
                 write_batch(current, &mut edits, &mut out, summary)
             });
             written?;
@@ -1131,9 +1171,9 @@ impl<'w> SvgPlan<'w> {
         &self,
         ii: usize,
         inst: &Instance,
-        contour_of: &ContourOf,
+        contours: &Contours,
     ) -> Option<Result<Vec<Edit>>> {
-        let (_, label) = (0..inst.subpath_count).find_map(|si| contour_of.get(&(ii, si)))?;
+        let (_, label) = (0..inst.subpath_count).find_map(|si| contours.get(ii, si))?;
         let Some(to_local) = inst.to_doc.inverse() else {
             return Some(Err(bad(format!(
                 "{label} has a degenerate transform (zero scale)"
@@ -1145,7 +1185,7 @@ impl<'w> SvgPlan<'w> {
             if !d.is_empty() {
                 d.push(' ');
             }
-            match (contour_of.get(&(ii, si)), inst.drawn.get(si)) {
+            match (contours.get(ii, si), inst.drawn.get(si)) {
                 (Some((pline, _)), _) => write_pline(pline, &to_local, digits, &mut d),
                 (None, Some(segs)) => write_segs(segs, digits, &mut d),
                 // Not kept: every subpath of this instance is a dilated contour.
@@ -1313,12 +1353,7 @@ impl Format for SvgPlan<'_> {
     }
 
     fn write(mut self, plan: &mut Plan<(usize, usize)>, dilated: Vec<Pline>) -> Result<()> {
-        let contour_of: ContourOf = plan
-            .cuts
-            .iter()
-            .zip(&dilated)
-            .map(|(cut, d)| (cut.origin, (d, cut.contour.label.as_str())))
-            .collect();
+        let mut contours = Contours::new(&plan.cuts, dilated);
         let mut edits = Vec::new();
         if self.instances.iter().any(|inst| inst.via_use.is_some()) {
             // The targets of `<use>` are copied from the source's text: it is read again whole.
@@ -1327,14 +1362,14 @@ impl Format for SvgPlan<'_> {
             }
             let doc = parse(&self.text)?;
             let el = Elements::of(&doc);
-            let clone_edits = self.clone_geometry_edits(&contour_of, &mut plan.summary)?;
+            let clone_edits = self.clone_geometry_edits(&contours, &mut plan.summary)?;
             self.clone_uses(&el, clone_edits, &mut edits, &mut plan.summary)?;
         }
         edits.extend(self.record_edits(&plan.summary));
         let Some(sink) = self.out.take() else {
             return Err(bad("internal error: the SVG was written twice"));
         };
-        self.write_document(edits, &contour_of, &mut plan.summary, sink)
+        self.write_document(edits, &mut contours, &mut plan.summary, sink)
     }
 }
 
