@@ -346,7 +346,7 @@ pub(crate) fn nest(
     areas: &[f64],
 ) -> Result<(Vec<usize>, Vec<Option<usize>>)> {
     let n = contours.len();
-    let boxes: Vec<Bbox> = contours.iter().map(|c| Bbox::of(&c.pline)).collect();
+    let boxes: Vec<Bbox> = contours.par_iter().map(|c| Bbox::of(&c.pline)).collect();
     let Some(index) = &index_of(&boxes) else {
         return Ok((vec![0; n], vec![None; n]));
     };
@@ -473,7 +473,10 @@ fn meeting_loops<'p>(
                 .map(move |c| (p, c))
         })
         .collect();
-    let boxes: Vec<Bbox> = loops.iter().map(|&(_, c)| Bbox::of(loop_of(c))).collect();
+    let boxes: Vec<Bbox> = loops
+        .par_iter()
+        .map(|&(_, c)| Bbox::of(loop_of(c)))
+        .collect();
     let Some(index) = index_of(&boxes) else {
         return Vec::new();
     };
@@ -718,7 +721,10 @@ fn offset_all(
 
 /// Parts that would merge: their dilated outlines overlap.
 fn check_merges(contours: &[Contour], parts: &[Part], dilated: &[Pline]) -> Result<()> {
-    let part_boxes: Vec<Bbox> = parts.iter().map(|p| Bbox::of(&dilated[p.outer])).collect();
+    let part_boxes: Vec<Bbox> = parts
+        .par_iter()
+        .map(|p| Bbox::of(&dilated[p.outer]))
+        .collect();
     let Some(index) = index_of(&part_boxes) else {
         return Ok(());
     };
