@@ -536,7 +536,9 @@ fn finish(
     let source = Source { lines: &lines, el };
     source.check_uses(&instances)?;
     place(&mut instances, text, el);
-    let names = (instances.iter()).map(|inst| source.label(inst)).collect();
+    let names = (instances.par_iter())
+        .map(|inst| source.label(inst))
+        .collect();
     let boxes_reference = source.boxes_references(&instances, &plan.summary);
     let records = Records {
         old: compensation::own_svg_records(doc),
@@ -1632,11 +1634,11 @@ fn subpaths_of(p: &tiny_skia_path::Path) -> Vec<Vec<Seg>> {
 
 /// Where each instance's element starts in the source `text`, and where its new path data goes.
 fn place(instances: &mut [Instance], text: &str, el: &Elements) {
-    for inst in instances {
+    instances.par_iter_mut().for_each(|inst| {
         let node = el.shapes[inst.element];
         inst.start = node.range().start;
         inst.slots = geometry_slots(text, node);
-    }
+    });
 }
 
 /// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm, ends within
