@@ -46,20 +46,19 @@
 //!
 //! **Memory and cores.** The dilated document is several times its source (every rounded corner an
 //! arc), so it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of
-//! elements' path data at a time, the next batch made on the other cores while this one is written.
-//! No step holds more than it needs. The source is parsed to tag it for usvg and, once usvg has
-//! rendered the tagged copy, to name the cuts and find where their new path data goes (byte ranges,
-//! a few per element). A large plan is rendered in slices, on every core (the `slices` submodule),
-//! while the source and its tree are held (a slice's tree is a fraction of the whole document's); a
-//! document rendered whole is rendered without them, and the source is made again from the tagged
-//! copy and parsed again. Of usvg's trees only the cut paths' data is kept; the source's tree goes
-//! before the cuts are traced, each path's data freed as it is traced (writing parses the source
-//! once more only to copy the targets of `<use>` clones, and G-code's cut order parses it again for
-//! the cuts' Inkscape layers). A plan read from a file ([`crate::file::dilate_file_into`], what the
-//! CLI uses) does not hold its text while its cuts are dilated: the file is read again, checked
-//! unchanged, as the output is written. The kernel frees each drawn contour as it is offset. The
-//! peak is the end of the dilation (the dilated contours, cavalier's 24 bytes a vertex, and what
-//! each cut needs to be written back), in a heap left fragmented by the reading before it.
+//! elements' path data at a time, the next batch made on the other cores while this one is written
+//! (and the dilated contours of a batch freed once its path data is made). No step holds more than
+//! it needs. The source is parsed to tag it for usvg; it and its tree go while usvg renders the
+//! tagged copy, and the source is made again from the copy (whose insertions are known) and parsed
+//! again to name the cuts and find where their new path data goes (byte ranges, a few per element).
+//! Of usvg's tree only the cut paths' data is kept; the source's tree goes before the cuts are
+//! traced, each path's data freed as it is traced (writing parses the source once more only to copy
+//! the targets of `<use>` clones, and G-code's cut order parses it again for the cuts' Inkscape
+//! layers). A plan read from a file ([`crate::file::dilate_file_into`], what the CLI uses) does not
+//! hold its text while its cuts are dilated: the file is read again, checked unchanged, as the
+//! output is written. The kernel frees each drawn contour as it is offset. The peak is the end of
+//! the dilation (the dilated contours, cavalier's 24 bytes a vertex, and what each cut needs to be
+//! written back), in a heap left fragmented by the reading before it.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -86,10 +85,8 @@ use super::source_file::{Copier, SourceFile};
 use crate::error::{PlanError, Problems, Result};
 
 mod path_data;
-mod slices;
 
 use path_data::Flaw;
-use slices::Slicing;
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
 const XLINK_NS: &str = "http://www.w3.org/1999/xlink";
@@ -263,8 +260,8 @@ pub fn dilate_svg(
 
 /// Dilate the cuts of an SVG plan, writing the edited document to `out` as it is made (it is
 /// never held whole: with its arcs written out, it is several times the size of the source).
-/// The source `text` is taken, not lent: it is not held while usvg renders the whole tagged copy
-/// (see `render`). On an error, part of the document may have been written. An error writing to
+/// The source `text` is taken, not lent: it is not held while usvg renders its tagged copy (see
+/// `render`). On an error, part of the document may have been written. An error writing to
 /// `out` is a [`PlanError::Write`] (whose path the caller sets).
 pub fn dilate_svg_into(
     text: String,
@@ -363,78 +360,22 @@ struct Rendered {
 
 /// Render the document with usvg and find its cut instances; the source is given back.
 ///
-/// Memory: this is the largest step of reading. The source is parsed (to check it, read its size
-/// and records, and tag its elements, see [`tagged`]); then usvg renders the tagged copy, and the
-/// cuts it finds are placed in the source and named. Where the document is rendered in slices, on
-/// every core (the `slices` submodule), the source and its tree are kept for that: a slice's tree
-/// is a fraction of the whole document's. Where it is rendered whole, they go first, the whole
-/// tree being the largest thing reading makes, and the source is made again from the tagged copy
-/// and parsed again after. Of usvg's trees only the cut paths' data is kept (a tenth of a tree);
-/// the source's tree goes before the cuts are traced.
+/// Memory: this is the largest step of reading, so nothing else large is alive during it. The
+/// source is parsed to check it, read its size and records, and tag its elements (see
+/// [`tagged`]); the source and its tree go before usvg renders the tagged copy (usvg's tree of
+/// the whole document is the largest thing reading makes), and the source is made again from the
+/// copy, whose insertions are known, and parsed again to place and name the cuts found. Of
+/// usvg's tree only the cut paths' data is kept (a tenth of the tree); the source's tree goes
+/// before the cuts are traced.
 fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
-    render_sliced(text, opts, Slices::WherePaying)
-}
-
-/// A document at least this long is rendered in slices, on every core (see [`slices`]); below,
-/// slicing gains less than it costs.
-const SLICE_MIN_BYTES: usize = 256 * 1024;
-
-/// When a document is rendered in slices (see [`slices`]).
-#[derive(Clone, Copy, PartialEq)]
-enum Slices {
-    /// A document of at least [`SLICE_MIN_BYTES`], where slicing pays.
-    WherePaying,
-    /// Never (to compare).
-    #[cfg(test)]
-    Never,
-    /// Wherever a document can be sliced (to compare).
-    #[cfg(test)]
-    WherePossible,
-}
-
-/// [`render`], slicing the document as `slices` says.
-fn render_sliced(text: String, opts: &SvgOptions, slices: Slices) -> Result<(String, Rendered)> {
     check_entities(&text)?;
-    let whole = {
+    let first = {
         let doc = parse(&text)?;
         let el = Elements::of(&doc);
-        let first = FirstLook::of(&text, &doc, &el, opts)?;
-        let count = 4 * rayon::current_num_threads();
-        let slicing = match slices {
-            Slices::WherePaying if text.len() >= SLICE_MIN_BYTES => Slicing::plan(&doc, count),
-            Slices::WherePaying => None,
-            #[cfg(test)]
-            Slices::Never => None,
-            #[cfg(test)]
-            Slices::WherePossible => Slicing::possible(&doc, count),
-        }
-        .map(|s| s.moved(first.tagged.positions()));
-        let found = slicing.and_then(|s| first.looking(opts).render_slices(&first.tagged.text, &s));
-        match found {
-            Some(found) => {
-                #[cfg(test)]
-                RENDERED_IN_SLICES.with(|n| n.set(n.get() + 1));
-                let FirstLook {
-                    plan,
-                    broken,
-                    tagged,
-                    ..
-                } = first;
-                drop(tagged);
-                Rendering::Done(finish(plan, found, &broken, &text, &doc, &el)?)
-            }
-            None => Rendering::Whole(first),
-        }
+        FirstLook::of(&text, &doc, &el, opts)?
     };
-    let first = match whole {
-        Rendering::Done(rendered) => return Ok((text, rendered)),
-        Rendering::Whole(first) => first,
-    };
-    // Rendered whole, the source and its tree are not held while usvg renders the tagged copy
-    // (its tree of the whole document is the largest thing reading makes): the source is made
-    // again from the copy, whose insertions are known, and parsed again.
     drop(text);
-    let found = first.looking(opts).render_whole(&first.tagged.text)?;
+    let found = first.looking(opts).render(&first.tagged.text)?;
     let FirstLook {
         plan,
         broken,
@@ -448,13 +389,6 @@ fn render_sliced(text: String, opts: &SvgOptions, slices: Slices) -> Result<(Str
     drop(el);
     drop(doc);
     Ok((text, rendered))
-}
-
-/// How far rendering got while the source's first tree was held: done (in slices), or to be
-/// done whole.
-enum Rendering {
-    Done(Rendered),
-    Whole(FirstLook),
 }
 
 /// What the first parse of the source finds before usvg renders it: the plan begun, the tagged
@@ -528,7 +462,9 @@ fn finish(
             "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
         )));
     }
-    add_counts(&mut plan.summary.passed_through, passed);
+    for (reason, n) in passed {
+        *plan.summary.passed_through.entry(reason).or_default() += n;
+    }
     check_broken(broken, &instances, &mut plan.summary)?;
     instances.shrink_to_fit();
     paths.shrink_to_fit();
@@ -536,9 +472,7 @@ fn finish(
     let source = Source { lines: &lines, el };
     source.check_uses(&instances)?;
     place(&mut instances, text, el);
-    let names = (instances.par_iter())
-        .map(|inst| source.label(inst))
-        .collect();
+    let names = (instances.iter()).map(|inst| source.label(inst)).collect();
     let boxes_reference = source.boxes_references(&instances, &plan.summary);
     let records = Records {
         old: compensation::own_svg_records(doc),
@@ -609,20 +543,6 @@ impl Source<'_, '_, '_> {
     }
 }
 
-/// Add the counts by reason `from` to `into`.
-fn add_counts(into: &mut BTreeMap<String, usize>, from: BTreeMap<String, usize>) {
-    for (reason, n) in from {
-        *into.entry(reason).or_default() += n;
-    }
-}
-
-#[cfg(test)]
-thread_local! {
-    /// How many documents were rendered in slices on this thread (for the tests to see that
-    /// they were).
-    static RENDERED_IN_SLICES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
-}
-
 /// What rendering looks for in a document (see [`Walk`]).
 struct Looking<'a> {
     rules: &'a CutRules,
@@ -631,7 +551,7 @@ struct Looking<'a> {
     use_by_id: &'a HashMap<String, usize>,
 }
 
-/// What rendering a document (or a slice of it) found: its cut instances, their path data, what
+/// What rendering a document found: its cut instances, their path data, what
 /// passed through (by reason) and how many cut paths had no tag.
 #[derive(Default)]
 struct Found {
@@ -642,42 +562,13 @@ struct Found {
 }
 
 impl Looking<'_> {
-    /// Render the whole tagged copy `text` at once.
-    fn render_whole(&self, text: &str) -> Result<Found> {
+    /// Render the tagged copy `text`.
+    fn render(&self, text: &str) -> Result<Found> {
         let tree = usvg::Tree::from_str(text, &usvg_options())
             .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
         // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
         // grown by doubling, these vectors held up to twice their room at the peak of reading.
         Ok(self.walk(&tree, self.shapes_len))
-    }
-
-    /// Render the slices of the tagged copy `text` on any core and put what they found together
-    /// in document order; `None` when a slice cannot be rendered (the whole document is, then,
-    /// for its error).
-    fn render_slices(&self, text: &str, slicing: &Slicing) -> Option<Found> {
-        let each: Vec<Option<Found>> = (0..slicing.len())
-            .into_par_iter()
-            .map(|k| {
-                let tree = usvg::Tree::from_str(&slicing.text(text, k), &usvg_options()).ok()?;
-                let mut found = self.walk(&tree, self.shapes_len / slicing.len());
-                found.instances.shrink_to_fit();
-                found.paths.shrink_to_fit();
-                Some(found)
-            })
-            .collect();
-        let mut all = Found {
-            instances: Vec::with_capacity(self.shapes_len),
-            paths: Vec::with_capacity(self.shapes_len),
-            ..Found::default()
-        };
-        for found in each {
-            let found = found?;
-            all.instances.extend(found.instances);
-            all.paths.extend(found.paths);
-            add_counts(&mut all.passed, found.passed);
-            all.unidentified += found.unidentified;
-        }
-        Some(all)
     }
 
     /// The cut instances of a rendered tree, with room for `room` of them from the start.
@@ -849,8 +740,8 @@ struct Records {
     at: Option<usize>,
 }
 
-/// The source with tags inserted (see [`tagged`]), and where they are, so that a place in the
-/// source can be found in it and the source made again from it.
+/// The source with tags inserted (see [`tagged`]), and where they are, so that the source can be
+/// made again from it.
 struct Tagged {
     text: String,
     /// The inserted tags' ranges in `text`, in order.
@@ -877,25 +768,6 @@ impl Tagged {
             text: apply_edits(src, edits)?,
             tags,
         })
-    }
-
-    /// Where each byte of the source is in the tagged text (a position where a tag was inserted
-    /// is taken to be after the tag).
-    fn positions(&self) -> impl Fn(usize) -> usize + use<> {
-        // Tag k was inserted at source position tags[k].start less the tags before it; `after[k]`
-        // is the length of tags 0..=k.
-        let mut inserted_at = Vec::with_capacity(self.tags.len());
-        let mut after = Vec::with_capacity(self.tags.len());
-        let mut before = 0;
-        for tag in &self.tags {
-            inserted_at.push(tag.start - before);
-            before += tag.len();
-            after.push(before);
-        }
-        move |at| {
-            let k = inserted_at.partition_point(|&i| i <= at);
-            at + if k == 0 { 0 } else { after[k - 1] }
-        }
     }
 
     /// The source again: the text without the tags.
@@ -1634,11 +1506,11 @@ fn subpaths_of(p: &tiny_skia_path::Path) -> Vec<Vec<Seg>> {
 
 /// Where each instance's element starts in the source `text`, and where its new path data goes.
 fn place(instances: &mut [Instance], text: &str, el: &Elements) {
-    instances.par_iter_mut().for_each(|inst| {
+    for inst in instances {
         let node = el.shapes[inst.element];
         inst.start = node.range().start;
         inst.slots = geometry_slots(text, node);
-    });
+    }
 }
 
 /// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm, ends within
@@ -2129,67 +2001,6 @@ mod tests {
         )
     }
 
-    /// What rendering found, as text to compare: the error, or the source given back, what passed
-    /// through and every cut instance with its path data.
-    fn found_text(rendered: &Result<(String, Rendered)>) -> String {
-        let (src, r) = match rendered {
-            Err(e) => return format!("error: {e}"),
-            Ok(ok) => ok,
-        };
-        let mut text = format!("{src}\n{:?}\n", r.plan.summary.passed_through);
-        for (i, p) in r.instances.iter().zip(&r.paths) {
-            let (element, via, to_doc, stroke) = (i.element, i.via_use, i.to_doc, i.stroke);
-            let _ = writeln!(text, "{element} {via:?} {to_doc:?} {stroke:?} {p:?}");
-        }
-        text
-    }
-
-    /// A plan of `parts` parts in groups of their own: clones of shared definitions, a gradient,
-    /// paths, rectangles and circles, and a `<use>` of a path in the same group.
-    fn grouped_plan(parts: usize) -> String {
-        let mut body = String::from(
-            r##"<defs><linearGradient id="lg"/><path id="hole" d="M1 1h2v2h-2z"/></defs>"##,
-        );
-        for k in 0..parts {
-            let (x, y) = (k % 10 * 12, k / 10 * 12);
-            body += &format!(
-                r##"<g transform="translate({x} {y})" stroke="red" fill="none"><path id="o{k}" d="M0 0h10v10h-10z"/><use href="#hole"/><circle cx="7" cy="7" r="1"/><rect x="5" y="1" width="3" height="2" stroke="blue"/><use href="#o{k}" x="200"/><path d="M0 11h9" fill="url(#lg)"/></g>"##
-            );
-        }
-        format!("{HEAD}{body}</svg>")
-    }
-
-    #[test]
-    fn rendering_in_slices_finds_what_rendering_whole_does() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests");
-        let mut texts: Vec<(String, String)> = ["corpus", "fixtures"]
-            .iter()
-            .flat_map(|d| std::fs::read_dir(format!("{dir}/{d}")).expect("test files"))
-            .map(|e| e.expect("entry").path())
-            .filter(|p| p.extension().is_some_and(|x| x == "svg"))
-            .map(|p| {
-                (
-                    p.display().to_string(),
-                    std::fs::read_to_string(&p).expect("SVG"),
-                )
-            })
-            .collect();
-        texts.push(("grouped plan".into(), grouped_plan(40)));
-        let opts = SvgOptions {
-            assume_units: Some(AssumedUnits::Mm),
-            ..SvgOptions::default()
-        };
-        let mut sliced = 0;
-        for (name, text) in &texts {
-            let whole = render_sliced(text.clone(), &opts, Slices::Never);
-            let before = RENDERED_IN_SLICES.with(|n| n.get());
-            let in_slices = render_sliced(text.clone(), &opts, Slices::WherePossible);
-            assert_eq!(found_text(&whole), found_text(&in_slices), "{name}");
-            sliced += RENDERED_IN_SLICES.with(|n| n.get()) - before;
-        }
-        assert!(sliced >= 4, "only {sliced} of the files were sliced");
-    }
-
     #[test]
     fn under_a_prefixed_root_unprefixed_cuts_are_read_as_usvg_draws_them() {
         // Unprefixed elements under `<s:svg xmlns:s=…>` have no namespace; usvg draws them as
@@ -2426,7 +2237,7 @@ mod tests {
     }
 
     #[test]
-    fn tags_are_inserted_in_order_and_source_positions_follow_them() {
+    fn the_source_is_made_again_from_its_tagged_copy() {
         let src = "<svg>\n  <path d=\"M0 0\"/><use href=\"#a\"/>é<rect/></svg>";
         let at = |needle: &str| src.find(needle).unwrap();
         let insert = |at: usize, text: &str| Edit {
@@ -2445,12 +2256,6 @@ mod tests {
             tagged.text,
             "<svg>\n  <path style=\"a\" d=\"M0 0\"/><use id=\"u\" x=\"1\" href=\"#a\"/>é<rect style=\"b\"/></svg>"
         );
-        // Every byte of the source is found where it went in the tagged text.
-        let position = tagged.positions();
-        for (i, b) in src.bytes().enumerate() {
-            assert_eq!(tagged.text.as_bytes()[position(i)], b, "source byte {i}");
-        }
-        assert_eq!(position(src.len()), tagged.text.len());
         assert_eq!(tagged.untagged(), src);
     }
 
