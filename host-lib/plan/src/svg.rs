@@ -154,8 +154,8 @@ struct Instance {
     drawn: Vec<Vec<Seg>>,
     /// Its stroke colour (chooses its G-code cut settings).
     stroke: Option<Rgb>,
-    /// Where its element starts in the source, and where its new path data goes there (set by
-    /// `read`).
+    /// Where its element starts in the source, and where its new path data goes there (set when
+    /// the document is rendered, see `finish`).
     start: usize,
     slots: Vec<Slot>,
 }
@@ -192,7 +192,7 @@ struct Edit {
 type CloneEdits = BTreeMap<usize, Vec<Edit>>;
 
 /// The dilated contour of each (instance, subpath) that is a cut, with the cut's label. A
-/// contour is freed once its instance is written (see [`Contours::free`]).
+/// contour is freed once its instance's new path data is made (see [`Contours::free`]).
 struct Contours<'p> {
     plines: Vec<Pline>,
     labels: Vec<&'p str>,
@@ -219,10 +219,11 @@ impl<'p> Contours<'p> {
         Some((self.plines.get(k)?, self.labels[k]))
     }
 
-    /// Free the dilated contours of the instances `written` (of `instances`): their memory goes
-    /// to the path data written next, rather than the arena growing by as much.
-    fn free(&mut self, written: &[usize], instances: &[Instance]) {
-        for &ii in written {
+    /// Free the dilated contours of the instances `made` (of `instances`), whose path data is
+    /// made: their memory goes to the path data made next, rather than the arena growing by as
+    /// much.
+    fn free(&mut self, made: &[usize], instances: &[Instance]) {
+        for &ii in made {
             for si in 0..instances[ii].subpath_count {
                 if let Some(&k) = self.by_origin.get(&(ii, si)) {
                     self.plines[k] = Pline::new_closed();
@@ -566,13 +567,14 @@ impl Looking<'_> {
     fn render(&self, text: &str) -> Result<Found> {
         let tree = usvg::Tree::from_str(text, &usvg_options())
             .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
-        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
-        // grown by doubling, these vectors held up to twice their room at the peak of reading.
-        Ok(self.walk(&tree, self.shapes_len))
+        Ok(self.walk(&tree))
     }
 
-    /// The cut instances of a rendered tree, with room for `room` of them from the start.
-    fn walk(&self, tree: &usvg::Tree, room: usize) -> Found {
+    /// The cut instances of a rendered tree.
+    fn walk(&self, tree: &usvg::Tree) -> Found {
+        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
+        // grown by doubling, these vectors held up to twice their room at the peak of reading.
+        let room = self.shapes_len;
         let mut walk = Walk {
             looking: self,
             seen: HashSet::new(),
@@ -698,15 +700,12 @@ fn shapes_and_uses<'d, 'a>(doc: &'d Document<'a>) -> (Vec<Node<'d, 'a>>, Vec<Nod
     (shapes, uses)
 }
 
-/// Whether `n` is an SVG element as usvg reads them: in SVG's namespace, or in none (under a
-/// prefixed root, `<s:svg xmlns:s="…">`, an unprefixed element has no namespace).
-fn in_svg_namespace(n: Node) -> bool {
-    n.is_element() && matches!(n.tag_name().namespace(), None | Some(SVG_NS))
-}
-
-/// Whether `n` is the SVG element `name` (see [`in_svg_namespace`]).
+/// Whether `n` is the SVG element `name` as usvg reads them: in SVG's namespace, or in none
+/// (under a prefixed root, `<s:svg xmlns:s="…">`, an unprefixed element has no namespace).
 fn is_svg(n: Node, name: &str) -> bool {
-    in_svg_namespace(n) && n.tag_name().name() == name
+    n.is_element()
+        && matches!(n.tag_name().namespace(), None | Some(SVG_NS))
+        && n.tag_name().name() == name
 }
 
 /// The elements of a parsed source that cuts are named and written by.
@@ -853,11 +852,11 @@ fn write_batch(
 /// rendering it. A contour's origin is (instance, subpath).
 ///
 /// No XML tree of the source is kept between the steps (it was a fifth of the peak memory, held
-/// through the dilation): rendering parses the source once, to tag it for usvg and then to name
-/// the cuts and find where their new path data goes, and drops it before the cuts are traced;
-/// writing parses it again only for cuts reached through `<use>`,
-/// whose targets are copied. A plan read from a file does not even hold the source's text while
-/// its cuts are dilated: the file is read again as the output is written (see [`SourceFile`]).
+/// through the dilation): rendering parses the source to tag it for usvg, and again (made from
+/// the tagged copy) to name the cuts and find where their new path data goes, and drops it before
+/// the cuts are traced; writing parses it again only for cuts reached through `<use>`, whose
+/// targets are copied. A plan read from a file does not even hold the source's text while its
+/// cuts are dilated: the file is read again as the output is written (see [`SourceFile`]).
 struct SvgPlan<'w> {
     /// The source (empty between reading and writing when `file` can give it back).
     text: String,

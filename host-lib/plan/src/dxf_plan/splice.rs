@@ -502,8 +502,8 @@ impl Out {
                 2
             };
             self.bytes.extend_from_slice(&b"  "[..width]);
-            let bytes = &mut self.bytes;
-            write_scaled(code as u64, 0, |s| bytes.extend_from_slice(s.as_bytes()));
+            self.bytes
+                .extend_from_slice(itoa::Buffer::new().format(code).as_bytes());
         } else {
             let _ = write!(self.bytes, "{code:>3}");
         }
