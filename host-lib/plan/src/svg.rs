@@ -44,21 +44,23 @@
 //!   element, see [`compensation`]), replacing an earlier record of this
 //!   tool's.
 //!
-//! **Memory and cores.** The dilated document is several times its source (every rounded corner an
-//! arc), so it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of
-//! elements' path data at a time, the next batch made on the other cores while this one is written
-//! (and the dilated contours of a batch freed once its path data is made). No step holds more than
-//! it needs. The source is parsed to tag it for usvg; it and its tree go while usvg renders the
-//! tagged copy, and the source is made again from the copy (whose insertions are known) and parsed
-//! again to name the cuts and find where their new path data goes (byte ranges, a few per element).
-//! Of usvg's tree only the cut paths' data is kept; the source's tree goes before the cuts are
-//! traced, each path's data freed as it is traced (writing parses the source once more only to copy
-//! the targets of `<use>` clones, and G-code's cut order parses it again for the cuts' Inkscape
-//! layers). A plan read from a file ([`crate::file::dilate_file_into`], what the CLI uses) does not
-//! hold its text while its cuts are dilated: the file is read again, checked unchanged, as the
-//! output is written. The kernel frees each drawn contour as it is offset. The peak is the end of
-//! the dilation (the dilated contours, cavalier's 24 bytes a vertex, and what each cut needs to be
-//! written back), in a heap left fragmented by the reading before it.
+//! **Memory.** The dilated document is several times its source (every rounded corner an arc), so
+//! it is written to the caller's writer as it is made ([`dilate_svg_into`]), a batch of elements'
+//! path data at a time, the next batch made on the other cores while this one is written, and
+//! each batch's dilated contours freed once its path data is made. No step holds more than it
+//! needs: the source's XML tree is dropped, and so is the source itself, while usvg parses the
+//! tagged copy (the source is made again from the copy, whose insertions are known), and of
+//! usvg's tree only the cut paths' data is kept; the source is parsed again to name the cuts and
+//! find where their new path data goes (byte ranges, a few per element), and that tree goes
+//! before the cuts are traced, each path's data freed as it is traced (writing parses the source
+//! once more only to copy the targets of `<use>` clones, and G-code's cut order parses it again
+//! for the cuts' Inkscape layers). A plan read from a file ([`crate::file::dilate_file_into`],
+//! what the CLI uses) does not hold its text while its cuts are dilated: the file is read again,
+//! checked unchanged, as the output is written. The kernel frees each drawn contour as it is
+//! offset. The peak is the end of the dilation (the dilated contours, cavalier's 24 bytes a
+//! vertex, and what each cut needs to be written back), in a heap left fragmented by the reading
+//! before it; usvg's parse (the tagged copy, usvg's XML tree of it and its own tree) is a little
+//! lower.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -154,8 +156,8 @@ struct Instance {
     drawn: Vec<Vec<Seg>>,
     /// Its stroke colour (chooses its G-code cut settings).
     stroke: Option<Rgb>,
-    /// Where its element starts in the source, and where its new path data goes there (set when
-    /// the document is rendered, see `finish`).
+    /// Where its element starts in the source, and where its new path data goes there (set by
+    /// `read`).
     start: usize,
     slots: Vec<Slot>,
 }
@@ -261,7 +263,7 @@ pub fn dilate_svg(
 
 /// Dilate the cuts of an SVG plan, writing the edited document to `out` as it is made (it is
 /// never held whole: with its arcs written out, it is several times the size of the source).
-/// The source `text` is taken, not lent: it is not held while usvg renders its tagged copy (see
+/// The source `text` is taken, not lent: it is not held while usvg parses its tagged copy (see
 /// `render`). On an error, part of the document may have been written. An error writing to
 /// `out` is a [`PlanError::Write`] (whose path the caller sets).
 pub fn dilate_svg_into(
@@ -341,77 +343,31 @@ fn parse(text: &str) -> Result<Document<'_>> {
 }
 
 /// The document as usvg renders it: the plan begun (units, the compensation recorded, what
-/// passes through) and each cut instance with its path data (element coordinates), placed in the
-/// source and named.
+/// passes through) and each cut instance with its path data (element coordinates).
 struct Rendered {
     plan: Plan<(usize, usize)>,
     instances: Vec<Instance>,
     /// `paths[k]` is the path data of `instances[k]`.
     paths: Vec<tiny_skia_path::Path>,
-    /// `names[k]` names `instances[k]` in messages.
-    names: Vec<String>,
-    /// Whether each instance is of boxes.py's reference rectangle (empty unless the plan is
-    /// boxes.py's).
-    boxes_reference: Vec<bool>,
-    /// Where this tool's compensation record goes in the source.
-    records: Records,
-    /// Where each line of the source starts.
-    lines: LineIndex,
 }
 
 /// Render the document with usvg and find its cut instances; the source is given back.
 ///
 /// Memory: this is the largest step of reading, so nothing else large is alive during it. The
-/// source is parsed to check it, read its size and records, and tag its elements (see
-/// [`tagged`]); the source and its tree go before usvg renders the tagged copy (usvg's tree of
-/// the whole document is the largest thing reading makes), and the source is made again from the
-/// copy, whose insertions are known, and parsed again to place and name the cuts found. Of
-/// usvg's tree only the cut paths' data is kept (a tenth of the tree); the source's tree goes
-/// before the cuts are traced.
+/// XML tree of the source (parsed here to check it, read its size and records, and tag its
+/// elements, see [`tagged`]) goes before usvg parses the tagged copy, and so does the source
+/// itself: it is made again from the tagged copy, whose insertions are known, once usvg's tree
+/// is gone. Of usvg's tree only the cut paths' data is kept (a tenth of the tree). Reading parses
+/// the source again, to name and place the cuts.
 fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
+    let mut plan = Plan::new("svg");
     check_entities(&text)?;
-    let first = {
+    let (tagged, use_by_id, shapes_len, mm_per_px, broken) = {
         let doc = parse(&text)?;
-        let el = Elements::of(&doc);
-        FirstLook::of(&text, &doc, &el, opts)?
-    };
-    drop(text);
-    let found = first.looking(opts).render(&first.tagged.text)?;
-    let FirstLook {
-        plan,
-        broken,
-        tagged,
-        ..
-    } = first;
-    let text = tagged.untagged();
-    let doc = parse(&text)?;
-    let el = Elements::of(&doc);
-    let rendered = finish(plan, found, &broken, &text, &doc, &el)?;
-    drop(el);
-    drop(doc);
-    Ok((text, rendered))
-}
-
-/// What the first parse of the source finds before usvg renders it: the plan begun, the tagged
-/// copy, the `<use>` elements by id, the scale and the broken paths.
-struct FirstLook {
-    plan: Plan<(usize, usize)>,
-    tagged: Tagged,
-    use_by_id: HashMap<String, usize>,
-    shapes_len: usize,
-    mm_per_px: f64,
-    broken: Vec<BrokenPath>,
-}
-
-impl FirstLook {
-    /// Look at the source `text`, parsed as `doc` with elements `el`.
-    fn of(text: &str, doc: &Document, el: &Elements, opts: &SvgOptions) -> Result<FirstLook> {
-        let mut plan = Plan::new("svg");
-        let root = doc.root_element();
-        let mm_per_px = document_scale(root, opts.assume_units, &mut plan.summary)?;
-        check_view_box(root)?;
-        plan.summary.mm_per_unit = user_unit_mm(root, mm_per_px);
-        plan.summary.compensation_found = compensation::find_in_svg(doc);
+        let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
+        check_view_box(doc.root_element())?;
+        plan.summary.mm_per_unit = user_unit_mm(doc.root_element(), mm_per_px);
+        plan.summary.compensation_found = compensation::find_in_svg(&doc);
         for n in doc.descendants() {
             if is_svg(n, "text") {
                 plan.summary.pass("text");
@@ -419,174 +375,44 @@ impl FirstLook {
                 plan.summary.pass("image");
             }
         }
-        let broken = broken_paths(text, &el.shapes)?;
-        let (tagged, use_by_id) = tagged(text, &el.shapes, &el.uses)?;
-        Ok(FirstLook {
-            plan,
-            tagged,
-            use_by_id,
-            shapes_len: el.shapes.len(),
-            mm_per_px,
-            broken,
-        })
-    }
-
-    /// What rendering looks for.
-    fn looking<'a>(&'a self, opts: &'a SvgOptions) -> Looking<'a> {
-        Looking {
-            rules: &opts.rules,
-            mm_per_px: self.mm_per_px,
-            shapes_len: self.shapes_len,
-            use_by_id: &self.use_by_id,
-        }
-    }
-}
-
-/// The rendered document: the instances `found` checked, placed in the source `text` (parsed as
-/// `doc` with elements `el`) and named; `broken` are its shapes whose path data breaks off.
-fn finish(
-    mut plan: Plan<(usize, usize)>,
-    found: Found,
-    broken: &[BrokenPath],
-    text: &str,
-    doc: &Document,
-    el: &Elements,
-) -> Result<Rendered> {
-    let Found {
-        mut instances,
-        mut paths,
-        passed,
-        unidentified,
-    } = found;
+        let (shapes, uses) = shapes_and_uses(&doc);
+        let broken = broken_paths(&text, &shapes)?;
+        let (tagged, use_by_id) = tagged(&text, &shapes, &uses)?;
+        (tagged, use_by_id, shapes.len(), mm_per_px, broken)
+    };
+    drop(text);
+    let tree = usvg::Tree::from_str(&tagged.text, &usvg_options())
+        .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
+    let mut walk = Walk {
+        rules: &opts.rules,
+        mm_per_px,
+        shapes_len,
+        use_by_id: &use_by_id,
+        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
+        // grown by doubling, these vectors held up to twice their room at the peak of reading.
+        instances: Vec::with_capacity(shapes_len),
+        paths: Vec::with_capacity(shapes_len),
+        seen: HashSet::new(),
+        summary: &mut plan.summary,
+        unidentified: 0,
+    };
+    walk.group(tree.root(), &mut Vec::new());
+    let (unidentified, mut instances, mut paths) = (walk.unidentified, walk.instances, walk.paths);
+    drop(tree);
     if unidentified > 0 {
         return Err(bad(format!(
             "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
         )));
     }
-    for (reason, n) in passed {
-        *plan.summary.passed_through.entry(reason).or_default() += n;
-    }
-    check_broken(broken, &instances, &mut plan.summary)?;
+    check_broken(&broken, &instances, &mut plan.summary)?;
     instances.shrink_to_fit();
     paths.shrink_to_fit();
-    let lines = LineIndex::new(text);
-    let source = Source { lines: &lines, el };
-    source.check_uses(&instances)?;
-    place(&mut instances, text, el);
-    let names = (instances.iter()).map(|inst| source.label(inst)).collect();
-    let boxes_reference = source.boxes_references(&instances, &plan.summary);
-    let records = Records {
-        old: compensation::own_svg_records(doc),
-        at: doc.root_element().first_child().map(|n| n.range().start),
-    };
-    Ok(Rendered {
+    let rendered = Rendered {
         plan,
         instances,
         paths,
-        names,
-        boxes_reference,
-        records,
-        lines,
-    })
-}
-
-/// The source as its cut instances are named: its lines and elements.
-struct Source<'s, 'd, 'a> {
-    lines: &'s LineIndex,
-    el: &'s Elements<'d, 'a>,
-}
-
-impl Source<'_, '_, '_> {
-    /// How to name an instance in messages.
-    fn label(&self, inst: &Instance) -> String {
-        let el = self.el;
-        let mut s = describe(self.lines, el.shapes[inst.element]);
-        if let Some(u) = inst.via_use {
-            s.push_str(&format!(" via <use> {}", describe(self.lines, el.uses[u])));
-        }
-        s
-    }
-
-    /// Refuse cuts reached through nested `<use>` clones (they cannot be copied one by one).
-    fn check_uses(&self, instances: &[Instance]) -> Result<()> {
-        let el = self.el;
-        let mut problems = Problems::default();
-        for inst in instances {
-            if let Some(u) = inst.via_use {
-                // `ancestors()` starts at the node itself: the target may be the shape.
-                let target = use_target(el.uses[u], &el.ids);
-                let inside =
-                    target.is_some_and(|t| el.shapes[inst.element].ancestors().any(|a| a == t));
-                if !inside {
-                    problems.push(format!(
-                        "{} is reached through nested <use> clones; unlink the clones first (Inkscape: Edit ▸ Clone ▸ Unlink Clone)",
-                        self.label(inst)
-                    ));
-                }
-            }
-        }
-        problems.into_error(PlanError::Svg)
-    }
-
-    /// In a boxes.py plan, which instances are of its reference rectangle, which boxes.py draws
-    /// without burn (by instance; empty for other plans).
-    fn boxes_references(&self, instances: &[Instance], summary: &PlanSummary) -> Vec<bool> {
-        let boxes = summary
-            .compensation_found
-            .as_ref()
-            .is_some_and(|f| f.by == CompensatedBy::BoxesPy);
-        if !boxes {
-            return Vec::new();
-        }
-        (instances.iter())
-            .map(|inst| compensation::is_boxes_reference(self.el.shapes[inst.element]))
-            .collect()
-    }
-}
-
-/// What rendering looks for in a document (see [`Walk`]).
-struct Looking<'a> {
-    rules: &'a CutRules,
-    mm_per_px: f64,
-    shapes_len: usize,
-    use_by_id: &'a HashMap<String, usize>,
-}
-
-/// What rendering a document found: its cut instances, their path data, what
-/// passed through (by reason) and how many cut paths had no tag.
-#[derive(Default)]
-struct Found {
-    instances: Vec<Instance>,
-    paths: Vec<tiny_skia_path::Path>,
-    passed: BTreeMap<String, usize>,
-    unidentified: usize,
-}
-
-impl Looking<'_> {
-    /// Render the tagged copy `text`.
-    fn render(&self, text: &str) -> Result<Found> {
-        let tree = usvg::Tree::from_str(text, &usvg_options())
-            .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
-        Ok(self.walk(&tree))
-    }
-
-    /// The cut instances of a rendered tree.
-    fn walk(&self, tree: &usvg::Tree) -> Found {
-        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
-        // grown by doubling, these vectors held up to twice their room at the peak of reading.
-        let room = self.shapes_len;
-        let mut walk = Walk {
-            looking: self,
-            seen: HashSet::new(),
-            found: Found {
-                instances: Vec::with_capacity(room),
-                paths: Vec::with_capacity(room),
-                ..Found::default()
-            },
-        };
-        walk.group(tree.root(), &mut Vec::new());
-        walk.found
-    }
+    };
+    Ok((tagged.untagged(), rendered))
 }
 
 /// A `<path>`, `<polygon>` or `<polyline>` whose path data or points break off (see
@@ -852,11 +678,10 @@ fn write_batch(
 /// rendering it. A contour's origin is (instance, subpath).
 ///
 /// No XML tree of the source is kept between the steps (it was a fifth of the peak memory, held
-/// through the dilation): rendering parses the source to tag it for usvg, and again (made from
-/// the tagged copy) to name the cuts and find where their new path data goes, and drops it before
-/// the cuts are traced; writing parses it again only for cuts reached through `<use>`, whose
-/// targets are copied. A plan read from a file does not even hold the source's text while its
-/// cuts are dilated: the file is read again as the output is written (see [`SourceFile`]).
+/// through the dilation): reading parses the source to name the cuts and find where their new
+/// path data goes, and drops it; writing parses it again only for cuts reached through `<use>`,
+/// whose targets are copied. A plan read from a file does not even hold the source's text while
+/// its cuts are dilated: the file is read again as the output is written (see [`SourceFile`]).
 struct SvgPlan<'w> {
     /// The source (empty between reading and writing when `file` can give it back).
     text: String,
@@ -879,11 +704,11 @@ impl<'w> SvgPlan<'w> {
     fn new(
         text: String,
         file: Option<SourceFile>,
-        mut rendered: Rendered,
+        rendered: Rendered,
         out: &'w mut (dyn Write + Sync),
     ) -> Self {
         SvgPlan {
-            lines: std::mem::take(&mut rendered.lines),
+            lines: LineIndex::new(&text),
             text,
             file,
             instances: Vec::new(),
@@ -934,6 +759,35 @@ impl<'w> SvgPlan<'w> {
         Ok((traced, reach, farthest))
     }
 
+    /// How to name an instance in messages.
+    fn label(&self, el: &Elements, inst: &Instance) -> String {
+        let mut s = describe(&self.lines, el.shapes[inst.element]);
+        if let Some(u) = inst.via_use {
+            s.push_str(&format!(" via <use> {}", describe(&self.lines, el.uses[u])));
+        }
+        s
+    }
+
+    /// Refuse cuts reached through nested `<use>` clones (they cannot be copied one by one).
+    fn check_uses(&self, el: &Elements) -> Result<()> {
+        let mut problems = Problems::default();
+        for inst in &self.instances {
+            if let Some(u) = inst.via_use {
+                // `ancestors()` starts at the node itself: the target may be the shape.
+                let target = use_target(el.uses[u], &el.ids);
+                let inside =
+                    target.is_some_and(|t| el.shapes[inst.element].ancestors().any(|a| a == t));
+                if !inside {
+                    problems.push(format!(
+                        "{} is reached through nested <use> clones; unlink the clones first (Inkscape: Edit ▸ Clone ▸ Unlink Clone)",
+                        self.label(el, inst)
+                    ));
+                }
+            }
+        }
+        problems.into_error(PlanError::Svg)
+    }
+
     /// Each instance's traced subpaths (by instance), in document order: closed ones are cuts,
     /// the rest open paths.
     fn contours(plan: &mut Plan<(usize, usize)>, traced: Vec<Vec<Traced>>) {
@@ -945,6 +799,40 @@ impl<'w> SvgPlan<'w> {
                 }
             }
         }
+    }
+
+    /// In a boxes.py plan, which instances are of its reference rectangle, which boxes.py draws
+    /// without burn (by instance; empty for other plans).
+    fn boxes_references(&self, el: &Elements, summary: &PlanSummary) -> Vec<bool> {
+        let boxes = summary
+            .compensation_found
+            .as_ref()
+            .is_some_and(|f| f.by == CompensatedBy::BoxesPy);
+        if !boxes {
+            return Vec::new();
+        }
+        (self.instances.iter())
+            .map(|inst| compensation::is_boxes_reference(el.shapes[inst.element]))
+            .collect()
+    }
+
+    /// Everything reading needs from the source's XML tree, found in one parse that is dropped
+    /// before the cuts are traced (the tree and the traced contours held at once were the peak
+    /// of reading): the uses checked, the instances placed, the compensation records found, and
+    /// each instance's name and whether it is of boxes.py's reference rectangle.
+    fn read_source(&mut self, summary: &PlanSummary) -> Result<(Vec<String>, Vec<bool>)> {
+        let doc = parse(&self.text)?;
+        let el = Elements::of(&doc);
+        self.check_uses(&el)?;
+        place(&mut self.instances, &self.text, &el);
+        self.records = Records {
+            old: compensation::own_svg_records(&doc),
+            at: doc.root_element().first_child().map(|n| n.range().start),
+        };
+        let names = (self.instances.iter())
+            .map(|inst| self.label(&el, inst))
+            .collect();
+        Ok((names, self.boxes_references(&el, summary)))
     }
 
     /// The new geometry of the instances reached through `<use>`, as edits by `<use>`: their
@@ -1171,16 +1059,12 @@ impl Format for SvgPlan<'_> {
             mut plan,
             instances,
             paths,
-            names,
-            boxes_reference,
-            records,
-            lines: _,
         }) = self.rendered.take()
         else {
             return Err(bad("internal error: the SVG was read twice"));
         };
         self.instances = instances;
-        self.records = records;
+        let (names, boxes_reference) = self.read_source(&plan.summary)?;
         let (traced, reach, farthest) = self.trace_all(paths, &names)?;
         if let Some(name) = names.get(farthest) {
             check_reach(reach, name, &mut plan.summary)?;
@@ -1202,8 +1086,8 @@ impl Format for SvgPlan<'_> {
 
     fn groups(&self, plan: &Plan<(usize, usize)>) -> Vec<CutGroup> {
         // The layers are read from the source parsed again (only G-code asks for them, and it
-        // parsed when it was rendered: a failure now would be a bug, not bad input). The cuts'
-        // path never reads from a file (`dilate_svg_cuts` keeps its text), so the text is here.
+        // parsed in `read`: a failure now would be a bug, not bad input). The cuts' path never
+        // reads from a file (`dilate_svg_cuts` keeps its text), so the text is here.
         debug_assert!(
             self.file.is_none(),
             "the cuts' groups need the source's text"
@@ -1367,9 +1251,15 @@ fn document_scale(
 
 /// The walk over usvg's tree: the cut instances found, and each one's path data (a copy).
 struct Walk<'a> {
-    looking: &'a Looking<'a>,
+    rules: &'a CutRules,
+    mm_per_px: f64,
+    shapes_len: usize,
+    use_by_id: &'a HashMap<String, usize>,
+    instances: Vec<Instance>,
+    paths: Vec<tiny_skia_path::Path>,
     seen: HashSet<(usize, Option<usize>)>,
-    found: Found,
+    summary: &'a mut PlanSummary,
+    unidentified: usize,
 }
 
 impl Walk<'_> {
@@ -1377,7 +1267,7 @@ impl Walk<'_> {
         for child in g.children() {
             match child {
                 usvg::Node::Group(c) => {
-                    let u = self.looking.use_by_id.get(c.id()).copied();
+                    let u = self.use_by_id.get(c.id()).copied();
                     if let Some(u) = u {
                         uses.push(u);
                     }
@@ -1390,21 +1280,15 @@ impl Walk<'_> {
                 // Never loaded (see `usvg_options`): the source counted them.
                 usvg::Node::Image(_) => {}
                 #[allow(unreachable_patterns)]
-                _ => self.pass("other"),
+                _ => self.summary.pass("other"),
             }
         }
     }
 
-    /// Count an element passed through for `reason`.
-    fn pass(&mut self, reason: &str) {
-        *self.found.passed.entry(reason.to_owned()).or_default() += 1;
-    }
-
     fn path(&mut self, p: &usvg::Path, uses: &[usize]) {
-        let look = self.looking;
-        let to_doc = Affine::scale(look.mm_per_px).then_after(&affine(p.abs_transform()));
+        let to_doc = Affine::scale(self.mm_per_px).then_after(&affine(p.abs_transform()));
         if !p.is_visible() {
-            self.pass("hidden");
+            self.summary.pass("hidden");
             return;
         }
         let stroke = p.stroke().and_then(|s| match s.paint() {
@@ -1416,16 +1300,16 @@ impl Walk<'_> {
             _ => None,
         });
         let filled = p.fill().is_some_and(|f| f.opacity().get() > 0.0);
-        match look
+        match self
             .rules
             .classify_svg(stroke.map(|(c, w, _)| (c, w)), filled)
         {
-            Verdict::Keep(reason) => self.pass(&reason),
+            Verdict::Keep(reason) => self.summary.pass(reason),
             Verdict::Cut => {
                 let code = stroke.map(|s| s.2).unwrap_or(0.0);
                 let element = code as usize;
-                if code.fract() != 0.0 || element == 0 || element > look.shapes_len {
-                    self.found.unidentified += 1;
+                if code.fract() != 0.0 || element == 0 || element > self.shapes_len {
+                    self.unidentified += 1;
                     return;
                 }
                 // usvg drops ids inside clones, so only the outermost <use> is seen; a cut
@@ -1446,8 +1330,8 @@ impl Walk<'_> {
                     start: 0,
                     slots: Vec::new(),
                 };
-                self.found.instances.push(instance);
-                self.found.paths.push(p.data().clone());
+                self.instances.push(instance);
+                self.paths.push(p.data().clone());
             }
         }
     }
@@ -1960,7 +1844,6 @@ fn describe(lines: &LineIndex, n: Node) -> String {
 /// Line and column numbers of byte offsets in a text, each found by a binary search over the
 /// lines' starts. (roxmltree's `Document::text_pos_at` counts from the start of the document
 /// every time, which made naming every element of a large file quadratic in its size.)
-#[derive(Default)]
 struct LineIndex {
     /// Byte offset of the start of each line.
     starts: Vec<usize>,
