@@ -126,16 +126,33 @@ pub(super) struct Run {
     /// the probe found it, as a fraction of the commanded torque (`None` also where the check's
     /// estimate was implausible: then it measures nothing).
     pub(super) hold_torque_error: Option<f32>,
-    /// The approach's start: (commanded torque, hub angle, the ramp's target there), all N·m but
-    /// the angle, on the last ramping tick whose torque was at most [`APPROACH_FRACTION`] of its
-    /// target. From there to the jam the hub moved into the contact with the torque, so the two
-    /// give the contact's compliance where the hub's static friction hides it from the probe
-    /// (`FORCE_SENSITIVE`).
-    pub(super) approach: Option<(f32, f32, f32)>,
+    /// The approach's start ([`ApproachStart`]), on the last ramping tick whose torque was at
+    /// most [`APPROACH_FRACTION`] of its target. From there to the jam the hub moved into the
+    /// contact with the torque, so the two give the contact's compliance where the hub's static
+    /// friction hides it from the probe (`FORCE_SENSITIVE`).
+    pub(super) approach: Option<ApproachStart>,
     /// The held jam waiting for its kerf solve: (median angle, drift, torque). The hold's last
     /// tick takes the median and the first releasing tick solves it, so that no tick pays for
     /// both (each is some 5–8k instructions: together over the worst-step budget).
     pub(super) held: Option<HeldJam>,
+}
+
+/// Where the approach to the jam started ([`Run::approach`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct ApproachStart {
+    /// The commanded torque, N·m.
+    pub(super) torque_nm: f32,
+    /// The hub angle, degrees, jam frame.
+    pub(super) angle_deg: f32,
+    /// The ramp's target there, N·m.
+    pub(super) target_nm: f32,
+}
+
+impl ApproachStart {
+    /// How far the hub turned from here to `held`, degrees (a turn back counts as none).
+    fn turn_to_deg(&self, held: &HeldJam) -> f32 {
+        (held.angle_deg - self.angle_deg).max(0.0)
+    }
 }
 
 /// A held jam's figures, from the hold's last tick to the kerf solve.
@@ -328,7 +345,11 @@ impl Controller {
         let ramped = self.torque_nm + self.run.params.ramp_rate_nm_per_s * dt_s;
         self.torque_nm = ramped.min(speed_capped).clamp(0.0, target);
         if self.torque_nm <= APPROACH_FRACTION * target {
-            self.run.approach = Some((self.torque_nm, self.angle_deg, target));
+            self.run.approach = Some(ApproachStart {
+                torque_nm: self.torque_nm,
+                angle_deg: self.angle_deg,
+                target_nm: target,
+            });
         }
         if self.speed_deg_per_s() < PRESSING_SPEED_DEG_PER_S {
             let drive_v = self.drive_v();
@@ -822,10 +843,10 @@ impl Controller {
     /// approach's start, or one the target followed down along the spiral: see
     /// [`Controller::approach_force_turn`]).
     fn approach_turn(&self, held: &HeldJam) -> Option<(f32, f32)> {
-        let (start_nm, start_deg, _) = self.run.approach?;
-        let rise_nm = held.torque_nm - start_nm;
+        let start = self.run.approach?;
+        let rise_nm = held.torque_nm - start.torque_nm;
         (rise_nm >= MIN_APPROACH_FRACTION * held.torque_nm)
-            .then(|| ((held.angle_deg - start_deg).max(0.0), rise_nm))
+            .then(|| (start.turn_to_deg(held), rise_nm))
     }
 
     /// The approach to `held`, for one whose torque hardly rose ([`Controller::approach_turn`]
@@ -841,15 +862,13 @@ impl Controller {
     /// crawling to the jam at high torque (a high-ratio build) turns as far with no contact to
     /// give way: `None`.
     fn approach_force_turn(&self, held: &HeldJam) -> Option<(f32, f32)> {
-        let (start_nm, start_deg, start_target_nm) = self.run.approach?;
+        let start = self.run.approach?;
         if !self.probe_was_still() {
             return None;
         }
-        let force_rise_nm = held.torque_nm * (1.0 - start_nm / start_target_nm.max(f32::EPSILON));
-        Some((
-            (held.angle_deg - start_deg).max(0.0),
-            force_rise_nm.max(f32::EPSILON),
-        ))
+        let force_rise_nm =
+            held.torque_nm * (1.0 - start.torque_nm / start.target_nm.max(f32::EPSILON));
+        Some((start.turn_to_deg(held), force_rise_nm.max(f32::EPSILON)))
     }
 
     /// Whether the probe after the hold turned the hub by less than
