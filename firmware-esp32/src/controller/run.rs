@@ -103,12 +103,11 @@ pub(super) struct Run {
     /// probe that cannot move the hub, the contact bore more than it is held with
     /// ([`PRESSED_OVER_LIMIT`]).
     pub(super) max_pressing_drive_v: f32,
-    /// The run's first settle: (hub angle, degrees, jam frame; drive voltage, V; commanded
-    /// torque, N·m) on the first tick the hub stood still at its target torque (one still tick:
-    /// it may be a pause short of the contact). A jam held far past it for a force a few per
-    /// cent above it is a contact that gave way under a load it had borne (`FORCE_SENSITIVE`,
-    /// [`Controller::settle_sensitivity_um`]).
-    pub(super) first_settle: Option<(f32, f32, f32)>,
+    /// The run's first settle ([`FirstSettle`]), on the first tick the hub stood still at its
+    /// target torque (one still tick: it may be a pause short of the contact). A jam held far
+    /// past it for a force a few per cent above it is a contact that gave way under a load it
+    /// had borne (`FORCE_SENSITIVE`, [`Controller::settle_sensitivity_um`]).
+    pub(super) first_settle: Option<FirstSettle>,
     /// The winding was measured at one of this run's settles (`winding.rs`).
     pub(super) winding_measured: bool,
     /// The probe's angles summed over its last [`PROBE_AVERAGED_TICKS`], degrees.
@@ -131,10 +130,21 @@ pub(super) struct Run {
     /// contact with the torque, so the two give the contact's compliance where the hub's static
     /// friction hides it from the probe (`FORCE_SENSITIVE`).
     pub(super) approach: Option<ApproachStart>,
-    /// The held jam waiting for its kerf solve: (median angle, drift, torque). The hold's last
+    /// The held jam waiting for its kerf solve ([`HeldJam`]). The hold's last
     /// tick takes the median and the first releasing tick solves it, so that no tick pays for
     /// both (each is some 5–8k instructions: together over the worst-step budget).
     pub(super) held: Option<HeldJam>,
+}
+
+/// Where the hub first stood still at its target torque ([`Run::first_settle`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct FirstSettle {
+    /// The hub angle, degrees, jam frame.
+    pub(super) angle_deg: f32,
+    /// The drive voltage (supply × duty), V.
+    pub(super) drive_v: f32,
+    /// The commanded torque, N·m.
+    pub(super) torque_nm: f32,
 }
 
 /// Where the approach to the jam started ([`Run::approach`]).
@@ -150,7 +160,7 @@ pub(super) struct ApproachStart {
 
 impl ApproachStart {
     /// How far the hub turned from here to `held`, degrees (a turn back counts as none).
-    fn turn_to_deg(&self, held: &HeldJam) -> f32 {
+    fn turn_to_held_deg(&self, held: &HeldJam) -> f32 {
         (held.angle_deg - self.angle_deg).max(0.0)
     }
 }
@@ -361,7 +371,11 @@ impl Controller {
             self.run.still_ticks += 1;
             let drive_v = self.note_still_drive();
             if self.run.first_settle.is_none() {
-                self.run.first_settle = Some((self.angle_deg, drive_v, self.torque_nm));
+                self.run.first_settle = Some(FirstSettle {
+                    angle_deg: self.angle_deg,
+                    drive_v,
+                    torque_nm: self.torque_nm,
+                });
             }
             if self.run.still_ticks == ESTIMATE_TICK {
                 self.apply_winding_estimate();
@@ -472,16 +486,13 @@ impl Controller {
             .hold
             .median_and_spread()
             .unwrap_or((entry_deg, 0.0));
-        let since_first_settle = self
-            .run
-            .first_settle
-            .map(|(settle_deg, settle_v, settle_nm)| {
-                let drive_ratio = drive_v / settle_v.max(f32::EPSILON);
-                (
-                    median - settle_deg,
-                    drive_ratio * settle_nm / torque_nm.max(f32::EPSILON) - 1.0,
-                )
-            });
+        let since_first_settle = self.run.first_settle.map(|settle| {
+            let drive_ratio = drive_v / settle.drive_v.max(f32::EPSILON);
+            (
+                median - settle.angle_deg,
+                drive_ratio * settle.torque_nm / torque_nm.max(f32::EPSILON) - 1.0,
+            )
+        });
         self.run.held = Some(HeldJam {
             angle_deg: median,
             drift_deg,
@@ -846,7 +857,7 @@ impl Controller {
         let start = self.run.approach?;
         let rise_nm = held.torque_nm - start.torque_nm;
         (rise_nm >= MIN_APPROACH_FRACTION * held.torque_nm)
-            .then(|| (start.turn_to_deg(held), rise_nm))
+            .then(|| (start.turn_to_held_deg(held), rise_nm))
     }
 
     /// The approach to `held`, for one whose torque hardly rose ([`Controller::approach_turn`]
@@ -868,7 +879,10 @@ impl Controller {
         }
         let force_rise_nm =
             held.torque_nm * (1.0 - start.torque_nm / start.target_nm.max(f32::EPSILON));
-        Some((start.turn_to_deg(held), force_rise_nm.max(f32::EPSILON)))
+        Some((
+            start.turn_to_held_deg(held),
+            force_rise_nm.max(f32::EPSILON),
+        ))
     }
 
     /// Whether the probe after the hold turned the hub by less than

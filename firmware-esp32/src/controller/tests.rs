@@ -2020,7 +2020,7 @@ fn a_contact_that_gave_way_after_the_first_settle_is_flagged_force_sensitive() {
         let mut crushed = false;
         for _ in 0..20_000 {
             let drive_v = s.last_out.duty * 12.0;
-            let settle_v = s.c.run.first_settle.map(|(_, v, _)| v);
+            let settle_v = s.c.run.first_settle.map(|settle| settle.drive_v);
             crushed |= gives_way_to.is_some() && settle_v.is_some_and(|v| drive_v > 1.06 * v);
             let stop_deg = gives_way_to.filter(|_| crushed).unwrap_or(60.0);
             if s.angle_deg < stop_deg && s.c.torque_nm > 0.0 {
@@ -2069,7 +2069,7 @@ fn a_pause_short_of_the_contact_is_not_a_give_way() {
             break;
         }
     }
-    let (settle_deg, _, _) = s.c.run.first_settle.expect("a first settle");
+    let settle_deg = s.c.run.first_settle.expect("a first settle").angle_deg;
     assert!((settle_deg - 58.5).abs() < 0.1, "{settle_deg}");
     let result = s.c.result().expect("a result");
     assert!(result.angle_deg > 59.5, "{result:?}");
