@@ -1,6 +1,7 @@
 //! `cargo xtask fuzz`: the coverage-guided fuzz targets of the protocol and the plan readers
-//! (`fuzz/`), run with cargo-fuzz on the nightly toolchain. Installs cargo-fuzz when it is
-//! missing.
+//! (`fuzz/`), run with cargo-fuzz on the nightly toolchain, seeded from `fuzz/seeds/<target>/`
+//! and given `fuzz/dicts/<target>.dict` (the format's words) where there is one. Installs
+//! cargo-fuzz when it is missing.
 
 use std::process::Command;
 
@@ -78,6 +79,11 @@ pub fn run(args: &FuzzArgs) -> Result<()> {
             &format!("-max_total_time={}", args.seconds),
             "-rss_limit_mb=2048",
         ]);
+        // The formats' words, so that mutations get past the tokenizers (`fuzz/dicts/`).
+        let dict = root().join("fuzz/dicts").join(format!("{target}.dict"));
+        if dict.is_file() {
+            cmd.arg(format!("-dict={}", dict.display()));
+        }
         run_cmd(&mut cmd).with_context(|| {
             format!(
                 "fuzz target {target} failed: the crashing input is in fuzz/artifacts/{target}/"
