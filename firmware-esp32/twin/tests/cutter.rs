@@ -105,7 +105,10 @@ fn a_move_takes_its_length_over_its_feed_and_is_traced_with_its_power() {
             ),
         ]
     );
+    // Laser mode kept the G0 dark, but the beam was left on for it: that is recorded apart.
     assert!(record.travel_firings.is_empty());
+    let blanked: Vec<_> = record.blanked_travels.iter().map(|t| t.power_s).collect();
+    assert_eq!(blanked, [800.0]);
 }
 
 #[test]

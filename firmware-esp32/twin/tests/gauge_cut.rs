@@ -1,5 +1,6 @@
 //! The gauge the cutter twin cut is the gauge the device twin measures: the plan crate's gauge
-//! drawing, written as G-code here (G0 travels, G1 lines and G2/G3 arcs at 1 µm, laser mode),
+//! drawing, written as G-code here (G0 travels with the beam off, G1 lines and G2/G3 arcs at
+//! 1 µm, laser mode),
 //! streamed into the GRBL cutter twin, and the trace it records put under the device twin's
 //! prongs. Drawn right, it reads like any gauge of the twin's cutter; with its pitch wrong it
 //! reads wrong by c/c′; mirrored, or with a hole missing or too small, it is refused with the
@@ -65,7 +66,11 @@ fn gcode(drawing: &GaugeDrawing, holes: &[usize], placement: Placement) -> Vec<S
         let (centre, r) = drawing.holes[i];
         let [cx, cy] = at(centre.x, centre.y);
         let r = r * placement.scale[0].abs();
+        // The beam off for the travel, as the plan crate's programs do (laser mode would keep
+        // it dark, but a program should not rely on that: the twin records it if it does).
+        lines.push("M5".to_owned());
         lines.push(format!("G0 X{:.3} Y{cy:.3}", cx + r));
+        lines.push("M4".to_owned());
         lines.push(format!(
             "G2 X{:.3} Y{cy:.3} I{:.3} J0 S1000 F600",
             cx + r,
@@ -99,6 +104,11 @@ fn cut_on(options: CutterOptions, lines: &[String]) -> Vec<Segment> {
     grbl.advance_us(600_000_000);
     let record = log.snapshot();
     assert!(record.travel_firings.is_empty());
+    assert!(
+        record.blanked_travels.is_empty(),
+        "{:?}",
+        record.blanked_travels
+    );
     record.segments
 }
 

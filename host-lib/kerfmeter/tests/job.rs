@@ -51,15 +51,16 @@ fn gauge_gcode() -> String {
     program.to_text()
 }
 
-/// The "dilated job": `n` squares of 20 mm grown by the kerf, at 600 mm/min.
+/// The "dilated job": `n` squares of 20 mm grown by the kerf, at 600 mm/min, the beam off for
+/// each travel as the plan crate's programs have it.
 fn job_gcode(kerf_um: f64, n: usize) -> String {
     let half = kerf_um / 2000.0;
-    let mut g = String::from("G21 G90\nM4 S0\n");
+    let mut g = String::from("G21 G90\nM5\n");
     for i in 0..n {
         let x0 = JOB_X0_MM + 25.0 * (i % 8) as f64 - half;
         let y0 = 25.0 * (i / 8) as f64 - half;
         let (x1, y1) = (x0 + 20.0 + 2.0 * half, y0 + 20.0 + 2.0 * half);
-        g += &format!("G0 X{x0:.4} Y{y0:.4}\nG1 X{x1:.4} S800 F600\nG1 Y{y1:.4}\n");
+        g += &format!("M5\nG0 X{x0:.4} Y{y0:.4}\nM4\nG1 X{x1:.4} S800 F600\nG1 Y{y1:.4}\n");
         g += &format!("G1 X{x0:.4}\nG1 Y{y0:.4}\n");
     }
     g + "M5\nM2\n"
@@ -130,12 +131,18 @@ fn record(rig: &Rig) -> CutterRecord {
     rig.cutter.sim_log().unwrap().snapshot()
 }
 
-/// The laser never fired on a travel and is off now; whether any of the job was cut.
+/// The laser never fired on a travel, nor was left switched on for one that laser mode kept
+/// dark, and is off now; whether any of the job was cut.
 fn laser_safe_and_job_cut(record: &CutterRecord) -> bool {
     assert!(
         record.travel_firings.is_empty(),
         "{:?}",
         record.travel_firings
+    );
+    assert!(
+        record.blanked_travels.is_empty(),
+        "{:?}",
+        record.blanked_travels
     );
     assert_eq!(record.laser_power_s, 0.0);
     record

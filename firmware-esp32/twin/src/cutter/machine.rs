@@ -298,14 +298,19 @@ impl Grbl {
     }
 
     fn start_move(&mut self, m: Move) {
-        if m.kind == SegmentKind::Travel && m.power_s > 0.0 {
+        if m.kind == SegmentKind::Travel && m.enabled_s > 0.0 {
             let firing = TravelFiring {
                 at_us: self.now_us,
                 start: m.start,
                 end: m.end,
-                power_s: m.power_s,
+                power_s: m.enabled_s,
             };
-            self.log.lock().travel_firings.push(firing);
+            let mut log = self.log.lock();
+            if m.power_s > 0.0 {
+                log.travel_firings.push(firing);
+            } else {
+                log.blanked_travels.push(firing);
+            }
         }
         self.current = Some((m, 0));
     }
@@ -709,6 +714,7 @@ impl Grbl {
             return Ok(None);
         }
         m.power_s = self.output(m.kind, modal);
+        m.enabled_s = self.spindle_output(modal);
         m.line = number;
         Ok(Some(m))
     }

@@ -28,6 +28,9 @@ pub struct Move {
     pub duration_us: u64,
     /// The laser's output while it runs (`S`, 0 = off).
     pub power_s: f64,
+    /// The power the program switched the beam on with (`M3`/`M4` and `S`, 0 when off):
+    /// `power_s`, except where laser mode keeps a travel (or a dynamic-power dwell) dark.
+    pub enabled_s: f64,
     /// The received G-code line it came from.
     pub line: u32,
 }
@@ -80,6 +83,7 @@ impl Move {
             feed_mm_per_min: 0.0,
             duration_us: (seconds * 1e6).round() as u64,
             power_s: 0.0,
+            enabled_s: 0.0,
             line: 0,
         }
     }
@@ -99,6 +103,7 @@ impl Move {
             feed_mm_per_min,
             duration_us,
             power_s: 0.0,
+            enabled_s: 0.0,
             line: 0,
         }
     }

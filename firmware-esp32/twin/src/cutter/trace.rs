@@ -1,6 +1,8 @@
 //! What the cutter twin did, shared with whoever serves it: every move it executed with the
 //! laser's power and feed (the geometry the laser traced, for the twin that "cuts" later), every
 //! moment the laser fired during a travel move (a safety violation: tests assert there is none),
+//! every travel that only laser mode kept dark (the beam left switched on for it: a sender that
+//! relies on `$32=1`, which would fire on a controller without it; tests assert none either),
 //! every breach of the serial protocol by the sender (bytes lost to a full receive buffer), and
 //! the machine's state and laser output now. Cloning a [`CutterLog`] shares it.
 
@@ -78,6 +80,10 @@ pub struct CutterRecord {
     pub segments: Vec<Segment>,
     /// Travels during which the laser fired.
     pub travel_firings: Vec<TravelFiring>,
+    /// Travels made with the beam switched on (`M3`/`M4` and `S` above 0, the `power_s` here)
+    /// that only laser mode (`$32=1`) kept dark. GRBL does blank them, but a program that relies
+    /// on it fires through every travel on a controller whose setting was changed.
+    pub blanked_travels: Vec<TravelFiring>,
     /// The sender's protocol breaches.
     pub violations: Vec<ProtocolViolation>,
     /// The laser's power now (0 when off).
