@@ -779,19 +779,41 @@ impl Loop<'_, '_> {
         Ok(())
     }
 
-    /// Stop the cutter after `e` (the laser off), unless the stream already did.
+    /// Stop the cutter after `e` (the laser off), unless a stream already tried to.
     fn make_safe(&mut self, e: JobError) -> JobError {
         let _ = self.devices.meter.abort();
-        if matches!(e, JobError::Cutter { .. }) {
+        if !needs_stop(&e) {
             return e;
         }
         match self.devices.cutter.stop() {
-            Ok(()) => e,
+            Ok(()) => stopped(e),
             Err(stop) => JobError::NotStopped {
                 cause: Box::new(e),
                 stop,
             },
         }
+    }
+}
+
+/// Whether the cutter is still to be stopped after `e`: after every failure but a stream's,
+/// which stopped it (or tells that it could not) itself. A status read that failed (the port
+/// gone while the head waits or before the gauge is cut) leaves it to the loop.
+fn needs_stop(e: &JobError) -> bool {
+    !matches!(e, JobError::Cutter { source, .. } if source.stop_was_tried())
+}
+
+/// `e` once the cutter was stopped after it: a cutter's own failure is told so, as a stream's
+/// is (the loop's other failures say that the laser is off already).
+fn stopped(e: JobError) -> JobError {
+    match e {
+        JobError::Cutter { stage, source } => JobError::Cutter {
+            stage,
+            source: CutterError::Stopped {
+                cause: Box::new(source),
+                position_lost: false,
+            },
+        },
+        e => e,
     }
 }
 
@@ -808,6 +830,35 @@ mod tests {
     use super::*;
 
     const GAUGE: [[f64; 2]; 2] = [[-30.0, -30.0], [30.0, 30.0]];
+
+    #[test]
+    fn a_failed_status_read_stops_the_cutter_and_a_stopped_stream_is_not_stopped_twice() {
+        let lost = || CutterError::Io {
+            address: "grbl:/dev/ttyUSB0".into(),
+            source: std::io::Error::other("the port vanished"),
+        };
+        let read_failed = JobError::Cutter {
+            stage: Stage::WaitMotion,
+            source: lost(),
+        };
+        assert!(needs_stop(&read_failed));
+        let message = stopped(read_failed).to_string();
+        assert!(
+            message.contains("the port vanished. The cutter was stopped and the laser is off"),
+            "{message}"
+        );
+        let stream_failed = JobError::Cutter {
+            stage: Stage::StreamJob,
+            source: CutterError::Stopped {
+                cause: Box::new(lost()),
+                position_lost: false,
+            },
+        };
+        assert!(!needs_stop(&stream_failed));
+        assert!(needs_stop(&JobError::Motion(
+            "the cutter went into alarm".into()
+        )));
+    }
 
     #[test]
     fn the_gauge_goes_beside_the_plan_where_the_bed_has_room() {

@@ -282,6 +282,17 @@ impl CutterError {
         matches!(self, Self::NotStopped { .. })
     }
 
+    /// True when this error already tells how the stop after the failure went
+    /// ([`CutterError::Stopped`], [`CutterError::NotStopped`]): a stream's failures do; a
+    /// status read's or a connection's do not, and leave the stopping to the caller.
+    pub fn stop_was_tried(&self) -> bool {
+        match self {
+            Self::Stopped { .. } | Self::NotStopped { .. } => true,
+            Self::OtherFlavour { error, .. } => error.stop_was_tried(),
+            _ => false,
+        }
+    }
+
     /// The first failure, without the stop that followed it ([`CutterError::Stopped`],
     /// [`CutterError::NotStopped`]).
     pub fn cause(&self) -> &CutterError {
