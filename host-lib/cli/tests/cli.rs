@@ -958,6 +958,23 @@ fn cut_streams_a_program_to_the_simulated_cutter() {
     assert_eq!(report["lines"], 10);
     assert_eq!(report["grbl_version"], "1.1h");
     assert!(report["max_unanswered_bytes"].as_u64().unwrap() <= 128);
+    assert_eq!(report["constant_power_line"], serde_json::Value::Null);
+}
+
+#[test]
+fn cut_warns_of_a_program_that_fires_at_constant_power() {
+    let (_dir, file) = gcode_file(&SQUARE_GCODE.replace("M4 S0", "M3 S0"));
+    let out = kerfmeter(&["cut", path(&file), "--cutter", "sim"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let message = stderr(&out);
+    assert!(
+        message.contains("warning: line 3 switches the laser on with M3 (constant power)"),
+        "{message}"
+    );
+    let out = kerfmeter(&["--json", "cut", path(&file), "--cutter", "sim"]);
+    let report: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    assert_eq!(report["constant_power_line"], 3);
+    assert!(!stderr(&out).contains("warning"), "{}", stderr(&out));
 }
 
 #[test]
@@ -1066,7 +1083,13 @@ fn ctrl_c_mid_cut_leaves_the_machine_idle_with_the_laser_off() {
     let mut stderr = BufReader::new(child.stderr.take().unwrap());
     let mut first = String::new();
     stderr.read_line(&mut first).unwrap();
-    assert!(first.starts_with("streaming"), "{first}");
+    assert!(
+        first.starts_with("warning: line 1 switches the laser on with M3"),
+        "{first}"
+    );
+    let mut second = String::new();
+    stderr.read_line(&mut second).unwrap();
+    assert!(second.starts_with("streaming"), "{second}");
     std::thread::sleep(std::time::Duration::from_millis(300));
     let interrupted = Command::new("kill")
         .args(["-INT", &child.id().to_string()])

@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use kerfmeter::grbl::protocol::{MachineState, prepare};
+use kerfmeter::grbl::protocol::{MachineState, constant_power_line, prepare};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, CutterError, StreamProgress};
 use kerfmeter_plan::PlanFormat;
 use kerfmeter_plan::lightburn::is_project_path;
@@ -64,6 +64,9 @@ pub struct CutReport {
     pub elapsed_s: f64,
     /// The most bytes that were unanswered at once (at most 128).
     pub max_unanswered_bytes: usize,
+    /// The first line that switched the laser on at constant power (`M3`), if any (see
+    /// `constant_power_warning`).
+    pub constant_power_line: Option<usize>,
 }
 
 impl fmt::Display for CutReport {
@@ -107,6 +110,10 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         line: bad.number,
         reason: bad.reason,
     })?;
+    let constant_power_line = constant_power_line(&lines);
+    if let Some(line) = constant_power_line.filter(|_| !g.json) {
+        eprintln!("{}", constant_power_warning(line));
+    }
     let cancel = Arc::new(AtomicBool::new(false));
     let flag = cancel.clone();
     // With ctrlc's "termination" feature this also catches SIGTERM and SIGHUP.
@@ -133,7 +140,20 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         lines: report.lines,
         elapsed_s: report.elapsed.as_secs_f64(),
         max_unanswered_bytes: report.max_unanswered_bytes,
+        constant_power_line,
     })
+}
+
+/// The warning for a program that switches the laser on with `M3` on `line`: the stream is
+/// stopped with the laser off on every failure the host sees, but not where the host cannot
+/// send (see [`kerfmeter::grbl::protocol::constant_power_line`]).
+fn constant_power_warning(line: usize) -> String {
+    format!(
+        "warning: line {line} switches the laser on with M3 (constant power), which GRBL keeps on \
+         at rest: if the stream stops where this computer cannot stop the cutter (asleep, the \
+         cable pulled), the beam stays on over one spot. Prefer M4 (dynamic power, off at rest; \
+         in LightBurn the GRBL device rather than GRBL-M3)"
+    )
 }
 
 /// The driver's options from the flags.

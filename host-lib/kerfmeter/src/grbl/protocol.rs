@@ -115,20 +115,32 @@ pub fn prepare(program: &str) -> Result<Vec<ProgramLine>, BadLine> {
 
 /// The program pause (`M0`, `M1`) on a cleaned line, if any.
 fn program_pause(text: &str) -> Option<String> {
-    let mut rest = text;
-    while let Some(at) = rest.find('M') {
-        let digits = &rest[at + 1..];
-        let end = digits
+    m_words(text)
+        .find(|&(_, number)| number == 0.0 || number == 1.0)
+        .map(|(word, _)| format!("M{word}"))
+}
+
+/// The first line of `lines` that switches the laser on at constant power (`M3`), if any.
+/// Under `M3` GRBL keeps the beam on at rest: should the stream stop mid-program where the host
+/// cannot send a stop (the computer asleep, the cable pulled, the process killed), the beam
+/// stays on over one spot until the controller is reset. `M4` (dynamic power, what Kerfmeter's
+/// programs use) scales it with the speed, to nothing at rest.
+pub fn constant_power_line(lines: &[ProgramLine]) -> Option<usize> {
+    lines
+        .iter()
+        .find(|l| m_words(&l.text).any(|(_, number)| number == 3.0))
+        .map(|l| l.number)
+}
+
+/// The `M` words of a cleaned line: each as written after the `M`, and its number.
+fn m_words(text: &str) -> impl Iterator<Item = (&str, f64)> {
+    text.split('M').skip(1).filter_map(|after| {
+        let end = after
             .find(|c: char| !(c.is_ascii_digit() || c == '.'))
-            .unwrap_or(digits.len());
-        if let Ok(number) = digits[..end].parse::<f64>()
-            && (number == 0.0 || number == 1.0)
-        {
-            return Some(format!("M{}", &digits[..end]));
-        }
-        rest = &digits[end..];
-    }
-    None
+            .unwrap_or(after.len());
+        let word = &after[..end];
+        word.parse::<f64>().ok().map(|number| (word, number))
+    })
 }
 
 /// One line without comments and spaces, or why it cannot be sent.
@@ -471,6 +483,12 @@ mod tests {
             );
         }
         assert!(prepare("M3S100\nM5\nM2\nM30\nM4\nM100\n").is_ok());
+        let lines = |program| prepare(program).unwrap();
+        assert_eq!(
+            constant_power_line(&lines("G0X1\nM4S100\nM03 S100\n")),
+            Some(3)
+        );
+        assert_eq!(constant_power_line(&lines("M4S100\nM30\nM5\n")), None);
         assert!(prepare("G1 X1 (a ! in a comment is fine)\n").is_ok());
     }
 
