@@ -154,6 +154,9 @@ async fn listen_and_serve(
         .map_err(|e| CliError::Usage(format!("cannot listen on {listen}: {e}")))?;
     let security = Arc::new(security.bound_to(bound));
     print_line(&format!("Listening on http://{bound}/"));
+    for warning in security.warnings() {
+        eprintln!("warning: {warning}");
+    }
     let app = http::router(device.clone(), security);
     let serving = axum::serve(listener, app).into_future();
     tokio::pin!(serving);

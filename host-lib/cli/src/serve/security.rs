@@ -131,6 +131,36 @@ impl Security {
         })
     }
 
+    /// What the user should know about these rules before trusting them, for the server to print
+    /// as it starts: a listener beyond this machine speaks plain HTTP (the token and every call
+    /// readable by whoever sees the traffic), and an `http:` page allowed from another machine
+    /// is only as safe as the network's name resolution (a spoofed name serves a page with that
+    /// origin).
+    pub fn warnings(&self) -> Vec<String> {
+        let mut warnings = Vec::new();
+        if !self.listen.ip().is_loopback() {
+            warnings.push(format!(
+                "listening on {}, beyond this machine, over plain HTTP: the token and every call \
+                 travel unencrypted, and whoever can read the network's traffic can take the token \
+                 and turn the motor (and, with --cutter, fire the laser). Serve so only on a \
+                 network you trust, or behind an HTTPS reverse proxy",
+                self.listen
+            ));
+        }
+        for origin in &self.allowed_origins {
+            let host = origin.strip_prefix("http://").unwrap_or_default();
+            if !host.is_empty() && !is_loopback_host(host) {
+                warnings.push(format!(
+                    "--allow-origin {origin} is a plain-HTTP page on another machine: anyone on \
+                     the network who can answer for that name (a spoofed DNS or mDNS reply) can \
+                     serve a page with that origin and drive this server from your browser; \
+                     prefer an https:// origin"
+                ));
+            }
+        }
+        warnings
+    }
+
     /// The same rules, once the port is bound (`--listen ...:0` picks one).
     pub fn bound_to(mut self, listen: SocketAddr) -> Self {
         self.listen = listen;
@@ -285,6 +315,30 @@ mod tests {
             &["http://Tool.example/".into()],
         )
         .unwrap()
+    }
+
+    #[test]
+    fn a_wide_listener_and_a_plain_http_origin_elsewhere_are_warned_of() {
+        assert_eq!(loopback().warnings().len(), 1, "http://tool.example");
+        let quiet = Security::new(
+            "127.0.0.1:7878".parse().unwrap(),
+            None,
+            &[
+                "https://tool.example".into(),
+                "http://localhost:3000".into(),
+            ],
+        )
+        .unwrap();
+        assert!(quiet.warnings().is_empty(), "{:?}", quiet.warnings());
+        let wide = Security::new(
+            "0.0.0.0:7878".parse().unwrap(),
+            Some("a-long-enough-secret".into()),
+            &[],
+        )
+        .unwrap();
+        let warnings = wide.warnings();
+        assert_eq!(warnings.len(), 1);
+        assert!(warnings[0].contains("plain HTTP"), "{warnings:?}");
     }
 
     #[test]
