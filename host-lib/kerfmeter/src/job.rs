@@ -556,6 +556,7 @@ pub fn run_job(
         cancel,
         progress,
         stages: Vec::new(),
+        sent_to_cutter: false,
     };
     let result = run.all(dilate);
     result.map_err(|e| run.make_safe(e))
@@ -568,6 +569,9 @@ struct Loop<'a, 'r> {
     cancel: &'r AtomicBool,
     progress: &'r mut dyn FnMut(JobEvent<'_>),
     stages: Vec<StageTime>,
+    /// Whether a program was given to the cutter yet: before, nothing it does comes from this
+    /// job, and a failure has nothing of the cutter's to stop.
+    sent_to_cutter: bool,
 }
 
 impl Loop<'_, '_> {
@@ -634,6 +638,7 @@ impl Loop<'_, '_> {
 
     /// Stream `program`; the head's position at the end, when reported.
     fn stream(&mut self, stage: Stage, program: &str) -> Result<Option<[f64; 3]>, JobError> {
+        self.sent_to_cutter = true;
         let progress = &mut *self.progress;
         let report = self
             .devices
@@ -646,6 +651,7 @@ impl Loop<'_, '_> {
     }
 
     fn stream_report(&mut self, program: &str) -> Result<crate::grbl::StreamReport, JobError> {
+        self.sent_to_cutter = true;
         let progress = &mut *self.progress;
         self.devices
             .cutter
@@ -779,42 +785,37 @@ impl Loop<'_, '_> {
         Ok(())
     }
 
-    /// Stop the cutter after `e` (the laser off), unless a stream already tried to.
+    /// Stop the cutter after `e` (the laser off) once this job gave it a program, unless a
+    /// stream already tried to. A cutter's own failure is stopped as a stream's is, and tells
+    /// how that went (a reset that found the head moving, an alarm that hears only a reset).
     fn make_safe(&mut self, e: JobError) -> JobError {
         let _ = self.devices.meter.abort();
-        if !needs_stop(&e) {
+        if !needs_stop(&e, self.sent_to_cutter) {
             return e;
         }
-        match self.devices.cutter.stop() {
-            Ok(()) => stopped(e),
-            Err(stop) => JobError::NotStopped {
-                cause: Box::new(e),
-                stop,
+        match e {
+            JobError::Cutter { stage, source } => JobError::Cutter {
+                stage,
+                source: self.devices.cutter.stop_after(source),
+            },
+            e => match self.devices.cutter.stop() {
+                Ok(()) => e,
+                Err(stop) => JobError::NotStopped {
+                    cause: Box::new(e),
+                    stop,
+                },
             },
         }
     }
 }
 
-/// Whether the cutter is still to be stopped after `e`: after every failure but a stream's,
-/// which stopped it (or tells that it could not) itself. A status read that failed (the port
-/// gone while the head waits or before the gauge is cut) leaves it to the loop.
-fn needs_stop(e: &JobError) -> bool {
-    !matches!(e, JobError::Cutter { source, .. } if source.stop_was_tried())
-}
-
-/// `e` once the cutter was stopped after it: a cutter's own failure is told so, as a stream's
-/// is (the loop's other failures say that the laser is off already).
-fn stopped(e: JobError) -> JobError {
-    match e {
-        JobError::Cutter { stage, source } => JobError::Cutter {
-            stage,
-            source: CutterError::Stopped {
-                cause: Box::new(source),
-                position_lost: false,
-            },
-        },
-        e => e,
-    }
+/// Whether the cutter is to be stopped after `e`: not before this job gave it a program
+/// (`sent_to_cutter`; until then it only answered status requests, and a stop that failed on a
+/// dead port would claim a laser this job never switched on), nor after a stream's failure once
+/// the stream tried to stop it; after every other failure, a status read's included (the port
+/// gone while the head moves to the gauge).
+fn needs_stop(e: &JobError, sent_to_cutter: bool) -> bool {
+    sent_to_cutter && !matches!(e, JobError::Cutter { source, .. } if source.stop_was_tried())
 }
 
 /// A stream's error in `stage`; a cancelled stream is the loop's cancel.
@@ -832,7 +833,7 @@ mod tests {
     const GAUGE: [[f64; 2]; 2] = [[-30.0, -30.0], [30.0, 30.0]];
 
     #[test]
-    fn a_failed_status_read_stops_the_cutter_and_a_stopped_stream_is_not_stopped_twice() {
+    fn a_failed_status_read_stops_the_cutter_once_it_was_given_a_program() {
         let lost = || CutterError::Io {
             address: "grbl:/dev/ttyUSB0".into(),
             source: std::io::Error::other("the port vanished"),
@@ -841,12 +842,8 @@ mod tests {
             stage: Stage::WaitMotion,
             source: lost(),
         };
-        assert!(needs_stop(&read_failed));
-        let message = stopped(read_failed).to_string();
-        assert!(
-            message.contains("the port vanished. The cutter was stopped and the laser is off"),
-            "{message}"
-        );
+        assert!(needs_stop(&read_failed, true));
+        assert!(!needs_stop(&read_failed, false), "nothing was sent");
         let stream_failed = JobError::Cutter {
             stage: Stage::StreamJob,
             source: CutterError::Stopped {
@@ -854,10 +851,10 @@ mod tests {
                 position_lost: false,
             },
         };
-        assert!(!needs_stop(&stream_failed));
-        assert!(needs_stop(&JobError::Motion(
-            "the cutter went into alarm".into()
-        )));
+        assert!(!needs_stop(&stream_failed, true), "the stream stopped it");
+        let motion = JobError::Motion("the cutter went into alarm".into());
+        assert!(needs_stop(&motion, true));
+        assert!(!needs_stop(&motion, false));
     }
 
     #[test]

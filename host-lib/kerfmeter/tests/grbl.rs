@@ -175,10 +175,10 @@ fn a_refused_line_is_found_by_the_check_pass_before_anything_moves() {
 
 #[test]
 fn a_refused_line_while_cutting_is_reported_and_the_cutter_stopped() {
-    // Without the check pass the refusal comes mid-job (the 17th G-code line, a cut).
+    // Without the check pass the refusal comes mid-job (the 20th G-code line, a cut).
     let mut cutter = Cutter::sim(
         SimCutterOptions {
-            error_on_line: Some((17, 33)),
+            error_on_line: Some((20, 33)),
             ..SimCutterOptions::default()
         },
         ConnectOptions {
@@ -189,7 +189,7 @@ fn a_refused_line_while_cutting_is_reported_and_the_cutter_stopped() {
     .unwrap();
     let error = stream(&mut cutter, &squares(10, 12)).unwrap_err();
     let CutterError::Rejected {
-        line: 17, code: 33, ..
+        line: 20, code: 33, ..
     } = error.cause()
     else {
         panic!("{error}");

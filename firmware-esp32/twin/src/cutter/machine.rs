@@ -643,6 +643,7 @@ impl Grbl {
             (true, Some(seconds)) => {
                 let mut dwell = Move::dwell(self.plan_pos, seconds);
                 dwell.power_s = self.output(SegmentKind::Dwell, &modal);
+                dwell.enabled_s = self.spindle_output(&modal);
                 dwell.line = number;
                 plan.step = Some(dwell);
                 plan.sync = true;

@@ -48,7 +48,9 @@ pub struct Segment {
     pub line: u32,
 }
 
-/// The laser fired during a travel move: where and how strongly.
+/// A travel move made with the laser switched on: where, and at what power. In
+/// [`CutterRecord::travel_firings`] the laser fired through it; in
+/// [`CutterRecord::blanked_travels`] laser mode kept it dark.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TravelFiring {
     /// Simulated time when the travel started, µs.
@@ -57,7 +59,7 @@ pub struct TravelFiring {
     pub start: Point,
     /// The travel's target, mm.
     pub end: Point,
-    /// The laser's power (`S`).
+    /// The power the laser was switched on with (`S`).
     pub power_s: f64,
 }
 

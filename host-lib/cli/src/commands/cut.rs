@@ -151,8 +151,8 @@ fn constant_power_warning(line: usize) -> String {
     format!(
         "warning: line {line} switches the laser on with M3 (constant power), which GRBL keeps on \
          at rest: if the stream stops where this computer cannot stop the cutter (asleep, the \
-         cable pulled), the beam stays on over one spot. Prefer M4 (dynamic power, off at rest; \
-         in LightBurn the GRBL device rather than GRBL-M3)"
+         cable pulled), the beam stays on over one spot. Prefer M4 (dynamic power, off at rest in \
+         laser mode; in LightBurn the GRBL device rather than GRBL-M3)"
     )
 }
 

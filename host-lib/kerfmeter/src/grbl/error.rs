@@ -283,8 +283,10 @@ impl CutterError {
     }
 
     /// True when this error already tells how the stop after the failure went
-    /// ([`CutterError::Stopped`], [`CutterError::NotStopped`]): a stream's failures do; a
-    /// status read's or a connection's do not, and leave the stopping to the caller.
+    /// ([`CutterError::Stopped`], [`CutterError::NotStopped`]): a stream's failures once it
+    /// began sending do; its refusals before sending (a line that cannot be streamed, another
+    /// `S` max), a status read's and a connection's failures do not, and leave any stopping to
+    /// the caller.
     pub fn stop_was_tried(&self) -> bool {
         match self {
             Self::Stopped { .. } | Self::NotStopped { .. } => true,

@@ -116,7 +116,7 @@ pub fn prepare(program: &str) -> Result<Vec<ProgramLine>, BadLine> {
 /// The program pause (`M0`, `M1`) on a cleaned line, if any.
 fn program_pause(text: &str) -> Option<String> {
     m_words(text)
-        .find(|&(_, number)| number == 0.0 || number == 1.0)
+        .find(|&(_, command)| command == 0 || command == 1)
         .map(|(word, _)| format!("M{word}"))
 }
 
@@ -128,18 +128,23 @@ fn program_pause(text: &str) -> Option<String> {
 pub fn constant_power_line(lines: &[ProgramLine]) -> Option<usize> {
     lines
         .iter()
-        .find(|l| m_words(&l.text).any(|(_, number)| number == 3.0))
+        .find(|l| m_words(&l.text).any(|(_, command)| command == 3))
         .map(|l| l.number)
 }
 
-/// The `M` words of a cleaned line: each as written after the `M`, and its number.
-fn m_words(text: &str) -> impl Iterator<Item = (&str, f64)> {
+/// The `M` commands of a cleaned line: each word as written after the `M`, and the command GRBL
+/// runs for it. GRBL takes the whole part of the number when its hundredths round to nothing
+/// (`M3.004` is `M3`) and refuses the line otherwise (`M3.5`), which leaves nothing to find.
+fn m_words(text: &str) -> impl Iterator<Item = (&str, u32)> {
     text.split('M').skip(1).filter_map(|after| {
         let end = after
             .find(|c: char| !(c.is_ascii_digit() || c == '.'))
             .unwrap_or(after.len());
         let word = &after[..end];
-        word.parse::<f64>().ok().map(|number| (word, number))
+        let number = word.parse::<f64>().ok()?;
+        let whole = number.trunc();
+        ((100.0 * (number - whole)).round() == 0.0 && whole <= f64::from(u32::MAX))
+            .then_some((word, whole as u32))
     })
 }
 
@@ -489,6 +494,10 @@ mod tests {
             Some(3)
         );
         assert_eq!(constant_power_line(&lines("M4S100\nM30\nM5\n")), None);
+        // As GRBL reads them: hundredths that round to nothing are the whole command.
+        assert_eq!(constant_power_line(&lines("M3.004\n")), Some(1));
+        assert_eq!(constant_power_line(&lines("M3.5\nM300\n")), None);
+        assert!(prepare("M0.001\n").is_err(), "a pause");
         assert!(prepare("G1 X1 (a ! in a comment is fine)\n").is_ok());
     }
 

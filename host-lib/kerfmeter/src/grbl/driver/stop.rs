@@ -113,7 +113,7 @@ impl Cutter {
     /// `cause`, after stopping the cutter: [`CutterError::Stopped`] around it, or
     /// [`CutterError::NotStopped`] when it cannot be stopped. After an alarm the machine has
     /// stopped already and may hear nothing but a reset.
-    pub(super) fn stop_after(&mut self, cause: CutterError) -> CutterError {
+    pub(crate) fn stop_after(&mut self, cause: CutterError) -> CutterError {
         let stopped = match cause {
             CutterError::Alarm { .. } => self.reset_checked(),
             _ => self.halt(),
