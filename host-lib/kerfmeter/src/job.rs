@@ -569,8 +569,8 @@ struct Loop<'a, 'r> {
     cancel: &'r AtomicBool,
     progress: &'r mut dyn FnMut(JobEvent<'_>),
     stages: Vec<StageTime>,
-    /// Whether a program was given to the cutter yet: before, nothing it does comes from this
-    /// job, and a failure has nothing of the cutter's to stop.
+    /// Whether a program was given to the cutter yet: before, the laser was not this job's to
+    /// switch on (see [`unless_nothing_sent`]).
     sent_to_cutter: bool,
 }
 
@@ -785,37 +785,44 @@ impl Loop<'_, '_> {
         Ok(())
     }
 
-    /// Stop the cutter after `e` (the laser off) once this job gave it a program, unless a
-    /// stream already tried to. A cutter's own failure is stopped as a stream's is, and tells
-    /// how that went (a reset that found the head moving, an alarm that hears only a reset).
+    /// Stop the cutter after `e` (the laser off), unless a stream already tried to. A cutter's
+    /// own failure is stopped as a stream's is, and tells how that went (a reset that found the
+    /// head moving, an alarm that hears only a reset).
     fn make_safe(&mut self, e: JobError) -> JobError {
         let _ = self.devices.meter.abort();
-        if !needs_stop(&e, self.sent_to_cutter) {
+        if stream_stopped(&e) {
             return e;
         }
+        let sent = self.sent_to_cutter;
         match e {
             JobError::Cutter { stage, source } => JobError::Cutter {
                 stage,
-                source: self.devices.cutter.stop_after(source),
+                source: unless_nothing_sent(self.devices.cutter.stop_after(source), sent),
             },
             e => match self.devices.cutter.stop() {
-                Ok(()) => e,
-                Err(stop) => JobError::NotStopped {
+                Err(stop) if sent => JobError::NotStopped {
                     cause: Box::new(e),
                     stop,
                 },
+                _ => e,
             },
         }
     }
 }
 
-/// Whether the cutter is to be stopped after `e`: not before this job gave it a program
-/// (`sent_to_cutter`; until then it only answered status requests, and a stop that failed on a
-/// dead port would claim a laser this job never switched on), nor after a stream's failure once
-/// the stream tried to stop it; after every other failure, a status read's included (the port
-/// gone while the head moves to the gauge).
-fn needs_stop(e: &JobError, sent_to_cutter: bool) -> bool {
-    sent_to_cutter && !matches!(e, JobError::Cutter { source, .. } if source.stop_was_tried())
+/// Whether `e` is a stream's failure after which the stream tried to stop the cutter itself.
+fn stream_stopped(e: &JobError) -> bool {
+    matches!(e, JobError::Cutter { source, .. } if source.stop_was_tried())
+}
+
+/// A cutter's failure after the stop that followed it, as the user is told it: before the job
+/// sent the cutter a program (`sent`) it had only asked its state, so a stop that failed (the
+/// port gone) is no sign of a laser this job switched on, and the failure is told as it was.
+fn unless_nothing_sent(after_stop: CutterError, sent: bool) -> CutterError {
+    match after_stop {
+        CutterError::NotStopped { cause, .. } if !sent => *cause,
+        after_stop => after_stop,
+    }
 }
 
 /// A stream's error in `stage`; a cancelled stream is the loop's cancel.
@@ -833,7 +840,7 @@ mod tests {
     const GAUGE: [[f64; 2]; 2] = [[-30.0, -30.0], [30.0, 30.0]];
 
     #[test]
-    fn a_failed_status_read_stops_the_cutter_once_it_was_given_a_program() {
+    fn a_failed_status_read_is_stopped_and_a_stop_that_fails_before_any_program_alarms_no_one() {
         let lost = || CutterError::Io {
             address: "grbl:/dev/ttyUSB0".into(),
             source: std::io::Error::other("the port vanished"),
@@ -842,8 +849,7 @@ mod tests {
             stage: Stage::WaitMotion,
             source: lost(),
         };
-        assert!(needs_stop(&read_failed, true));
-        assert!(!needs_stop(&read_failed, false), "nothing was sent");
+        assert!(!stream_stopped(&read_failed));
         let stream_failed = JobError::Cutter {
             stage: Stage::StreamJob,
             source: CutterError::Stopped {
@@ -851,10 +857,18 @@ mod tests {
                 position_lost: false,
             },
         };
-        assert!(!needs_stop(&stream_failed, true), "the stream stopped it");
-        let motion = JobError::Motion("the cutter went into alarm".into());
-        assert!(needs_stop(&motion, true));
-        assert!(!needs_stop(&motion, false));
+        assert!(stream_stopped(&stream_failed));
+        let not_stopped = || CutterError::NotStopped {
+            cause: Box::new(lost()),
+            stop: Box::new(lost()),
+        };
+        assert!(unless_nothing_sent(not_stopped(), true).laser_may_be_on());
+        let before_any = unless_nothing_sent(not_stopped(), false);
+        assert!(!before_any.laser_may_be_on());
+        assert!(
+            before_any.to_string().contains("the port vanished"),
+            "{before_any}"
+        );
     }
 
     #[test]
