@@ -950,6 +950,18 @@ fn gcode_file(text: &str) -> (tempfile::TempDir, PathBuf) {
 }
 
 #[test]
+fn map_refuses_an_output_it_cannot_write_before_it_connects() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("no such folder").join("kerf-map.json");
+    // No device is given: a map that is checked only at the end would fail on connecting.
+    let out = kerfmeter(&["map", "-o", path(&output), "-y"]);
+    assert_ne!(code(&out), 0);
+    let message = stderr(&out);
+    assert!(message.contains("kerf-map.json"), "{message}");
+    assert!(!message.to_lowercase().contains("port"), "{message}");
+}
+
+#[test]
 fn cut_streams_a_program_to_the_simulated_cutter() {
     let (_dir, file) = gcode_file(SQUARE_GCODE);
     let out = kerfmeter(&["--json", "cut", path(&file), "--cutter", "sim"]);

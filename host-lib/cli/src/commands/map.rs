@@ -85,6 +85,8 @@ pub fn run(g: &Global, args: &MapArgs) -> Result<MapReport, CliError> {
         ..JointSpec::default()
     };
     let params = joint.run_params(GaugeGeometry::PAPER)?;
+    // Before the first gauge: a survey of the whole bed is lost if the map cannot be saved.
+    kerfmeter::files::ensure_writable(&args.output)?;
     let mut hardware = if g.sim { None } else { Some(g.connect()?) };
     let mut runs = Vec::new();
     for row in 0..args.rows {
