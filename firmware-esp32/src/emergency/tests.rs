@@ -45,9 +45,9 @@ impl Bridge {
         }
     }
 
-    /// Duty 0 or the driver asleep.
+    /// The safe state: duty 0 and the driver asleep.
     fn is_safe(&self) -> bool {
-        self.pwm.duty() == 0.0 || !self.slp.is_high()
+        self.pwm.duty() == 0.0 && !self.slp.is_high()
     }
 }
 

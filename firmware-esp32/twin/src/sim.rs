@@ -386,9 +386,10 @@ impl Twin {
         self.plant.turn_hub_by_hand(cw_deg);
     }
 
-    /// True when the motor bridge is in its safe state (duty 0 or driver asleep).
+    /// True when the motor bridge is in its safe state: duty 0 and the driver asleep (either
+    /// alone leaves the bridge able to brake or to drive on the next write).
     pub fn motor_safe(&self) -> bool {
-        self.pwm.duty() == 0.0 || !self.slp.is_high()
+        self.pwm.duty() == 0.0 && !self.slp.is_high()
     }
 
     /// True while the injected `host-silent` fault swallows the host's bytes.
