@@ -12,9 +12,10 @@ use crate::error::{Error, Result};
 
 /// Write `bytes` to `path` atomically: into a temporary file in the same folder, flushed to disk,
 /// then renamed over `path`. A crash or a full disk leaves either the old file or the new one,
-/// never a mix. The file gets ordinary permissions (0644 on Unix).
+/// never a mix. A file replaced keeps its permissions; a new one gets ordinary ones (0644 on
+/// Unix).
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    write_atomically_with_mode(path, bytes, 0o644)
+    write_atomically_with_mode(path, bytes, ordinary_mode(path))
 }
 
 /// [`write_atomically`], the file getting the Unix permission bits `mode` (ignored elsewhere).
@@ -38,7 +39,35 @@ pub fn write_atomically_with<T, E: From<Error>>(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<&mut File>) -> std::result::Result<T, E>,
 ) -> std::result::Result<T, E> {
-    atomic_write(path, 0o644, write)
+    atomic_write(path, ordinary_mode(path), write)
+}
+
+/// The permission bits an ordinary output gets: those of the file it replaces (whoever could
+/// read it before can, and no one else), 0644 for a new one.
+fn ordinary_mode(path: &Path) -> u32 {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        if let Ok(meta) = std::fs::metadata(path) {
+            return meta.permissions().mode() & 0o7777;
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+    0o644
+}
+
+/// Flush the folder of a file just renamed into it, so that a power cut after the write was
+/// reported done cannot bring the old file back. Best effort: the file is in place by then, and
+/// some file systems cannot flush a folder (Unix only; elsewhere the system's rename is left as
+/// it is).
+fn sync_folder(path: &Path) {
+    #[cfg(unix)]
+    if let Ok(folder) = File::open(folder_of(path)) {
+        let _ = folder.sync_all();
+    }
+    #[cfg(not(unix))]
+    let _ = path;
 }
 
 /// Write a temporary file in `path`'s folder with `write`, give it `mode`, flush it to disk and
@@ -65,6 +94,7 @@ fn atomic_write<T, E: From<Error>>(
         .map_err(|e| file_error(format!("cannot write: {e}")))?;
     tmp.persist(path)
         .map_err(|e| file_error(format!("cannot replace the file: {}", e.error)))?;
+    sync_folder(path);
     Ok(value)
 }
 
@@ -262,18 +292,14 @@ mod tests {
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
-            assert_eq!(
-                std::fs::metadata(&p).unwrap().permissions().mode() & 0o777,
-                0o644
-            );
-        }
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            assert_eq!(
-                std::fs::metadata(&p).unwrap().permissions().mode() & 0o777,
-                0o644
-            );
+            let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode(&p), 0o644);
+            // A file the user made private (or shared with a group) keeps that when replaced.
+            for kept in [0o600, 0o664] {
+                std::fs::set_permissions(&p, std::fs::Permissions::from_mode(kept)).unwrap();
+                write_atomically(&p, b"three").unwrap();
+                assert_eq!(mode(&p), kept);
+            }
         }
         // No temporary files left behind.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
