@@ -392,6 +392,13 @@ impl Twin {
         self.pwm.duty() == 0.0 && !self.slp.is_high()
     }
 
+    /// True when the bridge applies no drive torque: duty 0 (braking) or the driver asleep, as
+    /// the controller's [`MotorOutput::is_safe`](kerfmeter_firmware::motor::MotorOutput::is_safe)
+    /// says of its output.
+    fn motor_torque_free(&self) -> bool {
+        self.pwm.duty() == 0.0 || !self.slp.is_high()
+    }
+
     /// True while the injected `host-silent` fault swallows the host's bytes.
     fn host_muted(&self) -> bool {
         self.options.fault == Some(InjectedFault::HostSilent)
@@ -633,7 +640,7 @@ impl Twin {
         // execution time (crate docs), so its steps end as they start and `Status` shows a
         // longest step of 0 µs here.
         self.device.step_finished(self.now_us);
-        debug_assert_eq!(out.is_safe(), self.motor_safe());
+        debug_assert_eq!(out.is_safe(), self.motor_torque_free());
         self.bridge = self.bridge_inputs();
     }
 
