@@ -60,10 +60,6 @@ pub fn plot_curve(curve: &Curve, result: Option<&KerfResult>, path: &Path) -> Re
         ));
     }
     register_font();
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
     let file_error = |message: String| Error::File {
         path: path.to_owned(),
         message,
@@ -73,27 +69,21 @@ pub fn plot_curve(curve: &Curve, result: Option<&KerfResult>, path: &Path) -> Re
     } else {
         ".svg"
     };
-    let tmp = tempfile::Builder::new()
-        .prefix(".kerfmeter-plot-")
-        .suffix(extension)
-        .tempfile_in(dir)
-        .map_err(|e| file_error(format!("cannot create a temporary file: {e}")))?;
-    let drawn = match format {
-        PlotFormat::Png => draw(
-            BitMapBackend::new(tmp.path(), SIZE).into_drawing_area(),
-            curve,
-            result,
-        ),
-        PlotFormat::Svg => draw(
-            SVGBackend::new(tmp.path(), SIZE).into_drawing_area(),
-            curve,
-            result,
-        ),
-    };
-    drawn.map_err(file_error)?;
-    tmp.persist(path)
-        .map_err(|e| file_error(format!("cannot write: {}", e.error)))?;
-    kerfmeter::files::make_readable(path)
+    kerfmeter::files::write_atomically_at(path, extension, |tmp: &Path| {
+        let drawn = match format {
+            PlotFormat::Png => draw(
+                BitMapBackend::new(tmp, SIZE).into_drawing_area(),
+                curve,
+                result,
+            ),
+            PlotFormat::Svg => draw(
+                SVGBackend::new(tmp, SIZE).into_drawing_area(),
+                curve,
+                result,
+            ),
+        };
+        drawn.map_err(file_error)
+    })
 }
 
 /// The axis range that holds every value: from 0, or below it when a value is negative (the

@@ -81,7 +81,7 @@ fn atomic_write<T, E: From<Error>>(
         path: path.to_owned(),
         message,
     };
-    let mut tmp = temporary_beside(path).map_err(file_error)?;
+    let mut tmp = temporary_beside(path, "").map_err(file_error)?;
     let _unfinished = Unfinished::register(tmp.path());
     let mut writer = BufWriter::new(tmp.as_file_mut());
     let value = write(&mut writer)?;
@@ -89,13 +89,44 @@ fn atomic_write<T, E: From<Error>>(
         .flush()
         .map_err(|e| file_error(format!("cannot write: {e}")))?;
     drop(writer);
+    put_in_place(tmp, path, mode)?;
+    Ok(value)
+}
+
+/// [`write_atomically`] for a writer that wants a file name of its own to write to (a plotting
+/// library's file backend, which picks the format by the extension): `write` is given the path
+/// of a temporary file in `path`'s folder, ending with `suffix`, which then replaces `path` as
+/// any output does (its permissions, the flushes, the clean-up after Ctrl-C).
+pub fn write_atomically_at<T, E: From<Error>>(
+    path: &Path,
+    suffix: &str,
+    write: impl FnOnce(&Path) -> std::result::Result<T, E>,
+) -> std::result::Result<T, E> {
+    let tmp = temporary_beside(path, suffix).map_err(|message| Error::File {
+        path: path.to_owned(),
+        message,
+    })?;
+    let _unfinished = Unfinished::register(tmp.path());
+    // What `write` wrote through a handle of its own is flushed through this one: the same file.
+    let value = write(tmp.path())?;
+    put_in_place(tmp, path, ordinary_mode(path))?;
+    Ok(value)
+}
+
+/// Give a written temporary file `mode`, flush it to disk and rename it over `path`, then flush
+/// the folder.
+fn put_in_place(tmp: NamedTempFile, path: &Path, mode: u32) -> Result<()> {
+    let file_error = |message: String| Error::File {
+        path: path.to_owned(),
+        message,
+    };
     set_mode(tmp.as_file(), mode)
         .and_then(|()| tmp.as_file().sync_all())
         .map_err(|e| file_error(format!("cannot write: {e}")))?;
     tmp.persist(path)
         .map_err(|e| file_error(format!("cannot replace the file: {}", e.error)))?;
     sync_folder(path);
-    Ok(value)
+    Ok(())
 }
 
 /// The temporary files being written now, for [`remove_unfinished_outputs`].
@@ -150,7 +181,7 @@ fn folder_of(path: &Path) -> &Path {
 
 /// A new temporary file in `path`'s folder, or why not, in words: a folder that does not exist
 /// or is not a folder is named as such (not as the temporary file's path).
-fn temporary_beside(path: &Path) -> std::result::Result<NamedTempFile, String> {
+fn temporary_beside(path: &Path, suffix: &str) -> std::result::Result<NamedTempFile, String> {
     let dir = folder_of(path);
     match std::fs::metadata(dir) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
@@ -163,6 +194,7 @@ fn temporary_beside(path: &Path) -> std::result::Result<NamedTempFile, String> {
     }
     tempfile::Builder::new()
         .prefix(".kerfmeter-")
+        .suffix(suffix)
         .tempfile_in(dir)
         .map_err(|e| {
             use std::io::ErrorKind as Kind;
@@ -183,7 +215,7 @@ fn temporary_beside(path: &Path) -> std::result::Result<NamedTempFile, String> {
 /// Check, before a long task that ends by writing `path`, that it can be written there: its
 /// directory exists and takes a new file (a temporary file is created in it and removed).
 pub fn ensure_writable(path: &Path) -> Result<()> {
-    temporary_beside(path)
+    temporary_beside(path, "")
         .map(drop)
         .map_err(|message| Error::File {
             path: path.to_owned(),
@@ -221,22 +253,6 @@ fn set_mode(file: &std::fs::File, mode: u32) -> std::io::Result<()> {
         let _ = (file, mode);
         Ok(())
     }
-}
-
-/// Give a file written through a temporary file ordinary permissions (temporary files are created
-/// private to their owner, and the mode survives the rename).
-pub fn make_readable(path: &Path) -> Result<()> {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o644)).map_err(|e| {
-            Error::File {
-                path: path.to_owned(),
-                message: format!("cannot set its permissions: {e}"),
-            }
-        })?;
-    }
-    Ok(())
 }
 
 /// Refuse to write `output` when it is the same file as `input` (the user's input is never
@@ -302,6 +318,33 @@ mod tests {
             }
         }
         // No temporary files left behind.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn a_writer_given_a_path_replaces_the_output_the_same_way() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("curve.png");
+        std::fs::write(&p, "old").unwrap();
+        let written = write_atomically_at(&p, ".png", |tmp: &Path| -> Result<PathBuf> {
+            assert_eq!(tmp.extension().unwrap(), "png");
+            assert_eq!(tmp.parent(), Some(dir.path()));
+            std::fs::write(tmp, "new").unwrap();
+            Ok(tmp.to_owned())
+        })
+        .unwrap();
+        assert!(!written.exists(), "renamed into place");
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "new");
+        let failed = write_atomically_at(&p, ".png", |tmp: &Path| -> Result<()> {
+            std::fs::write(tmp, "half").unwrap();
+            Err(Error::InvalidArgument("drawing failed".into()))
+        });
+        assert!(failed.is_err());
+        assert_eq!(
+            std::fs::read_to_string(&p).unwrap(),
+            "new",
+            "kept on failure"
+        );
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 
