@@ -638,27 +638,29 @@ impl Loop<'_, '_> {
 
     /// Stream `program`; the head's position at the end, when reported.
     fn stream(&mut self, stage: Stage, program: &str) -> Result<Option<[f64; 3]>, JobError> {
-        self.sent_to_cutter = true;
         let progress = &mut *self.progress;
-        let report = self
-            .devices
-            .cutter
-            .stream(program, self.cancel, &mut |p| {
-                progress(JobEvent::Cutter(stage, p))
-            })
-            .map_err(|e| cutter_error(stage, e))?;
-        Ok(report.position_mm)
+        let streamed = self.devices.cutter.stream(program, self.cancel, &mut |p| {
+            progress(JobEvent::Cutter(stage, p))
+        });
+        self.note_sent(&streamed);
+        Ok(streamed.map_err(|e| cutter_error(stage, e))?.position_mm)
+    }
+
+    /// Whether a stream's outcome means the cutter was given the program: it was unless the
+    /// stream refused it before sending a line (no stop tried then).
+    fn note_sent<T>(&mut self, streamed: &Result<T, CutterError>) {
+        self.sent_to_cutter |= streamed
+            .as_ref()
+            .map_or_else(CutterError::stop_was_tried, |_| true);
     }
 
     fn stream_report(&mut self, program: &str) -> Result<crate::grbl::StreamReport, JobError> {
-        self.sent_to_cutter = true;
         let progress = &mut *self.progress;
-        self.devices
-            .cutter
-            .stream(program, self.cancel, &mut |p| {
-                progress(JobEvent::Cutter(Stage::StreamJob, p))
-            })
-            .map_err(|e| cutter_error(Stage::StreamJob, e))
+        let streamed = self.devices.cutter.stream(program, self.cancel, &mut |p| {
+            progress(JobEvent::Cutter(Stage::StreamJob, p))
+        });
+        self.note_sent(&streamed);
+        streamed.map_err(|e| cutter_error(Stage::StreamJob, e))
     }
 
     /// Where the head stands before anything moves: the height the gauge and the plan are cut at.
@@ -825,10 +827,18 @@ fn unless_nothing_sent(after_stop: CutterError, sent: bool) -> CutterError {
     }
 }
 
-/// A stream's error in `stage`; a cancelled stream is the loop's cancel.
+/// A stream's error in `stage`; a cancelled stream is the loop's cancel, unless its stop left
+/// more to say (the laser may be on, or the reset found the head moving: home it).
 fn cutter_error(stage: Stage, e: CutterError) -> JobError {
+    let plain_stop = matches!(
+        e,
+        CutterError::Stopped {
+            position_lost: false,
+            ..
+        }
+    );
     match e.cause() {
-        CutterError::Cancelled { .. } if !e.laser_may_be_on() => JobError::Cancelled { stage },
+        CutterError::Cancelled { .. } if plain_stop => JobError::Cancelled { stage },
         _ => JobError::Cutter { stage, source: e },
     }
 }

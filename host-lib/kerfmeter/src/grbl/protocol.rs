@@ -133,18 +133,20 @@ pub fn constant_power_line(lines: &[ProgramLine]) -> Option<usize> {
 }
 
 /// The `M` commands of a cleaned line: each word as written after the `M`, and the command GRBL
-/// runs for it. GRBL takes the whole part of the number when its hundredths round to nothing
-/// (`M3.004` is `M3`) and refuses the line otherwise (`M3.5`), which leaves nothing to find.
+/// runs for it. GRBL reads a signed number (`M+3` is `M3`, `M-0` is `M0`), takes its whole part
+/// when its hundredths round to nothing (`M3.004` is `M3`) and refuses the line otherwise
+/// (`M3.5`, a negative command), which leaves nothing to find.
 fn m_words(text: &str) -> impl Iterator<Item = (&str, u32)> {
     text.split('M').skip(1).filter_map(|after| {
-        let end = after
+        let sign = usize::from(after.starts_with(['+', '-']));
+        let end = after[sign..]
             .find(|c: char| !(c.is_ascii_digit() || c == '.'))
-            .unwrap_or(after.len());
+            .map_or(after.len(), |at| sign + at);
         let word = &after[..end];
         let number = word.parse::<f64>().ok()?;
         let whole = number.trunc();
-        ((100.0 * (number - whole)).round() == 0.0 && whole <= f64::from(u32::MAX))
-            .then_some((word, whole as u32))
+        let integer = (100.0 * (number - whole)).round() == 0.0;
+        (integer && (0.0..=f64::from(u32::MAX)).contains(&whole)).then_some((word, whole as u32))
     })
 }
 
@@ -498,6 +500,13 @@ mod tests {
         assert_eq!(constant_power_line(&lines("M3.004\n")), Some(1));
         assert_eq!(constant_power_line(&lines("M3.5\nM300\n")), None);
         assert!(prepare("M0.001\n").is_err(), "a pause");
+        assert!(prepare("M-0\n").is_err(), "a signed pause");
+        assert_eq!(constant_power_line(&lines("M+3\n")), Some(1));
+        assert_eq!(
+            constant_power_line(&lines("M-3\n")),
+            None,
+            "refused by GRBL"
+        );
         assert!(prepare("G1 X1 (a ! in a comment is fine)\n").is_ok());
     }
 
