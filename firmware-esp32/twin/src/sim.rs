@@ -392,6 +392,12 @@ impl Twin {
         self.pwm.duty() == 0.0 && !self.slp.is_high()
     }
 
+    /// True when the bridge drives the motor: the driver awake at a duty above 0 (what a test
+    /// that a run drives it asks; a bridge braking awake at duty 0 is neither this nor safe).
+    pub fn motor_driven(&self) -> bool {
+        self.pwm.duty() > 0.0 && self.slp.is_high()
+    }
+
     /// True when the bridge applies no drive torque: duty 0 (braking) or the driver asleep, as
     /// the controller's [`MotorOutput::is_safe`](kerfmeter_firmware::motor::MotorOutput::is_safe)
     /// says of its output.

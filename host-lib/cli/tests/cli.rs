@@ -953,12 +953,21 @@ fn gcode_file(text: &str) -> (tempfile::TempDir, PathBuf) {
 fn map_refuses_an_output_it_cannot_write_before_it_connects() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("no such folder").join("kerf-map.json");
-    // No device is given: a map that is checked only at the end would fail on connecting.
-    let out = kerfmeter(&["map", "-o", path(&output), "-y"]);
+    // A port that does not exist: a map checked only at the end would fail on connecting.
+    let out = kerfmeter(&["--port", "/nonexistent/ttyKERF", "map", "-o", path(&output)]);
     assert_ne!(code(&out), 0);
     let message = stderr(&out);
-    assert!(message.contains("kerf-map.json"), "{message}");
-    assert!(!message.to_lowercase().contains("port"), "{message}");
+    assert!(message.contains("does not exist"), "{message}");
+    assert!(!message.contains("ttyKERF"), "{message}");
+    // A folder given for the map is refused as such, not found when the survey is done.
+    let out = kerfmeter(&[
+        "--port",
+        "/nonexistent/ttyKERF",
+        "map",
+        "-o",
+        path(dir.path()),
+    ]);
+    assert!(stderr(&out).contains("is a directory"), "{}", stderr(&out));
 }
 
 #[test]

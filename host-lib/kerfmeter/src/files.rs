@@ -49,7 +49,9 @@ fn ordinary_mode(path: &Path) -> u32 {
     {
         use std::os::unix::fs::PermissionsExt;
         if let Ok(meta) = std::fs::metadata(path) {
-            return meta.permissions().mode() & 0o7777;
+            // The permission bits alone: a data file has no use for setuid, setgid or sticky,
+            // and the new file may belong to someone else (a run with sudo).
+            return meta.permissions().mode() & 0o777;
         }
     }
     #[cfg(not(unix))]
@@ -215,6 +217,12 @@ fn temporary_beside(path: &Path, suffix: &str) -> std::result::Result<NamedTempF
 /// Check, before a long task that ends by writing `path`, that it can be written there: its
 /// directory exists and takes a new file (a temporary file is created in it and removed).
 pub fn ensure_writable(path: &Path) -> Result<()> {
+    if path.is_dir() {
+        return Err(Error::File {
+            path: path.to_owned(),
+            message: "is a directory: give a file name for the output".into(),
+        });
+    }
     temporary_beside(path, "")
         .map(drop)
         .map_err(|message| Error::File {
