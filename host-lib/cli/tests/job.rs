@@ -117,14 +117,26 @@ fn the_whole_job_on_the_twins_prints_the_kerf_and_the_stage_times_and_writes_the
     assert!(std::fs::read_to_string(&plan).unwrap().contains("<rect"));
 }
 
+/// A plan whose two parts, 0.1 mm apart, merge when dilated by the kerf the twin's cutter cuts:
+/// a job on it fails at its dilation, after its measurement. The folder and the plan's path.
+fn close_parts_plan() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let plan = dir.path().join("close.svg");
+    std::fs::write(
+        &plan,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
+  <rect x="5" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
+  <rect x="25.1" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
+</svg>"#,
+    )
+    .unwrap();
+    (dir, plan)
+}
+
 #[test]
 fn a_job_that_fails_after_its_measurement_still_records_it() {
-    let (dir, plan) = plate_plan();
-    // The dilated plan cannot be written: its directory takes files, but a directory stands
-    // where the plan goes (the checks before anything moves look at the directory only), so the
-    // job fails at its dilate stage.
+    let (dir, plan) = close_parts_plan();
     let out_svg = dir.path().join("out.svg");
-    std::fs::create_dir(&out_svg).unwrap();
     let db = dir.path().join("history.sqlite3");
     let args = ["--sim", "--db", path(&db), "job", path(&plan)];
     let out = kerfmeter(&[&args[..], &["--cutter", "sim", "-o", path(&out_svg)]].concat());
@@ -345,6 +357,15 @@ fn a_gcode_out_over_the_plan_or_in_a_missing_directory_is_refused_before_anythin
         assert!(message.contains(&says), "{message}");
         assert!(!message.contains("job on"), "{message}");
     }
+    // A folder where the plan goes is refused as such, before the gauge is cut.
+    std::fs::create_dir(&out_svg).unwrap();
+    let args = ["--sim", "job", path(&plan), "--cutter", "sim", "-o", o];
+    let out = kerfmeter(&args);
+    let message = stderr(&out);
+    assert_eq!(code(&out), 4, "{message}");
+    assert!(message.contains("is a directory"), "{message}");
+    assert!(!message.contains("job on"), "{message}");
+    std::fs::remove_dir(&out_svg).unwrap();
     assert!(!out_svg.exists());
 }
 
@@ -483,16 +504,7 @@ fn a_compensated_plan_or_a_gauge_is_refused_before_anything_moves() {
 /// the kerf measured) says in its `--json` error what it had: the kerf, its record, the files.
 #[test]
 fn a_job_stopped_after_measuring_reports_its_kerf_and_record_in_json() {
-    let dir = tempfile::tempdir().unwrap();
-    let plan = dir.path().join("close.svg");
-    std::fs::write(
-        &plan,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
-  <rect x="5" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
-  <rect x="25.1" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
-</svg>"#,
-    )
-    .unwrap();
+    let (dir, plan) = close_parts_plan();
     let db = dir.path().join("history.sqlite3");
     let out_svg = dir.path().join("out.svg");
     let out = kerfmeter(&[
