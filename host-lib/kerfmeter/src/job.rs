@@ -600,7 +600,9 @@ impl Loop<'_, '_> {
             dilate(f64::from(kerf_um)).map_err(|reason| JobError::Dilate { kerf_um, reason })
         })?;
         self.check_cancel(Stage::StreamJob)?;
-        let report = self.timed(Stage::StreamJob, |l| l.stream_report(&job_gcode))?;
+        let report = self.timed(Stage::StreamJob, |l| {
+            l.stream_report(Stage::StreamJob, &job_gcode)
+        })?;
         Ok(JobReport {
             kerf,
             stages: std::mem::take(&mut self.stages),
@@ -638,12 +640,21 @@ impl Loop<'_, '_> {
 
     /// Stream `program`; the head's position at the end, when reported.
     fn stream(&mut self, stage: Stage, program: &str) -> Result<Option<[f64; 3]>, JobError> {
+        Ok(self.stream_report(stage, program)?.position_mm)
+    }
+
+    /// Stream `program` in `stage`, noting whether the cutter was given it; the stream's report.
+    fn stream_report(
+        &mut self,
+        stage: Stage,
+        program: &str,
+    ) -> Result<crate::grbl::StreamReport, JobError> {
         let progress = &mut *self.progress;
         let streamed = self.devices.cutter.stream(program, self.cancel, &mut |p| {
             progress(JobEvent::Cutter(stage, p))
         });
         self.note_sent(&streamed);
-        Ok(streamed.map_err(|e| cutter_error(stage, e))?.position_mm)
+        streamed.map_err(|e| cutter_error(stage, e))
     }
 
     /// Whether a stream's outcome means the cutter was given the program: it was unless the
@@ -652,15 +663,6 @@ impl Loop<'_, '_> {
         self.sent_to_cutter |= streamed
             .as_ref()
             .map_or_else(CutterError::stop_was_tried, |_| true);
-    }
-
-    fn stream_report(&mut self, program: &str) -> Result<crate::grbl::StreamReport, JobError> {
-        let progress = &mut *self.progress;
-        let streamed = self.devices.cutter.stream(program, self.cancel, &mut |p| {
-            progress(JobEvent::Cutter(Stage::StreamJob, p))
-        });
-        self.note_sent(&streamed);
-        streamed.map_err(|e| cutter_error(Stage::StreamJob, e))
     }
 
     /// Where the head stands before anything moves: the height the gauge and the plan are cut at.
