@@ -79,10 +79,7 @@ fn atomic_write<T, E: From<Error>>(
     mode: u32,
     write: impl FnOnce(&mut BufWriter<&mut File>) -> std::result::Result<T, E>,
 ) -> std::result::Result<T, E> {
-    let file_error = |message: String| Error::File {
-        path: path.to_owned(),
-        message,
-    };
+    let file_error = file_error(path);
     let mut tmp = temporary_beside(path, "").map_err(file_error)?;
     let _unfinished = Unfinished::register(tmp.path());
     let mut writer = BufWriter::new(tmp.as_file_mut());
@@ -104,10 +101,7 @@ pub fn write_atomically_at<T, E: From<Error>>(
     suffix: &str,
     write: impl FnOnce(&Path) -> std::result::Result<T, E>,
 ) -> std::result::Result<T, E> {
-    let tmp = temporary_beside(path, suffix).map_err(|message| Error::File {
-        path: path.to_owned(),
-        message,
-    })?;
+    let tmp = temporary_beside(path, suffix).map_err(file_error(path))?;
     let _unfinished = Unfinished::register(tmp.path());
     // What `write` wrote through a handle of its own is flushed through this one: the same file.
     let value = write(tmp.path())?;
@@ -118,10 +112,7 @@ pub fn write_atomically_at<T, E: From<Error>>(
 /// Give a written temporary file `mode`, flush it to disk and rename it over `path`, then flush
 /// the folder.
 fn put_in_place(tmp: NamedTempFile, path: &Path, mode: u32) -> Result<()> {
-    let file_error = |message: String| Error::File {
-        path: path.to_owned(),
-        message,
-    };
+    let file_error = file_error(path);
     set_mode(tmp.as_file(), mode)
         .and_then(|()| tmp.as_file().sync_all())
         .map_err(|e| file_error(format!("cannot write: {e}")))?;
@@ -218,17 +209,21 @@ fn temporary_beside(path: &Path, suffix: &str) -> std::result::Result<NamedTempF
 /// directory exists and takes a new file (a temporary file is created in it and removed).
 pub fn ensure_writable(path: &Path) -> Result<()> {
     if path.is_dir() {
-        return Err(Error::File {
-            path: path.to_owned(),
-            message: "is a directory: give a file name for the output".into(),
-        });
+        return Err(file_error(path)(
+            "is a directory: give a file name for the output".into(),
+        ));
     }
     temporary_beside(path, "")
         .map(drop)
-        .map_err(|message| Error::File {
-            path: path.to_owned(),
-            message,
-        })
+        .map_err(file_error(path))
+}
+
+/// The error of a file at `path`, from what went wrong with it.
+fn file_error(path: &Path) -> impl Fn(String) -> Error + Copy + '_ {
+    |message| Error::File {
+        path: path.to_owned(),
+        message,
+    }
 }
 
 /// `path` as compared by [`same_file`]: canonical when it exists, else its directory's canonical
