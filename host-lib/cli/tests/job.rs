@@ -34,19 +34,27 @@ fn path(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// A plan called `name` in a folder of its own, with `shapes` (red cuts, mm) on a 100 × 50 mm
+/// page: the folder and the plan's path.
+fn plan_in_a_folder(name: &str, shapes: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let to = dir.path().join(name);
+    let svg = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
+{shapes}
+</svg>"#
+    );
+    std::fs::write(&to, svg).unwrap();
+    (dir, to)
+}
+
 /// A 40 × 30 mm plate with a round hole, in mm.
 fn plate_plan() -> (tempfile::TempDir, PathBuf) {
-    let dir = tempfile::tempdir().unwrap();
-    let to = dir.path().join("plate.svg");
-    std::fs::write(
-        &to,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
-  <rect x="5" y="5" width="40" height="30" fill="none" stroke="red" stroke-width="0.01"/>
-  <circle cx="25" cy="20" r="5" fill="none" stroke="red" stroke-width="0.01"/>
-</svg>"#,
+    plan_in_a_folder(
+        "plate.svg",
+        r#"  <rect x="5" y="5" width="40" height="30" fill="none" stroke="red" stroke-width="0.01"/>
+  <circle cx="25" cy="20" r="5" fill="none" stroke="red" stroke-width="0.01"/>"#,
     )
-    .unwrap();
-    (dir, to)
 }
 
 #[test]
@@ -120,17 +128,11 @@ fn the_whole_job_on_the_twins_prints_the_kerf_and_the_stage_times_and_writes_the
 /// A plan whose two parts, 0.1 mm apart, merge when dilated by the kerf the twin's cutter cuts:
 /// a job on it fails at its dilation, after its measurement. The folder and the plan's path.
 fn close_parts_plan() -> (tempfile::TempDir, PathBuf) {
-    let dir = tempfile::tempdir().unwrap();
-    let plan = dir.path().join("close.svg");
-    std::fs::write(
-        &plan,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">
-  <rect x="5" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
-  <rect x="25.1" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
-</svg>"#,
+    plan_in_a_folder(
+        "close.svg",
+        r#"  <rect x="5" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>
+  <rect x="25.1" y="5" width="20" height="20" fill="none" stroke="red" stroke-width="0.01"/>"#,
     )
-    .unwrap();
-    (dir, plan)
 }
 
 #[test]
