@@ -114,7 +114,7 @@ pub mod timing;
 pub mod truth;
 
 pub use options::{InjectedFault, InvalidOptions, TwinOptions, UnknownFault};
-pub use pty::{PtyTwin, StartError};
+pub use pty::{MotorEdge, PtyTwin, StartError};
 pub use serve::{LinkServer, Pace, Served, serve};
 pub use sim::Twin;
 pub use truth::TruthLog;

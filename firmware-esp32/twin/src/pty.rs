@@ -4,6 +4,7 @@
 
 use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Sender;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -17,7 +18,7 @@ use crate::cutter::Segment;
 use crate::gauge_trace::{GaugeTraceError, TracedGaugeSlot};
 use crate::options::{InvalidOptions, TwinOptions};
 use crate::plant::{Cutter, GaugeCut};
-use crate::serve::serve;
+use crate::serve::{Served, serve};
 use crate::sim::Twin;
 use crate::truth::TruthLog;
 
@@ -62,6 +63,16 @@ impl PtyTwin {
     /// The twin stops when the client side is closed (every handle to it, including clones and
     /// whoever opened its path) or when it is dropped or [stopped](PtyTwin::stop).
     pub fn start(options: TwinOptions) -> Result<(Self, TTYPort), StartError> {
+        Self::start_watched(options, None)
+    }
+
+    /// [`PtyTwin::start`], telling `motor` of every change of the motor bridge between its safe
+    /// state and any other (see [`MotorEdge`]): what a scope on the G2's PWM and SLP pins shows
+    /// a bench, for tests in another process that must see when the motor stopped.
+    pub fn start_watched(
+        options: TwinOptions,
+        motor: Option<Sender<MotorEdge>>,
+    ) -> Result<(Self, TTYPort), StartError> {
         options.validate()?;
         let (mut master, client) = TTYPort::pair()?;
         master.set_timeout(READ_TIMEOUT)?;
@@ -76,8 +87,9 @@ impl PtyTwin {
             std::thread::Builder::new()
                 .name("kerfmeter-twin".into())
                 .spawn(move || {
-                    let mut twin = Twin::with_truth_log(options, truths).with_traced_gauges(traced);
-                    serve(&mut master, &mut twin, &stop, options.pace())
+                    let twin = Twin::with_truth_log(options, truths).with_traced_gauges(traced);
+                    let mut watched = Watched::new(twin, motor);
+                    serve(&mut master, &mut watched, &stop, options.pace())
                 })?
         };
         let twin = Self {
@@ -137,6 +149,75 @@ impl PtyTwin {
             Some(Ok(result)) => result,
             Some(Err(panic)) => std::panic::resume_unwind(panic),
             None => Ok(()),
+        }
+    }
+}
+
+/// A change of the motor bridge seen by a watched twin ([`PtyTwin::start_watched`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MotorEdge {
+    /// Simulated time of the pass that made the change, µs since boot.
+    pub at_us: u64,
+    /// True when the bridge entered its safe state (duty 0 and the driver asleep), false when it
+    /// left it.
+    pub safe: bool,
+}
+
+/// A twin whose bridge is compared after every pass with the last one told.
+struct Watched {
+    twin: Twin,
+    motor: Option<Sender<MotorEdge>>,
+    safe: bool,
+}
+
+impl Watched {
+    fn new(twin: Twin, motor: Option<Sender<MotorEdge>>) -> Self {
+        let safe = twin.motor_safe();
+        Self { twin, motor, safe }
+    }
+
+    /// Tell the watcher if the bridge changed (a watcher that left is forgotten).
+    fn check(&mut self) {
+        let safe = self.twin.motor_safe();
+        if safe == self.safe {
+            return;
+        }
+        self.safe = safe;
+        let edge = MotorEdge {
+            at_us: self.twin.now_us(),
+            safe,
+        };
+        if let Some(motor) = &self.motor
+            && motor.send(edge).is_err()
+        {
+            self.motor = None;
+        }
+    }
+}
+
+impl Served for Watched {
+    fn receive(&mut self, bytes: &[u8], transmit: &mut dyn FnMut(&[u8])) {
+        self.twin.receive(bytes, transmit);
+        self.check();
+    }
+
+    fn now_us(&self) -> u64 {
+        self.twin.now_us()
+    }
+
+    fn next_tick_us(&self) -> u64 {
+        self.twin.next_tick_us()
+    }
+
+    fn lead_ticks(&self) -> u64 {
+        self.twin.lead_ticks()
+    }
+
+    fn advance_ticks(&mut self, ticks: u64) {
+        // Pass by pass, so that no edge is missed inside a batch.
+        for _ in 0..ticks {
+            self.twin.advance_ticks(1);
+            self.check();
         }
     }
 }

@@ -3,7 +3,8 @@
 //! communication error (port, timeout, protocol, device restarted, or the same with the cutter);
 //! 4 the device refused, faulted, failed its self-test or could not finish, the cutter refused a
 //! line, raised an alarm or was stopped (Ctrl-C), or a file could not be read or written; 5 the
-//! cutter failed and could not be stopped: its laser may still be on.
+//! cutter failed and could not be stopped: its laser may still be on; 128 + n a device command
+//! interrupted by signal n (130 Ctrl-C, 143 SIGTERM), its motor stopped.
 
 use std::path::PathBuf;
 
@@ -72,6 +73,28 @@ pub enum CliError {
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
+    /// A signal (Ctrl-C, SIGTERM, SIGHUP) stopped a command that moves the motor: the device was
+    /// told to abort and reported its motor at rest. Exits 128 + the signal's number.
+    #[error("interrupted ({signal}): the device aborted and reports its motor at rest")]
+    Interrupted {
+        /// The signal's name.
+        signal: &'static str,
+        /// The exit code it gives.
+        exit_code: u8,
+    },
+}
+
+/// `e` as the command's error once `signal` came: a device call that the signal stopped (the
+/// device aborted, its motor at rest) is [`CliError::Interrupted`]; any other error stays what
+/// it is (an abort that failed keeps its own error and exit code).
+pub fn after_signal(e: CliError, signal: Option<crate::interrupt::Signal>) -> CliError {
+    match (e, signal) {
+        (CliError::Meter(Error::Cancelled), Some(signal)) => CliError::Interrupted {
+            signal: signal.name(),
+            exit_code: signal.exit_code(),
+        },
+        (e, _) => e,
+    }
 }
 
 /// What a job that stopped after measuring had done (in `--json`'s error object).
@@ -104,7 +127,7 @@ impl CliError {
             // A plan error about a file is the file's; any other is about the arguments.
             CliError::Plan(e) if e.path().is_some() => Category::File,
             CliError::Plan(_) => Category::Usage,
-            CliError::SelfTestFailed => Category::Device,
+            CliError::SelfTestFailed | CliError::Interrupted { .. } => Category::Device,
             CliError::AfterMeasuring { category, .. } => *category,
             CliError::Cutter(e) => e.category(),
             CliError::Job(e) | CliError::JobAfterMeasuring { source: e, .. } => e.category(),
@@ -147,6 +170,7 @@ impl CliError {
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
+            | CliError::Interrupted { .. }
             | CliError::AfterMeasuring { .. }
             | CliError::Cutter(_)
             | CliError::Job(_)
@@ -163,6 +187,7 @@ impl CliError {
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
+            | CliError::Interrupted { .. }
             | CliError::AfterMeasuring { .. }
             | CliError::Cutter(_)
             | CliError::Job(_)
@@ -181,6 +206,7 @@ pub fn exit_code(e: &CliError) -> u8 {
         CliError::Job(job) | CliError::JobAfterMeasuring { source: job, .. } => {
             job.laser_may_be_on()
         }
+        CliError::Interrupted { exit_code, .. } => return *exit_code,
         _ => false,
     };
     if laser_may_be_on {

@@ -26,6 +26,7 @@ use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
 mod commands;
 mod connection;
 mod error;
+mod interrupt;
 mod output;
 mod plot;
 mod progress;
@@ -220,10 +221,13 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(code) => return code,
     };
-    clean_up_on_interrupt(&cli.command);
+    if let Err(e) = interrupt::install(on_signal(&cli.command)) {
+        eprintln!("warning: Ctrl-C will not stop the device or clean up: {e}");
+    }
     match run(&cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            let e = error::after_signal(e, interrupt::raised());
             if cli.global.json && !e.is_in_report() {
                 let report = ErrorReport {
                     error: e.to_string(),
@@ -233,6 +237,9 @@ fn main() -> ExitCode {
                     job_so_far: e.job_so_far(),
                 };
                 print_line(&to_json(&report, JsonLayout::CompactSorted));
+            } else if matches!(e, CliError::Interrupted { .. }) {
+                // Not a failure of the command's: what the user asked for, done.
+                eprintln!("{e}");
             } else if !cli.global.json {
                 eprintln!("error: {e}");
             }
@@ -241,23 +248,31 @@ fn main() -> ExitCode {
     }
 }
 
-/// The commands that write an output file and take no Ctrl-C of their own: interrupted, they
-/// remove the temporary file they were writing (the output is replaced only by a finished one)
-/// and exit with 130, as a shell does for an interrupted program. `cut` and `job` handle Ctrl-C
-/// themselves (they must stop the cutter first).
-fn clean_up_on_interrupt(command: &Command) {
-    let writes_a_file = matches!(
-        command,
-        Command::Dilate(_) | Command::Gcode(_) | Command::Gauge(_) | Command::Lightburn(_)
-    );
-    if writes_a_file {
-        let handler = || {
-            kerfmeter::files::remove_unfinished_outputs();
-            std::process::exit(130);
-        };
-        if let Err(e) = ctrlc::set_handler(handler) {
-            eprintln!("warning: Ctrl-C will not clean up: {e}");
+/// What Ctrl-C, SIGTERM and SIGHUP do to `command` (see [`interrupt`]): the commands that can
+/// move the motor or a cutter stop it first; those that write an output file remove their
+/// unfinished temporary file (an output is replaced only by a finished one); the others end.
+/// `serve` stops its own way (it closes its listener and aborts a run in progress).
+fn on_signal(command: &Command) -> interrupt::OnSignal {
+    use interrupt::OnSignal;
+    match command {
+        Command::Run(_)
+        | Command::Reset
+        | Command::SelfTest
+        | Command::Map(_)
+        | Command::Cut(_)
+        | Command::Job(_) => OnSignal::Stop,
+        Command::Dilate(_) | Command::Gcode(_) | Command::Gauge(_) | Command::Lightburn(_) => {
+            OnSignal::CleanUp
         }
+        Command::Info
+        | Command::Status
+        | Command::Kerf
+        | Command::Abort
+        | Command::ClearFault
+        | Command::ConfirmZero
+        | Command::Config(_)
+        | Command::History(_)
+        | Command::Serve(_) => OnSignal::Die,
     }
 }
 

@@ -78,23 +78,25 @@ pub fn ask(g: &Global, yes: bool, sim: bool, what: &str) -> Result<(), CliError>
     eprint!("{what}, then press Enter (Ctrl-C to stop) ");
     std::io::stderr().flush().ok();
     let mut line = String::new();
-    std::io::stdin()
-        .lock()
-        .read_line(&mut line)
+    crate::interrupt::at_prompt(|| std::io::stdin().lock().read_line(&mut line))
         .map_err(|e| CliError::Usage(format!("cannot read the answer: {e}")))?;
     Ok(())
 }
 
-/// Prepare for a run (reset to zero if needed), then one run with a progress bar.
+/// Prepare for a run (reset to zero if needed), then one run with a progress bar; a signal
+/// stops either ([`crate::interrupt`]).
 pub fn one_run(
     g: &Global,
     meter: &mut Kerfmeter,
     params: &RunParams,
     label: &str,
 ) -> Result<KerfResult, CliError> {
-    meter.prepare_for_run()?;
+    meter.prepare_for_run_until(|_| crate::interrupt::check())?;
     let bar = progress_bar(g, label);
-    let result = meter.run_kerfmeter(params, |p| show(&bar, p));
+    let result = meter.run_kerfmeter_until(params, |p| {
+        show(&bar, p);
+        crate::interrupt::check()
+    });
     bar.finish_and_clear();
     Ok(result?)
 }

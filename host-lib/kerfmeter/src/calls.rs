@@ -90,6 +90,9 @@ const RESET_DEADLINE: Duration = Duration::from_secs(10);
 const SELF_TEST_DEADLINE: Duration = Duration::from_secs(10);
 /// Slack on top of the run's own time limit.
 const RUN_SLACK: Duration = Duration::from_secs(5);
+/// How long a stop waits for the device to report its motor at rest after the abort (the
+/// firmware makes it safe within one control tick; this is for the link's round trips).
+const AT_REST_DEADLINE: Duration = Duration::from_secs(1);
 
 fn unexpected(request: &'static str, response: &Response) -> Error {
     crate::client::unexpected(request, response)
@@ -237,10 +240,32 @@ impl Kerfmeter {
         progress: &mut impl FnMut(&Progress) -> ControlFlow<()>,
     ) -> Result<()> {
         if progress(&Progress::from(status)).is_break() {
-            self.abort()?;
+            self.abort_until_at_rest()?;
             return Err(Error::Cancelled);
         }
         Ok(())
+    }
+
+    /// Stop the motor and wait until the device reports it at rest: idle, done or faulted, the
+    /// states in which the firmware holds the bridge safe (duty 0, driver asleep). The status
+    /// that said so. What a caller that was interrupted (Ctrl-C, a Stop button) calls before it
+    /// tells the user the motor is stopped.
+    ///
+    /// ```no_run
+    /// let mut meter = kerfmeter::Kerfmeter::open("/dev/ttyACM0")?;
+    /// let status = meter.abort_until_at_rest()?;
+    /// println!("stopped: {:?}", status.state);
+    /// # Ok::<(), kerfmeter::Error>(())
+    /// ```
+    pub fn abort_until_at_rest(&mut self) -> Result<Status> {
+        self.abort()?;
+        self.poll_until(AT_REST_DEADLINE, |_, status| {
+            Ok(matches!(
+                status.state,
+                RunState::Idle | RunState::Done | RunState::Fault(_)
+            )
+            .then_some(*status))
+        })
     }
 
     /// Poll the status every [`Options::poll_interval`](crate::Options::poll_interval) until

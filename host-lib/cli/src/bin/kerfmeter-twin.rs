@@ -13,7 +13,7 @@ use std::process::ExitCode;
 use clap::Parser;
 use kerfmeter_twin::cutter::{CutterOptions, CutterServer};
 use kerfmeter_twin::plant::{Material, PlantParams, param_list};
-use kerfmeter_twin::{InjectedFault, Pace, PtyTwin, StartError, TwinOptions};
+use kerfmeter_twin::{InjectedFault, MotorEdge, Pace, PtyTwin, StartError, TwinOptions};
 
 #[derive(Parser)]
 #[command(
@@ -76,6 +76,11 @@ struct Args {
     /// `error:20` (unsupported command), as a controller refusing a line mid-job does.
     #[arg(long, value_name = "N", requires = "cutter", value_parser = clap::value_parser!(u32).range(1..))]
     cutter_error_on_line: Option<u32>,
+    /// Print a line on stdout whenever the motor bridge enters its safe state (duty 0, driver
+    /// asleep) or leaves it: `motor safe at 1234.000 ms` / `motor unsafe at …` (simulated time
+    /// since boot). What a scope on the G2's pins would show, for a test in another process.
+    #[arg(long, conflicts_with = "cutter")]
+    log_motor: bool,
 }
 
 fn main() -> ExitCode {
@@ -107,7 +112,9 @@ fn main() -> ExitCode {
     // This process keeps the client side open (without locking it: the pair takes no lock, and a
     // client opening the path takes its own) so that the terminal survives clients coming and
     // going.
-    let (twin, _client) = match PtyTwin::start(options) {
+    let (edges, watched) = std::sync::mpsc::channel();
+    let watch = args.log_motor.then_some(edges);
+    let (twin, _client) = match PtyTwin::start_watched(options, watch) {
         Ok(started) => started,
         Err(e @ StartError::Options(_)) => {
             eprintln!("error: {e}");
@@ -130,12 +137,24 @@ fn main() -> ExitCode {
         if args.realtime { ", real time" } else { "" }
     );
     let _ = std::io::stdout().flush();
+    // Ends when the twin does (its sender goes with it).
+    std::thread::spawn(move || print_motor_edges(&watched));
     match twin.wait() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(3)
         }
+    }
+}
+
+/// Print each motor edge as it comes, flushed at once (a test times its arrival).
+fn print_motor_edges(edges: &std::sync::mpsc::Receiver<MotorEdge>) {
+    for edge in edges {
+        let what = if edge.safe { "safe" } else { "unsafe" };
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "motor {what} at {:.3} ms", edge.at_us as f64 / 1000.0);
+        let _ = out.flush();
     }
 }
 

@@ -7,8 +7,6 @@
 use std::fmt;
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -114,11 +112,8 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
     if let Some(line) = constant_power_line.filter(|_| !g.json) {
         eprintln!("{}", constant_power_warning(line));
     }
-    let cancel = Arc::new(AtomicBool::new(false));
-    let flag = cancel.clone();
-    // With ctrlc's "termination" feature this also catches SIGTERM and SIGHUP.
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .map_err(|e| CliError::Usage(format!("cannot take over Ctrl-C: {e}")))?;
+    // Raised by Ctrl-C, SIGTERM and SIGHUP (`main` installs the handler for `cut`).
+    let cancel = crate::interrupt::flag();
     let options = connect_options(args)?;
     let mut cutter = Cutter::open_cancellable(&args.cutter, options, cancel.clone())?;
     if !g.json {

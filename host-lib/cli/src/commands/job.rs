@@ -31,7 +31,7 @@ use std::fmt;
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -274,10 +274,8 @@ pub fn run(g: &Global, args: &JobArgs) -> Result<JobOutcome> {
     }
     check_machines(g, args)?;
     g.check_db_folder()?;
-    let cancel = Arc::new(AtomicBool::new(false));
-    let flag = cancel.clone();
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .map_err(|e| CliError::Usage(format!("cannot take over Ctrl-C: {e}")))?;
+    // Raised by Ctrl-C, SIGTERM and SIGHUP (`main` installs the handler for `job`).
+    let cancel = crate::interrupt::flag();
     let mut session = g.connect()?;
     let bar = stage_bar(g.json);
     let report = run_on(g, args, &setup, &mut session, &cancel, &mut |e| {

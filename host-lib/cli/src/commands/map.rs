@@ -154,7 +154,9 @@ fn measure_cell(
             ),
         )?;
         if i > 0 {
-            session.meter.reset_kerfmeter()?;
+            session
+                .meter
+                .reset_kerfmeter_until(|_| crate::interrupt::check())?;
         }
         let label = format!("cell ({col},{row}) {}/{}", i + 1, args.per_cell);
         cell.push(f64::from(

@@ -54,7 +54,9 @@ impl Report for ResetReport {
 pub fn run(g: &Global) -> Result<ResetReport, CliError> {
     let mut session = g.connect()?;
     let cleared_fault = latched_fault(&mut session.meter)?;
-    session.meter.reset_kerfmeter()?;
+    session
+        .meter
+        .reset_kerfmeter_until(|_| crate::interrupt::check())?;
     Ok(ResetReport {
         cleared_fault,
         warning: warning(&mut session.meter)?,

@@ -5,7 +5,6 @@
 //! label's kerf left its usual spread ([`crate::record`]).
 
 use std::fmt;
-use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use clap::Args;
@@ -229,6 +228,9 @@ fn measure(
         params,
         samples,
         |i| {
+            if crate::interrupt::raised().is_some() {
+                return Err(Error::Cancelled);
+            }
             bar.suspend(|| {
                 ask(
                     g,
@@ -243,7 +245,7 @@ fn measure(
         },
         |_, p| {
             show(&bar, p);
-            ControlFlow::Continue(())
+            crate::interrupt::check()
         },
     );
     bar.finish_and_clear();

@@ -119,7 +119,7 @@ pub fn run(g: &Global) -> Result<SelfTestOutcome, CliError> {
     let bar = progress_bar(g, "self-test");
     let outcome = test(&mut s, |p| {
         show(&bar, p);
-        ControlFlow::Continue(())
+        crate::interrupt::check()
     });
     bar.finish_and_clear();
     outcome
