@@ -86,6 +86,7 @@ use super::rules::{CutRules, Rgb, Verdict};
 use super::source_file::{Copier, SourceFile};
 use crate::error::{PlanError, Problems, Result};
 
+mod lost;
 mod path_data;
 
 use path_data::Flaw;
@@ -349,6 +350,15 @@ struct Rendered {
     instances: Vec<Instance>,
     /// `paths[k]` is the path data of `instances[k]`.
     paths: Vec<tiny_skia_path::Path>,
+    /// The elements usvg could not draw (see [`lost`]), by (shape, outermost `<use>`): refused
+    /// once they can be named.
+    lost: Vec<(usize, Option<usize>)>,
+}
+
+/// The source's tagged copy `tagged` as usvg draws it.
+fn draw(tagged: &str) -> Result<usvg::Tree> {
+    usvg::Tree::from_str(tagged, &usvg_options())
+        .map_err(|e| bad(format!("not a usable SVG file: {e}")))
 }
 
 /// Render the document with usvg and find its cut instances; the source is given back.
@@ -359,10 +369,14 @@ struct Rendered {
 /// itself: it is made again from the tagged copy, whose insertions are known, once usvg's tree
 /// is gone. Of usvg's tree only the cut paths' data is kept (a tenth of the tree). Reading parses
 /// the source again, to name and place the cuts.
+///
+/// Numbers single precision cannot hold are refused before usvg reads them (see [`path_data`]);
+/// when what usvg drew shows transforms that may have combined past it, the tagged copy is drawn
+/// again, scaled down, to find the elements usvg dropped (see [`lost`]).
 fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
     let mut plan = Plan::new("svg");
     check_entities(&text)?;
-    let (tagged, use_by_id, shapes_len, mm_per_px, broken) = {
+    let (tagged, use_by_id, shapes_len, mm_per_px, broken, probe) = {
         let doc = parse(&text)?;
         let mm_per_px = document_scale(doc.root_element(), opts.assume_units, &mut plan.summary)?;
         check_view_box(doc.root_element())?;
@@ -377,33 +391,49 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         }
         let (shapes, uses) = shapes_and_uses(&doc);
         let broken = broken_paths(&text, &shapes)?;
+        check_far_attributes(&text, &doc)?;
         let (tagged, use_by_id) = tagged(&text, &shapes, &uses)?;
-        (tagged, use_by_id, shapes.len(), mm_per_px, broken)
+        let probe = lost::Probe::of(&text, doc.root_element());
+        (tagged, use_by_id, shapes.len(), mm_per_px, broken, probe)
     };
     drop(text);
-    let tree = usvg::Tree::from_str(&tagged.text, &usvg_options())
-        .map_err(|e| bad(format!("not a usable SVG file: {e}")))?;
-    let mut walk = Walk {
-        rules: &opts.rules,
+    let tree = draw(&tagged.text)?;
+    let mut walk = Walk::new(
+        &opts.rules,
         mm_per_px,
         shapes_len,
-        use_by_id: &use_by_id,
-        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
-        // grown by doubling, these vectors held up to twice their room at the peak of reading.
-        instances: Vec::with_capacity(shapes_len),
-        paths: Vec::with_capacity(shapes_len),
-        seen: HashSet::new(),
-        summary: &mut plan.summary,
-        unidentified: 0,
-    };
+        &use_by_id,
+        &mut plan.summary,
+        true,
+    );
     walk.group(tree.root(), &mut Vec::new());
     let (unidentified, mut instances, mut paths) = (walk.unidentified, walk.instances, walk.paths);
+    let (seen, overflow) = (walk.seen, walk.overflow);
     drop(tree);
     if unidentified > 0 {
         return Err(bad(format!(
             "{unidentified} cut path(s) could not be traced back to their element (a stylesheet sets stroke-miterlimit with !important?)"
         )));
     }
+    let lost = match overflow {
+        // What usvg drew shows no place where it could have dropped an element.
+        None => Vec::new(),
+        Some(_) => {
+            let tree = draw(&probe.smaller(&tagged.text))?;
+            let mut summary = PlanSummary::default();
+            let mut walk = Walk::new(
+                &opts.rules,
+                mm_per_px,
+                shapes_len,
+                &use_by_id,
+                &mut summary,
+                false,
+            );
+            walk.group(tree.root(), &mut Vec::new());
+            lost::lost(&seen, &walk.seen, walk.overflow)?
+        }
+    };
+    drop(seen);
     check_broken(&broken, &instances, &mut plan.summary)?;
     instances.shrink_to_fit();
     paths.shrink_to_fit();
@@ -411,6 +441,7 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         plan,
         instances,
         paths,
+        lost,
     };
     Ok((tagged.untagged(), rendered))
 }
@@ -437,11 +468,7 @@ fn broken_paths(text: &str, shapes: &[Node]) -> Result<Vec<BrokenPath>> {
     for f in flawed {
         let (name, data) = (describe(&lines, shapes[f.shape]), f.data);
         match f.flaw {
-            Flaw::TooFar(v) => {
-                return Err(bad(format!(
-                    "{name} has the coordinate {v:e} in its {data}, more than an SVG's single-precision coordinates can hold (a damaged file or a unit mistake); fix its {data}"
-                )));
-            }
+            Flaw::TooFar(v) => return Err(too_far(&name, v, data)),
             Flaw::BreaksOff(why) => broken.push(BrokenPath {
                 shape: f.shape,
                 name,
@@ -451,6 +478,31 @@ fn broken_paths(text: &str, shapes: &[Node]) -> Result<Vec<BrokenPath>> {
         }
     }
     Ok(broken)
+}
+
+/// An element with the number `v` in its `what` (`path data`, `transform`, `x attribute`) beyond
+/// what single precision holds (see [`path_data::FARTHEST_COORDINATE`]), named `name`.
+fn too_far(name: &str, v: f64, what: &str) -> PlanError {
+    bad(format!(
+        "{name} has the number {v:e} in its {what}, more than an SVG's single-precision coordinates can hold (a damaged file or a unit mistake); fix its {what}"
+    ))
+}
+
+/// Refuse an element of the source `doc` (of `text`) whose `transform` or shape geometry (`x`,
+/// `r`, …) has a number single precision cannot hold (see [`path_data::far_attribute`]): usvg
+/// would drop it, and with it the cuts it draws.
+fn check_far_attributes(text: &str, doc: &Document) -> Result<()> {
+    let svg_elements = doc
+        .descendants()
+        .filter(|n| matches!(n.tag_name().namespace(), None | Some(SVG_NS)));
+    let Some((n, attribute, v)) = path_data::far_attribute(svg_elements) else {
+        return Ok(());
+    };
+    let what = match attribute {
+        "transform" => "transform".to_string(),
+        a => format!("{a} attribute"),
+    };
+    Err(too_far(&describe(&LineIndex::new(text), n), v, &what))
 }
 
 /// A cut among the `broken` paths is refused: SVG viewers draw it only up to its error, and its
@@ -761,8 +813,13 @@ impl<'w> SvgPlan<'w> {
 
     /// How to name an instance in messages.
     fn label(&self, el: &Elements, inst: &Instance) -> String {
-        let mut s = describe(&self.lines, el.shapes[inst.element]);
-        if let Some(u) = inst.via_use {
+        self.name(el, inst.element, inst.via_use)
+    }
+
+    /// How to name shape `element` drawn through the `<use>` `via_use` in messages.
+    fn name(&self, el: &Elements, element: usize, via_use: Option<usize>) -> String {
+        let mut s = describe(&self.lines, el.shapes[element]);
+        if let Some(u) = via_use {
             s.push_str(&format!(" via <use> {}", describe(&self.lines, el.uses[u])));
         }
         s
@@ -820,9 +877,15 @@ impl<'w> SvgPlan<'w> {
     /// before the cuts are traced (the tree and the traced contours held at once were the peak
     /// of reading): the uses checked, the instances placed, the compensation records found, and
     /// each instance's name and whether it is of boxes.py's reference rectangle.
-    fn read_source(&mut self, summary: &PlanSummary) -> Result<(Vec<String>, Vec<bool>)> {
+    fn read_source(
+        &mut self,
+        summary: &PlanSummary,
+        lost: &[(usize, Option<usize>)],
+    ) -> Result<(Vec<String>, Vec<bool>)> {
         let doc = parse(&self.text)?;
         let el = Elements::of(&doc);
+        let lost = lost.iter().map(|&(e, u)| self.name(&el, e, u));
+        lost::refuse(lost)?;
         self.check_uses(&el)?;
         place(&mut self.instances, &self.text, &el);
         self.records = Records {
@@ -1059,12 +1122,13 @@ impl Format for SvgPlan<'_> {
             mut plan,
             instances,
             paths,
+            lost,
         }) = self.rendered.take()
         else {
             return Err(bad("internal error: the SVG was read twice"));
         };
         self.instances = instances;
-        let (names, boxes_reference) = self.read_source(&plan.summary)?;
+        let (names, boxes_reference) = self.read_source(&plan.summary, &lost)?;
         let (traced, reach, farthest) = self.trace_all(paths, &names)?;
         if let Some(name) = names.get(farthest) {
             check_reach(reach, name, &mut plan.summary)?;
@@ -1255,18 +1319,54 @@ struct Walk<'a> {
     mm_per_px: f64,
     shapes_len: usize,
     use_by_id: &'a HashMap<String, usize>,
+    /// Whether cut instances are kept: not when only which elements are drawn is asked (see
+    /// [`lost`]).
+    keep: bool,
     instances: Vec<Instance>,
     paths: Vec<tiny_skia_path::Path>,
+    /// The visible stroked elements drawn, by (shape, outermost `<use>`): every cut instance,
+    /// and the other elements drawn with a stroke (only those can be named: see [`tagged`]).
     seen: HashSet<(usize, Option<usize>)>,
     summary: &'a mut PlanSummary,
     unidentified: usize,
+    /// A group whose combined transform may have made usvg drop what it holds (see
+    /// [`lost::Overflow`]).
+    overflow: Option<lost::Overflow>,
 }
 
-impl Walk<'_> {
+impl<'a> Walk<'a> {
+    /// A walk that keeps the cut instances when `keep`.
+    fn new(
+        rules: &'a CutRules,
+        mm_per_px: f64,
+        shapes_len: usize,
+        use_by_id: &'a HashMap<String, usize>,
+        summary: &'a mut PlanSummary,
+        keep: bool,
+    ) -> Self {
+        // Room for one instance per shape (most plans: the cuts, and a few more) from the start:
+        // grown by doubling, these vectors held up to twice their room at the peak of reading.
+        let room = if keep { shapes_len } else { 0 };
+        Walk {
+            rules,
+            mm_per_px,
+            shapes_len,
+            use_by_id,
+            keep,
+            instances: Vec::with_capacity(room),
+            paths: Vec::with_capacity(room),
+            seen: HashSet::new(),
+            summary,
+            unidentified: 0,
+            overflow: None,
+        }
+    }
+
     fn group(&mut self, g: &usvg::Group, uses: &mut Vec<usize>) {
         for child in g.children() {
             match child {
                 usvg::Node::Group(c) => {
+                    lost::Overflow::note(&mut self.overflow, c);
                     let u = self.use_by_id.get(c.id()).copied();
                     if let Some(u) = u {
                         uses.push(u);
@@ -1285,43 +1385,51 @@ impl Walk<'_> {
         }
     }
 
+    /// The shape (its index) whose tag (see [`tagged`]) is the stroke miter limit `code`.
+    fn shape_of(&self, code: f32) -> Option<usize> {
+        let element = code as usize;
+        (code.fract() == 0.0 && element > 0 && element <= self.shapes_len).then(|| element - 1)
+    }
+
     fn path(&mut self, p: &usvg::Path, uses: &[usize]) {
-        let to_doc = Affine::scale(self.mm_per_px).then_after(&affine(p.abs_transform()));
         if !p.is_visible() {
             self.summary.pass("hidden");
             return;
         }
+        // usvg drops ids inside clones, so only the outermost <use> is seen; a cut reached
+        // through nested clones is caught by the caller (it does not lie in that <use>'s
+        // target).
+        let via_use = uses.first().copied();
+        let shape = p.stroke().and_then(|s| self.shape_of(s.miterlimit().get()));
+        if !self.keep {
+            self.seen.extend(shape.map(|e| (e, via_use)));
+            return;
+        }
+        let to_doc = Affine::scale(self.mm_per_px).then_after(&affine(p.abs_transform()));
         let stroke = p.stroke().and_then(|s| match s.paint() {
             usvg::Paint::Color(c) if s.opacity().get() > 0.0 => Some((
                 Rgb(c.red, c.green, c.blue),
                 f64::from(s.width().get()) * to_doc.mean_scale(),
-                s.miterlimit().get(),
             )),
             _ => None,
         });
         let filled = p.fill().is_some_and(|f| f.opacity().get() > 0.0);
-        match self
-            .rules
-            .classify_svg(stroke.map(|(c, w, _)| (c, w)), filled)
-        {
-            Verdict::Keep(reason) => self.summary.pass(reason),
+        match self.rules.classify_svg(stroke, filled) {
+            Verdict::Keep(reason) => {
+                self.summary.pass(reason);
+                self.seen.extend(shape.map(|e| (e, via_use)));
+            }
             Verdict::Cut => {
-                let code = stroke.map(|s| s.2).unwrap_or(0.0);
-                let element = code as usize;
-                if code.fract() != 0.0 || element == 0 || element > self.shapes_len {
+                let Some(element) = shape else {
                     self.unidentified += 1;
                     return;
-                }
-                // usvg drops ids inside clones, so only the outermost <use> is seen; a cut
-                // reached through nested clones is caught by the caller (it does not lie in
-                // that <use>'s target).
-                let via_use = uses.first().copied();
-                if !self.seen.insert((element - 1, via_use)) {
+                };
+                if !self.seen.insert((element, via_use)) {
                     // The same element drawn twice in one instance (paint-order with markers).
                     return;
                 }
                 let instance = Instance {
-                    element: element - 1,
+                    element,
                     via_use,
                     to_doc,
                     subpath_count: 0,
@@ -1978,7 +2086,7 @@ mod tests {
         let far = r#"<path d="M10 10 H30 V30 H10 Z M70 70 L80 70 L1e39 80 Z" stroke="red" stroke-width="0.1" fill="none"/>"#;
         let e = run(far, 150.0).unwrap_err().to_string();
         assert!(e.contains("<path> at line 1, column"), "{e}");
-        assert!(e.contains("the coordinate 1e39"), "{e}");
+        assert!(e.contains("the number 1e39 in its path data"), "{e}");
     }
 
     #[test]

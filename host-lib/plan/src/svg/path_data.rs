@@ -1,19 +1,47 @@
-//! The `d` of a plan's `<path>` elements (and the `points` of its polygons and polylines), checked as the source writes it, before usvg reads it.
+//! The `d` of a plan's `<path>` elements (and the `points` of its polygons and polylines), and
+//! the numbers of every element's geometry, checked as the source writes them, before usvg
+//! reads them.
 //!
 //! usvg reads path data as SVG viewers draw it: up to its first error, silently. A cut whose data
 //! breaks off part way (`L NaN 80`, a stray letter) would be dilated, and written back, without
-//! its tail: it is refused (another path with such data passes through, in a note). And a path
-//! with a coordinate or an arc radius that single precision cannot hold (`1e39`) is dropped by
-//! usvg whole, which left "nothing drawn" as the only clue: it is refused here, by name.
+//! its tail: it is refused (another path with such data passes through, in a note). And an
+//! element with a number that single precision cannot hold, or nearly (`1e38`: a coordinate, an
+//! arc radius, a shape's `x` or `r`, a `transform`'s offset or scale), is dropped by usvg whole,
+//! which left "nothing drawn", or a plan with fewer contours, as the only clue: it is refused
+//! here, by name, whether or not it is a cut. This is the one rule for such numbers
+//! ([`FARTHEST_COORDINATE`]); the numbers usvg combines past it (a large `x` in a large scale)
+//! are found in what usvg draws (see `super::lost`).
+
+use std::str::FromStr;
 
 use rayon::prelude::*;
 use roxmltree::Node;
 use svgtypes::{NumberListParser, PathParser, PathSegment as S};
 
-/// Coordinates beyond this (in the path's own units) are refused: far past anything drawable
-/// (a drawing beyond 170 m is refused anyway, see the reach check), and near the single
-/// precision's limit (3.4e38), where usvg drops the whole path.
-const FARTHEST_COORDINATE: f64 = 1e30;
+/// Coordinates beyond this (in the element's own units), and transforms that scale or move by
+/// more, are refused: far past anything drawable (a drawing beyond 170 m is refused anyway, see
+/// the reach check), and near the single precision's limit (3.4e38), where usvg drops the whole
+/// element.
+pub(super) const FARTHEST_COORDINATE: f64 = 1e30;
+
+/// Whether `v` is beyond what [`FARTHEST_COORDINATE`] allows (not a number included).
+fn too_far(v: f64) -> bool {
+    !v.is_finite() || v.abs() > FARTHEST_COORDINATE
+}
+
+/// The geometry attributes whose numbers are checked, by shape (`points` and `d` have their
+/// own readers).
+fn geometry_attributes(shape: &str) -> &'static [&'static str] {
+    match shape {
+        "rect" => &["x", "y", "width", "height", "rx", "ry"],
+        "circle" => &["cx", "cy", "r"],
+        "ellipse" => &["cx", "cy", "rx", "ry"],
+        "line" => &["x1", "y1", "x2", "y2"],
+        // A clone's offset.
+        "use" => &["x", "y"],
+        _ => &[],
+    }
+}
 
 /// What is wrong with a path's data.
 #[derive(Debug, PartialEq)]
@@ -34,8 +62,7 @@ pub(super) fn flaw(d: &str) -> Option<Flaw> {
             Err(e) => return Some(Flaw::BreaksOff(e.to_string())),
         };
         let (points, end) = absolute(&segment, at, start);
-        let far = (points.iter().flatten().flatten())
-            .find(|v| !v.is_finite() || v.abs() > FARTHEST_COORDINATE);
+        let far = (points.iter().flatten().flatten()).find(|v| too_far(**v));
         if let Some(&v) = far {
             return Some(Flaw::TooFar(v));
         }
@@ -114,13 +141,45 @@ pub(super) fn flawed(shapes: &[Node]) -> Vec<Flawed> {
         .collect()
 }
 
+/// The first of the `elements` (any element, in document order) with a number beyond
+/// [`FARTHEST_COORDINATE`] in its `transform` or in a geometry attribute of its shape (a
+/// rectangle's `x`, a circle's `r`, a clone's `x`): the element, the attribute, the number.
+/// Numbers that are not numbers (`x="abc"`) are usvg's to ignore, as viewers do.
+pub(super) fn far_attribute<'d, 'a>(
+    elements: impl Iterator<Item = Node<'d, 'a>>,
+) -> Option<(Node<'d, 'a>, &'static str, f64)> {
+    elements.filter(Node::is_element).find_map(|n| {
+        let attribute = |name: &str| {
+            (n.attributes())
+                .find(|a| a.name() == name && a.namespace().is_none())
+                .map(|a| a.value())
+        };
+        let transform = attribute("transform")
+            .and_then(|t| svgtypes::Transform::from_str(t).ok())
+            .and_then(|t| {
+                [t.a, t.b, t.c, t.d, t.e, t.f]
+                    .into_iter()
+                    .find(|v| too_far(*v))
+            });
+        if let Some(v) = transform {
+            return Some((n, "transform", v));
+        }
+        geometry_attributes(n.tag_name().name())
+            .iter()
+            .find_map(|&name| {
+                let length = svgtypes::Length::from_str(attribute(name)?).ok()?;
+                too_far(length.number).then_some((n, name, length.number))
+            })
+    })
+}
+
 /// The first flaw of a `<polygon>`'s or `<polyline>`'s `points`, if any: usvg reads them up to
 /// the first that is not a number, and drops an odd one at the end.
 pub(super) fn points_flaw(points: &str) -> Option<Flaw> {
     let mut count = 0;
     for number in NumberListParser::from(points) {
         match number {
-            Ok(v) if !v.is_finite() || v.abs() > FARTHEST_COORDINATE => {
+            Ok(v) if too_far(v) => {
                 return Some(Flaw::TooFar(v));
             }
             Ok(_) => count += 1,
