@@ -1482,3 +1482,25 @@ fn a_history_that_cannot_be_written_warns_and_keeps_the_measurement() {
     let out = kerfmeter(&["--sim", "--db", path(&db), "run", "--label", " "]);
     assert_eq!(code(&out), 2, "{}", stderr(&out));
 }
+
+#[test]
+fn a_cut_single_precision_cannot_hold_is_refused_by_name_and_nothing_written() {
+    // usvg dropped such a cut whole: the plan was dilated without it, with no word.
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("far.svg");
+    std::fs::write(
+        &input,
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="50mm" height="50mm" viewBox="0 0 50 50"><g fill="none" stroke="#ff0000" stroke-width="0.1"><rect x="5" y="5" width="20" height="20"/><circle id="far" cx="1e38" cy="15" r="5"/></g></svg>"##,
+    )
+    .unwrap();
+    let output = dir.path().join("out.svg");
+    let out = dilate(&input, "150", &output);
+    assert_eq!(code(&out), 4, "{}", stdout(&out));
+    let message = stderr(&out);
+    assert!(message.contains("far.svg"), "{message}");
+    assert!(
+        message.contains(r#"circle "far" has the number 1e38 in its cx attribute"#),
+        "{message}"
+    );
+    assert!(!output.exists());
+}
