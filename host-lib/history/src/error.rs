@@ -52,6 +52,30 @@ pub enum Error {
         /// The folder.
         path: PathBuf,
     },
+    /// There is no history at the path given to read: the file, or its folder, does not exist.
+    /// (A mistyped path is not an empty history; the caller decides where one not made yet
+    /// is: the user's data directory before the first measurement.)
+    #[error(
+        "no history at {}: {}; check the path (--db or KERFMETER_DB)",
+        path.display(),
+        absent(folder.as_deref())
+    )]
+    NoHistory {
+        /// The database asked for.
+        path: PathBuf,
+        /// Its folder, when that is what does not exist.
+        folder: Option<PathBuf>,
+    },
+    /// The path names a folder, not a database file.
+    #[error(
+        "{} is a folder, not a history file; give a file (--db or KERFMETER_DB), such as {}",
+        path.display(),
+        path.join("history.sqlite3").display()
+    )]
+    IsFolder {
+        /// The folder.
+        path: PathBuf,
+    },
     /// The system names no data directory for this user.
     #[error(
         "this system names no data directory for the history (no HOME?); give a file with --db or KERFMETER_DB"
@@ -60,6 +84,15 @@ pub enum Error {
     /// A record or a query is out of range.
     #[error("{0}")]
     Invalid(String),
+}
+
+/// What does not exist of a history asked for: its file, or its `folder`.
+fn absent(folder: Option<&Path>) -> String {
+    match folder {
+        Some(dir) => format!("the folder {} does not exist", dir.display()),
+        None => "the file does not exist (nothing was recorded there, or the path is mistyped)"
+            .to_string(),
+    }
 }
 
 impl Error {

@@ -110,7 +110,7 @@ pub struct Query {
 }
 
 /// What `kerfmeter history --json` prints and the server's `history` method returns.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Listing {
     /// The records, newest first.
     pub records: Vec<Record>,
@@ -160,9 +160,15 @@ impl History {
         Ok(dir.join("kerfmeter").join("history.sqlite3"))
     }
 
-    /// Whether the database at `path` has a folder to be made in ([`Error::NoFolder`] if not):
-    /// checked before a measurement, so that a mistyped folder is said before the gauge is used.
+    /// Whether the database at `path` has a folder to be made in ([`Error::NoFolder`] if not),
+    /// and is not itself a folder ([`Error::IsFolder`]): checked before a measurement, so that a
+    /// mistyped path is said before the gauge is used.
     pub fn check_folder(path: &Path) -> Result<(), Error> {
+        if path.is_dir() {
+            return Err(Error::IsFolder {
+                path: path.to_owned(),
+            });
+        }
         match folder_of(path) {
             Some(dir) if !dir.is_dir() => Err(Error::NoFolder {
                 path: dir.to_owned(),
@@ -202,27 +208,46 @@ impl History {
     }
 
     /// Open the database at `path` only to read it ([`History::record`] is refused): nothing is
-    /// created and no write lock is taken, so a listing waits only while a writer commits, and
-    /// works on a database the user may only read (a shared one, a read-only mount). One that
-    /// does not exist yet reads as empty; a newer or foreign one is refused as
-    /// [`History::open`] refuses it. The exceptions write: a database that needs a migration
-    /// (an older version), or a recovery after a crash (its journal left behind), is opened by
-    /// [`History::open`], which can do them.
+    /// created or written, and no write lock is taken, so a listing waits only while a writer
+    /// commits, and works on a database the user may only read (a shared one, a read-only
+    /// mount). An empty file (no schema yet) reads as an empty history, and is left as it is.
+    /// A file that does not exist, or whose folder does not, is [`Error::NoHistory`] (the
+    /// caller decides whether that is an empty history: the user's data directory before the
+    /// first measurement); a folder is [`Error::IsFolder`]; a newer or foreign database is
+    /// refused as [`History::open`] refuses it. The exceptions write: a database that needs a
+    /// migration (an older version), or a recovery after a crash (its journal left behind), is
+    /// opened by [`History::open`], which can do them.
     pub fn open_to_read(path: &Path) -> Result<History, Error> {
-        let sql = |source| Error::sqlite(path, source);
-        let conn = if path.exists() {
-            let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
-            let conn = Connection::open_with_flags(path, flags).map_err(sql)?;
-            conn.busy_timeout(BUSY_TIMEOUT).map_err(sql)?;
-            match schema::readable(&conn, path) {
-                Ok(true) => conn,
-                Ok(false) | Err(Error::Sqlite { .. }) => return History::open(path),
-                Err(e) => return Err(e),
+        match std::fs::metadata(path) {
+            Ok(m) if m.is_dir() => {
+                return Err(Error::IsFolder {
+                    path: path.to_owned(),
+                });
             }
-        } else {
-            let mut empty = Connection::open_in_memory().map_err(sql)?;
-            schema::migrate(&mut empty, path)?;
-            empty
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(Error::NoHistory {
+                    path: path.to_owned(),
+                    folder: folder_of(path).filter(|d| !d.is_dir()).map(Path::to_owned),
+                });
+            }
+            // Otherwise SQLite reads it, or says why it cannot (no permission, ...).
+            _ => {}
+        }
+        let sql = |source| Error::sqlite(path, source);
+        let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+        let conn = Connection::open_with_flags(path, flags).map_err(sql)?;
+        conn.busy_timeout(BUSY_TIMEOUT).map_err(sql)?;
+        let conn = match schema::version(&conn, path) {
+            Ok(SCHEMA_VERSION) => conn,
+            // No schema yet (an empty file): an empty history, made in memory.
+            Ok(0) => {
+                drop(conn);
+                let mut empty = Connection::open_in_memory().map_err(sql)?;
+                schema::migrate(&mut empty, path)?;
+                empty
+            }
+            Ok(_) | Err(Error::Sqlite { .. }) => return History::open(path),
+            Err(e) => return Err(e),
         };
         Ok(History {
             conn,

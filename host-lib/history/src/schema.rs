@@ -34,16 +34,10 @@ const MIGRATIONS: &[&str] = &[
 /// The schema version this build writes (and the newest it can read).
 pub const SCHEMA_VERSION: i64 = MIGRATIONS.len() as i64;
 
-/// Whether the database at `path` (open as `conn`, perhaps read-only) can be read as it is:
-/// `false` when it needs a migration first (an empty file, an older version); refused when it is
-/// newer or foreign, as by [`migrate`].
-pub fn readable(conn: &Connection, path: &Path) -> Result<bool, Error> {
-    Ok(version(conn, path)? == SCHEMA_VERSION)
-}
-
-/// The schema version of the database at `path` (open as `conn`); refused when it is newer than
-/// this build's, or when it holds tables but no version (not a Kerfmeter history).
-fn version(conn: &Connection, path: &Path) -> Result<i64, Error> {
+/// The schema version of the database at `path` (open as `conn`, perhaps read-only): 0 for one
+/// with no tables (an empty file); refused when it is newer than this build's, or when it holds
+/// tables but no version (not a Kerfmeter history).
+pub fn version(conn: &Connection, path: &Path) -> Result<i64, Error> {
     let sql = |source| Error::sqlite(path, source);
     let found: i64 = conn
         .query_row("PRAGMA user_version", [], |r| r.get(0))

@@ -1,6 +1,8 @@
 //! The history as its users see it: records persist, listed newest first with the simulated ones
 //! apart; a newer or foreign database is refused untouched; a process killed mid-write leaves
-//! every committed record; drift is warned about per label.
+//! every committed record; drift is warned about per label; reading tells the truth about the
+//! file (a path with no history, or a folder, is said to be one, and an empty file is read as an
+//! empty history and left empty).
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -154,12 +156,9 @@ fn a_database_from_a_newer_version_is_refused_untouched() {
 fn reading_creates_nothing_and_never_waits_for_a_writer() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("not/yet/h.sqlite3");
-    let mut empty = History::open_to_read(&db).unwrap();
-    assert!(empty.list(&all(None, false)).unwrap().is_empty());
-    let refused = empty.record(&measurement(Some("birch"), 150.0, false));
-    assert!(matches!(refused, Err(Error::Invalid(_))), "{refused:?}");
+    let missing = History::open_to_read(&db).unwrap_err();
+    assert!(matches!(missing, Error::NoHistory { .. }), "{missing:?}");
     assert!(!dir.path().join("not").exists(), "nothing created to read");
-    drop(empty);
 
     let mut h = History::open_creating_folder(&db).unwrap();
     h.record(&measurement(Some("birch"), 150.0, false)).unwrap();
@@ -347,4 +346,73 @@ fn a_process_killed_mid_write_leaves_every_committed_record() {
         ids.len(),
         committed.len()
     );
+}
+
+#[test]
+fn reading_a_path_with_no_history_says_which_part_does_not_exist() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("h.sqlite3");
+    let err = History::open_to_read(&db).unwrap_err();
+    assert!(
+        matches!(&err, Error::NoHistory { path, folder: None } if *path == db),
+        "{err:?}"
+    );
+    let text = err.to_string();
+    assert!(
+        text.starts_with(&format!(
+            "no history at {}: the file does not exist",
+            db.display()
+        )),
+        "{text}"
+    );
+    let in_no_folder = dir.path().join("typo/h.sqlite3");
+    let err = History::open_to_read(&in_no_folder).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains(&format!(
+            "the folder {} does not exist",
+            dir.path().join("typo").display()
+        )),
+        "{text}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
+
+#[test]
+fn a_folder_is_said_to_be_one_when_read_checked_or_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path();
+    let read = History::open_to_read(folder).unwrap_err();
+    assert!(matches!(read, Error::IsFolder { .. }), "{read:?}");
+    assert!(read.to_string().contains("is a folder"), "{read}");
+    assert!(read.to_string().contains("history.sqlite3"), "{read}");
+    let checked = History::check_folder(folder).unwrap_err();
+    assert!(matches!(checked, Error::IsFolder { .. }), "{checked:?}");
+    let written = History::open(folder).unwrap_err();
+    assert!(matches!(written, Error::IsFolder { .. }), "{written:?}");
+    assert_eq!(std::fs::read_dir(folder).unwrap().count(), 0);
+}
+
+#[test]
+fn an_empty_file_reads_as_an_empty_history_and_stays_empty() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("h.sqlite3");
+    std::fs::write(&db, b"").unwrap();
+    let mut h = History::open_to_read(&db).unwrap();
+    let listing = h.listing(&all(None, false)).unwrap();
+    assert!(listing.records.is_empty() && listing.drift.is_empty());
+    assert!(h.list(&all(None, true)).unwrap().is_empty());
+    let refused = h.record(&measurement(Some("birch"), 150.0, false));
+    assert!(matches!(refused, Err(Error::Invalid(_))), "{refused:?}");
+    drop(h);
+    assert_eq!(std::fs::read(&db).unwrap(), b"", "nothing written into it");
+    // No journal or other file beside it either.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    // Recording makes it a history, as before.
+    History::open(&db)
+        .unwrap()
+        .record(&measurement(Some("birch"), 150.0, false))
+        .unwrap();
+    let h = History::open_to_read(&db).unwrap();
+    assert_eq!(h.list(&all(None, false)).unwrap().len(), 1);
 }
