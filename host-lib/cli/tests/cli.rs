@@ -1345,13 +1345,11 @@ fn sim_run(db: &Path, label: &str, kerf_um: &str) -> serde_json::Value {
 fn runs_are_recorded_listed_newest_first_and_a_drift_is_warned() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("history.sqlite3");
-    // Listing an empty history creates nothing.
+    // Listing a history named that does not exist yet says so (a mistyped path is not an empty
+    // history), and creates nothing.
     let out = kerfmeter(&["--db", path(&db), "history"]);
-    assert!(
-        stdout(&out).contains("no real measurements"),
-        "{}",
-        stdout(&out)
-    );
+    assert_eq!(code(&out), 4, "{}", stdout(&out));
+    assert!(stderr(&out).contains("no history at"), "{}", stderr(&out));
     assert!(!db.exists());
     for (i, kerf) in ["150", "152", "148"].into_iter().enumerate() {
         let json = sim_run(&db, "birch", kerf);

@@ -1,12 +1,17 @@
 //! `kerfmeter history`: the measurements recorded by `run` and `job`, newest first, with the
 //! drift warning of each label whose newest kerf left its usual spread. The real measurements,
 //! or with `--sim` the simulated ones (they are never mixed). The device is not opened.
+//!
+//! The listing tells the truth about its file: a history in the user's data directory that does
+//! not exist yet is "no measurements recorded yet", but one the user named (`--db`,
+//! `KERFMETER_DB`) that does not exist, or is a folder, is refused (exit 4) as such: a mistyped
+//! path is not an empty history. Nothing is created or written to list.
 
 use std::fmt;
 use std::path::PathBuf;
 
 use clap::Args;
-use kerfmeter_history::{History, Listing, Query, Record};
+use kerfmeter_history::{Error, History, Listing, Query, Record};
 use serde::Serialize;
 
 use crate::connection::Global;
@@ -36,6 +41,9 @@ pub struct HistoryReport {
     /// The records and the drift warnings.
     #[serde(flatten)]
     pub listing: Listing,
+    /// Whether the database exists (if not, nothing was recorded yet), for the text.
+    #[serde(skip)]
+    exists: bool,
     /// The label asked for, for the text.
     #[serde(skip)]
     label: Option<String>,
@@ -44,31 +52,54 @@ pub struct HistoryReport {
     limit: u32,
 }
 
-/// List the history as `args` say.
+/// List the history as `args` say: one the user named must exist.
 pub fn run(g: &Global, args: &HistoryArgs) -> Result<HistoryReport, CliError> {
-    list(g, g.sim, args.label.clone(), args.limit)
+    read(g, g.sim, args.label.clone(), args.limit, g.db.is_some())
 }
 
 /// The newest `limit` records of the history `g` names (of `label` only, if given), the
-/// `simulated` ones or the real ones, with the drift warnings (`kerfmeter serve`'s `history`
-/// too).
+/// `simulated` ones or the real ones, with the drift warnings: `kerfmeter serve`'s `history`.
+/// The server records into that history, so one whose file is not made yet is empty (its
+/// folder must exist, unless it is the user's data directory's).
 pub fn list(
     g: &Global,
     simulated: bool,
     label: Option<String>,
     limit: u32,
 ) -> Result<HistoryReport, CliError> {
+    read(g, simulated, label, limit, false)
+}
+
+/// [`list`], the history refused when it does not exist if `must_exist`; else a history that
+/// does not exist is empty when it is the default one, or only its file is missing.
+fn read(
+    g: &Global,
+    simulated: bool,
+    label: Option<String>,
+    limit: u32,
+    must_exist: bool,
+) -> Result<HistoryReport, CliError> {
     let db = g.db_path()?;
-    // Read-only: listing creates nothing, and no file yet is an empty history.
-    let listing = History::open_to_read(&db)?.listing(&Query {
+    let query = Query {
         label: label.clone(),
         limit: Some(limit as usize),
         simulated,
-    })?;
+    };
+    // Read-only: listing creates and writes nothing.
+    let (listing, exists) = match History::open_to_read(&db) {
+        Ok(history) => (history.listing(&query)?, true),
+        Err(Error::NoHistory { folder, .. })
+            if !must_exist && (g.db.is_none() || folder.is_none()) =>
+        {
+            (Listing::default(), false)
+        }
+        Err(e) => return Err(e.into()),
+    };
     Ok(HistoryReport {
         db,
         simulated,
         listing,
+        exists,
         label,
         limit,
     })
@@ -82,6 +113,13 @@ impl fmt::Display for HistoryReport {
             None => String::new(),
         };
         let records = &self.listing.records;
+        if !self.exists {
+            return write!(
+                f,
+                "no measurements recorded yet (`kerfmeter run` and `job` record them in {})",
+                self.db.display()
+            );
+        }
         if records.is_empty() {
             write!(
                 f,
