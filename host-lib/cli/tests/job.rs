@@ -493,10 +493,13 @@ fn a_compensated_plan_or_a_gauge_is_refused_before_anything_moves() {
         );
         assert!(json["compensation_found"]["by"].is_string(), "{json}");
     }
-    // Nothing was measured: the history is empty.
+    // Nothing was measured: no history was even made (listing it says so).
+    assert!(!db.exists());
     let listed = kerfmeter(&["--sim", "--json", "--db", path(&db), "history"]);
+    assert_eq!(code(&listed), 4, "{}", stdout(&listed));
     let listed: serde_json::Value = serde_json::from_str(&stdout(&listed)).unwrap();
-    assert_eq!(listed["records"], serde_json::json!([]), "{listed}");
+    let error = listed["error"].as_str().unwrap();
+    assert!(error.contains("the file does not exist"), "{error}");
     // The flag the refusal names is the job's own.
     let out = job(&first, &["--recompensate"]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));
