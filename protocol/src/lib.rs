@@ -70,7 +70,7 @@ pub use frame::{
 };
 pub use messages::{
     BOARD_NAME_LEN, ConfigReport, DeviceInfo, Envelope, ErrorCode, FirmwareVersion, HardwareInfo,
-    OutOfRange, ParamField, ProtocolVersion, Request, Response, START_TOLERANCE_DEG,
+    OutOfRange, ParamField, ProtocolVersion, Request, Response, START_TOLERANCE_DEG, Shown,
 };
 pub use params::{
     DeviceConfig, EncoderPlacement, GaugeGeometry, JamDirection, REFERENCE_SUPPLY_V, RunParams,

@@ -233,6 +233,38 @@ pub struct OutOfRange {
     pub value: Option<f32>,
 }
 
+/// A number as a message shows what was given: as written, but in exponent form when huge or
+/// tiny (`{}` writes an `f64` near its limit with 309 digits), and `0` for −0. NaN and
+/// infinities as Rust writes them (`NaN`, `inf`, `-inf`).
+///
+/// ```
+/// use kerfmeter_protocol::Shown;
+/// assert_eq!(Shown(1e308).to_string(), "1e308");
+/// assert_eq!(Shown(-0.0_f64).to_string(), "0");
+/// assert_eq!(Shown(152.5_f32).to_string(), "152.5");
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shown<T>(pub T);
+
+macro_rules! shown {
+    ($t:ty) => {
+        impl core::fmt::Display for Shown<$t> {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                let v = self.0;
+                if v == 0.0 {
+                    f.write_str("0")
+                } else if v.is_finite() && (v.abs() >= 1e9 || v.abs() < 1e-6) {
+                    write!(f, "{v:e}")
+                } else {
+                    write!(f, "{v}")
+                }
+            }
+        }
+    };
+}
+shown!(f32);
+shown!(f64);
+
 impl core::fmt::Display for OutOfRange {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         let (what, unit) = self.field.words();
@@ -240,7 +272,7 @@ impl core::fmt::Display for OutOfRange {
         let space = if unit.is_empty() { "" } else { " " };
         write!(f, "{what} ({})", self.field.name())?;
         if let Some(value) = self.value {
-            write!(f, " = {value}{space}{unit}")?;
+            write!(f, " = {}{space}{unit}", Shown(value))?;
         }
         write!(f, " is out of range (allowed {lo} to {hi}{space}{unit})")
     }

@@ -106,6 +106,7 @@ pub struct JobSoFar {
     pub history: Option<Recorded>,
     /// The files written before the job stopped, each complete (the plan was not cut, or not
     /// all of it).
+    #[serde(serialize_with = "crate::output::lossy_path::list")]
     pub written: Vec<PathBuf>,
 }
 

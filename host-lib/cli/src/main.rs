@@ -143,7 +143,7 @@ fn parse_cli() -> Result<Cli, ExitCode> {
         Err(e) => e,
     };
     let is_usage_error = e.use_stderr();
-    if is_usage_error && std::env::args().any(|a| a == "--json") {
+    if is_usage_error && std::env::args_os().any(|a| a == "--json") {
         let rendered = e.to_string();
         let message = rendered.lines().next().unwrap_or_default();
         let report = ErrorReport {
@@ -208,10 +208,21 @@ fn refuse_unused_device_flags(command: &Command, matches: &ArgMatches) -> Result
     ))
 }
 
-/// `command` and all its subcommands take negative numbers as values.
+/// `command` and all its subcommands take negative numbers as values, and their decimal
+/// options any value starting with a hyphen (`--kerf-um -inf` is refused by the kerf's range,
+/// not as "unexpected argument '-i'"; `-inf` is no number to clap).
 fn negative_numbers_are_values(command: clap::Command) -> clap::Command {
+    use std::any::TypeId;
     command
         .allow_negative_numbers(true)
+        .mut_args(|arg| {
+            let parser = arg.get_value_parser().type_id();
+            if parser == TypeId::of::<f64>() || parser == TypeId::of::<f32>() {
+                arg.allow_hyphen_values(true)
+            } else {
+                arg
+            }
+        })
         .mut_subcommands(negative_numbers_are_values)
 }
 
@@ -237,6 +248,7 @@ fn main() -> ExitCode {
                     job_so_far: e.job_so_far(),
                 };
                 print_line(&to_json(&report, JsonLayout::CompactSorted));
+                output::lossy_path::warn_if_replaced();
             } else if matches!(e, CliError::Interrupted { .. }) {
                 // Not a failure of the command's: what the user asked for, done.
                 eprintln!("{e}");

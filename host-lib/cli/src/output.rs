@@ -38,13 +38,15 @@ pub trait Report: fmt::Display + Serialize {
 pub fn emit<R: Report>(json: bool, report: &R) -> Result<(), CliError> {
     if json {
         print_line(&to_json(report, R::JSON));
+        lossy_path::warn_if_replaced();
     } else {
         print_line(&report.to_string());
     }
     report.verdict()
 }
 
-/// `value` as JSON in `layout`.
+/// `value` as JSON in `layout`. A report never fails to print: should one not serialize, the
+/// line is an `{"error": …}` object saying so (whatever the command wrote stays written).
 pub fn to_json(value: &impl Serialize, layout: JsonLayout) -> String {
     let text = match layout {
         JsonLayout::Pretty => serde_json::to_string_pretty(value),
@@ -56,7 +58,72 @@ pub fn to_json(value: &impl Serialize, layout: JsonLayout) -> String {
             serde_json::to_value(value).and_then(|v| serde_json::to_string(&v))
         }
     };
-    text.expect("reports serialize")
+    text.unwrap_or_else(|e| {
+        serde_json::json!({
+            "error": format!("the report could not be written as JSON ({e}); the command itself finished"),
+        })
+        .to_string()
+    })
+}
+
+/// `serialize_with` for the paths in reports. JSON strings are Unicode, and a file name need
+/// not be (Linux names are bytes): such a name is written lossily, U+FFFD in place of each
+/// byte that is not UTF-8, and [`emit`] says so on stderr. (serde's own `Path` refuses it.)
+pub mod lossy_path {
+    use std::borrow::Cow;
+    use std::path::{Path, PathBuf};
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    use serde::Serializer;
+
+    /// Set once a path was written lossily.
+    static REPLACED: AtomicBool = AtomicBool::new(false);
+
+    /// One path.
+    pub fn one<S: Serializer>(path: &Path, s: S) -> Result<S::Ok, S::Error> {
+        let text = path.to_string_lossy();
+        if matches!(text, Cow::Owned(_)) {
+            REPLACED.store(true, Ordering::Relaxed);
+        }
+        s.serialize_str(&text)
+    }
+
+    /// A path that may be missing (`null`).
+    pub fn option<S: Serializer>(path: &Option<PathBuf>, s: S) -> Result<S::Ok, S::Error> {
+        match path {
+            Some(path) => one(path, s),
+            None => s.serialize_none(),
+        }
+    }
+
+    /// A list of paths.
+    pub fn list<S: Serializer>(paths: &[PathBuf], s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        let mut seq = s.serialize_seq(Some(paths.len()))?;
+        for path in paths {
+            seq.serialize_element(&Lossy(path))?;
+        }
+        seq.end()
+    }
+
+    /// A path serialized by [`one`].
+    struct Lossy<'a>(&'a Path);
+
+    impl serde::Serialize for Lossy<'_> {
+        fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            one(self.0, s)
+        }
+    }
+
+    /// Tell stderr when a path above was written lossily.
+    pub fn warn_if_replaced() {
+        if REPLACED.load(Ordering::Relaxed) {
+            eprintln!(
+                "note: a file name in this report is not UTF-8; the JSON shows it with U+FFFD in \
+                 place of the bytes that are not"
+            );
+        }
+    }
 }
 
 /// Print one line to stdout; end the program quietly if no one reads it any more.

@@ -5,6 +5,8 @@ use std::path::Path;
 
 use kerfmeter_protocol::KerfResult;
 use plotters::prelude::*;
+use plotters_backend::DrawingErrorKind;
+use plotters_bitmap::BitMapBackendError;
 
 use kerfmeter::{Curve, Error, Result};
 
@@ -75,12 +77,14 @@ pub fn plot_curve(curve: &Curve, result: Option<&KerfResult>, path: &Path) -> Re
                 BitMapBackend::new(tmp, SIZE).into_drawing_area(),
                 curve,
                 result,
-            ),
+            )
+            .map_err(png_error),
             PlotFormat::Svg => draw(
                 SVGBackend::new(tmp, SIZE).into_drawing_area(),
                 curve,
                 result,
-            ),
+            )
+            .map_err(|e| e.to_string()),
         };
         drawn.map_err(file_error)
     })
@@ -96,15 +100,30 @@ fn span(values: impl Iterator<Item = f32>, least: f32, margin: f32) -> std::ops:
     lo..hi + pad
 }
 
+/// The PNG backend's error in words: a full disk as "No space left on device", not the
+/// backend's debug text (its `Display` is its `Debug`).
+fn png_error(e: DrawingAreaErrorKind<BitMapBackendError>) -> String {
+    match &e {
+        DrawingAreaErrorKind::BackendError(DrawingErrorKind::DrawingError(backend)) => {
+            match backend {
+                BitMapBackendError::IOError(io) => io.to_string(),
+                BitMapBackendError::ImageError(image) => image.to_string(),
+                other => other.to_string(),
+            }
+        }
+        _ => e.to_string(),
+    }
+}
+
 fn draw<DB: DrawingBackend>(
     area: DrawingArea<DB, plotters::coord::Shift>,
     curve: &Curve,
     result: Option<&KerfResult>,
-) -> std::result::Result<(), String>
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>>
 where
     DB::ErrorType: 'static,
 {
-    let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
+    let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err;
     area.fill(&WHITE).map_err(e)?;
     // The jam's marker is inside the axes too.
     let jam = result.map(|r| (r.angle_deg, r.torque_at_jam_nm));
@@ -174,7 +193,18 @@ where
 
 #[cfg(test)]
 mod tests {
-    use super::span;
+    use super::*;
+
+    #[test]
+    fn a_full_disk_under_a_png_plot_is_said_in_words() {
+        let full = std::io::Error::from(std::io::ErrorKind::StorageFull);
+        let e = DrawingAreaErrorKind::BackendError(DrawingErrorKind::DrawingError(
+            BitMapBackendError::IOError(full),
+        ));
+        let message = png_error(e);
+        assert!(message.contains("no storage space"), "{message}");
+        assert!(!message.contains("IOError"), "{message}");
+    }
 
     #[test]
     fn an_axis_holds_negative_values_and_starts_at_zero_otherwise() {

@@ -42,6 +42,7 @@ pub struct Measured<'a> {
 #[derive(Debug, Clone, Serialize)]
 pub struct Recorded {
     /// The database (`null` when there is none: no data directory).
+    #[serde(serialize_with = "crate::output::lossy_path::option")]
     pub db: Option<PathBuf>,
     /// The record's id (`null` when it could not be recorded).
     pub id: Option<i64>,

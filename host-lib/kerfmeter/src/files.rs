@@ -193,12 +193,19 @@ fn temporary_beside(path: &Path, suffix: &str) -> std::result::Result<NamedTempF
             use std::io::ErrorKind as Kind;
             // The common reasons in words, without the temporary file's made-up name that
             // `tempfile` adds to its error.
-            let reason = match e.kind() {
-                kind @ (Kind::PermissionDenied
-                | Kind::ReadOnlyFilesystem
-                | Kind::StorageFull
-                | Kind::QuotaExceeded) => kind.to_string(),
-                _ => e.to_string(),
+            let reason = match (e.kind(), e.raw_os_error()) {
+                (
+                    kind @ (Kind::PermissionDenied
+                    | Kind::ReadOnlyFilesystem
+                    | Kind::StorageFull
+                    | Kind::QuotaExceeded),
+                    _,
+                ) => kind.to_string(),
+                // The folder exists (checked above), so "no such file" means that it takes no
+                // new files, as /proc and /sys do.
+                (Kind::NotFound, _) => "it does not take new files".to_owned(),
+                (_, Some(code)) => std::io::Error::from_raw_os_error(code).to_string(),
+                _ => e.kind().to_string(),
             };
             let dir = dir.display();
             format!("cannot create a file in the directory {dir}: {reason}")

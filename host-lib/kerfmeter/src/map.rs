@@ -15,6 +15,9 @@ use crate::error::{Error, Result};
 use crate::files::write_atomically;
 use crate::stats::median;
 
+/// The largest bed a map may span each way, mm (ten metres: no laser bed is larger).
+pub const MAX_BED_MM: f64 = 10_000.0;
+
 /// Format version written into every map file.
 pub const MAP_FORMAT_VERSION: u32 = 1;
 
@@ -74,9 +77,12 @@ pub struct Grid {
 impl Grid {
     /// Check the grid and return it.
     pub fn new(bed_width_mm: f64, bed_depth_mm: f64, cols: usize, rows: usize) -> Result<Self> {
-        if !(bed_width_mm > 0.0 && bed_depth_mm > 0.0) {
+        let size_ok = |mm: f64| mm > 0.0 && mm <= MAX_BED_MM;
+        if !(size_ok(bed_width_mm) && size_ok(bed_depth_mm)) {
             return Err(Error::InvalidArgument(format!(
-                "the bed must have a positive size, got {bed_width_mm} × {bed_depth_mm} mm"
+                "the bed must be more than 0 and at most {MAX_BED_MM} mm each way, got {} × {} mm",
+                kerfmeter_protocol::Shown(bed_width_mm),
+                kerfmeter_protocol::Shown(bed_depth_mm)
             )));
         }
         if !(1..=20).contains(&cols) || !(1..=20).contains(&rows) {

@@ -65,7 +65,7 @@ impl JointSpec {
         if !(self.finger_length_mm > 0.0 && self.finger_length_mm.is_finite()) {
             return Err(Error::InvalidArgument(format!(
                 "the finger length (finger_length_mm) must be more than 0 mm, got {} mm",
-                self.finger_length_mm
+                kerfmeter_protocol::Shown(self.finger_length_mm)
             )));
         }
         let params = RunParams {

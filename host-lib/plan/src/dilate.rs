@@ -95,11 +95,15 @@ impl KerfSource {
 
     /// Check a kerf value given by the user, µm.
     pub fn check_kerf_um(kerf_um: f64) -> Result<f64> {
-        if kerf_um.is_finite() && (0.0..=MAX_KERF_UM).contains(&kerf_um) {
+        if kerf_um == 0.0 {
+            // −0 is 0: a report says "by 0 µm".
+            Ok(0.0)
+        } else if kerf_um.is_finite() && (0.0..=MAX_KERF_UM).contains(&kerf_um) {
             Ok(kerf_um)
         } else {
             Err(PlanError::InvalidArgument(format!(
-                "the kerf must be between 0 and {MAX_KERF_UM} µm, got {kerf_um} µm"
+                "the kerf must be between 0 and {MAX_KERF_UM} µm, got {} µm",
+                kerfmeter_protocol::Shown(kerf_um)
             )))
         }
     }

@@ -240,7 +240,8 @@ fn dilated_test_piece(spec: &TestPieceSpec, origin: V2) -> Result<Vec<(String, P
     ] {
         if !(v.is_finite() && (0.5..=50.0).contains(&v)) {
             return Err(PlanError::InvalidArgument(format!(
-                "{name} must be between 0.5 and 50 mm, got {v}"
+                "{name} must be between 0.5 and 50 mm, got {}",
+                kerfmeter_protocol::Shown(v)
             )));
         }
     }

@@ -275,7 +275,7 @@ impl GcodeOptions {
         if !(self.s_max.is_finite() && self.s_max >= 1.0 && self.s_max <= 100_000.0) {
             return Err(PlanError::InvalidArgument(format!(
                 "the maximum S ($30) must be 1 to 100000, got {}",
-                self.s_max
+                kerfmeter_protocol::Shown(self.s_max)
             )));
         }
         if !self

@@ -75,7 +75,7 @@ impl CutSettings {
         {
             return bad(format!(
                 "the feed must be {MIN_FEED_MM_PER_MIN} to {MAX_FEED_MM_PER_MIN} mm/min, got {}",
-                self.feed_mm_per_min
+                kerfmeter_protocol::Shown(self.feed_mm_per_min)
             ));
         }
         if !(self.power_percent.is_finite()
@@ -84,7 +84,7 @@ impl CutSettings {
         {
             return bad(format!(
                 "the power must be {MIN_POWER_PERCENT} to 100 %, got {}",
-                self.power_percent
+                kerfmeter_protocol::Shown(self.power_percent)
             ));
         }
         if !(1..=MAX_PASSES).contains(&self.passes) {

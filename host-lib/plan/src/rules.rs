@@ -32,6 +32,10 @@ use serde::Serialize;
 use crate::error::{PlanError, Result};
 use crate::selectors;
 
+/// The widest stroke `--cut-max-width-mm` may name, mm: no cut line is a metre wide, and a
+/// limit past it is a typo.
+pub const MAX_CUT_WIDTH_MM: f64 = 1000.0;
+
 /// An sRGB colour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 pub struct Rgb(pub u8, pub u8, pub u8);
@@ -117,9 +121,10 @@ impl CutRules {
         if !colors.is_empty() {
             rules.colors = colors.into_iter().map(Rgb::parse).collect::<Result<_>>()?;
         }
-        if !(max_width_mm.is_finite() && max_width_mm >= 0.0) {
+        if !(max_width_mm.is_finite() && (0.0..=MAX_CUT_WIDTH_MM).contains(&max_width_mm)) {
             return Err(PlanError::InvalidArgument(format!(
-                "--cut-max-width-mm must be a width ≥ 0 mm, got {max_width_mm}"
+                "--cut-max-width-mm must be a width from 0 to {MAX_CUT_WIDTH_MM} mm, got {}",
+                kerfmeter_protocol::Shown(max_width_mm)
             )));
         }
         rules.max_width_mm = max_width_mm;

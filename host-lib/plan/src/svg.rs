@@ -316,6 +316,19 @@ pub(crate) fn dilate_svg_cuts(
     )
 }
 
+/// Why the XML could not be read, in words; an entity the reader does not know is most often an
+/// external one (`<!ENTITY x SYSTEM "file:…">`), which is never read: said so.
+fn xml_error_message(e: &roxmltree::Error) -> String {
+    let hint = match e {
+        roxmltree::Error::UnknownEntityReference(..) => {
+            "; external entities (<!ENTITY … SYSTEM …>) are not supported: they are never read, \
+             so declare the entity's text in the file or remove it"
+        }
+        _ => "",
+    };
+    format!("not a readable SVG file (XML error: {e}){hint}")
+}
+
 /// The source as XML, refused unless its root is an SVG `<svg>`. The first parse of a source
 /// ([`render`]'s) checks its entities before it (see [`check_entities`]); every later one parses
 /// the same text (a file read again is checked against the hash of the first reading).
@@ -327,7 +340,7 @@ fn parse(text: &str) -> Result<Document<'_>> {
             ..ParsingOptions::default()
         },
     )
-    .map_err(|e| bad(format!("not a readable SVG file (XML error: {e})")))?;
+    .map_err(|e| bad(xml_error_message(&e)))?;
     let root = doc.root_element();
     if root.tag_name().name() == "svg" && root.tag_name().namespace().is_none() {
         return Err(bad(format!(

@@ -108,6 +108,14 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
         line: bad.number,
         reason: bad.reason,
     })?;
+    if lines.is_empty() {
+        return Err(kerfmeter::Error::File {
+            path: args.input.clone(),
+            message: "has no G-code line to cut (it is empty, or only comments); nothing was sent"
+                .into(),
+        }
+        .into());
+    }
     let constant_power_line = constant_power_line(&lines);
     if let Some(line) = constant_power_line.filter(|_| !g.json) {
         eprintln!("{}", constant_power_warning(line));

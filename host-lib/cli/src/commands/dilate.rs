@@ -138,8 +138,10 @@ impl DilationArgs {
 #[derive(Debug, Clone, Serialize)]
 pub struct DilateReport {
     /// The plan read.
+    #[serde(serialize_with = "crate::output::lossy_path::one")]
     pub input: PathBuf,
     /// The file written (`None` on a dry run).
+    #[serde(serialize_with = "crate::output::lossy_path::option")]
     pub output: Option<PathBuf>,
     /// True when nothing was written.
     pub dry_run: bool,
@@ -149,6 +151,7 @@ pub struct DilateReport {
     /// The kerf given, µm (with a map: at the reference cell).
     pub kerf_um: f64,
     /// The kerf map used.
+    #[serde(serialize_with = "crate::output::lossy_path::option")]
     pub map: Option<PathBuf>,
     /// The cut rules, in words.
     pub cut_rules: String,

@@ -111,10 +111,10 @@ pub struct GaugeArgs {
     #[arg(long, requires = "test_piece_kerf_um")]
     pub test_piece: bool,
     /// Sheet thickness for the test piece (finger length, slot depth), mm.
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = 4.0, requires = "test_piece")]
     pub thickness_mm: f64,
     /// Finger (and slot) width of the test piece, mm.
-    #[arg(long, default_value_t = 6.3)]
+    #[arg(long, default_value_t = 6.3, requires = "test_piece")]
     pub finger_width_mm: f64,
     /// Kerf to dilate the test piece by, µm.
     #[arg(long)]
@@ -176,6 +176,7 @@ impl GaugeArgs {
 #[derive(Debug, Clone, Serialize)]
 pub struct GaugeReport {
     /// The file written.
+    #[serde(serialize_with = "crate::output::lossy_path::one")]
     pub output: PathBuf,
     /// Its format.
     pub format: GaugeFormat,

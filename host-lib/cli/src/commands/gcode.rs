@@ -139,8 +139,10 @@ pub struct GcodeArgs {
 #[derive(Debug, Clone, Serialize)]
 pub struct GcodeReport {
     /// The plan read.
+    #[serde(serialize_with = "crate::output::lossy_path::one")]
     pub input: PathBuf,
     /// The G-code written.
+    #[serde(serialize_with = "crate::output::lossy_path::one")]
     pub output: PathBuf,
     /// The plan's format (in JSON: the summary's `format`, not written twice).
     #[serde(skip)]
@@ -148,6 +150,7 @@ pub struct GcodeReport {
     /// The kerf given, µm (with a map: at the reference cell).
     pub kerf_um: f64,
     /// The kerf map used.
+    #[serde(serialize_with = "crate::output::lossy_path::option")]
     pub map: Option<PathBuf>,
     /// The cut settings.
     pub profile: Profile,

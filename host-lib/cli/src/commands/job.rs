@@ -159,10 +159,13 @@ pub struct JobArgs {
 #[derive(Debug, Clone, Serialize)]
 pub struct JobCliReport {
     /// The plan read.
+    #[serde(serialize_with = "crate::output::lossy_path::one")]
     pub input: PathBuf,
     /// The dilated plan written.
+    #[serde(serialize_with = "crate::output::lossy_path::one")]
     pub output: PathBuf,
     /// The job's G-code written (and streamed).
+    #[serde(serialize_with = "crate::output::lossy_path::one")]
     pub gcode_out: PathBuf,
     /// The cutter's address.
     pub cutter: String,

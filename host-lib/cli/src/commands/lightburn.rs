@@ -29,8 +29,10 @@ type Result<T, E = CliError> = std::result::Result<T, E>;
 #[derive(Debug, Clone, Serialize)]
 pub struct LightBurnReport {
     /// The project read.
+    #[serde(serialize_with = "crate::output::lossy_path::one")]
     pub input: PathBuf,
     /// The project written (`None` on a dry run).
+    #[serde(serialize_with = "crate::output::lossy_path::option")]
     pub output: Option<PathBuf>,
     /// True when nothing was written.
     pub dry_run: bool,
@@ -247,6 +249,7 @@ pub struct PairReport {
     /// LightBurn's address.
     pub host: String,
     /// Where the secret is kept (`None` with the LightBurn twin: nothing is kept).
+    #[serde(serialize_with = "crate::output::lossy_path::option")]
     pub pairing_file: Option<PathBuf>,
     /// True when paired with the LightBurn twin (`--sim`).
     pub simulated: bool,

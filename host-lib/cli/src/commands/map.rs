@@ -60,6 +60,7 @@ pub struct MapReport {
     /// The cells, row by row.
     pub cells: Vec<Cell>,
     /// The file the map was saved to.
+    #[serde(serialize_with = "crate::output::lossy_path::one")]
     pub map: PathBuf,
     /// The kerf at the reference cell, µm.
     pub reference_kerf_um: f64,

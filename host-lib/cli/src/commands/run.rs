@@ -28,8 +28,9 @@ pub struct RunArgs {
     /// Assembly force of the joint, N (default: 18.3 N per finger, the paper's fit-window centre).
     #[arg(long)]
     force_n: Option<f64>,
-    /// Fingers in the joint.
-    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_FINGERS)]
+    /// Fingers in the joint (1 to 100).
+    #[arg(long, default_value_t = kerfmeter::params::DEFAULT_FINGERS,
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(kerfmeter::params::MAX_FINGERS)))]
     fingers: u32,
     /// Length of each finger's pressed face, mm.
     #[arg(long, default_value_t = kerfmeter::params::DEFAULT_FINGER_LENGTH_MM)]
@@ -81,6 +82,7 @@ pub struct RunReport {
     /// The mean kerf, µm.
     pub kerf_um: f64,
     /// The curve's file, if drawn.
+    #[serde(serialize_with = "crate::output::lossy_path::option")]
     pub plot: Option<PathBuf>,
     /// Every run, in order, its flags also by name.
     #[serde(serialize_with = "crate::output::results_json")]
@@ -121,6 +123,7 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
         force_n: args.force_n,
     };
     let params = joint.run_params(GaugeGeometry::PAPER)?;
+    check_other_forces(&args.also_at_force_n)?;
     if let Some(plot) = &args.plot {
         plot::PlotFormat::for_path(plot)?;
         // Before the gauge is measured: a plot that cannot be written is found now.
@@ -211,6 +214,19 @@ impl RunReport {
             message: e.to_string(),
             category: e.category(),
         });
+    }
+}
+
+/// `--also-at-force-n`: each force in the range a run may ask for.
+fn check_other_forces(forces_n: &[f32]) -> Result<(), CliError> {
+    let field = kerfmeter::protocol::ParamField::TargetForceN;
+    let (lo, hi) = field.range();
+    match forces_n.iter().find(|f| !(lo..=hi).contains(*f)) {
+        Some(&force_n) => Err(CliError::Usage(format!(
+            "--also-at-force-n: {}",
+            field.out_of_range(Some(force_n))
+        ))),
+        None => Ok(()),
     }
 }
 

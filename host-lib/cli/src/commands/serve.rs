@@ -16,7 +16,7 @@ use crate::serve::{Cutter, Security, serve};
 pub struct ServeArgs {
     /// Address and port to listen on (port 0: any free one, printed at startup). Any address
     /// but loopback needs --token.
-    #[arg(long, default_value = "127.0.0.1:7878", value_name = "IP:PORT")]
+    #[arg(long, default_value = "127.0.0.1:7878", value_name = "IP:PORT", value_parser = listen_address)]
     listen: SocketAddr,
     /// Secret that clients must send (`Authorization: Bearer TOKEN`, or `?token=TOKEN`):
     /// letters, digits and - . _ ~. Also from KERFMETER_TOKEN.
@@ -35,6 +35,27 @@ pub struct ServeArgs {
     /// machine clears it (`kerfmeter job --unlock`).
     #[arg(long, requires = "cutter")]
     allow_unlock: bool,
+}
+
+/// `--listen`: an IP address and port; `localhost:PORT` is IPv4 loopback. Other names are not
+/// looked up: a name that resolves to a network interface would open the server to that
+/// network without the user having typed an address.
+fn listen_address(text: &str) -> Result<SocketAddr, String> {
+    if let Ok(address) = text.parse() {
+        return Ok(address);
+    }
+    if let Some(port) = text.strip_prefix("localhost:") {
+        return port
+            .parse::<u16>()
+            .map(|port| SocketAddr::from(([127, 0, 0, 1], port)))
+            .map_err(|_| format!("`{port}` is not a port (0 to 65535)"));
+    }
+    Err(
+        "give an IP address and a port, such as 127.0.0.1:7878 (this machine only), \
+         localhost:7878, or 0.0.0.0:7878 (every network, needs --token); other host names are \
+         not looked up"
+            .into(),
+    )
 }
 
 /// A cutter address, checked as `kerfmeter job` checks it.
