@@ -5,8 +5,6 @@ use std::path::Path;
 
 use kerfmeter_protocol::KerfResult;
 use plotters::prelude::*;
-use plotters_backend::DrawingErrorKind;
-use plotters_bitmap::BitMapBackendError;
 
 use kerfmeter::{Curve, Error, Result};
 
@@ -62,32 +60,63 @@ pub fn plot_curve(curve: &Curve, result: Option<&KerfResult>, path: &Path) -> Re
         ));
     }
     register_font();
-    let file_error = |message: String| Error::File {
+    let bytes = match format {
+        PlotFormat::Png => png_bytes(curve, result),
+        PlotFormat::Svg => svg_bytes(curve, result),
+    }
+    .map_err(|message| Error::File {
         path: path.to_owned(),
-        message,
-    };
-    let extension = if format == PlotFormat::Png {
-        ".png"
-    } else {
-        ".svg"
-    };
-    kerfmeter::files::write_atomically_at(path, extension, |tmp: &Path| {
-        let drawn = match format {
-            PlotFormat::Png => draw(
-                BitMapBackend::new(tmp, SIZE).into_drawing_area(),
-                curve,
-                result,
-            )
-            .map_err(png_error),
-            PlotFormat::Svg => draw(
-                SVGBackend::new(tmp, SIZE).into_drawing_area(),
-                curve,
-                result,
-            )
-            .map_err(|e| e.to_string()),
-        };
-        drawn.map_err(file_error)
-    })
+        message: format!("cannot draw the plot: {message}"),
+    })?;
+    kerfmeter::files::write_atomically(path, &bytes)
+}
+
+/// The plot as a PNG, drawn in memory and encoded with the `png` crate, carrying this tool's
+/// marker (a `tEXt` chunk before the pixels: see [`kerfmeter_plan::ownership::PLOT_MARKER`]).
+fn png_bytes(curve: &Curve, result: Option<&KerfResult>) -> std::result::Result<Vec<u8>, String> {
+    let (width, height) = SIZE;
+    let mut rgb = vec![0u8; width as usize * height as usize * 3];
+    draw(
+        BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area(),
+        curve,
+        result,
+    )?;
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let encoded = encoder
+        .add_text_chunk(
+            "Software".into(),
+            kerfmeter_plan::ownership::plot_marker_text(),
+        )
+        .and_then(|()| encoder.write_header())
+        .and_then(|mut writer| writer.write_image_data(&rgb));
+    encoded.map_err(|e| e.to_string())?;
+    Ok(bytes)
+}
+
+/// The plot as SVG, drawn in memory, with this tool's marker as a comment after the root's
+/// opening tag.
+fn svg_bytes(curve: &Curve, result: Option<&KerfResult>) -> std::result::Result<Vec<u8>, String> {
+    let mut text = String::new();
+    draw(
+        SVGBackend::with_string(&mut text, SIZE).into_drawing_area(),
+        curve,
+        result,
+    )?;
+    let comment = format!(
+        "\n<!-- {} -->",
+        kerfmeter_plan::ownership::plot_marker_text()
+    );
+    match text
+        .find("<svg")
+        .and_then(|at| text[at..].find('>').map(|end| at + end + 1))
+    {
+        Some(after_root) => text.insert_str(after_root, &comment),
+        None => return Err("the SVG backend wrote no <svg> element".into()),
+    }
+    Ok(text.into_bytes())
 }
 
 /// The axis range that holds every value: from 0, or below it when a value is negative (the
@@ -100,30 +129,15 @@ fn span(values: impl Iterator<Item = f32>, least: f32, margin: f32) -> std::ops:
     lo..hi + pad
 }
 
-/// The PNG backend's error in words: a full disk as "No space left on device", not the
-/// backend's debug text (its `Display` is its `Debug`).
-fn png_error(e: DrawingAreaErrorKind<BitMapBackendError>) -> String {
-    match &e {
-        DrawingAreaErrorKind::BackendError(DrawingErrorKind::DrawingError(backend)) => {
-            match backend {
-                BitMapBackendError::IOError(io) => io.to_string(),
-                BitMapBackendError::ImageError(image) => image.to_string(),
-                other => other.to_string(),
-            }
-        }
-        _ => e.to_string(),
-    }
-}
-
 fn draw<DB: DrawingBackend>(
     area: DrawingArea<DB, plotters::coord::Shift>,
     curve: &Curve,
     result: Option<&KerfResult>,
-) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>>
+) -> std::result::Result<(), String>
 where
     DB::ErrorType: 'static,
 {
-    let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err;
+    let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
     area.fill(&WHITE).map_err(e)?;
     // The jam's marker is inside the axes too.
     let jam = result.map(|r| (r.angle_deg, r.torque_at_jam_nm));
@@ -194,17 +208,6 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_full_disk_under_a_png_plot_is_said_in_words() {
-        let full = std::io::Error::from(std::io::ErrorKind::StorageFull);
-        let e = DrawingAreaErrorKind::BackendError(DrawingErrorKind::DrawingError(
-            BitMapBackendError::IOError(full),
-        ));
-        let message = png_error(e);
-        assert!(message.contains("no storage space"), "{message}");
-        assert!(!message.contains("IOError"), "{message}");
-    }
 
     #[test]
     fn an_axis_holds_negative_values_and_starts_at_zero_otherwise() {

@@ -7,7 +7,7 @@
 //! Saved as JSON (see [`KerfMap::save`]): the grid, the bed size, each cell's runs, its median
 //! and its compensation (median − reference median), so a map can be inspected and edited.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
@@ -227,14 +227,99 @@ impl KerfMap {
 
     /// Write the map as JSON, atomically (a crash never leaves a half-written file).
     pub fn save(&self, path: &Path) -> Result<()> {
-        let json = serde_json::to_string_pretty(self).expect("maps serialize");
-        write_atomically(path, json.as_bytes())
+        write_atomically(path, self.to_json().as_bytes())
     }
+
+    /// The map as the JSON [`KerfMap::save`] writes.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("maps serialize")
+    }
+
+    /// [`KerfMap::save`], and should that fail (the survey done, its folder gone, the disk
+    /// full), keep the map under a new name in the first of `fallback_dirs` that takes it:
+    /// a survey is every gauge of a bed placed by hand, and is not lost to a file.
+    pub fn save_or_keep(
+        &self,
+        path: &Path,
+        fallback_dirs: &[PathBuf],
+    ) -> std::result::Result<(), NotSaved> {
+        let error = match self.save(path) {
+            Ok(()) => return Ok(()),
+            Err(e) => e,
+        };
+        let json = self.to_json();
+        let kept = fallback_dirs.iter().find_map(|dir| keep_in(dir, &json));
+        Err(NotSaved { error, kept, json })
+    }
+}
+
+/// A map that could not be saved where asked ([`KerfMap::save_or_keep`]).
+#[derive(Debug)]
+pub struct NotSaved {
+    /// Why it could not be saved there.
+    pub error: Error,
+    /// Where it was kept instead, if anywhere would take it.
+    pub kept: Option<PathBuf>,
+    /// The map's JSON, for the caller to print when it was kept nowhere.
+    pub json: String,
+}
+
+/// Where a map that could not be saved is kept: this tool's folder in the user's data
+/// directory, then the temporary folder.
+pub fn fallback_dirs() -> Vec<PathBuf> {
+    dirs::data_dir()
+        .map(|d| d.join("kerfmeter"))
+        .into_iter()
+        .chain([std::env::temp_dir()])
+        .collect()
+}
+
+/// Write `json` into `dir` under a new name (`kerf-map-unsaved-XXXXXX.json`, never replacing a
+/// file); where it went.
+fn keep_in(dir: &Path, json: &str) -> Option<PathBuf> {
+    use std::io::Write;
+    std::fs::create_dir_all(dir).ok()?;
+    let mut file = tempfile::Builder::new()
+        .prefix("kerf-map-unsaved-")
+        .suffix(".json")
+        .tempfile_in(dir)
+        .ok()?;
+    file.write_all(json.as_bytes()).ok()?;
+    file.as_file().sync_all().ok()?;
+    let (_, path) = file.keep().ok()?;
+    Some(path)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_map_that_cannot_be_saved_is_kept_elsewhere_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let gone = dir.path().join("no-such-folder").join("kerf-map.json");
+        let fallback = dir.path().join("kept");
+        // A fallback that cannot be a folder (a file is in its way) is passed over.
+        std::fs::write(dir.path().join("file"), "").unwrap();
+        let not_saved = map()
+            .save_or_keep(
+                &gone,
+                &[dir.path().join("file").join("x"), fallback.clone()],
+            )
+            .unwrap_err();
+        assert!(
+            not_saved.error.to_string().contains("does not exist"),
+            "{:?}",
+            not_saved.error
+        );
+        let kept = not_saved.kept.unwrap();
+        assert!(kept.starts_with(&fallback), "{}", kept.display());
+        assert_eq!(KerfMap::load(&kept).unwrap(), map());
+        assert!(!gone.exists());
+        map()
+            .save_or_keep(&dir.path().join("ok.json"), &[])
+            .unwrap();
+    }
 
     fn map() -> KerfMap {
         let grid = Grid::new(400.0, 300.0, 4, 3).unwrap();

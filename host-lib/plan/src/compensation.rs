@@ -45,8 +45,10 @@ use crate::error::{PlanError, Result};
 
 /// XML namespace of the `compensation` element this tool writes into SVG `<metadata>`.
 pub const NAMESPACE: &str = "urn:x-kerfmeter:compensation:1";
-/// The first word of this tool's records (SVG comment, DXF `999` comment).
-const MARKER: &str = "kerfmeter-compensation";
+/// The first word of this tool's records (SVG comment, DXF `999` comment): also how an output
+/// of this tool is told from anyone else's file before it is replaced
+/// (`kerfmeter::files::ensure_replaceable`).
+pub const MARKER: &str = "kerfmeter-compensation";
 /// The tool's name in records.
 const TOOL: &str = "kerfmeter";
 /// boxes.py's default `--burn`, mm.

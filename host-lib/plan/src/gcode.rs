@@ -398,6 +398,10 @@ pub fn gauge_program(
     Ok((build(cut_order(jobs)?, header, options.s_max), mapping))
 }
 
+/// What the first comment of every G-code program this tool writes says after the tool's name
+/// and version: how such a program is told from anyone else's before it is replaced.
+pub const HEADER_MARKER: &str = "G-code for GRBL 1.1 laser mode";
+
 /// The header comments; `placed` says what goes to `options.origin_mm`. A long source name and
 /// each settings entry get lines of their own, so that nothing is cut off.
 fn header_lines(
@@ -407,7 +411,7 @@ fn header_lines(
     options: &GcodeOptions,
 ) -> Vec<String> {
     let mut lines = vec![format!(
-        "kerfmeter {} G-code for GRBL 1.1 laser mode",
+        "kerfmeter {} {HEADER_MARKER}",
         env!("CARGO_PKG_VERSION")
     )];
     lines.extend(wrapped("source: ", &provenance.source));

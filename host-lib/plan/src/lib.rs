@@ -62,6 +62,7 @@ pub mod geom;
 pub mod lightburn;
 mod nurbs;
 pub mod outcome;
+pub mod ownership;
 mod pipeline;
 pub mod profile;
 pub mod progress;

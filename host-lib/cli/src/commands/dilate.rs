@@ -51,6 +51,10 @@ pub struct DilateArgs {
     /// Report what would change; write nothing.
     #[arg(long)]
     pub dry_run: bool,
+    /// Replace the output even if it exists and kerfmeter did not write it (by default only
+    /// kerfmeter's own outputs are replaced: a typo must not replace a cutting plan).
+    #[arg(long)]
+    pub force: bool,
     /// LightBurn projects: set only these layers, each by index (0, 1, …) or name (repeat or
     /// separate by commas; a value that is a whole layer's name is not split) [default: every
     /// Line layer].
@@ -356,6 +360,9 @@ fn plan(g: &Global, args: &DilateArgs) -> Result<DilateReport> {
     let format = PlanFormat::of(&args.input)?;
     if let Some(out) = &args.output {
         plan_output_format(&args.input, out)?;
+        if !args.dry_run {
+            kerfmeter_plan::ownership::ensure_replaceable(out, args.force)?;
+        }
     }
     let (kerf_um, kerf) = args.dilation.kerf()?;
     let (progress, bar) = plan_progress(g.json);

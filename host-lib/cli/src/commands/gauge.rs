@@ -85,6 +85,10 @@ pub struct GaugeArgs {
     /// Output file: .svg, .dxf or .gcode.
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
+    /// Replace the output even if it exists and kerfmeter did not write it (by default only
+    /// kerfmeter's own outputs are replaced: a typo must not replace a cutting plan).
+    #[arg(long)]
+    pub force: bool,
     /// Spiral pitch c, µm of radius per degree of turn.
     #[arg(long, default_value_t = GaugeGeometry::PAPER.pitch_um_per_deg)]
     pub pitch_um_per_deg: f32,
@@ -284,6 +288,7 @@ fn clean(x: f32) -> f64 {
 /// Write the gauge described by `args`.
 pub fn run(args: &GaugeArgs) -> Result<GaugeReport> {
     let (bytes, report) = draw(args)?;
+    kerfmeter_plan::ownership::ensure_replaceable(&args.output, args.force)?;
     write_atomically(&args.output, &bytes)?;
     Ok(report)
 }

@@ -121,6 +121,10 @@ pub struct GcodeArgs {
     /// Output G-code file (.gcode, .nc, .ngc or .gc).
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
+    /// Replace the output even if it exists and kerfmeter did not write it (by default only
+    /// kerfmeter's own outputs are replaced: a typo must not replace a cutting plan).
+    #[arg(long)]
+    pub force: bool,
     /// The kerf, the cut rules and what to do with a compensated plan (as for `dilate`).
     #[command(flatten)]
     pub dilation: DilationArgs,
@@ -224,6 +228,7 @@ pub fn run(g: &Global, args: &GcodeArgs) -> Result<GcodeReport> {
         .into());
     }
     ensure_not_input(&args.input, &args.output)?;
+    kerfmeter_plan::ownership::ensure_replaceable(&args.output, args.force)?;
     let profile = args.cut.profile(args.profile.as_deref())?;
     let options = GcodeOptions {
         s_max: args.cut.s_max,

@@ -98,6 +98,9 @@ pub fn run_offline(args: &DilateArgs) -> Result<LightBurnReport> {
         }
         same_extension(&args.input, out)?;
         ensure_not_input(&args.input, out)?;
+        if !args.dry_run {
+            kerfmeter_plan::ownership::ensure_replaceable(out, args.force)?;
+        }
     }
     let options = LightBurnOptions {
         layers: args.layers.clone(),

@@ -105,7 +105,7 @@ pub fn run(g: &Global, args: &MapArgs) -> Result<MapReport, CliError> {
     }
     let reference = (args.reference_col, args.reference_row);
     let map = KerfMap::from_runs(grid, reference, runs)?;
-    map.save(&args.output)?;
+    save(&map, &args.output)?;
     Ok(MapReport {
         cells: map.cells,
         map: args.output.clone(),
@@ -113,6 +113,34 @@ pub fn run(g: &Global, args: &MapArgs) -> Result<MapReport, CliError> {
         reference,
         cols: args.cols,
     })
+}
+
+/// Save the map where asked; failing that, keep it in the user's data folder or the temporary
+/// folder and say where, or print it: the survey is not lost to a file that cannot be written.
+fn save(map: &KerfMap, output: &std::path::Path) -> Result<(), CliError> {
+    let not_saved = match map.save_or_keep(output, &kerfmeter::map::fallback_dirs()) {
+        Ok(()) => return Ok(()),
+        Err(not_saved) => not_saved,
+    };
+    let reason = match &not_saved.error {
+        kerfmeter::Error::File { message, .. } => message.clone(),
+        other => other.to_string(),
+    };
+    let kept = match &not_saved.kept {
+        Some(kept) => format!(
+            "the map measured is kept in {}: move it there",
+            kept.display()
+        ),
+        None => {
+            crate::output::print_line(&not_saved.json);
+            "the map measured is printed above, as nowhere else would take it: save it".into()
+        }
+    };
+    Err(kerfmeter::Error::File {
+        path: output.to_owned(),
+        message: format!("cannot be written ({reason}); {kept}"),
+    }
+    .into())
 }
 
 /// A twin for one cell of the simulated bed: its kerf grows linearly from one corner to the

@@ -41,6 +41,10 @@ pub struct RunArgs {
     /// Draw the last run's torque–angle curve into this .png or .svg file.
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
+    /// Replace the plot's file even if it exists and kerfmeter did not write it (by default only
+    /// kerfmeter's own plots and drawings are replaced: a typo must not replace a cutting plan).
+    #[arg(long, requires = "plot")]
+    force: bool,
     /// Do not ask before each gauge (hardware only; the simulator never asks).
     #[arg(long, short = 'y')]
     yes: bool,
@@ -126,6 +130,7 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
     check_other_forces(&args.also_at_force_n)?;
     if let Some(plot) = &args.plot {
         plot::PlotFormat::for_path(plot)?;
+        kerfmeter_plan::ownership::ensure_replaceable(plot, args.force)?;
         // Before the gauge is measured: a plot that cannot be written is found now.
         kerfmeter::files::ensure_writable(plot)?;
     }
