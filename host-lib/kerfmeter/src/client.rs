@@ -33,7 +33,8 @@ impl Default for Options {
     }
 }
 
-/// Baud rate for real UARTs; the USB-Serial-JTAG port and pseudo-terminals ignore it.
+/// Baud rate for real UARTs; the USB-Serial-JTAG port and pseudo-terminals ignore it. Never 0:
+/// Linux's cdc-acm drops DTR alone at `B0`, which resets an ESP32-C3 ([`crate::lines`]).
 const BAUD: u32 = 115_200;
 /// How long one `read` may block, so that deadlines are honoured.
 const READ_SLICE: Duration = Duration::from_millis(10);
@@ -66,6 +67,9 @@ impl Kerfmeter {
     /// Find the device among the serial ports: the one USB port with Espressif's USB-Serial-JTAG
     /// ids (VID 0x303A, PID 0x1001), or else the only USB serial port there is. Anything else is
     /// an error that lists what was found.
+    ///
+    /// The choice is made from the OS's list of ports (their USB ids), without opening any: only
+    /// the port chosen is opened, as [`open_with`](Self::open_with) opens it.
     pub fn discover(options: Options) -> Result<Self> {
         let ports = serialport::available_ports()
             .map_err(|e| Error::Discover(format!("cannot list serial ports: {e}")))?;
@@ -73,29 +77,29 @@ impl Kerfmeter {
         Self::open_with(&path, options)
     }
 
-    /// [`Kerfmeter::open`] with explicit [`Options`].
+    /// [`Kerfmeter::open`] with explicit [`Options`]: the OS opens the port (nothing else: no
+    /// modem line is written on the way, see [`crate::lines`]), then [`Kerfmeter::from_port`].
     pub fn open_with(path: &str, options: Options) -> Result<Self> {
-        let mut port = serialport::new(path, BAUD)
+        let port = serialport::new(path, BAUD)
             .timeout(READ_SLICE)
             .open()
             .map_err(|source| Error::Open {
                 path: path.to_owned(),
                 source,
             })?;
-        // The ESP32-C3's USB-Serial-JTAG resets the chip while RTS is asserted with DTR released
-        // (that is how flashing tools reset it), and holds GPIO9 low (download mode at the next
-        // reset) while DTR is asserted. Hold both released: the idle state. A port without
-        // modem lines (a pseudo-terminal) refuses; that is fine.
-        let _ = port.write_data_terminal_ready(false);
-        let _ = port.write_request_to_send(false);
         Self::from_port(port, options)
     }
 
-    /// Use an already open port (a pseudo-terminal, a port opened with custom settings).
+    /// Use an already open port (a pseudo-terminal, a port opened with custom settings). Every
+    /// way of opening the device ([`open`](Self::open), [`discover`](Self::discover), the `--sim`
+    /// twin, the server's re-open, Python's) comes through here.
     ///
-    /// Performs the `GetInfo` handshake: fails with [`Error::ProtocolMismatch`] when the device
-    /// speaks another major protocol version.
+    /// First releases the port's modem lines without resetting an ESP32-C3 or arming its download
+    /// mode ([`crate::lines::release`]; a port without modem lines, such as a pseudo-terminal,
+    /// refuses, and is used as it is). Then performs the `GetInfo` handshake: fails with
+    /// [`Error::ProtocolMismatch`] when the device speaks another major protocol version.
     pub fn from_port(mut port: Box<dyn SerialPort>, options: Options) -> Result<Self> {
+        let _ = crate::lines::release(&mut *port);
         let path = port.name().unwrap_or_else(|| "<serial port>".into());
         port.set_timeout(READ_SLICE).map_err(|e| Error::Io {
             path: path.clone(),

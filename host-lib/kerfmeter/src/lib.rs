@@ -4,7 +4,9 @@
 //! pseudo-terminal served by the digital twin). It frames requests with the shared
 //! [`kerfmeter_protocol`], retries lost responses with the same sequence number (so the device
 //! answers from memory instead of acting twice), skips garbage on the line, and turns every
-//! device refusal into an [`Error`] whose message says what to do.
+//! device refusal into an [`Error`] whose message says what to do. Opening a port never resets the
+//! device's ESP32-C3: its modem lines are released in the one order its USB-Serial-JTAG reads as
+//! no reset ([`lines`]).
 //!
 //! Beside the client: the calls ([`Kerfmeter::run_kerfmeter`], [`Kerfmeter::get_kerf_value`],
 //! [`Kerfmeter::reset_kerfmeter`] and the rest), run parameters from a joint ([`params`]),
@@ -36,6 +38,7 @@ pub mod job;
 pub mod lightburn;
 #[cfg(feature = "sim")]
 pub mod lightburn_twin;
+pub mod lines;
 pub mod map;
 pub mod params;
 #[cfg(feature = "sim")]
