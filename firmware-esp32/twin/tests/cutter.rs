@@ -370,8 +370,8 @@ proptest::proptest! {
     }
 }
 
-/// G53 moves in machine coordinates for its block alone, under G91 too (the twin's work offset is
-/// zero, so they are the work ones), and only with G0 or G1.
+/// G53 moves in machine coordinates for its block alone, under G91 too (the default twin's work
+/// offset is zero, so they are the work ones), and only with G0 or G1.
 #[test]
 fn g53_moves_to_machine_coordinates_for_its_block() {
     let mut grbl = cutter(CutterOptions::default());
@@ -387,4 +387,133 @@ fn g53_moves_to_machine_coordinates_for_its_block() {
         "{status}"
     );
     assert_eq!(line(&mut grbl, "G2G53X1I1"), "error:30\r\n");
+}
+
+/// A homed machine with its G54 at the front-left corner: work X0 Y0 is machine −200, −200.
+fn homed(soft_limits: bool) -> Grbl {
+    let mut grbl = cutter(CutterOptions {
+        travel_mm: [200.0, 200.0, 50.0],
+        homing: true,
+        soft_limits,
+        work_offset_mm: [-200.0, -200.0, -50.0],
+        ..CutterOptions::default()
+    });
+    assert!(
+        said(&mut grbl).contains("'$X' to unlock"),
+        "homing locks it at boot"
+    );
+    assert_eq!(line(&mut grbl, "$H"), "ok\r\n");
+    grbl
+}
+
+fn position(grbl: &mut Grbl) -> String {
+    grbl.receive(b"?");
+    let status = said(grbl);
+    status.split('|').nth(1).unwrap_or_default().to_owned()
+}
+
+#[test]
+fn the_travel_homing_and_work_offsets_are_reported_as_grbl_does() {
+    let mut grbl = homed(true);
+    let settings = line(&mut grbl, "$$");
+    for s in [
+        "$130=200\r\n",
+        "$131=200\r\n",
+        "$132=50\r\n",
+        "$20=1\r\n",
+        "$22=1\r\n",
+    ] {
+        assert!(settings.contains(s), "{s} in {settings}");
+    }
+    assert_eq!(
+        position(&mut grbl),
+        "MPos:-1.000,-1.000,-1.000",
+        "pulled off the switches"
+    );
+    let offsets = line(&mut grbl, "$#");
+    assert!(offsets.starts_with("[G54:-200.000,-200.000,-50.000]\r\n[G55:0.000,0.000,0.000]"));
+    assert!(offsets.contains("[G92:0.000,0.000,0.000]\r\n[TLO:0.000]\r\n"));
+    assert!(offsets.ends_with("ok\r\n"));
+    // Work X10 Y20 is machine −190, −180; G53 is machine coordinates.
+    assert_eq!(line(&mut grbl, "G0X10Y20"), "ok\r\n");
+    assert_eq!(line(&mut grbl, "G53G0Z-10"), "ok\r\n");
+    grbl.advance_us(10_000_000);
+    assert_eq!(position(&mut grbl), "MPos:-190.000,-180.000,-10.000");
+    // As GRBL: no soft limits without homing, and homing off turns them off.
+    let mut plain = cutter(CutterOptions::default());
+    said(&mut plain);
+    assert_eq!(line(&mut plain, "$20=1"), "error:10\r\n");
+    assert_eq!(line(&mut grbl, "$22=0"), "ok\r\n");
+    assert!(line(&mut grbl, "$$").contains("$20=0\r\n"));
+    assert_eq!(line(&mut plain, "$H"), "error:5\r\n");
+}
+
+/// GRBL's soft limit: a target outside the machine space is ALARM:2 before the line moves
+/// anything, in check mode too, and then only a reset is heard.
+#[test]
+fn with_soft_limits_a_target_beyond_the_travel_is_alarm_2_before_anything_moves() {
+    let mut grbl = homed(true);
+    assert_eq!(line(&mut grbl, "G0X50Y50"), "ok\r\n");
+    grbl.advance_us(10_000_000);
+    // Work X250 is machine +50, past the home switch.
+    let said_now = line(&mut grbl, "G1X250F600");
+    assert_eq!(said_now, "ALARM:2\r\n[MSG:Reset to continue]\r\n");
+    grbl.advance_us(10_000_000);
+    assert_eq!(line(&mut grbl, "$X"), "", "nothing but a reset is heard");
+    let record = grbl.log().snapshot();
+    assert_eq!(record.alarms, [2]);
+    assert_eq!(record.segments.len(), 1, "the refused line moved nothing");
+    assert!(record.end_stop_hits.is_empty());
+    grbl.receive(&[SOFT_RESET]);
+    said(&mut grbl);
+    line(&mut grbl, "$X");
+    assert_eq!(
+        position(&mut grbl),
+        "MPos:-150.000,-150.000,-1.000",
+        "the position is kept"
+    );
+    // An arc whose ends are inside but whose bulge is not; and check mode is no escape.
+    assert_eq!(line(&mut grbl, "$C"), "[MSG:Enabled]\r\nok\r\n");
+    assert_eq!(line(&mut grbl, "G0X50Y150"), "ok\r\n");
+    // About (110, 150), radius 60: over its top at work Y210, machine +10.
+    let arc = line(&mut grbl, "G2X170Y150I60J0F600");
+    assert_eq!(arc, "ALARM:2\r\n[MSG:Reset to continue]\r\n");
+}
+
+/// Soft limits off (GRBL's default): the move runs, into the end stop, and the twin records it.
+#[test]
+fn without_soft_limits_a_move_beyond_the_travel_runs_into_the_end_stop_and_is_recorded() {
+    let mut grbl = cutter(CutterOptions {
+        travel_mm: [200.0, 200.0, 50.0],
+        ..CutterOptions::default()
+    });
+    said(&mut grbl);
+    assert!(line(&mut grbl, "$$").contains("$130=200\r\n$131=200\r\n$132=50\r\n"));
+    for l in ["G0X150Y20", "G0Z20", "G0X350", "G91G0Z10"] {
+        assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
+    }
+    grbl.advance_us(30_000_000);
+    let record = grbl.log().snapshot();
+    assert!(record.alarms.is_empty());
+    let hits: Vec<_> = record
+        .end_stop_hits
+        .iter()
+        .map(|h| (h.line, h.axis, h.beyond_mm))
+        .collect();
+    assert_eq!(
+        hits,
+        [(3, 0, 150.0), (4, 2, 5.0)],
+        "X past 200; Z past +25 (booted mid-Z)"
+    );
+    assert_eq!(
+        record.gcode_received,
+        ["G0X150Y20", "G0Z20", "G0X350", "G91G0Z10"]
+    );
+    // The same with homing on but soft limits off: a target above machine zero hits the switch.
+    let mut homed = homed(false);
+    assert_eq!(line(&mut homed, "G0X250"), "ok\r\n");
+    homed.advance_us(10_000_000);
+    let hits = homed.log().snapshot().end_stop_hits;
+    assert_eq!(hits.len(), 1);
+    assert!((hits[0].beyond_mm - 50.0).abs() < 1e-9, "{hits:?}");
 }

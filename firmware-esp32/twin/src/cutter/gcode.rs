@@ -17,6 +17,8 @@ pub mod codes {
     pub const SETTING_DISABLED: u8 = 5;
     /// A `$` command that needs the machine idle.
     pub const NOT_IDLE: u8 = 8;
+    /// Soft limits (`$20=1`) without homing enabled.
+    pub const SOFT_LIMIT_ERROR: u8 = 10;
     /// G-code refused in the alarm state.
     pub const GCODE_LOCK: u8 = 9;
     /// A line longer than the line buffer.

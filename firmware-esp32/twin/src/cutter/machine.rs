@@ -5,10 +5,10 @@ use std::collections::VecDeque;
 
 use super::gcode::{self, Block, Motion, Spindle, codes};
 use super::motion::Move;
+use super::options::CutterOptions;
 use super::system::Settings;
 use super::trace::{CutterLog, Point, ProtocolViolation, Segment, SegmentKind, TravelFiring};
 use super::{PLANNER_BLOCKS, RX_BUFFER_LEN, SOFT_RESET, VERSION};
-use crate::plant::CutterKerf;
 
 /// Longest raw line kept while it is read (GRBL's line buffer overflows well before).
 const RAW_LINE_MAX: usize = 256;
@@ -18,43 +18,6 @@ const ALARM_HARD_LIMIT: u8 = 1;
 const ALARM_ABORT_CYCLE: u8 = 3;
 /// GRBL's soft-limit alarm (a target beyond the machine's travel).
 const ALARM_SOFT_LIMIT: u8 = 2;
-
-/// How a cutter twin is set up, and the faults injected into it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CutterOptions {
-    /// `$32` at boot: laser mode (the default) or a spindle machine.
-    pub laser_mode: bool,
-    /// Boot in the alarm state, as a machine with homing enabled does (`$X` unlocks it).
-    pub boot_in_alarm: bool,
-    /// `$30` at boot: the `S` of full power (GRBL's default 1000; many diode lasers use 255).
-    pub max_power_s: f64,
-    /// Trip a hard limit (`ALARM:1`) after this much motion time, ms.
-    pub hard_limit_after_ms: Option<u64>,
-    /// Answer the Nth G-code line since boot (1 = the first) with `error:` this code.
-    pub error_on_line: Option<(u32, u8)>,
-    /// At the Nth G-code line it runs (1 = the first; check mode's lines not counted), go into
-    /// alarm (a soft limit, `ALARM:2`: motion stops, the laser off) with the `ALARM:2` line lost
-    /// on the way, as on a noisy line: only its status reports say it is in alarm.
-    pub unannounced_alarm_on_line: Option<u32>,
-    /// How what the laser traces is cut: kerf, its spread and the machine's repeatability (the
-    /// one kerf model, [`crate::plant::Cutter`], made by [`CutterKerf::cutter`]). The device
-    /// twin measures a traced gauge cut so ([`crate::Twin::place_traced_gauge_cut_by`]).
-    pub kerf: CutterKerf,
-}
-
-impl Default for CutterOptions {
-    fn default() -> Self {
-        Self {
-            laser_mode: true,
-            boot_in_alarm: false,
-            max_power_s: 1000.0,
-            hard_limit_after_ms: None,
-            error_on_line: None,
-            unannounced_alarm_on_line: None,
-            kerf: CutterKerf::default(),
-        }
-    }
-}
 
 /// The parser's modal state.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -134,14 +97,14 @@ impl Grbl {
             rx: VecDeque::with_capacity(RX_BUFFER_LEN),
             raw_line: String::new(),
             pending: None,
-            settings: Settings::new(options.laser_mode, options.max_power_s),
+            settings: Settings::new(&options),
             modal: Modal::default(),
             plan_pos: [0.0; 3],
             queue: VecDeque::new(),
             current: None,
             machine_pos: [0.0; 3],
             hold: Hold::None,
-            alarm: options.boot_in_alarm.then_some(0),
+            alarm: (options.boot_in_alarm || options.homing).then_some(0),
             critical: false,
             check_mode: false,
             gcode_lines: 0,
@@ -298,6 +261,9 @@ impl Grbl {
     }
 
     fn start_move(&mut self, m: Move) {
+        if let Some(hit) = self.end_stop_hit(&m) {
+            self.log.lock().end_stop_hits.push(hit);
+        }
         if m.kind == SegmentKind::Travel && m.enabled_s > 0.0 {
             let firing = TravelFiring {
                 at_us: self.now_us,
@@ -498,12 +464,24 @@ impl Grbl {
 
     /// A limit switch tripped: everything stops, and only a reset is heard.
     fn hard_limit(&mut self) {
+        self.critical_alarm(ALARM_HARD_LIMIT);
+    }
+
+    /// A critical alarm (a hard or soft limit): everything stops, and only a reset is heard.
+    fn critical_alarm(&mut self, code: u8) {
         self.stop_where_it_is();
         self.pending = None;
         self.raw_line.clear();
-        self.raise(ALARM_HARD_LIMIT);
+        self.raise(code);
         self.say("[MSG:Reset to continue]");
         self.critical = true;
+    }
+
+    /// Put the head at `at` at once (the homing cycle's end).
+    pub(super) fn move_to_home(&mut self, at: Point) {
+        self.machine_pos = at;
+        self.plan_pos = at;
+        self.publish();
     }
 
     /// Read characters into lines and run them, until one has to wait (or an alarm that only a
@@ -534,6 +512,7 @@ impl Grbl {
                 let is_gcode = !line.trim().is_empty() && !line.trim_start().starts_with('$');
                 if is_gcode {
                     self.gcode_lines += 1;
+                    self.log.lock().gcode_received.push(line.clone());
                 }
                 self.pending = Some((line, self.gcode_lines));
                 return true;
@@ -570,6 +549,16 @@ impl Grbl {
             Ok(plan) => plan,
             Err(code) => return Some(error(code)),
         };
+        if plan
+            .step
+            .as_ref()
+            .is_some_and(|m| self.beyond_soft_limits(m))
+        {
+            // GRBL's soft limit: checked as the line is planned (in check mode too), before it
+            // moves anything; the line gets no answer.
+            self.critical_alarm(ALARM_SOFT_LIMIT);
+            return Some(String::new());
+        }
         if self.check_mode {
             // Checked, and the parser's state moves on; nothing is queued.
             self.modal = plan.modal;
@@ -683,11 +672,15 @@ impl Grbl {
         number: u32,
     ) -> Result<Option<Move>, u8> {
         let mut target = self.plan_pos;
-        for (axis, word) in target.iter_mut().zip(block.axes) {
+        let offsets = self.options.work_offset_mm;
+        for ((axis, word), offset) in target.iter_mut().zip(block.axes).zip(offsets) {
             if let Some(value) = word {
-                // The twin's work offset is zero: machine coordinates (G53) are work ones.
-                let absolute = modal.absolute || block.machine_coords;
-                *axis = if absolute { 0.0 } else { *axis } + value * scale;
+                *axis = value * scale
+                    + match (block.machine_coords, modal.absolute) {
+                        (true, _) => 0.0,
+                        (false, true) => offset,
+                        (false, false) => *axis,
+                    };
             }
         }
         let max_rate = self.settings.max_rate_mm_per_min();

@@ -19,9 +19,14 @@
 //!   M4 M5 (M7–M9 accepted), F S X Y Z I J P N. Anything else is `error:20`; the other checks
 //!   give GRBL's codes (missing feed `error:22`, arc end off its circle `error:33`, ...).
 //! - `$` commands: `$$` (settings), `$N=V`, `$X` (unlock), `$G` (parser state), `$I` (build
-//!   info), `$` (help), `$C` (check mode: every line parsed and answered, state `Check`,
-//!   nothing moves; toggled off with a soft reset, as GRBL does); `$H` is `error:5` (no
-//!   homing); others `error:3`.
+//!   info), `$#` (work offsets: G54 as set up, the others zero), `$` (help), `$C` (check mode:
+//!   every line parsed and answered, state `Check`, nothing moves; toggled off with a soft
+//!   reset, as GRBL does); `$H` homes at once with homing enabled (`$22=1`), and is `error:5`
+//!   without; others `error:3`.
+//! - Travel ([`travel`]): end stops where [`CutterOptions::travel_mm`] puts them (a move past one
+//!   is recorded, [`EndStopHit`]), `$130`–`$132` from it, homing (`$22`, booting in alarm) and
+//!   GRBL's soft limits (`$20=1`: a target outside −`$13x`..0 is `ALARM:2` before anything
+//!   moves, then only a reset is heard), and the G54 work offset applied to absolute targets.
 //! - Motion ([`motion`]): each move at its programmed feed (travels at `$110`), no acceleration;
 //!   G4 waits for the queue to empty, then dwells as a block (real GRBL answers `ok` only after
 //!   the dwell). M2/M30 wait for the queue to empty, then reset the modal state (M5, G90) and say
@@ -53,13 +58,18 @@ pub mod gcode;
 pub mod motion;
 pub mod serve;
 pub mod trace;
+pub mod travel;
 
 mod machine;
+mod options;
 mod system;
 
-pub use machine::{CutterOptions, Grbl};
+pub use machine::Grbl;
+pub use options::CutterOptions;
 pub use serve::{CutterServer, ServeError};
-pub use trace::{CutterLog, CutterRecord, ProtocolViolation, Segment, SegmentKind, TravelFiring};
+pub use trace::{
+    CutterLog, CutterRecord, EndStopHit, ProtocolViolation, Segment, SegmentKind, TravelFiring,
+};
 
 /// GRBL's serial receive buffer, bytes: a sender may have at most this many unacknowledged.
 pub const RX_BUFFER_LEN: usize = 128;

@@ -16,7 +16,8 @@ use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
 
-use super::machine::{CutterOptions, Grbl};
+use super::machine::Grbl;
+use super::options::CutterOptions;
 use super::trace::CutterLog;
 use crate::serve::{Pace, is_hangup, is_timeout};
 

@@ -1,11 +1,14 @@
 //! The cutter twin's `$` commands and its settings (`$$`, `$N=V`): the values a stock GRBL 1.1
-//! reports, with laser mode (`$32`) as the twin was set up.
+//! reports, with laser mode (`$32`), `$30`, the travel (`$130`–`$132`), homing (`$22`) and soft
+//! limits (`$20`) as the twin was set up. As in GRBL, `$20=1` is refused without homing
+//! (`error:10`) and `$22=0` turns soft limits off.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use super::gcode::{Motion, Spindle, codes};
 use super::machine::{Grbl, error, ok};
+use super::options::CutterOptions;
 use super::{PLANNER_BLOCKS, RX_BUFFER_LEN, VERSION};
 
 /// `$32`: laser mode.
@@ -16,6 +19,16 @@ const MAX_POWER: u16 = 30;
 const MAX_RATE: u16 = 110;
 /// `$120`: X's acceleration, mm/s² (used only to stop a feed hold).
 const ACCELERATION: u16 = 120;
+/// `$20`: soft limits.
+const SOFT_LIMITS: u16 = 20;
+/// `$22`: homing.
+const HOMING: u16 = 22;
+/// `$23`: the axes that home toward negative (a mask: 1 X, 2 Y, 4 Z).
+const HOMING_DIR_MASK: u16 = 23;
+/// `$27`: the homing pull-off, mm.
+const HOMING_PULLOFF: u16 = 27;
+/// `$130`–`$132`: the X, Y and Z travel, mm.
+const MAX_TRAVEL: [u16; 3] = [130, 131, 132];
 
 /// Every setting and its stock value (laser mode off: the caller sets it).
 const DEFAULTS: [(u16, f64); 34] = [
@@ -60,11 +73,18 @@ const DEFAULTS: [(u16, f64); 34] = [
 pub(super) struct Settings(BTreeMap<u16, f64>);
 
 impl Settings {
-    /// Stock settings, with laser mode and the `S` of full power as given.
-    pub fn new(laser_mode: bool, max_power_s: f64) -> Self {
+    /// Stock settings, with laser mode, the `S` of full power, the travel, homing and soft
+    /// limits as `options` give them (soft limits only with homing, as GRBL allows).
+    pub fn new(options: &CutterOptions) -> Self {
+        let flag = |on: bool| if on { 1.0 } else { 0.0 };
         let mut map: BTreeMap<u16, f64> = DEFAULTS.into_iter().collect();
-        map.insert(LASER_MODE, if laser_mode { 1.0 } else { 0.0 });
-        map.insert(MAX_POWER, max_power_s);
+        map.insert(LASER_MODE, flag(options.laser_mode));
+        map.insert(MAX_POWER, options.max_power_s);
+        map.insert(HOMING, flag(options.homing));
+        map.insert(SOFT_LIMITS, flag(options.homing && options.soft_limits));
+        for (number, travel_mm) in MAX_TRAVEL.into_iter().zip(options.travel_mm) {
+            map.insert(number, travel_mm);
+        }
         Self(map)
     }
 
@@ -88,10 +108,39 @@ impl Settings {
         self.get(ACCELERATION).max(1.0)
     }
 
-    /// `$N=V`: set a known setting.
+    pub fn soft_limits(&self) -> bool {
+        self.get(SOFT_LIMITS) != 0.0
+    }
+
+    pub fn homing(&self) -> bool {
+        self.get(HOMING) != 0.0
+    }
+
+    /// Whether `axis` (0 X, 1 Y, 2 Z) homes toward negative (`$23`).
+    pub fn homes_negative(&self, axis: usize) -> bool {
+        (self.get(HOMING_DIR_MASK) as u32) & (1 << axis) != 0
+    }
+
+    pub fn homing_pulloff_mm(&self) -> f64 {
+        self.get(HOMING_PULLOFF)
+    }
+
+    /// `$130`–`$132`: the travel GRBL believes each axis has, mm.
+    pub fn max_travel_mm(&self) -> [f64; 3] {
+        MAX_TRAVEL.map(|number| self.get(number))
+    }
+
+    /// `$N=V`: set a known setting. As GRBL: soft limits need homing (`error:10`), and homing
+    /// off turns them off.
     fn set(&mut self, number: u16, value: f64) -> Result<(), u8> {
         if value < 0.0 {
             return Err(codes::NEGATIVE_VALUE);
+        }
+        if number == SOFT_LIMITS && value != 0.0 && !self.homing() {
+            return Err(codes::SOFT_LIMIT_ERROR);
+        }
+        if number == HOMING && value == 0.0 {
+            self.0.insert(SOFT_LIMITS, 0.0);
         }
         match self.0.get_mut(&number) {
             Some(slot) => {
@@ -143,7 +192,9 @@ impl Grbl {
             "$I" => format!(
                 "[VER:{VERSION}.kerfmeter-twin:]\r\n[OPT:V,{PLANNER_BLOCKS},{RX_BUFFER_LEN}]\r\nok\r\n"
             ),
-            "$H" => error(codes::SETTING_DISABLED),
+            "$H" if !self.settings.homing() => error(codes::SETTING_DISABLED),
+            "$H" => self.home(),
+            "$#" => self.parameters_report() + &ok(),
             "$C" => self.toggle_check_mode(),
             _ => self.set_setting(&command),
         }

@@ -3,8 +3,9 @@
 //! moment the laser fired during a travel move (a safety violation: tests assert there is none),
 //! every travel that only laser mode kept dark (the beam left switched on for it: a sender that
 //! relies on `$32=1`, which would fire on a controller without it; tests assert none either),
-//! every breach of the serial protocol by the sender (bytes lost to a full receive buffer), and
-//! the machine's state and laser output now. Cloning a [`CutterLog`] shares it.
+//! every breach of the serial protocol by the sender (bytes lost to a full receive buffer), every
+//! move that left the machine's travel, every G-code line received, and the machine's state and
+//! laser output now. Cloning a [`CutterLog`] shares it.
 
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
@@ -63,6 +64,24 @@ pub struct TravelFiring {
     pub power_s: f64,
 }
 
+/// A move whose path left the machine's travel: on a real machine the head runs into its end
+/// stop (see [`super::travel`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EndStopHit {
+    /// Simulated time when the move started, µs.
+    pub at_us: u64,
+    /// The received G-code line it came from.
+    pub line: u32,
+    /// The move's start, mm (machine coordinates).
+    pub start: Point,
+    /// The move's target, mm (machine coordinates).
+    pub end: Point,
+    /// The first axis it leaves the travel on (0 X, 1 Y, 2 Z).
+    pub axis: usize,
+    /// How far past the end stop it goes, mm.
+    pub beyond_mm: f64,
+}
+
 /// A breach of GRBL's serial protocol by the sender.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ProtocolViolation {
@@ -88,6 +107,10 @@ pub struct CutterRecord {
     pub blanked_travels: Vec<TravelFiring>,
     /// The sender's protocol breaches.
     pub violations: Vec<ProtocolViolation>,
+    /// Moves that ran into an end stop (soft limits off, or set wider than the machine).
+    pub end_stop_hits: Vec<EndStopHit>,
+    /// Every G-code line received (not `$` commands), as received, check passes included.
+    pub gcode_received: Vec<String>,
     /// The laser's power now (0 when off).
     pub laser_power_s: f64,
     /// The state as a status report names it (`Idle`, `Run`, `Hold:0`, `Alarm`, ...).
