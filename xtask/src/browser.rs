@@ -24,7 +24,9 @@ const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 const PACKAGES: [&str; 2] = ["chromium", "chromium-driver"];
 /// The Python packages the tests use, pinned: the browser driver (needs Python 3.10 or later)
 /// and the README client's WebSocket library (the newest that still runs on Python 3.9).
-const PYTHON_PACKAGES: [&str; 2] = ["selenium==4.51.0", "websockets==15.0.1"];
+const PYTHON_PACKAGES: [&str; 2] = ["selenium==4.51.0", WEBSOCKETS];
+/// The WebSocket client library of the README's client, the web tests and `bench-serve`.
+pub const WEBSOCKETS: &str = "websockets==15.0.1";
 
 /// Build the CLI, make sure the browser is there, and run the web tests.
 pub fn test_web() -> Result<()> {

@@ -7,6 +7,7 @@
 
 mod bench;
 mod bench_plan;
+mod bench_serve;
 mod browser;
 mod firmware;
 mod fuzz;
@@ -64,6 +65,10 @@ enum Cmd {
     /// and DXF): time, growth per 4× the parts, the kernel's share, peak memory against the
     /// file's size, and GEOS buffering the same parts. A benchmark: not part of `test`.
     BenchPlan(bench_plan::BenchPlanArgs),
+    /// Many WebSocket clients (default 40 at 50 Hz) poll `status` and `get_kerf_value` while
+    /// another measures on a real-time twin: p50 and p99 latency, errors, and the kerf against
+    /// the same run alone. A benchmark: not part of `test`.
+    BenchServe(bench_serve::BenchServeArgs),
     /// The on-target driver tests (encoder, PWM) on a real ESP32-C3 board through probe-rs
     /// (needs --probe; see firmware-esp32/tests/on_target.rs for the bench set-up).
     OnTarget(firmware::OnTargetArgs),
@@ -189,6 +194,7 @@ fn main() -> Result<()> {
         Cmd::FitStudy(args) => fit_study(&args),
         Cmd::BenchStep(args) => bench::step(&args),
         Cmd::BenchPlan(args) => bench_plan::run(&args),
+        Cmd::BenchServe(args) => bench_serve::run(&args),
         Cmd::OnTarget(args) => firmware::run_on_target_tests(args.probe),
         Cmd::Hil(args) => hil(&args),
         Cmd::BenchRtt(args) => {

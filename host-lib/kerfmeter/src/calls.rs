@@ -36,6 +36,10 @@ pub struct Progress {
     pub angle_deg: f32,
     /// Time since the run started, ms.
     pub elapsed_ms: u32,
+    /// The whole status this poll read (supply, conditions, timing, ...), for a caller that
+    /// shows more than the progress (`kerfmeter serve` answers `status` from it during a run).
+    #[serde(skip)]
+    pub status: Status,
 }
 
 impl From<&Status> for Progress {
@@ -45,6 +49,7 @@ impl From<&Status> for Progress {
             torque_nm: s.torque_nm,
             angle_deg: s.angle_deg,
             elapsed_ms: s.elapsed_ms,
+            status: *s,
         }
     }
 }

@@ -85,6 +85,7 @@
 //! its HTTP route is one line of the table in [`http`].
 
 mod http;
+mod latest;
 mod plans;
 mod rpc;
 mod security;

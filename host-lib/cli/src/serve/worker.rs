@@ -2,9 +2,11 @@
 //! blocking), and the [`Device`] handle through which every client reaches it.
 //!
 //! * Requests reach the thread over a channel, one at a time, each with a reply channel.
-//! * A *long* call (a run, a reset, a self-test) holds the device: while it goes, every other
-//!   device call is refused at once with "busy" (-32001), never queued behind it. Short calls
-//!   (info, status, ...) from several clients queue and are answered in turn.
+//! * A *long* call (a run, a reset, a self-test, a job) holds the device: while it goes, the
+//!   read-only calls (info, status, get_kerf_value) are answered from the device's latest poll,
+//!   with its age ([`super::latest`]), and every other device call is refused at once with
+//!   "busy" (-32001), never queued behind it. Short calls from several clients queue and are
+//!   answered in turn.
 //! * `abort` never waits: it raises a flag that the running call's progress closure checks at
 //!   every status poll (about every 20 ms), so the device is told to abort and its motor stops;
 //!   with nothing running it sends the device an `Abort` itself.
@@ -36,6 +38,7 @@ use tokio::sync::{broadcast, oneshot};
 use kerfmeter::job::{JobEvent, Stage};
 
 use super::Cutter;
+use super::latest::{Latest, Query};
 use super::plans::{JobCall, hide_history_db, job_answer};
 use super::rpc::{Caller, INTERNAL_ERROR, NOT_CONNECTED, RpcError, notification};
 use crate::commands::run::RunReport;
@@ -78,6 +81,21 @@ pub enum Call {
 }
 
 impl Call {
+    /// The read-only query this call is, if it is one (answered at any time).
+    fn query(&self) -> Option<Query> {
+        match self {
+            Call::Info => Some(Query::Info),
+            Call::Status => Some(Query::Status),
+            Call::Kerf => Some(Query::Kerf),
+            _ => None,
+        }
+    }
+
+    /// Whether the call clears the device's result as it starts (a run, a job's run, a reset).
+    fn clears_result(&self) -> bool {
+        matches!(self, Call::Run(_) | Call::Job(_) | Call::Reset)
+    }
+
     /// Whether the call holds the device while it goes.
     fn is_long(&self) -> bool {
         matches!(
@@ -136,6 +154,8 @@ struct Shared {
     cutter: Option<Cutter>,
     /// The flags the device was opened with (the history's database among them).
     global: Global,
+    /// The device's last answers, for the read-only calls while a long call goes.
+    latest: Latest,
 }
 
 impl Shared {
@@ -156,7 +176,14 @@ impl Shared {
         }
     }
 
-    /// The progress closure of a long call: stops it when asked to.
+    /// The progress closure of a long call: keeps its poll for the read-only calls, and stops
+    /// the call when asked to.
+    fn polled(&self, p: &Progress) -> ControlFlow<()> {
+        self.latest.polled(&p.status);
+        self.stop_requested()
+    }
+
+    /// Whether the long call going should stop.
     fn stop_requested(&self) -> ControlFlow<()> {
         if self.stop.load(Ordering::SeqCst) {
             ControlFlow::Break(())
@@ -189,6 +216,7 @@ impl Device {
             events,
             cutter,
             global: g.clone(),
+            latest: Latest::default(),
         });
         let (jobs, queue) = mpsc::channel();
         let worker = Worker {
@@ -240,8 +268,12 @@ impl Device {
             }
             shared.stop.store(false, Ordering::SeqCst);
         } else if shared.busy.load(Ordering::SeqCst) && !matches!(call, Call::Abort) {
-            // An abort is never refused: one that meets a run just started queues behind it.
-            return Err(RpcError::busy());
+            // A read is answered from the long call's polls; an abort is never refused (one
+            // that meets a run just started queues behind it).
+            return match call.query().and_then(|q| shared.latest.answer(q)) {
+                Some(answer) => Ok(answer),
+                None => Err(RpcError::busy()),
+            };
         }
         let guard = long.then(|| AbortOnDrop(Arc::clone(shared)));
         let (reply, answer) = oneshot::channel();
@@ -374,8 +406,15 @@ impl Worker {
     fn serve(&mut self, job: Job) {
         let long = job.call.is_long();
         let run = job.call.measures();
+        let query = job.call.query();
+        if long {
+            self.before_long(job.call.clears_result());
+        }
         let call = AssertUnwindSafe(|| self.reply(job.call, job.by));
         let reply = std::panic::catch_unwind(call).unwrap_or_else(|_| self.after_panic());
+        if let (Some(query), Ok(answer)) = (query, &reply) {
+            self.shared.latest.remember(query, answer);
+        }
         if long {
             self.shared.busy.store(false, Ordering::SeqCst);
         }
@@ -388,6 +427,25 @@ impl Worker {
             self.shared.notify("run_finished", finished);
         }
         let _ = job.reply.send(reply);
+    }
+
+    /// Before a long call: what the read-only calls will be answered with while it goes (the
+    /// device's info, status and result now; no result once a run or reset starts).
+    fn before_long(&mut self, clears_result: bool) {
+        self.reconnect();
+        let Some(s) = &mut self.session else { return };
+        let latest = &self.shared.latest;
+        if let Ok(report) = info::report(s) {
+            latest.remember(Query::Info, &to_value(&report));
+        }
+        if let Ok(status) = s.meter.status() {
+            latest.polled(&status);
+        }
+        if clears_result {
+            latest.result_cleared();
+        } else if let Ok(kerf) = s.meter.get_kerf_value() {
+            latest.remember(Query::Kerf, &to_value(&kerf.as_ref().map(ResultJson::from)));
+        }
     }
 
     /// A call panicked (a bug; the panic message is on stderr): whatever the device was doing, its
@@ -493,6 +551,7 @@ impl Stages {
                 shared.notify("stage", stage(s, "done", elapsed));
             }
             JobEvent::Device(p) => {
+                shared.latest.polled(&p.status);
                 if let Some(params) = self.throttle.progress(0, 1, p) {
                     shared.notify("progress", params);
                 }
@@ -519,7 +578,7 @@ fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliErr
         Call::Kerf => to_value(&s.meter.get_kerf_value()?.as_ref().map(ResultJson::from)),
         Call::Reset => {
             let cleared_fault = reset::latched_fault(&mut s.meter)?;
-            s.meter.reset_kerfmeter_until(|_| shared.stop_requested())?;
+            s.meter.reset_kerfmeter_until(|p| shared.polled(p))?;
             let mut answer = json!({ "reset": true });
             if let Some(w) = reset::warning(&mut s.meter)? {
                 answer["warning"] = json!(w);
@@ -534,7 +593,7 @@ fn do_call(s: &mut Session, call: Call, shared: &Shared) -> Result<Value, CliErr
             to_value(&Done::new("fault cleared"))
         }
         Call::ConfirmZero => to_value(&confirm_zero::confirm(s, false)?),
-        Call::SelfTest => to_value(&self_test::test(s, |_| shared.stop_requested())?),
+        Call::SelfTest => to_value(&self_test::test(s, |p| shared.polled(p))?),
         Call::Abort => {
             s.meter.abort()?;
             json!({ "aborted": true })
@@ -579,7 +638,7 @@ fn measure_and_report(
             if let Some(params) = throttle.progress(i, run.samples, p) {
                 shared.notify("progress", params);
             }
-            shared.stop_requested()
+            shared.polled(p)
         },
     )?;
     // Recorded before anything else can fail: the measurement is made.
