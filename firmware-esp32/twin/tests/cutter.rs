@@ -361,12 +361,30 @@ proptest::proptest! {
         letter in proptest::sample::select(vec!['X', 'P', 'I']),
     ) {
         let mut grbl = cutter(CutterOptions::default());
+        said(&mut grbl);
         let text = format!("F100\nG1 {letter}{value:.0}\nG2 X1 I{value:.0}\nG4 P{value:.0}\n");
         grbl.receive(text.as_bytes());
         grbl.advance_us(1_000);
         grbl.receive(b"!");
         grbl.advance_us(u64::MAX / 4);
+        // Each line taken is answered as GRBL answers, `ok` or `error:N` and nothing else: the
+        // feed and the move at once; the arc once its segments fit in the planner (a huge one
+        // waits behind the held move) and the dwell once the moves end, if they do.
+        let replies = said(&mut grbl);
+        let answers: Vec<&str> = replies.lines().filter(|l| !l.is_empty()).collect();
+        let well_formed = answers
+            .iter()
+            .all(|l| *l == "ok" || l.strip_prefix("error:").is_some_and(|n| n.parse::<u8>().is_ok()));
+        proptest::prop_assert!(well_formed, "{}", replies);
+        proptest::prop_assert!((2..=4).contains(&answers.len()), "{}", replies);
         grbl.receive(&[SOFT_RESET]);
+        // After the reset it boots again, and its position is a number, not an overflow.
+        let rebooted = said(&mut grbl);
+        proptest::prop_assert!(rebooted.contains("Grbl 1.1h"), "{}", rebooted);
+        grbl.receive(b"?");
+        let status = said(&mut grbl);
+        proptest::prop_assert!(status.starts_with('<') && status.contains("MPos:"), "{}", status);
+        proptest::prop_assert!(!status.contains("inf") && !status.contains("NaN"), "{}", status);
     }
 }
 

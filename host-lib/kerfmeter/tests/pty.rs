@@ -143,9 +143,22 @@ fn garbage_on_the_line_is_skipped() {
     let (bench, port) = bench();
     bench.line.garbage.store(true, Ordering::SeqCst);
     let mut meter = Kerfmeter::from_port(port, fast()).unwrap();
-    for _ in 0..20 {
-        meter.info().unwrap();
+    let boot_id = bench.boot_id.load(Ordering::SeqCst);
+    for i in 0..20 {
+        // Each answer is the device's own, read past the noise in front of it.
+        let info = meter.info().unwrap_or_else(|e| panic!("call {i}: {e}"));
+        assert_eq!(info.boot_id, boot_id, "call {i}");
     }
+    let noisy = bench.line.noisy_responses.load(Ordering::SeqCst);
+    assert!(
+        noisy >= 21,
+        "the noise reached the host before {noisy} responses only"
+    );
+    // And the link still carries a call that answers something else.
+    assert!(matches!(
+        meter.call(Request::GetKerf).unwrap(),
+        Response::Kerf(None)
+    ));
 }
 
 #[test]

@@ -32,6 +32,8 @@ pub struct LineFaults {
     pub garbage: AtomicBool,
     /// Lose this many of the next responses.
     pub drop_responses: AtomicU32,
+    /// Responses delivered with [`NOISE`] before them.
+    pub noisy_responses: AtomicU32,
 }
 
 impl LineFaults {
@@ -48,6 +50,7 @@ impl LineFaults {
         let mut out = Vec::new();
         if self.garbage.load(Ordering::SeqCst) {
             out.extend_from_slice(NOISE);
+            self.noisy_responses.fetch_add(1, Ordering::SeqCst);
         }
         out.extend_from_slice(response);
         out
