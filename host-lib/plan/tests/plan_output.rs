@@ -248,7 +248,8 @@ fn a_dxf_entity_without_a_handle_is_never_confused_with_another() {
             "  0\nLWPOLYLINE\n  5\n{handle:X}\n330\n1F\n100\nAcDbEntity\n  8\nNOTES\n 62\n3\n100\nAcDbPolyline\n 90\n2\n 70\n0\n 10\n0.0\n 20\n30.0\n 10\n10.0\n 20\n30.0\n"
         )
     };
-    let with = |handle: u64| format!("{head}{MIDDLE}{square}{}{TAIL}", green(handle));
+    let middle = MIDDLE.trim_start_matches('\n');
+    let with = |handle: u64| format!("{head}{middle}{square}{}{TAIL}", green(handle));
     // The handle the crate gives the square (the green polyline's own is far from it).
     let probe = dxf::Drawing::load(&mut std::io::Cursor::new(with(0xFFFF).as_bytes())).unwrap();
     let given = probe

@@ -10,7 +10,7 @@ use dxf::entities::{Circle, Entity, EntityType, Line, Text};
 use dxf::enums::{AcadVersion, Units};
 use dxf::{Drawing, Point};
 use kerfmeter_plan::dilate::KerfSource;
-use kerfmeter_plan::dxf_plan::{DxfOptions, dilate_drawing, dilate_dxf};
+use kerfmeter_plan::dxf_plan::{DxfOptions, dilate_dxf};
 use kerfmeter_plan::progress::{Progress, Stage};
 use kerfmeter_plan::svg::{SvgOptions, dilate_svg};
 
@@ -157,8 +157,11 @@ fn replaced_dxf_chains_go_and_every_other_entity_stays_in_order_with_its_handle(
         .filter(|e| !matches!(e.specific, EntityType::Line(_)))
         .map(|e| (e.common.handle.0, format!("{:?}", e.specific)))
         .collect();
+    let mut bytes = Vec::new();
+    input.save(&mut bytes).unwrap();
     let (out, summary) =
-        dilate_drawing(input, &KerfSource::Uniform(200.0), &DxfOptions::default()).unwrap();
+        dilate_dxf(&bytes, &KerfSource::Uniform(200.0), &DxfOptions::default()).unwrap();
+    let out = Drawing::load(&mut std::io::Cursor::new(out)).unwrap();
     assert_eq!((summary.parts, summary.holes), (300, 300));
     let mut kept_after = Vec::new();
     let mut new_outlines = 0;

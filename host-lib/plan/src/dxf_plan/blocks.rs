@@ -4,16 +4,19 @@
 //! An `INSERT` places a block at its insertion point, scaled (x and y, either may be negative: a
 //! mirror), rotated about that point, and, for an array (`MINSERT`), repeated in rows and
 //! columns; blocks may insert other blocks. Each instance of a cut entity in a block becomes its
-//! own contour in document mm (each instance can need its own kerf from a map), written back as a
-//! new model-space `LWPOLYLINE`. Inside a block, layer `0` and `BYBLOCK` colour, linetype and
-//! lineweight take the inserting entity's, as CAD programs draw them.
+//! own contour in document mm (each instance can need its own kerf from a map, and a rotated,
+//! mirrored or unequally scaled one has its own shape), written as a new model-space polyline:
+//! the cuts are exploded. Inside a block, layer `0` and `BYBLOCK` colour, linetype and lineweight
+//! take the inserting entity's, as CAD programs draw them, and so do the new polylines.
 //!
-//! The block itself is left as it was, for any other user of it. An `INSERT` whose block held
-//! cuts is pointed at a copy of the block without them (named `NAME_KERFn`; its nested
-//! references pointed at such copies in turn), so that what is not a cut — text, engraving,
-//! open paths — stays where it was, drawn once.
+//! The cut entities are then taken out of the block, whose other entities (text, engraving,
+//! open paths) stay as they were, byte for byte, and so do the `INSERT`s: every insertion still
+//! shows what is not a cut, once. That is only right when every insertion of the block was
+//! dilated: a block holding cuts that is also inserted where its cuts are not read (in paper
+//! space, by an invisible `INSERT`, through a block inserted so) is refused, naming that
+//! insertion; so is a block whose chains close in one insertion and not in another.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use dxf::entities::{Entity, EntityCommon, EntityType, Insert};
 use dxf::{Block, Drawing};
@@ -34,33 +37,69 @@ const MAX_INSTANCES: usize = 100_000;
 /// 100,000 instances of a block of 50 circles ran out of memory.
 const MAX_EXPANDED_ENTITIES: usize = 1_000_000;
 
-/// What a block's copy changes: entity `k` removed (`None`, a cut) or its `INSERT` pointed at
-/// another block (`Some(name)`).
-type BlockEdits = Vec<(usize, Option<String>)>;
+/// Where an entity is: model space (the `ENTITIES` section, paper space's entities there
+/// included) or a block (upper-case name).
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub(super) enum Container {
+    Model,
+    Block(String),
+}
+
+/// An entity by its container and its index there (the `dxf` crate's order, the file's).
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub(super) struct EntityRef {
+    pub container: Container,
+    pub index: usize,
+}
+
+impl EntityRef {
+    pub(super) fn model(index: usize) -> Self {
+        EntityRef {
+            container: Container::Model,
+            index,
+        }
+    }
+}
+
+/// A cut read inside a block: what the new model-space polyline is drawn with, and what it came
+/// from.
+#[derive(Debug, Clone)]
+pub(super) struct BlockCut {
+    /// Its properties, the block's layer `0` and `BYBLOCK` ones resolved.
+    pub common: EntityCommon,
+    /// The block (upper-case name) and the entities of it the contour came from.
+    pub block: String,
+    pub entities: Vec<usize>,
+    /// The `INSERT`s it was reached through, outermost (in model space) first.
+    pub via: Vec<EntityRef>,
+}
 
 /// The state of expanding a drawing's block references.
 pub(super) struct Expansion<'d> {
+    drawing: &'d Drawing,
     /// Blocks by upper-case name.
     blocks: HashMap<String, &'d Block>,
     /// Layer colours by upper-case name.
     layer_colors: HashMap<String, dxf::Color>,
-    /// Copies made, by the block and what they change: their names.
-    copies: HashMap<(String, BlockEdits), String>,
-    /// The copies, to add to the drawing.
-    rest: Vec<Block>,
-    /// Model-space `INSERT`s to point at a copy.
-    retargets: Vec<(usize, String)>,
     /// Block instances seen.
     instances: usize,
     /// Entities met through them (each instance's block entities).
     expanded_entities: usize,
-    /// The blocks being expanded, outermost first (upper-case names).
+    /// The `INSERT`s being expanded, outermost first, and their blocks' upper-case names.
+    via: Vec<EntityRef>,
     stack: Vec<String>,
+    /// The `INSERT`s that were expanded.
+    expanded: HashSet<EntityRef>,
+    /// The entities taken out of each block (upper-case name) by its first instance, sorted.
+    removed: HashMap<String, Vec<usize>>,
+    /// Blocks whose instances took out different entities.
+    inconsistent: Vec<String>,
 }
 
 impl<'d> Expansion<'d> {
     pub(super) fn new(drawing: &'d Drawing) -> Self {
         Expansion {
+            drawing,
             blocks: drawing
                 .blocks()
                 .map(|b| (b.name.to_uppercase(), b))
@@ -69,12 +108,13 @@ impl<'d> Expansion<'d> {
                 .layers()
                 .map(|l| (l.name.to_uppercase(), l.color.clone()))
                 .collect(),
-            copies: HashMap::new(),
-            rest: Vec::new(),
-            retargets: Vec::new(),
             instances: 0,
             expanded_entities: 0,
+            via: Vec::new(),
             stack: Vec::new(),
+            expanded: HashSet::new(),
+            removed: HashMap::new(),
+            inconsistent: Vec::new(),
         }
     }
 
@@ -82,62 +122,125 @@ impl<'d> Expansion<'d> {
         &self.layer_colors
     }
 
-    /// Point the model-space `INSERT` `i` at the block copy `name`.
-    pub(super) fn retarget(&mut self, i: usize, name: String) {
-        self.retargets.push((i, name));
-    }
-
-    /// The `INSERT`s to point at copies and the copies to add; notes them in `summary`.
-    pub(super) fn finish(self, summary: &mut PlanSummary) -> (Vec<(usize, String)>, Vec<Block>) {
-        if !self.rest.is_empty() {
-            let names: Vec<&str> = self.rest.iter().map(|b| b.name.as_str()).collect();
-            summary.notes.push(format!(
-                "cuts inside blocks were dilated as model-space LWPOLYLINEs; the rest of each block is kept in a copy ({})",
-                names.join(", ")
+    /// Check that every block whose cuts were taken out was dilated wherever it is inserted (see
+    /// the module doc), adding a problem for each that was not; notes the blocks in `summary`.
+    pub(super) fn finish(self, summary: &mut PlanSummary, problems: &mut Problems) {
+        let refs = self.references();
+        let mut names: Vec<&String> = self
+            .removed
+            .iter()
+            .filter(|(_, removed)| !removed.is_empty())
+            .map(|(name, _)| name)
+            .collect();
+        names.sort();
+        for name in &names {
+            if let Some(why) = self.uncovered(name, &refs, &mut Vec::new()) {
+                problems.push(format!(
+                    "block \"{}\" holds cuts, which are dilated as model-space polylines and taken out of it, but it is also {why}, where they would be lost; explode that insertion in the CAD program, or delete it",
+                    self.blocks.get(*name).map_or(name.as_str(), |b| b.name.as_str())
+                ));
+            }
+        }
+        for name in &self.inconsistent {
+            problems.push(format!(
+                "block \"{name}\" holds pieces of cuts that close into a contour in one insertion and not in another (its scales differ too much); explode the block in the CAD program"
             ));
         }
-        (self.retargets, self.rest)
+        if !names.is_empty() {
+            let shown: Vec<&str> = names.iter().map(|n| n.as_str()).collect();
+            summary.notes.push(format!(
+                "cuts inside blocks were dilated as model-space polylines, one for each insertion, and taken out of their blocks ({}), whose other entities are kept",
+                shown.join(", ")
+            ));
+        }
     }
 
-    /// The name of the copy of `block` with `edits`, made once.
-    fn copy(&mut self, block: &Block, edits: BlockEdits) -> String {
-        let key = (block.name.to_uppercase(), edits);
-        if let Some(name) = self.copies.get(&key) {
-            return name.clone();
+    /// Every `INSERT` of the drawing by the upper-case name of the block it inserts.
+    fn references(&self) -> HashMap<String, Vec<EntityRef>> {
+        let mut refs: HashMap<String, Vec<EntityRef>> = HashMap::new();
+        let mut note = |name: &str, at: EntityRef| {
+            refs.entry(name.to_uppercase()).or_default().push(at);
+        };
+        for (i, e) in self.drawing.entities().enumerate() {
+            if let EntityType::Insert(ins) = &e.specific {
+                note(&ins.name, EntityRef::model(i));
+            }
         }
-        let base = block.name.trim_start_matches('*');
-        let name = (1..)
-            .map(|n| format!("{base}_KERF{n}"))
-            .find(|n| {
-                let up = n.to_uppercase();
-                !self.blocks.contains_key(&up)
-                    && !self.rest.iter().any(|b| b.name.to_uppercase() == up)
-            })
-            .expect("an unused name");
-        let mut copy = block.clone();
-        copy.name = name.clone();
-        copy.set_is_anonymous(false);
-        let entities = std::mem::take(&mut copy.entities);
-        copy.entities = entities
-            .into_iter()
-            .enumerate()
-            .filter_map(|(k, mut e)| {
-                match key.1.iter().find(|(j, _)| *j == k) {
-                    Some((_, None)) => return None,
-                    Some((_, Some(target))) => {
-                        if let EntityType::Insert(ins) = &mut e.specific {
-                            ins.name = target.clone();
-                        }
-                    }
-                    None => {}
+        for block in self.drawing.blocks() {
+            let container = Container::Block(block.name.to_uppercase());
+            for (k, e) in block.entities.iter().enumerate() {
+                if let EntityType::Insert(ins) = &e.specific {
+                    let at = EntityRef {
+                        container: container.clone(),
+                        index: k,
+                    };
+                    note(&ins.name, at);
                 }
-                e.common.handle = dxf::Handle::empty();
-                Some(e)
-            })
-            .collect();
-        self.rest.push(copy);
-        self.copies.insert(key, name.clone());
-        name
+            }
+        }
+        refs
+    }
+
+    /// Where block `name` is inserted without its cuts being read, in words; `None` when every
+    /// insertion of it was expanded: in model space, or inside blocks that are themselves so or
+    /// never inserted (a definition no drawing shows). A layout's block (`*Paper_Space…`) is
+    /// paper space.
+    fn uncovered(
+        &self,
+        name: &str,
+        refs: &HashMap<String, Vec<EntityRef>>,
+        seen: &mut Vec<String>,
+    ) -> Option<String> {
+        if seen.iter().any(|s| s == name) {
+            return None;
+        }
+        seen.push(name.to_owned());
+        for at in refs.get(name).map_or(&[][..], Vec::as_slice) {
+            let outer = match &at.container {
+                Container::Model if self.expanded.contains(at) => continue,
+                Container::Model => return Some(self.model_insert_not_read(at.index)),
+                Container::Block(outer) => outer,
+            };
+            if outer.starts_with("*PAPER_SPACE") || outer.starts_with("*MODEL_SPACE") {
+                return Some(format!("inserted in the layout block \"{outer}\""));
+            }
+            if let Some(why) = self.uncovered(outer, refs, seen) {
+                return Some(format!("inserted inside block \"{outer}\", which is {why}"));
+            }
+            if refs.contains_key(outer) && !self.expanded.contains(at) {
+                return Some(format!(
+                    "inserted by an INSERT that is not drawn (invisible) in block \"{outer}\""
+                ));
+            }
+        }
+        None
+    }
+
+    /// Why the model-space `INSERT` `i` was not read, in words.
+    fn model_insert_not_read(&self, i: usize) -> String {
+        match self.drawing.entities().nth(i) {
+            Some(e) if e.common.is_in_paper_space => {
+                format!("inserted in paper space by {}", label(e))
+            }
+            Some(e) => format!("inserted by {}, which is not drawn (invisible)", label(e)),
+            None => "inserted where it is not read".into(),
+        }
+    }
+
+    /// Note that one instance of `block` took out `removed` (its first instance's are kept; any
+    /// other must take out the same).
+    fn note_removed(&mut self, block: &str, mut removed: Vec<usize>) {
+        removed.sort_unstable();
+        removed.dedup();
+        match self.removed.get(block) {
+            None => {
+                self.removed.insert(block.to_owned(), removed);
+            }
+            Some(first) if *first != removed && !self.inconsistent.iter().any(|n| n == block) => {
+                self.inconsistent.push(block.to_owned());
+            }
+            Some(_) => {}
+        }
     }
 }
 
@@ -221,22 +324,64 @@ fn cell_frames(ins: &Insert, block: &Block, parent: &Affine) -> Result<Vec<Affin
     Ok(frames)
 }
 
+/// One `INSERT` to expand: its properties (inheritance resolved), what it says, where it is,
+/// and its name in messages.
+pub(super) struct Insertion<'e> {
+    pub by: &'e EntityCommon,
+    pub ins: &'e Insert,
+    pub at: EntityRef,
+    pub label: &'e str,
+}
+
 impl DxfPlan<'_> {
-    /// Read the cuts of the block that `ins` (properties `by`, named `via` in messages) inserts
-    /// inside `parent` (block coordinates of the inserting block → document mm), nested `depth`
-    /// deep: the name of the copy of its block without them, when it held any.
-    #[allow(clippy::too_many_arguments)]
+    /// Read the cuts of the block that `insertion` inserts inside `parent` (block coordinates of
+    /// the inserting block → document mm), nested `depth` deep.
     pub(super) fn expand_insert<'d>(
         &self,
-        by: &EntityCommon,
-        ins: &Insert,
+        insertion: Insertion,
         parent: &Affine,
-        via: &str,
         depth: usize,
         st: &mut Expansion<'d>,
         plan: &mut Plan<Origin>,
         problems: &mut Problems,
-    ) -> Option<String> {
+    ) {
+        let Some((block, frames)) = self.instances(&insertion, parent, depth, st, plan, problems)
+        else {
+            return;
+        };
+        let key = block.name.to_uppercase();
+        st.expanded.insert(insertion.at.clone());
+        st.stack.push(key.clone());
+        st.via.push(insertion.at);
+        for frame in &frames {
+            let removed = self.expand_cell(
+                insertion.by,
+                block,
+                frame,
+                insertion.label,
+                depth,
+                st,
+                plan,
+                problems,
+            );
+            st.note_removed(&key, removed);
+        }
+        st.via.pop();
+        st.stack.pop();
+    }
+
+    /// The block an insertion inserts and the frame of each of its cells; `None` (with a problem
+    /// when it is one) when it inserts nothing to read.
+    fn instances<'d>(
+        &self,
+        insertion: &Insertion,
+        parent: &Affine,
+        depth: usize,
+        st: &mut Expansion<'d>,
+        plan: &mut Plan<Origin>,
+        problems: &mut Problems,
+    ) -> Option<(&'d Block, Vec<Affine>)> {
+        let (ins, via) = (insertion.ins, insertion.label);
         if st.instances > MAX_INSTANCES || st.expanded_entities > MAX_EXPANDED_ENTITIES {
             // Said once, when a count was passed.
             return None;
@@ -255,7 +400,7 @@ impl DxfPlan<'_> {
             ));
             return None;
         }
-        let Some(&block) = st.blocks.get(&ins.name.to_uppercase()) else {
+        let Some(&block) = st.blocks.get(&key) else {
             problems.push(format!(
                 "{via} inserts block \"{}\", which is not in the file; the file is incomplete (save it again from the CAD program)",
                 ins.name
@@ -267,13 +412,9 @@ impl DxfPlan<'_> {
                 .pass("INSERT of an external reference (not read)");
             return None;
         }
-        let frames = match cell_frames(ins, block, parent) {
-            Ok(f) => f,
-            Err(why) => {
-                problems.push(format!("{via} {why}"));
-                return None;
-            }
-        };
+        let frames = cell_frames(ins, block, parent)
+            .map_err(|why| problems.push(format!("{via} {why}")))
+            .ok()?;
         st.instances += frames.len();
         if st.instances > MAX_INSTANCES {
             problems.push(format!(
@@ -290,24 +431,11 @@ impl DxfPlan<'_> {
             ));
             return None;
         }
-        let mut edits: BlockEdits = Vec::new();
-        st.stack.push(key);
-        for (cell, frame) in frames.iter().enumerate() {
-            let cell_edits = self.expand_cell(by, block, frame, via, depth, st, plan, problems);
-            if cell == 0 {
-                edits = cell_edits;
-            }
-        }
-        st.stack.pop();
-        if edits.is_empty() {
-            return None;
-        }
-        edits.sort();
-        Some(st.copy(block, edits))
+        Some((block, frames))
     }
 
-    /// Read the cuts of one instance of `block` (see [`Self::expand_insert`]): what the block's
-    /// copy must change.
+    /// Read the cuts of one instance of `block` (see [`Self::expand_insert`]): the entities of the
+    /// block that its closed cuts came from, which are taken out of it.
     #[allow(clippy::too_many_arguments)]
     fn expand_cell<'d>(
         &self,
@@ -319,7 +447,8 @@ impl DxfPlan<'_> {
         st: &mut Expansion<'d>,
         plan: &mut Plan<Origin>,
         problems: &mut Problems,
-    ) -> BlockEdits {
+    ) -> Vec<usize> {
+        let key = block.name.to_uppercase();
         let name_of = |k: usize| {
             format!(
                 "{} in block {} via {via}",
@@ -327,7 +456,7 @@ impl DxfPlan<'_> {
                 block.name
             )
         };
-        let mut edits: BlockEdits = Vec::new();
+        let mut removed: Vec<usize> = Vec::new();
         let mut pieces: Vec<Piece> = Vec::new();
         for (k, e) in block.entities.iter().enumerate() {
             let common = inherit(&e.common, by);
@@ -337,28 +466,31 @@ impl DxfPlan<'_> {
             }
             if let EntityType::Insert(inner) = &e.specific {
                 let inner_via = name_of(k);
-                let rest = self.expand_insert(
-                    &common,
-                    inner,
-                    frame,
-                    &inner_via,
-                    depth + 1,
-                    st,
-                    plan,
-                    problems,
-                );
-                if let Some(rest) = rest {
-                    edits.push((k, Some(rest)));
-                }
+                let at = EntityRef {
+                    container: Container::Block(key.clone()),
+                    index: k,
+                };
+                let insertion = Insertion {
+                    by: &common,
+                    ins: inner,
+                    at,
+                    label: &inner_via,
+                };
+                self.expand_insert(insertion, frame, depth + 1, st, plan, problems);
                 continue;
             }
             if !self.is_cut(&common, &e.specific, &st.layer_colors, &mut plan.summary) {
                 continue;
             }
-            match self.read_checked(e, Place::Block(&common), k, frame, &mut plan.summary) {
+            let place = Place::Block {
+                common: &common,
+                block: &key,
+                via: &st.via,
+            };
+            match self.read_checked(e, place, k, frame, &mut plan.summary) {
                 Ok(Read::Closed(pl, origin)) => {
                     plan.cut(pl, name_of(k), origin);
-                    edits.push((k, None));
+                    removed.push(k);
                 }
                 Ok(Read::Piece(piece)) => pieces.push(piece),
                 Ok(Read::Nothing) => {}
@@ -369,11 +501,14 @@ impl DxfPlan<'_> {
         }
         let origin_of = |list: &[usize]| {
             let first: &Entity = &block.entities[list[0]];
-            Origin::Added(Box::new(inherit(&first.common, by)))
+            Origin::Block(Box::new(BlockCut {
+                common: inherit(&first.common, by),
+                block: key.clone(),
+                entities: list.to_vec(),
+                via: st.via.clone(),
+            }))
         };
-        for k in close_chains(pieces, &name_of, &origin_of, plan) {
-            edits.push((k, None));
-        }
-        edits
+        removed.extend(close_chains(pieces, &name_of, &origin_of, plan));
+        removed
     }
 }
