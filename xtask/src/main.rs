@@ -9,6 +9,7 @@ mod bench;
 mod bench_plan;
 mod bench_serve;
 mod browser;
+mod deps;
 mod firmware;
 mod fuzz;
 mod python;
@@ -35,6 +36,9 @@ enum Cmd {
     /// README's WebSocket clients, a short robustness sweep, docs, the firmware
     /// images for the C3 and C6 with their sizes, a short fuzz run.
     Test(TestArgs),
+    /// The dependency step of `test` alone: no library crate pulls in clap, axum, tokio, pyo3
+    /// or plotters.
+    CheckDeps,
     /// The Python package's step of `test` alone: build and install `host-lib/python` into the
     /// project's venv (`target/python-venv`) and run its pytest suite on the twin.
     TestPython,
@@ -185,6 +189,7 @@ fn main() -> Result<()> {
     match Cli::parse().command {
         Cmd::Test(args) => test(&args),
         Cmd::TestPython => python::test_package(),
+        Cmd::CheckDeps => deps::check_libraries(),
         Cmd::TestBrowser => browser::test_web(),
         Cmd::Firmware(args) => firmware::run(&args),
         Cmd::Flash(args) => firmware::flash(&args),
@@ -389,6 +394,10 @@ fn test(args: &TestArgs) -> Result<()> {
                 run_cmd(cargo().args(["fmt", "--all", "--check"]))?;
                 run_cmd(cargo().args(["fmt", "--check", "--manifest-path", "fuzz/Cargo.toml"]))
             }),
+        ),
+        (
+            "library crates free of front-end dependencies",
+            Box::new(deps::check_libraries),
         ),
         (
             "clippy (host)",
