@@ -33,7 +33,14 @@ pub struct BenchServeArgs {
 /// Run the benchmark.
 pub fn run(args: &BenchServeArgs) -> Result<()> {
     let venv_python = python::ensure_venv(&[crate::browser::WEBSOCKETS])?;
-    run_cmd(cargo().args(["build", "--release", "-p", "kerfmeter-cli", "--bin", "kerfmeter"]))?;
+    run_cmd(cargo().args([
+        "build",
+        "--release",
+        "-p",
+        "kerfmeter-cli",
+        "--bin",
+        "kerfmeter",
+    ]))?;
     let script = root().join("host-lib/cli/tests/web/serve_load.py");
     let mut kerfs = Vec::new();
     for clients in [0, args.clients] {
@@ -75,7 +82,13 @@ impl Server {
         ));
         let _ = std::fs::remove_file(&db);
         let mut child = Command::new(binary)
-            .args(["--sim", "--sim-realtime", "serve", "--listen", "127.0.0.1:0"])
+            .args([
+                "--sim",
+                "--sim-realtime",
+                "serve",
+                "--listen",
+                "127.0.0.1:0",
+            ])
             .arg("--db")
             .arg(&db)
             .stdout(Stdio::piped())
