@@ -1010,11 +1010,15 @@ fn cut_refuses_an_unstreamable_program_and_reports_a_refused_line() {
         !stderr(&out).contains("streaming"),
         "refused before connecting"
     );
-    let (_dir, file) = gcode_file("G0 X1\nG28\n");
+    // Quoted as written in the file, spaces kept.
+    let (_dir, file) = gcode_file("G0 X1\nG28 G91 Z0\n");
     let out = kerfmeter(&["cut", path(&file), "--cutter", "sim"]);
     assert_eq!(code(&out), 4);
     let message = stderr(&out);
-    assert!(message.contains("line 2 (G28) with error:20"), "{message}");
+    assert!(
+        message.contains("line 2 (`G28 G91 Z0`) with error:20"),
+        "{message}"
+    );
     assert!(message.contains("laser is off"), "{message}");
 }
 

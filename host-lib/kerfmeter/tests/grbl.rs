@@ -161,7 +161,8 @@ fn a_refused_line_is_found_by_the_check_pass_before_anything_moves() {
     else {
         panic!("{error}");
     };
-    assert_eq!((line, text.as_str(), code), (8, "G1X10Y10", 33));
+    // Quoted as written in the file, spaces kept.
+    assert_eq!((line, text.as_str(), code), (8, "G1 X10 Y10", 33));
     let message = error.to_string();
     assert!(
         message.contains("its end is not on its circle"),
@@ -931,4 +932,88 @@ fn ctrl_c_while_connecting_ends_the_connect() {
         "it did not wait out the banner"
     );
     drop(pressed.join().unwrap());
+}
+
+/// A cutter twin with 200 × 200 × 50 mm of travel, soft limits off (GRBL's default).
+fn small_machine() -> Cutter {
+    sim(SimCutterOptions {
+        travel_mm: [200.0, 200.0, 50.0],
+        ..SimCutterOptions::default()
+    })
+}
+
+#[test]
+fn the_travel_is_read_at_connect_and_a_program_beyond_it_is_refused_before_anything_is_sent() {
+    let mut cutter = small_machine();
+    let travel = cutter.travel().unwrap();
+    assert_eq!(
+        (travel.travel_mm, travel.soft_limits, travel.homing),
+        ([200.0, 200.0, 50.0], false, false)
+    );
+    assert_eq!(travel.bed_mm(), [200.0, 200.0]);
+    // Square after square, 5 mm apart: the 38th starts at X185 and cuts to X195; the 40th
+    // reaches X205.
+    let error = stream(&mut cutter, &squares(10, 40)).unwrap_err();
+    let CutterError::BeyondTravel { ref beyond } = error else {
+        panic!("{error}");
+    };
+    assert_eq!((beyond.axis, beyond.work_mm()), (0, 205.0));
+    assert!(!error.stop_was_tried());
+    let message = error.to_string();
+    for says in [
+        "(`G1 X205 Y0 S800 F3000`) takes the head to X 205.000 mm",
+        "$130=200",
+        "end stop",
+        "Nothing was sent",
+        "--origin-mm",
+    ] {
+        assert!(message.contains(says), "{says}: {message}");
+    }
+    // Relative moves are followed from where the head stands.
+    let error = stream(&mut cutter, "G91\nG0 X150\nG0 X60\n").unwrap_err();
+    assert!(error.to_string().contains("line 3 (`G0 X60`)"), "{error}");
+    // A probe cannot be bounded.
+    let error = stream(&mut cutter, "G0 X10\nG38.2 Z-20 F100\n").unwrap_err();
+    assert!(
+        matches!(error, CutterError::Unbounded { line: 2, .. }),
+        "{error}"
+    );
+    assert!(error.to_string().contains("cannot be known"), "{error}");
+    let record = log(&cutter).snapshot();
+    assert!(
+        record.gcode_received.is_empty(),
+        "{:?}",
+        record.gcode_received
+    );
+    // Inside the travel it runs.
+    stream(&mut cutter, &squares(10, 30)).unwrap();
+    assert!(log(&cutter).snapshot().end_stop_hits.is_empty());
+}
+
+#[test]
+fn on_a_homed_machine_work_coordinates_map_through_the_work_offset() {
+    // Homing: the travel is −200..0 in machine coordinates; G54 puts work X0 Y0 Z0 at the
+    // front-left corner and the bottom of Z.
+    let twin = SimCutterOptions {
+        travel_mm: [200.0, 200.0, 50.0],
+        homing: true,
+        work_offset_mm: [-200.0, -200.0, -50.0],
+        ..SimCutterOptions::default()
+    };
+    let unlocking = ConnectOptions {
+        unlock: true,
+        ..options()
+    };
+    let mut cutter = Cutter::sim(twin, unlocking).unwrap();
+    let travel = cutter.travel().unwrap();
+    assert_eq!(travel.work_offset_mm(), [-200.0, -200.0, -50.0]);
+    stream(&mut cutter, &squares(10, 30)).unwrap();
+    let error = stream(&mut cutter, "G0 Z55\n").unwrap_err();
+    let message = error.to_string();
+    assert!(
+        message.contains("Z 55.000 mm in work coordinates (machine 5.000)"),
+        "{message}"
+    );
+    assert!(message.contains("$132=50"), "{message}");
+    assert!(log(&cutter).snapshot().end_stop_hits.is_empty());
 }

@@ -58,7 +58,7 @@ fn job_gcode(kerf_um: f64, n: usize) -> String {
     let mut g = String::from("G21 G90\nM5\n");
     for i in 0..n {
         let x0 = JOB_X0_MM + 25.0 * (i % 8) as f64 - half;
-        let y0 = 25.0 * (i / 8) as f64 - half;
+        let y0 = 10.0 + 25.0 * (i / 8) as f64 - half;
         let (x1, y1) = (x0 + 20.0 + 2.0 * half, y0 + 20.0 + 2.0 * half);
         g += &format!("M5\nG0 X{x0:.4} Y{y0:.4}\nM4\nG1 X{x1:.4} S800 F600\nG1 Y{y1:.4}\n");
         g += &format!("G1 X{x0:.4}\nG1 Y{y0:.4}\n");
@@ -260,8 +260,10 @@ fn a_flagged_measurement_stops_before_the_job_with_the_prongs_lifted_and_the_las
 #[test]
 fn a_cutter_alarm_mid_job_stops_the_loop_with_the_laser_off() {
     // The gauge and the prong moves take well under 5 min of motion; the job 60 squares, 27 min.
+    // Its 200 squares, in rows of 8, need 640 mm of Y travel.
     let twin = SimCutterOptions {
         hard_limit_after_ms: Some(300_000),
+        travel_mm: [600.0, 700.0, 50.0],
         ..SimCutterOptions::default()
     };
     let mut rig = rig(SimOptions::default(), twin);

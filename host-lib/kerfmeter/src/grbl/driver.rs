@@ -12,9 +12,11 @@ use super::protocol::{
     rx_buffer_from_build_info, window_for,
 };
 use super::transport::{CutterAddress, Link, open_serial, open_tcp};
+use super::travel::Travel;
 
 mod check;
 mod stop;
+mod travel;
 
 /// The realtime soft reset (ctrl-X): stops everything, laser off.
 const SOFT_RESET: u8 = 0x18;
@@ -137,6 +139,8 @@ pub struct Cutter {
     flavour: Option<&'static str>,
     /// The alarm that came just before the last banner (`ALARM:3` after a reset in motion).
     alarm_before_banner: Option<u8>,
+    /// The machine's travel, when the controller reports one (`$130`–`$132`).
+    travel: Option<Travel>,
     /// Set from outside (Ctrl-C): ends a connect early.
     cancel: Arc<AtomicBool>,
     /// True while connecting: `cancel` is heard.
@@ -214,6 +218,7 @@ impl Cutter {
             alarm_before_banner: None,
             flavour: None,
             window: super::protocol::RX_BUFFER_LEN,
+            travel: None,
             cancel,
             connecting: true,
             #[cfg(feature = "sim")]
@@ -273,7 +278,8 @@ impl Cutter {
         }
         self.read_settings()?;
         self.read_build_info();
-        self.check_laser_mode()
+        self.check_laser_mode()?;
+        self.read_travel()
     }
 
     /// The character-counting window from `$I`'s receive-buffer size; GRBL's 128 when it does
@@ -551,10 +557,12 @@ impl Cutter {
         cancel: &AtomicBool,
         progress: &mut dyn FnMut(&StreamProgress),
     ) -> Result<StreamReport, CutterError> {
+        self.check_travel(&lines)?;
         let program_lines = lines.len();
         lines.push(ProgramLine {
             number: lines.last().map_or(1, |l| l.number + 1),
             text: CLOSING_LINE.into(),
+            written: CLOSING_LINE.into(),
         });
         self.in_job = true;
         let checked = match self.options.check_first {
@@ -625,7 +633,9 @@ impl Cutter {
                 if matches!(s.state, MachineState::Alarm | MachineState::Sleep) {
                     return Err(CutterError::StoppedItself {
                         state: s.state.to_string(),
-                        after: streamer.last_answered().map(|l| (l.number, l.text.clone())),
+                        after: streamer
+                            .last_answered()
+                            .map(|l| (l.number, l.written.clone())),
                     });
                 }
                 status = Some(s);
@@ -701,12 +711,14 @@ impl Cutter {
                 let refused = streamer.answer().map_err(|_| unexpected("an `error`"))?;
                 return Err(CutterError::Rejected {
                     line: refused.number,
-                    text: refused.text.clone(),
+                    text: refused.written.clone(),
                     code,
                 });
             }
             Reply::Alarm(code) => {
-                let after = streamer.last_answered().map(|l| (l.number, l.text.clone()));
+                let after = streamer
+                    .last_answered()
+                    .map(|l| (l.number, l.written.clone()));
                 return Err(CutterError::Alarm {
                     code,
                     after,

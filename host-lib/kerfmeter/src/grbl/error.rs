@@ -3,6 +3,7 @@
 use crate::error::Category;
 
 use super::codes::{describe_alarm, describe_error};
+use super::travel::Beyond;
 
 /// What went wrong with the cutter.
 #[derive(Debug, thiserror::Error)]
@@ -80,7 +81,7 @@ pub enum CutterError {
     },
     /// Laser mode (`$32=1`) is off: GRBL would keep the beam on through travel moves.
     #[error(
-        "the controller is not in laser mode ($32={value}): it would keep the laser on during travel moves. Set `$32=1` if it drives a laser, or override this check only for a spindle machine"
+        "the controller is not in laser mode ($32={value}): it would keep the laser on during travel moves. If it drives a laser, send it `$32=1` (from a serial terminal or your sender's console: GRBL keeps it in its EEPROM) and try again; for a spindle machine only, `kerfmeter cut --allow-without-laser-mode` skips this check. Nothing was sent"
     )]
     LaserModeOff {
         /// `$32` as read (`?` when absent).
@@ -96,6 +97,25 @@ pub enum CutterError {
         /// `$30` as read (`?` when absent).
         controller: String,
     },
+    /// A program line would take the head beyond the machine's travel (or the head stands
+    /// outside it as read); nothing was sent.
+    #[error("{}. Nothing was sent. {}", beyond_what(beyond), beyond_fix(beyond))]
+    BeyondTravel {
+        /// Where, and the travel it passes.
+        beyond: Box<Beyond>,
+    },
+    /// A program line whose moves cannot be bounded; nothing was sent.
+    #[error(
+        "line {line} (`{written}`) {reason}, so whether the program stays inside the machine's travel cannot be known: it is refused. Nothing was sent"
+    )]
+    Unbounded {
+        /// Its line number in the file.
+        line: usize,
+        /// The line as written in the file.
+        written: String,
+        /// Why it cannot be bounded.
+        reason: String,
+    },
     /// The program has a line that cannot be streamed; nothing was sent.
     #[error("line {line} of the program cannot be sent: {reason}. Nothing was sent")]
     BadProgram {
@@ -106,26 +126,26 @@ pub enum CutterError {
     },
     /// The controller refused a line.
     #[error(
-        "the cutter refused line {line} ({text}) with error:{code}: {}",
+        "the cutter refused line {line} (`{text}`) with error:{code}: {}",
         describe_error(*code)
     )]
     Rejected {
         /// Its line number in the file.
         line: usize,
-        /// The line as sent.
+        /// The line as written in the file.
         text: String,
         /// The `error:N` code.
         code: u8,
     },
     /// The check pass (`$C`) found a line the controller refuses; nothing moved.
     #[error(
-        "the cutter's check pass ($C) refused line {line} ({text}) with error:{code}: {}. Nothing was cut",
+        "the cutter's check pass ($C) refused line {line} (`{text}`) with error:{code}: {}. Nothing was cut",
         describe_error(*code)
     )]
     CheckRejected {
         /// Its line number in the file.
         line: usize,
-        /// The line as sent.
+        /// The line as written in the file.
         text: String,
         /// The `error:N` code.
         code: u8,
@@ -144,7 +164,7 @@ pub enum CutterError {
     #[error(
         "the cutter raised ALARM:{code} during the job: {}. {}{}",
         describe_alarm(*code),
-        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} ({t})")).unwrap_or_else(|| "It had accepted no line yet".into()),
+        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} (`{t}`)")).unwrap_or_else(|| "It had accepted no line yet".into()),
         last_position_mm.map(|[x, y, z]| format!(" (lines are accepted ahead of the motion; the last status report before the alarm had the head at X{x:.2} Y{y:.2} Z{z:.2} mm)")).unwrap_or_default()
     )]
     Alarm {
@@ -159,7 +179,7 @@ pub enum CutterError {
     /// `ALARM:N` line before (a controller that reports its alarm only by its state).
     #[error(
         "the cutter reported {state} during the job, without an alarm message; it runs no more of it. {}",
-        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} ({t})")).unwrap_or_else(|| "It had accepted no line yet".into())
+        after.as_ref().map(|(n, t)| format!("The last line it had accepted was line {n} (`{t}`)")).unwrap_or_else(|| "It had accepted no line yet".into())
     )]
     StoppedItself {
         /// The state it reported.
@@ -251,6 +271,8 @@ impl CutterError {
             | Self::NotIdle { .. }
             | Self::LaserModeOff { .. }
             | Self::SMaxMismatch { .. }
+            | Self::BeyondTravel { .. }
+            | Self::Unbounded { .. }
             | Self::Rejected { .. }
             | Self::CheckRejected { .. }
             | Self::HeldTooLong { .. }
@@ -304,6 +326,35 @@ impl CutterError {
             other => other,
         }
     }
+}
+
+/// Which line takes the head beyond the travel, and where.
+fn beyond_what(beyond: &Beyond) -> String {
+    match &beyond.at.line {
+        Some((number, written)) => {
+            format!("line {number} (`{written}`) takes the head to {beyond}")
+        }
+        None if beyond.is_head() => format!(
+            "the head stands at {beyond}: where the controller puts it does not fit its travel as \
+             read"
+        ),
+        None => format!("the program takes the head to {beyond}"),
+    }
+}
+
+/// What to change.
+fn beyond_fix(beyond: &Beyond) -> String {
+    let setting = super::travel::TRAVEL_SETTINGS[beyond.axis];
+    if beyond.is_head() {
+        return format!(
+            "Home the machine, or switch the controller on with the head at its origin corner; \
+             if the machine's travel is not ${setting}, set it"
+        );
+    }
+    format!(
+        "Place the program inside the travel (`kerfmeter gcode` and `kerfmeter job` place a plan \
+         with --origin-mm X,Y), or set ${setting} to the machine's real travel if it is larger"
+    )
 }
 
 /// "nothing came" or the first lines that did.

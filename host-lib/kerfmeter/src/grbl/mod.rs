@@ -5,6 +5,9 @@
 //! - [`protocol`]: the protocol without I/O: a program cleaned into lines, replies and status
 //!   reports parsed, and the character-counting [`protocol::Streamer`].
 //! - [`codes`]: what each `error:N` and `ALARM:N` means.
+//! - [`travel`], [`extent`], [`offsets`]: the machine's travel (`$130`–`$132`, homing, soft
+//!   limits), how far a program's moves reach as GRBL reads them, and the work offsets and parser
+//!   state that place its numbers.
 //! - [`Cutter`]: the blocking driver on a byte stream ([`CutterAddress`] says which).
 //!
 //! # Connecting
@@ -18,7 +21,18 @@
 //! a controller in alarm is refused with the alarm's meaning unless unlocking was asked for
 //! (`$X`); one that is not idle is refused. Finally it reads the settings (`$$`) and refuses a
 //! controller without laser mode (`$32=1`): without it GRBL keeps the beam on through travel
-//! moves, which cuts across the work (override only for a spindle machine).
+//! moves, which cuts across the work (override only for a spindle machine). When the settings
+//! give the travel (`$130`–`$132`) it also reads the work offsets (`$#`), the parser state
+//! (`$G`) and where the head stands ([`Cutter::travel`]).
+//!
+//! The soft reset at connect: a controller silent for the banner wait (one that does not restart
+//! when its port opens, a networked one) is asked its state first. One that reports a job, a hold
+//! or homing is refused and not reset. One that reports Idle, Alarm or Sleep, or whose answer does
+//! not come within the reply timeout (late, or never), gets one soft reset (ctrl-X): the banner it
+//! brings names the version, and it empties whatever another sender left in the controller's
+//! receive buffer. On an idle GRBL a soft reset moves
+//! nothing and keeps the machine position, G54–G59 and the settings; it clears G92 and the tool
+//! length offset and puts the parser at G0 G54 G17 G21 G90, as the check pass's own reset does.
 //!
 //! # Streaming
 //!
@@ -27,6 +41,11 @@
 //! keeps reading the lines already in its receive buffer after it refuses one, before any stop
 //! can arrive, so a refused travel mid-job would let the next cut start from the wrong point;
 //! the check pass finds the refusal before anything moves (GRBL's own remedy).
+//!
+//! Before that, the program's moves are followed as GRBL reads them ([`extent`]) from where the
+//! head stands, and a program that would leave the machine's travel, or that cannot be bounded
+//! (a probe), is refused with nothing sent ([`CutterError::BeyondTravel`],
+//! [`CutterError::Unbounded`]).
 //!
 //! It then sends the program with character counting: never more than GRBL's 128-byte
 //! receive buffer unanswered, each `ok`/`error:N` matched to its line in order, closed by an
@@ -47,10 +66,13 @@
 pub mod codes;
 mod driver;
 mod error;
+pub mod extent;
+pub mod offsets;
 pub mod protocol;
 #[cfg(feature = "sim")]
 mod sim;
 mod transport;
+pub mod travel;
 
 pub use driver::{ConnectOptions, Cutter, StreamProgress, StreamReport};
 pub use error::CutterError;

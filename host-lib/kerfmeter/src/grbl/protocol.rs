@@ -22,6 +22,9 @@ pub struct ProgramLine {
     pub number: usize,
     /// What is sent: the line without comments and spaces.
     pub text: String,
+    /// The line as written in the file (without its line end and the blanks around it), as
+    /// messages quote it.
+    pub written: String,
 }
 
 /// A program line that cannot be streamed, and why.
@@ -92,9 +95,10 @@ pub fn prepare(program: &str) -> Result<Vec<ProgramLine>, BadLine> {
         if text.is_empty() || text == "%" {
             continue;
         }
+        let written = raw.trim().to_owned();
         if text.starts_with('$') {
             return Err(bad(format!(
-                "`{text}` is a GRBL system command; run it on its own, not inside a job"
+                "`{written}` is a GRBL system command; run it on its own, not inside a job"
             )));
         }
         if text.len() > LINE_MAX_LEN {
@@ -108,7 +112,11 @@ pub fn prepare(program: &str) -> Result<Vec<ProgramLine>, BadLine> {
                 "`{pause}` pauses the program until cycle start is pressed at the machine, with the job half done; remove it"
             )));
         }
-        lines.push(ProgramLine { number, text });
+        lines.push(ProgramLine {
+            number,
+            text,
+            written,
+        });
     }
     Ok(lines)
 }

@@ -58,7 +58,7 @@ impl Cutter {
                     }
                     Reply::Error(code) => {
                         let line = streamer.answer().map_err(|_| unexpected())?;
-                        refused.get_or_insert((line.number, line.text.clone(), code));
+                        refused.get_or_insert((line.number, line.written.clone(), code));
                     }
                     Reply::Alarm(code) => {
                         return Err(CutterError::Alarm {
