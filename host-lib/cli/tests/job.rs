@@ -300,8 +300,9 @@ fn mixed_simulated_and_real_machines_and_a_full_bed_are_refused() {
     assert!(std::fs::read_to_string(&plan).unwrap().contains("<rect"));
 }
 
-/// Run the job on the twins with `extra` flags after `-o out.svg`; it must be refused before
-/// anything moved (exit 2, nothing written); its message.
+/// Run the job on the twins with `extra` flags after `-o out.svg` on a 600 × 400 mm bed (given,
+/// so checked before the cutter is opened); it must be refused before anything moved (exit 2,
+/// nothing written); its message.
 fn refused_before_moving(extra: &[&str]) -> String {
     let (dir, plan) = plate_plan();
     refused_before_moving_in(dir.path(), &plan, extra)
@@ -310,7 +311,16 @@ fn refused_before_moving(extra: &[&str]) -> String {
 /// [`refused_before_moving`] with the `plan` in `dir`, which the output goes into.
 fn refused_before_moving_in(dir: &Path, plan: &Path, extra: &[&str]) -> String {
     let out_svg = dir.join("out.svg");
-    let args = ["--sim", "job", path(plan), "--cutter", "sim", "-o"];
+    let args = [
+        "--sim",
+        "job",
+        path(plan),
+        "--cutter",
+        "sim",
+        "--bed-mm",
+        "600,400",
+        "-o",
+    ];
     let out = kerfmeter(&[&args[..], &[path(&out_svg)], extra].concat());
     let message = stderr(&out);
     assert_eq!(code(&out), 2, "{extra:?}: {message}");

@@ -31,6 +31,9 @@
 //!   plan and the gauge on the bed, the gauge a margin clear of the plan, the head's move over
 //!   the gauge on the bed, and the insert Z below the travel Z (Z grows upward: the prongs plunge
 //!   down). [`run_job`] checks the numbers again ([`Placement::check`]); it knows no bed.
+//! - Also before anything moves, [`run_job`] checks them against the machine's travel when the
+//!   controller reports one ([`check_travel`]: the gauge, the prong offset, the Z heights and the
+//!   plan as placed, each refused with its flag, [`JobError::Travel`]).
 
 use std::fmt;
 use std::ops::ControlFlow;
@@ -45,6 +48,10 @@ use crate::error::Error;
 use crate::grbl::protocol::Status;
 use crate::grbl::{Cutter, CutterError, StreamProgress};
 use crate::{Category, Progress};
+
+mod travel;
+
+pub use travel::{check_plan_travel, check_travel};
 
 /// The loop's stages, in order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -413,6 +420,9 @@ pub enum JobError {
     /// A setting is out of range.
     #[error("{0}")]
     Invalid(String),
+    /// Something the job moves over lies outside the machine's travel; nothing was sent.
+    #[error("{0}")]
+    Travel(String),
     /// The cutter failed (it stopped itself, or says it could not).
     #[error("{stage} ({}): {source}{}", stage.describe(), stage.prongs_note())]
     Cutter {
@@ -480,9 +490,10 @@ impl JobError {
             JobError::Invalid(_) => Category::Usage,
             JobError::Cutter { source, .. } => source.category(),
             JobError::Device { source, .. } => source.category(),
-            JobError::Flagged { .. } | JobError::Cancelled { .. } | JobError::Motion(_) => {
-                Category::Device
-            }
+            JobError::Flagged { .. }
+            | JobError::Cancelled { .. }
+            | JobError::Motion(_)
+            | JobError::Travel(_) => Category::Device,
             JobError::Dilate { .. } => Category::File,
             JobError::NotStopped { cause, .. } => cause.category(),
         }
@@ -535,6 +546,10 @@ pub struct JobRequest<'a> {
     pub placement: Placement,
     /// The device run's parameters.
     pub params: RunParams,
+    /// The plan's cuts as placed on the machine (as drawn), `[[min_x, min_y], [max_x, max_y]]`,
+    /// mm: checked against the machine's travel before anything moves (`None`: only the job's
+    /// own G-code is, by the driver, once it is dilated).
+    pub plan_box_mm: Option<[[f64; 2]; 2]>,
 }
 
 /// The job's G-code for the kerf measured (µm), or why it cannot be made.
@@ -550,6 +565,9 @@ pub fn run_job(
 ) -> Result<JobReport, JobError> {
     request.placement.check()?;
     crate::params::check(&request.params).map_err(|e| JobError::Invalid(e.to_string()))?;
+    if let Some(travel) = devices.cutter.travel() {
+        check_travel(&travel, request)?;
+    }
     let mut run = Loop {
         devices,
         request,

@@ -106,6 +106,7 @@ fn run(
         gauge_gcode: &gauge,
         placement: placement(),
         params: params(),
+        plan_box_mm: None,
     };
     let devices = Devices {
         cutter: &mut rig.cutter,
@@ -343,4 +344,29 @@ fn cancel_during_the_measurement_aborts_the_run_and_cuts_nothing_more() {
     assert!(!laser_safe_and_job_cut(&record(&rig)));
     let status = rig.meter.status().unwrap();
     assert_ne!(status.state, kerfmeter::protocol::RunState::Ramping);
+}
+
+#[test]
+fn a_gauge_beyond_the_machines_travel_is_refused_before_anything_moves() {
+    // 200 mm of X travel; the gauge at X250.
+    let twin = SimCutterOptions {
+        travel_mm: [200.0, 200.0, 50.0],
+        ..SimCutterOptions::default()
+    };
+    let mut rig = rig(SimOptions::default(), twin);
+    let (result, started) = run(&mut rig, 1, &mut |_, _| {});
+    let error = result.unwrap_err();
+    assert!(matches!(error, JobError::Travel(_)), "{error}");
+    assert_eq!(error.category(), kerfmeter::Category::Device);
+    let message = error.to_string();
+    for says in [
+        "the gauge at (250.0, 60.0) mm",
+        "$130=200",
+        "--gauge-at-mm",
+        "Nothing was sent",
+    ] {
+        assert!(message.contains(says), "{says}: {message}");
+    }
+    assert!(started.is_empty(), "{started:?}");
+    assert!(record(&rig).gcode_received.is_empty());
 }

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
-use kerfmeter_twin::cutter::{CutterOptions, CutterServer};
+use kerfmeter_twin::cutter::{CutterLog, CutterOptions, CutterServer};
 use kerfmeter_twin::plant::{Material, PlantParams, param_list};
 use kerfmeter_twin::{InjectedFault, MotorEdge, Pace, PtyTwin, StartError, TwinOptions};
 
@@ -76,6 +76,26 @@ struct Args {
     /// `error:20` (unsupported command), as a controller refusing a line mid-job does.
     #[arg(long, value_name = "N", requires = "cutter", value_parser = clap::value_parser!(u32).range(1..))]
     cutter_error_on_line: Option<u32>,
+    /// Cutter twin: its travel, mm ($130–$132, and where its end stops are) [default:
+    /// 600,400,50].
+    #[arg(long, value_name = "X,Y,Z", requires = "cutter", value_parser = parse_xyz)]
+    cutter_travel_mm: Option<[f64; 3]>,
+    /// Cutter twin: homing enabled ($22=1): it boots in alarm (`$H` homes it, `$X` unlocks it)
+    /// and its machine space runs from −travel to 0.
+    #[arg(long, requires = "cutter")]
+    cutter_homing: bool,
+    /// Cutter twin: soft limits on ($20=1; needs --cutter-homing, as GRBL does): a target
+    /// beyond the travel is ALARM:2 before it moves.
+    #[arg(long, requires = "cutter_homing")]
+    cutter_soft_limits: bool,
+    /// Cutter twin: its G54 work offset, mm (work = machine − offset).
+    #[arg(long, value_name = "X,Y,Z", requires = "cutter", allow_hyphen_values = true, value_parser = parse_xyz)]
+    cutter_work_offset_mm: Option<[f64; 3]>,
+    /// Cutter twin: print every G-code line it receives on stdout (`received: G0 X10`), and
+    /// every move that runs into an end stop (`end stop: line 12, X 50.000 mm beyond`), for a
+    /// test in another process.
+    #[arg(long, requires = "cutter")]
+    cutter_print_lines: bool,
     /// Print a line on stdout whenever the motor bridge enters its safe state (duty 0, driver
     /// asleep) or leaves it: `motor safe at 1234.000 ms` / `motor unsafe at …` (simulated time
     /// since boot). What a scope on the G2's pins would show, for a test in another process.
@@ -160,11 +180,18 @@ fn print_motor_edges(edges: &std::sync::mpsc::Receiver<MotorEdge>) {
 
 /// Serve the cutter twin on a pseudo-terminal or a TCP port until interrupted.
 fn serve_cutter(args: &Args) -> ExitCode {
+    let defaults = CutterOptions::default();
     let options = CutterOptions {
         laser_mode: !args.cutter_no_laser_mode,
         boot_in_alarm: args.cutter_alarm,
         error_on_line: args.cutter_error_on_line.map(|line| (line, 20)),
-        ..CutterOptions::default()
+        travel_mm: args.cutter_travel_mm.unwrap_or(defaults.travel_mm),
+        homing: args.cutter_homing,
+        soft_limits: args.cutter_soft_limits,
+        work_offset_mm: args
+            .cutter_work_offset_mm
+            .unwrap_or(defaults.work_offset_mm),
+        ..defaults
     };
     let pace = if args.realtime {
         Pace::RealTime
@@ -195,11 +222,58 @@ fn serve_cutter(args: &Args) -> ExitCode {
         if args.realtime { ", real time" } else { "" }
     );
     let _ = std::io::stdout().flush();
+    if args.cutter_print_lines {
+        let log = server.log().clone();
+        std::thread::spawn(move || print_received(&log));
+    }
     match server.wait() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(3)
         }
+    }
+}
+
+/// Print each G-code line the cutter twin receives, and each end stop it hits, as they come
+/// (polled; flushed at once for a test reading them).
+fn print_received(log: &CutterLog) {
+    let (mut lines, mut hits) = (0, 0);
+    loop {
+        let news: Vec<String> = {
+            let record = log.lock();
+            let received = record.gcode_received[lines..]
+                .iter()
+                .map(|l| format!("received: {l}"));
+            let hit = |h: &kerfmeter_twin::cutter::EndStopHit| {
+                let axis = ['X', 'Y', 'Z'][h.axis];
+                format!(
+                    "end stop: line {}, {axis} {:.3} mm beyond",
+                    h.line, h.beyond_mm
+                )
+            };
+            let stopped = record.end_stop_hits[hits..].iter().map(hit);
+            let news = received.chain(stopped).collect();
+            (lines, hits) = (record.gcode_received.len(), record.end_stop_hits.len());
+            news
+        };
+        let mut out = std::io::stdout().lock();
+        for line in news {
+            let _ = writeln!(out, "{line}");
+        }
+        let _ = out.flush();
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+}
+
+/// `X,Y,Z` in mm.
+fn parse_xyz(text: &str) -> Result<[f64; 3], String> {
+    let numbers: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("{v:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    match numbers.as_slice() {
+        [x, y, z] if numbers.iter().all(|v| v.is_finite()) => Ok([*x, *y, *z]),
+        _ => Err(format!("give three finite numbers X,Y,Z, got {text:?}")),
     }
 }

@@ -7,10 +7,13 @@
 //!
 //! The plan is read (and checked) before anything moves, and the gauge's place chosen: at
 //! `--gauge-at-mm`, or on a free spot of the `--bed-mm` bed beside the plan's placed bounding
-//! box. Every planned move is then checked ([`kerfmeter::job::Placement::check_layout`]): the
-//! plan and the gauge on the bed, the gauge 5 mm clear of the plan as drawn, the head's move over
-//! the gauge on the bed, the insert Z below the travel Z. The gauge is cut with the job's own
-//! settings (the kerf depends on them).
+//! box. The bed is the controller's X and Y travel (`$130`, `$131`) unless `--bed-mm` gives it
+//! (600 × 400 mm for a controller that reports none, and for `--dry-run`), so without
+//! `--bed-mm` the gauge is placed once the cutter is connected. Every planned move is then
+//! checked: against the machine's travel first ([`kerfmeter::job::check_travel`]: exit 4), then
+//! ([`kerfmeter::job::Placement::check_layout`]) the plan and the gauge on the bed, the gauge
+//! 5 mm clear of the plan as drawn, the head's move over the gauge on the bed, the insert Z
+//! below the travel Z. The gauge is cut with the job's own settings (the kerf depends on them).
 //!
 //! # Simulated and real machines
 //!
@@ -37,14 +40,15 @@ use std::time::Duration;
 use indicatif::{ProgressBar, ProgressStyle};
 use kerfmeter::JointSpec;
 use kerfmeter::files::{ensure_not_input, ensure_writable, same_file, write_atomically};
+use kerfmeter::grbl::travel::Travel;
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, SimCutterOptions};
 use kerfmeter::job::{
     Devices, JobError, JobEvent, JobRequest, Layout, Placement, SimLink, Stage, StageTime,
-    free_spot_mm, run_job,
+    check_plan_travel, check_travel, free_spot_mm, run_job,
 };
 use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
 use kerfmeter_plan::compensation::check_before_measuring;
-use kerfmeter_plan::gauge::{GaugeOptions, build};
+use kerfmeter_plan::gauge::{GaugeDrawing, GaugeOptions, build};
 use kerfmeter_plan::gcode::{
     GcodeOptions, Mapping, Provenance, gauge_cuts, gauge_program, placed_box, plan_program,
 };
@@ -66,6 +70,8 @@ type Result<T, E = CliError> = std::result::Result<T, E>;
 
 /// Space kept between the plan and the gauge, mm.
 const GAUGE_MARGIN_MM: f64 = 5.0;
+/// The bed when neither `--bed-mm` nor the controller gives one, mm.
+const DEFAULT_BED_MM: [f64; 2] = [600.0, 400.0];
 
 /// `kerfmeter job`: cut the gauge, measure, dilate and cut the plan.
 #[derive(Debug, Clone, clap::Args)]
@@ -93,9 +99,11 @@ pub struct JobArgs {
     /// on the --bed-mm bed].
     #[arg(long, value_name = "X,Y", allow_hyphen_values = true, value_parser = parse_xy)]
     pub gauge_at_mm: Option<[f64; 2]>,
-    /// The bed's size, mm, from the machine origin (to find a free spot for the gauge).
-    #[arg(long, value_name = "W,H", allow_hyphen_values = true, value_parser = parse_xy, default_value = "600,400")]
-    pub bed_mm: [f64; 2],
+    /// The bed's size, mm, from the work origin (to find a free spot for the gauge) [default:
+    /// the controller's X and Y travel, $130 and $131; 600,400 when it reports none, and with
+    /// --dry-run]. With --cutter sim, the simulated cutter's travel too.
+    #[arg(long, value_name = "W,H", allow_hyphen_values = true, value_parser = parse_xy)]
+    pub bed_mm: Option<[f64; 2]>,
     /// The prongs' axis relative to the laser nozzle, mm (see the README to calibrate it).
     #[arg(long, value_name = "DX,DY", allow_hyphen_values = true, value_parser = parse_xy, default_value = "0,0")]
     pub prong_offset_mm: [f64; 2],
@@ -301,19 +309,21 @@ pub fn run_on(
 ) -> Result<JobCliReport> {
     check_machines(g, args)?;
     let (mut cutter, sim_kerf) = open_cutter(g, args, cancel)?;
+    let placed = setup.on_machine(args, cutter.travel().as_ref())?;
     if !g.json {
         eprintln!(
             "job on {} (GRBL {}); gauge at ({:.1}, {:.1}) mm; Ctrl-C stops the cutter and the device",
             cutter.address(),
             cutter.version(),
-            setup.placement.gauge_at_mm[0],
-            setup.placement.gauge_at_mm[1]
+            placed.placement.gauge_at_mm[0],
+            placed.placement.gauge_at_mm[1]
         );
     }
     let request = JobRequest {
-        gauge_gcode: &setup.gauge_gcode,
-        placement: setup.placement,
+        gauge_gcode: &placed.gauge_gcode,
+        placement: placed.placement,
         params: setup.params,
+        plan_box_mm: Some(setup.plan_box_mm),
     };
     let devices = Devices {
         cutter: &mut cutter,
@@ -369,7 +379,7 @@ pub fn run_on(
         kerf_um: report.kerf.kerf_um,
         total_s: report.stages.iter().map(|s| s.elapsed_s).sum(),
         stages: report.stages,
-        gauge_at_mm: setup.placement.gauge_at_mm,
+        gauge_at_mm: placed.placement.gauge_at_mm,
         landing_mm: report.landing_mm,
         job_lines: report.job_lines,
         sim_truth_um,
@@ -462,6 +472,9 @@ fn open_cutter(
         ));
     }
     let mut twin = SimCutterOptions::default();
+    if let Some([w, h]) = args.bed_mm {
+        twin.travel_mm = [w, h, twin.travel_mm[2]];
+    }
     twin.kerf.kerf_um = g.sim_kerf_um;
     twin.kerf.kerf_sd_um = g.sim_kerf_sd_um;
     let kerf = twin.kerf;
@@ -473,17 +486,28 @@ fn open_cutter(
 
 /// What the loop needs, made from the arguments before anything moves.
 pub struct Setup {
-    placement: Placement,
+    /// Where the gauge goes and its G-code, when the bed was known before connecting
+    /// (`--bed-mm`, or a dry run); else placed once the cutter reports its travel.
+    placed: Option<Placed>,
+    plan_box_mm: [[f64; 2]; 2],
+    gauge_extent_mm: [[f64; 2]; 2],
+    drawing: GaugeDrawing,
     params: RunParams,
-    gauge_gcode: String,
     gcode_out: PathBuf,
     profile: Profile,
     gcode_options: GcodeOptions,
 }
 
+/// Where the gauge is cut, how the prongs reach it, and its G-code.
+#[derive(Clone)]
+pub struct Placed {
+    placement: Placement,
+    gauge_gcode: String,
+}
+
 impl Setup {
-    /// Check the plan (read at kerf 0) before anything moves, choose the gauge's place and write
-    /// its G-code.
+    /// Check the plan (read at kerf 0) before anything moves; when the bed is known (`--bed-mm`,
+    /// or a dry run), choose the gauge's place and write its G-code.
     pub fn new(args: &JobArgs) -> Result<Setup> {
         let gcode_out = check_outputs(args)?;
         let profile = job_profile(args)?;
@@ -499,42 +523,97 @@ impl Setup {
         }
         .run_params(GaugeGeometry::PAPER)?;
         let drawing = build(&GaugeGeometry::PAPER, &GaugeOptions::default())?;
-        let layout = Layout {
-            bed_mm: args.bed_mm,
+        let mut setup = Setup {
+            placed: None,
             plan_box_mm: placed_plan_box(args, &gcode_options)?,
             gauge_extent_mm: gauge_extent_mm(&drawing)?,
+            drawing,
+            params,
+            gcode_out,
+            profile,
+            gcode_options,
+        };
+        // The numbers and the Z order, wherever the gauge goes.
+        setup
+            .placement(args, args.gauge_at_mm.unwrap_or_default())
+            .check()
+            .map_err(job_error)?;
+        let bed_now = args.bed_mm.or(args.dry_run.then_some(DEFAULT_BED_MM));
+        if let Some(bed_mm) = bed_now {
+            setup.placed = Some(setup.place(args, bed_mm, None)?);
+        }
+        Ok(setup)
+    }
+
+    /// Where the job goes on the connected cutter whose travel is `travel`: as placed before
+    /// connecting (`--bed-mm`), or now on the travel's bed (600 × 400 mm without one). The
+    /// travel is checked by the loop itself.
+    pub fn on_machine(&self, args: &JobArgs, travel: Option<&Travel>) -> Result<Placed> {
+        match (&self.placed, travel) {
+            (Some(placed), _) => Ok(placed.clone()),
+            (None, Some(t)) => self.place(args, t.bed_mm(), Some(t)),
+            (None, None) => self.place(args, DEFAULT_BED_MM, None),
+        }
+    }
+
+    /// Place the gauge on a `bed_mm` bed (at `--gauge-at-mm`, or a free spot beside the plan) and
+    /// check every move: against `travel` first (when known), then against the bed.
+    fn place(&self, args: &JobArgs, bed_mm: [f64; 2], travel: Option<&Travel>) -> Result<Placed> {
+        if let Some(t) = travel {
+            check_plan_travel(t, self.plan_box_mm, &self.params).map_err(job_error)?;
+        }
+        let layout = Layout {
+            bed_mm,
+            plan_box_mm: self.plan_box_mm,
+            gauge_extent_mm: self.gauge_extent_mm,
             margin_mm: GAUGE_MARGIN_MM,
         };
         let gauge_at_mm = match args.gauge_at_mm {
             Some(at) => at,
             None => free_spot(&layout)?,
         };
-        let placement = Placement {
+        let placement = self.placement(args, gauge_at_mm);
+        let placed = Placed {
+            placement,
+            gauge_gcode: self.gauge_gcode(gauge_at_mm)?,
+        };
+        if let Some(t) = travel {
+            let request = JobRequest {
+                gauge_gcode: &placed.gauge_gcode,
+                placement,
+                params: self.params,
+                plan_box_mm: None,
+            };
+            check_travel(t, &request).map_err(job_error)?;
+        }
+        placement.check_layout(&layout).map_err(job_error)?;
+        Ok(placed)
+    }
+
+    /// The placement the flags give, with the gauge at `gauge_at_mm`.
+    fn placement(&self, args: &JobArgs, gauge_at_mm: [f64; 2]) -> Placement {
+        Placement {
             gauge_at_mm,
             prong_offset_mm: args.prong_offset_mm,
             insert_z_mm: args.insert_z_mm,
             travel_z_mm: args.travel_z_mm,
             plunge_feed_mm_per_min: args.plunge_feed_mm_per_min,
-        };
-        placement.check_layout(&layout).map_err(job_error)?;
-        let settings = profile.default.unwrap_or(GAUGE_SETTINGS);
+        }
+    }
+
+    /// The gauge's G-code with its spiral centre at `gauge_at_mm`, cut with the job's settings.
+    fn gauge_gcode(&self, gauge_at_mm: [f64; 2]) -> Result<String> {
+        let settings = self.profile.default.unwrap_or(GAUGE_SETTINGS);
         let provenance = Provenance {
             source: "gauge for kerfmeter job".into(),
             kerf: "none: the gauge measures it".into(),
         };
         let options = GcodeOptions {
             origin_mm: gauge_at_mm,
-            ..gcode_options
+            ..self.gcode_options
         };
-        let (program, _) = gauge_program(&drawing, &settings, &options, &provenance)?;
-        Ok(Setup {
-            placement,
-            params,
-            gauge_gcode: program.to_text(),
-            gcode_out,
-            profile,
-            gcode_options,
-        })
+        let (program, _) = gauge_program(&self.drawing, &settings, &options, &provenance)?;
+        Ok(program.to_text())
     }
 
     /// The job's dilated plan (the file's bytes) and G-code at `kerf_um`, which the job
@@ -585,9 +664,10 @@ impl Setup {
     /// Every stage's program, the job's dilated by `--dry-run-kerf-um`.
     fn dry_run(&self, args: &JobArgs) -> Result<DryRunReport> {
         let (_, job) = self.dilated(args, args.dry_run_kerf_um, false)?;
-        let p = &self.placement;
+        let placed = self.on_machine(args, None)?;
+        let p = &placed.placement;
         let programs = [
-            (Stage::CutGauge, self.gauge_gcode.clone()),
+            (Stage::CutGauge, placed.gauge_gcode.clone()),
             (Stage::Lower, p.lower_program()),
             // The cut height is read from the cutter when the job begins.
             (
