@@ -97,8 +97,8 @@ enum Command {
     /// Dilate a cutting plan by the kerf and write it as G-code for a GRBL 1.1 laser (laser
     /// mode, M4 dynamic power), with speed, power and passes per colour or layer.
     Gcode(gcode::GcodeArgs),
-    /// LightBurn (2.2 or later) over its local REST API: pair with it, and write the kerf into
-    /// the Kerf Offset of its Line layers.
+    /// A running LightBurn over its local REST API (one with its `project_write` capability):
+    /// pair with it, and write the kerf into the Kerf Offset of its Line layers.
     #[command(subcommand)]
     Lightburn(lightburn::LightBurnCommand),
     /// The whole job: cut the gauge beside the plan, lower the prongs into it, measure, lift,

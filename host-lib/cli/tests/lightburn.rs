@@ -244,3 +244,81 @@ fn sim_pairs_with_and_applies_to_a_lightburn_twin_and_keeps_no_secret() {
     assert_eq!(code(&out), 2, "{}", text(&out.stderr));
     assert!(text(&out.stderr).contains("--host"));
 }
+
+#[test]
+fn pairing_again_says_the_earlier_secret_is_still_authorised_and_where_to_revoke_it() {
+    // A LightBurn twin at --host: the path a real LightBurn takes, not --sim.
+    let twin = kerfmeter::lightburn_twin::LightBurnTwin::start(Default::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("lightburn.json");
+    let pair = || {
+        kerfmeter(&[
+            "lightburn",
+            "pair",
+            "--host",
+            twin.host(),
+            "--pairing-file",
+            s(&file),
+        ])
+    };
+    let first = pair();
+    assert_eq!(code(&first), 0, "{}", text(&first.stderr));
+    assert!(!text(&first.stdout).contains("Manage authorizations"));
+    let second = pair();
+    assert_eq!(code(&second), 0, "{}", text(&second.stderr));
+    let said = text(&second.stdout);
+    assert!(said.contains("still authorised in LightBurn"), "{said}");
+    assert!(said.contains("Manage authorizations"), "{said}");
+    // LightBurn holds both, and the file the newer.
+    let granted = twin.authorisations();
+    assert_eq!(granted.len(), 2);
+    let kept: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert_eq!(kept["secret"], granted[1].secret.as_str());
+    // JSON says it too.
+    let out = kerfmeter(&[
+        "--json",
+        "lightburn",
+        "pair",
+        "--host",
+        twin.host(),
+        "--pairing-file",
+        s(&file),
+    ]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["earlier_pairing_still_authorised"], true, "{json}");
+}
+
+#[test]
+fn apply_says_the_project_is_modified_and_to_save_and_send_again() {
+    let twin = kerfmeter::lightburn_twin::LightBurnTwin::start(Default::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("lightburn.json");
+    let with_file = |args: &[&str]| {
+        let mut all = args.to_vec();
+        all.extend(["--host", twin.host(), "--pairing-file", s(&file)]);
+        kerfmeter(&all)
+    };
+    assert_eq!(code(&with_file(&["lightburn", "pair"])), 0);
+    let out = with_file(&["lightburn", "apply", "--kerf-um", "150"]);
+    assert_eq!(code(&out), 0, "{}", text(&out.stderr));
+    let said = text(&out.stdout);
+    assert!(
+        said.contains("project is now modified and not saved"),
+        "{said}"
+    );
+    assert!(said.contains("send the job again"), "{said}");
+    assert!(twin.project().modified);
+    let out = with_file(&[
+        "--json",
+        "lightburn",
+        "apply",
+        "--kerf-um",
+        "150",
+        "--recompensate",
+    ]);
+    assert_eq!(code(&out), 0, "{}", text(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["project_modified"], true, "{json}");
+    assert_eq!(json["layers"][1]["cut_index"], 2, "{json}");
+}

@@ -180,7 +180,8 @@ fn passes(l: &kerfmeter_plan::lightburn::LayerOutcome) -> String {
     )
 }
 
-/// `kerfmeter lightburn`: talk to a running LightBurn (2.2 or later) over its local REST API.
+/// `kerfmeter lightburn`: talk to a running LightBurn over its local REST API (one that has the
+/// `project_write` capability; see the library's `lightburn` module for what that rests on).
 #[derive(Debug, Clone, clap::Subcommand)]
 pub enum LightBurnCommand {
     /// Pair with LightBurn: it shows a consent dialog naming this program; approve it within
@@ -258,7 +259,14 @@ pub struct PairReport {
     pub simulated: bool,
     /// What it grants.
     pub capabilities: Vec<String>,
+    /// A pairing was kept in the file before this one: its secret is still authorised in
+    /// LightBurn (pairing again revokes nothing) until the user revokes it there.
+    pub earlier_pairing_still_authorised: bool,
 }
+
+/// Where an earlier pairing's secret is revoked (`authentication.md` § Clients that run on
+/// another machine: LightBurn's "Manage authorizations" dialog lists each pairing).
+const REVOKE_EARLIER: &str = "the secret of the pairing it replaces is still authorised in LightBurn: revoke the older \"Kerfmeter\" entry in LightBurn's Manage authorizations dialog";
 
 impl fmt::Display for PairReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -276,7 +284,11 @@ impl fmt::Display for PairReport {
             "paired with {what} at {} ({}); {kept}",
             self.host,
             self.capabilities.join(", ")
-        )
+        )?;
+        if self.earlier_pairing_still_authorised {
+            write!(f, "\n  {REVOKE_EARLIER}")?;
+        }
+        Ok(())
     }
 }
 
@@ -324,6 +336,12 @@ impl fmt::Display for ApplyReport {
                 a.unit
             )?;
         }
+        if a.project_modified {
+            writeln!(
+                f,
+                "  LightBurn's project is now modified and not saved (one undo step a layer): save it, and send the job again: a job sent to the laser before this change does not have the new Kerf Offset"
+            )?;
+        }
         write!(f, "  review the settings in LightBurn before you cut")
     }
 }
@@ -360,10 +378,13 @@ pub fn pair(args: &PairArgs, sim: bool) -> Result<PairReport> {
             pairing_file: None,
             simulated: true,
             capabilities: pairing.capabilities,
+            earlier_pairing_still_authorised: false,
         });
     }
     let path = args.endpoint.pairing_path()?;
     let host = args.endpoint.host.clone().unwrap_or(DEFAULT_HOST.into());
+    // A file there, readable or not, held a secret LightBurn gave: nothing revokes it.
+    let earlier = path.exists();
     let pairing = Client::pair(&host)?;
     pairing.save(&path)?;
     Ok(PairReport {
@@ -371,6 +392,7 @@ pub fn pair(args: &PairArgs, sim: bool) -> Result<PairReport> {
         pairing_file: Some(path),
         simulated: false,
         capabilities: pairing.capabilities,
+        earlier_pairing_still_authorised: earlier,
     })
 }
 
