@@ -66,6 +66,7 @@ use crate::error::{PlanError, Problems, Result};
 
 mod binary;
 mod blocks;
+mod fresh;
 mod geometry;
 mod layout;
 mod placing;
@@ -74,6 +75,8 @@ mod splice;
 mod text;
 mod values;
 mod write;
+
+pub(crate) use fresh::with_table_handles;
 
 use blocks::{BlockCut, EntityRef, Insertion};
 use geometry::{

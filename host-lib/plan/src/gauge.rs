@@ -521,7 +521,9 @@ pub fn to_dxf(d: &GaugeDrawing) -> Result<Vec<u8>> {
     drawing
         .save(&mut out)
         .map_err(|e| PlanError::Dxf(format!("cannot write the DXF: {e}")))?;
-    Ok(out)
+    // Its table heads get the handles the crate leaves out.
+    crate::dxf_plan::with_table_handles(&out)
+        .map_err(|e| PlanError::Dxf(format!("cannot write the DXF: {e}")))
 }
 
 #[cfg(test)]

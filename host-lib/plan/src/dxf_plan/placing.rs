@@ -54,7 +54,7 @@ fn is_matched_kind(kind: &[u8]) -> bool {
 /// (`None` for a kind that is not matched); why not, when they do not correspond. The handles
 /// are compared when `handles_kept` (the crate keeps model space's, and gives a block's entities
 /// new ones as it reads them).
-fn align<'e>(
+pub(super) fn align<'e>(
     entities: impl Iterator<Item = &'e Entity>,
     scanned: &[Scanned],
     bytes: &[u8],

@@ -2,6 +2,10 @@
 //! the drawing the `dxf` crate reads from that text, where things are in it, and the
 //! compensation its comments record (the loaded drawing has lost them).
 //!
+//! The crate gives a block's entities new handles as it reads them; the file's are put back (on
+//! the entities a dilation reads: cut geometry and `INSERT`s, see the `placing` submodule), so
+//! that a message names a cut in a block by the handle the CAD program shows.
+//!
 //! One fault of the crate is worked around: it reads every `5` pair of a `DIMSTYLE` record as a
 //! handle, but in R12 a dimension style's `5` is the name of its arrow block (`ARCHTICK`), and the
 //! crate stops on it, so that such an R12 file (ezdxf writes them, as do CAD programs with custom
@@ -11,9 +15,10 @@
 
 use std::borrow::Cow;
 
-use dxf::Drawing;
+use dxf::{Drawing, Handle};
 
 use super::layout::Layout;
+use super::placing::align;
 use super::{bad, binary, values};
 use crate::compensation::{self, FoundCompensation};
 use crate::error::Result;
@@ -41,7 +46,7 @@ impl<'b> Source<'b> {
         };
         // Where the entities are is found on another core while the crate parses the text.
         let (loaded, layout) = rayon::join(|| values::load(&text), || Layout::scan(&text));
-        let drawing = match (loaded, &layout) {
+        let mut drawing = match (loaded, &layout) {
             (Ok(drawing), _) => drawing,
             (Err(e), Ok(layout)) if !layout.dimstyle_names.is_empty() => {
                 values::load(&without_dimstyle_names(&text, layout)).map_err(|_| bad(e))?
@@ -51,6 +56,7 @@ impl<'b> Source<'b> {
             (Err(e), _) => return Err(bad(e)),
         };
         let layout = layout.map_err(|why| bad(format!("not a readable DXF file: {why}")))?;
+        restore_block_handles(&mut drawing, &layout, &text);
         let found = compensation::find_in_dxf(&text);
         Ok(Source {
             text,
@@ -59,6 +65,23 @@ impl<'b> Source<'b> {
             layout,
             found,
         })
+    }
+}
+
+/// Give the entities of each block the handles the file gives them, where they can be matched.
+fn restore_block_handles(drawing: &mut Drawing, layout: &Layout, text: &[u8]) {
+    for block in drawing.blocks_mut() {
+        let Some(Some(scanned)) = layout.blocks.get(&block.name.to_uppercase()) else {
+            continue;
+        };
+        let Ok(found) = align(block.entities.iter(), &scanned.entities, text, false) else {
+            continue;
+        };
+        for (e, k) in block.entities.iter_mut().zip(found) {
+            if let Some(handle) = k.and_then(|k| scanned.entities[k].handle) {
+                e.common.handle = Handle(handle);
+            }
+        }
     }
 }
 

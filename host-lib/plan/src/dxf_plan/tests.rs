@@ -420,3 +420,24 @@ fn an_array_of_a_large_block_is_refused_for_the_entities_it_comes_to() {
         .to_string();
     assert!(e.contains("come to more than 1000000 entities"), "{e}");
 }
+
+#[test]
+fn a_cut_in_a_block_is_named_by_the_handle_its_file_gives_it() {
+    // The crate renumbers a block's entities as it reads them; the message names the file's.
+    let text = "  0\nSECTION\n  2\nHEADER\n  9\n$ACADVER\n  1\nAC1015\n  9\n$INSUNITS\n 70\n4\n  0\nENDSEC\n\
+        0\nSECTION\n  2\nBLOCKS\n  0\nBLOCK\n  5\n20\n  2\nP\n 70\n0\n 10\n0.0\n 20\n0.0\n 30\n0.0\n\
+        0\nPOLYLINE\n  5\nABC\n  8\nCUT\n 62\n1\n 66\n1\n 70\n9\n\
+        0\nVERTEX\n  5\nABD\n  8\nCUT\n 10\n0.0\n 20\n0.0\n 30\n1.0\n 70\n32\n\
+        0\nVERTEX\n  5\nABE\n  8\nCUT\n 10\n1.0\n 20\n0.0\n 30\n0.0\n 70\n32\n\
+        0\nSEQEND\n  5\nABF\n  8\nCUT\n  0\nENDBLK\n  5\n21\n  8\n0\n  0\nENDSEC\n\
+        0\nSECTION\n  2\nENTITIES\n  0\nINSERT\n  5\n30\n  8\nCUT\n  2\nP\n 10\n0.0\n 20\n0.0\n 30\n0.0\n  0\nENDSEC\n  0\nEOF\n";
+    let e = dilate_dxf(
+        text.as_bytes(),
+        &KerfSource::Uniform(100.0),
+        &DxfOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("POLYLINE ABC on layer CUT"), "{e}");
+    assert!(e.contains("a 3-D polyline"), "{e}");
+}
