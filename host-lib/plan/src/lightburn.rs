@@ -6,7 +6,9 @@
 //! radius), in mm in the project file (whatever units LightBurn displays). A positive value moves
 //! closed shapes outward and the holes inside them inward (LightBurn inverts the direction for
 //! shapes nested in others on the same layer); negative shrinks. LightBurn applies it to layers in
-//! Line mode only, and to closed shapes only. This module therefore writes
+//! Line mode only, and to closed shapes only (this is LightBurn's user documentation of the Kerf
+//! Offset; its REST spec, which `kerfmeter lightburn apply` follows, defines no meaning for a
+//! cut's `kerf`). This module therefore writes
 //! `kerf = kerf_um / 2 / 1000` (mm, positive): the same offset `kerfmeter dilate` applies to an
 //! SVG or DXF, left for LightBurn to apply when it sends the job.
 //!
