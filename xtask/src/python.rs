@@ -2,7 +2,8 @@
 //! `python3` and filled with pip, and the Python package's test step.
 //!
 //! `cargo xtask test` builds and installs `host-lib/python` (the `kerfmeter` package) into it
-//! and runs its pytest suite against the twin. This needs `python3` (3.9 or later) with its
+//! and runs its pytest suite against the twin, and against ezdxf and GEOS (shapely) for the DXF
+//! plans. This needs `python3` (3.9 or later) with its
 //! `venv` module, and PyPI for maturin and pytest on first use; without them the step fails and
 //! says what is missing. The wheel is built by maturin into the workspace's own `target/` in the
 //! dev profile, so it reuses what `cargo test --workspace` already compiled instead of building
@@ -21,6 +22,9 @@ const PYTHON: &str = "python3";
 pub const PYTEST: &str = "pytest>=7,<10";
 /// The build backend and the test runner; pinned below the next major versions.
 const TOOLS: [&str; 2] = ["maturin>=1.9.4,<2", PYTEST];
+/// The independent implementations the package's tests check the plans against (issue 32):
+/// ezdxf opens and audits every DXF written, GEOS (through shapely) buffers the same cuts.
+const PEERS: [&str; 2] = ["ezdxf>=1.4,<2", "shapely>=2,<3"];
 
 /// The environment's directory.
 fn venv_dir() -> PathBuf {
@@ -103,7 +107,7 @@ fn path_with_venv() -> std::ffi::OsString {
 
 /// Build and install the `kerfmeter` Python package into the environment, then run its tests.
 pub fn test_package() -> Result<()> {
-    let python = ensure_venv(&TOOLS)?;
+    let python = ensure_venv(&[&TOOLS[..], &PEERS[..]].concat())?;
     let package = root().join("host-lib").join("python");
     run_cmd(
         Command::new(&python)
