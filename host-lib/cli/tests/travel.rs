@@ -149,8 +149,8 @@ fn cut_refuses_a_program_that_leaves_the_travel_before_sending_a_line() {
     says_all(
         &z,
         &[
-            "Z from -30.000 to 30.000 mm",
-            "a span of 60.000 mm",
+            "line 2 (`G0 Z30`) takes the head to Z 30.000 mm",
+            "60.000 mm from the Z -30.000 mm it also reaches (line 1, `G0 Z-30`)",
             "$132=50",
         ],
     );
@@ -161,7 +161,7 @@ fn cut_refuses_a_program_that_leaves_the_travel_before_sending_a_line() {
         &probe,
         &[
             "line 2 (`G38.2 Z-20 F100`)",
-            "cannot be known",
+            "cannot be checked against the machine's travel",
             "Nothing was sent",
         ],
     );
@@ -281,7 +281,7 @@ fn job_refuses_a_gauge_prongs_heights_or_plan_outside_the_travel_before_sending_
     says_all(
         &heights,
         &[
-            "a span of 60.000 mm",
+            "Z 40.000 mm in work coordinates (machine 40.000), 60.000 mm from the Z -20.000 mm",
             "--travel-z-mm 40",
             "--insert-z-mm -20",
             "$132=50",

@@ -978,7 +978,7 @@ fn the_travel_is_read_at_connect_and_a_program_beyond_it_is_refused_before_anyth
         matches!(error, CutterError::Unbounded { line: 2, .. }),
         "{error}"
     );
-    assert!(error.to_string().contains("cannot be known"), "{error}");
+    assert!(error.to_string().contains("cannot be checked"), "{error}");
     let record = log(&cutter).snapshot();
     assert!(
         record.gcode_received.is_empty(),

@@ -106,7 +106,7 @@ pub enum CutterError {
     },
     /// A program line whose moves cannot be bounded; nothing was sent.
     #[error(
-        "line {line} (`{written}`) {reason}, so whether the program stays inside the machine's travel cannot be known: it is refused. Nothing was sent"
+        "line {line} (`{written}`) {reason}; the program's moves cannot be checked against the machine's travel, so it is refused. Nothing was sent"
     )]
     Unbounded {
         /// Its line number in the file.

@@ -238,7 +238,7 @@ impl Reader {
                 }
                 (38, _) => {
                     return Err("probes (G38.x): a probe stops where it touches, so where \
-                                every later move goes is not known"
+                                every later move starts is unknown"
                         .into());
                 }
                 (80, 0) => m.motion = Motion::Cancelled,

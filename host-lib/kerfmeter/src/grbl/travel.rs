@@ -308,15 +308,18 @@ impl fmt::Display for Beyond {
                 self.consequence()
             ),
             Some(from) => {
-                let (low, high) = match at(from) < at(&self.at) {
-                    true => (at(from), at(&self.at)),
-                    false => (at(&self.at), at(from)),
+                let seen = match &from.line {
+                    Some((number, written)) => format!(" (line {number}, `{written}`)"),
+                    None => String::new(),
                 };
                 write!(
                     f,
-                    "{name} from {low:.3} to {high:.3} mm in work coordinates, a span of {:.3} \
-                     mm, more than the machine's travel: {}; {}",
-                    high - low,
+                    "{name} {:.3} mm in work coordinates (machine {:.3}), {:.3} mm from the \
+                     {name} {:.3} mm it also reaches{seen}, more than the machine's travel: {}; {}",
+                    self.work_mm(),
+                    self.at.machine_mm,
+                    (self.at.machine_mm - from.machine_mm).abs(),
+                    at(from),
                     self.limit,
                     self.consequence()
                 )
@@ -384,7 +387,10 @@ mod tests {
         // Z: 60 mm apart is more than 50, wherever the head stands.
         let e = check(&travel, "G0 Z-30\nG0 Z30\n").unwrap_err();
         assert!(e.from.is_some());
-        assert!(e.to_string().contains("a span of 60.000 mm"), "{e}");
+        assert!(
+            e.to_string().contains("60.000 mm from the Z -30.000 mm"),
+            "{e}"
+        );
         // The head left of where it was switched on: the rule does not fit.
         let lost =
             Travel::read(&settings(false, false), start([-5.0, 0.0, 0.0], [0.0; 3])).unwrap();
