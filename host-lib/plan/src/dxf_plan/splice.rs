@@ -77,23 +77,12 @@ impl<'p> Splice<'p> {
         }
     }
 
-    /// Change the entity `e` (of type `kind` in the file); `false` when it is of another type.
-    pub fn change(
-        &mut self,
-        bytes: &[u8],
-        e: &Scanned,
-        kind: &[u8],
-        change: Change,
-        contour: Option<&'p Pline>,
-    ) -> bool {
-        if e.kind(bytes) != kind {
-            return false;
-        }
+    /// Change the entity `e` (an entity of a block is left out once, however often it is met).
+    pub fn change(&mut self, e: &Scanned, change: Change, contour: Option<&'p Pline>) {
         if matches!(change, Change::Drop) && !self.dropped.insert(e.span) {
-            return true;
+            return;
         }
         self.edits.push((e.span, change, contour));
-        true
     }
 
     /// Add a new closed polyline.

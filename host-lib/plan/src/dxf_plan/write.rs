@@ -126,18 +126,10 @@ impl Changes {
         origin: &Origin,
         d: &'p Pline,
     ) -> Result<(), String> {
-        let unchanged = |e: &Scanned| {
-            format!(
-                "entity {} is not what was read there",
-                String::from_utf8_lossy(e.kind(text))
-            )
-        };
         match origin {
             Origin::LwPolyline(i) => {
                 let e = places.get(&EntityRef::model(*i))?;
-                if !splice.change(text, &e, b"LWPOLYLINE", Change::Vertices, Some(d)) {
-                    return Err(unchanged(&e));
-                }
+                splice.change(&e, Change::Vertices, Some(d));
             }
             Origin::Circle(i) => {
                 let e = places.get(&EntityRef::model(*i))?;
@@ -151,9 +143,7 @@ impl Changes {
                             z,
                             units(r, self.scale),
                         ];
-                        if !splice.change(text, &e, b"CIRCLE", Change::Circle(new), None) {
-                            return Err(unchanged(&e));
-                        }
+                        splice.change(&e, Change::Circle(new), None);
                     }
                     _ => self.replace(splice, places, text, &[*i], d)?,
                 }
@@ -177,7 +167,7 @@ impl Changes {
         let mut first = None;
         for &i in list {
             let e = places.get(&EntityRef::model(i))?;
-            splice.change(text, &e, e.kind(text), Change::Drop, None);
+            splice.change(&e, Change::Drop, None);
             first.get_or_insert(e);
         }
         let first = first.ok_or("a cut of no entity")?;
@@ -206,7 +196,7 @@ impl Changes {
                 index: k,
             };
             let e = places.get(&at)?;
-            splice.change(text, &e, e.kind(text), Change::Drop, None);
+            splice.change(&e, Change::Drop, None);
             if chain.is_empty() {
                 chain.push(e);
             }
