@@ -105,3 +105,28 @@ fn a_refused_plot_is_found_before_the_gauge_is_measured() {
     // Nothing was measured, so nothing was recorded.
     assert!(!db.exists());
 }
+
+#[test]
+fn a_job_refuses_to_replace_someone_elses_files_before_anything_moves() {
+    let dir = tempfile::tempdir().unwrap();
+    let home = dir.path();
+    let plan = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/box-parts.svg");
+    let theirs = home.join("theirs.svg");
+    let original = "<svg xmlns=\"http://www.w3.org/2000/svg\"/>";
+    std::fs::write(&theirs, original).unwrap();
+    let args = [
+        "--sim",
+        "job",
+        plan.to_str().unwrap(),
+        "--cutter",
+        "sim",
+        "-o",
+        theirs.to_str().unwrap(),
+    ];
+    let out = kerfmeter(home, &args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(4), "{stderr}");
+    assert!(stderr.contains("not written by kerfmeter"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(&theirs).unwrap(), original);
+    assert!(!stderr.contains("gauge cut"), "{stderr}");
+}

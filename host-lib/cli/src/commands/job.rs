@@ -89,6 +89,10 @@ pub struct JobArgs {
     /// The job's G-code as streamed [default: the output with the extension .gcode].
     #[arg(long, value_name = "FILE.gcode")]
     pub gcode_out: Option<PathBuf>,
+    /// Replace the outputs even if they exist and kerfmeter did not write them (by default only
+    /// kerfmeter's own outputs are replaced: a typo must not replace a cutting plan).
+    #[arg(long)]
+    pub force: bool,
     /// Sheet thickness, mm.
     #[arg(long, default_value_t = kerfmeter::params::DEFAULT_THICKNESS_MM)]
     pub thickness_mm: f64,
@@ -706,8 +710,10 @@ fn check_outputs(args: &JobArgs) -> Result<PathBuf> {
             gcode_out.display()
         )));
     }
-    ensure_writable(&args.output)?;
-    ensure_writable(&gcode_out)?;
+    for output in [&args.output, &gcode_out] {
+        kerfmeter_plan::ownership::ensure_replaceable(output, args.force)?;
+        ensure_writable(output)?;
+    }
     Ok(gcode_out)
 }
 
