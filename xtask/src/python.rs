@@ -9,7 +9,7 @@
 //! dev profile, so it reuses what `cargo test --workspace` already compiled instead of building
 //! the whole dependency tree again in release.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, Result, bail};
@@ -25,6 +25,11 @@ const TOOLS: [&str; 2] = ["maturin>=1.9.4,<2", PYTEST];
 /// The independent implementations the package's tests check the plans against (issue 32):
 /// ezdxf opens and audits every DXF written, GEOS (through shapely) buffers the same cuts.
 const PEERS: [&str; 2] = ["ezdxf>=1.4,<2", "shapely>=2,<3"];
+
+/// LibreCAD's part library (Debian's `librecad-data`): real-world DXF drawings the package's
+/// tests dilate and ezdxf audits; installed with apt-get when missing and this runs as root.
+const LIBRECAD_PACKAGE: &str = "librecad-data";
+const LIBRECAD_DIR: &str = "/usr/share/librecad";
 
 /// The environment's directory.
 fn venv_dir() -> PathBuf {
@@ -128,9 +133,37 @@ pub fn test_package() -> Result<()> {
             .env("CARGO_TARGET_DIR", root().join("target"))
             .env("MATURIN_PEP517_ARGS", "--profile dev"),
     )?;
+    ensure_librecad_parts()?;
     run_cmd(
         Command::new(&python)
             .args(["-m", "pytest", "-q"])
-            .arg(package.join("tests")),
+            .arg(package.join("tests"))
+            .env("KERFMETER_LIBRECAD_PARTS", LIBRECAD_DIR),
     )
+}
+
+/// Install LibreCAD's part library when it is missing (apt-get, as root); otherwise say how.
+fn ensure_librecad_parts() -> Result<()> {
+    if Path::new(LIBRECAD_DIR).join("library").is_dir() {
+        return Ok(());
+    }
+    let install = format!("apt-get install -y --no-install-recommends {LIBRECAD_PACKAGE}");
+    if !crate::browser::is_root() || !Path::new("/usr/bin/apt-get").exists() {
+        bail!("LibreCAD's part library ({LIBRECAD_DIR}) is missing: run `{install}` as root");
+    }
+    eprintln!("LibreCAD's part library is missing: installing {LIBRECAD_PACKAGE} with apt-get");
+    let apt = || {
+        run_cmd(Command::new("apt-get").args([
+            "install",
+            "-y",
+            "-q",
+            "--no-install-recommends",
+            LIBRECAD_PACKAGE,
+        ]))
+    };
+    if apt().is_err() {
+        run_cmd(Command::new("apt-get").arg("update"))?;
+        apt().with_context(|| format!("could not install {LIBRECAD_PACKAGE}; run: {install}"))?;
+    }
+    Ok(())
 }
