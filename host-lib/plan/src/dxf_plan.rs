@@ -69,6 +69,7 @@ mod blocks;
 mod fresh;
 mod geometry;
 mod layout;
+mod loops;
 mod placing;
 mod source;
 mod splice;
@@ -445,10 +446,10 @@ impl Format for DxfPlan<'_> {
         let mut problems = Problems::default();
         let pieces = self.read_entities(&entities, &mut blocks, &mut plan, &mut problems);
         blocks.finish(&mut plan.summary, &mut problems);
-        problems.into_error(PlanError::Dxf)?;
         let name_of = |k: usize| label(entities[k]);
         let origin_of = |list: &[usize]| Origin::Replace(list.to_vec());
-        close_chains(pieces, &name_of, &origin_of, &mut plan);
+        close_chains(pieces, &name_of, &origin_of, &mut plan, &mut problems);
+        problems.into_error(PlanError::Dxf)?;
         Ok(plan)
     }
 

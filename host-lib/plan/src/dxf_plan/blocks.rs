@@ -508,7 +508,7 @@ impl DxfPlan<'_> {
                 via: st.via.clone(),
             }))
         };
-        removed.extend(close_chains(pieces, &name_of, &origin_of, plan));
+        removed.extend(close_chains(pieces, &name_of, &origin_of, plan, problems));
         removed
     }
 }

@@ -1,15 +1,15 @@
 //! The geometry of DXF cut entities, read into contours in document mm: polylines with bulges
 //! (mapped through a block's frame: arcs stay arcs under a similarity, become biarcs under unequal
 //! scales), `LINE`, `ARC`, `CIRCLE`, `ELLIPSE` and `SPLINE` (biarcs within
-//! [`CURVE_TOLERANCE_MM`]), and open pieces joined end to end into closed chains.
-
-use std::collections::HashMap;
+//! [`CURVE_TOLERANCE_MM`]), and open pieces sorted into closed loops and open paths
+//! ([`super::loops`]).
 
 use cavalier_contours::polyline::{PlineCreation, PlineSource, PlineSourceMut, PlineVertex};
 use dxf::Vector;
 use dxf::entities::Entity;
 
-use super::{JOIN_MM, Origin, Place, Read, label, mirrored};
+use super::{JOIN_MM, Origin, Place, Read, label, loops, mirrored};
+use crate::error::Problems;
 use crate::geom::{Affine, CURVE_TOLERANCE_MM, PathSink, Pline, V2, arc_geom, fit_biarcs, v2};
 use crate::nurbs::Nurbs;
 use crate::outcome::PlanSummary;
@@ -320,33 +320,69 @@ pub(super) fn curve_read(sink: PathSink, closed: bool, place: Place, i: usize) -
     }
 }
 
-/// Join the open pieces into chains: the closed ones are cuts (named by `name_of` their first
-/// entity, their origin made by `origin_of` their entities), the rest open paths. Returns the
-/// entities of the closed chains.
+/// Sort the open pieces into closed loops, which are cuts (named by `name_of` their first
+/// entity, their origin made by `origin_of` their entities), and open paths, by the rule of
+/// [`super::loops`]; where cut lines branch, each junction is a problem (the plan is refused).
+/// Returns the entities of the closed loops.
 pub(super) fn close_chains(
     pieces: Vec<Piece>,
     name_of: &dyn Fn(usize) -> String,
     origin_of: &dyn Fn(&[usize]) -> Origin,
     plan: &mut Plan<Origin>,
+    problems: &mut Problems,
 ) -> Vec<usize> {
-    let mut closed = Vec::new();
-    for chain in join_pieces(pieces) {
+    let entities_of: Vec<usize> = pieces.iter().map(|p| p.entities[0]).collect();
+    let sorted = loops::sort(pieces);
+    for junction in &sorted.junctions {
+        let names: Vec<String> = junction
+            .pieces
+            .iter()
+            .map(|&k| name_of(entities_of[k]))
+            .collect();
+        problems.push(junction_problem(junction.at_mm, &names));
+    }
+    let chain_name = |chain: &Piece| {
         let first = name_of(chain.entities[0]);
-        let name = if chain.entities.len() == 1 {
+        if chain.entities.len() == 1 {
             first
         } else {
             format!("chain of {} entities from {first}", chain.entities.len())
-        };
-        if (chain.start() - chain.end()).length() <= JOIN_MM && chain.vertices.len() > 2 {
-            let n = chain.vertices.len();
+        }
+    };
+    let mut closed = Vec::new();
+    for chain in sorted.loops {
+        let n = chain.vertices.len();
+        if (chain.start() - chain.end()).length() <= JOIN_MM && n > 2 {
             let pl = closed_pline(chain.vertices[..n - 1].to_vec());
-            plan.cut(pl, name, origin_of(&chain.entities));
+            plan.cut(pl, chain_name(&chain), origin_of(&chain.entities));
             closed.extend_from_slice(&chain.entities);
         } else {
-            plan.open_path(name, chain.start(), chain.end());
+            plan.open_path(chain_name(&chain), chain.start(), chain.end());
         }
     }
+    for chain in sorted.open {
+        plan.open_path(chain_name(&chain), chain.start(), chain.end());
+    }
     closed
+}
+
+/// Why cut lines that branch are refused, and what to do.
+fn junction_problem(at_mm: V2, names: &[String]) -> String {
+    let shown = names.len().min(4);
+    let mut list = names[..shown].join(", ");
+    if names.len() > shown {
+        list.push_str(&format!(" and {} more", names.len() - shown));
+    }
+    format!(
+        "cut lines branch at ({:.3}, {:.3}) mm, where {} cut pieces meet ({list}): a cut outline \
+         must be one closed loop, and which loops are meant here cannot be told (lines across an \
+         outline, or outlines sharing an edge); put construction and engraving lines on a layer \
+         or colour that is not cut (--cut-layer, --cut-color choose what is), or draw each part's \
+         outline as one closed loop",
+        at_mm.x,
+        at_mm.y,
+        names.len()
+    )
 }
 
 /// Whether an entity's OCS normal `n` is mirrored (−z) or not (+z); a problem when it is neither.
@@ -394,74 +430,6 @@ pub(super) fn polyline_read(
             entities: vec![index],
         })
     }
-}
-
-/// Join pieces end to end (either direction) into maximal chains.
-pub(super) fn join_pieces(pieces: Vec<Piece>) -> Vec<Piece> {
-    let key = |p: V2| {
-        (
-            (p.x / JOIN_MM).round() as i64,
-            (p.y / JOIN_MM).round() as i64,
-        )
-    };
-    let ends_of: Vec<(V2, V2)> = pieces.iter().map(|p| (p.start(), p.end())).collect();
-    let mut ends: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-    for (i, &(start, end)) in ends_of.iter().enumerate() {
-        ends.entry(key(start)).or_default().push(i);
-        ends.entry(key(end)).or_default().push(i);
-    }
-    // A piece is taken out of its slot as it joins a chain (moved, never copied).
-    let mut slots: Vec<Option<Piece>> = pieces.into_iter().map(Some).collect();
-    // The free piece with an end at `q`, turned to start there (`forward`) or to end there.
-    let take_at = |q: V2, forward: bool, slots: &mut [Option<Piece>]| -> Option<Piece> {
-        let (kx, ky) = key(q);
-        let j = (-1..=1)
-            .flat_map(|dx| (-1..=1).map(move |dy| (kx + dx, ky + dy)))
-            .filter_map(|k| ends.get(&k))
-            .flatten()
-            .copied()
-            .find(|&j| {
-                let (s, e) = ends_of[j];
-                slots[j].is_some() && ((s - q).length() <= JOIN_MM || (e - q).length() <= JOIN_MM)
-            })?;
-        let piece = slots[j].take()?;
-        let (start, end) = ends_of[j];
-        let kept = (if forward { start } else { end } - q).length() <= JOIN_MM;
-        Some(if kept { piece } else { piece.reversed() })
-    };
-    let mut chains = Vec::new();
-    for i in 0..slots.len() {
-        let Some(mut chain) = slots[i].take() else {
-            continue;
-        };
-        // Forward.
-        while (chain.end() - chain.start()).length() > JOIN_MM {
-            let Some(next) = take_at(chain.end(), true, &mut slots) else {
-                break;
-            };
-            chain.append(next);
-        }
-        // Backward, for chains that did not close: the pieces before it, nearest first (joined
-        // at the end, so that each vertex is copied once).
-        let mut before: Vec<Piece> = Vec::new();
-        let mut start = chain.start();
-        while (chain.end() - start).length() > JOIN_MM {
-            let Some(prev) = take_at(start, false, &mut slots) else {
-                break;
-            };
-            start = prev.start();
-            before.push(prev);
-        }
-        if let Some(mut whole) = before.pop() {
-            while let Some(next) = before.pop() {
-                whole.append(next);
-            }
-            whole.append(chain);
-            chain = whole;
-        }
-        chains.push(chain);
-    }
-    chains
 }
 
 /// Centre and radius when a closed polyline is one full circle.
