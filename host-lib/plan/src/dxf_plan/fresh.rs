@@ -20,7 +20,7 @@ pub(crate) fn with_table_handles(text: &[u8]) -> Result<Vec<u8>, String> {
     for w in pairs.windows(3) {
         if w[0].code == 0 && w[0].value == b"TABLE" && w[1].code == 2 && w[2].code != 5 {
             edits.push(((w[1].end, w[1].end), format!("  5{eol}{next:X}{eol}")));
-            next += 1;
+            next = next.saturating_add(1);
         }
     }
     if let Some((span, _)) = layout.handseed {
