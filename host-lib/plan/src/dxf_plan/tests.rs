@@ -441,3 +441,103 @@ fn a_cut_in_a_block_is_named_by_the_handle_its_file_gives_it() {
     assert!(e.contains("POLYLINE ABC on layer CUT"), "{e}");
     assert!(e.contains("a 3-D polyline"), "{e}");
 }
+
+#[test]
+fn a_binary_dxf_comes_back_as_ascii_with_its_cut_dilated() {
+    let mut bytes = Vec::new();
+    drawing(Units::Millimeters).save_binary(&mut bytes).unwrap();
+    assert!(bytes.starts_with(b"AutoCAD Binary DXF"));
+    let (out, s) = dilate_dxf(&bytes, &KerfSource::Uniform(200.0), &DxfOptions::default()).unwrap();
+    assert!(out.starts_with(b"999"), "ASCII, the record first");
+    assert!(
+        s.notes.iter().any(|n| n.contains("written as ASCII")),
+        "{:?}",
+        s.notes
+    );
+    let back = Drawing::load(&mut Cursor::new(out)).unwrap();
+    let r = back
+        .entities()
+        .find_map(|e| match &e.specific {
+            EntityType::Circle(c) => Some(c.radius),
+            _ => None,
+        })
+        .unwrap();
+    assert!((r - 1.1).abs() < 1e-12, "{r}");
+}
+
+#[test]
+fn an_r12_drawing_stays_r12_with_its_new_outlines_as_polylines() {
+    let text = include_str!("../../tests/corpus/r12_polyline_unitless.dxf");
+    let opts = DxfOptions {
+        assume_units: Some(AssumedUnits::Mm),
+        ..DxfOptions::default()
+    };
+    let (out, s) = dilate_dxf(text.as_bytes(), &KerfSource::Uniform(150.0), &opts).unwrap();
+    let out = String::from_utf8(out).unwrap();
+    assert!(
+        out.contains("$ACADVER\r\n  1\r\nAC1009"),
+        "kept its version"
+    );
+    assert!(!out.contains("LWPOLYLINE") && !out.contains("$INSUNITS") && !out.contains("100\r\n"));
+    // The slot chain (LINEs and ARCs) became one more POLYLINE with its VERTEXes and SEQEND.
+    let count = |t: &str, kind: &str| t.matches(&format!("\r\n{kind}\r\n")).count();
+    assert_eq!(count(&out, "POLYLINE"), count(text, "POLYLINE") + 1);
+    assert!(count(&out, "VERTEX") > count(text, "VERTEX"));
+    assert_eq!(count(&out, "SEQEND"), count(text, "SEQEND") + 1);
+    assert!(
+        s.notes
+            .iter()
+            .any(|n| n.contains("$INSUNITS came with R2000")),
+        "{:?}",
+        s.notes
+    );
+}
+
+#[test]
+fn a_zero_radius_arc_is_noted_and_what_is_passed_through_says_which_flag_cuts_it() {
+    let mut d = drawing(Units::Millimeters);
+    let mut zero = Entity::new(EntityType::Arc(dxf::entities::Arc::new(
+        Point::new(1.0, 1.0, 0.0),
+        0.0,
+        0.0,
+        90.0,
+    )));
+    zero.common.color = dxf::Color::from_index(1);
+    d.add_entity(zero);
+    // Grey (ACI 8) and a thick red line: neither is cut, and each says what would cut it.
+    let mut grey = Entity::new(EntityType::Line(Line::new(
+        Point::new(0.0, 0.0, 0.0),
+        Point::new(1.0, 0.0, 0.0),
+    )));
+    grey.common.color = dxf::Color::from_index(8);
+    d.add_entity(grey);
+    let mut thick = Entity::new(EntityType::Line(Line::new(
+        Point::new(0.0, 2.0, 0.0),
+        Point::new(1.0, 2.0, 0.0),
+    )));
+    thick.common.color = dxf::Color::from_index(1);
+    thick.common.lineweight_enum_value = 70;
+    d.add_entity(thick);
+    let (_, s) = dilate_drawing(d, &KerfSource::Uniform(100.0), &DxfOptions::default()).unwrap();
+    assert_eq!(s.contours_dilated, 1);
+    assert!(
+        s.notes
+            .iter()
+            .any(|n| n.contains("has radius 0: nothing to cut")),
+        "{:?}",
+        s.notes
+    );
+    let reasons: Vec<&String> = s.passed_through.keys().collect();
+    assert!(
+        reasons
+            .iter()
+            .any(|r| r.contains("ACI colour 8 or above") && r.contains("--cut-layer")),
+        "{reasons:?}"
+    );
+    assert!(
+        reasons
+            .iter()
+            .any(|r| r.contains("lineweight 0.7 mm") && r.contains("--cut-max-width-mm")),
+        "{reasons:?}"
+    );
+}
