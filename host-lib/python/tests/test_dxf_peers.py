@@ -2,7 +2,8 @@
 ezdxf, R12 to R2018, ASCII and binary) is dilated by the library, and its output must open and
 audit clean in ezdxf, keep every entity that is not a cut as it was, and match GEOS's buffer of
 the exact cut contours within 1 µm (`dxf_peer_checks`). Every DXF the Rust plan tests dilate
-(`host-lib/plan/tests/corpus`, `fixtures`) and the gauge's DXF are opened and audited too.
+(`host-lib/plan/tests/corpus`, `fixtures`), the gauge's DXF and LibreCAD's part library (real
+drawings; `cargo xtask test-python` installs it and says where) are opened and audited too.
 
 `KERFMETER_DXF_PEER_REPORT=path` writes the figures of every plan there as JSON."""
 
