@@ -657,6 +657,15 @@ impl DxfPlan<'_> {
                 Ok(polyline_entity(&verts, pl.is_closed(), &f, origin, index))
             }
             EntityType::Line(l) => Ok(line(l, frame, index)),
+            EntityType::Arc(a) if a.radius.is_nan() || a.radius <= 0.0 => {
+                // Nothing to cut, but said: a drawing's arc of radius 0 is a slip of the CAD.
+                summary.notes.push(format!(
+                    "{} has radius {}: nothing to cut, left out",
+                    label(e),
+                    kerfmeter_protocol::Shown(a.radius)
+                ));
+                Ok(Read::Nothing)
+            }
             EntityType::Arc(a) => Ok(arc(a, &in_plane(e, &a.normal, frame)?, place, index)),
             EntityType::Circle(c) => Ok(circle(c, &in_plane(e, &c.normal, frame)?, place, index)),
             EntityType::Ellipse(el) => {

@@ -176,7 +176,11 @@ impl CutRules {
             };
         }
         let Some(color) = color else {
-            return Verdict::Keep("colour not red, blue or black by index".into());
+            return Verdict::Keep(
+                "ACI colour 8 or above, which --cut-color cannot name (it takes ACI 1-7): choose \
+                 its layer with --cut-layer"
+                    .into(),
+            );
         };
         if !self.colors.contains(&color) {
             return Verdict::Keep(format!("colour {color} (not a cut colour)"));
@@ -185,7 +189,8 @@ impl CutRules {
             && w > self.max_width_mm + 1e-9
         {
             return Verdict::Keep(format!(
-                "lineweight wider than {} mm (engrave)",
+                "lineweight {w} mm, wider than {} mm: an engraving; raise --cut-max-width-mm, \
+                 or choose the cuts with --cut-layer",
                 self.max_width_mm
             ));
         }
