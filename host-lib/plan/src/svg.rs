@@ -20,7 +20,11 @@
 //! single precision). `usvg` turns arcs, circles and rounded corners into
 //! cubic Béziers; those are recognised and made exact arcs again, other curves become biarcs
 //! (see [`super::geom`]). `usvg` stores coordinates in single precision: about 0.01 µm per 100 mm
-//! of page.
+//! of page. An element with an arc that is elliptical on the page (an `<ellipse>`, an `A` with
+//! `rx ≠ ry`, a rounded `<rect>` with `rx ≠ ry`, any arc under a skew or unequal scales), whose
+//! cubics cannot be made the arc again, is traced instead from its exact geometry, read from the
+//! source in double precision with its map to the page, subpath for subpath as usvg draws it
+//! (see [`exact`]).
 //!
 //! **Writing.** A dilated contour is transformed back into the element's *own* coordinate system
 //! (through the inverse of all its transforms, so a scaled or skewed group stays as it is; an arc
@@ -86,9 +90,11 @@ use super::rules::{CutRules, Rgb, Verdict};
 use super::source_file::{Copier, SourceFile};
 use crate::error::{PlanError, Problems, Result};
 
+mod exact;
 mod lost;
 mod path_data;
 
+use exact::{ExactPath, Exactness};
 use path_data::Flaw;
 
 const SVG_NS: &str = "http://www.w3.org/2000/svg";
@@ -157,6 +163,9 @@ struct Instance {
     drawn: Vec<Vec<Seg>>,
     /// Its stroke colour (chooses its G-code cut settings).
     stroke: Option<Rgb>,
+    /// Whether its curves are traced from its exact geometry (set by `read`, taken when it is
+    /// traced; see [`exact`]).
+    exact: Exactness,
     /// Where its element starts in the source, and where its new path data goes there (set by
     /// `read`).
     start: usize,
@@ -366,6 +375,8 @@ struct Rendered {
     /// The elements usvg could not draw (see [`lost`]), by (shape, outermost `<use>`): refused
     /// once they can be named.
     lost: Vec<(usize, Option<usize>)>,
+    /// Document mm per usvg pixel.
+    mm_per_px: f64,
 }
 
 /// The source's tagged copy `tagged` as usvg draws it.
@@ -455,6 +466,7 @@ fn render(text: String, opts: &SvgOptions) -> Result<(String, Rendered)> {
         instances,
         paths,
         lost,
+        mm_per_px,
     };
     Ok((tagged.untagged(), rendered))
 }
@@ -802,7 +814,9 @@ impl<'w> SvgPlan<'w> {
                 let segs = subpaths_of(&path);
                 drop(path);
                 let reach = Reach::of(inst, &segs);
-                let traced = trace(inst, &segs, reach.eps_mm(), name, &vertices);
+                let eps = reach.eps_mm();
+                let exact = exact_geometry(inst, &segs, eps);
+                let traced = trace(inst, &segs, exact.as_deref(), eps, name, &vertices);
                 inst.subpath_count = segs.len();
                 let all_closed = traced.len() == segs.len()
                     && traced.iter().all(|t| matches!(t, Traced::Closed(..)));
@@ -889,18 +903,20 @@ impl<'w> SvgPlan<'w> {
     /// Everything reading needs from the source's XML tree, found in one parse that is dropped
     /// before the cuts are traced (the tree and the traced contours held at once were the peak
     /// of reading): the uses checked, the instances placed, the compensation records found, and
-    /// each instance's name and whether it is of boxes.py's reference rectangle.
+    /// each instance's name and whether it is of boxes.py's reference rectangle (`mm_per_px`:
+    /// document mm per usvg pixel).
     fn read_source(
         &mut self,
         summary: &PlanSummary,
         lost: &[(usize, Option<usize>)],
+        mm_per_px: f64,
     ) -> Result<(Vec<String>, Vec<bool>)> {
         let doc = parse(&self.text)?;
         let el = Elements::of(&doc);
         let lost = lost.iter().map(|&(e, u)| self.name(&el, e, u));
         lost::refuse(lost)?;
         self.check_uses(&el)?;
-        place(&mut self.instances, &self.text, &el);
+        place(&mut self.instances, &self.text, &el, mm_per_px);
         self.records = Records {
             old: compensation::own_svg_records(&doc),
             at: doc.root_element().first_child().map(|n| n.range().start),
@@ -1136,16 +1152,22 @@ impl Format for SvgPlan<'_> {
             instances,
             paths,
             lost,
+            mm_per_px,
         }) = self.rendered.take()
         else {
             return Err(bad("internal error: the SVG was read twice"));
         };
         self.instances = instances;
-        let (names, boxes_reference) = self.read_source(&plan.summary, &lost)?;
+        let (names, boxes_reference) = self.read_source(&plan.summary, &lost, mm_per_px)?;
         let (traced, reach, farthest) = self.trace_all(paths, &names)?;
         if let Some(name) = names.get(farthest) {
             check_reach(reach, name, &mut plan.summary)?;
         }
+        let approximated: Vec<&str> = (self.instances.iter().zip(&names))
+            .filter(|(inst, _)| matches!(inst.exact, Exactness::Approximated))
+            .map(|(_, name)| name.as_str())
+            .collect();
+        exact::note_approximated(&approximated, &mut plan.summary);
         drop(names);
         plan.summary.cut_elements = self.instances.len();
         Self::contours(&mut plan, traced);
@@ -1448,6 +1470,7 @@ impl<'a> Walk<'a> {
                     subpath_count: 0,
                     drawn: Vec::new(),
                     stroke: stroke.map(|s| s.0),
+                    exact: Exactness::Usvg,
                     start: 0,
                     slots: Vec::new(),
                 };
@@ -1508,46 +1531,67 @@ fn subpaths_of(p: &tiny_skia_path::Path) -> Vec<Vec<Seg>> {
     subpaths
 }
 
-/// Where each instance's element starts in the source `text`, and where its new path data goes.
-fn place(instances: &mut [Instance], text: &str, el: &Elements) {
-    for inst in instances {
+/// Where each instance's element starts in the source `text`, where its new path data goes, and
+/// whether its curves are traced from its exact geometry (read from the source here, with its
+/// map to the page in double precision where the source gives it; `mm_per_px`: document mm per
+/// usvg pixel).
+fn place(instances: &mut [Instance], text: &str, el: &Elements, mm_per_px: f64) {
+    instances.par_iter_mut().for_each(|inst| {
         let node = el.shapes[inst.element];
         inst.start = node.range().start;
         inst.slots = geometry_slots(text, node);
+        let cloned = inst.via_use.is_some();
+        (inst.exact, inst.to_doc) = exact::exactness(node, inst.to_doc, mm_per_px, cloned);
+    });
+}
+
+/// The exact geometry of `inst` (drawn by usvg as `segs`, held to `eps` mm), when it has one that
+/// agrees with what usvg drew (see [`exact`]); an instance whose exact geometry does not agree is
+/// marked [`Exactness::Approximated`].
+fn exact_geometry(inst: &mut Instance, segs: &[Vec<Seg>], eps: f64) -> Option<Box<ExactPath>> {
+    match std::mem::take(&mut inst.exact) {
+        Exactness::Exact(path) if path.agrees(segs, &inst.to_doc, join_mm(eps)) => Some(path),
+        Exactness::Exact(_) | Exactness::Approximated => {
+            inst.exact = Exactness::Approximated;
+            None
+        }
+        Exactness::Usvg => None,
     }
 }
 
-/// One instance's subpaths (`subpaths`, in its element's coordinates) in document mm, ends within
-/// `eps` mm (see [`Reach::eps_mm`]) meeting; `name` names the instance.
+/// Points of an instance closer than this (mm) are one point, its coordinates held to `eps` mm
+/// (see [`Reach::eps_mm`]): 0.1 µm, more on huge pages (a few single-precision steps).
+fn join_mm(eps: f64) -> f64 {
+    (8.0 * eps).max(1e-4)
+}
+
+/// One instance's subpaths (`subpaths`, in its element's coordinates, or `exact`, its exact
+/// geometry, when given) in document mm, ends within [`join_mm`] meeting; `name` names the
+/// instance.
 fn trace(
     inst: &Instance,
     subpaths: &[Vec<Seg>],
+    exact: Option<&ExactPath>,
     eps: f64,
     name: &str,
     vertices: &AtomicUsize,
 ) -> Vec<Traced> {
     let n_sub = subpaths.len();
     let mut traced = Vec::with_capacity(n_sub);
+    // A curve may flatten to thousands of vertices (a line or move adds one): the budget is
+    // watched after each.
+    let over_budget =
+        |sink: &PathSink| vertices.load(Ordering::Relaxed) + sink.vertex_count() > MAX_CUT_VERTICES;
     for (si, segs) in subpaths.iter().enumerate() {
-        // Ends within 0.1 µm meet (more on huge pages: a few single-precision steps).
-        let mut sink = PathSink::new((8.0 * eps).max(1e-4), eps);
-        let doc = |p: P32| inst.to_doc.apply(p.v2());
-        for s in segs {
-            match *s {
-                Seg::M(p) => sink.move_to(doc(p)),
-                Seg::L(p) => sink.line_to(doc(p)),
-                Seg::Q(a, b) => sink.quad_to(doc(a), doc(b)),
-                Seg::C(a, b, c) => sink.cubic_to(doc(a), doc(b), doc(c)),
-                Seg::Z => sink.close(),
-            }
-            // A curve may flatten to thousands of vertices (a line or move adds one): the budget
-            // is watched after each.
-            let curve = matches!(s, Seg::Q(..) | Seg::C(..));
-            if curve && vertices.load(Ordering::Relaxed) + sink.vertex_count() > MAX_CUT_VERTICES {
-                // Refused by the caller: nothing more is traced.
-                vertices.store(usize::MAX, Ordering::Relaxed);
-                return traced;
-            }
+        let mut sink = PathSink::new(join_mm(eps), eps);
+        let over = match exact {
+            Some(exact) => exact.draw(si, &inst.to_doc, &mut sink, &over_budget),
+            None => draw_segs(segs, &inst.to_doc, &mut sink, &over_budget),
+        };
+        if over {
+            // Refused by the caller: nothing more is traced.
+            vertices.store(usize::MAX, Ordering::Relaxed);
+            return traced;
         }
         vertices.fetch_add(sink.vertex_count(), Ordering::Relaxed);
         let Some(sub) = sink.finish().into_iter().next() else {
@@ -1566,6 +1610,31 @@ fn trace(
         }
     }
     traced
+}
+
+/// Draw usvg's subpath `segs` into `sink` in document mm (through `to_doc`). After each curve,
+/// `over_budget` is asked whether the vertices drawn are too many: then drawing stops and `true`
+/// is returned.
+fn draw_segs(
+    segs: &[Seg],
+    to_doc: &Affine,
+    sink: &mut PathSink,
+    over_budget: &dyn Fn(&PathSink) -> bool,
+) -> bool {
+    let doc = |p: P32| to_doc.apply(p.v2());
+    for s in segs {
+        match *s {
+            Seg::M(p) => sink.move_to(doc(p)),
+            Seg::L(p) => sink.line_to(doc(p)),
+            Seg::Q(a, b) => sink.quad_to(doc(a), doc(b)),
+            Seg::C(a, b, c) => sink.cubic_to(doc(a), doc(b), doc(c)),
+            Seg::Z => sink.close(),
+        }
+        if matches!(s, Seg::Q(..) | Seg::C(..)) && over_budget(sink) {
+            return true;
+        }
+    }
+    false
 }
 
 /// How far an instance's coordinates reach from the origin, in document mm: through its own
