@@ -13,7 +13,7 @@
 //! statistics over repeated runs ([`stats`]), the bed map ([`map`]), safe output files
 //! ([`files`]), the laser cutter's GRBL driver ([`grbl`]), the automatic loop that cuts a gauge, measures
 //! it and cuts the job dilated ([`job`]), LightBurn's local REST API to write the kerf into its
-//! layers ([`lightburn`]) and, with the `sim` feature (on by default), the digital twin in-process
+//! layers ([`lightburn`]) and, with the `sim` feature (off by default: the CLI and Python turn it on), the digital twin in-process
 //! ([`sim`]) and a LightBurn twin ([`lightburn_twin`]).
 //!
 //! This crate is not the command-line tool (that is `kerfmeter-cli`, which also draws the plots)
