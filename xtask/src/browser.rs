@@ -1,11 +1,11 @@
 //! The web step of `cargo xtask test` (`cargo xtask test-browser` alone): the server's page in a
-//! real headless Chromium, and the README's WebSocket clients, against `kerfmeter --sim serve`.
+//! real headless Chromium, and the WebSocket clients of docs/server.md, against `kerfmeter --sim serve`.
 //!
 //! The browser is Debian's `chromium` with its `chromium-driver` (the same source package, so
 //! the driver always matches the browser), installed with apt-get when missing and this runs as
 //! root; otherwise the step fails with the command to run. The tests are Python (pytest, in
 //! `host-lib/cli/tests/web/`) driving the browser with Selenium, in the project's one venv (see
-//! [`crate::python`]), which also holds `websockets` for the README's Python client: one
+//! [`crate::python`]), which also holds `websockets` for the Python client of docs/server.md: one
 //! language and one environment for everything the step runs, and a driver that talks to the
 //! matching chromedriver with no browser download of its own. The JavaScript client runs on the
 //! machine's Node.js (20 or later).
@@ -23,9 +23,9 @@ const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 /// The Debian packages that hold them.
 const PACKAGES: [&str; 2] = ["chromium", "chromium-driver"];
 /// The Python packages the tests use, pinned: the browser driver (needs Python 3.10 or later)
-/// and the README client's WebSocket library (the newest that still runs on Python 3.9).
+/// and the WebSocket library of docs/server.md's client (the newest that still runs on Python 3.9).
 const PYTHON_PACKAGES: [&str; 2] = ["selenium==4.51.0", WEBSOCKETS];
-/// The WebSocket client library of the README's client, the web tests and `bench-serve`.
+/// The WebSocket client library of docs/server.md's client, the web tests and `bench-serve`.
 pub const WEBSOCKETS: &str = "websockets==15.0.1";
 
 /// Build the CLI, make sure the browser is there, and run the web tests.
@@ -108,7 +108,7 @@ pub(crate) fn is_root() -> bool {
 mod tests {
     use super::*;
 
-    /// The bodies of the README's fenced code blocks.
+    /// The bodies of a Markdown page's fenced code blocks.
     fn code_blocks(markdown: &str) -> Vec<String> {
         let mut blocks = Vec::new();
         let mut open: Option<String> = None;
@@ -123,17 +123,18 @@ mod tests {
         blocks
     }
 
-    /// The README shows the clients the web step runs, verbatim: what a reader copies works.
+    /// The server's page shows the clients the web step runs, verbatim: what a reader copies
+    /// works.
     #[test]
-    fn readme_shows_the_clients_verbatim() {
-        let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
-        let blocks = code_blocks(&readme);
+    fn the_docs_show_the_clients_verbatim() {
+        let page = std::fs::read_to_string(root().join("docs").join("server.md")).unwrap();
+        let blocks = code_blocks(&page);
         for name in ["client.py", "client.mjs"] {
             let path = root().join("examples").join("clients").join(name);
             let client = std::fs::read_to_string(&path).unwrap();
             assert!(
                 blocks.contains(&client),
-                "README.md has no code block equal to {}: copy the file into it",
+                "docs/server.md has no code block equal to {}: copy the file into it",
                 path.display()
             );
         }

@@ -468,7 +468,7 @@ pub fn run_on_target_tests(probe: bool) -> Result<()> {
     if !probe {
         bail!(
             "the on-target tests run on a real board only: connect the ESP32-C3 board's USB port \
-             (wired as README.md's wiring table says, no gauge on the hub, motor supply on) and \
+             (wired as docs/hardware.md's wiring table says, no gauge on the hub, motor supply on) and \
              pass --probe; nothing was run"
         );
     }

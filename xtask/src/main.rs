@@ -43,7 +43,7 @@ enum Cmd {
     /// project's venv (`target/python-venv`) and run its pytest suite on the twin.
     TestPython,
     /// The web step of `test` alone: the server's page in headless Chromium (Debian's chromium
-    /// and chromium-driver, installed when missing) and the README's WebSocket clients, against
+    /// and chromium-driver, installed when missing) and the WebSocket clients of docs/server.md, against
     /// `kerfmeter --sim serve`.
     TestBrowser,
     /// Build the firmware image for a chip (release) and print its flash and RAM use.

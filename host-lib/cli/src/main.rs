@@ -108,7 +108,7 @@ enum Command {
     /// ones), newest first, with a warning for each label whose kerf left its usual spread.
     History(history::HistoryArgs),
     /// Serve the device to other programs and browsers: JSON-RPC over a WebSocket (/rpc), HTTP
-    /// JSON (/api/...) and a page (/), on loopback by default (see the README's "Server").
+    /// JSON (/api/...) and a page (/), on loopback by default (see docs/server.md).
     Serve(commands::serve::ServeArgs),
 }
 

@@ -230,7 +230,7 @@ impl Placement {
                 "to put the prongs over the gauge at ({gx:.1}, {gy:.1}) mm the head would move to \
                  X{hx:.1} Y{hy:.1}, off the {bw} × {bh} mm bed {}: check --prong-offset-mm \
                  ({dx}, {dy} mm: the prongs' axis relative to the nozzle, a few tens of mm; see \
-                 the README to calibrate it), or move the gauge with --gauge-at-mm",
+                 docs/cutters.md to calibrate it), or move the gauge with --gauge-at-mm",
                 show_box(bed)
             )));
         }

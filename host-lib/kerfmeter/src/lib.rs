@@ -53,3 +53,8 @@ pub use error::{
 };
 pub use kerfmeter_protocol as protocol;
 pub use params::JointSpec;
+
+/// The code of `docs/rust.md`, run as this crate's doctests so that the page stays true.
+#[cfg(all(doctest, feature = "sim"))]
+#[doc = include_str!("../../../docs/rust.md")]
+struct RustDocsPage;

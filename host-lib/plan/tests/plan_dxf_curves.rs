@@ -3,7 +3,7 @@
 //! measured against the exact parallel curve (see `analytic`) as outlines and holes, 1 mm to
 //! 500 mm, aspect ratios up to 20:1, turned all round; and a closed `SPLINE`'s biarcs (read at
 //! no kerf) against the spline evaluated independently. Every point within the curve tolerance
-//! (0.05 µm), as the README says.
+//! (0.05 µm), as docs/plans.md says.
 //!
 //! Rotations and scales are drawn from a seeded generator ([`SEED`], developed against;
 //! `KERFMETER_CURVE_SEED=n` draws others); `--nocapture` prints the worst deviation by size.

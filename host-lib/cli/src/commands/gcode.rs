@@ -128,7 +128,7 @@ pub struct GcodeArgs {
     /// The kerf, the cut rules and what to do with a compensated plan (as for `dilate`).
     #[command(flatten)]
     pub dilation: DilationArgs,
-    /// Cut settings by colour or layer (TOML; see the README's G-code section).
+    /// Cut settings by colour or layer (TOML; see docs/plans.md, G-code).
     #[arg(long, value_name = "PROFILE.toml")]
     pub profile: Option<PathBuf>,
     /// Cut settings for every contour (or those the profile does not name).

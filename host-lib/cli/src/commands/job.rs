@@ -108,7 +108,7 @@ pub struct JobArgs {
     /// --dry-run]. With --cutter sim, the simulated cutter's travel too.
     #[arg(long, value_name = "W,H", allow_hyphen_values = true, value_parser = parse_xy)]
     pub bed_mm: Option<[f64; 2]>,
-    /// The prongs' axis relative to the laser nozzle, mm (see the README to calibrate it).
+    /// The prongs' axis relative to the laser nozzle, mm (see docs/cutters.md to calibrate it).
     #[arg(long, value_name = "DX,DY", allow_hyphen_values = true, value_parser = parse_xy, default_value = "0,0")]
     pub prong_offset_mm: [f64; 2],
     /// Z that lowers the prongs into the gauge's holes, mm.

@@ -362,7 +362,7 @@ fn write_run_warnings(
             let names: Vec<&str> = distrusting.names().collect();
             write!(
                 f,
-                "\nwarning: run {} is flagged {}: its kerf may be off by more than 3 µm (README: How a measurement works)",
+                "\nwarning: run {} is flagged {}: its kerf may be off by more than 3 µm (docs/measurement.md)",
                 i + 1,
                 names.join(", ")
             )?;

@@ -1,4 +1,4 @@
-"""The README's WebSocket clients (examples/clients/), each run against `kerfmeter --sim serve`:
+"""The WebSocket clients of docs/server.md (examples/clients/), each run against `kerfmeter --sim serve`:
 a measurement through run_kerfmeter, then the same kerf back from get_kerf_value."""
 
 import re

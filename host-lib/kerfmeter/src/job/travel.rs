@@ -115,7 +115,7 @@ fn check_prongs(travel: &Travel, request: &JobRequest<'_>) -> Result<(), JobErro
             refused(format!(
                 "to put the prongs over the gauge at ({gx:.1}, {gy:.1}) mm the head would move \
                  to {b}. Check --prong-offset-mm ({dx}, {dy} mm: the prongs' axis relative to \
-                 the nozzle, a few tens of mm; see the README to calibrate it), or move the \
+                 the nozzle, a few tens of mm; see docs/cutters.md to calibrate it), or move the \
                  gauge with --gauge-at-mm{}",
                 set_travel(&b)
             ))

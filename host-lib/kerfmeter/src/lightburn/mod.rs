@@ -47,7 +47,7 @@
 //! are in the changelog's "Unreleased" section: a LightBurn without them refuses the pairing
 //! (400, unknown capability), which this client reports as such. Which LightBurn release has
 //! them, and how a real LightBurn behaves where the spec is silent, is unverified here (the
-//! README's LightBurn section lists what).
+//! docs/lightburn.md lists what).
 
 mod apply;
 mod wire;

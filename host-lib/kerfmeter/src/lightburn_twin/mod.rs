@@ -37,7 +37,7 @@
 //! What it leaves out: the endpoints kerfmeter does not call (positions, jogging, events,
 //! uploads, the material library: 404 here), MillMage, the network listener (it binds loopback
 //! only), and everything the spec does not say (the internal cut's name and mode, LightBurn's
-//! layer colours, the exact text of its errors; see the README's LightBurn section for what stays
+//! layer colours, the exact text of its errors; see the docs/lightburn.md for what stays
 //! unverified without a real LightBurn). For tests, every request is recorded
 //! ([`LightBurnTwin::served`]), so is every change made ([`LightBurnTwin::posts`]), and a failure
 //! can be injected ([`LightBurnTwinOptions::fail_post`]).
