@@ -283,12 +283,12 @@ impl AppliedCompensation {
         format!(
             "\n<!-- {} -->\n<metadata><kerfmeter:compensation xmlns:kerfmeter=\"{NAMESPACE}\" tool=\"{}\" version=\"{}\" kerf_um=\"{}\" net_offset_um=\"{}\" offset_um=\"{}\" rules=\"{}\"/></metadata>",
             comment_safe(&comment),
-            xml_escape(&self.tool),
-            xml_escape(&self.version),
+            crate::xml::escape(&self.tool),
+            crate::xml::escape(&self.version),
             self.kerf_um,
             self.net_offset_um,
             self.offset_um,
-            xml_escape(&self.rules)
+            crate::xml::escape(&self.rules)
         )
     }
 
@@ -367,13 +367,6 @@ fn comment_safe(s: &str) -> String {
         out.push(' ');
     }
     out
-}
-
-fn xml_escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }
 
 /// What to do with a plan, decided from what it says and what the user asked.

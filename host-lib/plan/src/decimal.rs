@@ -3,6 +3,18 @@
 //! exactly was most of the time spent writing a large plan). The SVG and DXF writers each decide
 //! how they round and sign a number; the digits are written here.
 
+/// `v` rounded to `decimals` places and written without trailing zeros (nor a bare point), `-0`
+/// as `0`: how the gauge, G-code comments and LightBurn's values are written. (The plan writers'
+/// hot path uses [`write_scaled`] on values already rounded.)
+pub(crate) fn trimmed(v: f64, decimals: usize) -> String {
+    let mut s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        let kept = s.trim_end_matches('0').trim_end_matches('.').len();
+        s.truncate(kept);
+    }
+    if s == "-0" { "0".into() } else { s }
+}
+
 /// The decimals (0 to 12) that write a value to a step of `step` or finer: `step` 0.001 gives 3
 /// (a step a hair under a power of ten, from a scale that is 1 but for rounding, does not cost a
 /// decimal more).
@@ -60,6 +72,15 @@ pub(crate) fn write_scaled(mut n: u64, digits: usize, mut push: impl FnMut(&str)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn trimmed_drops_trailing_zeros_and_the_sign_of_zero() {
+        assert_eq!(trimmed(1.5, 6), "1.5");
+        assert_eq!(trimmed(2.0, 6), "2");
+        assert_eq!(trimmed(-0.0000001, 6), "0");
+        assert_eq!(trimmed(100.0, 0), "100");
+        assert_eq!(trimmed(-12.3456789, 4), "-12.3457");
+    }
 
     #[test]
     fn powers_of_ten_are_powi_s() {

@@ -357,20 +357,7 @@ fn record(d: &GaugeDrawing) -> GaugeRecord {
 }
 
 fn fmt6(v: f64) -> String {
-    let mut s = format!("{v:.6}");
-    while s.ends_with('0') {
-        s.pop();
-    }
-    if s.ends_with('.') {
-        s.pop();
-    }
-    if s == "-0" { "0".into() } else { s }
-}
-
-fn xml_escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
+    crate::decimal::trimmed(v, 6)
 }
 
 /// The gauge as an SVG document (mm units, y down).
@@ -446,7 +433,7 @@ pub fn to_svg(d: &GaugeDrawing) -> String {
                 r#"    <text x="{}" y="{}">{}</text>"#,
                 fmt6(p.x),
                 fmt6(p.y),
-                xml_escape(text)
+                crate::xml::escape(text)
             );
         }
         let _ = writeln!(s, "  </g>");

@@ -670,14 +670,9 @@ fn grid(p: V2) -> (i64, i64) {
 
 /// A grid value as text: up to 4 decimals, trailing zeros dropped, no `-0`.
 fn fmt_units(u: i64) -> String {
-    let sign = if u < 0 { "-" } else { "" };
-    let a = u.unsigned_abs();
-    let (int, frac) = (a / 10_000, a % 10_000);
-    if frac == 0 {
-        return format!("{sign}{int}");
-    }
-    let digits = format!("{frac:04}");
-    format!("{sign}{int}.{}", digits.trim_end_matches('0'))
+    let mut s = String::from(if u < 0 { "-" } else { "" });
+    crate::decimal::write_scaled(u.unsigned_abs(), 4, |part| s.push_str(part));
+    s
 }
 
 /// A comment's text as GRBL takes it: printable ASCII, no parentheses, not too long. GRBL acts

@@ -71,6 +71,7 @@ pub mod rules;
 pub mod selectors;
 mod source_file;
 pub mod svg;
+mod xml;
 
 pub use error::{PlanError, Result};
 pub use file::{

@@ -576,7 +576,5 @@ fn apply(text: &str, mut edits: Vec<Edit>) -> String {
 
 /// A length in mm as LightBurn writes it: up to 6 decimals (a nanometre), no trailing zeros.
 pub fn format_mm(mm: f64) -> String {
-    let s = format!("{mm:.6}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".into() } else { s.into() }
+    crate::decimal::trimmed(mm, 6)
 }
