@@ -20,6 +20,9 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 use super::offsets::{MM_PER_INCH, Modal, Motion, Offsets, Plane, Point};
 use super::protocol::ProgramLine;
 
+/// How near an arc's end a quarter point is taken for the end itself, rad.
+const ARC_END_RAD: f64 = 1e-9;
+
 /// GRBL's `ARC_ANGULAR_TRAVEL_EPSILON`: an arc's ends closer in angle are a full circle.
 const ARC_ANGULAR_TRAVEL_EPSILON: f64 = 5e-7;
 
@@ -344,8 +347,11 @@ impl Reader {
             false => (start_angle, start_angle + travel),
         };
         let mut points = vec![target];
-        let mut quarter = (low / FRAC_PI_2).ceil();
-        while quarter * FRAC_PI_2 <= high {
+        // Quarter points strictly inside the arc: at an end, the end itself counts (the start is
+        // where the head stands, the target as written), not the circle through the start,
+        // whose radius a program's rounded numbers make differ from the end's by a few 0.1 µm.
+        let mut quarter = ((low + ARC_END_RAD) / FRAC_PI_2).ceil();
+        while quarter * FRAC_PI_2 < high - ARC_END_RAD {
             let angle = quarter * FRAC_PI_2;
             let mut p = from;
             p[a0] = centre[0] + radius * angle.cos();
@@ -559,6 +565,16 @@ mod tests {
         assert_eq!(min, [-5.0, -6.0, -7.0]);
         let (min, _) = reach("G0 X-30\nG28.1\nG0 X0\nG28\n", &from);
         assert_eq!(min[0], -30.0);
+    }
+
+    #[test]
+    fn an_arc_that_ends_at_its_circles_lowest_point_reaches_its_end_as_written() {
+        // A rounded corner as a program writes it, to 4 decimals: the centre's offset from the
+        // start is 0.0003 mm longer than the end's, so the circle through the start dips below
+        // the end that the arc goes to; the end as written is what the head reaches.
+        let from = start([0.0, 0.0, 0.0]);
+        let (min, _) = reach("G1 X10.0003 Y5 F100\nG2 X5 Y0 I-5.0003 J0\n", &from);
+        assert_eq!(min[1], 0.0, "{min:?}");
     }
 
     #[test]
