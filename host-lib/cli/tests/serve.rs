@@ -374,8 +374,12 @@ fn a_second_client_aborts_a_run_and_every_client_hears_of_it() {
     let id = a.send("run_kerfmeter", json!({ "label": "a's run" }));
     assert_eq!(b.notification("run_started")["label"], "a's run");
     b.notification("progress");
-    // While the run goes, other device calls are refused, not queued behind it.
-    assert_eq!(code(&b.call("status", json!({}))), -32001);
+    // While the run goes, a call that writes to the device is refused, not queued behind it; a
+    // read is answered from the run's polls, with their age.
+    assert_eq!(code(&b.call("clear_fault", json!({}))), -32001);
+    let during = result(&b.call("status", json!({}))).clone();
+    assert!(during["poll_age_ms"].is_u64(), "{during}");
+    assert_ne!(during["state"], "idle", "{during}");
     assert_eq!(
         result(&b.call("abort", json!({}))),
         &json!({ "aborted": true })
