@@ -25,7 +25,8 @@ use cavalier_contours::core::math::{
 };
 use cavalier_contours::polyline::internal::pline_intersects::all_self_intersects_as_basic;
 use cavalier_contours::polyline::{
-    PlineSource, PlineSourceMut, PlineVertex, seg_arc_radius_and_center, seg_split_at_point,
+    PlineSource, PlineSourceMut, PlineVertex, seg_arc_radius_and_center, seg_closest_point,
+    seg_length, seg_split_at_point, seg_tangent_vector,
 };
 use cavalier_contours::static_aabb2d_index::{StaticAABB2DIndex, StaticAABB2DIndexBuilder};
 
@@ -37,18 +38,27 @@ const POS_EPS: f64 = 1e-9;
 const LOOP_MIN_MM: f64 = 1e-5;
 
 /// One loop to cut off: the contour keeps the start of segment `p` up to `x`, then goes on from
-/// `x` along the end of segment `q`; the vertices after `p` up to `q` (cyclically) go.
+/// `y` along the end of segment `q` (a straight step from `x` to `y` when they differ: a
+/// retrace's two passes); the vertices after `p` up to `q` (cyclically) go.
 #[derive(Debug, Clone, Copy)]
 struct LoopCut {
     p: usize,
     q: usize,
     x: V2,
+    y: V2,
 }
 
 /// Remove the small loops (each no larger than `max_loop_mm` across) a contour makes where it
 /// crosses itself, keeping the rest: the contour and how many loops went. Larger crossings stay
 /// (the dilation reports them).
 pub fn remove_corner_loops(p: &Pline, max_loop_mm: f64) -> (Pline, usize) {
+    let (looped, crossings) = remove_crossing_loops(p, max_loop_mm);
+    let (retraced, retraces) = remove_retraces(&looped, max_loop_mm);
+    (retraced, crossings + retraces)
+}
+
+/// The loops that cross the contour (see [`remove_corner_loops`]).
+fn remove_crossing_loops(p: &Pline, max_loop_mm: f64) -> (Pline, usize) {
     let mut cur = p.clone();
     let mut removed = 0;
     // Loops found together rarely overlap (several crossings at one point); a few rounds catch
@@ -112,9 +122,19 @@ fn small_loop(p: &Pline, a: usize, b: usize, x: V2, max: f64) -> Option<LoopCut>
     let reaches =
         |from: usize, to: usize| (from..=to).any(|i| (pos(p, i % n) - x).length() > LOOP_MIN_MM);
     if small(p, a + 1, b, x, max) && reaches(a + 1, b) {
-        Some(LoopCut { p: a, q: b, x })
+        Some(LoopCut {
+            p: a,
+            q: b,
+            x,
+            y: x,
+        })
     } else if small(p, b + 1, a + n, x, max) && reaches(b + 1, a + n) {
-        Some(LoopCut { p: b, q: a, x })
+        Some(LoopCut {
+            p: b,
+            q: a,
+            x,
+            y: x,
+        })
     } else {
         None
     }
@@ -141,16 +161,21 @@ fn disjoint(mut cuts: Vec<LoopCut>, n: usize) -> Vec<LoopCut> {
     chosen
 }
 
+/// Where a loop is cut off at a vertex: the vertex's new bulge (up to the cut), the step's
+/// start when the two passes are apart, and the vertex the contour goes on from.
+type Splice = (f64, Option<V2>, PlineVertex<f64>);
+
 /// The contour with the loops cut off.
 fn cut_loops(p: &Pline, cuts: &[LoopCut]) -> Pline {
     let n = p.vertex_count();
     let mut gone = vec![false; n];
-    let mut at: Vec<Option<(f64, PlineVertex<f64>)>> = vec![None; n];
+    let mut at: Vec<Option<Splice>> = vec![None; n];
     for c in cuts {
         span(c, n).skip(1).for_each(|i| gone[i] = true);
         let first = seg_split_at_point(p.at(c.p), p.at((c.p + 1) % n), c.x, POS_EPS);
-        let second = seg_split_at_point(p.at(c.q), p.at((c.q + 1) % n), c.x, POS_EPS);
-        at[c.p] = Some((first.updated_start.bulge, second.split_vertex));
+        let second = seg_split_at_point(p.at(c.q), p.at((c.q + 1) % n), c.y, POS_EPS);
+        let step = ((c.x - c.y).length() > POS_EPS).then_some(c.x);
+        at[c.p] = Some((first.updated_start.bulge, step, second.split_vertex));
     }
     let mut out = Pline::new_closed();
     for i in 0..n {
@@ -159,15 +184,119 @@ fn cut_loops(p: &Pline, cuts: &[LoopCut]) -> Pline {
         }
         let mut v = p.at(i);
         match at[i] {
-            Some((bulge, x)) => {
+            Some((bulge, step, y)) => {
                 v.bulge = bulge;
                 out.add_vertex(v);
-                out.add_vertex(x);
+                if let Some(x) = step {
+                    out.add(x.x, x.y, 0.0);
+                }
+                out.add_vertex(y);
             }
             None => out.add_vertex(v),
         }
     }
     out.remove_repeat_pos(POS_EPS).unwrap_or(out)
+}
+
+/// A reversal at a vertex is a cusp when its two directions are closer than 5° to opposite.
+const CUSP_COS: f64 = -0.996_19;
+/// The two passes of a retrace lie within this of each other, mm: boxes.py's 1 µm rounding of
+/// both, and the biarcs its Béziers are read as.
+const RETRACE_MM: f64 = 0.003;
+/// A retrace runs back at least this far, mm; less is the tip of a sharp notch.
+const RETRACE_MIN_MM: f64 = 0.01;
+
+/// Cut off every retrace no longer than `max_mm`: where the contour reverses at a cusp and runs
+/// back along itself (within [`RETRACE_MM`]), it is joined straight from where the first pass
+/// leaves the second. The contour, and how many went.
+fn remove_retraces(p: &Pline, max_mm: f64) -> (Pline, usize) {
+    let mut cur = p.clone();
+    let mut removed = 0;
+    while removed < p.vertex_count() && cur.vertex_count() >= 3 {
+        let Some(cut) = (0..cur.vertex_count()).find_map(|k| retrace_at(&cur, k, max_mm)) else {
+            break;
+        };
+        cur = cut_loops(&cur, &[cut]);
+        removed += 1;
+    }
+    (cur, removed)
+}
+
+/// The retrace that reverses at vertex `k`, if the contour reverses there and runs back along
+/// itself for at least [`RETRACE_MIN_MM`].
+fn retrace_at(p: &Pline, k: usize, max_mm: f64) -> Option<LoopCut> {
+    let n = p.vertex_count();
+    let (a, b, c) = (p.at((k + n - 1) % n), p.at(k), p.at((k + 1) % n));
+    let (t_in, t_out) = (
+        seg_tangent_vector(a, b, b.pos()),
+        seg_tangent_vector(b, c, b.pos()),
+    );
+    if t_in.length() < POS_EPS
+        || t_out.length() < POS_EPS
+        || t_in.normalize().dot(t_out.normalize()) > CUSP_COS
+    {
+        return None;
+    }
+    // The first pass (the segments before `k`, walked back) and the second (from `k` on). The
+    // retrace ends at the farthest vertex of the first pass that the second runs back over (where
+    // boxes.py's arc around a corner began); a tangent that merely leaves the cusp has none.
+    let first = walk(p, k, max_mm, false);
+    let second = walk(p, k, max_mm, true);
+    let mut end = None;
+    for &s in &first {
+        let (q, d) = nearest(p, &second, p.at(s).pos());
+        if d > RETRACE_MM {
+            break;
+        }
+        end = Some((s, q));
+    }
+    let (s, q) = end?;
+    let x = p.at(s).pos();
+    if (x - b.pos()).length() < RETRACE_MIN_MM {
+        return None;
+    }
+    let y = nearest_point(p, q, x);
+    // Keep the segment that ends at `x`, then go on from `y`.
+    Some(LoopCut {
+        p: (s + n - 1) % n,
+        q,
+        x,
+        y,
+    })
+}
+
+/// Segments from vertex `k` on (`forward`), or before it walked back, up to `max_mm` of length.
+fn walk(p: &Pline, k: usize, max_mm: f64, forward: bool) -> Vec<usize> {
+    let n = p.vertex_count();
+    let mut out = Vec::new();
+    let mut length = 0.0;
+    for i in 0..n - 1 {
+        let s = if forward {
+            (k + i) % n
+        } else {
+            (k + n - 1 - i) % n
+        };
+        out.push(s);
+        length += seg_length(p.at(s), p.at((s + 1) % n));
+        if length > max_mm {
+            break;
+        }
+    }
+    out
+}
+
+/// The segment among `segs` nearest to `x`, and its distance.
+fn nearest(p: &Pline, segs: &[usize], x: V2) -> (usize, f64) {
+    segs.iter()
+        .map(|&s| (s, (nearest_point(p, s, x) - x).length()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap_or((0, f64::INFINITY))
+}
+
+/// The point of segment `s` nearest to `x`.
+fn nearest_point(p: &Pline, s: usize, x: V2) -> V2 {
+    let n = p.vertex_count();
+    seg_closest_point(p.at(s), p.at((s + 1) % n), x, POS_EPS)
 }
 
 /// `offset` (a `cavalier_contours` offset of `source` by `r` mm into its material) with every
@@ -359,6 +488,66 @@ mod tests {
         // Everything else is the plain offset: one join arc fewer, one vertex fewer.
         assert_eq!(sharp.vertex_count() + 1, plain[0].vertex_count());
         assert!(sharp.iter_vertexes().all(|v| v.bulge == 0.0));
+    }
+
+    /// The square [0, 10]² offset by `b`, counter-clockwise, turned by 30° and written to 1 µm as
+    /// boxes.py writes; at its corner (10, 0) boxes.py's two turns at one point when `retrace`:
+    /// back 90° around the corner, then on 180° (over the same arc again), as a finger's last
+    /// inner turn followed by the polygon's corner draws it.
+    fn square(b: f64, retrace: bool) -> Pline {
+        let quarter = (std::f64::consts::FRAC_PI_2 / 4.0).tan();
+        let mut p = Pline::new_closed();
+        p.add(0.0, -b, 0.0);
+        if retrace {
+            p.add(10.0, -b, -quarter);
+            p.add(10.0 - b, 0.0, 1.0);
+        } else {
+            p.add(10.0, -b, quarter);
+        }
+        for (x, y, bulge) in [
+            (10.0 + b, 0.0, 0.0),
+            (10.0 + b, 10.0, quarter),
+            (10.0, 10.0 + b, 0.0),
+            (0.0, 10.0 + b, quarter),
+            (-b, 10.0, 0.0),
+            (-b, 0.0, quarter),
+        ] {
+            p.add(x, y, bulge);
+        }
+        let (sin, cos) = (std::f64::consts::FRAC_PI_6).sin_cos();
+        let um = |v: f64| (v * 1000.0).round() / 1000.0;
+        let mut turned = Pline::new_closed();
+        for v in p.iter_vertexes() {
+            turned.add(
+                um(cos * v.x - sin * v.y),
+                um(sin * v.x + cos * v.y),
+                v.bulge,
+            );
+        }
+        turned
+    }
+
+    #[test]
+    fn an_arc_drawn_back_and_over_again_at_one_corner_is_cut_back_to_the_corner_arc() {
+        let b = 0.1;
+        let (drawn, clean) = (square(b, true), square(b, false));
+        // It does not cross itself: no loop is found, but a crack runs into the part.
+        assert_eq!(remove_crossing_loops(&drawn, 0.5).1, 0);
+        let (cut, n) = remove_corner_loops(&drawn, 0.5);
+        assert_eq!(n, 1);
+        // The corner arc's start as read on each pass, a rounding apart, joined by a step.
+        assert_eq!(cut.vertex_count(), clean.vertex_count() + 1);
+        // Within boxes.py's rounding: 1 µm along the 40 mm outline.
+        assert!(
+            (cut.area() - clean.area()).abs() < 0.04 * 1e-3,
+            "{} {}",
+            cut.area(),
+            clean.area()
+        );
+        let m = square(b, true).at(2).pos();
+        assert!(cut.iter_vertexes().all(|v| (v.pos() - m).length() > 0.05));
+        // A tangent leaving a cusp is no retrace: the clean contour and a loop's cusp stay.
+        assert_eq!(remove_retraces(&clean, 0.5).1, 0);
     }
 
     #[test]
