@@ -13,6 +13,7 @@ mod deps;
 mod firmware;
 mod fuzz;
 mod python;
+mod recompensation;
 mod tools;
 
 use std::path::PathBuf;
@@ -431,6 +432,10 @@ fn test(args: &TestArgs) -> Result<()> {
                         .env_remove("KERFMETER_PORT"),
                 )
             }),
+        ),
+        (
+            "recompensation against boxes.py's own plans",
+            Box::new(recompensation::test),
         ),
         (
             "python package (pip install ./host-lib/python, pytest)",
