@@ -24,7 +24,7 @@
 //! `rx ≠ ry`, a rounded `<rect>` with `rx ≠ ry`, any arc under a skew or unequal scales), whose
 //! cubics cannot be made the arc again, is traced instead from its exact geometry, read from the
 //! source in double precision with its map to the page, subpath for subpath as usvg draws it
-//! (see [`exact`]).
+//! (see the private `svg::exact` module).
 //!
 //! **Writing.** A dilated contour is transformed back into the element's *own* coordinate system
 //! (through the inverse of all its transforms, so a scaled or skewed group stays as it is; an arc
