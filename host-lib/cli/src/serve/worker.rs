@@ -270,10 +270,12 @@ impl Device {
         } else if shared.busy.load(Ordering::SeqCst) && !matches!(call, Call::Abort) {
             // A read is answered from the long call's polls; an abort is never refused (one
             // that meets a run just started queues behind it).
-            return match call.query().and_then(|q| shared.latest.answer(q)) {
-                Some(answer) => Ok(answer),
-                None => Err(RpcError::busy()),
-            };
+            match call.query().map(|q| shared.latest.answer(q)) {
+                Some(Some(answer)) => return Ok(answer),
+                // A read before the long call's first poll was kept: queued, never refused.
+                Some(None) => {}
+                None => return Err(RpcError::busy()),
+            }
         }
         let guard = long.then(|| AbortOnDrop(Arc::clone(shared)));
         let (reply, answer) = oneshot::channel();
