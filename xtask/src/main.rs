@@ -9,6 +9,7 @@ mod bench;
 mod bench_plan;
 mod bench_serve;
 mod browser;
+mod cli_outputs;
 mod deps;
 mod firmware;
 mod fuzz;
@@ -83,6 +84,10 @@ enum Cmd {
     /// Round-trip latency of get_kerf_value over the serial port (p50, p99): the twin behind a
     /// pseudo-terminal, or a board with --port.
     BenchRtt(BenchRttArgs),
+    /// Every `kerfmeter` command in text and `--json` on the twins and the example plans, its
+    /// output and files kept one folder per case: run it with the binary from before a
+    /// reorganisation and after, and `diff -r` the two folders.
+    CliOutputs(cli_outputs::CliOutputsArgs),
 }
 
 #[derive(clap::Args)]
@@ -203,6 +208,7 @@ fn main() -> Result<()> {
         Cmd::BenchServe(args) => bench_serve::run(&args),
         Cmd::OnTarget(args) => firmware::run_on_target_tests(args.probe),
         Cmd::Hil(args) => hil(&args),
+        Cmd::CliOutputs(args) => cli_outputs::run(&args),
         Cmd::BenchRtt(args) => {
             let mut cmd = cargo();
             cmd.args([
