@@ -14,8 +14,9 @@ use crate::cargo;
 const BANNED: [&str; 5] = ["clap", "axum", "tokio", "pyo3", "plotters"];
 
 /// The library crates (everything but the front ends, the firmware binary and the tooling).
-const LIBRARIES: [&str; 5] = [
+const LIBRARIES: [&str; 6] = [
     "kerfmeter-protocol",
+    "kerfmeter-grbl",
     "kerfmeter",
     "kerfmeter-plan",
     "kerfmeter-history",

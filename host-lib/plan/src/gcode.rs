@@ -78,9 +78,10 @@ use crate::gauge::GaugeDrawing;
 use crate::geom::{ArcGeom, Pline, V2, arc_geom, area_and_centroid, v2};
 use crate::outcome::CutPath;
 use crate::profile::{CutSettings, Profile};
+use kerfmeter_grbl::{realtime, settings};
 
 /// The `S` value of full power when not told otherwise (GRBL's default `$30`).
-pub const DEFAULT_S_MAX: f64 = 1000.0;
+pub const DEFAULT_S_MAX: f64 = settings::DEFAULT_MAX_POWER_S;
 /// The resolution of the written coordinates, per mm (0.1 µm).
 const UNITS_PER_MM: f64 = 10_000.0;
 /// Arcs whose sagitta is below this are written as lines, mm.
@@ -98,8 +99,8 @@ const MAX_COMMENT_CHARS: usize = 60;
 const PREAMBLE: &str = "G17 G21 G90 G94\n";
 /// The header comment that declares the `S` of full power a program assumes:
 /// `(S_MAX=1000 must equal GRBL setting 30)`. The GRBL driver reads it and refuses a program
-/// whose value differs from the controller's `$30`.
-pub const S_MAX_TAG: &str = "S_MAX=";
+/// whose value differs from the controller's `$30` (one definition, in GRBL's table).
+pub use kerfmeter_grbl::S_MAX_TAG;
 
 /// One operation of a program. Coordinates are machine mm.
 #[derive(Debug, Clone, PartialEq)]
@@ -421,11 +422,15 @@ fn header_lines(
     }
     lines.extend([
         format!(
-            "{S_MAX_TAG}{} must equal GRBL setting 30",
-            fmt_plain(options.s_max)
+            "{S_MAX_TAG}{} must equal GRBL setting {}",
+            fmt_plain(options.s_max),
+            settings::MAX_POWER_S
         ),
-        "needs GRBL setting 32=1 laser mode".into(),
-        "arc tolerance setting 12 at most 0.002 mm, 0.001 better".into(),
+        format!("needs GRBL setting {}=1 laser mode", settings::LASER_MODE),
+        format!(
+            "arc tolerance setting {} at most 0.002 mm, 0.001 better",
+            settings::ARC_TOLERANCE_MM
+        ),
         format!(
             "{placed} X{} Y{} mm",
             fmt_plain(options.origin_mm[0]),
@@ -685,7 +690,8 @@ fn comment_text(s: &str) -> String {
             '(' => '[',
             ')' => ']',
             'µ' => 'u',
-            '?' | '!' | '~' | ';' | '$' => '_',
+            c if realtime::PRINTABLE.contains(&c) => '_',
+            ';' | '$' => '_',
             c if c.is_ascii_graphic() || c == ' ' => c,
             _ => '_',
         })

@@ -19,13 +19,9 @@ mod stop;
 mod travel;
 
 /// The realtime soft reset (ctrl-X): stops everything, laser off.
-const SOFT_RESET: u8 = 0x18;
-/// `$32`: laser mode.
-const LASER_MODE_SETTING: u16 = 32;
-/// `$30`: the `S` of full power.
-const MAX_POWER_SETTING: u16 = 30;
-/// `$13`: status reports in inches (1) or mm (0).
-const REPORT_INCHES_SETTING: u16 = 13;
+use kerfmeter_grbl::realtime::SOFT_RESET;
+use kerfmeter_grbl::settings::{LASER_MODE, MAX_POWER_S, REPORT_INCHES};
+use kerfmeter_grbl::{commands, realtime};
 /// While a controller talks without its banner yet (a boot log), the banner is waited for
 /// until it has been quiet this long...
 const BOOT_LOG_QUIET: Duration = Duration::from_millis(500);
@@ -268,7 +264,7 @@ impl Cutter {
             if !self.options.unlock {
                 return Err(self.tagged(self.alarm_at_connect()));
             }
-            self.command("$X")?;
+            self.command(commands::UNLOCK)?;
             status = self.status()?;
         }
         if status.state != MachineState::Idle {
@@ -286,7 +282,7 @@ impl Cutter {
     /// not say (or refuses `$I`).
     fn read_build_info(&mut self) {
         let rx_buffer = self
-            .command("$I")
+            .command(commands::BUILD_INFO)
             .ok()
             .and_then(|lines| lines.iter().find_map(|l| rx_buffer_from_build_info(l)));
         self.window = window_for(rx_buffer);
@@ -295,7 +291,7 @@ impl Cutter {
     /// Before waking a silent controller with a reset: refuse one that reports it is busy (a
     /// job, a hold, homing), without resetting it.
     fn refuse_if_busy(&mut self, seen: &mut Vec<String>) -> Result<(), CutterError> {
-        self.write(b"?")?;
+        self.write(&[realtime::STATUS_REPORT])?;
         let deadline = Instant::now() + self.options.reply_timeout;
         while let Some(line) = self.read_line(deadline)? {
             if let Reply::Status(status) = parse_reply(&line) {
@@ -356,7 +352,7 @@ impl Cutter {
     }
 
     fn read_settings(&mut self) -> Result<(), CutterError> {
-        for line in self.command("$$")? {
+        for line in self.command(commands::SETTINGS)? {
             if let Reply::Setting(number, value) = parse_reply(&line) {
                 self.settings.insert(number, value);
             }
@@ -375,7 +371,7 @@ impl Cutter {
         let Some(program_s_max) = declared else {
             return Ok(());
         };
-        let controller = self.settings.get(&MAX_POWER_SETTING).copied();
+        let controller = self.settings.get(&MAX_POWER_S).copied();
         if controller.is_some_and(|c| (c - program_s_max).abs() <= 1e-6 * c.abs().max(1.0)) {
             return Ok(());
         }
@@ -386,7 +382,7 @@ impl Cutter {
     }
 
     fn check_laser_mode(&self) -> Result<(), CutterError> {
-        let laser_mode = self.settings.get(&LASER_MODE_SETTING);
+        let laser_mode = self.settings.get(&LASER_MODE);
         if laser_mode == Some(&1.0) || self.options.allow_without_laser_mode {
             return Ok(());
         }
@@ -438,7 +434,7 @@ impl Cutter {
     /// makes it ask once more; a second banner is [`CutterError::Restarted`].
     pub fn status(&mut self) -> Result<Status, CutterError> {
         for attempt in 0..2 {
-            self.write(b"?")?;
+            self.write(&[realtime::STATUS_REPORT])?;
             let deadline = Instant::now() + self.options.reply_timeout;
             while let Some(line) = self.read_line(deadline)? {
                 match parse_reply(&line) {
@@ -458,7 +454,7 @@ impl Cutter {
 
     /// `status` with its position and feed in mm, when the controller reports inches (`$13=1`).
     fn in_mm(&self, mut status: Status) -> Status {
-        if self.settings.get(&REPORT_INCHES_SETTING) == Some(&1.0) {
+        if self.settings.get(&REPORT_INCHES) == Some(&1.0) {
             const MM_PER_INCH: f64 = 25.4;
             status.position_mm = status.position_mm.map(|p| p.map(|v| v * MM_PER_INCH));
             status.work_position_mm = status.work_position_mm.map(|p| p.map(|v| v * MM_PER_INCH));
@@ -690,7 +686,7 @@ impl Cutter {
             self.write(&bytes)?;
         }
         if last_poll.is_none_or(|t| t.elapsed() >= self.options.poll_interval) {
-            self.write(b"?")?;
+            self.write(&[realtime::STATUS_REPORT])?;
             *last_poll = Some(Instant::now());
         }
         Ok(streamer.unanswered_bytes())
@@ -830,7 +826,7 @@ impl Drop for Cutter {
     /// Dropped in the middle of a job (a panic unwinding): stop the cutter, best effort.
     fn drop(&mut self) {
         if self.in_job {
-            let _ = self.link.write_all(&[b'!', SOFT_RESET]);
+            let _ = self.link.write_all(&[realtime::FEED_HOLD, SOFT_RESET]);
             let _ = self.link.flush();
         }
     }

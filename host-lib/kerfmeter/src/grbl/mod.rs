@@ -4,7 +4,8 @@
 //!
 //! - [`protocol`]: the protocol without I/O: a program cleaned into lines, replies and status
 //!   reports parsed, and the character-counting [`protocol::Streamer`].
-//! - [`codes`]: what each `error:N` and `ALARM:N` means.
+//! - [`codes`]: what each `error:N` and `ALARM:N` means (GRBL's facts are one table, the
+//!   `kerfmeter-grbl` crate, which the G-code writer and the cutter twin read too).
 //! - [`travel`], [`extent`], [`offsets`]: the machine's travel (`$130`–`$132`, homing, soft
 //!   limits), how far a program's moves reach as GRBL reads them, and the work offsets and parser
 //!   state that place its numbers.
@@ -63,7 +64,7 @@
 //! THE LASER MAY STILL BE ON ([`CutterError::NotStopped`]) and asks for the laser to be switched
 //! off at the machine.
 
-pub mod codes;
+pub use kerfmeter_grbl::codes;
 mod driver;
 mod error;
 pub mod extent;

@@ -9,11 +9,11 @@
 
 use std::collections::VecDeque;
 
-/// GRBL's serial receive buffer, bytes.
-pub const RX_BUFFER_LEN: usize = 128;
-/// The longest line GRBL 1.1 takes, without spaces and comments: its line buffer is 80 bytes
-/// and one is kept for the terminator, so 79 characters; longer lines are refused.
-pub const LINE_MAX_LEN: usize = 79;
+use kerfmeter_grbl::realtime;
+/// GRBL's receive buffer and line limit, and its status report, from the one table of GRBL's
+/// facts (`kerfmeter-grbl`).
+pub use kerfmeter_grbl::status::{BufferFree, MachineState, Status};
+pub use kerfmeter_grbl::{LINE_MAX_LEN, RX_BUFFER_LEN};
 
 /// One line of a program, ready to stream.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -36,17 +36,15 @@ pub struct BadLine {
     pub reason: String,
 }
 
-/// The header comment by which a program declares the `S` of full power (GRBL's `$30`) its
-/// powers assume: `(S_MAX=1000 must equal GRBL setting 30)`, as `kerfmeter gcode` and
-/// `kerfmeter gauge` write it (kerfmeter-plan's `gcode::S_MAX_TAG`).
-pub const S_MAX_TAG: &str = "(S_MAX=";
-
-/// The `S` of full power a program declares ([`S_MAX_TAG`]), if it declares one. A declaration
-/// without a positive number, or two that disagree, make a bad line.
+/// The `S` of full power a program declares in a comment that opens with
+/// [`kerfmeter_grbl::S_MAX_TAG`] (`(S_MAX=1000 must equal GRBL setting 30)`, as `kerfmeter
+/// gcode` and `kerfmeter gauge` write it), if it declares one. A declaration without a positive
+/// number, or two that disagree, make a bad line.
 pub fn declared_s_max(program: &str) -> Result<Option<f64>, BadLine> {
     let mut found: Option<f64> = None;
     for (index, raw) in program_lines(program).enumerate() {
-        let Some(rest) = raw.trim().strip_prefix(S_MAX_TAG) else {
+        let tagged = raw.trim().strip_prefix('(');
+        let Some(rest) = tagged.and_then(|r| r.strip_prefix(kerfmeter_grbl::S_MAX_TAG)) else {
             continue;
         };
         let number = index + 1;
@@ -168,7 +166,7 @@ fn clean(raw: &str) -> Result<String, String> {
             ')' if in_comment => in_comment = false,
             ';' if !in_comment => break,
             _ if in_comment => {}
-            '?' | '!' | '~' => {
+            c if realtime::PRINTABLE.contains(&c) => {
                 return Err(format!(
                     "`{c}` outside a comment would be taken by GRBL as a realtime command"
                 ));
@@ -184,7 +182,9 @@ fn clean(raw: &str) -> Result<String, String> {
 /// The receive buffer a `$I` build-info line reports (`[OPT:V,15,128]`: options, planner
 /// blocks, receive-buffer bytes); `None` for any other line.
 pub fn rx_buffer_from_build_info(line: &str) -> Option<usize> {
-    let options = line.strip_prefix("[OPT:")?.strip_suffix(']')?;
+    let options = line
+        .strip_prefix(kerfmeter_grbl::BUILD_OPTIONS_PREFIX)?
+        .strip_suffix(']')?;
     options.split(',').nth(2)?.trim().parse().ok()
 }
 
@@ -223,25 +223,34 @@ pub enum Reply {
 /// Classify one line (without its line ending).
 pub fn parse_reply(line: &str) -> Reply {
     let line = line.trim();
-    if line == "ok" {
+    if line == kerfmeter_grbl::OK {
         return Reply::Ok;
     }
     let code = |rest: &str| rest.trim().parse::<u8>().ok();
-    if let Some(n) = line.strip_prefix("error:").and_then(code) {
+    if let Some(n) = line
+        .strip_prefix(kerfmeter_grbl::ERROR_PREFIX)
+        .and_then(code)
+    {
         return Reply::Error(n);
     }
-    if let Some(n) = line.strip_prefix("ALARM:").and_then(code) {
+    if let Some(n) = line
+        .strip_prefix(kerfmeter_grbl::ALARM_PREFIX)
+        .and_then(code)
+    {
         return Reply::Alarm(n);
     }
     // GRBL's banner; grblHAL names itself `GrblHAL`, FluidNC says `Grbl 3.x [FluidNC ...]`.
     if let Some(rest) = line
-        .strip_prefix("Grbl ")
-        .or_else(|| line.strip_prefix("GrblHAL "))
+        .strip_prefix(kerfmeter_grbl::BANNER_PREFIX)
+        .or_else(|| line.strip_prefix(kerfmeter_grbl::GRBLHAL_BANNER_PREFIX))
     {
         let version = rest.split_whitespace().next().unwrap_or_default();
         return Reply::Banner(version.to_owned());
     }
-    if let Some(message) = line.strip_prefix("[MSG:").and_then(|m| m.strip_suffix(']')) {
+    if let Some(message) = line
+        .strip_prefix(kerfmeter_grbl::MESSAGE_PREFIX)
+        .and_then(|m| m.strip_suffix(']'))
+    {
         return Reply::Message(message.to_owned());
     }
     if let Some(status) = Status::parse(line) {
@@ -253,129 +262,6 @@ pub fn parse_reply(line: &str) -> Reply {
         return Reply::Setting(n, v);
     }
     Reply::Other(line.to_owned())
-}
-
-/// The machine's state, as a status report names it.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum MachineState {
-    /// At rest, ready.
-    Idle,
-    /// Running a program.
-    Run,
-    /// Feed hold: `Hold:1` while stopping, `Hold:0` once stopped.
-    Hold(u8),
-    /// Jogging.
-    Jog,
-    /// In alarm: G-code is locked until `$X` (or homing).
-    Alarm,
-    /// The safety door is open (its sub-state).
-    Door(u8),
-    /// Check mode (`$C`).
-    Check,
-    /// Homing.
-    Home,
-    /// Asleep.
-    Sleep,
-    /// A state this program does not know.
-    Other(String),
-}
-
-impl MachineState {
-    fn parse(text: &str) -> Self {
-        let (name, sub) = match text.split_once(':') {
-            Some((name, sub)) => (name, sub.parse().unwrap_or(0)),
-            None => (text, 0),
-        };
-        match name {
-            "Idle" => Self::Idle,
-            "Run" => Self::Run,
-            "Hold" => Self::Hold(sub),
-            "Jog" => Self::Jog,
-            "Alarm" => Self::Alarm,
-            "Door" => Self::Door(sub),
-            "Check" => Self::Check,
-            "Home" => Self::Home,
-            "Sleep" => Self::Sleep,
-            _ => Self::Other(text.to_owned()),
-        }
-    }
-}
-
-impl std::fmt::Display for MachineState {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Hold(n) => write!(f, "Hold:{n}"),
-            Self::Door(n) => write!(f, "Door:{n}"),
-            Self::Other(s) => f.write_str(s),
-            other => write!(f, "{other:?}"),
-        }
-    }
-}
-
-/// The free room a status report's `Bf` field gives.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct BufferFree {
-    /// Free planner blocks.
-    pub planner_blocks: u32,
-    /// Free receive-buffer bytes.
-    pub rx_bytes: u32,
-}
-
-/// A status report (`<Idle|MPos:0.000,0.000,0.000|FS:0,0>`); the fields a controller leaves out
-/// are `None`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Status {
-    /// The machine's state.
-    pub state: MachineState,
-    /// Machine position, mm (`MPos`; `None` when it reports `WPos` only).
-    pub position_mm: Option<[f64; 3]>,
-    /// Work position, mm (`WPos`, which a controller reports instead of `MPos` with `$10=0`).
-    pub work_position_mm: Option<[f64; 3]>,
-    /// Feed now, mm/min, and spindle (laser) value (`FS`).
-    pub feed_mm_per_min: Option<f64>,
-    /// The spindle (laser) value now (`FS`).
-    pub spindle_s: Option<f64>,
-    /// Free planner blocks and free receive-buffer bytes (`Bf`).
-    pub buffer_free: Option<BufferFree>,
-}
-
-impl Status {
-    /// Parse `<...>`; `None` when `line` is not a status report.
-    pub fn parse(line: &str) -> Option<Self> {
-        let body = line.strip_prefix('<')?.strip_suffix('>')?;
-        let mut fields = body.split('|');
-        let mut status = Status {
-            state: MachineState::parse(fields.next()?),
-            position_mm: None,
-            work_position_mm: None,
-            feed_mm_per_min: None,
-            spindle_s: None,
-            buffer_free: None,
-        };
-        for field in fields {
-            let Some((name, value)) = field.split_once(':') else {
-                continue;
-            };
-            let numbers: Vec<f64> = value.split(',').filter_map(|v| v.parse().ok()).collect();
-            match (name, numbers.as_slice()) {
-                ("MPos", [x, y, z, ..]) => status.position_mm = Some([*x, *y, *z]),
-                ("WPos", [x, y, z, ..]) => status.work_position_mm = Some([*x, *y, *z]),
-                ("FS", [feed, s]) => {
-                    status.feed_mm_per_min = Some(*feed);
-                    status.spindle_s = Some(*s);
-                }
-                ("F", [feed]) => status.feed_mm_per_min = Some(*feed),
-                ("Bf", [blocks, bytes]) => {
-                    status.buffer_free = Some(BufferFree {
-                        planner_blocks: *blocks as u32,
-                        rx_bytes: *bytes as u32,
-                    })
-                }
-                _ => {}
-            }
-        }
-        Some(status)
-    }
 }
 
 /// A reply the streamer did not expect.

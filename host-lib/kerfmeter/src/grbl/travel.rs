@@ -38,13 +38,11 @@ use super::offsets::{Modal, Point};
 use super::protocol::ProgramLine;
 
 /// `$130`–`$132`: the X, Y and Z travel, mm.
-pub const TRAVEL_SETTINGS: [u16; 3] = [130, 131, 132];
-/// `$20`: soft limits.
-const SOFT_LIMITS_SETTING: u16 = 20;
-/// `$22`: homing.
-const HOMING_SETTING: u16 = 22;
-/// `$23`: the axes that home toward negative.
-const HOMING_DIR_SETTING: u16 = 23;
+pub use kerfmeter_grbl::settings::MAX_TRAVEL_MM as TRAVEL_SETTINGS;
+use kerfmeter_grbl::settings::{
+    HOMING as HOMING_SETTING, HOMING_DIR_MASK as HOMING_DIR_SETTING,
+    SOFT_LIMITS as SOFT_LIMITS_SETTING,
+};
 /// The axes' names.
 pub const AXES: [char; 3] = ['X', 'Y', 'Z'];
 /// Rounding allowed at a limit, mm (programs are written to 0.1 µm).

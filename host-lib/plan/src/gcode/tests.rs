@@ -125,7 +125,10 @@ fn reread(text: &str) -> Vec<Vec<Traced>> {
             }
             _ => {}
         }
-        assert!(line.len() < 80, "line too long for GRBL: {line}");
+        assert!(
+            line.len() <= kerfmeter_grbl::LINE_MAX_LEN,
+            "line too long for GRBL: {line}"
+        );
     }
     assert!(!on, "the text ends with the laser on");
     runs

@@ -7,6 +7,7 @@ use std::time::Instant;
 use super::super::error::CutterError;
 use super::super::protocol::{ProgramLine, Reply, Streamer, parse_reply};
 use super::{CLOSING_LINE, Cutter, StreamProgress};
+use kerfmeter_grbl::commands;
 
 impl Cutter {
     /// The check pass: the program through check mode (`$C`), where GRBL parses and answers
@@ -19,7 +20,7 @@ impl Cutter {
         cancel: &AtomicBool,
         progress: &mut dyn FnMut(&StreamProgress),
     ) -> Result<(), CutterError> {
-        self.command("$C")?;
+        self.command(commands::CHECK_MODE)?;
         let refused = self.check_lines(lines, cancel, progress);
         let left = self.leave_check_mode();
         match (refused?, left) {
@@ -81,7 +82,7 @@ impl Cutter {
 
     /// `$C` again: GRBL answers `ok`, then resets (its banner).
     fn leave_check_mode(&mut self) -> Result<(), CutterError> {
-        self.command("$C")?;
+        self.command(commands::CHECK_MODE)?;
         let mut seen = Vec::new();
         if self.await_banner(self.options.reply_timeout, &mut seen)? {
             Ok(())
@@ -92,7 +93,7 @@ impl Cutter {
 
     /// After the closing `M5`: the parser state must say M5 and the status spindle 0.
     pub(super) fn confirm_laser_off(&mut self) -> Result<(), CutterError> {
-        let said = self.command("$G")?;
+        let said = self.command(commands::PARSER_STATE)?;
         let parser_state = said.iter().find(|l| l.starts_with("[GC:"));
         let m5 = parser_state.is_some_and(|gc| {
             gc.trim_end_matches(']')

@@ -8,13 +8,14 @@ use super::super::error::CutterError;
 use super::super::protocol::{MachineState, Reply, parse_reply};
 use super::super::transport::READ_SLICE;
 use super::{Cutter, SOFT_RESET};
+use kerfmeter_grbl::codes::ALARM_ABORT_CYCLE;
+use kerfmeter_grbl::realtime;
+use kerfmeter_grbl::settings::{ACCELERATION_MM_PER_S2, MAX_RATE_MM_PER_MIN};
 
-/// `ALARM:3`: reset while in motion, the position may be lost.
-const ALARM_ABORT_CYCLE: u8 = 3;
 /// `$110`, `$111`: the X and Y maximum rates, mm/min.
-const MAX_RATE_SETTINGS: [u16; 2] = [110, 111];
+const MAX_RATE_SETTINGS: [u16; 2] = [MAX_RATE_MM_PER_MIN[0], MAX_RATE_MM_PER_MIN[1]];
 /// `$120`, `$121`: the X and Y accelerations, mm/s².
-const ACCELERATION_SETTINGS: [u16; 2] = [120, 121];
+const ACCELERATION_SETTINGS: [u16; 2] = [ACCELERATION_MM_PER_S2[0], ACCELERATION_MM_PER_S2[1]];
 /// The longest a feed hold is waited for, whatever the settings say.
 const HOLD_WAIT_MAX: Duration = Duration::from_secs(60);
 /// How long one soft reset is given to bring the banner before it is sent again.
@@ -32,7 +33,7 @@ impl Cutter {
 
     /// [`Cutter::stop`]; true when the reset raised `ALARM:3` (the machine still moved).
     fn halt(&mut self) -> Result<bool, CutterError> {
-        let _ = self.write(b"!");
+        let _ = self.write(&[realtime::FEED_HOLD]);
         let deadline = Instant::now() + self.hold_wait();
         // A status request that cannot be written goes straight to the reset, which is tried
         // again until the reply timeout.
@@ -43,7 +44,7 @@ impl Cutter {
     /// One status request while holding: true once the machine reports it has stopped; `None`
     /// when the request cannot be written.
     fn poll_stopped(&mut self, deadline: Instant) -> Option<bool> {
-        self.write(b"?").ok()?;
+        self.write(&[realtime::STATUS_REPORT]).ok()?;
         let poll_end = (Instant::now() + Duration::from_millis(50)).min(deadline);
         let mut stopped = false;
         while let Ok(Some(line)) = self.read_line(poll_end) {

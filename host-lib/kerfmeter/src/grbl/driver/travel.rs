@@ -8,7 +8,9 @@ use super::super::extent::Start;
 use super::super::offsets::{MM_PER_INCH, Modal, Offsets};
 use super::super::protocol::ProgramLine;
 use super::super::travel::Travel;
-use super::{Cutter, REPORT_INCHES_SETTING};
+use super::Cutter;
+use kerfmeter_grbl::commands;
+use kerfmeter_grbl::settings::REPORT_INCHES;
 
 impl Cutter {
     /// The machine's travel as the next program will start in it, as read at connect or before
@@ -41,12 +43,12 @@ impl Cutter {
                 "the controller reports its travel ($130–$132) but not {what}: it said {said:?}"
             ))
         };
-        let said = self.command("$#")?;
-        let inches = self.settings.get(&REPORT_INCHES_SETTING) == Some(&1.0);
+        let said = self.command(commands::PARAMETERS)?;
+        let inches = self.settings.get(&REPORT_INCHES) == Some(&1.0);
         let mm_per_unit = if inches { MM_PER_INCH } else { 1.0 };
         let offsets = Offsets::parse(&said, mm_per_unit)
             .ok_or_else(|| unreadable("its work offsets (`$#`)", &said))?;
-        let said = self.command("$G")?;
+        let said = self.command(commands::PARSER_STATE)?;
         let modal = said
             .iter()
             .find_map(|l| Modal::parse(l))
