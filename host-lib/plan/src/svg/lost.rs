@@ -22,8 +22,10 @@ use std::collections::HashSet;
 
 use roxmltree::Node;
 
+use super::bad;
+use super::edits::tag_name_range;
 use super::path_data::FARTHEST_COORDINATE;
-use super::{USE_TAG, bad, tag_name_range};
+use super::tagging::USE_TAG;
 use crate::error::{PlanError, Problems, Result};
 
 /// The scale of the drawing made again, on the root: 2^-22 (see the module's docs).

@@ -86,7 +86,7 @@ fn root_map(root: Node) -> Option<Affine> {
     let vb = ViewBox::from_str(view_box).ok()?;
     let size = |name| {
         let l = Length::from_str(root.attribute(name)?).ok()?;
-        super::super::length_px(&l)
+        super::super::units::length_px(&l)
     };
     let (width, height) = (size("width")?, size("height")?);
     let aspect = match root.attribute("preserveAspectRatio") {

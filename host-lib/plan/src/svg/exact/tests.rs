@@ -5,7 +5,8 @@
 
 use super::*;
 use crate::dilate::KerfSource;
-use crate::svg::{SvgOptions, dilate_svg, subpaths_of};
+use crate::svg::walk::subpaths_of;
+use crate::svg::{SvgOptions, dilate_svg};
 
 /// usvg's subpaths of the only path in `svg`, and its map to px.
 fn usvg_subpaths(svg: &str) -> (Vec<Vec<Seg>>, Affine) {
@@ -17,7 +18,7 @@ fn usvg_subpaths(svg: &str) -> (Vec<Vec<Seg>>, Affine) {
             Some(usvg::Node::Path(p)) => {
                 return (
                     subpaths_of(p.data()),
-                    super::super::affine(p.abs_transform()),
+                    super::super::walk::affine(p.abs_transform()),
                 );
             }
             _ => panic!("no path in {svg}"),
