@@ -1,13 +1,14 @@
 //! Path data as written back: a dilated contour in its element's own coordinates (arcs as `A`
 //! arcs, elliptical where the transform is not a similarity), the subpaths kept as drawn, and
-//! their numbers (the digits written by the crate's `decimal` module).
+//! their numbers (the digits written by the crate's `decimal` module, the one place numbers are
+//! written).
 
 use std::fmt::Write as _;
 
 use cavalier_contours::polyline::PlineSource;
 
 use super::Seg;
-use crate::decimal::{decimals_for_step, pow10, write_scaled};
+use crate::decimal::{decimals_for_step, pow10, trimmed, write_scaled};
 use crate::geom::{Affine, Pline, V2, arc_geom, v2};
 
 /// Decimal places that keep 0.01 µm in the element's coordinates.
@@ -29,19 +30,7 @@ pub(super) fn num(v: f64, digits: usize, out: &mut String) {
         write_scaled(scaled.abs() as u64, digits, |s| out.push_str(s));
         return;
     }
-    let mut s = format!("{v:.digits$}");
-    if s.contains('.') {
-        while s.ends_with('0') {
-            s.pop();
-        }
-        if s.ends_with('.') {
-            s.pop();
-        }
-    }
-    if s == "-0" {
-        s = "0".into();
-    }
-    out.push_str(&s);
+    out.push_str(&trimmed(v, digits));
 }
 
 fn point(p: V2, digits: usize, out: &mut String) {
