@@ -1,6 +1,6 @@
 //! The gauge a cutter cut, recovered from what its laser traced: the link between the cutter twin
-//! ([`crate::cutter`], whose [`CutterRecord`](crate::cutter::CutterRecord) lists every segment
-//! the laser cut) and the device twin's plant ([`crate::plant`]), so that the gauge the device
+//! (`kerfmeter::grbl::twin`, whose record lists every segment the laser cut, [`crate::traced`])
+//! and the device twin's plant ([`crate::plant`]), so that the gauge the device
 //! twin measures is the gauge the G-code cut ([`crate::Twin::place_traced_gauge`]). A gauge whose
 //! G-code is wrong is measured wrong, as on a real machine.
 //!
@@ -60,9 +60,8 @@ use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_protocol::spiral::{pitch_mm_per_rad, start_radius_mm};
 use kerfmeter_protocol::{GaugeGeometry, JamDirection};
 
-use crate::cutter::motion::sweep_rad;
-use crate::cutter::{Segment, SegmentKind};
 use crate::plant::{Cutter, GaugeCut};
+use crate::traced::{Segment, SegmentKind, sweep_rad};
 
 /// How far beyond the nominal gauge's outer radius cuts still count as the gauge's, mm.
 pub const SEARCH_MARGIN_MM: f64 = 1.0;

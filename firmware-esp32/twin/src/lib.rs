@@ -17,8 +17,9 @@
 //! - [`pty`]: [`PtyTwin`], a twin served on a pseudo-terminal by a thread, whose client side is an
 //!   ordinary serial port.
 //! - [`study`]: many twins in-process: the robustness sweep and the paper's fit study.
-//! - [`cutter`]: the cutter twin, a simulated GRBL 1.1 laser cutter (sans-IO), and its server on
-//!   a pseudo-terminal or a TCP port, with a record of what its laser traced.
+//! - [`traced`]: what a cutter's laser traced ([`traced::Segment`]), as the cutter twin (a
+//!   simulated GRBL 1.1 laser cutter, in the `kerfmeter` library's `grbl::twin`, feature `sim`)
+//!   records it.
 //! - [`gauge_trace`]: the gauge a cutter cut, recovered from what its laser traced (spiral
 //!   centre, pitch and sense, holes), for the device twin to measure
 //!   ([`Twin::place_traced_gauge`]); refused with the reason when the device could not.
@@ -100,7 +101,6 @@
 //! sheet; a hole out of round, or a kerf that varies around the spiral rather than through the
 //! sheet; the zero the user sets being quantised to one LSB.
 
-pub mod cutter;
 pub mod encoder;
 pub mod gauge_trace;
 pub mod options;
@@ -111,6 +111,7 @@ pub mod serve;
 pub mod sim;
 pub mod study;
 pub mod timing;
+pub mod traced;
 pub mod truth;
 
 pub use options::{InjectedFault, InvalidOptions, TwinOptions, UnknownFault};

@@ -14,12 +14,12 @@ use serialport::{SerialPort, TTYPort};
 use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_protocol::GaugeGeometry;
 
-use crate::cutter::Segment;
 use crate::gauge_trace::{GaugeTraceError, TracedGaugeSlot};
 use crate::options::{InvalidOptions, TwinOptions};
 use crate::plant::{Cutter, GaugeCut};
 use crate::serve::{Served, serve};
 use crate::sim::Twin;
+use crate::traced::Segment;
 use crate::truth::TruthLog;
 
 /// Mixed into the seed of the stream that draws the cuts of the traced gauges placed from the

@@ -162,7 +162,7 @@ pub fn serve<P: Read + Write + ?Sized>(
 }
 
 /// A read that found nothing in time (or was interrupted): try again.
-pub(crate) fn is_timeout(e: &io::Error) -> bool {
+pub fn is_timeout(e: &io::Error) -> bool {
     matches!(
         e.kind(),
         ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
@@ -170,7 +170,7 @@ pub(crate) fn is_timeout(e: &io::Error) -> bool {
 }
 
 /// A pseudo-terminal master reports `EIO` once the slave side is closed.
-pub(crate) fn is_hangup(e: &io::Error) -> bool {
+pub fn is_hangup(e: &io::Error) -> bool {
     e.raw_os_error() == Some(5)
         || matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::UnexpectedEof)
 }

@@ -35,13 +35,13 @@
 
 use kerfmeter_protocol::{DeviceConfig, EncoderPlacement, Request, Response, RunState};
 
-use crate::cutter::Segment;
 use crate::encoder::EncoderErrors;
 use crate::gauge_trace::{GaugeTraceError, TracedGaugeSlot};
 use crate::options::{InjectedFault, TwinOptions};
 use crate::plant::{Bridge, Cutter, GaugeCut, Plant};
 use crate::sense::{Sense, Sensed};
 use crate::timing::{HostBursts, SimWatchdog, TickClock};
+use crate::traced::Segment;
 use crate::truth::TruthLog;
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
 use kerfmeter_firmware::board::partition::{ConfigStorage, OpenedConfig, open_config_partition};
@@ -286,7 +286,7 @@ impl Twin {
     }
 
     /// The gauge a cutter cut around `at_mm` on its bed, as the laser traced it (`segments`, a
-    /// cutter twin's [`CutterRecord::segments`](crate::cutter::CutterRecord)), goes under the
+    /// cutter twin's record of its segments, `kerfmeter::grbl::twin::CutterRecord`), goes under the
     /// prongs, which come down over `at_mm`: every run from now on measures it (its physical
     /// pitch, sense, holes and centre, from the trace; its kerf, contact and the machine's
     /// repeatability from this twin's [`Cutter`]), while the device keeps the nominal geometry
@@ -302,7 +302,7 @@ impl Twin {
     }
 
     /// [`place_traced_gauge`](Self::place_traced_gauge), the gauge cut by `cutter` (a cutter
-    /// twin's, from its [`CutterOptions::kerf`](crate::cutter::CutterOptions)) instead of this
+    /// twin's, from its options' kerf, `kerfmeter::grbl::twin::CutterOptions::kerf`) instead of this
     /// twin's own.
     pub fn place_traced_gauge_cut_by(
         &mut self,

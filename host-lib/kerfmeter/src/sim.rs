@@ -6,8 +6,8 @@
 //! more than 100 ms ahead of the host's last request); [`SimOptions::realtime`] makes it follow
 //! the wall clock instead.
 
-use kerfmeter_twin::cutter::Segment;
 use kerfmeter_twin::plant::CutterKerf;
+use kerfmeter_twin::traced::Segment;
 use kerfmeter_twin::{PtyTwin, StartError};
 use serialport::SerialPort;
 

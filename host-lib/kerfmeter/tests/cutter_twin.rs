@@ -1,6 +1,6 @@
 //! The cutter twin's GRBL emulation, byte for byte: what a sender sees and what the twin records.
 
-use kerfmeter_twin::cutter::{
+use kerfmeter::grbl::twin::{
     CutterLog, CutterOptions, Grbl, PLANNER_BLOCKS, ProtocolViolation, RX_BUFFER_LEN, SOFT_RESET,
     SegmentKind,
 };

@@ -6,15 +6,15 @@
 //! reads wrong by c/c′; mirrored, or with a hole missing or too small, it is refused with the
 //! reason.
 
-mod common;
-
+use kerfmeter::grbl::twin::{CutterLog, CutterOptions, Grbl, Segment};
 use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_plan::gauge::{GaugeDrawing, GaugeOptions, build};
 use kerfmeter_plan::gcode::{GcodeOptions, Provenance, gauge_program};
 use kerfmeter_plan::profile::CutSettings;
 use kerfmeter_protocol::spiral::kerf_from_angle;
-use kerfmeter_protocol::{GaugeGeometry, RunParams};
-use kerfmeter_twin::cutter::{CutterLog, CutterOptions, Grbl, Segment};
+use kerfmeter_protocol::{
+    Fault, GaugeGeometry, KerfResult, Request, Response, RunParams, RunState,
+};
 use kerfmeter_twin::gauge_trace::{GaugeTraceError, TracedGaugeSlot};
 use kerfmeter_twin::plant::{CutterKerf, PlantParams};
 use kerfmeter_twin::{Twin, TwinOptions};
@@ -132,7 +132,7 @@ fn the_gauge_cut_as_drawn_reads_like_any_gauge_of_the_twins_cutter() {
     for seed in [3, 4] {
         let mut traced = twin(seed);
         let placed = traced.place_traced_gauge(&segments, AT_MM).unwrap();
-        let reading = common::measure(&mut traced, &RunParams::DEFAULT).unwrap();
+        let reading = measure(&mut traced, &RunParams::DEFAULT).unwrap();
         assert_eq!(traced.plant().cut(), &placed);
         let geometry = *traced.plant().geometry();
         let pitch_error = geometry.pitch_um_per_deg / GaugeGeometry::PAPER.pitch_um_per_deg - 1.0;
@@ -141,7 +141,7 @@ fn the_gauge_cut_as_drawn_reads_like_any_gauge_of_the_twins_cutter() {
         let truth = traced.plant().truth_um(&RunParams::DEFAULT);
         // The same seed's twin without the trace draws the same gauge from its cutter.
         let mut plain = twin(seed);
-        let usual = common::measure(&mut plain, &RunParams::DEFAULT).unwrap();
+        let usual = measure(&mut plain, &RunParams::DEFAULT).unwrap();
         let error_um = f64::from(reading.kerf_um) - truth;
         eprintln!(
             "seed {seed}: read {:.2} µm, truth {truth:.2} µm, untraced twin {:.2} µm",
@@ -184,7 +184,7 @@ fn the_products_gauge_g_code_cut_by_the_cutter_twin_reads_the_cutters_kerf() {
     let pitch_error = geometry.pitch_um_per_deg / GaugeGeometry::PAPER.pitch_um_per_deg - 1.0;
     assert!(pitch_error.abs() < 5e-4, "{geometry:?}");
     assert_eq!(geometry.jam_direction, GaugeGeometry::PAPER.jam_direction);
-    let reading = common::measure(&mut traced, &RunParams::DEFAULT).unwrap();
+    let reading = measure(&mut traced, &RunParams::DEFAULT).unwrap();
     let truth = traced.plant().truth_um(&RunParams::DEFAULT);
     let error_um = f64::from(reading.kerf_um) - truth;
     assert!(
@@ -224,11 +224,7 @@ fn the_kerf_measured_is_the_cutter_twins_not_the_device_twins() {
         .place_traced_gauge_cut_by(&segments, AT_MM, &cutter)
         .unwrap();
     assert_eq!(placed.kerf_um, 230.0);
-    let reading = f64::from(
-        common::measure(&mut t, &RunParams::DEFAULT)
-            .unwrap()
-            .kerf_um,
-    );
+    let reading = f64::from(measure(&mut t, &RunParams::DEFAULT).unwrap().kerf_um);
     let truth = t.plant().truth_um(&RunParams::DEFAULT);
     eprintln!("cutter kerf 230 µm: read {reading:.2} µm, truth {truth:.2} µm");
     assert!((reading - truth).abs() < 3.0, "{reading} vs {truth}");
@@ -248,11 +244,7 @@ fn a_pitch_scaled_in_the_g_code_reads_wrong_by_the_pitchs_ratio() {
         let segments = cut(&gcode(&drawing(&wrong), &[0, 1], AS_DRAWN));
         let mut t = twin(5);
         t.place_traced_gauge(&segments, AT_MM).unwrap();
-        let reading = f64::from(
-            common::measure(&mut t, &RunParams::DEFAULT)
-                .unwrap()
-                .kerf_um,
-        );
+        let reading = f64::from(measure(&mut t, &RunParams::DEFAULT).unwrap().kerf_um);
         let traced = t.plant().geometry().pitch_um_per_deg;
         // Within 0.05 % (G-code's 1 µm rounding): 0.08 µm of a 160 µm reading.
         assert!(
@@ -290,7 +282,7 @@ fn a_gauge_placed_through_a_shared_slot_is_the_one_the_next_run_measures() {
             &mut Rng::new(2),
         )
         .unwrap();
-    common::measure(&mut t, &RunParams::DEFAULT).unwrap();
+    measure(&mut t, &RunParams::DEFAULT).unwrap();
     assert_eq!(t.plant().cut(), &placed);
     let pitch = t.plant().geometry().pitch_um_per_deg;
     assert!(
@@ -332,11 +324,7 @@ fn a_drawing_scaled_as_a_whole_reads_as_its_pitch_and_holes_say() {
         (placed.hole_offset_um[0][0] - 106.0).abs() < 1.0,
         "{placed:?}"
     );
-    let reading = f64::from(
-        common::measure(&mut t, &RunParams::DEFAULT)
-            .unwrap()
-            .kerf_um,
-    );
+    let reading = f64::from(measure(&mut t, &RunParams::DEFAULT).unwrap().kerf_um);
     let truth = t.plant().truth_um(&RunParams::DEFAULT);
     let physical = *t.plant().geometry();
     let jam_deg = t.plant().play_deg().0 + truth / f64::from(physical.pitch_um_per_deg);
@@ -396,4 +384,25 @@ fn a_gauge_cut_off_where_the_prongs_come_down_is_refused_beyond_the_holes_play()
         .place_traced_gauge(&segments, [AT_MM[0], AT_MM[1] + 0.7])
         .unwrap_err();
     assert!(matches!(err, GaugeTraceError::ProngOffHole { .. }), "{err}");
+}
+
+/// Run one measurement with `params`, polling like a host every 10 ms; the run's end or its
+/// fault.
+fn measure(twin: &mut Twin, params: &RunParams) -> Result<KerfResult, Fault> {
+    assert_eq!(twin.request(&Request::Run(*params)), Response::Ok);
+    for _ in 0..3000 {
+        twin.advance_ticks(10);
+        let Response::Status(s) = twin.request(&Request::GetStatus) else {
+            panic!("no status");
+        };
+        match s.state {
+            RunState::Done => match twin.request(&Request::GetKerf) {
+                Response::Kerf(Some(k)) => return Ok(k),
+                other => panic!("no result after Done: {other:?}"),
+            },
+            RunState::Fault(f) => return Err(f),
+            _ => {}
+        }
+    }
+    panic!("the run neither finished nor faulted in 30 s");
 }

@@ -8,11 +8,11 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
+use kerfmeter::grbl::twin::{CutterLog, CutterServer, SegmentKind};
 use kerfmeter::grbl::{
     ConnectOptions, Cutter, CutterAddress, CutterError, SimCutterOptions, StreamProgress,
 };
 use kerfmeter_twin::Pace;
-use kerfmeter_twin::cutter::{CutterLog, CutterServer, SegmentKind};
 
 /// Quick to connect and to notice the end of motion.
 fn options() -> ConnectOptions {
@@ -218,7 +218,7 @@ fn a_refused_travel_cuts_from_the_old_point_unless_the_check_pass_finds_it_first
         error_on_line: Some((6, 20)),
         ..SimCutterOptions::default()
     };
-    let collateral = |record: &kerfmeter_twin::cutter::CutterRecord| {
+    let collateral = |record: &kerfmeter::grbl::twin::CutterRecord| {
         record
             .segments
             .iter()

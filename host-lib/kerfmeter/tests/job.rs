@@ -10,6 +10,7 @@ use std::time::Duration;
 
 use common::fast_options;
 use kerfmeter::JointSpec;
+use kerfmeter::grbl::twin::CutterRecord;
 use kerfmeter::grbl::{ConnectOptions, Cutter, SimCutterOptions};
 use kerfmeter::job::{
     Devices, JobError, JobEvent, JobReport, JobRequest, Placement, SimLink, Stage, run_job,
@@ -19,7 +20,6 @@ use kerfmeter::sim::{SimDevice, SimFault, SimOptions};
 use kerfmeter_plan::gauge::{GaugeOptions, build};
 use kerfmeter_plan::gcode::{GcodeOptions, Provenance, gauge_program};
 use kerfmeter_plan::profile::CutSettings;
-use kerfmeter_twin::cutter::CutterRecord;
 
 const GAUGE_AT_MM: [f64; 2] = [250.0, 60.0];
 /// The job's squares are cut from here on in x: the gauge and the prong moves stay left of it.

@@ -86,8 +86,8 @@ impl GaugeCut {
     }
 }
 
-/// How a cutter cuts, as a cutter twin is set up ([`crate::cutter::CutterOptions::kerf`]): the
-/// settings of the one kerf model, [`Cutter`], that a cutter's own options carry.
+/// How a cutter cuts, as a cutter twin is set up (`kerfmeter::grbl::twin::CutterOptions::kerf`):
+/// the settings of the one kerf model, [`Cutter`], that a cutter's own options carry.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CutterKerf {
     /// Nominal kerf at mid-sheet, µm (before the bias of the place on the bed).

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Parser;
-use kerfmeter_twin::cutter::{CutterLog, CutterOptions, CutterServer};
+use kerfmeter::grbl::twin::{CutterLog, CutterOptions, CutterServer};
 use kerfmeter_twin::plant::{Material, PlantParams, param_list};
 use kerfmeter_twin::{InjectedFault, MotorEdge, Pace, PtyTwin, StartError, TwinOptions};
 
@@ -245,7 +245,7 @@ fn print_received(log: &CutterLog) {
             let received = record.gcode_received[lines..]
                 .iter()
                 .map(|l| format!("received: {l}"));
-            let hit = |h: &kerfmeter_twin::cutter::EndStopHit| {
+            let hit = |h: &kerfmeter::grbl::twin::EndStopHit| {
                 let axis = ['X', 'Y', 'Z'][h.axis];
                 format!(
                     "end stop: line {}, {axis} {:.3} mm beyond",

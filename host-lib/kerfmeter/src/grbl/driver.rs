@@ -142,7 +142,7 @@ pub struct Cutter {
     /// True while connecting: `cancel` is heard.
     connecting: bool,
     #[cfg(feature = "sim")]
-    pub(super) sim: Option<kerfmeter_twin::cutter::CutterServer>,
+    pub(super) sim: Option<super::twin::CutterServer>,
 }
 
 impl std::fmt::Debug for Cutter {

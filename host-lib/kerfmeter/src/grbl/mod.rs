@@ -10,6 +10,9 @@
 //!   limits), how far a program's moves reach as GRBL reads them, and the work offsets and parser
 //!   state that place its numbers.
 //! - [`Cutter`]: the blocking driver on a byte stream ([`CutterAddress`] says which).
+//! - `twin` (feature `sim`): the cutter twin, a simulated GRBL 1.1 laser cutter (sans-IO), and its
+//!   server on a pseudo-terminal or a TCP port, with a record of what its laser traced; the
+//!   driver is tested against it, and `--cutter sim` is it.
 //!
 //! # Connecting
 //!
@@ -74,6 +77,8 @@ pub mod protocol;
 mod sim;
 mod transport;
 pub mod travel;
+#[cfg(feature = "sim")]
+pub mod twin;
 
 pub use driver::{ConnectOptions, Cutter, StreamProgress, StreamReport};
 pub use error::CutterError;

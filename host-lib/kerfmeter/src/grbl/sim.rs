@@ -1,18 +1,18 @@
-//! The simulated cutter (`sim`): the twin crate's GRBL cutter served on a pseudo-terminal by a
-//! thread of this process, driven through the same serial path as a real controller.
+//! The simulated cutter (`sim`): the cutter twin ([`super::twin`]) served on a pseudo-terminal by
+//! a thread of this process, driven through the same serial path as a real controller.
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
+use super::twin::{CutterLog, CutterServer};
 use kerfmeter_twin::Pace;
-use kerfmeter_twin::cutter::{CutterLog, CutterServer};
 
 use super::driver::{ConnectOptions, Cutter};
 use super::error::CutterError;
 use super::transport::READ_SLICE;
 
 /// How the simulated cutter is set up, and the faults injected into it.
-pub use kerfmeter_twin::cutter::CutterOptions as SimCutterOptions;
+pub use super::twin::CutterOptions as SimCutterOptions;
 
 impl Cutter {
     /// Start a simulated cutter (lock-stepped: faster than real time) and connect to it.

@@ -3,55 +3,11 @@
 //! what it refuses. It knows the subset the twin executes (see the [module docs](super)); any
 //! other command is refused with `error:20` rather than ignored.
 
-/// GRBL's error codes the twin sends (the numbers of GRBL 1.1's `error:N`).
-pub mod codes {
-    /// A word without its letter.
-    pub const EXPECTED_COMMAND_LETTER: u8 = 1;
-    /// A letter without a valid number.
-    pub const BAD_NUMBER_FORMAT: u8 = 2;
-    /// A `$` command GRBL does not know.
-    pub const INVALID_STATEMENT: u8 = 3;
-    /// A negative value where only positive ones make sense.
-    pub const NEGATIVE_VALUE: u8 = 4;
-    /// Homing (`$H`) is disabled.
-    pub const SETTING_DISABLED: u8 = 5;
-    /// A `$` command that needs the machine idle.
-    pub const NOT_IDLE: u8 = 8;
-    /// Soft limits (`$20=1`) without homing enabled.
-    pub const SOFT_LIMIT_ERROR: u8 = 10;
-    /// G-code refused in the alarm state.
-    pub const GCODE_LOCK: u8 = 9;
-    /// A line longer than the line buffer.
-    pub const LINE_OVERFLOW: u8 = 11;
-    /// A command the twin (or GRBL) does not support.
-    pub const UNSUPPORTED_COMMAND: u8 = 20;
-    /// Two commands of one modal group in a block.
-    pub const MODAL_GROUP_VIOLATION: u8 = 21;
-    /// A feed move before any feed rate.
-    pub const UNDEFINED_FEED_RATE: u8 = 22;
-    /// A command that needs an integer got a fraction.
-    pub const NOT_AN_INTEGER: u8 = 23;
-    /// A word repeated in one block.
-    pub const REPEATED_WORD: u8 = 25;
-    /// A motion without axis words.
-    pub const NO_AXIS_WORDS: u8 = 26;
-    /// A command missing a value it needs (G4 without P).
-    pub const MISSING_VALUE: u8 = 28;
-    /// Axis words no command uses.
-    pub const UNUSED_AXIS_WORDS: u8 = 31;
-    /// G53 with a motion mode other than G0 or G1.
-    pub const G53_INVALID_MOTION_MODE: u8 = 30;
-    /// An arc whose end does not lie on its circle.
-    pub const INVALID_TARGET: u8 = 33;
-    /// An arc without I or J.
-    pub const NO_OFFSET_WORDS: u8 = 35;
-    /// Value words nothing uses.
-    pub const UNUSED_VALUE_WORDS: u8 = 36;
-}
-
-/// The longest line GRBL 1.1 takes (without spaces and comments): its line buffer is 80 bytes
-/// with one kept for the terminating NUL, so 79 characters; longer lines are `error:11`.
-pub const LINE_BUFFER_LEN: usize = 79;
+/// The longest line GRBL 1.1 takes (without spaces and comments): 79 characters; longer lines
+/// are `error:11`.
+use kerfmeter_grbl::LINE_MAX_LEN;
+/// GRBL's error codes the twin sends (the numbers of GRBL 1.1's `error:N`), from the one table.
+pub use kerfmeter_grbl::codes;
 
 /// A motion command (modal group 1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -154,7 +110,7 @@ fn normalise(line: &str) -> Result<String, u8> {
             c => out.push(c.to_ascii_uppercase()),
         }
     }
-    if out.len() > LINE_BUFFER_LEN {
+    if out.len() > LINE_MAX_LEN {
         return Err(codes::LINE_OVERFLOW);
     }
     Ok(out)
@@ -275,7 +231,7 @@ mod tests {
         assert_eq!(parse("G1 X1 X2"), Err(codes::REPEATED_WORD));
         assert_eq!(parse("S-1"), Err(codes::NEGATIVE_VALUE));
         assert_eq!(parse(&"G1X1".repeat(30)), Err(codes::LINE_OVERFLOW));
-        let longest = format!("G1X{}", "1".repeat(LINE_BUFFER_LEN - 3));
+        let longest = format!("G1X{}", "1".repeat(LINE_MAX_LEN - 3));
         assert_eq!(longest.len(), 79);
         assert!(parse(&longest).is_ok(), "79 characters fit");
         assert_eq!(parse(&format!("{longest}1")), Err(codes::LINE_OVERFLOW));

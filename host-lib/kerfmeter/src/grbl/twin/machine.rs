@@ -9,15 +9,12 @@ use super::options::CutterOptions;
 use super::system::Settings;
 use super::trace::{CutterLog, Point, ProtocolViolation, Segment, SegmentKind, TravelFiring};
 use super::{PLANNER_BLOCKS, RX_BUFFER_LEN, SOFT_RESET, VERSION};
+use kerfmeter_grbl::codes::{ALARM_ABORT_CYCLE, ALARM_HARD_LIMIT, ALARM_SOFT_LIMIT};
+use kerfmeter_grbl::realtime::{CYCLE_START, FEED_HOLD, STATUS_REPORT};
+use kerfmeter_grbl::status::{BufferFree, MachineState, Status};
 
 /// Longest raw line kept while it is read (GRBL's line buffer overflows well before).
 const RAW_LINE_MAX: usize = 256;
-/// The alarm a hard limit raises.
-const ALARM_HARD_LIMIT: u8 = 1;
-/// The alarm a reset during motion raises.
-const ALARM_ABORT_CYCLE: u8 = 3;
-/// GRBL's soft-limit alarm (a target beyond the machine's travel).
-const ALARM_SOFT_LIMIT: u8 = 2;
 
 /// The parser's modal state.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -145,10 +142,10 @@ impl Grbl {
         for &b in bytes {
             match b {
                 // After a hard limit GRBL services nothing but a reset, not even `?`.
-                b'?' if self.critical => {}
-                b'?' => self.status_report(),
-                b'!' => self.feed_hold(),
-                b'~' => self.resume(),
+                STATUS_REPORT if self.critical => {}
+                STATUS_REPORT => self.status_report(),
+                FEED_HOLD => self.feed_hold(),
+                CYCLE_START => self.resume(),
                 SOFT_RESET => {
                     self.soft_reset();
                     break;
@@ -338,25 +335,25 @@ impl Grbl {
         }
     }
 
-    /// The state as a status report names it.
-    pub fn state_name(&self) -> &'static str {
+    /// The state, as a status report names it.
+    pub fn state(&self) -> MachineState {
         match (self.alarm, self.hold) {
-            (Some(_), _) => "Alarm",
-            (None, _) if self.check_mode => "Check",
-            (None, Hold::Complete) => "Hold:0",
-            (None, Hold::Decelerating { .. }) => "Hold:1",
-            (None, Hold::None) if self.busy() => "Run",
-            (None, Hold::None) => "Idle",
+            (Some(_), _) => MachineState::Alarm,
+            (None, _) if self.check_mode => MachineState::Check,
+            (None, Hold::Complete) => MachineState::Hold(0),
+            (None, Hold::Decelerating { .. }) => MachineState::Hold(1),
+            (None, Hold::None) if self.busy() => MachineState::Run,
+            (None, Hold::None) => MachineState::Idle,
         }
     }
 
     /// Copy the state and laser output into the log.
     fn publish(&self) {
-        let state = self.state_name();
+        let state = self.state().to_string();
         let power = self.laser_power_s();
         let mut log = self.log.lock();
         if log.state != state {
-            log.state = state.to_owned();
+            log.state = state;
         }
         log.laser_power_s = power;
     }
@@ -368,7 +365,7 @@ impl Grbl {
 
     fn banner(&mut self) {
         self.say("");
-        self.say(&format!("Grbl {VERSION} ['$' for help]"));
+        self.say(&kerfmeter_grbl::banner(VERSION));
         if self.alarm.is_some() {
             self.say("[MSG:'$H'|'$X' to unlock]");
         }
@@ -380,14 +377,18 @@ impl Grbl {
             (Some((m, _)), Hold::None | Hold::Decelerating { .. }) => m.feed_mm_per_min,
             _ => 0.0,
         };
-        let report = format!(
-            "<{}|MPos:{x:.3},{y:.3},{z:.3}|Bf:{},{}|FS:{feed:.0},{:.0}>",
-            self.state_name(),
-            PLANNER_BLOCKS - self.queue.len(),
-            RX_BUFFER_LEN - self.rx.len(),
-            self.laser_power_s(),
-        );
-        self.say(&report);
+        let report = Status {
+            state: self.state(),
+            position_mm: Some([x, y, z]),
+            work_position_mm: None,
+            feed_mm_per_min: Some(feed),
+            spindle_s: Some(self.laser_power_s()),
+            buffer_free: Some(BufferFree {
+                planner_blocks: (PLANNER_BLOCKS - self.queue.len()) as u32,
+                rx_bytes: (RX_BUFFER_LEN - self.rx.len()) as u32,
+            }),
+        };
+        self.say(&report.to_string());
     }
 
     fn feed_hold(&mut self) {
@@ -445,7 +446,7 @@ impl Grbl {
     /// Record and announce alarm `code`: motion stops, the laser goes off.
     fn raise(&mut self, code: u8) {
         self.enter_alarm(code);
-        self.say(&format!("ALARM:{code}"));
+        self.say(&format!("{}{code}", kerfmeter_grbl::ALARM_PREFIX));
     }
 
     /// Go into alarm `code` (recorded, not announced).
@@ -745,10 +746,12 @@ impl Grbl {
     }
 }
 
+/// `ok`, with GRBL's line end.
 pub(super) fn ok() -> String {
-    "ok\r\n".into()
+    format!("{}\r\n", kerfmeter_grbl::OK)
 }
 
+/// `error:N`, with GRBL's line end.
 pub(super) fn error(code: u8) -> String {
-    format!("error:{code}\r\n")
+    format!("{}{code}\r\n", kerfmeter_grbl::ERROR_PREFIX)
 }

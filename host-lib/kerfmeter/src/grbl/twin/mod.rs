@@ -1,6 +1,9 @@
-//! The cutter twin: a simulated laser cutter that speaks GRBL 1.1, sans-IO (bytes in, bytes out,
-//! a simulated clock moved on by the caller), for the host's GRBL driver to be tested against and
-//! for `kerfmeter-twin --cutter` to serve on a pseudo-terminal or a TCP port ([`serve`](mod@serve)).
+//! The cutter twin (feature `sim`): a simulated laser cutter that speaks GRBL 1.1, sans-IO (bytes
+//! in, bytes out, a simulated clock moved on by the caller), for the GRBL driver beside it to be
+//! tested against, for `--cutter sim` ([`super::Cutter::sim`]) and for `kerfmeter-twin
+//! --cutter` to serve on a pseudo-terminal or a TCP port ([`serve`](mod@serve)). GRBL's facts it
+//! emulates (buffer, line limit, codes, status report, settings) are the driver's, from one
+//! table (`kerfmeter-grbl`).
 //!
 //! # What it emulates
 //!
@@ -51,8 +54,9 @@
 //!
 //! Everything it did is recorded in its [`CutterLog`] ([`trace`]). What it cuts is what its laser
 //! traced, with the kerf, spread and repeatability of [`CutterOptions::kerf`] (the one kerf
-//! model, [`crate::plant::Cutter`]): a gauge it cut is recovered from the trace and measured by
-//! the device twin ([`crate::gauge_trace`], [`crate::Twin::place_traced_gauge_cut_by`]).
+//! model, [`kerfmeter_twin::plant::Cutter`]): a gauge it cut is recovered from the trace and
+//! measured by the device twin ([`kerfmeter_twin::gauge_trace`],
+//! [`kerfmeter_twin::Twin::place_traced_gauge_cut_by`]).
 
 pub mod gcode;
 pub mod motion;
@@ -71,11 +75,7 @@ pub use trace::{
     CutterLog, CutterRecord, EndStopHit, ProtocolViolation, Segment, SegmentKind, TravelFiring,
 };
 
-/// GRBL's serial receive buffer, bytes: a sender may have at most this many unacknowledged.
-pub const RX_BUFFER_LEN: usize = 128;
-/// Blocks GRBL's planner queue holds (its 16-slot ring keeps one free).
-pub const PLANNER_BLOCKS: usize = 15;
-/// The version in the banner and `$I`.
-pub const VERSION: &str = "1.1h";
-/// The realtime soft-reset character (ctrl-X).
-pub const SOFT_RESET: u8 = 0x18;
+/// GRBL's facts the twin emulates, from the one table: its receive buffer, planner blocks,
+/// version and the soft-reset character.
+pub use kerfmeter_grbl::realtime::SOFT_RESET;
+pub use kerfmeter_grbl::{PLANNER_BLOCKS, RX_BUFFER_LEN, VERSION};

@@ -5,7 +5,7 @@
 //! to end, with no acceleration; only a feed hold decelerates (see [`super`]). A job's time is
 //! therefore slightly short of a real machine's, whose corners slow it down.
 
-use std::f64::consts::TAU;
+use kerfmeter_twin::traced::sweep_rad;
 
 use super::trace::{Point, SegmentKind};
 
@@ -60,7 +60,7 @@ impl Move {
         let end_radius = planar_distance(end, center);
         let tolerance = ARC_END_TOLERANCE_MM.max(radius * 1e-3);
         if radius == 0.0 || (radius - end_radius).abs() > tolerance {
-            return Err(super::gcode::codes::INVALID_TARGET);
+            return Err(kerfmeter_grbl::codes::INVALID_TARGET);
         }
         let kind = SegmentKind::Arc { center, clockwise };
         let sweep = sweep_rad(start, end, center, clockwise);
@@ -140,15 +140,6 @@ impl Move {
     }
 }
 
-/// The angle an arc sweeps, rad, in (0, 2π]: a whole turn when it ends where it starts.
-pub(crate) fn sweep_rad(start: Point, end: Point, center: [f64; 2], clockwise: bool) -> f64 {
-    let a0 = (start[1] - center[1]).atan2(start[0] - center[0]);
-    let a1 = (end[1] - center[1]).atan2(end[0] - center[0]);
-    let ccw = if clockwise { a0 - a1 } else { a1 - a0 };
-    let sweep = ccw.rem_euclid(TAU);
-    if sweep < 1e-9 { TAU } else { sweep }
-}
-
 fn lerp(a: f64, b: f64, f: f64) -> f64 {
     a + (b - a) * f
 }
@@ -163,6 +154,8 @@ fn planar_distance(p: Point, c: [f64; 2]) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use std::f64::consts::TAU;
+
     use super::*;
 
     #[test]

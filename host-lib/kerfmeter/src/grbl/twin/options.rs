@@ -1,7 +1,7 @@
 //! How a cutter twin is set up ([`CutterOptions`]): its settings at boot, its travel and work
 //! offset, the faults injected into it, and how what its laser traces is cut.
 
-use crate::plant::CutterKerf;
+use kerfmeter_twin::plant::CutterKerf;
 
 /// How a cutter twin is set up, and the faults injected into it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,8 +32,9 @@ pub struct CutterOptions {
     /// on the way, as on a noisy line: only its status reports say it is in alarm.
     pub unannounced_alarm_on_line: Option<u32>,
     /// How what the laser traces is cut: kerf, its spread and the machine's repeatability (the
-    /// one kerf model, [`crate::plant::Cutter`], made by [`CutterKerf::cutter`]). The device
-    /// twin measures a traced gauge cut so ([`crate::Twin::place_traced_gauge_cut_by`]).
+    /// one kerf model, [`kerfmeter_twin::plant::Cutter`], made by [`CutterKerf::cutter`]). The
+    /// device twin measures a traced gauge cut so
+    /// ([`kerfmeter_twin::Twin::place_traced_gauge_cut_by`]).
     pub kerf: CutterKerf,
 }
 

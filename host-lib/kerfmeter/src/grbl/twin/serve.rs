@@ -3,7 +3,7 @@
 //! other networked controllers are). Simulated time runs in lock-step (fast) or at the wall
 //! clock ([`Pace`]).
 //!
-//! It has its own loop rather than the device's [`crate::serve()`]: a cutter speaks unprompted
+//! It has its own loop rather than the device's [`kerfmeter_twin::serve()`]: a cutter speaks unprompted
 //! (an `ok` once its planner frees a block, an alarm in the middle of a move), while the device
 //! only answers what it receives.
 
@@ -19,7 +19,7 @@ use serialport::{SerialPort, TTYPort};
 use super::machine::Grbl;
 use super::options::CutterOptions;
 use super::trace::CutterLog;
-use crate::serve::{Pace, is_hangup, is_timeout};
+use kerfmeter_twin::serve::{Pace, is_hangup, is_timeout};
 
 /// How long a read waits before simulated time moves on.
 const READ_TIMEOUT: Duration = Duration::from_millis(1);

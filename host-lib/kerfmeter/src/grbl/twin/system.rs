@@ -11,62 +11,17 @@ use super::machine::{Grbl, error, ok};
 use super::options::CutterOptions;
 use super::{PLANNER_BLOCKS, RX_BUFFER_LEN, VERSION};
 
-/// `$32`: laser mode.
-const LASER_MODE: u16 = 32;
-/// `$30`: the `S` value of full power.
-const MAX_POWER: u16 = 30;
-/// `$110`: X's maximum rate, mm/min (the twin's rate for every axis).
-const MAX_RATE: u16 = 110;
-/// `$120`: X's acceleration, mm/s² (used only to stop a feed hold).
-const ACCELERATION: u16 = 120;
-/// `$20`: soft limits.
-const SOFT_LIMITS: u16 = 20;
-/// `$22`: homing.
-const HOMING: u16 = 22;
-/// `$23`: the axes that home toward negative (a mask: 1 X, 2 Y, 4 Z).
-const HOMING_DIR_MASK: u16 = 23;
-/// `$27`: the homing pull-off, mm.
-const HOMING_PULLOFF: u16 = 27;
-/// `$130`–`$132`: the X, Y and Z travel, mm.
-const MAX_TRAVEL: [u16; 3] = [130, 131, 132];
+use kerfmeter_grbl::commands;
+use kerfmeter_grbl::settings::{
+    ACCELERATION_MM_PER_S2, HOMING, HOMING_DIR_MASK, HOMING_PULLOFF_MM as HOMING_PULLOFF,
+    LASER_MODE, MAX_POWER_S as MAX_POWER, MAX_RATE_MM_PER_MIN, MAX_TRAVEL_MM as MAX_TRAVEL,
+    SOFT_LIMITS, STOCK,
+};
 
-/// Every setting and its stock value (laser mode off: the caller sets it).
-const DEFAULTS: [(u16, f64); 34] = [
-    (0, 10.0),
-    (1, 25.0),
-    (2, 0.0),
-    (3, 0.0),
-    (4, 0.0),
-    (5, 0.0),
-    (6, 0.0),
-    (10, 1.0),
-    (11, 0.010),
-    (12, 0.002),
-    (13, 0.0),
-    (20, 0.0),
-    (21, 0.0),
-    (22, 0.0),
-    (23, 0.0),
-    (24, 25.0),
-    (25, 500.0),
-    (26, 250.0),
-    (27, 1.0),
-    (30, 1000.0),
-    (31, 0.0),
-    (32, 0.0),
-    (100, 80.0),
-    (101, 80.0),
-    (102, 250.0),
-    (110, 6000.0),
-    (111, 6000.0),
-    (112, 500.0),
-    (120, 1000.0),
-    (121, 1000.0),
-    (122, 10.0),
-    (130, 400.0),
-    (131, 400.0),
-    (132, 50.0),
-];
+/// `$110`: X's maximum rate, mm/min (the twin's rate for every axis).
+const MAX_RATE: u16 = MAX_RATE_MM_PER_MIN[0];
+/// `$120`: X's acceleration, mm/s² (used only to stop a feed hold).
+const ACCELERATION: u16 = ACCELERATION_MM_PER_S2[0];
 
 /// The settings by number.
 #[derive(Debug, Clone)]
@@ -77,7 +32,7 @@ impl Settings {
     /// limits as `options` give them (soft limits only with homing, as GRBL allows).
     pub fn new(options: &CutterOptions) -> Self {
         let flag = |on: bool| if on { 1.0 } else { 0.0 };
-        let mut map: BTreeMap<u16, f64> = DEFAULTS.into_iter().collect();
+        let mut map: BTreeMap<u16, f64> = STOCK.into_iter().collect();
         map.insert(LASER_MODE, flag(options.laser_mode));
         map.insert(MAX_POWER, options.max_power_s);
         map.insert(HOMING, flag(options.homing));
@@ -173,7 +128,8 @@ impl Grbl {
             .filter(|c| !c.is_whitespace())
             .map(|c| c.to_ascii_uppercase())
             .collect();
-        let needs_rest = matches!(command.as_str(), "$$" | "$H") || command.contains('=');
+        let needs_rest = matches!(command.as_str(), commands::SETTINGS | commands::HOME)
+            || command.contains('=');
         if needs_rest && self.is_busy() {
             return error(codes::NOT_IDLE);
         }
@@ -182,20 +138,21 @@ impl Grbl {
                 "[HLP:$$ $# $G $I $N $x=val $Nx=line $J=line $SLP $C $X $H ~ ! ? ctrl-x]\r\nok\r\n"
                     .into()
             }
-            "$$" => self.settings.report() + &ok(),
-            "$X" if self.alarm.is_some() => {
+            commands::SETTINGS => self.settings.report() + &ok(),
+            commands::UNLOCK if self.alarm.is_some() => {
                 self.unlock();
                 "[MSG:Caution: Unlocked]\r\nok\r\n".into()
             }
-            "$X" => ok(),
-            "$G" => format!("{}\r\nok\r\n", self.parser_state()),
-            "$I" => format!(
-                "[VER:{VERSION}.kerfmeter-twin:]\r\n[OPT:V,{PLANNER_BLOCKS},{RX_BUFFER_LEN}]\r\nok\r\n"
+            commands::UNLOCK => ok(),
+            commands::PARSER_STATE => format!("{}\r\nok\r\n", self.parser_state()),
+            commands::BUILD_INFO => format!(
+                "[VER:{VERSION}.kerfmeter-twin:]\r\n{}V,{PLANNER_BLOCKS},{RX_BUFFER_LEN}]\r\nok\r\n",
+                kerfmeter_grbl::BUILD_OPTIONS_PREFIX
             ),
-            "$H" if !self.settings.homing() => error(codes::SETTING_DISABLED),
-            "$H" => self.home(),
-            "$#" => self.parameters_report() + &ok(),
-            "$C" => self.toggle_check_mode(),
+            commands::HOME if !self.settings.homing() => error(codes::SETTING_DISABLED),
+            commands::HOME => self.home(),
+            commands::PARAMETERS => self.parameters_report() + &ok(),
+            commands::CHECK_MODE => self.toggle_check_mode(),
             _ => self.set_setting(&command),
         }
     }

@@ -9,45 +9,8 @@
 
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
-/// A position, mm (X, Y, Z).
-pub type Point = [f64; 3];
-
-/// What kind of move a segment is.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum SegmentKind {
-    /// G0: a travel at the maximum rate.
-    Travel,
-    /// G1: a straight feed move.
-    Line,
-    /// G2/G3: an arc about `center` (XY).
-    Arc {
-        /// The arc's centre, mm.
-        center: [f64; 2],
-        /// G2.
-        clockwise: bool,
-    },
-    /// G4: a pause where the head stands still.
-    Dwell,
-}
-
-/// One executed move.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Segment {
-    /// Its kind (and an arc's centre and sense).
-    pub kind: SegmentKind,
-    /// Where it started, mm.
-    pub start: Point,
-    /// Where it ended, mm: its target, or where it was stopped.
-    pub end: Point,
-    /// The laser's power while it ran (the `S` value; 0 when off).
-    pub power_s: f64,
-    /// Its feed rate, mm/min.
-    pub feed_mm_per_min: f64,
-    /// False when it was cut short (reset, alarm).
-    pub complete: bool,
-    /// The received G-code line it came from (1 = the first G-code line since boot).
-    pub line: u32,
-}
+/// What the laser traced is in the device twin's vocabulary, which measures the gauge it cut.
+pub use kerfmeter_twin::traced::{Point, Segment, SegmentKind};
 
 /// A travel move made with the laser switched on: where, and at what power. In
 /// [`CutterRecord::travel_firings`] the laser fired through it; in

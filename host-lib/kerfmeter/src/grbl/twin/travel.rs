@@ -110,7 +110,7 @@ impl Grbl {
         });
         self.move_to_home(homed);
         self.unlock();
-        "ok\r\n".into()
+        super::machine::ok()
     }
 
     /// The `$#` report (without its `ok`).
