@@ -431,7 +431,10 @@ fn test(args: &TestArgs) -> Result<()> {
             "host tests",
             // Never on a board by chance: the acceptance suite takes a real device whenever
             // KERFMETER_PORT is set (`cargo xtask hil --port` is the way to it).
+            // The plan crate's recompensation property compares with GEOS, through shapely in
+            // the project's venv (issue 32 §4).
             Box::new(|| {
+                python::ensure_venv(&python::PEERS)?;
                 run_cmd(
                     cargo()
                         .args(["test", "--workspace"])

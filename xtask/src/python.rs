@@ -23,8 +23,9 @@ pub const PYTEST: &str = "pytest>=7,<10";
 /// The build backend and the test runner; pinned below the next major versions.
 const TOOLS: [&str; 2] = ["maturin>=1.9.4,<2", PYTEST];
 /// The independent implementations the package's tests check the plans against (issue 32):
-/// ezdxf opens and audits every DXF written, GEOS (through shapely) buffers the same cuts.
-const PEERS: [&str; 2] = ["ezdxf>=1.4,<2", "shapely>=2,<3"];
+/// ezdxf opens and audits every DXF written, GEOS (through shapely) buffers the same cuts (and,
+/// in the host tests, the polygons of the plan crate's recompensation property).
+pub const PEERS: [&str; 2] = ["ezdxf>=1.4,<2", "shapely>=2,<3"];
 
 /// LibreCAD's part library (Debian's `librecad-data`): real-world DXF drawings the package's
 /// tests dilate and ezdxf audits; installed with apt-get when missing and this runs as root.

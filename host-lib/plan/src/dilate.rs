@@ -794,7 +794,11 @@ fn offset_one(
         Role::Outer => -grow,
         Role::Hole => grow,
     };
-    let mut results = p.parallel_offset(offset);
+    let mut results = match how {
+        Offsetting::Dilate => p.parallel_offset(offset),
+        // A compensated plan may draw its round joins as chords a few µm long.
+        Offsetting::Recompensate { .. } => recompensate::offset_in_um(&p, offset),
+    };
     if matches!(how, Offsetting::Recompensate { .. }) && grow < 0.0 {
         results = results
             .iter()
