@@ -58,6 +58,8 @@ extern crate std;
 /// Re-exported: [`HardwareInfo::board`] and [`SampleChunk::samples`] are `heapless` types.
 pub use heapless;
 
+#[cfg(feature = "std")]
+pub mod advice;
 mod frame;
 mod messages;
 mod params;

@@ -34,6 +34,7 @@ mod record;
 mod serve;
 #[cfg(test)]
 mod tests;
+mod words;
 
 use commands::config::ConfigCommand;
 use commands::map::MapArgs;
@@ -227,6 +228,11 @@ fn negative_numbers_are_values(command: clap::Command) -> clap::Command {
 }
 
 fn main() -> ExitCode {
+    kerfmeter_protocol::advice::in_words_of(&words::CLI, main_in_cli_words)
+}
+
+/// `main`, with every message's advice in the command line's words.
+fn main_in_cli_words() -> ExitCode {
     one_malloc_arena();
     let cli = match parse_cli() {
         Ok(cli) => cli,

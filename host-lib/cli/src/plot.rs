@@ -31,7 +31,7 @@ impl PlotFormat {
         {
             Some("png") => Ok(Self::Png),
             Some("svg") => Ok(Self::Svg),
-            _ => Err(Error::InvalidArgument(format!(
+            _ => Err(Error::invalid(format!(
                 "plot file {} must end in .png or .svg",
                 path.display()
             ))),
@@ -55,8 +55,8 @@ fn register_font() {
 pub fn plot_curve(curve: &Curve, result: Option<&KerfResult>, path: &Path) -> Result<()> {
     let format = PlotFormat::for_path(path)?;
     if curve.samples.is_empty() {
-        return Err(Error::InvalidArgument(
-            "there is no curve to plot: run a measurement first".into(),
+        return Err(Error::invalid(
+            "there is no curve to plot: run a measurement first",
         ));
     }
     register_font();

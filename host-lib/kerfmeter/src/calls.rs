@@ -334,7 +334,7 @@ impl Kerfmeter {
         mut progress: impl FnMut(usize, &Progress) -> ControlFlow<()>,
     ) -> Result<Measurement> {
         if n == 0 {
-            return Err(Error::InvalidArgument("measure at least one gauge".into()));
+            return Err(Error::invalid("measure at least one gauge"));
         }
         let mut runs = Vec::with_capacity(n);
         for i in 0..n {
@@ -507,7 +507,7 @@ impl Kerfmeter {
     pub fn set_config(&mut self, config: &DeviceConfig) -> Result<ConfigReport> {
         config
             .validate()
-            .map_err(|field| Error::InvalidArgument(field.out_of_range(None).to_string()))?;
+            .map_err(|field| Error::invalid(field.out_of_range(None).to_string()))?;
         match self.call(Request::SetConfig(*config))? {
             Response::Config(c) => Ok(c),
             other => Err(unexpected("SetConfig", &other)),

@@ -1,5 +1,6 @@
 //! Host-side errors: every failure a caller can meet, each with a message that says what to do.
 
+use kerfmeter_protocol::advice::{Advice, Advised};
 use kerfmeter_protocol::{
     Conditions, ErrorCode, Fault, ProtocolVersion, REFERENCE_SUPPLY_V, SUPPLY_MAX_V, SUPPLY_MIN_V,
 };
@@ -87,7 +88,7 @@ pub enum Error {
         new: u32,
     },
     /// The device stopped a run (or reset, or self-test) on a fault, and latched it.
-    #[error("the device stopped: {} Fix the cause, then `kerfmeter clear-fault` and `kerfmeter reset`", sentence(describe_fault(*fault)))]
+    #[error("the device stopped: {} Fix the cause, then {} and {}", sentence(describe_fault(*fault)), Advice::ClearFault, Advice::Reset)]
     Fault {
         /// The latched fault.
         fault: Fault,
@@ -114,7 +115,7 @@ pub enum Error {
     Sim(String),
     /// A bad argument or parameter; the message names it and its allowed range.
     #[error("{0}")]
-    InvalidArgument(String),
+    InvalidArgument(Advised),
     /// A file could not be read, parsed or written.
     #[error("{}: {message}", path.display())]
     File {
@@ -126,6 +127,21 @@ pub enum Error {
 }
 
 impl Error {
+    /// A bad argument or parameter, `message` naming it and its allowed range.
+    pub fn invalid(message: impl Into<Advised>) -> Self {
+        Error::InvalidArgument(message.into())
+    }
+
+    /// The advice this error gives, as data: what its message tells the reader to do next.
+    pub fn advice(&self) -> Vec<Advice> {
+        match self {
+            Error::InvalidArgument(m) => m.advice().collect(),
+            Error::Fault { .. } => vec![Advice::ClearFault, Advice::Reset],
+            Error::Device { code, .. } => code_advice(*code),
+            _ => Vec::new(),
+        }
+    }
+
     /// The device fault behind this error, if the device refused because of a latched fault.
     pub fn fault(&self) -> Option<Fault> {
         match self {
@@ -191,6 +207,31 @@ pub enum Category {
     File,
 }
 
+/// The advice of [`describe_error_code`]'s sentence for `code`.
+fn code_advice(code: ErrorCode) -> Vec<Advice> {
+    match code {
+        ErrorCode::Faulted(_) => vec![Advice::ClearFault, Advice::Reset],
+        ErrorCode::NotAtZero => vec![Advice::Reset],
+        ErrorCode::Blocked(c) => {
+            let mut advice = vec![Advice::Status];
+            if c.contains(Conditions::SUPPLY_OUT_OF_RANGE) {
+                advice.push(Advice::Status);
+            }
+            if c.contains(Conditions::HUB_TURN_UNKNOWN) {
+                advice.extend([Advice::Reset, Advice::ConfirmZero]);
+            }
+            advice
+        }
+        ErrorCode::SupplyTooLow { needed_mv, .. }
+            if f32::from(needed_mv) / 1000.0 > SUPPLY_MAX_V =>
+        {
+            vec![Advice::ConfigGet, Advice::LowerForce]
+        }
+        ErrorCode::SupplyTooLow { .. } => vec![Advice::LowerForce],
+        _ => Vec::new(),
+    }
+}
+
 /// A sentence for a device error code, saying what to do about it.
 pub fn describe_error_code(code: ErrorCode) -> String {
     match code {
@@ -200,8 +241,10 @@ pub fn describe_error_code(code: ErrorCode) -> String {
         ErrorCode::Unsupported => "this firmware build does not implement it".into(),
         ErrorCode::Busy => "it is busy with a run, reset or self-test; wait, or abort it".into(),
         ErrorCode::Faulted(f) => format!(
-            "a fault is latched ({}); fix the cause, then `clear-fault` or `reset`",
-            describe_fault(f)
+            "a fault is latched ({}); fix the cause, then {} or {}",
+            describe_fault(f),
+            Advice::ClearFault,
+            Advice::Reset
         ),
         ErrorCode::InvalidParam(field) => field.out_of_range(None).to_string(),
         ErrorCode::NoSamples => "there are no (more) samples for that run".into(),
@@ -209,11 +252,15 @@ pub fn describe_error_code(code: ErrorCode) -> String {
             "the configuration could not be saved to flash; the old one stays in use".into()
         }
         ErrorCode::NotAtZero => {
-            "the hub is not at its zero position (prongs centred in the gauge holes): run `reset` first".into()
+            format!(
+                "the hub is not at its zero position (prongs centred in the gauge holes): run {} first",
+                Advice::Reset
+            )
         }
         ErrorCode::Blocked(conditions) => format!(
-            "{}. Nothing is latched: fix it and try again (`kerfmeter status` shows the conditions)",
-            describe_conditions(conditions)
+            "{}. Nothing is latched: fix it and try again ({} shows the conditions)",
+            describe_conditions(conditions),
+            Advice::Status
         ),
         ErrorCode::SupplyTooLow {
             supply_mv,
@@ -229,17 +276,19 @@ fn describe_supply_too_low(supply_mv: u16, needed_mv: u16) -> String {
         format!("use a motor supply of at least {needed_v:.1} V (rated up to {SUPPLY_MAX_V} V)")
     } else {
         format!(
-            "no supply within the rated {SUPPLY_MIN_V}–{SUPPLY_MAX_V} V can: check the torque calibration (`kerfmeter config get`, given at {REFERENCE_SUPPLY_V} V)"
+            "no supply within the rated {SUPPLY_MIN_V}–{SUPPLY_MAX_V} V can: check the torque calibration ({}, given at {REFERENCE_SUPPLY_V} V)",
+            Advice::ConfigGet
         )
     };
     format!(
-        "the motor supply measures {supply_v:.1} V, but the most torque this run may ask for needs {needed_v:.1} V at full duty. The motor did not move: {raise}, or measure at a lower joint force (`kerfmeter run --force-n`)"
+        "the motor supply measures {supply_v:.1} V, but the most torque this run may ask for needs {needed_v:.1} V at full duty. The motor did not move: {raise}, or measure at a lower joint force ({})",
+        Advice::LowerForce
     )
 }
 
 /// A sentence for the idle conditions that stand, each with what to do about it.
 pub fn describe_conditions(conditions: Conditions) -> String {
-    let sentences: Vec<&str> = Conditions::NAMES
+    let sentences: Vec<String> = Conditions::NAMES
         .iter()
         .filter(|(c, _)| conditions.contains(*c))
         .map(|(c, _)| describe_condition(*c))
@@ -252,8 +301,8 @@ pub fn describe_conditions(conditions: Conditions) -> String {
 }
 
 /// A sentence for one idle condition.
-fn describe_condition(condition: Conditions) -> &'static str {
-    match condition {
+fn describe_condition(condition: Conditions) -> String {
+    let plain = match condition {
         Conditions::NO_MAGNET => {
             "no magnet: the encoder sees no magnet in range; check the magnet's distance to the chip"
         }
@@ -265,13 +314,21 @@ fn describe_condition(condition: Conditions) -> &'static str {
             "the motor driver reports a fault (FLT low): check that the motor supply is on and above the driver's under-voltage lockout"
         }
         Conditions::SUPPLY_OUT_OF_RANGE => {
-            "the motor supply is outside the rated 9–26 V (`kerfmeter status` shows it): use a supply within that range"
+            return format!(
+                "the motor supply is outside the rated 9–26 V ({} shows it): use a supply within that range",
+                Advice::Status
+            );
         }
         Conditions::HUB_TURN_UNKNOWN => {
-            "the encoder is on the motor shaft and, since power-up, the device cannot tell which motor turn the hub is on: lift the prongs, turn the hub to its zero mark by hand (`kerfmeter reset` first brings it to the nearest zero it knows), then run `kerfmeter confirm-zero`"
+            return format!(
+                "the encoder is on the motor shaft and, since power-up, the device cannot tell which motor turn the hub is on: lift the prongs, turn the hub to its zero mark by hand ({} first brings it to the nearest zero it knows), then run {}",
+                Advice::Reset,
+                Advice::ConfirmZero
+            );
         }
         _ => "an unknown condition (a newer firmware?)",
-    }
+    };
+    plain.to_owned()
 }
 
 /// `text` ended as a sentence: a full stop added unless it ends in one already (or in `?`).
@@ -328,7 +385,8 @@ mod tests {
             "needs 11.4 V",
             "did not move",
             "at least 11.4 V",
-            "--force-n",
+            // Advice in the library's own words where no front end set its own.
+            "`RunParams::target_force_n`",
         ] {
             assert!(message.contains(part), "{part:?} in {message}");
         }
@@ -338,7 +396,15 @@ mod tests {
             needed_mv: 30_000,
         });
         assert!(message.contains("no supply within the rated"), "{message}");
-        assert!(message.contains("config get"), "{message}");
+        assert!(message.contains("`Kerfmeter::config`"), "{message}");
+        let refused = Error::Device {
+            request: "run",
+            code: ErrorCode::SupplyTooLow {
+                supply_mv: 24_000,
+                needed_mv: 30_000,
+            },
+        };
+        assert_eq!(refused.advice(), [Advice::ConfigGet, Advice::LowerForce]);
     }
 
     #[test]

@@ -269,7 +269,7 @@ fn set_mode(file: &std::fs::File, mode: u32) -> std::io::Result<()> {
 /// overwritten).
 pub fn ensure_not_input(input: &Path, output: &Path) -> Result<()> {
     if same_file(input, output) {
-        return Err(Error::InvalidArgument(format!(
+        return Err(Error::invalid(format!(
             "the output {} is the input file; choose another output path (inputs are never overwritten)",
             output.display()
         )));
@@ -347,7 +347,7 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "new");
         let failed = write_atomically_at(&p, ".png", |tmp: &Path| -> Result<()> {
             std::fs::write(tmp, "half").unwrap();
-            Err(Error::InvalidArgument("drawing failed".into()))
+            Err(Error::invalid("drawing failed"))
         });
         assert!(failed.is_err());
         assert_eq!(

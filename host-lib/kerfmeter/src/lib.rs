@@ -44,7 +44,6 @@ pub mod params;
 #[cfg(feature = "sim")]
 pub mod sim;
 pub mod stats;
-pub mod wording;
 
 pub use calls::{Curve, Measurement, Progress};
 pub use client::{Kerfmeter, Options};

@@ -79,14 +79,14 @@ impl Grid {
     pub fn new(bed_width_mm: f64, bed_depth_mm: f64, cols: usize, rows: usize) -> Result<Self> {
         let size_ok = |mm: f64| mm > 0.0 && mm <= MAX_BED_MM;
         if !(size_ok(bed_width_mm) && size_ok(bed_depth_mm)) {
-            return Err(Error::InvalidArgument(format!(
+            return Err(Error::invalid(format!(
                 "the bed must be more than 0 and at most {MAX_BED_MM} mm each way, got {} × {} mm",
                 kerfmeter_protocol::Shown(bed_width_mm),
                 kerfmeter_protocol::Shown(bed_depth_mm)
             )));
         }
         if !(1..=20).contains(&cols) || !(1..=20).contains(&rows) {
-            return Err(Error::InvalidArgument(format!(
+            return Err(Error::invalid(format!(
                 "a map grid has 1 to 20 columns and rows, got {cols} × {rows}"
             )));
         }
@@ -111,12 +111,12 @@ impl KerfMap {
     /// Build a map from each cell's runs (`runs[row * cols + col]`), relative to `reference`.
     pub fn from_runs(grid: Grid, reference: (usize, usize), runs: Vec<Vec<f64>>) -> Result<Self> {
         if runs.len() != grid.cols * grid.rows || runs.iter().any(Vec::is_empty) {
-            return Err(Error::InvalidArgument(
-                "every cell of the map needs at least one measurement".into(),
+            return Err(Error::invalid(
+                "every cell of the map needs at least one measurement",
             ));
         }
         if reference.0 >= grid.cols || reference.1 >= grid.rows {
-            return Err(Error::InvalidArgument(format!(
+            return Err(Error::invalid(format!(
                 "reference cell {reference:?} is outside the {} × {} grid",
                 grid.cols, grid.rows
             )));

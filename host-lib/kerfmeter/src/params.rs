@@ -6,6 +6,7 @@
 //! i.e. [`DEFAULT_FORCE_PER_FINGER_N`] per finger. The joint's contact area is
 //! fingers × 2 faces × thickness × finger length (each finger presses on both of its sides).
 
+use kerfmeter_protocol::advice::{Advice, Advised};
 use kerfmeter_protocol::{GaugeGeometry, ParamField, RunParams};
 
 use crate::error::{Error, Result};
@@ -63,7 +64,7 @@ impl JointSpec {
         }
         // Said as itself: out of range it would be said only as the contact area it makes.
         if !(self.finger_length_mm > 0.0 && self.finger_length_mm.is_finite()) {
-            return Err(Error::InvalidArgument(format!(
+            return Err(Error::invalid(format!(
                 "the finger length (finger_length_mm) must be more than 0 mm, got {} mm",
                 kerfmeter_protocol::Shown(self.finger_length_mm)
             )));
@@ -85,7 +86,7 @@ pub const MAX_FINGERS: u32 = 100;
 
 /// The refusal of a finger count (any integer a caller was given) outside 1 to [`MAX_FINGERS`].
 pub fn fingers_out_of_range(fingers: impl std::fmt::Display) -> Error {
-    Error::InvalidArgument(format!(
+    Error::invalid(format!(
         "fingers must be between 1 and {MAX_FINGERS}, got {fingers}"
     ))
 }
@@ -94,21 +95,26 @@ pub fn fingers_out_of_range(fingers: impl std::fmt::Display) -> Error {
 pub fn check(params: &RunParams) -> Result<()> {
     params
         .validate()
-        .map_err(|field| Error::InvalidArgument(describe_invalid(params, field)))
+        .map_err(|field| Error::invalid(describe_invalid(params, field)))
 }
 
 /// A sentence saying which value is refused and why (out of its range, or against a rule that
 /// ties it to another field); the contact area says what it is made of.
-pub fn describe_invalid(params: &RunParams, field: ParamField) -> String {
+pub fn describe_invalid(params: &RunParams, field: ParamField) -> Advised {
     let mut message = params.why_invalid(field).to_string();
     if field == ParamField::ContactAreaMm2 {
         message.push_str("; it is fingers × 2 × thickness × finger length");
     }
-    // The force is given as `--force-n` (or `force_n`), not by its name on the wire.
-    if field == ParamField::TargetForceN {
-        message = message.replace("(target_force_n)", "(--force-n, force_n)");
+    // The force is named as each front end takes it (`--force-n`, `force_n`), not by its name
+    // on the wire.
+    match message.split_once("(target_force_n)") {
+        Some((before, after)) if field == ParamField::TargetForceN => Advised::text(before)
+            .then("(")
+            .advise(Advice::ForceParam)
+            .then(")")
+            .then(after),
+        _ => message.into(),
     }
-    message
 }
 
 #[cfg(test)]
@@ -165,7 +171,7 @@ mod tests {
         };
         let e = j.run_params(GaugeGeometry::PAPER).unwrap_err().to_string();
         assert!(
-            e.contains("the joint's assembly force (--force-n, force_n) = 0 N")
+            e.contains("the joint's assembly force (target_force_n) = 0 N")
                 && e.contains("1 to 500 N"),
             "{e}"
         );

@@ -31,7 +31,7 @@ impl SimDevice {
     /// Start the twin on a new pseudo-terminal; returns it and the client side of the terminal.
     pub fn start(options: SimOptions) -> Result<(Self, Box<dyn SerialPort>)> {
         let (twin, port) = PtyTwin::start(options).map_err(|e| match e {
-            StartError::Options(e) => Error::InvalidArgument(e.to_string()),
+            StartError::Options(e) => Error::invalid(e.to_string()),
             e => Error::Sim(e.to_string()),
         })?;
         let options = Box::new(options);
@@ -71,7 +71,7 @@ impl SimDevice {
         let cutter = kerf
             .map(|k| k.cutter(self.options.plant, self.options.seed))
             .transpose()
-            .map_err(|e| Error::InvalidArgument(e.to_string()))?;
+            .map_err(|e| Error::invalid(e.to_string()))?;
         let cut = self
             .twin
             .place_traced_gauge(segments, at_mm, cutter.as_ref())

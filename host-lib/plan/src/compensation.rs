@@ -35,6 +35,7 @@
 //! offset and applies the kerf instead (net offset kerf/2 − burn, corners as drawn: see
 //! [`crate::recompensate`]). Either way boxes.py's small loops at inner corners are removed first.
 
+use kerfmeter_protocol::advice::{Advice, Advised};
 use std::fmt;
 
 use roxmltree::{Document, Node};
@@ -456,9 +457,9 @@ pub fn check_before_measuring(
 }
 
 /// A compensated plan refused with `message`.
-fn refused(found: &FoundCompensation, message: String) -> PlanError {
+fn refused(found: &FoundCompensation, message: impl Into<Advised>) -> PlanError {
     PlanError::AlreadyCompensated {
-        message,
+        message: message.into(),
         found: Box::new(found.clone()),
     }
 }
@@ -489,11 +490,13 @@ fn gauge_refusal(
     gauge: &FoundCompensation,
     policy: IfCompensated,
     kerf: Option<&KerfSource>,
-) -> String {
+) -> Advised {
     let recompensate = if policy == IfCompensated::Recompensate {
-        " --recompensate does not apply: the spiral carries no compensation to undo."
+        Advised::text(" ")
+            .advise(Advice::Recompensate)
+            .then(" does not apply: the spiral carries no compensation to undo.")
     } else {
-        ""
+        Advised::default()
     };
     let twice = if gauge.kerf_um.is_some() {
         ", and compensate the test piece twice"
@@ -501,20 +504,29 @@ fn gauge_refusal(
         ""
     };
     let what = gauge.describe();
-    match kerf {
-        Some(_) => format!(
-            "{what}. Dilating it would widen the spiral's gap, so the device would read a kerf too small{twice}; cut it as it is, nothing was written (for its G-code: `kerfmeter gauge -o gauge.gcode --at-mm X,Y`; --already-compensated-ok dilates it anyway).{recompensate}"
-        ),
-        None => format!(
-            "{what}: a gauge is cut as drawn, not dilated as a job's plan (dilated, its spiral's gap would widen, so the device would read a kerf too small{twice}); nothing was cut. Give the plan of the parts to cut (--already-compensated-ok dilates this one anyway).{recompensate}"
-        ),
-    }
+    let refusal = match kerf {
+        Some(_) => Advised::text(format!(
+            "{what}. Dilating it would widen the spiral's gap, so the device would read a kerf too small{twice}; cut it as it is, nothing was written (for its G-code: `kerfmeter gauge -o gauge.gcode --at-mm X,Y`; "
+        )),
+        None => Advised::text(format!(
+            "{what}: a gauge is cut as drawn, not dilated as a job's plan (dilated, its spiral's gap would widen, so the device would read a kerf too small{twice}); nothing was cut. Give the plan of the parts to cut ("
+        )),
+    };
+    let anyway = if kerf.is_some() {
+        " dilates it anyway)."
+    } else {
+        " dilates this one anyway)."
+    };
+    refusal
+        .advise(Advice::AlreadyCompensatedOk)
+        .then(anyway)
+        .append(recompensate)
 }
 
 /// The refusal of a plan compensated elsewhere or before: what was found, why it is refused, and
 /// the two ways on. By the `kerf` given (`dilate`, `gcode`: with the net move when it is one
 /// figure), or, with none, by the kerf a job would measure.
-fn refusal(found: &FoundCompensation, kerf: Option<&KerfSource>) -> String {
+fn refusal(found: &FoundCompensation, kerf: Option<&KerfSource>) -> Advised {
     let burn_um = found.offset_um.0[0];
     let net = match kerf {
         Some(KerfSource::Uniform(k)) => format!(
@@ -534,10 +546,16 @@ fn refusal(found: &FoundCompensation, kerf: Option<&KerfSource>) -> String {
             "nothing was cut",
         ),
     };
-    format!(
-        "{}. {twice} and make every joint too loose; {undone}. Either undo that compensation and apply the measured kerf instead with --recompensate (each cut moves by kerf/2 − burn{net}, inner corners kept sharp), or dilate it by the full kerf anyway with --already-compensated-ok.",
+    Advised::text(format!(
+        "{}. {twice} and make every joint too loose; {undone}. Either undo that compensation and apply the measured kerf instead with ",
         found.describe()
-    )
+    ))
+    .advise(Advice::Recompensate)
+    .then(format!(
+        " (each cut moves by kerf/2 − burn{net}, inner corners kept sharp), or dilate it by the full kerf anyway with "
+    ))
+    .advise(Advice::AlreadyCompensatedOk)
+    .then(".")
 }
 
 /// The applied record, once the parts' kerfs are known (`kerf_range_um` from the summary).
@@ -944,19 +962,27 @@ mod tests {
         };
         let refused = message(&boxes, IfCompensated::Refuse).expect("refused");
         assert!(
-            refused.contains("The job would dilate it by the kerf it measures")
-                && refused.contains("nothing was cut")
-                && refused.contains("--recompensate")
-                && !refused.contains(" = "),
+            refused.says("The job would dilate it by the kerf it measures")
+                && refused.says("nothing was cut")
+                && !refused.says(" = "),
             "{refused}"
+        );
+        let ways_on: Vec<Advice> = refused.advice().collect();
+        assert_eq!(
+            ways_on,
+            [Advice::Recompensate, Advice::AlreadyCompensatedOk]
         );
         assert_eq!(message(&boxes, IfCompensated::Recompensate), None);
         assert_eq!(message(&boxes, IfCompensated::DilateAnyway), None);
         for policy in [IfCompensated::Refuse, IfCompensated::Recompensate] {
             let refused = message(&gauge, policy).expect("a gauge is refused");
-            assert!(refused.contains("a gauge is cut as drawn"), "{refused}");
+            assert!(refused.says("a gauge is cut as drawn"), "{refused}");
             assert_eq!(
-                refused.contains("--recompensate does not apply"),
+                refused.says("does not apply: the spiral carries no compensation"),
+                policy == IfCompensated::Recompensate
+            );
+            assert_eq!(
+                refused.advice().any(|a| a == Advice::Recompensate),
                 policy == IfCompensated::Recompensate
             );
         }

@@ -39,6 +39,7 @@
 
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut};
 use cavalier_contours::static_aabb2d_index::{StaticAABB2DIndex, StaticAABB2DIndexBuilder};
+use kerfmeter_protocol::advice::{Advice, Advised};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -690,7 +691,7 @@ fn offset_all(
         counter.step();
         offset
     };
-    let outcomes: Vec<Result<Pline, String>> = match drawn {
+    let outcomes: Vec<Result<Pline, Advised>> = match drawn {
         Drawn::Lent(contours) => contours
             .par_iter()
             .enumerate()
@@ -779,7 +780,7 @@ fn offset_one(
     role: Role,
     grow: f64,
     how: Offsetting,
-) -> Result<Pline, String> {
+) -> Result<Pline, Advised> {
     if grow == 0.0 {
         return Ok(p);
     }
@@ -805,13 +806,14 @@ fn offset_one(
             .map(|r| recompensate::sharpen(r, &p, grow.abs()))
             .collect::<Result<_, V2>>()
             .map_err(|x| {
-                format!(
-                    "{} at {}: its inner corner near {} cannot be kept sharp when its compensation is undone (a feature there is narrower than the change, {:.1} µm); recompensate the original drawing or use --already-compensated-ok",
+                Advised::text(format!(
+                    "{} at {}: its inner corner near {} cannot be kept sharp when its compensation is undone (a feature there is narrower than the change, {:.1} µm); recompensate the original drawing or use ",
                     label,
                     at(first),
                     at(x),
                     grow.abs() * 1000.0
-                )
+                ))
+                .advise(Advice::AlreadyCompensatedOk)
             })?;
     }
     let kerf_um = grow.abs() * 2000.0;
@@ -832,17 +834,20 @@ fn offset_one(
             "the hole {} at {} is narrower than the kerf ({kerf_um:.1} µm) and would vanish: it could not be cut at its size",
             label,
             at(first)
-        )),
+        )
+        .into()),
         (Role::Hole, _, _) => Err(format!(
             "the hole {} at {} has a neck narrower than the kerf ({kerf_um:.1} µm): shrunk, it would split in two",
             label,
             at(first)
-        )),
+        )
+        .into()),
         (Role::Outer, _, _) => Err(format!(
             "the part {} at {} has a gap narrower than the kerf ({kerf_um:.1} µm) that would close around a void",
             label,
             at(first)
-        )),
+        )
+        .into()),
     }
 }
 

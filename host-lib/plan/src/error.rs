@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::compensation::FoundCompensation;
+use kerfmeter_protocol::advice::{Advice, Advised};
 
 /// Result of every fallible function of this crate.
 pub type Result<T, E = PlanError> = std::result::Result<T, E>;
@@ -25,7 +26,7 @@ pub enum PlanError {
     /// The plan cannot be dilated as drawn: parts would merge, a hole is narrower than the kerf,
     /// or cuts cross. The message lists every problem found, with positions.
     #[error("{0}")]
-    CannotDilate(String),
+    CannotDilate(Advised),
     /// The plan says it is already compensated for the kerf (boxes.py's `--burn`, this tool's
     /// own output, a LightBurn project's Kerf Offsets): dilating it again would compensate twice.
     /// The message names what was found and the two ways on (`--recompensate`,
@@ -33,7 +34,7 @@ pub enum PlanError {
     #[error("{message}")]
     AlreadyCompensated {
         /// What was found, why it is refused and what to do.
-        message: String,
+        message: Advised,
         /// What was found, for a caller to act on (`--json`'s `compensation_found`).
         found: Box<FoundCompensation>,
     },
@@ -97,6 +98,18 @@ impl PlanError {
         }
     }
 
+    /// The advice this error gives, as data: what its message tells the reader to do next
+    /// (each front end words it: `--recompensate`, `if_compensated="recompensate"`).
+    pub fn advice(&self) -> Vec<Advice> {
+        match self {
+            PlanError::AlreadyCompensated { message, .. } | PlanError::CannotDilate(message) => {
+                message.advice().collect()
+            }
+            PlanError::InFile { source, .. } => source.advice(),
+            _ => Vec::new(),
+        }
+    }
+
     /// The plan file this error is about, if it is about a file rather than the arguments.
     pub fn path(&self) -> Option<&Path> {
         match self {
@@ -110,7 +123,7 @@ impl PlanError {
 
 /// Problems found in a plan: collected, not stopped at, then reported together as one error.
 #[derive(Debug, Default)]
-pub(crate) struct Problems(Vec<String>);
+pub(crate) struct Problems(Vec<Advised>);
 
 /// The problems an error lists; the rest are counted (an array of 90,000 bad copies printed its
 /// one problem 90,000 times, 16 MB of message).
@@ -118,8 +131,8 @@ const SHOWN: usize = 50;
 
 impl Problems {
     /// Note one problem.
-    pub(crate) fn push(&mut self, problem: String) {
-        self.0.push(problem);
+    pub(crate) fn push(&mut self, problem: impl Into<Advised>) {
+        self.0.push(problem.into());
     }
 
     /// `Ok` when there were none; otherwise one error (made by `kind`, e.g. [`PlanError::Svg`])
@@ -128,7 +141,7 @@ impl Problems {
         if self.0.is_empty() {
             return Ok(());
         }
-        Err(kind(self.listing("", "")))
+        Err(kind(self.listing("", "").to_string()))
     }
 
     /// `Ok` when there were none; otherwise [`PlanError::CannotDilate`] listing them (the first
@@ -138,23 +151,29 @@ impl Problems {
             return Ok(());
         }
         let n = self.0.len();
-        Err(PlanError::CannotDilate(format!(
-            "cannot dilate this plan ({n} problem{}; nothing was written):\n{}",
-            if n == 1 { "" } else { "s" },
-            self.listing("  ", "- ")
-        )))
+        Err(PlanError::CannotDilate(
+            Advised::text(format!(
+                "cannot dilate this plan ({n} problem{}; nothing was written):\n",
+                if n == 1 { "" } else { "s" },
+            ))
+            .append(self.listing("  ", "- ")),
+        ))
     }
 
     /// The first [`SHOWN`] problems, one a line after `indent` and `bullet`, and a line (after
     /// `indent`) counting the rest.
-    fn listing(&self, indent: &str, bullet: &str) -> String {
-        let mut lines: Vec<String> = (self.0.iter().take(SHOWN))
-            .map(|p| format!("{indent}{bullet}{p}"))
-            .collect();
-        if self.0.len() > SHOWN {
-            lines.push(format!("{indent}… and {} more", self.0.len() - SHOWN));
+    fn listing(&self, indent: &str, bullet: &str) -> Advised {
+        let mut listing = Advised::default();
+        for (i, p) in self.0.iter().take(SHOWN).enumerate() {
+            let newline = if i == 0 { "" } else { "\n" };
+            listing = listing
+                .then(format!("{newline}{indent}{bullet}"))
+                .append(p.clone());
         }
-        lines.join("\n")
+        if self.0.len() > SHOWN {
+            listing = listing.then(format!("\n{indent}… and {} more", self.0.len() - SHOWN));
+        }
+        listing
     }
 }
 
@@ -182,6 +201,7 @@ mod tests {
         let Err(PlanError::CannotDilate(message)) = problems.cannot_dilate() else {
             panic!("an error");
         };
+        let message = message.to_string();
         let lines: Vec<&str> = message.lines().collect();
         assert_eq!(
             (lines[0], lines[1], lines[51]),

@@ -37,6 +37,7 @@
 //! **Hostile input.** A document type declaration (and so entity expansion) is refused, as are
 //! files over [`MAX_PROJECT_BYTES`], text that is not UTF-8 and anything that is not XML.
 
+use kerfmeter_protocol::advice::{Advice, Advised};
 use std::ops::Range;
 use std::path::Path;
 
@@ -422,12 +423,16 @@ fn found_offsets(layers: &[Layer], chosen: &[usize]) -> Option<FoundCompensation
     FoundCompensation::lightburn(places.join("; "), &offsets_um)
 }
 
-fn refusal(found: &FoundCompensation, kerf_um: f64) -> String {
-    format!(
-        "{}. The project is already compensated for a kerf; setting it again could compensate twice and make every joint too loose; nothing was written. Either replace those offsets by this kerf's ({} mm) with --recompensate, or add this kerf's on top with --already-compensated-ok.",
+fn refusal(found: &FoundCompensation, kerf_um: f64) -> Advised {
+    Advised::text(format!(
+        "{}. The project is already compensated for a kerf; setting it again could compensate twice and make every joint too loose; nothing was written. Either replace those offsets by this kerf's ({} mm) with ",
         found.describe(),
         format_mm(kerf_um / 2000.0)
-    )
+    ))
+    .advise(Advice::Recompensate)
+    .then(", or add this kerf's on top with ")
+    .advise(Advice::AlreadyCompensatedOk)
+    .then(".")
 }
 
 /// Set every line pass of `layer`: the edits, and what was done.

@@ -14,6 +14,7 @@ use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_plan::dxf_plan::{DxfOptions, dilate_dxf};
 use kerfmeter_plan::outcome::PlanSummary;
 use kerfmeter_plan::svg::{SvgOptions, dilate_svg};
+use kerfmeter_protocol::advice::Advice;
 
 type P = (f64, f64);
 
@@ -236,13 +237,15 @@ fn boxes_py_plans_are_refused_naming_the_burn_and_both_ways_on() {
         for needle in [
             "boxes.py compensated this plan with --burn 0.1 (mm",
             "100 µm outside the parts",
-            "--recompensate",
-            "--already-compensated-ok",
             "kerf/2 − burn = 75 − 100 = -25 µm",
             "nothing was written",
         ] {
             assert!(msg.contains(needle), "{needle:?} not in: {msg}");
         }
+        assert_eq!(
+            e.advice(),
+            [Advice::Recompensate, Advice::AlreadyCompensatedOk]
+        );
     }
 }
 
@@ -435,15 +438,14 @@ fn own_svg_outputs_are_recorded_refused_and_recompensated() {
     let (once, _) = run(&plan, 150.0, IfCompensated::Refuse).unwrap();
     assert!(once.contains("<metadata><kerfmeter:compensation xmlns:kerfmeter=\"urn:x-kerfmeter:compensation:1\" tool=\"kerfmeter\""));
     assert!(once.contains("<!-- kerfmeter-compensation tool=kerfmeter version="));
-    let e = run(&once, 150.0, IfCompensated::Refuse)
-        .unwrap_err()
-        .to_string();
+    let refused = run(&once, 150.0, IfCompensated::Refuse).unwrap_err();
+    assert_eq!(
+        refused.advice(),
+        [Advice::Recompensate, Advice::AlreadyCompensatedOk]
+    );
+    let e = refused.to_string();
     assert!(
         e.contains("kerfmeter") && e.contains("kerf 150 µm") && e.contains("75 µm outside"),
-        "{e}"
-    );
-    assert!(
-        e.contains("--recompensate") && e.contains("--already-compensated-ok"),
         "{e}"
     );
     // On top: one record, the total offset.
@@ -625,9 +627,11 @@ fn the_gauge_drawing_is_cut_as_drawn_never_dilated() {
         // Nothing to undo: recompensating is refused too; dilating anyway is the user's word.
         let e = run(&svg, 150.0, IfCompensated::Recompensate).unwrap_err();
         assert!(
-            e.to_string().contains("--recompensate does not apply"),
+            e.to_string()
+                .contains("does not apply: the spiral carries no"),
             "{e}"
         );
+        assert!(e.advice().contains(&Advice::Recompensate), "{e}");
         // At a kerf of 0 (its cuts as drawn, as `gcode` makes them) it passes.
         assert!(run(&svg, 0.0, IfCompensated::Refuse).is_ok());
         // Dilated anyway, the output carries one record, this dilation's, and no gauge words.

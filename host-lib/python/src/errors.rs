@@ -4,7 +4,7 @@
 //! takes one base, so that class is made with `type()` when the module is imported.
 
 use kerfmeter::Category;
-use kerfmeter::wording::{Interface, in_words_of};
+use kerfmeter::protocol::advice::{Advice, Wording, in_words_of};
 use kerfmeter_plan::PlanError as RustPlanError;
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyValueError};
@@ -97,7 +97,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 
 /// The Python exception for a library error: by its category, a fault with its name in `fault`.
 pub fn device(py: Python<'_>, error: kerfmeter::Error) -> PyErr {
-    let message = in_words_of(Interface::Python, &error.to_string());
+    let message = in_python_words(&error);
     if matches!(error, kerfmeter::Error::Cancelled) {
         return PyKeyboardInterrupt::new_err(message);
     }
@@ -120,7 +120,36 @@ pub fn device(py: Python<'_>, error: kerfmeter::Error) -> PyErr {
 /// The Python exception for a plan error: a bad argument or the plan's own problem.
 pub fn plan(error: RustPlanError) -> PyErr {
     match error {
-        RustPlanError::InvalidArgument(m) => BadArgumentError::new_err(m),
-        other => PlanError::new_err(in_words_of(Interface::Python, &other.to_string())),
+        RustPlanError::InvalidArgument(m) => BadArgumentError::new_err(in_python_words(&m)),
+        other => PlanError::new_err(in_python_words(&other)),
     }
+}
+
+/// Python's words for the libraries' advice: each thing to do next named as the method or
+/// keyword argument that does it.
+struct PythonApi;
+
+static PYTHON: PythonApi = PythonApi;
+
+impl Wording for PythonApi {
+    fn advice(&self, advice: Advice) -> &'static str {
+        match advice {
+            Advice::ClearFault => "`clear_fault()`",
+            Advice::Reset => "`reset_kerfmeter()`",
+            Advice::ConfirmZero => "`confirm_hub_at_zero()`",
+            Advice::Status => "`status()`",
+            Advice::ConfigGet => "`kerfmeter config get`",
+            Advice::LowerForce => "`force_n`",
+            Advice::ForceParam => "force_n",
+            Advice::Recompensate => "if_compensated=\"recompensate\"",
+            Advice::AlreadyCompensatedOk => "if_compensated=\"dilate_anyway\"",
+            Advice::LightBurnApply => "`kerfmeter lightburn apply`",
+            _ => "(see docs/python.md)",
+        }
+    }
+}
+
+/// `message` shown with its advice in Python's words.
+fn in_python_words(message: &impl std::fmt::Display) -> String {
+    in_words_of(&PYTHON, || message.to_string())
 }

@@ -89,7 +89,7 @@ fn dilate_options(
 /// The kerf: uniform, or per part from a kerf map measured with `kerf_um` at its reference cell.
 fn kerf_source(kerf_um: f64, map: Option<&Path>) -> Result<KerfSource, kerfmeter::Error> {
     let kerf_um = KerfSource::check_kerf_um(kerf_um)
-        .map_err(|e| kerfmeter::Error::InvalidArgument(e.to_string()))?;
+        .map_err(|e| kerfmeter::Error::invalid(e.to_string()))?;
     Ok(match map {
         None => KerfSource::Uniform(kerf_um),
         Some(path) => {

@@ -47,6 +47,9 @@ def test_a_fault_names_itself_with_the_librarys_message():
             m.run_kerfmeter()
         assert caught.value.fault == "Overtravel"
         assert "the device stopped" in str(caught.value)
+        # The library's advice, in Python's words: methods, not the command line's commands.
+        assert "then `clear_fault()` and `reset_kerfmeter()`" in str(caught.value)
+        assert "kerfmeter clear-fault" not in str(caught.value)
         assert isinstance(caught.value, kerfmeter.KerfmeterError)
         assert m.status()["state"] == {"Fault": "Overtravel"}
         m.reset_kerfmeter()  # clears the latched fault

@@ -260,7 +260,7 @@ fn measure(
                     &format!("Place gauge {} of {samples} under the prongs", i + 1),
                 )
             })
-            .map_err(|e| Error::InvalidArgument(e.to_string()))?;
+            .map_err(|e| Error::invalid(e.to_string()))?;
             bar.set_prefix(format!("gauge {}/{samples}", i + 1));
             Ok(())
         },

@@ -98,6 +98,8 @@ use std::sync::Arc;
 use crate::connection::Global;
 use crate::error::CliError;
 use crate::output::print_line;
+use crate::words::SERVER;
+use kerfmeter_protocol::advice::word_this_thread;
 pub use security::Security;
 use worker::Device;
 
@@ -127,6 +129,8 @@ pub fn serve(
 ) -> Result<(), CliError> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
+        // What its threads answer, they word as the server's clients do it (methods, not flags).
+        .on_thread_start(|| word_this_thread(&SERVER))
         .enable_all()
         .build()
         .map_err(|e| CliError::Usage(format!("cannot start the server's runtime: {e}")))?;

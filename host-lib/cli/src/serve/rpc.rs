@@ -7,12 +7,13 @@
 
 use kerfmeter::protocol::GaugeGeometry;
 use kerfmeter::{Category, JointSpec};
+use kerfmeter_protocol::advice::in_words_of;
 use serde::Serialize;
 use serde_json::{Map, Value, json};
 
 use super::worker::{Call, Device, RunCall};
 use crate::error::CliError;
-use kerfmeter::wording::Interface;
+use crate::words::SERVER;
 
 /// Not JSON.
 pub const PARSE_ERROR: i32 = -32700;
@@ -81,7 +82,7 @@ impl RpcError {
 
 impl From<&CliError> for RpcError {
     fn from(e: &CliError) -> Self {
-        let message = kerfmeter::wording::in_words_of(Interface::Server, &e.to_string());
+        let message = in_words_of(&SERVER, || e.to_string());
         match e {
             CliError::Meter(kerfmeter::Error::Cancelled) => RpcError::new(ABORTED, message),
             CliError::Meter(m) if m.category() == Category::Communication => {

@@ -47,6 +47,8 @@ use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::ResultJson;
 use crate::record::{Measured, is_twin, record};
+use crate::words::SERVER;
+use kerfmeter_protocol::advice::in_words_of;
 
 /// The shortest time between two `progress` notifications of the same state.
 pub const PROGRESS_INTERVAL: Duration = Duration::from_millis(50);
@@ -226,7 +228,7 @@ impl Device {
         };
         let thread = std::thread::Builder::new()
             .name("kerfmeter-device".into())
-            .spawn(move || worker.work(queue))
+            .spawn(move || in_words_of(&SERVER, || worker.work(queue)))
             .expect("a thread can be started");
         (Device { shared, jobs }, thread)
     }

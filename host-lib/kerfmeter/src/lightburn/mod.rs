@@ -60,6 +60,8 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use sha2::Sha256;
 
+use kerfmeter_protocol::advice::Advice;
+
 use crate::error::Category;
 use crate::files::write_atomically_with_mode;
 
@@ -153,7 +155,9 @@ pub enum LightBurnError {
     /// Those layers now hold this kerf's Kerf Offset, so a plain re-run would refuse them as
     /// compensated, and adding on top would count the kerf twice: the way out is to replace.
     #[error(
-        "{cause}; but {done} had already been set to this kerf's Kerf Offset: once that is fixed, run `kerfmeter lightburn apply` again with --recompensate (it replaces the Kerf Offsets this run set)"
+        "{cause}; but {done} had already been set to this kerf's Kerf Offset: once that is fixed, run {} again with {} (it replaces the Kerf Offsets this run set)",
+        Advice::LightBurnApply,
+        Advice::Recompensate
     )]
     PartlyApplied {
         /// The layers set before the failure and their previous Kerf Offsets, e.g.
@@ -194,8 +198,10 @@ pub enum LightBurnError {
     /// A chosen layer already has a Kerf Offset, and neither `--recompensate` nor
     /// `--already-compensated-ok` said what to do with it: nothing was changed.
     #[error(
-        "Kerf Offsets already set ({}): the project is already compensated; nothing was changed. Replace them by this kerf's with --recompensate, or add this kerf's on top with --already-compensated-ok",
-        found.join("; ")
+        "Kerf Offsets already set ({}): the project is already compensated; nothing was changed. Replace them by this kerf's with {}, or add this kerf's on top with {}",
+        found.join("; "),
+        Advice::Recompensate,
+        Advice::AlreadyCompensatedOk
     )]
     AlreadyCompensated {
         /// Each such layer with its passes' Kerf Offsets as LightBurn shows them, e.g.
