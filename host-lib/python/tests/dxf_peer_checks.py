@@ -5,6 +5,9 @@ this project wrote:
 * `untouched`: every entity of the input's ENTITIES and BLOCKS sections that is not a cut
   comes out with the same handle and the same group codes and values, in order (read by
   ezdxf's own tag loaders, ASCII or binary: a binary input comes back as ASCII);
+* `objects_changed`: the same for every object of the OBJECTS section (an IMAGEDEF, its
+  reactor, dictionaries, layouts), none of which a dilation touches;
+* `duplicate_handles`: no handle is given twice anywhere in the file;
 * `deviation_um`: the dilated cuts against a GEOS buffer of the exact cut contours.
 
 **The metric.** The input's cut contours are sampled from their true curves (`dxf_peer_plans`,
@@ -24,6 +27,7 @@ from __future__ import annotations
 import io
 import math
 import re
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -76,9 +80,9 @@ def _tags(path: Path):
     return ascii_tags_loader(io.StringIO(text, newline=None), skip_comments=True)
 
 
-def entities_by_handle(path: Path) -> dict[str, list[tuple[int, object]]]:
+def entities_by_handle(path: Path, sections=("ENTITIES", "BLOCKS")) -> dict[str, list[tuple[int, object]]]:
     """Every entity (each VERTEX, ATTRIB and SEQEND on its own) of the ENTITIES and BLOCKS
-    sections, BLOCK and ENDBLK included, by handle: its tags, normalised."""
+    sections (or of `sections`), BLOCK and ENDBLK included, by handle: its tags, normalised."""
     found: dict[str, list[tuple[int, object]]] = {}
     section, prev, current = None, None, None
     for tag in _tags(path):
@@ -87,7 +91,7 @@ def entities_by_handle(path: Path) -> dict[str, list[tuple[int, object]]]:
             section = value
         if code == 0:
             current = None
-            if section in ("ENTITIES", "BLOCKS") and value not in ("ENDSEC", "SECTION"):
+            if section in sections and value not in ("ENDSEC", "SECTION"):
                 current = [(0, value)]
         elif current is not None:
             current.append((code, _value(code, value)))
@@ -115,6 +119,34 @@ def untouched(before: Path, after: Path, cut_handles: set[str]) -> list[str]:
         if handle not in old and tags[0][1] not in ("LWPOLYLINE", "POLYLINE", "VERTEX", "SEQEND"):
             problems.append(f"a new {tags[0][1]} {handle}")
     return problems
+
+
+def objects_changed(before: Path, after: Path) -> list[str]:
+    """Objects of the OBJECTS section that did not come out as they went in (same handle, same
+    group codes and values, in order), or that are new, in words (none is right)."""
+    old = entities_by_handle(before, ("OBJECTS",))
+    new = entities_by_handle(after, ("OBJECTS",))
+    problems = []
+    for handle, tags in old.items():
+        if handle not in new:
+            problems.append(f"{tags[0][1]} {handle} is gone")
+        elif new[handle] != tags:
+            diff = [(a, b) for a, b in zip(tags, new[handle]) if a != b][:3]
+            problems.append(f"{tags[0][1]} {handle} changed: {diff or 'its length'}")
+    problems += [f"a new {tags[0][1]} {h}" for h, tags in new.items() if h not in old]
+    return problems
+
+
+def duplicate_handles(path: Path) -> list[str]:
+    """Handles given to more than one entity, table entry or object (code 5, or 105 for a
+    DIMSTYLE, right after the code 0 that starts it)."""
+    seen: Counter[str] = Counter()
+    prev = None
+    for tag in _tags(path):
+        if tag.code in (5, 105) and prev == 0:
+            seen[str(tag.value).upper()] += 1
+        prev = tag.code
+    return sorted(h for h, n in seen.items() if n > 1)
 
 
 # --- the cuts of the output ------------------------------------------------------------------

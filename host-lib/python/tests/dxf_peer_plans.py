@@ -256,6 +256,19 @@ def add_decorations(doc, space, version: str) -> None:
         hatch.paths.add_polyline_path([(40, -30), (50, -30), (50, -20), (40, -20)], is_closed=True)
     dim = space.add_linear_dim(base=(0, -50), p1=(0, -48), p2=(30, -48), dxfattribs={"layer": "NOTES"})
     dim.render()
+    if version != "R12":  # raster images came with R14; ezdxf writes them from R2000
+        add_image(doc, space)
+
+
+def add_image(doc, space) -> None:
+    """A raster image reference, as LibreCAD's Complete-Lib-V.dxf carries one (issue 39 §2): an
+    IMAGE in model space, its IMAGEDEF (pixel size in codes 10/20, pixel's size in 11/21, which a
+    whole-drawing writer once wrote as 11/12), the IMAGEDEF_REACTOR between them and the drawing's
+    RASTERVARIABLES, all in OBJECTS. The file it names is never opened."""
+    doc.set_raster_variables(frame=0, quality=1, units="mm")
+    image_def = doc.add_image_def(filename="engraving/logo.png", size_in_pixel=(640, 360))
+    space.add_image(image_def, insert=(100, -40), size_in_units=(64, 36), rotation=30,
+                    dxfattribs=ENGRAVE)
 
 
 # --- the plans -------------------------------------------------------------------------------

@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 
 import kerfmeter
-from dxf_peer_checks import audit, deviation_um, output_rings_mm, untouched
+from dxf_peer_checks import (audit, deviation_um, duplicate_handles, entities_by_handle,
+                             objects_changed, output_rings_mm, untouched)
 from dxf_peer_plans import KINDS, R12_KINDS, VERSIONS, build
 
 KERF_UM = 150.0
@@ -53,6 +54,8 @@ def test_an_ezdxf_plan_dilates_into_a_clean_dxf_within_a_micron_of_geos(tmp_path
     assert out.read_bytes().startswith(b"999"), "ASCII, the record first"
     assert_clean(out)
     assert untouched(source, out, plan.cut_handles) == []
+    assert objects_changed(source, out) == []
+    assert duplicate_handles(out) == []
     rings = output_rings_mm(out, plan.mm_per_unit)
     found = deviation_um(plan.rings_mm, KERF_UM, rings)
     REPORT.append({"kind": kind, "version": version, "binary": binary, "contours": found.rings,
@@ -74,6 +77,50 @@ def test_every_dxf_the_plan_tests_dilate_opens_and_audits_clean(tmp_path, name):
     _, fixes_before = audit(source)
     assert errors == [], errors
     assert not Counter(fixes) - Counter(fixes_before), f"fixes {fixes}, the input's {fixes_before}"
+
+
+@pytest.mark.parametrize("version", [v for v in VERSIONS if v != "R12"])
+@pytest.mark.parametrize("binary", [False, True])
+def test_a_raster_image_and_its_imagedef_come_out_as_they_went_in(tmp_path, version, binary):
+    """Issue 39 §2: a plan whose objects include an IMAGEDEF (LibreCAD's Complete-Lib-V.dxf
+    came out of the retired whole-drawing writer with its pixel size under codes 11/12 and 30
+    handles given twice). Its IMAGE, IMAGEDEF, IMAGEDEF_REACTOR and RASTERVARIABLES keep their
+    handles and tags, and the IMAGEDEF its pixel size as 11/21."""
+    plan = build("circle", version)
+    source = plan.save(tmp_path, binary)
+    out = tmp_path / "out.dxf"
+    kerfmeter.dilate(source, out, KERF_UM)
+    kinds = Counter(tags[0][1] for tags in entities_by_handle(out, ("OBJECTS",)).values())
+    assert {"IMAGEDEF": 1, "IMAGEDEF_REACTOR": 1, "RASTERVARIABLES": 1}.items() <= kinds.items()
+    assert "IMAGE" in {tags[0][1] for tags in entities_by_handle(out).values()}
+    (image_def,) = [t for t in entities_by_handle(out, ("OBJECTS",)).values() if t[0][1] == "IMAGEDEF"]
+    codes = [c for c, _ in image_def]
+    assert codes[codes.index(11):codes.index(11) + 2] == [11, 21], image_def
+    assert_clean(out)
+    assert objects_changed(source, out) == []
+    assert untouched(source, out, plan.cut_handles) == []
+    assert duplicate_handles(out) == []
+
+
+def test_librecads_drawing_with_an_image_dilates_into_clean_dxf(tmp_path):
+    """LibreCAD's plan/architect/Complete-Lib-V.dxf (mm, an IMAGE of a BMP): its blocks' outlines
+    branch (refused by the loop rule of issue 39 §1), so its BORDER layer is cut: one closed
+    outline, dilated. The output opens and audits with no error and only the input's own fix
+    (an IMAGEDEF's owner), its objects and non-cut entities as they were, no handle twice."""
+    library = os.environ.get("KERFMETER_LIBRECAD_PARTS")
+    if not library:
+        pytest.skip("KERFMETER_LIBRECAD_PARTS is set by cargo xtask test-python")
+    source = Path(library) / "library" / "plan" / "architect" / "Complete-Lib-V.dxf"
+    out = tmp_path / "out.dxf"
+    report = kerfmeter.dilate(source, out, KERF_UM, cut_layers=["BORDER"])
+    assert report["contours_dilated"] == 1, report
+    errors, fixes = audit(out)
+    _, fixes_before = audit(source)
+    assert errors == [] and not Counter(fixes) - Counter(fixes_before), (errors, fixes)
+    assert objects_changed(source, out) == []
+    assert duplicate_handles(out) == []
+    changed = untouched(source, out, set())
+    assert len(changed) == 1 and changed[0].startswith("LWPOLYLINE"), changed
 
 
 def test_librecads_part_library_dilates_into_clean_dxf_or_is_refused_by_name(tmp_path):
