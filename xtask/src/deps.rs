@@ -14,12 +14,13 @@ use crate::cargo;
 const BANNED: [&str; 5] = ["clap", "axum", "tokio", "pyo3", "plotters"];
 
 /// The library crates (everything but the front ends, the firmware binary and the tooling).
-const LIBRARIES: [&str; 6] = [
+const LIBRARIES: [&str; 7] = [
     "kerfmeter-protocol",
     "kerfmeter-grbl",
     "kerfmeter",
     "kerfmeter-plan",
     "kerfmeter-history",
+    "kerfmeter-app",
     "kerfmeter-twin",
 ];
 

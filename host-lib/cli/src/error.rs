@@ -16,7 +16,7 @@ use kerfmeter_plan::PlanError;
 use kerfmeter_plan::compensation::FoundCompensation;
 use serde::Serialize;
 
-use crate::record::Recorded;
+use kerfmeter_app::history::Recorded;
 
 /// Exit code for bad arguments (clap uses it too).
 const EXIT_USAGE: u8 = 2;

@@ -30,7 +30,6 @@ mod interrupt;
 mod output;
 mod plot;
 mod progress;
-mod record;
 mod serve;
 #[cfg(test)]
 mod tests;

@@ -66,58 +66,13 @@ pub fn to_json(value: &impl Serialize, layout: JsonLayout) -> String {
     })
 }
 
-/// `serialize_with` for the paths in reports. JSON strings are Unicode, and a file name need
-/// not be (Linux names are bytes): such a name is written lossily, U+FFFD in place of each
-/// byte that is not UTF-8, and [`emit`] says so on stderr. (serde's own `Path` refuses it.)
+/// Paths in JSON reports, written lossily (the library's serializers), and the note that says so.
 pub mod lossy_path {
-    use std::borrow::Cow;
-    use std::path::{Path, PathBuf};
-    use std::sync::atomic::{AtomicBool, Ordering};
-
-    use serde::Serializer;
-
-    /// Set once a path was written lossily.
-    static REPLACED: AtomicBool = AtomicBool::new(false);
-
-    /// One path.
-    pub fn one<S: Serializer>(path: &Path, s: S) -> Result<S::Ok, S::Error> {
-        let text = path.to_string_lossy();
-        if matches!(text, Cow::Owned(_)) {
-            REPLACED.store(true, Ordering::Relaxed);
-        }
-        s.serialize_str(&text)
-    }
-
-    /// A path that may be missing (`null`).
-    pub fn option<S: Serializer>(path: &Option<PathBuf>, s: S) -> Result<S::Ok, S::Error> {
-        match path {
-            Some(path) => one(path, s),
-            None => s.serialize_none(),
-        }
-    }
-
-    /// A list of paths.
-    pub fn list<S: Serializer>(paths: &[PathBuf], s: S) -> Result<S::Ok, S::Error> {
-        use serde::ser::SerializeSeq;
-        let mut seq = s.serialize_seq(Some(paths.len()))?;
-        for path in paths {
-            seq.serialize_element(&Lossy(path))?;
-        }
-        seq.end()
-    }
-
-    /// A path serialized by [`one`].
-    struct Lossy<'a>(&'a Path);
-
-    impl serde::Serialize for Lossy<'_> {
-        fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-            one(self.0, s)
-        }
-    }
+    pub use kerfmeter_app::lossy_path::{list, one, option};
 
     /// Tell stderr when a path above was written lossily.
     pub fn warn_if_replaced() {
-        if REPLACED.load(Ordering::Relaxed) {
+        if kerfmeter_app::lossy_path::any_replaced() {
             eprintln!(
                 "note: a file name in this report is not UTF-8; the JSON shows it with U+FFFD in \
                  place of the bytes that are not"

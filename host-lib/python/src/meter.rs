@@ -22,9 +22,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::ThreadId;
 use std::time::Duration;
 
-use kerfmeter::protocol::{GaugeGeometry, KerfResult};
+use kerfmeter::protocol::KerfResult;
 use kerfmeter::sim::{PlantParams, SimDevice, SimFault, SimOptions};
-use kerfmeter::{JointSpec, Options, Progress};
+use kerfmeter::{Options, Progress};
+use kerfmeter_app::measure::MeasureRequest;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -191,13 +192,15 @@ fn run_params(
     // Any integer Python gives is refused as a bad argument, not as an overflow.
     let fingers =
         u32::try_from(fingers).map_err(|_| kerfmeter::params::fingers_out_of_range(fingers))?;
-    let joint = JointSpec {
+    // The same request as the CLI's `run` and the server's `run_kerfmeter`, one gauge a call.
+    let asked = MeasureRequest {
         thickness_mm,
         fingers,
         finger_length_mm,
         force_n,
+        ..MeasureRequest::default()
     };
-    joint.run_params(GaugeGeometry::PAPER)
+    asked.checked()
 }
 
 /// Whether the call must stop now: `abort()` was called, or a signal (Ctrl-C) is pending. The

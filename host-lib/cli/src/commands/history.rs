@@ -17,7 +17,7 @@ use serde::Serialize;
 use crate::connection::Global;
 use crate::error::CliError;
 use crate::output::{JsonLayout, Report};
-use crate::record::parse_label;
+use kerfmeter_app::history::parse_label;
 
 use super::dilate::plural;
 

@@ -26,7 +26,7 @@
 //!
 //! # History
 //!
-//! The measurement is recorded in the history under `--label` ([`crate::record`]), also when the
+//! The measurement is recorded in the history under `--label` ([`kerfmeter_app::history`]), also when the
 //! job fails after it was measured (the device's last result is read back for it; the error
 //! still fails the command).
 
@@ -64,7 +64,7 @@ use crate::connection::{Global, Session};
 use crate::error::{CliError, JobSoFar};
 use crate::output::{JsonLayout, Report};
 use crate::progress::show;
-use crate::record::{Measured, Recorded, parse_label, record};
+use kerfmeter_app::history::{Measured, Recorded, parse_label, record};
 
 type Result<T, E = CliError> = std::result::Result<T, E>;
 
@@ -129,8 +129,9 @@ pub struct JobArgs {
     /// Cut settings [default: 300 mm/min, 100 %, 1 pass, for the gauge and the job].
     #[command(flatten)]
     pub cut: CutArgs,
-    /// Colours that mean "cut" (CSS syntax, `rgb(255,0,0)` too; repeat or separate by commas)
-    /// [default: red, blue, black].
+    /// Colours that mean "cut": CSS syntax (`#808080`, `rgb(255,0,0)`, names) or an ACI number
+    /// 1–255, compared by colour both ways in DXF; repeat or separate by commas [default: red,
+    /// blue, black].
     #[arg(long = "cut-color", value_name = "COLOR")]
     pub cut_colors: Vec<String>,
     /// Widest stroke (SVG) or lineweight (DXF) that is still a cut line, mm.
@@ -408,7 +409,7 @@ fn record_kerf(
         ci95_um: None,
         runs: std::slice::from_ref(kerf),
     };
-    record(g, &session.meter, &measured)
+    record(g.db.as_deref(), &session.meter, &measured)
 }
 
 /// A job that failed after its measurement: record the device's last result, saying so on

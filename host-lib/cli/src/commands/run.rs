@@ -2,15 +2,15 @@
 //! gauges are measured and the mean with its 95 % confidence interval is reported; `--plot` draws
 //! the last run's torque–angle curve and `--also-at-force-n` reads other forces off it. The
 //! measurement is recorded in the history (under `--label`), and a drift warning printed when the
-//! label's kerf left its usual spread ([`crate::record`]).
+//! label's kerf left its usual spread ([`kerfmeter_app::history`]).
 
 use std::fmt;
 use std::path::PathBuf;
 
 use clap::Args;
-use kerfmeter::protocol::{GaugeGeometry, KerfResult, RunParams};
+use kerfmeter::protocol::{KerfResult, RunParams};
 use kerfmeter::stats::Summary;
-use kerfmeter::{Error, JointSpec, Measurement};
+use kerfmeter::{Error, Measurement};
 use serde::Serialize;
 
 use crate::connection::{Global, Session};
@@ -18,7 +18,8 @@ use crate::error::CliError;
 use crate::output::{JsonLayout, Report, ResultsTable};
 use crate::plot;
 use crate::progress::{ask, progress_bar, show};
-use crate::record::{Measured, Recorded, parse_label, record};
+use kerfmeter_app::history::{Measured, Recorded, parse_label, record};
+use kerfmeter_app::measure::{MAX_SAMPLES, MeasureRequest};
 
 #[derive(Args)]
 pub struct RunArgs {
@@ -36,7 +37,7 @@ pub struct RunArgs {
     #[arg(long, default_value_t = kerfmeter::params::DEFAULT_FINGER_LENGTH_MM)]
     finger_length_mm: f64,
     /// Gauges to measure (a fresh gauge for each).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=50))]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_SAMPLES)))]
     samples: u32,
     /// Draw the last run's torque–angle curve into this .png or .svg file.
     #[arg(long, value_name = "FILE")]
@@ -54,6 +55,20 @@ pub struct RunArgs {
     /// What is measured, for the history (material, cutter), e.g. "birch 3 mm, CO2 40 W".
     #[arg(long, value_parser = parse_label)]
     label: Option<String>,
+}
+
+impl RunArgs {
+    /// The measurement these flags ask for.
+    pub fn request(&self) -> MeasureRequest {
+        MeasureRequest {
+            thickness_mm: self.thickness_mm,
+            fingers: self.fingers,
+            finger_length_mm: self.finger_length_mm,
+            force_n: self.force_n,
+            samples: self.samples,
+            label: self.label.clone(),
+        }
+    }
 }
 
 /// The kerf at another force, read off the last run's curve.
@@ -120,13 +135,7 @@ pub struct RunReport {
 
 /// Measure as `args` say.
 pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
-    let joint = JointSpec {
-        thickness_mm: args.thickness_mm,
-        fingers: args.fingers,
-        finger_length_mm: args.finger_length_mm,
-        force_n: args.force_n,
-    };
-    let params = joint.run_params(GaugeGeometry::PAPER)?;
+    let params = args.request().checked()?;
     check_other_forces(&args.also_at_force_n)?;
     if let Some(plot) = &args.plot {
         plot::PlotFormat::for_path(plot)?;
@@ -139,7 +148,7 @@ pub fn run(g: &Global, args: &RunArgs) -> Result<RunReport, CliError> {
     let measurement = measure(g, args, &mut s, &params)?;
     // Recorded before anything else can fail: the measurement is made.
     let history = record(
-        g,
+        g.db.as_deref(),
         &s.meter,
         &Measured {
             label: args.label.as_deref(),

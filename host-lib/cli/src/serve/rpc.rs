@@ -5,8 +5,9 @@
 //! Only single requests are taken: a batch (a JSON array) is an invalid request. A request
 //! without an `id` is a notification: it is carried out and not answered.
 
-use kerfmeter::protocol::GaugeGeometry;
-use kerfmeter::{Category, JointSpec};
+use kerfmeter::Category;
+use kerfmeter_app::measure::MeasureRequest;
+use kerfmeter_app::request::from_params;
 use kerfmeter_protocol::advice::in_words_of;
 use serde::Serialize;
 use serde_json::{Map, Value, json};
@@ -40,9 +41,6 @@ pub const HISTORY_ERROR: i32 = -32006;
 /// JSON-RPC's internal error: the server failed inside the call (a bug); the device was told to
 /// abort.
 pub const INTERNAL_ERROR: i32 = -32603;
-
-/// The most samples one `run_kerfmeter` measures (as `kerfmeter run --samples`).
-pub const MAX_SAMPLES: u32 = 50;
 
 /// A JSON-RPC error object: `{"code": N, "message": "...", "data": {...}}`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -262,7 +260,8 @@ impl Params {
     pub fn label(&mut self) -> Result<Option<String>, RpcError> {
         let label = self.string("label")?;
         if let Some(label) = &label {
-            crate::record::parse_label(label).map_err(|why| RpcError::param("label", why))?;
+            kerfmeter_app::history::parse_label(label)
+                .map_err(|why| RpcError::param("label", why))?;
         }
         Ok(label)
     }
@@ -300,6 +299,11 @@ impl Params {
                 format!("expected strings, got {other}"),
             )),
         }
+    }
+
+    /// All the parameters as the request `T` (unknown ones refused, each named).
+    pub fn into_request<T: serde::de::DeserializeOwned>(self) -> Result<T, RpcError> {
+        from_params(Value::Object(self.0)).map_err(|e| RpcError::new(INVALID_PARAMS, e.to_string()))
     }
 
     /// Refuse any parameter not taken yet.
@@ -345,7 +349,7 @@ pub async fn dispatch(
         "clear_fault" => Call::ClearFault,
         "confirm_hub_at_zero" => Call::ConfirmZero,
         "self_test" => Call::SelfTest,
-        "run_kerfmeter" => Call::Run(run_call(&mut params)?),
+        "run_kerfmeter" => Call::Run(run_call(std::mem::take(&mut params))?),
         "abort" => {
             params.finish()?;
             return device.abort().await;
@@ -371,27 +375,16 @@ pub async fn dispatch(
     device.call(call, by).await
 }
 
-/// The parameters of `run_kerfmeter`, checked as `kerfmeter run` checks its flags.
-fn run_call(p: &mut Params) -> Result<RunCall, RpcError> {
-    let defaults = JointSpec::default();
-    let joint = JointSpec {
-        thickness_mm: p.f64("thickness_mm")?.unwrap_or(defaults.thickness_mm),
-        fingers: p
-            .u32_in("fingers", 1..=kerfmeter::params::MAX_FINGERS)?
-            .unwrap_or(defaults.fingers),
-        finger_length_mm: p
-            .f64("finger_length_mm")?
-            .unwrap_or(defaults.finger_length_mm),
-        force_n: p.f64("force_n")?,
-    };
-    let samples = p.u32_in("samples", 1..=MAX_SAMPLES)?.unwrap_or(1);
-    let label = p.label()?;
-    let params = joint
-        .run_params(GaugeGeometry::PAPER)
+/// The parameters of `run_kerfmeter` (a [`MeasureRequest`]), checked as `kerfmeter run` checks
+/// its flags.
+fn run_call(p: Params) -> Result<RunCall, RpcError> {
+    let asked: MeasureRequest = p.into_request()?;
+    let params = asked
+        .checked()
         .map_err(|e| RpcError::new(INVALID_PARAMS, e.to_string()))?;
     Ok(RunCall {
         params,
-        samples: samples as usize,
-        label,
+        samples: asked.samples as usize,
+        label: asked.label,
     })
 }

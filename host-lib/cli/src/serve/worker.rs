@@ -46,8 +46,8 @@ use crate::commands::{Done, confirm_zero, info, job, reset, self_test, status};
 use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::ResultJson;
-use crate::record::{Measured, is_twin, record};
 use crate::words::SERVER;
+use kerfmeter_app::history::{Measured, is_twin, record};
 use kerfmeter_protocol::advice::in_words_of;
 
 /// The shortest time between two `progress` notifications of the same state.
@@ -647,7 +647,7 @@ fn measure_and_report(
     )?;
     // Recorded before anything else can fail: the measurement is made.
     let history = record(
-        g,
+        g.db.as_deref(),
         &s.meter,
         &Measured {
             label: run.label.as_deref(),

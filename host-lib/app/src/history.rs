@@ -1,5 +1,6 @@
-//! Recording a measurement into the history (`kerfmeter_history`), for `run` and `job` (and the
-//! server): the database is `--db` or `KERFMETER_DB`, else the user's data directory.
+//! Recording a measurement into the history (`kerfmeter_history`), for a measurement and a job
+//! from any front end: the database is the one the user named (the CLI's `--db` or
+//! `KERFMETER_DB`), else the user's data directory's.
 //!
 //! A measurement is never lost to the history: a failure to record is a warning in the report
 //! ([`Recorded::error`]), and the command still succeeds with its kerf. The record says who
@@ -7,19 +8,17 @@
 //! address), or with its port when the system tells no serial number, and `twin` on the
 //! simulated device, whose records are kept apart (`simulated`).
 //!
-//! For other callers in this package (the server): build a [`Measured`] from a run and call
-//! [`record`]; the [`Recorded`] it hands back serializes as a report's `history` key. Listing is
-//! `kerfmeter_history::History::listing`, whose JSON is the `history` method's result.
+//! Build a [`Measured`] from a run and call [`record`]; the [`Recorded`] it hands back serializes
+//! as a report's `history` key. Listing is `kerfmeter_history::History::listing`, whose JSON is
+//! the server's `history` method's result.
 
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use kerfmeter::Kerfmeter;
 use kerfmeter::protocol::KerfResult;
 use kerfmeter_history::{Drift, History, NewRecord};
 use serde::Serialize;
-
-use crate::connection::Global;
 
 /// A measurement to record: the joint it was made for and its runs.
 #[derive(Debug, Clone, Copy)]
@@ -42,7 +41,7 @@ pub struct Measured<'a> {
 #[derive(Debug, Clone, Serialize)]
 pub struct Recorded {
     /// The database (`null` when there is none: no data directory).
-    #[serde(serialize_with = "crate::output::lossy_path::option")]
+    #[serde(serialize_with = "crate::lossy_path::option")]
     pub db: Option<PathBuf>,
     /// The record's id (`null` when it could not be recorded).
     pub id: Option<i64>,
@@ -52,16 +51,16 @@ pub struct Recorded {
     pub drift: Option<Drift>,
 }
 
-/// Parse a `--label`: not blank, no control characters, at most 200 characters.
+/// Check a label (`--label`, `label`): not blank, no control characters, at most 200 characters.
 pub fn parse_label(label: &str) -> Result<String, String> {
     kerfmeter_history::check_label(label).map_err(|e| e.to_string())?;
     Ok(label.to_owned())
 }
 
-/// Record `m`, measured by `meter`, in the history `g` names (as simulated when `meter` is the
-/// twin, [`is_twin`]).
-pub fn record(g: &Global, meter: &Kerfmeter, m: &Measured<'_>) -> Recorded {
-    let db = match g.db_path() {
+/// Record `m`, measured by `meter`, in the history at `named` (the one the user named; `None`:
+/// the user's data directory's), as simulated when `meter` is the twin ([`is_twin`]).
+pub fn record(named: Option<&Path>, meter: &Kerfmeter, m: &Measured<'_>) -> Recorded {
+    let db = match named.map_or_else(History::default_path, |db| Ok(db.to_owned())) {
         Ok(db) => db,
         Err(e) => {
             return Recorded {
@@ -74,7 +73,7 @@ pub fn record(g: &Global, meter: &Kerfmeter, m: &Measured<'_>) -> Recorded {
     };
     let new = new_record(meter, m);
     // The user's data directory may not have its folder yet; a path the user gave must.
-    let open = if g.db.is_some() {
+    let open = if named.is_some() {
         History::open
     } else {
         History::open_creating_folder
