@@ -9,7 +9,11 @@
 //! keyword arguments) and prints the report its own way. No clap, axum, tokio or pyo3 type is
 //! used here (`cargo xtask check-deps` checks it).
 
+pub mod dilate;
+mod error;
 pub mod history;
 pub mod lossy_path;
 pub mod measure;
 pub mod request;
+
+pub use error::Error;

@@ -17,6 +17,37 @@ pub struct BadParam {
     pub why: String,
 }
 
+impl BadParam {
+    /// The parameter `name` is wrong: `why`.
+    pub fn named(name: &str, why: impl Into<String>) -> Self {
+        Self {
+            name: Some(name.to_owned()),
+            why: why.into(),
+        }
+    }
+}
+
+/// Strings given as one string or a list of them (`"red"`, `["red", "blue"]`).
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(transparent)]
+pub struct OneOrMany(pub Vec<String>);
+
+impl<'de> serde::Deserialize<'de> for OneOrMany {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(serde::Deserialize)]
+        #[serde(untagged, expecting = "a string or a list of strings")]
+        enum Given {
+            One(String),
+            Many(Vec<String>),
+        }
+        Ok(match Option::<Given>::deserialize(d)? {
+            None => Self::default(),
+            Some(Given::One(s)) => Self(vec![s]),
+            Some(Given::Many(v)) => Self(v),
+        })
+    }
+}
+
 impl std::fmt::Display for BadParam {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match &self.name {

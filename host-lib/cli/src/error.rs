@@ -110,6 +110,16 @@ pub struct JobSoFar {
     pub written: Vec<PathBuf>,
 }
 
+impl From<kerfmeter_app::Error> for CliError {
+    fn from(e: kerfmeter_app::Error) -> Self {
+        match e {
+            kerfmeter_app::Error::Meter(e) => CliError::Meter(e),
+            kerfmeter_app::Error::Plan(e) => CliError::Plan(e),
+            kerfmeter_app::Error::History(e) => CliError::History(e),
+        }
+    }
+}
+
 impl CliError {
     /// Whether the command's report, already printed, says this failure itself (a failed
     /// self-test's items, a run's `curve_error`): `--json` then prints no second object.

@@ -21,7 +21,7 @@ use crate::source_file::read_plan_file;
 use crate::svg::{SvgOptions, dilate_svg_cuts, dilate_svg_file_into, dilate_svg_into};
 
 /// Plan file formats.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PlanFormat {
     /// SVG.

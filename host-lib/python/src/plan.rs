@@ -3,18 +3,15 @@
 //! dilated plan into its temporary file as it is made (as the CLI does: never held whole), and a
 //! report dict with the keys of the CLI's `--json` report.
 
-use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::path::PathBuf;
 
-use kerfmeter::files::{ensure_not_input, write_atomically, write_atomically_with};
-use kerfmeter::map::KerfMap;
+use kerfmeter::files::write_atomically;
 use kerfmeter::protocol::{GaugeGeometry, JamDirection};
+use kerfmeter_app::dilate::{DilateFileRequest, Dilation, dilate_file};
 use kerfmeter_plan::compensation::IfCompensated;
-use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_plan::gauge::{self as drawing, GaugeOptions, TestPieceSpec};
-use kerfmeter_plan::outcome::{AssumedUnits, PlanSummary};
-use kerfmeter_plan::rules::CutRules;
-use kerfmeter_plan::{DilateOptions, PlanError, PlanFormat, dilate_file_into};
+use kerfmeter_plan::outcome::AssumedUnits;
+use kerfmeter_plan::{PlanError, PlanFormat};
 use pyo3::prelude::*;
 use serde::Serialize;
 
@@ -28,95 +25,37 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     Ok(())
 }
 
-/// What `dilate` did: the fields of the CLI's `kerfmeter dilate --json` report.
-#[derive(Serialize)]
-struct DilateReport {
-    input: PathBuf,
-    output: Option<PathBuf>,
-    dry_run: bool,
-    format: PlanFormat,
-    kerf_um: f64,
-    map: Option<PathBuf>,
-    cut_rules: String,
-    #[serde(flatten)]
-    summary: PlanSummary,
-}
-
-/// What failed in a dilation into a file: the plan, or the file.
-enum Failure {
-    Plan(PlanError),
-    File(kerfmeter::Error),
-}
-
-impl From<kerfmeter::Error> for Failure {
-    fn from(e: kerfmeter::Error) -> Self {
-        Failure::File(e)
+/// What to do with a plan already compensated, by name.
+fn if_compensated(name: &str) -> PyResult<IfCompensated> {
+    match name {
+        "refuse" => Ok(IfCompensated::Refuse),
+        "dilate_anyway" => Ok(IfCompensated::DilateAnyway),
+        "recompensate" => Ok(IfCompensated::Recompensate),
+        other => Err(errors::plan(PlanError::InvalidArgument(format!(
+            "if_compensated must be \"refuse\", \"dilate_anyway\" or \"recompensate\", not {other:?}"
+        )))),
     }
 }
 
-/// The dilation's options from `dilate`'s keyword arguments.
-fn dilate_options(
-    cut_colors: &[String],
-    cut_max_width_mm: f64,
-    cut_layers: &[String],
-    units: Option<&str>,
-    strict: bool,
-    compensated: &str,
-) -> Result<DilateOptions, PlanError> {
-    let assume_units = units
-        .map(|u| u.parse::<AssumedUnits>())
-        .transpose()
-        .map_err(PlanError::InvalidArgument)?;
-    let if_compensated = match compensated {
-        "refuse" => IfCompensated::Refuse,
-        "dilate_anyway" => IfCompensated::DilateAnyway,
-        "recompensate" => IfCompensated::Recompensate,
-        other => {
-            return Err(PlanError::InvalidArgument(format!(
-                "if_compensated must be \"refuse\", \"dilate_anyway\" or \"recompensate\", not {other:?}"
-            )));
-        }
-    };
-    Ok(DilateOptions {
-        rules: CutRules::new(cut_colors, cut_max_width_mm, cut_layers)?,
-        assume_units,
-        strict,
-        if_compensated,
-        progress: Default::default(),
-    })
-}
-
-/// The kerf: uniform, or per part from a kerf map measured with `kerf_um` at its reference cell.
-fn kerf_source(kerf_um: f64, map: Option<&Path>) -> Result<KerfSource, kerfmeter::Error> {
-    let kerf_um = KerfSource::check_kerf_um(kerf_um)
-        .map_err(|e| kerfmeter::Error::invalid(e.to_string()))?;
-    Ok(match map {
-        None => KerfSource::Uniform(kerf_um),
-        Some(path) => {
-            let map = KerfMap::load(path)?;
-            KerfSource::Map(Arc::new(move |x_mm, y_mm| {
-                map.kerf_at_um(kerf_um, x_mm, y_mm)
-            }))
-        }
-    })
-}
-
-/// Check that `output` may receive the dilation of `input`: same format, not the input itself.
-fn check_output(input: &Path, output: &Path, format: PlanFormat) -> PyResult<()> {
-    let out_format = PlanFormat::of(output).map_err(errors::plan)?;
-    if out_format != format {
-        return Err(errors::plan(PlanError::InvalidArgument(format!(
-            "the output {} must have the input's format ({format})",
-            output.display()
-        ))));
+/// An application-layer error as the Python exception for it.
+fn app_error(py: Python<'_>, e: kerfmeter_app::Error) -> PyErr {
+    match e {
+        kerfmeter_app::Error::Plan(e) => errors::plan(e),
+        // The output's own refusals (the input itself, a file that cannot be written).
+        kerfmeter_app::Error::Meter(
+            e @ (kerfmeter::Error::File { .. } | kerfmeter::Error::InvalidArgument(_)),
+        ) => errors::PlanError::new_err(e.to_string()),
+        kerfmeter_app::Error::Meter(e) => errors::device(py, e),
+        kerfmeter_app::Error::History(e) => errors::KerfmeterError::new_err(e.to_string()),
     }
-    ensure_not_input(input, output).map_err(|e| errors::PlanError::new_err(e.to_string()))
 }
 
 /// Dilate the cutting plan `in_path` (.svg or .dxf) by `kerf_um` and write it to `out_path`
-/// (same format, never the input; `None` with `dry_run=True`). Returns the report as a dict.
+/// (same format, never the input; `None` with `dry_run=True`; a file there is replaced only if
+/// kerfmeter wrote it, unless `force=True`). Returns the report as a dict: the CLI's
+/// `kerfmeter dilate --json` report, the same type.
 #[pyfunction]
-#[pyo3(signature = (in_path, out_path, kerf_um, *, map = None, dry_run = false, strict = false, cut_colors = Vec::new(), cut_max_width_mm = 0.3, cut_layers = Vec::new(), units = None, if_compensated = "refuse"))]
+#[pyo3(signature = (in_path, out_path, kerf_um, *, map = None, dry_run = false, strict = false, cut_colors = Vec::new(), cut_max_width_mm = 0.3, cut_layers = Vec::new(), units = None, if_compensated = "refuse", force = false))]
 #[allow(clippy::too_many_arguments)]
 fn dilate<'py>(
     py: Python<'py>,
@@ -131,58 +70,36 @@ fn dilate<'py>(
     cut_layers: Vec<String>,
     units: Option<&str>,
     if_compensated: &str,
+    force: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let format = PlanFormat::of(&in_path).map_err(errors::plan)?;
-    match &out_path {
-        Some(out) => check_output(&in_path, out, format)?,
-        None if !dry_run => {
-            return Err(errors::BadArgumentError::new_err(
-                "out_path is needed unless dry_run=True",
-            ));
-        }
-        None => {}
+    if out_path.is_none() && !dry_run {
+        return Err(errors::BadArgumentError::new_err(
+            "out_path is needed unless dry_run=True",
+        ));
     }
-    let options = dilate_options(
-        &cut_colors,
-        cut_max_width_mm,
-        &cut_layers,
-        units,
-        strict,
-        if_compensated,
-    )
-    .map_err(errors::plan)?;
-    let kerf = kerf_source(kerf_um, map.as_deref()).map_err(|e| errors::device(py, e))?;
-    let output = if dry_run { None } else { out_path };
-    // As the CLI does: the dilated plan goes into the temporary output file as it is made (a
-    // dilated SVG is several times its source), kept only if all went well.
-    let summary = py
-        .detach(|| match &output {
-            Some(out) => write_atomically_with(out, |w| {
-                dilate_file_into(&in_path, &kerf, &options, out, w).map_err(Failure::Plan)
-            }),
-            None => dilate_file_into(
-                &in_path,
-                &kerf,
-                &options,
-                Path::new("(none)"),
-                &mut std::io::sink(),
-            )
-            .map_err(Failure::Plan),
-        })
-        .map_err(|e| match e {
-            Failure::Plan(e) => errors::plan(e),
-            Failure::File(e) => errors::PlanError::new_err(e.to_string()),
-        })?;
-    let report = DilateReport {
+    let units = units
+        .map(|u| u.parse::<AssumedUnits>())
+        .transpose()
+        .map_err(|e| errors::plan(PlanError::InvalidArgument(e)))?;
+    let request = DilateFileRequest {
         input: in_path,
-        output,
+        output: out_path,
         dry_run,
-        format,
-        kerf_um,
-        map,
-        cut_rules: options.rules.describe(),
-        summary,
+        strict,
+        force,
+        dilation: Dilation {
+            kerf_um,
+            map,
+            cut_colors,
+            cut_max_width_mm,
+            cut_layers,
+            units,
+            if_compensated: self::if_compensated(if_compensated)?,
+        },
     };
+    let report = py
+        .detach(|| dilate_file(&request, Default::default()))
+        .map_err(|e| app_error(py, e))?;
     to_py(py, &report)
 }
 

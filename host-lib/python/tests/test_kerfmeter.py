@@ -214,15 +214,19 @@ def test_dilate_refuses_what_would_lose_work(tmp_path):
         '<path id="part" d="M10 10 L30 30 L30 10 L10 30 Z"'))
     kept = tmp_path / "kept.svg"
     kept.write_text("an earlier output")
-    with pytest.raises(kerfmeter.PlanError):
-        kerfmeter.dilate(crossing, kept, 200)
+    # A file kerfmeter did not write is not replaced, unless forced.
+    with pytest.raises(kerfmeter.PlanError, match="force"):
+        kerfmeter.dilate(plan, kept, 200)
+    assert kept.read_text() == "an earlier output"
+    with pytest.raises(kerfmeter.PlanError, match="cannot dilate this plan"):
+        kerfmeter.dilate(crossing, kept, 200, force=True)
     assert kept.read_text() == "an earlier output"
     # Refused with strict=True for an open cut, which is found as the plan is written.
     hinge = tmp_path / "hinge.svg"
     hinge.write_text(PLAN.replace(
         "</svg>", '<path id="slit" d="M12 40 L28 40" fill="none" stroke="red" stroke-width="0.01"/></svg>'))
-    with pytest.raises(kerfmeter.PlanError):
-        kerfmeter.dilate(hinge, kept, 200, strict=True)
+    with pytest.raises(kerfmeter.PlanError, match="open"):
+        kerfmeter.dilate(hinge, kept, 200, strict=True, force=True)
     assert kept.read_text() == "an earlier output"
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == ["bad.svg", "crossing.svg", "hinge.svg", "kept.svg", "plan.svg"]

@@ -148,6 +148,7 @@ def dilate(
     cut_layers: List[str] = ...,
     units: Optional[str] = None,
     if_compensated: str = "refuse",
+    force: bool = False,
 ) -> Dict[str, Any]: ...
 def gauge(
     out_path: _Path,
