@@ -49,6 +49,7 @@
 
 #![warn(missing_docs)]
 
+mod aci;
 pub mod compensation;
 mod decimal;
 pub mod dilate;

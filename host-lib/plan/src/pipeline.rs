@@ -190,7 +190,7 @@ fn no_cuts(summary: &PlanSummary, rules: &CutRules) -> crate::PlanError {
         ));
     }
     crate::PlanError::NoCuts(format!(
-        "no closed cut contour found, so nothing to dilate ({found}); the cuts are {}. Choose them with --cut-color, --cut-max-width-mm or --cut-layer (DXF), or close the open paths",
+        "no closed cut contour found, so nothing to dilate ({found}); the cuts are {}. Choose them with --cut-color (a CSS colour such as '#808080' or rgb(128,128,128), or an ACI number from 1 to 255: compared by colour, so ACI 9 and '#C0C0C0' are one), --cut-max-width-mm or --cut-layer (DXF), or close the open paths",
         rules.describe()
     ))
 }

@@ -19,10 +19,14 @@
 //! vector *engraves*, pass `--cut-color blue`; shops with "blue = score" pass
 //! `--cut-color red,black`.
 //!
-//! DXF has no fills: an entity is a cut when its colour (its own, or its layer's for BYLAYER;
-//! ACI 1 = red, 5 = blue, 7 = black/white) is a cut colour — or, when `--cut-layer` names are
-//! given, exactly when it lies on one of those layers. A positive DXF lineweight wider than the
-//! maximum width also makes it a non-cut.
+//! DXF has no fills: an entity is a cut when its colour (its own, or its layer's for BYLAYER) is
+//! a cut colour — or, when `--cut-layer` names are given, exactly when it lies on one of those
+//! layers. A positive DXF lineweight wider than the maximum width also makes it a non-cut.
+//! `--cut-color` takes an ACI number (1–255) as well as a CSS colour, and colours are compared
+//! as RGB both ways: an ACI index stands for its colour in the palette of the `aci` module (ACI
+//! 1 = red, 5 = blue, 7 = black on the laser's white sheet, 8 = `#808080`, …), so ACI 8 is cut by
+//! `--cut-color 8` and by `--cut-color '#808080'`, and a true-colour entity (group 420) of
+//! `#808080` by either too.
 
 use std::fmt;
 use std::str::FromStr;
@@ -48,29 +52,38 @@ impl Rgb {
     /// Black.
     pub const BLACK: Rgb = Rgb(0, 0, 0);
 
-    /// Parse any CSS colour (`red`, `#f00`, `#FF0000`, `rgb(255,0,0)`).
+    /// Parse any CSS colour (`red`, `#f00`, `#FF0000`, `rgb(255,0,0)`) or an ACI number
+    /// (`1`–`255`, the colour [`Rgb::from_aci`] gives it).
     pub fn parse(text: &str) -> Result<Rgb> {
-        let c = svgtypes::Color::from_str(text.trim()).map_err(|e| {
+        let t = text.trim();
+        if !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit()) {
+            return t.parse::<u8>().ok().and_then(Rgb::from_aci).ok_or_else(|| {
+                PlanError::InvalidArgument(format!(
+                    "`{text}` is not an ACI colour: ACI numbers run from 1 to 255 (0 is \
+                         BYBLOCK, 256 BYLAYER: no colour of their own)"
+                ))
+            });
+        }
+        let c = svgtypes::Color::from_str(t).map_err(|e| {
             PlanError::InvalidArgument(format!(
-                "`{text}` is not a colour ({e}); use a name like red or a hex code like #FF0000"
+                "`{text}` is not a colour ({e}); use a name like red, a hex code like #FF0000, \
+                 rgb(255,0,0) or an ACI number from 1 to 255"
             ))
         })?;
         Ok(Rgb(c.red, c.green, c.blue))
     }
 
-    /// The colour of an AutoCAD colour index, for the indexes that have a fixed meaning (1–7;
-    /// 7 is "black or white, against the background", taken as black on a laser's white page).
+    /// The colour of an AutoCAD colour index, 1–255 (see the `aci` module: 7 is black on a
+    /// laser's white sheet); `None` for 0 (BYBLOCK).
     pub fn from_aci(index: u8) -> Option<Rgb> {
-        Some(match index {
-            1 => Rgb(255, 0, 0),
-            2 => Rgb(255, 255, 0),
-            3 => Rgb(0, 255, 0),
-            4 => Rgb(0, 255, 255),
-            5 => Rgb(0, 0, 255),
-            6 => Rgb(255, 0, 255),
-            7 => Rgb(0, 0, 0),
-            _ => return None,
-        })
+        match index {
+            0 => None,
+            7 => Some(Rgb::BLACK),
+            i => {
+                let c = crate::aci::ACI_RGB[usize::from(i)];
+                Some(Rgb((c >> 16) as u8, (c >> 8) as u8, c as u8))
+            }
+        }
     }
 }
 
@@ -177,13 +190,15 @@ impl CutRules {
         }
         let Some(color) = color else {
             return Verdict::Keep(
-                "ACI colour 8 or above, which --cut-color cannot name (it takes ACI 1-7): choose \
+                "no colour (BYBLOCK outside a block, or a layer missing or turned off): choose \
                  its layer with --cut-layer"
                     .into(),
             );
         };
         if !self.colors.contains(&color) {
-            return Verdict::Keep(format!("colour {color} (not a cut colour)"));
+            return Verdict::Keep(format!(
+                "colour {color} (not a cut colour: --cut-color '{color}' or its ACI number cuts it)"
+            ));
         }
         if let Some(w) = lineweight_mm
             && w > self.max_width_mm + 1e-9

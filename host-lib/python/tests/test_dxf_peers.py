@@ -12,6 +12,9 @@ import os
 from collections import Counter
 from pathlib import Path
 
+import ezdxf
+import ezdxf.colors
+import ezdxf.units
 import pytest
 
 import kerfmeter
@@ -121,6 +124,34 @@ def test_librecads_drawing_with_an_image_dilates_into_clean_dxf(tmp_path):
     assert duplicate_handles(out) == []
     changed = untouched(source, out, set())
     assert len(changed) == 1 and changed[0].startswith("LWPOLYLINE"), changed
+
+
+def test_every_aci_colour_is_cut_by_its_number_and_by_ezdxfs_rgb_both_ways(tmp_path):
+    """Issue 39 §3, against ezdxf's own ACI table (`ezdxf.colors.aci2rgb`): for each index
+    1–255 (7 is black on the laser's sheet), a circle in that ACI is cut by `--cut-color` of its
+    RGB, and a circle in that RGB as a true colour (group 420) by `--cut-color` of its index."""
+    wrong = []
+    for index in range(1, 256):
+        rgb = (0, 0, 0) if index == 7 else tuple(ezdxf.colors.aci2rgb(index))
+        hex_rgb = "#{:02X}{:02X}{:02X}".format(*rgb)
+        for by_index in (True, False):
+            doc = ezdxf.new("R2018")
+            doc.units = ezdxf.units.MM
+            circle = doc.modelspace().add_circle((0, 0), 5)
+            if by_index:
+                circle.dxf.color = index
+            else:
+                circle.rgb = rgb
+            source = tmp_path / "aci.dxf"
+            doc.saveas(source)
+            asked = hex_rgb if by_index else str(index)
+            try:
+                report = kerfmeter.dilate(source, None, KERF_UM, dry_run=True, cut_colors=[asked])
+                if report["contours_dilated"] != 1:
+                    wrong.append((index, by_index, report["contours_dilated"]))
+            except kerfmeter.PlanError as e:
+                wrong.append((index, by_index, str(e)[:80]))
+    assert wrong == []
 
 
 def test_librecads_part_library_dilates_into_clean_dxf_or_is_refused_by_name(tmp_path):

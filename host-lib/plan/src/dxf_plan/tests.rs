@@ -531,7 +531,7 @@ fn a_zero_radius_arc_is_noted_and_what_is_passed_through_says_which_flag_cuts_it
     assert!(
         reasons
             .iter()
-            .any(|r| r.contains("ACI colour 8 or above") && r.contains("--cut-layer")),
+            .any(|r| r.contains("colour #808080") && r.contains("--cut-color '#808080'")),
         "{reasons:?}"
     );
     assert!(
@@ -540,4 +540,74 @@ fn a_zero_radius_arc_is_noted_and_what_is_passed_through_says_which_flag_cuts_it
             .any(|r| r.contains("lineweight 0.7 mm") && r.contains("--cut-max-width-mm")),
         "{reasons:?}"
     );
+}
+
+/// A drawing (R2018, mm) of two circles of radius 5 mm and nothing else: one in ACI `aci`, one
+/// in the true colour `rgb` (group 420, written from R2004).
+fn two_circles(aci: u8, rgb: u32) -> Drawing {
+    let mut d = Drawing::new();
+    d.header.version = AcadVersion::R2018;
+    d.header.default_drawing_units = Units::Millimeters;
+    let mut by_index = Entity::new(EntityType::Circle(Circle::new(
+        Point::new(0.0, 0.0, 0.0),
+        5.0,
+    )));
+    by_index.common.color = dxf::Color::from_index(aci);
+    d.add_entity(by_index);
+    let mut by_rgb = Entity::new(EntityType::Circle(Circle::new(
+        Point::new(20.0, 0.0, 0.0),
+        5.0,
+    )));
+    by_rgb.common.color_24_bit = i32::try_from(rgb).unwrap();
+    d.add_entity(by_rgb);
+    d
+}
+
+/// How many contours `--cut-color colors` cuts in `d` (0 when the plan is refused for having
+/// none), and the refusal's message.
+fn cut_by(d: Drawing, colors: &[&str]) -> (usize, String) {
+    let colors: Vec<String> = colors.iter().map(|c| c.to_string()).collect();
+    let options = DxfOptions {
+        rules: CutRules::new(&colors, 0.3, &[]).unwrap(),
+        ..DxfOptions::default()
+    };
+    match dilate_drawing(d, &KerfSource::Uniform(100.0), &options) {
+        Ok((_, s)) => (s.contours_dilated, String::new()),
+        Err(e) => (0, e.to_string()),
+    }
+}
+
+#[test]
+fn a_cut_colour_is_an_aci_number_or_a_true_colour_and_matches_both_ways() {
+    // ACI 8 is #808080 in the palette: an ACI-8 circle and a #808080 true-colour one.
+    let grey = || two_circles(8, 0x80_80_80);
+    for named in ["8", "#808080", "rgb(128,128,128)", "grey"] {
+        assert_eq!(cut_by(grey(), &[named]).0, 2, "--cut-color {named}");
+    }
+    // Another grey (ACI 9, #C0C0C0) cuts neither, and the defaults (red, blue, black) neither:
+    // the refusal says what to pass.
+    for colors in [&["9"][..], &[][..]] {
+        let (n, why) = cut_by(grey(), colors);
+        assert_eq!(n, 0, "{colors:?}");
+        assert!(
+            why.contains("colour #808080") && why.contains("ACI number from 1 to 255"),
+            "{why}"
+        );
+    }
+    // A true colour past the first seven, named by its index (ACI 30 is #FF7F00), and an
+    // index that shares red's colour (ACI 10), cut by the default red.
+    assert_eq!(cut_by(two_circles(30, 0xFF_7F_00), &["30"]).0, 2);
+    assert_eq!(cut_by(two_circles(10, 0xFF_00_00), &[]).0, 2);
+    // A colour off the palette matches its true-colour entity only.
+    assert_eq!(cut_by(two_circles(8, 0x80_80_81), &["#808081"]).0, 1);
+    // ACI 7 is black on the laser's sheet, as before: `7` cuts it, not the red beside it.
+    assert_eq!(cut_by(two_circles(7, 0xFF_00_00), &["7"]).0, 1);
+}
+
+#[test]
+fn an_aci_number_outside_1_to_255_is_refused_saying_the_range() {
+    for bad in ["0", "256", "1000"] {
+        let e = CutRules::new(&[bad.to_string()], 0.3, &[]).unwrap_err();
+        assert!(e.to_string().contains("from 1 to 255"), "{bad}: {e}");
+    }
 }
