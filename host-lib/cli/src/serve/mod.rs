@@ -32,7 +32,7 @@
 //! | `dilate` | `plan` (text) or `plan_base64`, `format` (`"svg"`/`"dxf"`, required), `kerf_um` (µm, or `"last"`: the device's last result; required), and `kerfmeter dilate`'s rules: `cut_colors`, `cut_max_width_mm`, `cut_layers`, `units`, `strict`, `already_compensated_ok`, `recompensate` | `{"kerf_um", "format", "content": the dilated plan's text, "report": {"kerf_um", "cut_rules", ... what `dilate --json` says was found and done}}` |
 //! | `gauge` | `format` (`"svg"` default, `"dxf"`), and `kerfmeter gauge`'s options with `_` for `-`: `pitch_um_per_deg`, `radius_mm`, `prong_radius_mm`, `hole_radius_mm`, `hole_distance_mm`, `jam_direction` (`"cw"`/`"ccw"`), `disengage_deg`, `test_piece`, `thickness_mm`, `finger_width_mm`, `test_piece_kerf_um`, `label` | `{"format", "content": the drawing's text, "report": gauge --json's report without the file}` |
 //! | `history` | `label`, `limit` (1..=100000, default 50) | `{"simulated", "records": [{id, time, device_id, firmware, label, thickness_mm, force_n, kerf_um, ci95_um, flags, simulated}, ...] newest first, "drift": [{label, kerf_um, usual_mean_um, usual_sd_um, message}, ...]}`: `kerfmeter history --json` without the database's path; the server's `--db` (or the user's data directory); the simulated records when the server runs the twin |
-//! | `job` | `plan` or `plan_base64`, `format` (required), `label`, and `kerfmeter job`'s flags with `_`: `thickness_mm`, `force_n`, `gauge_at_mm` (`[x, y]`), `bed_mm`, `prong_offset_mm`, `insert_z_mm`, `travel_z_mm`, `plunge_feed_mm_per_min`, `origin_mm`, `feed_mm_per_min`, `power_percent`, `passes`, `s_max`, `cut_color`, `cut_max_width_mm`, `cut_layer`, `units`, `already_compensated_ok`, `recompensate`, `unlock` (only when the server was started with `--allow-unlock`) | the whole loop on the cutter given to `serve --cutter` (else -32004): `{"kerf_um", "label", "report": job --json's report without file names, "content": the dilated plan, "gcode": the job as streamed}`; `stage` notifications as it goes |
+//! | `job` | `plan` or `plan_base64`, `format` (required), and a `kerfmeter_app::job::JobRequest` (`kerfmeter job`'s flags that name no file, with `_`, as JSON values; `null` is not given): `label`, `thickness_mm`, `force_n`, `gauge_at_mm` (`[x, y]`), `bed_mm` (`[w, h]`), `prong_offset_mm` (`[dx, dy]`), `insert_z_mm`, `travel_z_mm`, `plunge_feed_mm_per_min`, `origin_mm` (`[x, y]`), `feed_mm_per_min`, `power_percent`, `passes`, `s_max`, `cut_color` (one or a list), `cut_max_width_mm`, `cut_layer` (one or a list), `units`, `already_compensated_ok`, `recompensate`, `unlock` (only when the server was started with `--allow-unlock`) | the whole loop on the cutter given to `serve --cutter` (else -32004): `{"kerf_um", "label", "report": job --json's report without file names, "content": the dilated plan, "gcode": the job as streamed}`; `stage` notifications as it goes |
 //!
 //! With `samples` above 1 the gauges are measured one after the other without a prompt, as
 //! `kerfmeter run --yes` does: on hardware, something must place each fresh gauge.
@@ -85,6 +85,7 @@
 //! its HTTP route is one line of the table in [`http`].
 
 mod http;
+mod job;
 mod latest;
 mod plans;
 mod rpc;

@@ -13,13 +13,11 @@ use kerfmeter_plan::{PlanFormat, dilate_bytes};
 use serde::Serialize;
 use serde_json::{Value, json};
 
-use super::Cutter;
-use super::rpc::{Caller, INTERNAL_ERROR, INVALID_PARAMS, PLAN_ERROR, Params, RpcError};
+use super::rpc::{Caller, INTERNAL_ERROR, INVALID_PARAMS, Params, RpcError};
 use super::worker::{Call, Device};
 use crate::commands::dilate::DilationArgs;
 use crate::commands::gauge::{GaugeArgs, draw};
 use crate::commands::history;
-use crate::commands::job::{JobArgs, JobCliReport, Setup};
 use crate::error::CliError;
 
 /// What `dilate` reports beside the plan: the kerf, the cut rules, and what was found and done
@@ -92,7 +90,7 @@ fn dilate_plan(
 }
 
 /// The plan: `plan` (text) or `plan_base64`, exactly one.
-fn plan_bytes(p: &mut Params) -> Result<Vec<u8>, RpcError> {
+pub(super) fn plan_bytes(p: &mut Params) -> Result<Vec<u8>, RpcError> {
     let bytes = given_plan(p)?;
     if bytes.iter().all(u8::is_ascii_whitespace) {
         return Err(RpcError::param("plan", "empty: there is no drawing in it"));
@@ -119,7 +117,7 @@ fn given_plan(p: &mut Params) -> Result<Vec<u8>, RpcError> {
 }
 
 /// `format`: "svg" or "dxf" (required: there is no file name to tell).
-fn format(p: &mut Params) -> Result<PlanFormat, RpcError> {
+pub(super) fn format(p: &mut Params) -> Result<PlanFormat, RpcError> {
     match p.string("format")?.as_deref() {
         Some("svg") => Ok(PlanFormat::Svg),
         Some("dxf") => Ok(PlanFormat::Dxf),
@@ -217,7 +215,7 @@ static PLAN_WORK: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
 /// Run `work` (plan reading, dilation or drawing; `what`, for a message) on a blocking thread
 /// when [`PLAN_WORK`] lets it. Its error is answered as [`RpcError::from`] says; a panic in it
 /// (a bug) as -32603, "`what` failed".
-async fn plan_work<T, E>(
+pub(super) async fn plan_work<T, E>(
     what: &str,
     work: impl FnOnce() -> Result<T, E> + Send + 'static,
 ) -> Result<T, RpcError>
@@ -336,143 +334,12 @@ fn clap_error(command: &str, e: &clap::Error) -> RpcError {
 /// The params that are one point or size given as `[x, y]` (`--name=x,y`).
 const POINT_PARAMS: &[&str] = &["gauge_at_mm", "bed_mm", "prong_offset_mm", "origin_mm"];
 
-/// The `job` parameters besides the plan: those of `kerfmeter job`'s flags that name no file.
-const JOB_PARAMS: &[&str] = &[
-    "thickness_mm",
-    "force_n",
-    "gauge_at_mm",
-    "bed_mm",
-    "prong_offset_mm",
-    "insert_z_mm",
-    "travel_z_mm",
-    "plunge_feed_mm_per_min",
-    "origin_mm",
-    "feed_mm_per_min",
-    "power_percent",
-    "passes",
-    "s_max",
-    "cut_color",
-    "cut_max_width_mm",
-    "cut_layer",
-    "units",
-    "already_compensated_ok",
-    "recompensate",
-    "unlock",
-];
-
-/// A checked `job` request: its arguments, as `kerfmeter job` reads them, pointing into a
-/// folder of the server's own that holds the plan and receives the outputs.
-pub struct JobCall {
-    /// The arguments.
-    pub args: JobArgs,
-    /// What the loop needs, made before anything moves.
-    pub setup: Setup,
-    /// The folder (removed when the call is dropped).
-    pub dir: tempfile::TempDir,
-    /// The caller's label.
-    pub label: Option<String>,
-}
-
-impl std::fmt::Debug for JobCall {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let input = &self.args.input;
-        f.debug_struct("JobCall")
-            .field("input", input)
-            .finish_non_exhaustive()
-    }
-}
-
-/// `job` {plan | plan_base64, format, label, ... `kerfmeter job`'s flags}: checked (the plan is
-/// read, the gauge placed) before the device is asked for.
-pub async fn job_call(mut p: Params, cutter: &Cutter) -> Result<JobCall, RpcError> {
-    if !cutter.allow_unlock && p.0.get("unlock").is_some_and(|u| u != &Value::Bool(false)) {
-        let why = "parameter `unlock`: refused, as the server was started without \
-                   --allow-unlock: a controller in alarm was stopped by its own safety (a limit, \
-                   a door, a reset mid-job); clear it at the machine";
-        return Err(RpcError::new(INVALID_PARAMS, why));
-    }
-    let plan = plan_bytes(&mut p)?;
-    let format = format(&mut p)?;
-    let label = p.label()?;
-    let ext = if format == PlanFormat::Dxf {
-        "dxf"
-    } else {
-        "svg"
-    };
-    let no_room =
-        |e: std::io::Error| RpcError::new(PLAN_ERROR, format!("no room for the plan: {e}"));
-    let dir = tempfile::tempdir().map_err(no_room)?;
-    let path = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
-    std::fs::write(dir.path().join(format!("plan.{ext}")), &plan).map_err(no_room)?;
-    let mut argv = vec![
-        "job".to_owned(),
-        path(&format!("plan.{ext}")),
-        "--cutter".to_owned(),
-        cutter.address.clone(),
-        "-o".to_owned(),
-        path(&format!("dilated.{ext}")),
-        "--gcode-out".to_owned(),
-        path("job.gcode"),
-    ];
-    argv.extend(flags(&mut p, JOB_PARAMS)?);
-    p.finish()?;
-    /// `kerfmeter job`'s flags alone.
-    #[derive(clap::Parser)]
-    struct Job {
-        #[command(flatten)]
-        args: JobArgs,
-    }
-    let mut args = <Job as clap::Parser>::try_parse_from(argv)
-        .map(|j| j.args)
-        .map_err(|e| clap_error("job", &e))?;
-    // The measurement is recorded in the history under the job's label.
-    args.label.clone_from(&label);
-    let read = move || Setup::new(&args).map(|s| (args, s));
-    let (args, setup) = plan_work("reading the plan", read).await?;
-    Ok(JobCall {
-        args,
-        setup,
-        dir,
-        label,
-    })
-}
-
 /// Take the history database's path (`history.db`) out of a measurement's answer: where the
 /// server keeps its files is not the clients' business.
 pub fn hide_history_db(answer: &mut Value) {
     if let Some(history) = answer.get_mut("history").and_then(Value::as_object_mut) {
         history.remove("db");
     }
-}
-
-/// What `job` answers: the loop's report (without the server's file names), the dilated plan
-/// and the job's G-code as text.
-pub fn job_answer(call: &JobCall, report: &JobCliReport) -> Result<Value, CliError> {
-    let mut report = serde_json::to_value(report).expect("reports serialize");
-    if let Some(fields) = report.as_object_mut() {
-        for name in ["input", "output", "gcode_out"] {
-            fields.remove(name);
-        }
-    }
-    hide_history_db(&mut report);
-    let read = |path: &std::path::Path| {
-        std::fs::read(path).map_err(|e| kerfmeter::Error::File {
-            path: path.to_owned(),
-            message: e.to_string(),
-        })
-    };
-    let content = String::from_utf8_lossy(&read(&call.args.output)?).into_owned();
-    let gcode = String::from_utf8_lossy(&read(&call.dir.path().join("job.gcode"))?)
-        // Its header names the plan's source: the server's own copy, which is not the caller's.
-        .replace(
-            &call.args.input.display().to_string(),
-            "the plan sent to kerfmeter serve",
-        );
-    let kerf_um = report["kerf_um"].clone();
-    Ok(json!({
-        "kerf_um": kerf_um, "label": call.label, "report": report, "content": content,
-        "gcode": gcode,
-    }))
 }
 
 #[cfg(test)]
@@ -489,7 +356,8 @@ mod tests {
         }) else {
             unreachable!("an object")
         };
-        let argv = flags(&mut Params(map), JOB_PARAMS).unwrap();
+        let job = ["origin_mm", "cut_color", "cut_layer", "unlock"];
+        let argv = flags(&mut Params(map), &job).unwrap();
         assert_eq!(
             argv,
             [

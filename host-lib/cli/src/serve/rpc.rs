@@ -363,7 +363,7 @@ pub async fn dispatch(
                     "no cutter configured: start the server with `kerfmeter serve --cutter ...`";
                 return Err(RpcError::new(NO_CUTTER, why));
             };
-            let job = super::plans::job_call(params, cutter).await?;
+            let job = super::job::job_call(params, cutter).await?;
             return device.call(Call::Job(Box::new(job)), by).await;
         }
         _ => {

@@ -38,8 +38,9 @@ use tokio::sync::{broadcast, oneshot};
 use kerfmeter::job::{JobEvent, Stage};
 
 use super::Cutter;
+use super::job::{JobCall, job_answer};
 use super::latest::{Latest, Query};
-use super::plans::{JobCall, hide_history_db, job_answer};
+use super::plans::hide_history_db;
 use super::rpc::{Caller, INTERNAL_ERROR, NOT_CONNECTED, RpcError, notification};
 use crate::commands::run::RunReport;
 use crate::commands::{Done, confirm_zero, info, job, reset, self_test, status};
@@ -512,17 +513,16 @@ impl Worker {
     /// A job: announced like a run, each stage told to every client (`stage`), the device's
     /// progress too. An error ends the stage going as `failed`.
     fn job(&mut self, job: &JobCall, by: Caller) -> Reply {
-        let params = json!({ "label": job.label, "by": by.name() });
+        let params = json!({ "label": job.label(), "by": by.name() });
         self.shared.notify("run_started", params);
         let Some(s) = &mut self.session else {
             return Err(RpcError::new(NOT_CONNECTED, "the device is not connected"));
         };
         let shared = Arc::clone(&self.shared);
         let mut stages = Stages::default();
-        let outcome = job::run_on(&self.g, &job.args, &job.setup, s, &shared.stop, &mut |e| {
-            stages.event(&shared, e)
-        })
-        .and_then(|report| job_answer(job, &report));
+        let on_event = &mut |e: JobEvent<'_>| stages.event(&shared, e);
+        let outcome = job::run_on(&self.g, &job.cutter, &job.setup, s, &shared.stop, on_event)
+            .and_then(|report| job_answer(job, &report));
         outcome.map_err(|e| {
             stages.failed(&shared);
             self.lost(&e);
