@@ -12,6 +12,7 @@
 
 use core::cell::Cell;
 use core::fmt;
+use std::borrow::ToOwned;
 use std::string::String;
 use std::vec::Vec;
 
@@ -39,12 +40,22 @@ pub enum Advice {
     AlreadyCompensatedOk,
     /// Set LightBurn's Kerf Offsets again.
     LightBurnApply,
+    /// A parameter of a request, by its name there (`test_piece_kerf_um`): the CLI's flag, a
+    /// keyword argument, a JSON-RPC parameter.
+    Param(&'static str),
 }
 
 /// How a front end words each [`Advice`].
 pub trait Wording: Sync {
-    /// `advice` as this front end's reader would do it.
+    /// `advice` as this front end's reader would do it ([`Advice::Param`] goes to
+    /// [`Wording::param`]).
     fn advice(&self, advice: Advice) -> &'static str;
+
+    /// The request's parameter `name` as this front end's reader gives it (by default, as it
+    /// is: a keyword argument, a JSON-RPC parameter).
+    fn param(&self, name: &'static str) -> String {
+        name.to_owned()
+    }
 }
 
 /// The words of the library's own Rust API: where no front end has set its wording.
@@ -66,6 +77,7 @@ impl Wording for RustApi {
             Advice::Recompensate => "`IfCompensated::Recompensate`",
             Advice::AlreadyCompensatedOk => "`IfCompensated::DilateAnyway`",
             Advice::LightBurnApply => "`lightburn::apply_kerf`",
+            Advice::Param(name) => name,
         }
     }
 }
@@ -95,7 +107,11 @@ pub fn word_this_thread(wording: &'static dyn Wording) {
 
 impl fmt::Display for Advice {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(WORDING.with(|w| w.get().advice(*self)))
+        let wording = WORDING.with(Cell::get);
+        match self {
+            Advice::Param(name) => f.write_str(&wording.param(name)),
+            advice => f.write_str(wording.advice(*advice)),
+        }
     }
 }
 

@@ -11,6 +11,7 @@
 
 pub mod dilate;
 mod error;
+pub mod gauge;
 pub mod history;
 pub mod job;
 pub mod lossy_path;

@@ -79,6 +79,11 @@ pub mod text_or_number {
     use serde::{Deserialize, Deserializer, de::Error};
 
     /// A whole number, given as a JSON number or as its decimal text (`?limit=10`).
+    pub fn u32<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+        u32_opt(d)?.ok_or_else(|| D::Error::custom("expected a whole number, got null"))
+    }
+
+    /// [`u32`], or nothing (`null`).
     pub fn u32_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
         #[derive(Deserialize)]
         #[serde(untagged)]

@@ -90,14 +90,6 @@ pub struct Session {
 }
 
 impl Global {
-    /// The history's database: `--db` (or `KERFMETER_DB`), else the user's data directory's.
-    pub fn db_path(&self) -> Result<PathBuf, kerfmeter_history::Error> {
-        match &self.db {
-            Some(db) => Ok(db.clone()),
-            None => kerfmeter_history::History::default_path(),
-        }
-    }
-
     /// Before a measurement: the folder of a history the user named (`--db`, `KERFMETER_DB`)
     /// exists. The history is written once the gauge is measured, when a mistyped folder could
     /// only be warned about.

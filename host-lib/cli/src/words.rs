@@ -26,6 +26,11 @@ impl Wording for CommandLine {
             _ => "(see `kerfmeter --help`)",
         }
     }
+
+    /// A parameter as its flag: `test_piece_kerf_um` is `--test-piece-kerf-um`.
+    fn param(&self, name: &'static str) -> String {
+        format!("--{}", name.replace('_', "-"))
+    }
 }
 
 /// The server's wording (JSON-RPC methods and parameters).

@@ -833,6 +833,21 @@ fn the_gauge_is_drawn_as_the_gauge_command_draws_it() {
             .contains("`output`"),
         "{unknown}"
     );
+    // The params are the application layer's GaugeRequest: a bad value is named by its field,
+    // and the G-code (cut by `job`) is not drawn here.
+    let message = |answer: &Value| answer["error"]["message"].as_str().unwrap().to_owned();
+    assert!(message(&bad).contains("`radius_mm`"), "{bad}");
+    let gcode = ws.call("gauge", json!({ "format": "gcode" }));
+    assert_eq!(code(&gcode), -32602, "{gcode}");
+    assert!(message(&gcode).contains("`format`"), "{gcode}");
+    // A test piece without its kerf is refused in the server's words (the parameter's name,
+    // not the CLI's flag).
+    let piece = ws.call("gauge", json!({ "test_piece": true }));
+    assert!(
+        message(&piece).contains("test_piece needs test_piece_kerf_um"),
+        "{piece}"
+    );
+    assert!(!message(&piece).contains("--"), "{piece}");
 }
 
 #[test]

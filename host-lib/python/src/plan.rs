@@ -6,14 +6,12 @@
 use std::path::PathBuf;
 
 use kerfmeter::files::write_atomically;
-use kerfmeter::protocol::{GaugeGeometry, JamDirection};
 use kerfmeter_app::dilate::{DilateFileRequest, Dilation, dilate_file};
+use kerfmeter_app::gauge::{GaugeRequest, JamSense, draw};
 use kerfmeter_plan::compensation::IfCompensated;
-use kerfmeter_plan::gauge::{self as drawing, GaugeOptions, TestPieceSpec};
 use kerfmeter_plan::outcome::AssumedUnits;
 use kerfmeter_plan::{PlanError, PlanFormat};
 use pyo3::prelude::*;
-use serde::Serialize;
 
 use crate::errors;
 use crate::to_py;
@@ -103,35 +101,11 @@ fn dilate<'py>(
     to_py(py, &report)
 }
 
-/// What `gauge` wrote: the fields of the CLI's `kerfmeter gauge --json` report.
-#[derive(Serialize)]
-struct GaugeReport {
-    output: PathBuf,
-    format: PlanFormat,
-    page_mm: [f64; 2],
-    pitch_um_per_deg: f64,
-    pitch_mm_per_rad: f64,
-    start_radius_mm: f64,
-    end_radius_mm: f64,
-    spiral_arcs: usize,
-    max_deviation_um: f64,
-    hole_radius_mm: f64,
-    hole_distance_mm: f64,
-    jam_direction: &'static str,
-    test_piece: Option<TestPieceSpec>,
-    label: bool,
-}
-
-/// An `f32` as the decimal it was written as (2.774, not 2.7739999294).
-fn clean(x: f32) -> f64 {
-    x.to_string().parse().unwrap_or(f64::from(x))
-}
-
-/// "cw" or "ccw" as the protocol's jam direction.
-fn jam_direction(name: &str) -> PyResult<JamDirection> {
+/// "cw" or "ccw" as the gauge's jam direction.
+fn jam_sense(name: &str) -> PyResult<JamSense> {
     match name {
-        "cw" => Ok(JamDirection::Clockwise),
-        "ccw" => Ok(JamDirection::CounterClockwise),
+        "cw" => Ok(JamSense::Cw),
+        "ccw" => Ok(JamSense::Ccw),
         other => Err(errors::BadArgumentError::new_err(format!(
             "jam_direction must be \"cw\" or \"ccw\", not {other:?}"
         ))),
@@ -153,43 +127,19 @@ fn gauge<'py>(
     finger_width_mm: f64,
 ) -> PyResult<Bound<'py, PyAny>> {
     let format = PlanFormat::of(&out_path).map_err(errors::plan)?;
-    let geometry = GaugeGeometry {
-        jam_direction: self::jam_direction(jam_direction)?,
-        ..GaugeGeometry::PAPER
-    };
-    let test_piece = test_piece_kerf_um.map(|kerf_um| TestPieceSpec {
+    // The same request as the CLI's `gauge` and the server's `gauge`.
+    let request = GaugeRequest {
+        format: format.into(),
+        jam_direction: jam_sense(jam_direction)?,
+        label,
+        test_piece: test_piece_kerf_um.is_some(),
+        test_piece_kerf_um,
         thickness_mm,
         finger_width_mm,
-        kerf_um,
-    });
-    let options = GaugeOptions { test_piece, label };
-    let drawn = drawing::build(&geometry, &options).map_err(errors::plan)?;
-    let bytes = match format {
-        PlanFormat::Svg => drawing::to_svg(&drawn).into_bytes(),
-        PlanFormat::Dxf => drawing::to_dxf(&drawn).map_err(errors::plan)?,
+        ..GaugeRequest::default()
     };
+    let (bytes, mut report) = draw(&request).map_err(|e| app_error(py, e))?;
     write_atomically(&out_path, &bytes).map_err(|e| errors::PlanError::new_err(e.to_string()))?;
-    let spiral_arcs = drawn
-        .spiral
-        .vertex_data
-        .iter()
-        .filter(|v| v.bulge != 0.0)
-        .count();
-    let report = GaugeReport {
-        output: out_path,
-        format,
-        page_mm: drawn.page_mm,
-        pitch_um_per_deg: clean(geometry.pitch_um_per_deg),
-        pitch_mm_per_rad: drawn.pitch_mm_per_rad,
-        start_radius_mm: drawn.start_radius_mm,
-        end_radius_mm: drawn.start_radius_mm + std::f64::consts::TAU * drawn.pitch_mm_per_rad,
-        spiral_arcs,
-        max_deviation_um: drawn.max_deviation_mm * 1e3,
-        hole_radius_mm: clean(geometry.hole_radius_mm),
-        hole_distance_mm: clean(geometry.hole_distance_mm),
-        jam_direction: if jam_direction == "cw" { "cw" } else { "ccw" },
-        test_piece,
-        label,
-    };
+    report.output = Some(out_path);
     to_py(py, &report)
 }

@@ -206,43 +206,6 @@ pub fn notification(method: &str, params: Value) -> String {
 pub struct Params(pub Map<String, Value>);
 
 impl Params {
-    /// The number `name` (`None` when absent or null).
-    pub fn f64(&mut self, name: &str) -> Result<Option<f64>, RpcError> {
-        match self.0.remove(name) {
-            None | Some(Value::Null) => Ok(None),
-            Some(Value::Number(n)) => n
-                .as_f64()
-                .map(Some)
-                .ok_or_else(|| RpcError::param(name, "not a finite number")),
-            Some(other) => Err(RpcError::param(
-                name,
-                format!("expected a number, got {other}"),
-            )),
-        }
-    }
-
-    /// The whole number `name` within `range` (a JSON number, or its decimal text as a URL's
-    /// query gives it).
-    pub fn u32_in(
-        &mut self,
-        name: &str,
-        range: std::ops::RangeInclusive<u32>,
-    ) -> Result<Option<u32>, RpcError> {
-        let Some(value) = self.0.remove(name).filter(|v| !v.is_null()) else {
-            return Ok(None);
-        };
-        let n = value
-            .as_u64()
-            .or_else(|| value.as_str().and_then(|text| text.parse().ok()))
-            .and_then(|n| u32::try_from(n).ok())
-            .filter(|n| range.contains(n));
-        let why = || {
-            let (lo, hi) = (range.start(), range.end());
-            format!("expected a whole number from {lo} to {hi}, got {value}")
-        };
-        n.map(Some).ok_or_else(|| RpcError::param(name, why()))
-    }
-
     /// The string `name`.
     pub fn string(&mut self, name: &str) -> Result<Option<String>, RpcError> {
         match self.0.remove(name) {
@@ -251,52 +214,6 @@ impl Params {
             Some(other) => Err(RpcError::param(
                 name,
                 format!("expected a string, got {other}"),
-            )),
-        }
-    }
-
-    /// The label (`label`: what is measured), checked as `--label` is, before anything moves:
-    /// a label the history would refuse is refused here.
-    pub fn label(&mut self) -> Result<Option<String>, RpcError> {
-        let label = self.string("label")?;
-        if let Some(label) = &label {
-            kerfmeter_app::history::parse_label(label)
-                .map_err(|why| RpcError::param("label", why))?;
-        }
-        Ok(label)
-    }
-
-    /// The boolean `name`.
-    pub fn bool(&mut self, name: &str) -> Result<Option<bool>, RpcError> {
-        match self.0.remove(name) {
-            None | Some(Value::Null) => Ok(None),
-            Some(Value::Bool(b)) => Ok(Some(b)),
-            Some(other) => Err(RpcError::param(
-                name,
-                format!("expected true or false, got {other}"),
-            )),
-        }
-    }
-
-    /// The strings `name`: an array of strings, or one string.
-    pub fn strings(&mut self, name: &str) -> Result<Option<Vec<String>>, RpcError> {
-        match self.0.remove(name) {
-            None | Some(Value::Null) => Ok(None),
-            Some(Value::String(s)) => Ok(Some(vec![s])),
-            Some(Value::Array(items)) => items
-                .into_iter()
-                .map(|item| match item {
-                    Value::String(s) => Ok(s),
-                    other => Err(RpcError::param(
-                        name,
-                        format!("expected strings, got {other}"),
-                    )),
-                })
-                .collect::<Result<_, _>>()
-                .map(Some),
-            Some(other) => Err(RpcError::param(
-                name,
-                format!("expected strings, got {other}"),
             )),
         }
     }

@@ -12,6 +12,8 @@
 //! as a report's `history` key. Listing is `kerfmeter_history::History::listing`, whose JSON is
 //! the server's `history` method's result.
 
+pub mod listing;
+
 use std::fmt;
 use std::path::{Path, PathBuf};
 
