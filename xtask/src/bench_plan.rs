@@ -161,14 +161,7 @@ print(best)
 
 /// Build the release binary and the example; their paths.
 fn build() -> Result<(PathBuf, PathBuf)> {
-    run_cmd(cargo().args([
-        "build",
-        "--release",
-        "-p",
-        "kerfmeter-cli",
-        "--bin",
-        "kerfmeter",
-    ]))?;
+    crate::build_cli(true)?;
     run_cmd(cargo().args([
         "build",
         "--release",

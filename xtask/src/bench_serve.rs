@@ -14,7 +14,7 @@ use std::process::{Child, Command, Stdio};
 
 use anyhow::{Context, Result, bail};
 
-use crate::{cargo, python, root, run_cmd};
+use crate::{python, root};
 
 /// The benchmark's options.
 #[derive(clap::Args)]
@@ -33,14 +33,7 @@ pub struct BenchServeArgs {
 /// Run the benchmark.
 pub fn run(args: &BenchServeArgs) -> Result<()> {
     let venv_python = python::ensure_venv(&[crate::browser::WEBSOCKETS])?;
-    run_cmd(cargo().args([
-        "build",
-        "--release",
-        "-p",
-        "kerfmeter-cli",
-        "--bin",
-        "kerfmeter",
-    ]))?;
+    crate::build_cli(true)?;
     let script = root().join("host-lib/cli/tests/web/serve_load.py");
     let mut kerfs = Vec::new();
     for clients in [0, args.clients] {

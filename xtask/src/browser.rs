@@ -15,7 +15,7 @@ use std::process::{Command, Stdio};
 
 use anyhow::{Context, Result, bail};
 
-use crate::{cargo, python, root, run_cmd};
+use crate::{python, root, run_cmd};
 
 /// Debian's browser and its WebDriver.
 const CHROMIUM: &str = "/usr/bin/chromium";
@@ -34,7 +34,7 @@ pub fn test_web() -> Result<()> {
     let mut packages = vec![python::PYTEST];
     packages.extend(PYTHON_PACKAGES);
     let venv_python = python::ensure_venv(&packages)?;
-    run_cmd(cargo().args(["build", "-p", "kerfmeter-cli", "--bin", "kerfmeter"]))?;
+    crate::build_cli(false)?;
     let kerfmeter = root().join("target").join("debug").join("kerfmeter");
     let tests = root()
         .join("host-lib")

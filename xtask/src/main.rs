@@ -244,6 +244,19 @@ pub fn cargo() -> Command {
     cmd
 }
 
+/// Build the `kerfmeter` binary (`release` or debug) and give its path: the one build of it
+/// that the benchmarks and the test steps that run it share.
+pub fn build_cli(release: bool) -> Result<PathBuf> {
+    let mut cmd = cargo();
+    cmd.args(["build", "-p", "kerfmeter-cli", "--bin", "kerfmeter"]);
+    if release {
+        cmd.arg("--release");
+    }
+    run_cmd(&mut cmd)?;
+    let profile = if release { "release" } else { "debug" };
+    Ok(root().join("target").join(profile).join("kerfmeter"))
+}
+
 /// Run `cmd`, echoing it, and fail with its exit status.
 pub fn run_cmd(cmd: &mut Command) -> Result<()> {
     eprintln!("$ {}", show(cmd));

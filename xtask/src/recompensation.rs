@@ -19,7 +19,7 @@ use crate::{cargo, root, run_cmd};
 
 /// Build the CLI and compare the sample's recompensations (the test prints one line a generator).
 pub fn test() -> Result<()> {
-    run_cmd(cargo().args(["build", "-p", "kerfmeter-cli", "--bin", "kerfmeter"]))?;
+    crate::build_cli(false)?;
     let kerfmeter = root().join("target").join("debug").join("kerfmeter");
     run_cmd(
         cargo()

@@ -259,19 +259,7 @@ fn every_option_of_every_command_refuses_hostile_values_without_panicking() {
                     for form in forms {
                         let mut args = args.clone();
                         args.extend(form);
-                        let t = Instant::now();
                         let out = kerfmeter(&scratch.root, &args);
-                        if std::env::var_os("WALK_DEBUG").is_some() && !json {
-                            let err = String::from_utf8_lossy(&out.stderr);
-                            let first = err.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
-                            eprintln!(
-                                "WALK {:?} {:.2}s {:?} {}",
-                                out.status.code(),
-                                t.elapsed().as_secs_f64(),
-                                args,
-                                first
-                            );
-                        }
                         check(&args, &out, json);
                         tried += 1;
                     }
