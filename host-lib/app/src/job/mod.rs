@@ -9,22 +9,26 @@
 //! move: against the machine's travel first ([`kerfmeter::job::check_travel`]), then
 //! ([`kerfmeter::job::Placement::check_layout`]) the plan and the gauge on the bed, the gauge 5
 //! mm clear of the plan, the head's move over the gauge on the bed, the insert Z below the travel
-//! Z. The gauge is cut with the job's own settings (the kerf depends on them). The loop itself is
-//! [`kerfmeter::job::run_job`]'s; its dilate stage is [`JobSetup::dilate_and_write`], and what
-//! it did is a [`JobCliReport`] (a dry run's programs, a [`DryRunReport`]).
+//! Z. The gauge is cut with the job's own settings (the kerf depends on them). On the machines a
+//! front end opened, [`JobSetup::drive`] runs the loop ([`kerfmeter::job::run_job`]'s; its
+//! dilate stage is [`JobSetup::dilate_and_write`]), [`JobSetup::record`] records the
+//! measurement in the history, and what the job did is a [`JobCliReport`] (a dry run's programs,
+//! a [`DryRunReport`]).
 //!
 //! # Modules
 //!
 //! - `request`: the request and its files; `setup`: the setup, the placing and the dry run;
-//!   `plan`: the plan's outputs, settings, reading and dilation; `report`: the reports;
-//!   `error`: why a setup was refused.
+//!   `plan`: the plan's outputs, settings, reading and dilation; `drive`: the loop driven, its
+//!   measurement recorded, its report; `report`: the reports; `error`: why a setup was refused.
 
+mod drive;
 mod error;
 mod plan;
 mod report;
 mod request;
 mod setup;
 
+pub use drive::{RecordedAfterStop, Stopped};
 pub use error::JobSetupError;
 pub use plan::{GAUGE_SETTINGS, cut_settings};
 pub use report::{DryRunReport, JobCliReport, StageGcode};

@@ -4,8 +4,9 @@
 //! ([`kerfmeter_app::job`]) sets the job up before anything moves (the plan read and checked, the
 //! gauge placed, every move checked against the machine's travel and the bed, the outputs
 //! checked writable) and dilates and writes the plan and the job's G-code atomically, never over
-//! the input nor each other; [`kerfmeter::job`] runs the loop. This module opens the machines,
-//! records the measurement and prints the report ([`JobCliReport`]).
+//! the input nor each other, drives the loop ([`kerfmeter::job`]'s) and records the measurement.
+//! This module opens the machines, tells on stderr how it goes, and prints the report
+//! ([`JobCliReport`]).
 //!
 //! The bed is the controller's X and Y travel (`$130`, `$131`) unless `--bed-mm` gives it (600 ×
 //! 400 mm for a controller that reports none, and for `--dry-run`), so without `--bed-mm` the
@@ -35,12 +36,11 @@ use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, SimCutterOptions};
-use kerfmeter::job::{Devices, JobError, JobEvent, SimLink, Stage, run_job};
-use kerfmeter::protocol::KerfResult;
+use kerfmeter::job::{Devices, JobError, JobEvent, SimLink};
 use kerfmeter_app::dilate::DEFAULT_CUT_MAX_WIDTH_MM;
 use kerfmeter_app::job::{
     DEFAULT_PLUNGE_FEED_MM_PER_MIN, DEFAULT_TRAVEL_Z_MM, DryRunReport, JobCliReport, JobFiles,
-    JobRequest, JobSetup, JobSetupError,
+    JobRequest, JobSetup, JobSetupError, Stopped,
 };
 use kerfmeter_plan::outcome::AssumedUnits;
 
@@ -50,7 +50,7 @@ use crate::connection::{Global, Session};
 use crate::error::{CliError, JobSoFar};
 use crate::output::{JsonLayout, Report};
 use crate::progress::show;
-use kerfmeter_app::history::{Measured, Recorded, parse_label, record};
+use kerfmeter_app::history::parse_label;
 
 type Result<T, E = CliError> = std::result::Result<T, E>;
 
@@ -247,7 +247,6 @@ pub fn run_on(
             placed.placement.gauge_at_mm[1]
         );
     }
-    let request = setup.loop_request(&placed);
     let devices = Devices {
         cutter: &mut cutter,
         meter: &mut session.meter,
@@ -256,43 +255,24 @@ pub fn run_on(
             kerf: sim_kerf,
         }),
     };
-    let mut written = Vec::new();
-    let mut dilate = |kerf_um: f64| setup.dilate_and_write(kerf_um, &mut written);
-    let mut measured = false;
-    let report = run_job(devices, &request, &mut dilate, cancel, &mut |e| {
-        measured |= matches!(e, JobEvent::Finished(Stage::Measure, _));
-        on_event(e)
-    });
-    let report = match report {
-        Ok(report) => report,
-        Err(e) if !measured => return Err(job_error(e)),
-        Err(e) => return Err(after_measuring(g, setup, session, e, written)),
+    let done = match setup.drive(&placed, devices, cancel, on_event) {
+        Ok(done) => done,
+        Err(Stopped::Before(e)) => return Err(job_error(e)),
+        Err(Stopped::After { error, written }) => {
+            return Err(after_measuring(g, setup, session, error, written));
+        }
     };
-    let history = record_kerf(g, setup, session, &report.kerf);
+    let history = setup.record(g.db.as_deref(), &session.meter, &done.kerf);
     let sim_truth_um = session
         .sim
         .as_ref()
-        .and_then(|s| s.truth_um(report.kerf.run_id));
-    let files = setup.files();
-    Ok(JobCliReport {
-        input: files.input.clone(),
-        output: files.output.clone(),
-        gcode_out: setup.gcode_out().clone(),
-        cutter: cutter.address().to_owned(),
-        kerf_um: report.kerf.kerf_um,
-        total_s: report.stages.iter().map(|s| s.elapsed_s).sum(),
-        stages: report.stages,
-        gauge_at_mm: placed.placement.gauge_at_mm,
-        landing_mm: report.landing_mm,
-        job_lines: report.job_lines,
-        sim_truth_um,
-        label: setup.request().label.clone(),
-        history,
-    })
+        .and_then(|s| s.truth_um(done.kerf.run_id));
+    let cutter = cutter.address().to_owned();
+    Ok(setup.report(&placed, cutter, done, sim_truth_um, history))
 }
 
-/// The error of a job that failed after its measurement: the measurement recorded, the files
-/// `written` named on stderr, and both kept for `--json`.
+/// The error of a job that failed after its measurement: the device's last result recorded
+/// (said on stderr), the files `written` named on stderr, and both kept for `--json`.
 fn after_measuring(
     g: &Global,
     setup: &JobSetup,
@@ -300,7 +280,8 @@ fn after_measuring(
     e: JobError,
     written: Vec<PathBuf>,
 ) -> CliError {
-    let (kerf_um, history) = record_after_failure(g, setup, session);
+    let recorded = setup.record_after_stop(g.db.as_deref(), &mut session.meter);
+    eprintln!("the job failed after its measurement; {}", recorded.note);
     if !written.is_empty() {
         let files: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
         eprintln!(
@@ -309,8 +290,8 @@ fn after_measuring(
         );
     }
     let so_far = JobSoFar {
-        kerf_um,
-        history,
+        kerf_um: recorded.kerf_um,
+        history: recorded.history,
         written,
     };
     match job_error(e) {
@@ -320,46 +301,6 @@ fn after_measuring(
         },
         other => other,
     }
-}
-
-/// Record the job's measurement `kerf` in the history.
-fn record_kerf(g: &Global, setup: &JobSetup, session: &Session, kerf: &KerfResult) -> Recorded {
-    let params = setup.params();
-    let measured = Measured {
-        label: setup.request().label.as_deref(),
-        thickness_mm: f64::from(params.thickness_mm),
-        force_n: f64::from(params.target_force_n),
-        kerf_um: f64::from(kerf.kerf_um),
-        ci95_um: None,
-        runs: std::slice::from_ref(kerf),
-    };
-    record(g.db.as_deref(), &session.meter, &measured)
-}
-
-/// A job that failed after its measurement: record the device's last result, saying so on
-/// stderr (the command fails with the job's error); the kerf and its record, for `--json`.
-fn record_after_failure(
-    g: &Global,
-    setup: &JobSetup,
-    session: &mut Session,
-) -> (Option<f32>, Option<Recorded>) {
-    let (kerf_um, history, note) = match session.meter.get_kerf_value() {
-        Ok(Some(kerf)) => {
-            let recorded = record_kerf(g, setup, session, &kerf);
-            let note = recorded.to_string();
-            (Some(kerf.kerf_um), Some(recorded), note)
-        }
-        Ok(None) => {
-            let note = "warning: not recorded in the history: the device kept no result";
-            (None, None, note.to_owned())
-        }
-        Err(e) => {
-            let note = format!("warning: not recorded in the history: cannot read the result: {e}");
-            (None, None, note)
-        }
-    };
-    eprintln!("the job failed after its measurement; {note}");
-    (kerf_um, history)
 }
 
 /// Refuse a simulated device with a real cutter, and the other way round (see the module doc).
