@@ -27,6 +27,8 @@
 //!   conversions.
 //! - [`partition`]: what is done at boot with the configuration partition: use a valid record,
 //!   erase foreign data, or run without persistence.
+//! - [`wiring`]: the pin numbers of each chip's board, written once (`pins` takes them), and the
+//!   wiring as data: each wire's part, pin and fitted components, for `cargo xtask wiring`.
 //!
 //! The USB-Serial-JTAG port and the tasks stay in the board binary: they are the binary's
 //! run-time structure, not set-up that the tests share.
@@ -37,6 +39,7 @@
 pub mod current;
 pub mod partition;
 pub mod supply;
+pub mod wiring;
 
 #[cfg(feature = "board")]
 pub mod adc;

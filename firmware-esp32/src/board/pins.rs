@@ -1,8 +1,10 @@
 //! Every pin assignment of the board, in one place.
 //!
 //! [`take_pins!`](crate::take_pins) moves the board's pins out of esp-hal's `Peripherals`;
-//! nothing else in the firmware (board binary, on-target tests) names a GPIO number. Change a pin
-//! here and only here.
+//! nothing else in the firmware (board binary, on-target tests) names a GPIO number. The numbers
+//! themselves are written once, in `board::wiring` (chip-independent, so that `cargo xtask
+//! wiring` draws `docs/wiring.svg` from them): change a pin there, keep the table below in step,
+//! and run `cargo xtask wiring`.
 //!
 //! # Wiring
 //!
@@ -101,9 +103,7 @@ pub struct EncoderPins {
 #[macro_export]
 macro_rules! take_pins {
     ($p:ident) => {
-        $crate::__take_board_pins!($p;
-            pwm: GPIO3, dir: GPIO10, sleep: GPIO1, fault: GPIO20, current: GPIO0,
-            supply: GPIO4, sclk: GPIO6, mosi: GPIO7, miso: GPIO5, cs: GPIO2)
+        $crate::__esp32c3_gpios!(__take_board_pins! { $p; })
     };
 }
 
@@ -113,9 +113,7 @@ macro_rules! take_pins {
 #[macro_export]
 macro_rules! take_pins {
     ($p:ident) => {
-        $crate::__take_board_pins!($p;
-            pwm: GPIO3, dir: GPIO21, sleep: GPIO1, fault: GPIO20, current: GPIO0,
-            supply: GPIO2, sclk: GPIO6, mosi: GPIO7, miso: GPIO19, cs: GPIO18)
+        $crate::__esp32c6_gpios!(__take_board_pins! { $p; })
     };
 }
 
