@@ -1,8 +1,10 @@
 //! Pololu G2 motor driver: PWM (`SetDutyCycle`), DIR and SLP (`OutputPin`), FLT (`InputPin`).
 //!
 //! No control logic: it applies a [`MotorOutput`] and reports the FLT line. SLP low puts the
-//! driver to sleep (outputs off); FLT is open-drain, low on a fault (over-temperature, short,
-//! under-voltage).
+//! driver to sleep (outputs off); FLT is open-drain, low on a fault: on the G2 18v17, a short
+//! circuit or under-voltage. The 18v17 has no over-temperature fault on FLT (Pololu lists
+//! under-voltage shutdown and short-circuit protection only), so a hot bridge is not reported
+//! here: the over-current trip on the measured current is what guards the motor and driver.
 //!
 //! **Safe state** — duty 0, SLP low (asleep), DIR low — is set before anything else when the
 //! driver is constructed, whenever the output asks for the driver asleep

@@ -26,7 +26,8 @@ pub enum Fault {
     Magnet,
     /// Motor current above `DeviceConfig::max_current_a`.
     OverCurrent,
-    /// The motor driver pulled its FLT line low (over-temperature, short, under-voltage).
+    /// The motor driver pulled its FLT line low (on the G2 18v17: a short or under-voltage; it
+    /// reports no over-temperature on FLT).
     DriverFault,
     /// The host sent nothing for `RunParams::host_timeout_ms` during a run, or for a
     /// second during a reset or a self-test (the firmware's default host timeout).
@@ -150,8 +151,7 @@ impl Conditions {
     /// [`Fault::EncoderErrors`]).
     pub const ENCODER_UNREADABLE: Self = Self(1 << 2);
     /// The motor driver holds its FLT line low: most often its motor supply is off or below the
-    /// driver's under-voltage lockout; also over-temperature or a short (as
-    /// [`Fault::DriverFault`]).
+    /// driver's under-voltage lockout; also a short (as [`Fault::DriverFault`]).
     pub const DRIVER_FAULT: Self = Self(1 << 3);
     /// The measured motor supply ([`Status::supply_v`], filtered) is outside the rated
     /// [`SUPPLY_MIN_V`](crate::SUPPLY_MIN_V)–[`SUPPLY_MAX_V`](crate::SUPPLY_MAX_V), by more than

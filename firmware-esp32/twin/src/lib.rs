@@ -92,8 +92,8 @@
 //! taken as continuous, with no ripple); the bus capacitance (the bus follows the load at once, so
 //! a supply that sags into the lockout stays locked while the load is asked for, rather than
 //! hiccuping); the current-sense waveform between two samples (the bridge's state at the end of
-//! the last tick stands for the whole tick); the G2's other faults
-//! (short circuit, over-temperature); the control step's own execution time (a tick takes no
+//! the last tick stands for the whole tick); the G2's other fault, a short circuit (the 18v17
+//! reports no over-temperature on FLT); the control step's own execution time (a tick takes no
 //! core time, so the ticks that catch up after a late one come at once), the chip's boot time,
 //! and the USB link's own latency and flow control; the encoder's register writes and a magnet
 //! tilted or at the wrong air gap; the inset's inertia, and its sliding within the spiral's gap

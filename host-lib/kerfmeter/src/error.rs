@@ -362,7 +362,7 @@ pub fn describe_fault(fault: Fault) -> &'static str {
         }
         Fault::OverCurrent => "motor over-current: is the hub blocked?",
         Fault::DriverFault => {
-            "the motor driver reported a fault (over-temperature, short or under-voltage)"
+            "the motor driver reported a fault (a short, or its supply under-voltage)"
         }
         Fault::HostSilent => "the host stopped talking during a run",
         Fault::StepOverrun => "the control loop could not keep its rate",
