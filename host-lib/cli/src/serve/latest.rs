@@ -25,10 +25,29 @@ pub enum Query {
     Kerf,
 }
 
+/// An answer as the device gave it: the JSON of a reply, or a status a poll read (kept as it
+/// is: polls come every 20 ms, and its report is built only when a read asks for it).
+#[derive(Debug, Clone)]
+enum Answer {
+    Json(Value),
+    Polled(Status),
+}
+
+impl Answer {
+    fn to_json(&self) -> Value {
+        match self {
+            Answer::Json(value) => value.clone(),
+            Answer::Polled(status) => {
+                serde_json::to_value(StatusReport::from(*status)).expect("reports serialize")
+            }
+        }
+    }
+}
+
 /// An answer and when the device gave it.
 #[derive(Debug, Clone)]
 struct Stamped {
-    value: Value,
+    answer: Answer,
     at: Instant,
 }
 
@@ -41,17 +60,20 @@ pub struct Latest {
 impl Latest {
     /// Keep `value`, the device's answer to `query` now.
     pub fn remember(&self, query: Query, value: &Value) {
-        let mut answers = self.answers.lock().unwrap_or_else(PoisonError::into_inner);
-        answers[query as usize] = Some(Stamped {
-            value: value.clone(),
-            at: Instant::now(),
-        });
+        self.keep(query, Answer::Json(value.clone()));
     }
 
     /// A status a long call's poll read.
     pub fn polled(&self, status: &Status) {
-        let report = serde_json::to_value(StatusReport::from(*status)).expect("reports serialize");
-        self.remember(Query::Status, &report);
+        self.keep(Query::Status, Answer::Polled(*status));
+    }
+
+    fn keep(&self, query: Query, answer: Answer) {
+        let mut answers = self.answers.lock().unwrap_or_else(PoisonError::into_inner);
+        answers[query as usize] = Some(Stamped {
+            answer,
+            at: Instant::now(),
+        });
     }
 
     /// A run or a reset started: the device holds no result until it ends.
@@ -64,7 +86,7 @@ impl Latest {
     pub fn answer(&self, query: Query) -> Option<Value> {
         let answers = self.answers.lock().unwrap_or_else(PoisonError::into_inner);
         let stamped = answers[query as usize].as_ref()?;
-        let mut value = stamped.value.clone();
+        let mut value = stamped.answer.to_json();
         if let Some(fields) = value.as_object_mut() {
             let age_ms = stamped.at.elapsed().as_millis() as u64;
             fields.insert("poll_age_ms".into(), json!(age_ms));
