@@ -30,7 +30,7 @@ mod setup;
 
 pub use drive::{RecordedAfterStop, Stopped};
 pub use error::JobSetupError;
-pub use plan::{GAUGE_SETTINGS, cut_settings};
+pub use plan::cut_settings;
 pub use report::{DryRunReport, JobCliReport, StageGcode};
 pub use request::{DEFAULT_PLUNGE_FEED_MM_PER_MIN, DEFAULT_TRAVEL_Z_MM, JobFiles, JobRequest};
 pub use setup::{DEFAULT_BED_MM, GAUGE_MARGIN_MM, JobSetup, Placed};

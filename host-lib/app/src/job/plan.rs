@@ -12,16 +12,9 @@ use kerfmeter_plan::{PlanError, PlanFormat, dilate_file, dilate_file_cuts};
 
 use super::{JobFiles, JobRequest, JobSetupError};
 use crate::dilate::{Dilation, plan_output_format};
+use crate::gauge::GAUGE_SETTINGS;
 
 type Result<T, E = JobSetupError> = std::result::Result<T, E>;
-
-/// A first try for cutting the gauge when no job settings exist yet: slow and at full power,
-/// one pass (the gauge is cut with the job's default settings when it has some).
-pub const GAUGE_SETTINGS: CutSettings = CutSettings {
-    feed_mm_per_min: 300.0,
-    power_percent: 100.0,
-    passes: 1,
-};
 
 /// Check the two outputs before anything moves: the dilated plan in the input's format, neither
 /// output the input nor each other, both in a directory that exists and takes a new file. The
@@ -69,7 +62,8 @@ pub fn cut_settings(r: &JobRequest) -> Result<Option<CutSettings>, PlanError> {
 }
 
 /// The job's cut settings: the profile (with the request's settings as its default), the
-/// request's settings, or the gauge's.
+/// request's settings, or the gauge's first try ([`GAUGE_SETTINGS`]: the gauge is cut with the
+/// job's default settings when it has some).
 pub(super) fn job_profile(r: &JobRequest, file: Option<&Path>) -> Result<Profile> {
     let settings = cut_settings(r)?;
     Ok(match (file, settings) {

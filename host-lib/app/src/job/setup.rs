@@ -19,8 +19,9 @@ use kerfmeter_plan::gcode::{
 };
 use kerfmeter_plan::profile::Profile;
 
-use super::plan::{GAUGE_SETTINGS, check_outputs, dilated, job_profile, placed_plan_box};
+use super::plan::{check_outputs, dilated, job_profile, placed_plan_box};
 use super::{DryRunReport, JobFiles, JobRequest, JobSetupError, StageGcode};
+use crate::gauge::GAUGE_SETTINGS;
 
 type Result<T, E = JobSetupError> = std::result::Result<T, E>;
 
