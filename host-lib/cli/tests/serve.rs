@@ -986,6 +986,30 @@ fn a_job_runs_on_the_servers_cutter_with_its_stages_told() {
             .contains("`profile`"),
         "{bad}"
     );
+    // The params are the application layer's JobRequest: a bad value is named by its field,
+    // options that exclude each other are refused, and nothing runs.
+    let before = result(&ws.call("status", json!({})))["run_id"].clone();
+    let mut job = |extra: Value| {
+        let mut params = json!({ "plan": PLATE, "format": "svg" });
+        params
+            .as_object_mut()
+            .unwrap()
+            .extend(extra.as_object().unwrap().clone());
+        ws.call("job", params)
+    };
+    let point = job(json!({ "origin_mm": [1] }));
+    assert_eq!(code(&point), -32602, "{point}");
+    assert!(
+        point["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("`origin_mm`"),
+        "{point}"
+    );
+    let both = job(json!({ "recompensate": true, "already_compensated_ok": true }));
+    assert_eq!(code(&both), -32602, "{both}");
+    let status = ws.call("status", json!({}));
+    assert_eq!(result(&status)["run_id"], before, "nothing ran: {status}");
 }
 
 #[test]
