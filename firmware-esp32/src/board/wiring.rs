@@ -5,7 +5,7 @@
 //!
 //! **One home for the pin numbers.** Each chip's assignment is written once, as GPIO names, in a
 //! macro ([`__esp32c3_gpios!`](crate::__esp32c3_gpios), [`__esp32c6_gpios!`](crate::__esp32c6_gpios)).
-//! [`take_pins!`](crate::take_pins) (chip features) moves exactly those peripherals out of
+//! `take_pins!` (chip features) moves exactly those peripherals out of
 //! esp-hal's `Peripherals`, and [`ESP32C3`] and [`ESP32C6`] are the same names turned into
 //! numbers at compile time; neither can change without the other. `board::pins` (chip features)
 //! has the prose table: why each pin, and the pins avoided.
@@ -71,7 +71,7 @@ impl Gpios {
 }
 
 /// The ESP32-C3 board's pins, written once as esp-hal's peripheral names; `$then!` receives
-/// `$($args)*` followed by the list. Used by [`take_pins!`](crate::take_pins) and [`ESP32C3`].
+/// `$($args)*` followed by the list. Used by `take_pins!` and [`ESP32C3`].
 #[doc(hidden)]
 #[macro_export]
 macro_rules! __esp32c3_gpios {
@@ -117,9 +117,9 @@ macro_rules! __gpio_numbers {
     };
 }
 
-/// The ESP32-C3 board's GPIOs (the pins [`take_pins!`](crate::take_pins) takes on the C3).
+/// The ESP32-C3 board's GPIOs (the pins `take_pins!` takes on the C3).
 pub const ESP32C3: Gpios = __esp32c3_gpios!(__gpio_numbers! { "esp32c3"; });
-/// The ESP32-C6 board's GPIOs (the pins [`take_pins!`](crate::take_pins) takes on the C6).
+/// The ESP32-C6 board's GPIOs (the pins `take_pins!` takes on the C6).
 pub const ESP32C6: Gpios = __esp32c6_gpios!(__gpio_numbers! { "esp32c6"; });
 
 /// The number in an esp-hal GPIO peripheral's name (`"GPIO10"` is 10); a name of another shape
