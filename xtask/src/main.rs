@@ -16,6 +16,7 @@ mod fuzz;
 mod python;
 mod recompensation;
 mod tools;
+mod wiring;
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -50,6 +51,9 @@ enum Cmd {
     TestBrowser,
     /// Build the firmware image for a chip (release) and print its flash and RAM use.
     Firmware(firmware::FirmwareArgs),
+    /// Draw the ESP32-C3 board's wiring (docs/wiring.svg) from the firmware's pin table;
+    /// `--check` fails when the committed drawing is stale (a step of `test`).
+    Wiring(wiring::WiringArgs),
     /// Build the firmware and write it to a board (real hardware: needs --port).
     Flash(firmware::FlashArgs),
     /// Run the fuzz targets: protocol and plan readers (cargo-fuzz on the nightly toolchain).
@@ -198,6 +202,7 @@ fn main() -> Result<()> {
         Cmd::CheckDeps => deps::check_libraries(),
         Cmd::TestBrowser => browser::test_web(),
         Cmd::Firmware(args) => firmware::run(&args),
+        Cmd::Wiring(args) => wiring::run(&args),
         Cmd::Flash(args) => firmware::flash(&args),
         Cmd::Fuzz(args) => fuzz::run(&args),
         Cmd::Accuracy(args) => accuracy(&args),
@@ -407,6 +412,11 @@ fn test(args: &TestArgs) -> Result<()> {
         (
             "riscv targets installed",
             Box::new(firmware::ensure_targets),
+        ),
+        (
+            // Cheap, and a stale drawing is a wrong build: first.
+            "wiring drawing current (docs/wiring.svg)",
+            Box::new(wiring::check_committed),
         ),
         (
             "rustfmt",
