@@ -14,11 +14,12 @@ use crate::cargo;
 const BANNED: [&str; 5] = ["clap", "axum", "tokio", "pyo3", "plotters"];
 
 /// The library crates (everything but the front ends, the firmware binary and the tooling).
-const LIBRARIES: [&str; 7] = [
+const LIBRARIES: [&str; 8] = [
     "kerfmeter-protocol",
     "kerfmeter-grbl",
     "kerfmeter",
     "kerfmeter-plan",
+    "kerfmeter-lightburn",
     "kerfmeter-history",
     "kerfmeter-app",
     "kerfmeter-twin",

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 use kerfmeter::grbl::CutterError;
 use kerfmeter::job::JobError;
-use kerfmeter::lightburn::LightBurnError;
+use kerfmeter_lightburn::rest::LightBurnError;
 use kerfmeter::{Category, Error};
 use kerfmeter_plan::PlanError;
 use kerfmeter_plan::compensation::FoundCompensation;

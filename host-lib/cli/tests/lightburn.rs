@@ -24,7 +24,7 @@ fn text(bytes: &[u8]) -> String {
 /// A project of `kerfmeter-plan`'s corpus, copied into a fresh folder.
 fn project(name: &str) -> (tempfile::TempDir, PathBuf) {
     let from = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../plan/tests/corpus")
+        .join("../lightburn/tests/corpus")
         .join(name);
     let dir = tempfile::tempdir().unwrap();
     let to = dir.path().join(name);
@@ -248,7 +248,7 @@ fn sim_pairs_with_and_applies_to_a_lightburn_twin_and_keeps_no_secret() {
 #[test]
 fn pairing_again_says_the_earlier_secret_is_still_authorised_and_where_to_revoke_it() {
     // A LightBurn twin at --host: the path a real LightBurn takes, not --sim.
-    let twin = kerfmeter::lightburn_twin::LightBurnTwin::start(Default::default()).unwrap();
+    let twin = kerfmeter_lightburn::twin::LightBurnTwin::start(Default::default()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("lightburn.json");
     let pair = || {
@@ -291,7 +291,7 @@ fn pairing_again_says_the_earlier_secret_is_still_authorised_and_where_to_revoke
 
 #[test]
 fn apply_says_the_project_is_modified_and_to_save_and_send_again() {
-    let twin = kerfmeter::lightburn_twin::LightBurnTwin::start(Default::default()).unwrap();
+    let twin = kerfmeter_lightburn::twin::LightBurnTwin::start(Default::default()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("lightburn.json");
     let with_file = |args: &[&str]| {

@@ -12,9 +12,9 @@
 //! [`Kerfmeter::reset_kerfmeter`] and the rest), run parameters from a joint ([`params`]),
 //! statistics over repeated runs ([`stats`]), the bed map ([`map`]), safe output files
 //! ([`files`]), the laser cutter's GRBL driver ([`grbl`]), the automatic loop that cuts a gauge, measures
-//! it and cuts the job dilated ([`job`]), LightBurn's local REST API to write the kerf into its
-//! layers ([`lightburn`]) and, with the `sim` feature (off by default: the CLI and Python turn it on), the digital twin in-process
-//! ([`sim`]) and a LightBurn twin ([`lightburn_twin`]).
+//! it and cuts the job dilated ([`job`]) and, with the `sim` feature (off by default: the CLI
+//! and Python turn it on), the digital twin in-process ([`sim`]). LightBurn (its project files,
+//! its REST API and its twin) is the `kerfmeter-lightburn` crate's.
 //!
 //! This crate is not the command-line tool (that is `kerfmeter-cli`, which also draws the plots)
 //! and does not read or write cutting plans (that is `kerfmeter-plan`): it has no argument parser,
@@ -35,9 +35,6 @@ mod error;
 pub mod files;
 pub mod grbl;
 pub mod job;
-pub mod lightburn;
-#[cfg(feature = "sim")]
-pub mod lightburn_twin;
 pub mod lines;
 pub mod map;
 pub mod params;

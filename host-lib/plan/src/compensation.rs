@@ -306,7 +306,7 @@ impl AppliedCompensation {
 impl AppliedCompensation {
     /// The record as one XML comment (the record line, then `what` in words), for formats that
     /// keep it nowhere else (LightBurn projects).
-    pub(crate) fn xml_comment(&self, what: &str) -> String {
+    pub fn xml_comment(&self, what: &str) -> String {
         format!(
             "<!-- {} -->",
             comment_safe(&format!(
@@ -320,7 +320,7 @@ impl AppliedCompensation {
 }
 
 /// Whether a comment's text is a record of this tool's.
-pub(crate) fn is_record(comment: &str) -> bool {
+pub fn is_record(comment: &str) -> bool {
     comment.trim_start().starts_with(MARKER)
 }
 
@@ -339,7 +339,7 @@ pub(crate) fn is_own_comment(comment: &str) -> bool {
 
 /// The record of a compensation set as a setting rather than drawn (LightBurn's Kerf Offset):
 /// `net_um` this run's change, `total_um` the offset now, both as ranges over the layers set.
-pub(crate) fn applied_setting(
+pub fn applied_setting(
     action: &str,
     kerf_um: f64,
     net_um: [f64; 2],

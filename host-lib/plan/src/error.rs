@@ -123,7 +123,7 @@ impl PlanError {
 
 /// Problems found in a plan: collected, not stopped at, then reported together as one error.
 #[derive(Debug, Default)]
-pub(crate) struct Problems(Vec<Advised>);
+pub struct Problems(Vec<Advised>);
 
 /// The problems an error lists; the rest are counted (an array of 90,000 bad copies printed its
 /// one problem 90,000 times, 16 MB of message).
@@ -131,13 +131,13 @@ const SHOWN: usize = 50;
 
 impl Problems {
     /// Note one problem.
-    pub(crate) fn push(&mut self, problem: impl Into<Advised>) {
+    pub fn push(&mut self, problem: impl Into<Advised>) {
         self.0.push(problem.into());
     }
 
     /// `Ok` when there were none; otherwise one error (made by `kind`, e.g. [`PlanError::Svg`])
     /// listing them (the first 50), one a line. For problems reading a file.
-    pub(crate) fn into_error(self, kind: fn(String) -> PlanError) -> Result<()> {
+    pub fn into_error(self, kind: fn(String) -> PlanError) -> Result<()> {
         if self.0.is_empty() {
             return Ok(());
         }

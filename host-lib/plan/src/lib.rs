@@ -21,8 +21,9 @@
 //! * [`gcode`] turns a dilated plan (or the gauge drawing) into G-code for GRBL 1.1 laser mode:
 //!   a typed program first (checked without parsing text), then its text; holes before the
 //!   outline that holds them, short travels, per-colour or per-layer settings from a [`profile`].
-//! * [`lightburn`] sets the Kerf Offset of a LightBurn project's cut layers to the measured kerf
-//!   (half of it, LightBurn's convention), editing the file's text so everything else survives.
+//! * [`selectors`] is the rule by which a list option's values name colours or layers, and
+//!   [`decimal`] writes the numbers of the files written; LightBurn projects (`.lbrn2`), which
+//!   use both with [`compensation`], are edited by the `kerfmeter-lightburn` crate.
 //! * [`file`](mod@file) reads a plan file and dilates it into bytes; [`PlanError`] says what went wrong,
 //!   by kind. [`progress`] tells a caller how far a long dilation has got (the work on contours is
 //!   spread over the cores; the result does not depend on how many).
@@ -51,7 +52,7 @@
 
 mod aci;
 pub mod compensation;
-mod decimal;
+pub mod decimal;
 pub mod dilate;
 pub mod dxf_plan;
 mod entities;
@@ -60,7 +61,6 @@ pub mod file;
 pub mod gauge;
 pub mod gcode;
 pub mod geom;
-pub mod lightburn;
 mod nurbs;
 pub mod outcome;
 pub mod ownership;
@@ -74,7 +74,7 @@ mod source_file;
 pub mod svg;
 mod xml;
 
-pub use error::{PlanError, Result};
+pub use error::{PlanError, Problems, Result};
 pub use file::{
     DilateOptions, PlanFormat, dilate_bytes, dilate_file, dilate_file_cuts, dilate_file_into,
 };

@@ -13,7 +13,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use kerfmeter::grbl::protocol::{MachineState, constant_power_line, prepare};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, CutterError, StreamProgress};
 use kerfmeter_plan::PlanFormat;
-use kerfmeter_plan::lightburn::is_project_path;
+use kerfmeter_lightburn::project::is_project_path;
 use serde::Serialize;
 
 use crate::connection::Global;

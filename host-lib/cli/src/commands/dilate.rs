@@ -12,7 +12,7 @@ pub use kerfmeter_app::dilate::{DilateReport, plural, write_compensation};
 use kerfmeter_plan::DilateOptions;
 use kerfmeter_plan::compensation::IfCompensated;
 use kerfmeter_plan::dilate::KerfSource;
-use kerfmeter_plan::lightburn::is_project_path;
+use kerfmeter_lightburn::project::is_project_path;
 use kerfmeter_plan::outcome::AssumedUnits;
 use kerfmeter_plan::progress::Progress;
 use serde::Serialize;

@@ -1,22 +1,24 @@
 //! LightBurn. Offline, `kerfmeter dilate project.lbrn2 --kerf-um K -o out.lbrn2` sets the Kerf
-//! Offset of the project's Line layers (the plan library's `lightburn` module does the work and
+//! Offset of the project's Line layers (`kerfmeter_lightburn::project` does the work and
 //! documents LightBurn's convention: half the kerf, positive outward); this module checks the
 //! arguments that apply to a project, writes the output atomically (never over the input) and
 //! reports. Online, `kerfmeter lightburn pair` and `kerfmeter lightburn apply` do the same to the
-//! project open in a running LightBurn through its REST API (the library's `lightburn` module);
-//! with `--sim`, to a LightBurn twin started for the call (the library's `lightburn_twin`).
+//! project open in a running LightBurn through its REST API (`kerfmeter_lightburn::rest`); with
+//! `--sim`, to a LightBurn twin started for the call (`kerfmeter_lightburn::twin`).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
 use kerfmeter::files::{ensure_not_input, write_atomically};
-use kerfmeter::lightburn::{Applied, Client, DEFAULT_HOST, ExistingOffset, Pairing, apply_kerf};
-use kerfmeter::lightburn_twin::{LightBurnTwin, LightBurnTwinOptions};
-use kerfmeter_plan::PlanError;
-use kerfmeter_plan::dilate::KerfSource;
-use kerfmeter_plan::lightburn::{
+use kerfmeter_lightburn::project::{
     LightBurnOptions, LightBurnSummary, format_mm, is_project_path, set_kerf_offset_file,
 };
+use kerfmeter_lightburn::rest::{
+    Applied, Client, DEFAULT_HOST, ExistingOffset, Pairing, apply_kerf,
+};
+use kerfmeter_lightburn::twin::{LightBurnTwin, LightBurnTwinOptions};
+use kerfmeter_plan::PlanError;
+use kerfmeter_plan::dilate::KerfSource;
 use serde::Serialize;
 
 use super::dilate::DilateArgs;
@@ -157,7 +159,7 @@ impl fmt::Display for LightBurnReport {
 }
 
 /// The passes of a layer that were set, in words.
-fn passes(l: &kerfmeter_plan::lightburn::LayerOutcome) -> String {
+fn passes(l: &kerfmeter_lightburn::project::LayerOutcome) -> String {
     let each: Vec<String> = l
         .set
         .iter()

@@ -1,21 +1,22 @@
-//! The LightBurn client against the LightBurn twin (`kerfmeter::lightburn_twin`), which is
+//! The LightBurn client against the LightBurn twin (`kerfmeter_lightburn::twin`), which is
 //! written from LightBurn's published REST spec, not from the client: the fixed cut list of 63
 //! entries (`index` is not `layer_index`), all 32 layer slots, scope enforced with a bare 401,
 //! bodies checked whole and applied all or nothing, the updated entry answered.
 //!
-//! Here, the client's flows; in `lightburn/rules.rs`, each of the twin's rules asked of it
-//! directly over HTTP; in `lightburn/gaps.rs`, the client's fixes of issue 37 (the token
+//! Here, the client's flows; in `rest/rules.rs`, each of the twin's rules asked of it
+//! directly over HTTP; in `rest/gaps.rs`, the client's fixes of issue 37 (the token
 //! recomputed once, the change read back, `index` and `layer_index` kept apart).
 
-#[path = "lightburn/gaps.rs"]
+#[path = "rest/gaps.rs"]
 mod gaps;
-#[path = "lightburn/rules.rs"]
+#[path = "rest/rules.rs"]
 mod rules;
 
 use std::net::TcpListener;
 
-use kerfmeter::lightburn::{Client, ExistingOffset, LightBurnError, Pairing, apply_kerf};
-use kerfmeter::lightburn_twin::{DisplayUnits, LightBurnTwin, LightBurnTwinOptions};
+use kerfmeter_lightburn::rest::{Client, ExistingOffset, LightBurnError, Pairing, apply_kerf};
+use kerfmeter_lightburn::twin::{DisplayUnits, LightBurnTwin, LightBurnTwinOptions};
+use kerfmeter_protocol::advice::Advice;
 use serde_json::{Value, json};
 
 /// A LightBurn twin with its defaults, and its address.
@@ -34,7 +35,7 @@ pub fn apply_150(
     pairing: &Pairing,
     layers: &[&str],
     existing: ExistingOffset,
-) -> Result<kerfmeter::lightburn::Applied, LightBurnError> {
+) -> Result<kerfmeter_lightburn::rest::Applied, LightBurnError> {
     let layers: Vec<String> = layers.iter().map(|s| s.to_string()).collect();
     apply_kerf(&Client::new(host), pairing, 150.0, &layers, existing)
 }
@@ -42,7 +43,7 @@ pub fn apply_150(
 /// The Kerf Offset of layer `slot`'s normal cut as the twin holds it, mm (its base pass, or
 /// sub-layer `sub`).
 pub fn kerf_mm(twin: &LightBurnTwin, slot: i64, sub: Option<i64>) -> f64 {
-    use kerfmeter::lightburn_twin::CutKind;
+    use kerfmeter_lightburn::twin::CutKind;
     let project = twin.project();
     let cut = project
         .cuts
@@ -194,12 +195,14 @@ fn a_failure_after_a_layer_was_set_names_it_and_says_to_replace() {
             "{status}: {text}"
         );
         assert!(!text.contains("Badge"), "{status}: {text}");
+        // The advice in the library's own words (a front end words it its way: the CLI's
+        // `--recompensate`).
         assert!(
-            text.contains("again with --recompensate"),
+            text.contains(&format!("again with {}", Advice::Recompensate)),
             "{status}: {text}"
         );
         assert!(
-            !text.contains("--already-compensated-ok"),
+            !text.contains(&Advice::AlreadyCompensatedOk.to_string()),
             "{status}: {text}"
         );
         assert_eq!(fake.posts().len(), 1);
@@ -326,7 +329,7 @@ pub fn token(secret: &str, minutes: i64) -> String {
         .duration_since(std::time::UNIX_EPOCH)
         .unwrap()
         .as_secs() as i64;
-    kerfmeter::lightburn::bearer_token(secret, (now + 60 * minutes) as u64)
+    kerfmeter_lightburn::rest::bearer_token(secret, (now + 60 * minutes) as u64)
 }
 
 /// Wait, if need be, until this computer's clock is at least 3 s away from the next minute: a

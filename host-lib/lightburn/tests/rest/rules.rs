@@ -1,7 +1,7 @@
 //! Each rule of LightBurn's REST spec the twin enforces, asked of it over HTTP with no client
 //! code between (the file and section of the spec are cited in the twin's source).
 
-use kerfmeter::lightburn_twin::{DisplayUnits, LightBurnTwin, LightBurnTwinOptions};
+use kerfmeter_lightburn::twin::{DisplayUnits, LightBurnTwin, LightBurnTwinOptions};
 use serde_json::{Value, json};
 
 use crate::{fake_lightburn, pair_for, raw, settle, token};

@@ -7,7 +7,7 @@
 //! closed shapes outward and the holes inside them inward (LightBurn inverts the direction for
 //! shapes nested in others on the same layer); negative shrinks. LightBurn applies it to layers in
 //! Line mode only, and to closed shapes only (this is LightBurn's user documentation of the Kerf
-//! Offset; its REST spec, which `kerfmeter lightburn apply` follows, defines no meaning for a
+//! Offset; its REST spec, which `kerfmeter lightburn apply` follows ([`crate::rest`]), defines no meaning for a
 //! cut's `kerf`). This module therefore writes
 //! `kerf = kerf_um / 2 / 1000` (mm, positive): the same offset `kerfmeter dilate` applies to an
 //! SVG or DXF, left for LightBurn to apply when it sends the job.
@@ -21,7 +21,7 @@
 //! a *line pass*; a layer with at least one is a cut layer. Image layers (`<CutSetting_Img>`) and
 //! Fill or Offset Fill layers without a Line sub-layer are not.
 //!
-//! **The edit.** The document is parsed (roxmltree, which the SVG reader already uses, with byte
+//! **The edit.** The document is parsed (roxmltree, which the plan crate's SVG reader uses too, with byte
 //! positions) only to find where things are; the output is the input with the `Value` text of
 //! each line pass's `<kerf>` replaced, or a `<kerf Value="…"/>` inserted after its `<speed>` (as
 //! LightBurn orders them) with the indentation of its neighbours. Nothing is re-serialised.
@@ -44,10 +44,9 @@ use std::path::Path;
 use roxmltree::{Document, Node, ParsingOptions};
 use serde::Serialize;
 
-use crate::compensation::{self, AppliedCompensation, FoundCompensation, IfCompensated};
-use crate::dilate::KerfSource;
-use crate::error::{PlanError, Problems, Result};
-use crate::selectors;
+use kerfmeter_plan::compensation::{self, AppliedCompensation, FoundCompensation, IfCompensated};
+use kerfmeter_plan::dilate::KerfSource;
+use kerfmeter_plan::{PlanError, Problems, Result, selectors};
 
 /// The largest project read, bytes (projects with embedded images run to tens of MB).
 pub const MAX_PROJECT_BYTES: u64 = 256 * 1024 * 1024;
@@ -581,5 +580,5 @@ fn apply(text: &str, mut edits: Vec<Edit>) -> String {
 
 /// A length in mm as LightBurn writes it: up to 6 decimals (a nanometre), no trailing zeros.
 pub fn format_mm(mm: f64) -> String {
-    crate::decimal::trimmed(mm, 6)
+    kerfmeter_plan::decimal::trimmed(mm, 6)
 }

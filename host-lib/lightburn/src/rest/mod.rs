@@ -5,7 +5,7 @@
 //! **Where each convention comes from.**
 //!
 //! * *LightBurn's REST spec* (`LightBurnSoftware/LightBurn-REST`, at the revision
-//!   [`SPEC_REVISION`] names; the LightBurn twin, `crate::lightburn_twin`, is written from it and
+//!   [`SPEC_REVISION`] names; the LightBurn twin, `crate::twin`, is written from it and
 //!   cites it rule by rule):
 //!   - the API listens on `localhost:19520` while LightBurn is open (`openapi.yaml` `servers`);
 //!   - **pairing**: `POST /api/connect` with `{"application_name", "capabilities"}`, from this
@@ -37,7 +37,7 @@
 //!   the Kerf Offset means. It moves the path so that the edge of the cut lies on the drawing:
 //!   half the kerf, positive outward, on Line passes of closed shapes. So the value written is
 //!   `kerf_um / 2`, positive, in the display unit: the same offset the offline `kerfmeter dilate
-//!   project.lbrn2` writes (`kerfmeter_plan::lightburn`). A layer already carrying a non-zero
+//!   project.lbrn2` writes ([`crate::project`]). A layer already carrying a non-zero
 //!   Kerf Offset is refused unless the caller says to replace it or add to it
 //!   ([`ExistingOffset`]).
 //!
@@ -62,8 +62,8 @@ use sha2::Sha256;
 
 use kerfmeter_protocol::advice::Advice;
 
-use crate::error::Category;
-use crate::files::write_atomically_with_mode;
+use kerfmeter::Category;
+use kerfmeter::files::write_atomically_with_mode;
 
 pub use apply::{Applied, ExistingOffset, LayerSet, apply_kerf};
 

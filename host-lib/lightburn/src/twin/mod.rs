@@ -1,4 +1,4 @@
-//! A LightBurn twin: the part of LightBurn's REST API that [`crate::lightburn`] uses, served on
+//! A LightBurn twin: the part of LightBurn's REST API that [`crate::rest`] uses, served on
 //! loopback from a thread, so that `kerfmeter --sim lightburn pair|apply` and the tests run with
 //! no LightBurn installed.
 //!
@@ -60,11 +60,11 @@ pub use project::{
     Params, Project, SubLayer, TOOL_LAYERS,
 };
 
-use crate::lightburn::LightBurnError;
+use crate::rest::LightBurnError;
 use http::Request;
 
 /// The revision of LightBurn's REST repository the twin follows (the client's).
-pub use crate::lightburn::SPEC_REVISION;
+pub use crate::rest::SPEC_REVISION;
 
 /// How the twin behaves.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,14 +1,14 @@
-//! LightBurn projects (`kerfmeter_plan::lightburn`): the Kerf Offset of every Line pass is set to
+//! LightBurn projects (`kerfmeter_lightburn::project`): the Kerf Offset of every Line pass is set to
 //! half the kerf, everything else stays byte for byte; layers are chosen by index or name; a
 //! project already compensated, a non-cut layer asked for, broken or hostile XML are refused.
 
 use std::path::{Path, PathBuf};
 
-use kerfmeter_plan::PlanError;
-use kerfmeter_plan::compensation::{CompensatedBy, IfCompensated};
-use kerfmeter_plan::lightburn::{
+use kerfmeter_lightburn::project::{
     LightBurnOptions, MAX_PROJECT_BYTES, set_kerf_offset, set_kerf_offset_file,
 };
+use kerfmeter_plan::PlanError;
+use kerfmeter_plan::compensation::{CompensatedBy, IfCompensated};
 use kerfmeter_protocol::advice::Advice;
 
 fn corpus(name: &str) -> PathBuf {

@@ -3,8 +3,8 @@
 //! read back, a pairing without `project_write` or before it, and `index` never taken for
 //! `layer_index`.
 
-use kerfmeter::lightburn::{Client, ExistingOffset, LightBurnError, Pairing};
-use kerfmeter::lightburn_twin::Served;
+use kerfmeter_lightburn::rest::{Client, ExistingOffset, LightBurnError, Pairing};
+use kerfmeter_lightburn::twin::Served;
 use serde_json::json;
 
 use crate::{apply_150, fake_lightburn, kerf_mm, pair_for, paired, settle};
