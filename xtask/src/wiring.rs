@@ -58,10 +58,28 @@ pub fn check_committed() -> Result<()> {
 fn check(path: &Path, svg: &str) -> Result<()> {
     let committed = std::fs::read_to_string(path)
         .with_context(|| format!("reading {} (run `cargo xtask wiring`)", path.display()))?;
+    // A checkout that turned the line ends into CRLF holds the same drawing.
+    let committed = committed.replace("\r\n", "\n");
     if committed != svg {
+        let first_difference = committed
+            .lines()
+            .chain(std::iter::repeat(""))
+            .zip(svg.lines().chain(std::iter::repeat("")))
+            .take(committed.lines().count().max(svg.lines().count()))
+            .enumerate()
+            .find(|(_, (was, is))| was != is);
+        let difference = match first_difference {
+            Some((line, (was, is))) => format!(
+                "line {}: committed `{}`, the table gives `{}`",
+                line + 1,
+                was.trim(),
+                is.trim()
+            ),
+            None => "only the line ends differ".to_string(),
+        };
         bail!(
             "{} is not what the firmware's pin table (firmware-esp32/src/board/wiring.rs) gives: \
-             run `cargo xtask wiring` and commit the drawing",
+             run `cargo xtask wiring` and commit the drawing ({difference})",
             path.display()
         );
     }
@@ -585,6 +603,30 @@ mod tests {
                 power.to
             );
         }
+    }
+
+    #[test]
+    fn the_check_fails_on_a_stale_drawing_only() {
+        let svg = svg();
+        let path =
+            std::env::temp_dir().join(format!("kerfmeter-wiring-{}.svg", std::process::id()));
+        std::fs::write(&path, &svg).unwrap();
+        assert!(check(&path, &svg).is_ok());
+        std::fs::write(&path, svg.replace('\n', "\r\n")).unwrap();
+        assert!(
+            check(&path, &svg).is_ok(),
+            "CRLF line ends are the same drawing"
+        );
+        std::fs::write(&path, svg.replace("GPIO3", "GPIO9")).unwrap();
+        let error = check(&path, &svg).unwrap_err().to_string();
+        assert!(
+            error.contains("GPIO9") && error.contains("cargo xtask wiring"),
+            "{error}"
+        );
+        std::fs::write(&path, svg.trim_end()).unwrap();
+        let error = check(&path, &svg).unwrap_err().to_string();
+        assert!(error.contains("only the line ends differ"), "{error}");
+        std::fs::remove_file(&path).unwrap();
     }
 
     #[test]
