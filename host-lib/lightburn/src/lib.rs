@@ -8,8 +8,9 @@
 //! * `twin` (the `twin` feature, off by default) serves that API from its published spec on a
 //!   loopback port: `kerfmeter --sim lightburn` and the tests, no LightBurn needed.
 //!
-//! Both ways write the same offset (half the kerf, positive outward) and refuse a project already
-//! compensated the same way (`kerfmeter_plan::compensation`).
+//! Both ways choose layers by the same rule (`--layers 0,Outline`, a name with a comma kept whole:
+//! `kerfmeter_plan::selectors`), write the same offset (half the kerf, positive outward) and refuse
+//! a project already compensated the same way (`kerfmeter_plan::compensation`).
 //!
 //! **Its dependencies, and why there is no cycle.** This crate depends on `kerfmeter-plan` (the
 //! selector rule, the compensation record and refusal, [`kerfmeter_plan::PlanError`], numbers as

@@ -149,6 +149,13 @@ fn a_value_lists_layers_by_commas_unless_it_is_a_whole_name_with_one() {
     // A value that names nothing (an empty shell variable) is refused, not "no layer at all".
     let e = set(&[" , "]).unwrap_err().to_string();
     assert!(e.contains("names nothing"), "{e}");
+    // The rule is the one `kerfmeter dilate --layers` applies to a project file
+    // (`kerfmeter_plan::selectors`): a comma inside parentheses does not split.
+    let e = set(&["C00,(a,b)"]).unwrap_err().to_string();
+    assert!(
+        e.contains("no layer has the index or name \"(a,b)\""),
+        "{e}"
+    );
 }
 
 #[test]

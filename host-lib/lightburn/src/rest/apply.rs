@@ -10,6 +10,7 @@
 
 use std::collections::BTreeSet;
 
+use kerfmeter_plan::selectors;
 use serde::Serialize;
 
 use super::wire::{self, CutChange, CutEntry, KerfOnly, Kind, Mode, SubLayerChange};
@@ -278,31 +279,12 @@ fn choose(
     let mut problems = Vec::new();
     let matches = |c: &LineCut, s: &str| c.layer_index.to_string() == s.trim() || c.name == s;
     // A value names one layer whole (a name may hold a comma), or lists several by commas: the
-    // rule of `kerfmeter dilate --layers` for project files (`kerfmeter_plan::selectors`, which
-    // this crate does not depend on; LightBurn's names have no colours' parentheses to mind).
-    let mut wanted: Vec<&str> = Vec::new();
-    for v in layers {
-        let whole = [v.as_str(), v.trim()]
-            .into_iter()
-            .find(|w| cuts.iter().any(|c| matches(c, w)));
-        match whole {
-            Some(whole) => wanted.push(whole),
-            None => {
-                let items: Vec<&str> = v
-                    .split(',')
-                    .map(str::trim)
-                    .filter(|s| !s.is_empty())
-                    .collect();
-                if items.is_empty() {
-                    problems.push(format!("{v:?} names nothing"));
-                }
-                wanted.extend(items);
-            }
-        }
-    }
+    // rule `kerfmeter dilate --layers` applies to a project file.
+    let wanted = selectors::layer_selectors(layers, |w| cuts.iter().any(|c| matches(c, w)))
+        .map_err(|e| LightBurnError::Layers(format!("--layers: {e}")))?;
     let hint = match layers.iter().any(|v| v.contains(',')) {
-        true => " (a value is split at its commas unless it is a layer's whole name)",
-        false => "",
+        true => format!(" ({})", selectors::SPLIT_HINT),
+        false => String::new(),
     };
     for &s in &wanted {
         // Every cut entry it names is set, so every one must be a Line layer (two layers may
