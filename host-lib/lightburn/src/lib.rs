@@ -4,7 +4,7 @@
 //! * [`project`] edits a `.lbrn2` (or `.lbrn`) project's text: `kerfmeter dilate box.lbrn2`.
 //! * [`rest`] is a client of LightBurn's local REST API (pairing, request signing, the cut list,
 //!   one change per layer read back): `kerfmeter lightburn pair` and `apply`. Its replies are
-//!   read into typed structs.
+//!   read into typed structs, and one of the wrong shape is an error naming where.
 //! * `twin` (the `twin` feature, off by default) serves that API from its published spec on a
 //!   loopback port: `kerfmeter --sim lightburn` and the tests, no LightBurn needed.
 //!

@@ -454,9 +454,21 @@ impl Client {
     }
 }
 
-/// `text` read as `T`; a reply that does not fit is a protocol error naming `request`.
+/// `text` read as `T` (one of the typed replies in `wire`); a reply that does not fit is a
+/// protocol error naming `request` and where in the reply it went wrong (`cuts[3].sub_layers[0]:
+/// missing field `index``).
 fn parse<T: DeserializeOwned>(request: &str, text: &str) -> Result<T> {
-    serde_json::from_str(text).map_err(|e| protocol(request, &e.to_string()))
+    let mut reply = serde_json::Deserializer::from_str(text);
+    let read = serde_path_to_error::deserialize(&mut reply).map_err(|e| {
+        let path = e.path().to_string();
+        let why = e.into_inner().to_string();
+        match path.as_str() {
+            "." => protocol(request, &why),
+            _ => protocol(request, &format!("{path}: {why}")),
+        }
+    })?;
+    reply.end().map_err(|e| protocol(request, &e.to_string()))?;
+    Ok(read)
 }
 
 /// The `error` of an `ErrorResponse`, or a placeholder.
@@ -485,6 +497,28 @@ fn protocol(request: &str, message: &str) -> LightBurnError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_reply_of_the_wrong_shape_names_what_is_missing_and_where() {
+        let cuts = r#"{"product": "lightburn", "cuts": [{"index": 0, "name": "C00", "kind": "normal",
+            "layer_index": 0, "mode": "scan", "params": {"kerf": 0},
+            "sub_layers": [{"mode": "cut", "params": {"kerf": 0}}]}]}"#;
+        let e = parse::<wire::CutList>("GET /api/cuts", cuts).unwrap_err();
+        let said = e.to_string();
+        assert!(
+            said.contains("GET /api/cuts")
+                && said.contains("cuts[0].sub_layers[0]: missing field `index`"),
+            "{said}"
+        );
+        let e = parse::<wire::LayersReply>("GET /api/layers", r#"{"layers": [{"index": 0}]}"#);
+        assert!(
+            e.unwrap_err()
+                .to_string()
+                .contains("layers[0]: missing field `in_use`")
+        );
+        let e = parse::<wire::UnitsReply>("GET /api/units", r#"{"units": "mm/s"} x"#);
+        assert!(e.unwrap_err().to_string().contains("trailing characters"));
+    }
 
     #[test]
     fn the_token_is_the_hmac_of_the_unix_minute() {
