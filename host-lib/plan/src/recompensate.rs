@@ -242,7 +242,12 @@ fn remove_retraces(p: &Pline, max_mm: f64) -> (Pline, usize) {
     let mut cur = p.clone();
     let mut removed = 0;
     while removed < p.vertex_count() && cur.vertex_count() >= 3 {
-        let Some(cut) = (0..cur.vertex_count()).find_map(|k| retrace_at(&cur, k, max_mm)) else {
+        // Whole retraces first: a corner drawn back and over again (Platonic) also reverses
+        // where its first pass leaves the edge, and that reversal, cut as a partial retrace,
+        // would cut the edge short instead of removing the spike.
+        let find =
+            |partial| (0..cur.vertex_count()).find_map(|k| retrace_at(&cur, k, max_mm, partial));
+        let Some(cut) = find(false).or_else(|| find(true)) else {
             break;
         };
         cur = cut_loops(&cur, &[cut]);
@@ -253,43 +258,72 @@ fn remove_retraces(p: &Pline, max_mm: f64) -> (Pline, usize) {
 
 /// The retrace that reverses at vertex `k`, if the contour reverses there and runs back along
 /// itself over at least one vertex of the way it came (the tip of a sharp notch runs back over
-/// none: its edges part at once).
-fn retrace_at(p: &Pline, k: usize, max_mm: f64) -> Option<LoopCut> {
+/// none: its edges part at once); with `partial`, one that runs back over part of a segment only
+/// and reverses again where it leaves it.
+fn retrace_at(p: &Pline, k: usize, max_mm: f64, partial: bool) -> Option<LoopCut> {
+    let n = p.vertex_count();
+    if !is_cusp(p, k) {
+        return None;
+    }
+    // The first pass (the segments before `k`, walked back) and the second (from `k` on). The
+    // retrace ends where the passes part: at the farthest vertex of the first pass that the
+    // second runs back over (where boxes.py's arc around a corner began), or at the farthest
+    // vertex of the second pass that lies on the first and reverses again (where a second turn
+    // that runs back over only part of the first leaves it: CoinDisplay turns 90° around a 60°
+    // corner, then 30° back, then along the edge; a pass that runs on tangentially past the
+    // first's start does not end there). A tangent that merely leaves the cusp has neither.
+    let first = walk(p, k, max_mm, false);
+    let second = walk(p, k, max_mm, true);
+    let mut over_first = None;
+    for &s in &first {
+        let (q, d) = nearest(p, &second, p.at(s).pos());
+        if d > RETRACE_MM {
+            break;
+        }
+        let x = p.at(s).pos();
+        // Keep the segment that ends at `x`, then go on from `y`.
+        over_first = Some(LoopCut {
+            p: (s + n - 1) % n,
+            q,
+            x,
+            y: nearest_point(p, q, x),
+        });
+    }
+    let mut over_second = None;
+    for &v in second.iter().skip(1) {
+        let y = p.at(v).pos();
+        let (f, d) = nearest(p, &first, y);
+        if d > RETRACE_MM {
+            break;
+        }
+        // A reversal back within reading's error of the cusp is the step a cut retrace leaves
+        // between its passes, not a pass of its own.
+        if !is_cusp(p, v) || (y - p.at(k).pos()).length() <= RETRACE_MM {
+            continue;
+        }
+        // Keep segment `f` up to the point nearest `y`, then go on from `y` along segment `v`.
+        over_second = Some(LoopCut {
+            p: f,
+            q: v,
+            x: nearest_point(p, f, y),
+            y,
+        });
+    }
+    if partial { over_second } else { over_first }
+}
+
+/// Whether the contour reverses at vertex `k`: its directions in and out are within 5° of
+/// opposite.
+fn is_cusp(p: &Pline, k: usize) -> bool {
     let n = p.vertex_count();
     let (a, b, c) = (p.at((k + n - 1) % n), p.at(k), p.at((k + 1) % n));
     let (t_in, t_out) = (
         seg_tangent_vector(a, b, b.pos()),
         seg_tangent_vector(b, c, b.pos()),
     );
-    if t_in.length() < POS_EPS
-        || t_out.length() < POS_EPS
-        || t_in.normalize().dot(t_out.normalize()) > CUSP_COS
-    {
-        return None;
-    }
-    // The first pass (the segments before `k`, walked back) and the second (from `k` on). The
-    // retrace ends at the farthest vertex of the first pass that the second runs back over (where
-    // boxes.py's arc around a corner began); a tangent that merely leaves the cusp has none.
-    let first = walk(p, k, max_mm, false);
-    let second = walk(p, k, max_mm, true);
-    let mut end = None;
-    for &s in &first {
-        let (q, d) = nearest(p, &second, p.at(s).pos());
-        if d > RETRACE_MM {
-            break;
-        }
-        end = Some((s, q));
-    }
-    let (s, q) = end?;
-    let x = p.at(s).pos();
-    let y = nearest_point(p, q, x);
-    // Keep the segment that ends at `x`, then go on from `y`.
-    Some(LoopCut {
-        p: (s + n - 1) % n,
-        q,
-        x,
-        y,
-    })
+    t_in.length() >= POS_EPS
+        && t_out.length() >= POS_EPS
+        && t_in.normalize().dot(t_out.normalize()) <= CUSP_COS
 }
 
 /// Segments from vertex `k` on (`forward`), or before it walked back, up to `max_mm` of length.
@@ -553,19 +587,38 @@ mod tests {
         assert!(sharp.iter_vertexes().all(|v| v.bulge == 0.0));
     }
 
+    /// How the corner (10, 0) of [`square`] is drawn.
+    #[derive(Clone, Copy)]
+    enum Corner {
+        /// As the offset: a quarter arc.
+        Clean,
+        /// boxes.py's two turns at one point: back 90° around the corner, then on 180° (over
+        /// the same arc again), as a finger's last inner turn followed by the polygon's corner
+        /// draws it.
+        Retraced,
+        /// A turn past the corner's own, then part of the way back (CoinDisplay's 60° corners,
+        /// turned 90° and back 30°): the second pass runs back over part of one segment.
+        Overrun,
+    }
+
     /// The square [0, 10]² offset by `b`, counter-clockwise, turned by 30° and written to 1 µm as
-    /// boxes.py writes; at its corner (10, 0) boxes.py's two turns at one point when `retrace`:
-    /// back 90° around the corner, then on 180° (over the same arc again), as a finger's last
-    /// inner turn followed by the polygon's corner draws it.
-    fn square(b: f64, retrace: bool) -> Pline {
+    /// boxes.py writes; its corner (10, 0) drawn as `corner` says.
+    fn square(b: f64, corner: Corner) -> Pline {
         let quarter = (std::f64::consts::FRAC_PI_2 / 4.0).tan();
         let mut p = Pline::new_closed();
         p.add(0.0, -b, 0.0);
-        if retrace {
-            p.add(10.0, -b, -quarter);
-            p.add(10.0 - b, 0.0, 1.0);
-        } else {
-            p.add(10.0, -b, quarter);
+        match corner {
+            Corner::Clean => p.add(10.0, -b, quarter),
+            Corner::Retraced => {
+                p.add(10.0, -b, -quarter);
+                p.add(10.0 - b, 0.0, 1.0);
+            }
+            Corner::Overrun => {
+                // 120° on around the corner, then 30° back to where the edge leaves.
+                let (sin, cos) = (std::f64::consts::FRAC_PI_6).sin_cos();
+                p.add(10.0, -b, (120f64.to_radians() / 4.0).tan());
+                p.add(10.0 + b * cos, b * sin, -(30f64.to_radians() / 4.0).tan());
+            }
         }
         for (x, y, bulge) in [
             (10.0 + b, 0.0, 0.0),
@@ -593,7 +646,7 @@ mod tests {
     #[test]
     fn an_arc_drawn_back_and_over_again_at_one_corner_is_cut_back_to_the_corner_arc() {
         let b = 0.1;
-        let (drawn, clean) = (square(b, true), square(b, false));
+        let (drawn, clean) = (square(b, Corner::Retraced), square(b, Corner::Clean));
         // It does not cross itself: no loop is found, but a crack runs into the part.
         assert_eq!(remove_crossing_loops(&drawn, 0.5).1, 0);
         let (cut, n) = remove_corner_loops(&drawn, 0.5);
@@ -605,10 +658,31 @@ mod tests {
             assert!((got.pos() - want.pos()).length() < 1e-3, "{got:?} {want:?}");
             assert!((got.bulge - want.bulge).abs() < 0.01, "{got:?} {want:?}");
         }
-        let m = square(b, true).at(2).pos();
+        let m = square(b, Corner::Retraced).at(2).pos();
         assert!(cut.iter_vertexes().all(|v| (v.pos() - m).length() > 0.05));
         // A tangent leaving a cusp is no retrace: the clean contour and a loop's cusp stay.
         assert_eq!(remove_retraces(&clean, 0.5).1, 0);
+    }
+
+    #[test]
+    fn a_corner_turned_on_and_part_of_the_way_back_is_cut_where_the_passes_part() {
+        let b = 0.1;
+        let (drawn, clean) = (square(b, Corner::Overrun), square(b, Corner::Clean));
+        assert_eq!(remove_crossing_loops(&drawn, 0.5).1, 0);
+        let (cut, n) = remove_corner_loops(&drawn, 0.5);
+        assert_eq!(n, 1);
+        // The arc runs on to where the edge leaves (boxes.py's rounding apart), and no further:
+        // its last point is the clean arc's end, the edge's start.
+        let end = clean.at(2).pos();
+        assert!(cut.iter_vertexes().any(|v| (v.pos() - end).length() < 2e-3));
+        let tip = drawn.at(2).pos();
+        assert!(cut.iter_vertexes().all(|v| (v.pos() - tip).length() > 0.01));
+        // Every point of the cut contour lies on the clean one, within the rounding.
+        for v in cut.iter_vertexes() {
+            let d = clean.closest_point(v.pos(), 1e-9).unwrap().distance;
+            assert!(d < 2e-3, "{v:?} is {d} mm off");
+        }
+        assert!((cut.area() - clean.area()).abs() < 1e-3);
     }
 
     #[test]
