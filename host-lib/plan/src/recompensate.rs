@@ -28,8 +28,10 @@
 //! not cross (boxes.py's 1 µm rounding), leaving a crack into the part that an offset into the
 //! material widens into a slot. Such a *retrace* (the contour reverses within 5° of straight
 //! back and runs back over a vertex of the way it came, within 3 µm) is cut back to where the
-//! passes part: the corner's arc as a round join draws it. A notch sharper than 5° whose tip is a
-//! single vertex runs back over none and is kept.
+//! passes part: the corner's arc as a round join draws it. A turn on past a corner and part of
+//! the way back (CoinDisplay's 60° corners, turned 90° and back 30° before the edge leaves with a
+//! second reversal) is cut where that edge leaves the arc, once no whole retrace is left. A notch
+//! sharper than 5° whose tip is a single vertex runs back over none and is kept.
 //!
 //! **Moving a compensated contour.** Eroding the compensated region by burn − kerf/2 (a plain
 //! offset inwards with round joins) rounds every inner corner: that is a morphological closing,
@@ -41,9 +43,13 @@
 //! drawn corner by the two neighbours extended to where they meet. Moving outwards (kerf/2 >
 //! burn) needs no change: the neighbours at an inner corner already meet there.
 //!
+//! **Offsets in µm.** A plan compensated elsewhere as polygons draws its round joins as chords a
+//! few µm long, which `cavalier_contours` takes for parallel in mm: see [`offset_in_um`].
+//!
 //! **Tested** (`tests/plan_recompensation.rs`): random star polygons with acute spikes and
-//! reflex notches, drawn by boxes.py's construction at one burn, recompensated to another,
-//! against this tool's dilation of the polygon itself: within 1 µm; and boxes.py's own plans
+//! reflex notches, drawn by boxes.py's construction or buffered by GEOS at one burn,
+//! recompensated to another, against this tool's dilation of the polygon itself: within 1 µm
+//! (GEOS's: and its chords' own error); and boxes.py's own plans
 //! (`tests/plan_recompensation_boxes.rs`).
 
 use cavalier_contours::core::math::{
