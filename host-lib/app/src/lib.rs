@@ -17,5 +17,6 @@ pub mod job;
 pub mod lossy_path;
 pub mod measure;
 pub mod request;
+pub mod result;
 
 pub use error::Error;

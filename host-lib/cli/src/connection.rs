@@ -8,6 +8,7 @@ use std::time::Duration;
 use clap::Args;
 use kerfmeter::sim::{PlantParamError, PlantParams, SimDevice, SimMaterial, SimOptions};
 use kerfmeter::{Kerfmeter, Options};
+use kerfmeter_app::measure::RunReport;
 
 use crate::error::CliError;
 
@@ -87,6 +88,20 @@ pub struct Session {
     pub meter: Kerfmeter,
     /// The twin behind it, when simulated.
     pub sim: Option<SimDevice>,
+}
+
+impl Session {
+    /// `report`, with the twin's truth beside each reading when the device is the twin.
+    pub fn with_twin_truth(&self, report: RunReport) -> RunReport {
+        match &self.sim {
+            Some(sim) => {
+                report.with_twin_truth(sim.options().kerf_um, sim.options().kerf_sd_um, |run_id| {
+                    sim.truth_um(run_id)
+                })
+            }
+            None => report,
+        }
+    }
 }
 
 impl Global {

@@ -42,13 +42,13 @@ use super::job::{JobCall, job_answer};
 use super::latest::{Latest, Query};
 use super::plans::hide_history_db;
 use super::rpc::{Caller, INTERNAL_ERROR, NOT_CONNECTED, RpcError, notification};
-use crate::commands::run::RunReport;
 use crate::commands::{Done, confirm_zero, info, job, reset, self_test, status};
 use crate::connection::{Global, Session};
 use crate::error::CliError;
 use crate::output::ResultJson;
 use crate::words::SERVER;
-use kerfmeter_app::history::{Measured, is_twin, record};
+use kerfmeter_app::history::is_twin;
+use kerfmeter_app::measure::{RunReport, measure_and_record};
 use kerfmeter_protocol::advice::in_words_of;
 
 /// The shortest time between two `progress` notifications of the same state.
@@ -634,9 +634,12 @@ fn measure_and_report(
     shared: &Shared,
 ) -> Result<ServedRun, CliError> {
     let mut throttle = Throttle::default();
-    let measurement = s.meter.measure_until(
+    let report = measure_and_record(
+        &mut s.meter,
         &run.params,
         run.samples,
+        run.label.as_deref(),
+        g.db.as_deref(),
         |_| Ok(()),
         |i, p| {
             if let Some(params) = throttle.progress(i, run.samples, p) {
@@ -645,23 +648,8 @@ fn measure_and_report(
             shared.polled(p)
         },
     )?;
-    // Recorded before anything else can fail: the measurement is made.
-    let history = record(
-        g.db.as_deref(),
-        &s.meter,
-        &Measured {
-            label: run.label.as_deref(),
-            thickness_mm: f64::from(run.params.thickness_mm),
-            force_n: f64::from(run.params.target_force_n),
-            kerf_um: measurement.summary.mean_um,
-            ci95_um: measurement.summary.ci95_um,
-            runs: &measurement.runs,
-        },
-    );
+    let mut report = s.with_twin_truth(report);
     let curve = s.meter.curve().map_err(CliError::from);
-    let mut report = RunReport::new(s, &run.params, measurement);
-    report.label.clone_from(&run.label);
-    report.history = Some(history);
     // The kerf is measured and recorded: a curve that cannot be read does not hide it.
     let curve = match curve {
         Ok(curve) => Some(CurvePoints {
@@ -673,7 +661,7 @@ fn measure_and_report(
                 .collect(),
         }),
         Err(e) => {
-            report.curve_failed(&e);
+            report.curve_failed(e.to_string(), e.category());
             None
         }
     };

@@ -2,9 +2,16 @@
 //! The CLI's `run` flags, the server's `run_kerfmeter` params and Python's keyword arguments all
 //! become a [`MeasureRequest`], checked here once before anything moves.
 
+mod report;
+
+pub use report::{CurveError, KerfAtForce, RunReport, SimNote};
+
 use kerfmeter::params::{DEFAULT_FINGER_LENGTH_MM, DEFAULT_FINGERS, DEFAULT_THICKNESS_MM};
+use std::ops::ControlFlow;
+use std::path::Path;
+
 use kerfmeter::protocol::{GaugeGeometry, RunParams};
-use kerfmeter::{Error, JointSpec};
+use kerfmeter::{Error, JointSpec, Kerfmeter, Progress};
 use serde::{Deserialize, Serialize};
 
 /// The most gauges one measurement may take.
@@ -66,6 +73,40 @@ impl MeasureRequest {
         }
         self.joint().run_params(GaugeGeometry::PAPER)
     }
+}
+
+/// A measurement session: `samples` gauges measured with `params` on `meter` (`before_gauge(i)`
+/// before each, e.g. asking for gauge i; `progress(i, p)` at every poll, breaking to abort), then
+/// recorded in the history at `history_at` (the one the user named; `None`: the user's data
+/// directory's) under `label`. The report has no curve yet: the front end reads it if it wants
+/// it, after the record, so that a curve that cannot be read never loses the measurement.
+pub fn measure_and_record(
+    meter: &mut Kerfmeter,
+    params: &RunParams,
+    samples: usize,
+    label: Option<&str>,
+    history_at: Option<&Path>,
+    before_gauge: impl FnMut(usize) -> Result<(), Error>,
+    progress: impl FnMut(usize, &Progress) -> ControlFlow<()>,
+) -> Result<RunReport, Error> {
+    let measurement = meter.measure_until(params, samples, before_gauge, progress)?;
+    // Recorded before anything else can fail: the measurement is made.
+    let history = crate::history::record(
+        history_at,
+        meter,
+        &crate::history::Measured {
+            label,
+            thickness_mm: f64::from(params.thickness_mm),
+            force_n: f64::from(params.target_force_n),
+            kerf_um: measurement.summary.mean_um,
+            ci95_um: measurement.summary.ci95_um,
+            runs: &measurement.runs,
+        },
+    );
+    let mut report = RunReport::new(params, measurement);
+    report.label = label.map(str::to_owned);
+    report.history = Some(history);
+    Ok(report)
 }
 
 #[cfg(test)]
