@@ -47,7 +47,8 @@
 //! # The rules
 //!
 //! - Motor current = (reading − offset) / [`CURRENT_SENSE_MV_PER_A`] / max(filtered duty,
-//!   [`DUTY_FLOOR`]), never negative.
+//!   [`DUTY_FLOOR`]), never negative; 0 A asleep and where the duty filter has settled at zero
+//!   (below).
 //! - The floor: below it the filtered duty is too small to divide by (the ADC's 1 mV step and
 //!   its noise would be multiplied without bound; at the floor, by five: 1 mV reads 0.25 A).
 //!   Under the floor the current reads low by the factor duty/floor; but there the motor cannot
@@ -55,15 +56,26 @@
 //!   that stall current is over five times the limit (the reference build's is 5.6 A at 12 V,
 //!   11 A at 24 V, against 6.5 A). A short (tens of amps in the drive phase) still reads above
 //!   the limit at any duty above a few percent, and the G2 limits current on its own.
-//! - The offset: the G2's is "about 50 mV" and varies from board to board (60 mV is reported),
-//!   and a 10 mV error divided by the floor would read 5 A. So it is learnt: while the duty
-//!   filter has settled at zero (driver asleep or braking), readings within
-//!   [`OFFSET_RANGE_MV`] update it (their mean at first, from the very first reading, so that an
-//!   off-nominal offset never reads as a current at boot; then an average over some 16 ticks);
-//!   a reading outside that band (a G2 whose sense is off while asleep) is not an offset and is
-//!   ignored. It starts at [`CURRENT_SENSE_OFFSET_MV`]. While braking, the G2 shows no current
-//!   at all (the brake phase is the whole period): the filtered reading decays to the offset,
-//!   and the current reads zero.
+//! - The offset: the G2's is "about 50 mV" and varies from board to board (60 mV is reported).
+//!   An error in it is divided like the reading: e mV of offset error reads as
+//!   e / [`CURRENT_SENSE_MV_PER_A`] amps of D·|i|, divided by the filtered duty, so at the floor
+//!   10 mV reads 10 / 20 / 0.2 = 2.5 A ([`offset_error_a`]; on the 18v22's 10 mV/A it would be
+//!   5 A). So it is learnt, from readings whose filter holds no drive and no sleep: with the
+//!   driver awake and braking (duty 0: the brake phase is the whole period, and `CS` shows no
+//!   current there) for [`OFFSET_SETTLE_TICKS`] at least, so that the RC filter has forgotten
+//!   both the last drive and the sleep level (e^−8: 0.02 mV of a 50 mV step). Each wake starts
+//!   a fresh mean (then an average over some 16 ticks), from readings within
+//!   [`OFFSET_RANGE_MV`] only; it starts at [`CURRENT_SENSE_OFFSET_MV`]. The controller brakes
+//!   for [`OFFSET_WINDOW_TICKS`] before each run drives, and the self-test's first phase brakes
+//!   longer, so each learns it afresh before it drives.
+//! - Never asleep: what `CS` reads while the G2 sleeps is not documented (Pololu gives the
+//!   offset awake only), and the controller idles asleep, so an offset learnt at rest would be
+//!   the sleep level. Nor is such a reading a current: the current reads 0 A for a reading
+//!   whose last tick the driver slept through (a sleeping G2 drives nothing), and for one whose
+//!   filter holds no drive (braking once the duty filter has settled at zero), whatever the
+//!   level. So a sleep level far from the offset reads as no current at rest, as the driver
+//!   falls asleep after a run (the filter moving to the sleep level as the duty filter decays),
+//!   or as it wakes (the brake before a run, and before a reset or a self-test drives).
 //! - A tick without a reading (the board's ADC was busy with the supply, or its conversion had
 //!   not finished) keeps the last current.
 //! - Unknown (`None`, which the controller treats as an over-current): no reading for more than
@@ -85,8 +97,24 @@ pub const CURRENT_SENSE_MV_PER_A: f32 = 20.0;
 pub const CURRENT_SENSE_OFFSET_MV: f32 = 50.0;
 
 /// Readings that may be the offset, mV: about 50 mV give or take what boards show. A reading
-/// outside it with the bridge idle is not taken for the offset.
+/// outside it with the bridge braking is not taken for the offset.
 pub const OFFSET_RANGE_MV: core::ops::RangeInclusive<f32> = 30.0..=80.0;
+
+/// Ticks the bridge must have braked, awake, before a reading is the offset: the RC filter
+/// has then forgotten the last drive and the sleep level alike (e^−8 < 0.04 % of either).
+pub const OFFSET_SETTLE_TICKS: u64 = SETTLED_TICKS;
+
+/// Ticks the controller brakes, awake, before a run drives (the self-test's first phase brakes
+/// longer): [`OFFSET_SETTLE_TICKS`], then 12 readings of the offset (10 or 11 once the supply's
+/// conversions, one tick in ten, take their place) averaging the ADC's 1 mV noise and steps to
+/// about 0.3 mV, 0.08 A at the duty floor. It lengthens each run by 20 ms.
+pub const OFFSET_WINDOW_TICKS: u64 = OFFSET_SETTLE_TICKS + 12;
+
+/// What an offset error of `error_mv` reads as at a filtered duty of `duty` (at most the
+/// floor's division), A: 10 mV at the floor is 2.5 A.
+pub fn offset_error_a(error_mv: f32, duty: f32) -> f32 {
+    error_mv / CURRENT_SENSE_MV_PER_A / duty.max(DUTY_FLOOR)
+}
 
 /// The RC filter's resistor, in series from the G2's `CS` to the ADC pin, Ω.
 pub const CS_FILTER_OHM: f32 = 10_000.0;
@@ -107,11 +135,11 @@ const SETTLED_TICKS: u64 = 8;
 pub const DUTY_FLOOR: f32 = 0.2;
 
 /// A filtered duty below this counts as zero: the bridge has been idle for the filter to settle,
-/// so the reading is the offset.
+/// so the reading holds no current (the offset awake, the sleep level asleep).
 const IDLE_DUTY: f32 = 1e-3;
 
-/// The learnt offset is the mean of the first idle readings, then follows them with a weight of
-/// one in this many (an average over some 16 ticks).
+/// The learnt offset is the mean of the first braking readings since the driver woke, then
+/// follows them with a weight of one in this many (an average over some 16 ticks).
 const OFFSET_AVERAGED: u32 = 16;
 
 /// The highest trusted calibrated reading of the ADC at 0 dB attenuation, the `CS` channel's,
@@ -139,9 +167,17 @@ pub struct MotorCurrent {
     held_duty: f32,
     /// When the last output was applied, µs.
     last_applied_us: Option<u64>,
+    /// The driver is awake since the last output.
+    held_awake: bool,
+    /// The driver was awake over the tick before the last output: the last tick the reading
+    /// (taken as that output was applied) saw.
+    awake_before: bool,
+    /// Since when the bridge brakes awake (duty 0), held to the last output; `None` while it
+    /// drives or sleeps.
+    braking_since_us: Option<u64>,
     /// The learnt `CS` offset, mV.
     offset_mv: f32,
-    /// Idle readings learnt from, up to [`OFFSET_AVERAGED`].
+    /// Braking readings learnt from since the driver last woke, up to [`OFFSET_AVERAGED`].
     offset_readings: u32,
     /// The last current, A, and how many ticks without a reading have passed since.
     last_a: f32,
@@ -154,14 +190,22 @@ impl Default for MotorCurrent {
     }
 }
 
+/// Whole ticks from `from_us` to `to_us`, rounded.
+fn ticks_between(from_us: u64, to_us: u64) -> u64 {
+    (to_us.saturating_sub(from_us) + PERIOD_US / 2) / PERIOD_US
+}
+
 impl MotorCurrent {
-    /// The bridge at rest, the offset at its nominal value; 0 A until a reading comes (or
-    /// [`CURRENT_STALE_TICKS`] ticks pass without one).
+    /// The bridge asleep, the offset at its nominal value; 0 A until a reading with drive in it
+    /// comes (or [`CURRENT_STALE_TICKS`] ticks pass without a reading).
     pub const fn new() -> Self {
         Self {
             duty_filtered: 0.0,
             held_duty: 0.0,
             last_applied_us: None,
+            held_awake: false,
+            awake_before: false,
+            braking_since_us: None,
             offset_mv: CURRENT_SENSE_OFFSET_MV,
             offset_readings: 0,
             last_a: 0.0,
@@ -171,7 +215,7 @@ impl MotorCurrent {
 
     /// The motor current, A, from this tick's `CS` reading (mV; `None`: there is none this
     /// tick), taken when the last output was applied; `None` when it is unknown (module docs). A
-    /// reading with the bridge idle also updates the learnt offset.
+    /// reading taken braking, awake, long enough also updates the learnt offset.
     pub fn current_a(&mut self, cs_mv: Option<u16>) -> Option<f32> {
         let Some(cs_mv) = cs_mv else {
             self.stale_ticks = self.stale_ticks.saturating_add(1);
@@ -181,22 +225,42 @@ impl MotorCurrent {
             return None;
         }
         self.stale_ticks = 0;
-        let reading = f32::from(cs_mv);
-        if self.duty_filtered < IDLE_DUTY && OFFSET_RANGE_MV.contains(&reading) {
-            self.offset_readings = (self.offset_readings + 1).min(OFFSET_AVERAGED);
-            self.offset_mv += (reading - self.offset_mv) / self.offset_readings as f32;
-        }
-        self.last_a = filtered_a(cs_mv, self.offset_mv) / self.duty_filtered.max(DUTY_FLOOR);
+        self.last_a = if !self.awake_before {
+            // The driver slept through the reading's last tick: it drove nothing.
+            0.0
+        } else if self.duty_filtered < IDLE_DUTY {
+            // No drive in the filter's memory: no current to show, maybe an offset to learn.
+            self.learn_offset(f32::from(cs_mv));
+            0.0
+        } else {
+            filtered_a(cs_mv, self.offset_mv) / self.duty_filtered.max(DUTY_FLOOR)
+        };
         Some(self.last_a)
     }
 
+    /// Learn from `reading_mv` if it was taken braking, awake, for [`OFFSET_SETTLE_TICKS`] at
+    /// least, and is a plausible offset: the first since the driver woke replaces the offset,
+    /// the next ones are averaged in.
+    fn learn_offset(&mut self, reading_mv: f32) {
+        let settled = match (self.braking_since_us, self.last_applied_us) {
+            (Some(since_us), Some(last_us)) => {
+                ticks_between(since_us, last_us) >= OFFSET_SETTLE_TICKS
+            }
+            _ => false,
+        };
+        if settled && OFFSET_RANGE_MV.contains(&reading_mv) {
+            self.offset_readings = (self.offset_readings + 1).min(OFFSET_AVERAGED);
+            self.offset_mv += (reading_mv - self.offset_mv) / self.offset_readings as f32;
+        }
+    }
+
     /// The bridge was set to `out` at `now_us` (the safe state if applying it failed): the duty
-    /// filter advances over the time since the last output, then holds `out`'s duty.
+    /// filter advances over the time since the last output, then holds `out`'s duty. A driver
+    /// woken starts a fresh offset; braking starts (or goes on) counting towards one.
     pub fn applied(&mut self, out: &MotorOutput, now_us: u64) {
         if let Some(last_us) = self.last_applied_us {
-            let ticks = (now_us.saturating_sub(last_us) + PERIOD_US / 2) / PERIOD_US;
             let mut left = 1.0;
-            for _ in 0..ticks.min(SETTLED_TICKS) {
+            for _ in 0..ticks_between(last_us, now_us).min(SETTLED_TICKS) {
                 left *= FILTER_DECAY_PER_TICK;
             }
             self.duty_filtered = self.held_duty + (self.duty_filtered - self.held_duty) * left;
@@ -206,6 +270,13 @@ impl MotorCurrent {
         } else {
             0.0
         };
+        if out.awake && !self.held_awake {
+            self.offset_readings = 0;
+        }
+        let braking = out.awake && self.held_duty == 0.0;
+        self.braking_since_us = braking.then(|| self.braking_since_us.unwrap_or(now_us));
+        self.awake_before = self.held_awake;
+        self.held_awake = out.awake;
         self.last_applied_us = Some(now_us);
     }
 

@@ -14,6 +14,7 @@
 
 use kerfmeter_protocol::{Conditions, Fault, QualityFlags};
 
+use super::wake::Woken;
 use super::{
     Controller, DEFAULT_HOST_TIMEOUT_MS, Inputs, MAX_CONSECUTIVE_ENCODER_ERRORS, NO_MOTION_DEG,
     NO_MOTION_TICKS, OVER_CURRENT_MEAN_TICKS, OVER_CURRENT_PEAK_FACTOR, REVERSE_TOLERANCE_DEG,
@@ -85,7 +86,11 @@ impl Controller {
             return Some(Fault::StepOverrun);
         }
         let timeout_ms = match self.state {
-            State::Resetting { .. } | State::SelfTest(_) => DEFAULT_HOST_TIMEOUT_MS,
+            State::Resetting { .. }
+            | State::SelfTest(_)
+            | State::Waking {
+                then: Woken::Reset, ..
+            } => DEFAULT_HOST_TIMEOUT_MS,
             _ => self.run.params.host_timeout_ms,
         };
         if now_us.saturating_sub(self.last_host_us) > u64::from(timeout_ms) * 1000 {

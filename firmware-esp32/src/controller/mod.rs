@@ -1,8 +1,8 @@
 //! The measuring controller: a pure state machine stepped at a fixed rate (1 kHz).
 //!
 //! ```text
-//!            Run                 θ ≥ θplay(0)          still at τ(θs)          hold done
-//!   Idle ─────────▶ Engaging ─────────────▶ Ramping ──────────────▶ Jammed ───(probe, check)──▶ Releasing ──(back off)──▶ Done
+//!            Run                       θ ≥ θplay(0)          still at τ(θs)          hold done
+//!   Idle ───▶ Waking ───▶ Engaging ─────────────▶ Ramping ──────────────▶ Jammed ───(probe, check)──▶ Releasing ──(back off)──▶ Done
 //!    ▲  ▲                                     ▲                       │ slipped                          │
 //!    │  │ Abort (any state, safe this tick)   └───────────────────────┘                                 │
 //!    │  └──────────── Resetting ◀── Reset (Idle, Done, Fault) ◀──────────────────────────────────────────┘
@@ -21,7 +21,8 @@
 //! no waiting: the board binary and the twin call it the same way.
 //!
 //! The code is split by concern: `run.rs` (engage, ramp, jam, kerf, and the per-run state, which
-//! every run builds afresh), `reset.rs`, `self_test.rs`, `faults.rs` (every fault check),
+//! every run builds afresh), `reset.rs`, `wake.rs` (the brake that starts a run or a reset),
+//! `self_test.rs`, `faults.rs` (every fault check),
 //! `supply.rs` (the measured supply and what it does to the duty), `winding.rs` (the winding's
 //! resistance from the current at the jam, and what it does to the duty) and `tuning.rs` (every tuning
 //! constant, with its unit and its reason; re-exported here).
@@ -57,6 +58,9 @@
 //! [`START_TOLERANCE_DEG`](kerfmeter_protocol::START_TOLERANCE_DEG) of zero (the protocol's rule,
 //! shared with the host).
 //!
+//! - **Waking** (reported as `Engaging`): the driver woken and braking (duty 0) so that the
+//!   current sense learns its offset awake before anything drives (`wake.rs`). A reset starts
+//!   the same way (reported as `Resetting`).
 //! - **Engaging**: a speed-limited low torque turns the hub through the hole play. No kerf can
 //!   have less play than θplay(0), so the hub is driven at least that far before the ramp starts.
 //! - **Ramping**: torque rises at `ramp_rate_nm_per_s`, never above τ(θs) = (2π − 2θs)·r²·L·F/A_j
@@ -151,6 +155,7 @@ mod supply;
 mod tests;
 mod timing;
 mod tuning;
+mod wake;
 mod winding;
 
 use run::Run;
@@ -160,6 +165,7 @@ pub use supply::{SUPPLY_FILTER_GAIN, SUPPLY_SENSE_TOLERANCE};
 use timing::Pacing;
 pub use timing::TickTiming;
 pub use tuning::*;
+use wake::Woken;
 use winding::WindingEstimate;
 pub use winding::{
     CHECK_READINGS as WINDING_CHECK_READINGS, MIN_DUTY as WINDING_MIN_DUTY,
@@ -221,6 +227,11 @@ fn saturate_u32(us: u64) -> u32 {
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum State {
     Idle,
+    /// A run's or a reset's start: the driver awake and braking, `ticks` into it (`wake.rs`).
+    Waking {
+        ticks: u32,
+        then: Woken,
+    },
     Engaging,
     Ramping,
     Jammed {
@@ -465,14 +476,20 @@ impl Controller {
     pub fn run_state(&self) -> RunState {
         match self.state {
             State::Idle => RunState::Idle,
-            State::Engaging => RunState::Engaging,
+            State::Waking {
+                then: Woken::Run, ..
+            }
+            | State::Engaging => RunState::Engaging,
             State::Ramping => RunState::Ramping,
             State::Jammed { .. } | State::Probing { .. } | State::CheckingWinding { .. } => {
                 RunState::Jammed
             }
             State::Releasing | State::BackingOff { .. } => RunState::Releasing,
             State::Done => RunState::Done,
-            State::Resetting { .. } => RunState::Resetting,
+            State::Waking {
+                then: Woken::Reset, ..
+            }
+            | State::Resetting { .. } => RunState::Resetting,
             State::SelfTest(_) => RunState::SelfTest,
             State::Fault(f) => RunState::Fault(f),
         }
@@ -637,6 +654,7 @@ impl Controller {
     fn advance(&mut self, inputs: &Inputs, fresh: Option<f32>) {
         match self.state {
             State::Idle | State::Done | State::Fault(_) => self.torque_nm = 0.0,
+            State::Waking { ticks, then } => self.wake(ticks, then),
             State::Engaging => self.engage(),
             State::Ramping => self.ramp(inputs.current_a),
             State::Jammed {

@@ -22,6 +22,7 @@ use kerfmeter_protocol::{
 
 use crate::as5048a::EncoderSettings;
 
+use super::wake::Woken;
 use super::{
     Controller, Motion, RESET_AWAY_DEG, RESET_MAX_SPEED_DEG_PER_S, RESET_MAX_TORQUE_NM,
     RESET_RELEASE_DEG, RESET_SETTLE_TICKS, RESET_SPEED_PER_DEG, RESET_TIMEOUT_TICKS,
@@ -93,9 +94,9 @@ impl Controller {
                 self.torque_nm = 0.0;
                 self.motion = Motion::new();
                 self.reset_limit_deg = self.angle_deg.abs() + RESET_AWAY_DEG;
-                self.state = State::Resetting {
+                self.state = State::Waking {
                     ticks: 0,
-                    settled: 0,
+                    then: Woken::Reset,
                 };
                 Ok(())
             }

@@ -14,6 +14,7 @@ use kerfmeter_protocol::{
 };
 
 use super::supply::{millivolts, needed_supply_v};
+use super::wake::Woken;
 use super::{Controller, Motion, OVERTRAVEL_MARGIN_DEG, State};
 use crate::build::CONTROL_RATE_HZ;
 use crate::jam::HoldWindow;
@@ -228,7 +229,10 @@ impl Controller {
         }
         self.motion = Motion::new();
         self.torque_nm = 0.0;
-        self.state = State::Engaging;
+        self.state = State::Waking {
+            ticks: 0,
+            then: Woken::Run,
+        };
         Ok(())
     }
 

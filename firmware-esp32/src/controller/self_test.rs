@@ -2,6 +2,11 @@
 //! magnet's field from the diagnostics), the drive direction, and an estimate of the torque
 //! constant from the current drawn by a short pulse from standstill.
 //!
+//! "Motor off" is the driver awake and braking (duty 0): the encoder phase is also where the
+//! current sense learns its offset awake, before the direction check first drives
+//! (`board::current`; it lasts longer than the brake before a run,
+//! [`OFFSET_WINDOW_TICKS`]).
+//!
 //! # The torque constant
 //!
 //! At standstill the winding draws i = D·V/R, so the output torque per duty at the reference
@@ -33,6 +38,10 @@ use super::{
     SELFTEST_PULSE_DUTY, SELFTEST_PULSE_TICKS, SELFTEST_SETTLE_TICKS, SELFTEST_TORQUE_TOLERANCE,
     State,
 };
+use crate::board::current::OFFSET_WINDOW_TICKS;
+
+// The encoder phase is the self-test's brake before it drives (module docs).
+const _: () = assert!(SELFTEST_ENCODER_TICKS as u64 >= OFFSET_WINDOW_TICKS);
 
 /// The phases, in order, with their working data.
 #[derive(Debug, Clone, Copy, PartialEq)]

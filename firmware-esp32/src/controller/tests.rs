@@ -9,6 +9,8 @@ use kerfmeter_protocol::{
 use super::*;
 use kerfmeter_protocol::spiral::{kerf_from_angle, torque_for_force_nm};
 
+mod wake;
+
 /// A controller and a clock, fed scripted hub angles.
 struct Script {
     c: Controller,
@@ -386,7 +388,8 @@ fn the_duty_is_scaled_by_the_measured_supply() {
             ..RunParams::DEFAULT
         });
         let mut out = MotorOutput::SAFE;
-        for _ in 0..60 {
+        // Past the brake that wakes the driver.
+        for _ in 0..60 + crate::board::current::OFFSET_WINDOW_TICKS {
             out = s.tick();
         }
         assert!(out.awake && out.duty > 0.05, "{out:?}");

@@ -102,37 +102,133 @@ fn below_the_floor_the_current_reads_low_by_duty_over_floor() {
     assert!(a > DeviceConfig::DEFAULT.max_current_a, "{a}");
 }
 
+/// One tick as the board runs it: this tick's reading (taken as the last output was applied),
+/// then this tick's output applied.
+fn tick(sense: &mut MotorCurrent, reading_mv: u16, out: MotorOutput, tick: u64) -> Option<f32> {
+    let a = sense.current_a(Some(reading_mv));
+    sense.applied(&out, tick * PERIOD_US);
+    a
+}
+
 #[test]
-fn the_offset_is_learnt_only_with_the_bridge_idle_and_a_plausible_reading() {
+fn the_offset_is_learnt_only_from_a_settled_brake_and_a_plausible_reading() {
     let mut sense = MotorCurrent::new();
-    sense.applied(&MotorOutput::SAFE, 0);
-    // From the very first idle reading on, an off-nominal offset reads no current.
-    assert_eq!(sense.current_a(Some(65)), Some(0.0));
-    for _ in 0..200 {
-        sense.current_a(Some(60));
+    // Asleep, no reading is a current or an offset, whatever its level.
+    for (t, mv) in [0, 65, 120, 700].into_iter().enumerate() {
+        assert_eq!(tick(&mut sense, mv, MotorOutput::SAFE, t as u64), Some(0.0));
     }
+    assert_eq!(sense.offset_mv(), CURRENT_SENSE_OFFSET_MV);
+    // Woken to brake at tick 10: the readings of its first OFFSET_SETTLE_TICKS are the filter
+    // forgetting the sleep level (no current, no offset); then the offset, the first replacing
+    // the nominal one; an implausible one ignored.
+    let settled = 10 + 1 + OFFSET_SETTLE_TICKS;
+    for t in 10..settled {
+        assert_eq!(tick(&mut sense, 75, MotorOutput::BRAKE, t), Some(0.0));
+    }
+    assert_eq!(sense.offset_mv(), CURRENT_SENSE_OFFSET_MV);
+    for t in settled..settled + 30 {
+        let mv = if t % 3 == 0 { 0 } else { 60 };
+        assert_eq!(tick(&mut sense, mv, MotorOutput::BRAKE, t), Some(0.0));
+    }
+    assert_eq!(sense.offset_mv(), 60.0);
+    // Driving, readings are current, not offset (the first reading after the bridge starts
+    // driving was taken before: it is still the braking bridge's).
+    for t in 100..120 {
+        tick(&mut sense, if t > 100 { 70 } else { 60 }, driving(0.5), t);
+    }
+    assert_eq!(sense.offset_mv(), 60.0);
+    let a = sense.current_a(Some(70)).unwrap();
+    assert!((a - 1.0).abs() < 1e-3, "{a}");
+    // Asleep, then woken again: a fresh offset, from the new brake's readings alone.
+    for t in 120..200 {
+        tick(&mut sense, 66, MotorOutput::SAFE, t);
+    }
+    for t in 200..200 + OFFSET_WINDOW_TICKS {
+        tick(&mut sense, 55, MotorOutput::BRAKE, t);
+    }
+    assert_eq!(sense.offset_mv(), 55.0);
+}
+
+/// An offset error divides like the reading: 10 mV is 0.5 A of D·|i| at 20 mV/A, 2.5 A at the
+/// 0.2 floor (the module docs' figure), 1 A at half duty.
+#[test]
+fn an_offset_error_of_10_mv_reads_2_5_a_at_the_duty_floor() {
+    assert_eq!(offset_error_a(10.0, 0.0), 2.5);
+    assert_eq!(offset_error_a(10.0, DUTY_FLOOR), 2.5);
+    assert_eq!(offset_error_a(10.0, 0.5), 1.0);
+    // As the conversion reads it: the offset learnt 10 mV low, the bridge at the floor.
+    let mut sense = MotorCurrent::new();
+    for t in 0..OFFSET_WINDOW_TICKS {
+        tick(&mut sense, 50, MotorOutput::BRAKE, t);
+    }
+    // (The first driving tick's reading was taken braking.)
+    tick(&mut sense, 50, driving(DUTY_FLOOR), OFFSET_WINDOW_TICKS);
+    for t in OFFSET_WINDOW_TICKS + 1..OFFSET_WINDOW_TICKS + 20 {
+        tick(&mut sense, 60, driving(DUTY_FLOOR), t);
+    }
+    let a = sense.current_a(Some(60)).unwrap();
+    assert!((a - 2.5).abs() < 1e-3, "{a}");
+}
+
+/// A G2 and its filtered `CS` pin: the offset `awake_mv` awake, `asleep_mv` asleep, and
+/// `current_a` in the drive phase; each tick's reading taken as the output is applied, as the
+/// board takes it.
+struct G2Pin {
+    awake_mv: f64,
+    asleep_mv: f64,
+    current_a: f64,
+    filter: AnalogFilter,
+}
+
+impl G2Pin {
+    /// The pin settled at the sleep level.
+    fn asleep(awake_mv: f64, asleep_mv: f64, current_a: f64) -> Self {
+        Self {
+            awake_mv,
+            asleep_mv,
+            current_a,
+            filter: AnalogFilter { y_mv: asleep_mv },
+        }
+    }
+
+    /// `ticks` ticks of `out` from tick `from`: the conversion's reading at each, the output
+    /// applied, the pin filtered until the next tick.
+    fn hold(&mut self, sense: &mut MotorCurrent, out: MotorOutput, from: u64, ticks: u64) {
+        for tick in from..from + ticks {
+            sense.current_a(Some(self.filter.y_mv.round() as u16));
+            sense.applied(&out, tick * PERIOD_US);
+            let level_mv = if out.awake {
+                self.awake_mv + f64::from(out.duty) * self.current_a * 20.0
+            } else {
+                self.asleep_mv
+            };
+            self.filter.run(level_mv, PERIOD_US);
+        }
+    }
+}
+
+/// The rule of issue 34: the offset is what `CS` reads awake and braking, never what it reads
+/// asleep. A G2 whose sleep level sits 10 mV above its awake offset (both inside the band a
+/// plausible offset may take) sleeps for a second, brakes for [`OFFSET_WINDOW_TICKS`], then
+/// drives 1 A at half duty: the offset is the awake one and the current reads 1 A. (Taking every
+/// idle reading for the offset, it learnt 66 mV asleep and read 0.5 A.)
+#[test]
+fn the_offset_is_learnt_awake_and_braking_never_asleep() {
+    let mut sense = MotorCurrent::new();
+    let mut pin = G2Pin::asleep(56.0, 66.0, 1.0);
+    pin.hold(&mut sense, MotorOutput::SAFE, 0, 1000);
+    assert_eq!(sense.offset_mv(), CURRENT_SENSE_OFFSET_MV, "asleep");
+    pin.hold(&mut sense, MotorOutput::BRAKE, 1000, OFFSET_WINDOW_TICKS);
     assert!(
-        (sense.offset_mv() - 60.0).abs() < 0.1,
+        (sense.offset_mv() - 56.0).abs() < 0.3,
         "{}",
         sense.offset_mv()
     );
-    assert!(sense.current_a(Some(60)).unwrap() < 1e-3);
-    // A sense that reads 0 V asleep is not an offset.
-    for _ in 0..200 {
-        sense.current_a(Some(0));
-    }
-    assert!((sense.offset_mv() - 60.0).abs() < 0.1);
-    // Driving, readings are current, not offset (the first reading after the bridge starts
-    // driving was taken before: it is still the idle bridge's).
-    for tick in 1..20 {
-        sense.applied(&driving(0.5), tick * PERIOD_US);
-        if tick > 1 {
-            sense.current_a(Some(70));
-        }
-    }
-    assert!((sense.offset_mv() - 60.0).abs() < 0.1);
-    let a = sense.current_a(Some(70)).unwrap();
-    assert!((a - 1.0).abs() < 1e-3, "{a}");
+    pin.hold(&mut sense, driving(0.5), 1000 + OFFSET_WINDOW_TICKS, 20);
+    let a = sense
+        .current_a(Some(pin.filter.y_mv.round() as u16))
+        .unwrap();
+    assert!((a - 1.0).abs() < 0.05, "{a} A");
 }
 
 #[test]
@@ -165,6 +261,9 @@ fn asleep_the_duty_filter_decays_to_zero_even_after_a_long_gap() {
 #[test]
 fn a_missed_reading_keeps_the_last_current_until_it_is_stale() {
     let mut sense = MotorCurrent::new();
+    for t in 0..20 {
+        sense.applied(&driving(0.1), t * PERIOD_US);
+    }
     assert_eq!(sense.current_a(Some(150)), Some(1.0 / DUTY_FLOOR * 5.0));
     for tick in 1..=CURRENT_STALE_TICKS {
         assert_eq!(
