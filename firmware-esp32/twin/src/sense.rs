@@ -28,6 +28,12 @@
 //! the ADC's 0 dB range. An injected
 //! short reads [`SHORT_CURRENT_A`] in the drive phase instead of the motor current.
 //!
+//! While the G2 sleeps its `CS` output sits at a level of its own, `cs_sleep_delta_mv` from the
+//! offset awake (Pololu documents the offset awake only). The pin sees that level through the
+//! same RC filter: when the driver wakes, the reading moves from the sleep level to the offset
+//! with the filter's time constant, and back when it sleeps again. The twin boots with the
+//! driver asleep, its filter settled at the sleep level.
+//!
 //! # Supply sense
 //!
 //! The bus voltage at the driver (after the supply's sag) times (1 + `supply_sense_gain_error`),
@@ -74,6 +80,9 @@ pub struct Sense {
     last_us: u64,
     /// The RC filter's output at the last sample, A.
     filtered_a: f64,
+    /// The part of the filter's output due to the sleep level, mV above the offset (it is
+    /// linear: the drive's pulses and the sleep level add).
+    sleep_mv: f64,
 }
 
 impl Sense {
@@ -88,6 +97,7 @@ impl Sense {
             phase,
             last_us: 0,
             filtered_a: 0.0,
+            sleep_mv: params.cs_sleep_delta_mv,
         }
     }
 
@@ -138,9 +148,16 @@ impl Sense {
         } else {
             0.0
         };
+        self.sleep_mv = settle_towards(
+            self.sleep_mv,
+            sleep_level_mv(&p, bridge),
+            elapsed_us,
+            p.cs_filter_tau_us,
+        );
         let cs_noise_a = p.current_noise_a * filtered_noise_share(p.cs_filter_tau_us);
         let noisy_a = cs_a * (1.0 + p.cs_gain_error) + f64::from(rng.normal()) * cs_noise_a;
         let cs_mv = p.cs_offset_mv
+            + self.sleep_mv
             + CURRENT_SENSE_MV_PER_A as f64 * noisy_a
             + f64::from(self.rng.normal()) * p.adc_noise_mv;
         let bus_v = bridge.bus_v * (1.0 + p.supply_sense_gain_error)
@@ -153,6 +170,25 @@ impl Sense {
             )),
         }
     }
+}
+
+/// The `CS` output's level above its awake offset with no current, mV: `cs_sleep_delta_mv`
+/// while the G2 sleeps, 0 awake.
+fn sleep_level_mv(p: &PlantParams, bridge: &Electrical) -> f64 {
+    if bridge.asleep {
+        p.cs_sleep_delta_mv
+    } else {
+        0.0
+    }
+}
+
+/// A first-order filter of time constant `tau_us` (0: none) at `y`, fed with the steady `input`
+/// for `elapsed_us`: its output then.
+fn settle_towards(y: f64, input: f64, elapsed_us: f64, tau_us: f64) -> f64 {
+    if tau_us <= 0.0 {
+        return input;
+    }
+    input + (y - input) * (-elapsed_us / tau_us).exp()
 }
 
 /// What is left of the G2's current-sense noise (independent from one PWM period to the next)
@@ -220,6 +256,7 @@ mod tests {
             chopping: false,
             under_voltage: false,
             winding_temp_c: 25.0,
+            asleep: false,
         }
     }
 
@@ -231,6 +268,7 @@ mod tests {
             cs_filter_tau_us: 0.0,
             supply_sense_gain_error: 0.0,
             supply_sense_noise_v: 0.0,
+            cs_sleep_delta_mv: 0.0,
             ..PlantParams::default()
         }
     }
@@ -387,6 +425,40 @@ mod tests {
         let sd =
             (reads.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / reads.len() as f64).sqrt();
         assert!((sd - noisy.supply_sense_noise_v).abs() < 0.01, "{sd}");
+    }
+
+    /// Asleep, `CS` reads its sleep level; woken (braking: no current to show), it settles to
+    /// the offset through the RC filter, by e^−1 a millisecond, and back when it sleeps again.
+    #[test]
+    fn cs_reads_its_sleep_level_asleep_and_settles_to_the_offset_awake() {
+        let p = PlantParams {
+            cs_sleep_delta_mv: 20.0,
+            cs_filter_tau_us: 1000.0,
+            ..exact()
+        };
+        let mut s = Sense::new(&p, 1);
+        let mut rng = Rng::new(1);
+        let braking = bridge(0.0, 0.0);
+        let asleep = Electrical {
+            asleep: true,
+            ..braking
+        };
+        let mut read = |b: &Electrical, tick: u64| s.sample(b, tick * PERIOD_US, false, &mut rng);
+        // Booted asleep, the filter settled at the sleep level.
+        assert_eq!(read(&asleep, 1).cs_mv, 70);
+        let awake: Vec<u16> = (2..=6).map(|t| read(&braking, t).cs_mv).collect();
+        // 50 + 20·e^−k, rounded to the ADC's 1 mV.
+        assert_eq!(awake, [57, 53, 51, 50, 50]);
+        // Asleep again: 50 + 20·(1 − e^−1).
+        assert_eq!(read(&asleep, 7).cs_mv, 63);
+        // Without the filter the level steps at once: here an output that is off asleep.
+        let p = PlantParams {
+            cs_sleep_delta_mv: -50.0,
+            ..exact()
+        };
+        let mut s = Sense::new(&p, 1);
+        assert_eq!(s.sample(&asleep, PERIOD_US, false, &mut rng).cs_mv, 0);
+        assert_eq!(s.sample(&braking, 2 * PERIOD_US, false, &mut rng).cs_mv, 50);
     }
 
     #[test]

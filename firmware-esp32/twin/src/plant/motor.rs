@@ -77,6 +77,9 @@ pub struct Electrical {
     pub under_voltage: bool,
     /// Winding temperature, °C.
     pub winding_temp_c: f64,
+    /// The G2 sleeps (`SLP` low): its `CS` output sits at its sleep level, not its offset
+    /// (`cs_sleep_delta_mv`, [`crate::sense`]).
+    pub asleep: bool,
 }
 
 /// The motor's electrical and thermal state.
@@ -101,6 +104,7 @@ impl Motor {
                 chopping: false,
                 under_voltage: p.supply_v < p.driver_uvlo_v + UVLO_HYSTERESIS_V,
                 winding_temp_c: p.winding_temp_c,
+                asleep: true,
             },
         }
     }
@@ -140,6 +144,7 @@ impl Motor {
         let cooling_w = (temp_c - p.ambient_temp_c) / p.winding_thermal_res_c_per_w;
         next.winding_temp_c =
             temp_c + (heat_w - cooling_w) / p.winding_heat_capacity_j_per_c * dt_s;
+        next.asleep = !bridge.awake;
         self.state = next;
         p.gear_ratio * p.gear_efficiency * p.kt_nm_per_a * next.current_a
     }
@@ -156,6 +161,7 @@ fn idle(p: &PlantParams, temp_c: f64) -> Electrical {
         chopping: false,
         under_voltage: false,
         winding_temp_c: temp_c,
+        asleep: false,
     }
 }
 
@@ -187,6 +193,7 @@ fn drive(p: &PlantParams, bridge: &Bridge, motor_rad_per_s: f64, temp_c: f64) ->
         chopping,
         under_voltage: false,
         winding_temp_c: temp_c,
+        asleep: false,
     }
 }
 

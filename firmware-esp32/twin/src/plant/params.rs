@@ -155,8 +155,16 @@ plant_params! {
     /// Pololu gives "about 20 mV/A" and "approximately 50 mV" offset, with no tolerance: ±10 %.
     cs_gain_error [""] = 0.05, -0.1..=0.1;
     /// The G2's current-sense offset at zero current, mV ("approximately 50 mV"; boards read
-    /// 40–65: one reported 60 mV). The firmware learns it while the bridge is idle.
+    /// 40–65: one reported 60 mV). The firmware learns it awake, braking, before each run and
+    /// each self-test.
     cs_offset_mv ["mV"] = 50.0, 40.0..=65.0;
+    /// What the G2's current-sense output reads while the driver sleeps (`SLP` low), minus its
+    /// offset awake, mV. Pololu documents the offset only awake; the sleep level is not
+    /// documented. From 0 V (−40 to −65: an output that
+    /// switches off with the driver) to 40 mV above the offset. The default, +10 mV, sits inside
+    /// the 30–80 mV band a firmware taking every idle reading for the offset would accept, and
+    /// is 2.5 A at the firmware's duty floor of 0.2 (`board::current`).
+    cs_sleep_delta_mv ["mV"] = 10.0, -65.0..=40.0;
     /// Time constant of the RC filter on the CS pin, µs: the board's 10 kΩ in series and 100 nF
     /// to ground, 1 ms (firmware `board::current`), which the firmware's duty filter assumes.
     /// 1 % resistors and an X7R capacitor (±10 %, and some 20 % lost to DC bias and

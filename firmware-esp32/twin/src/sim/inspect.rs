@@ -2,6 +2,7 @@
 //! options; whether the motor is safe or driven), and what a person does to it by hand: a traced
 //! gauge placed under the prongs, the magnet moved to the motor shaft, the hub turned.
 
+use kerfmeter_firmware::board::current::MotorCurrent;
 use kerfmeter_firmware::fakes::flash::FlashClock;
 
 use super::{Twin, TwinDevice};
@@ -88,6 +89,11 @@ impl Twin {
     /// The device (for checks).
     pub fn device(&self) -> &TwinDevice {
         &self.device
+    }
+
+    /// The firmware's current-sense conversion, its learnt offset included (for checks).
+    pub fn current_sense(&self) -> &MotorCurrent {
+        self.hardware.current()
     }
 
     /// The truth of each run started (shared: a clone follows this twin).
