@@ -2,8 +2,9 @@
 //! `python3` and filled with pip, and the Python package's test step.
 //!
 //! `cargo xtask test` builds and installs `host-lib/python` (the `kerfmeter` package) into it
-//! and runs its pytest suite against the twin, and against ezdxf and GEOS (shapely) for the DXF
-//! plans. This needs `python3` (3.9 or later) with its
+//! and runs its pytest suite against the twin, against ezdxf and GEOS (shapely) for the DXF
+//! plans, and against MeerK40t's Ruida code for the Ruida crate's streams (written by the
+//! crate's `encode` example, built here). This needs `python3` (3.9 or later) with its
 //! `venv` module, and PyPI for maturin and pytest on first use; without them the step fails and
 //! says what is missing. The wheel is built by maturin into the workspace's own `target/` in the
 //! dev profile, so it reuses what `cargo test --workspace` already compiled instead of building
@@ -24,8 +25,11 @@ pub const PYTEST: &str = "pytest>=7,<10";
 const TOOLS: [&str; 2] = ["maturin>=1.9.4,<2", PYTEST];
 /// The independent implementations the package's tests check the plans against (issue 32):
 /// ezdxf opens and audits every DXF written, GEOS (through shapely) buffers the same cuts (and,
-/// in the host tests, the polygons of the plan crate's recompensation property).
-pub const PEERS: [&str; 2] = ["ezdxf>=1.4,<2", "shapely>=2,<3"];
+/// in the host tests, the polygons of the plan crate's recompensation property). MeerK40t's
+/// Ruida emulator and parser decode every stream the Ruida encoder writes (issue 35,
+/// `tests/test_ruida_peer.py`); pinned exactly, as `docs/ruida.md` names the version checked
+/// (its core needs only pyusb, pyserial and numpy).
+pub const PEERS: [&str; 3] = ["ezdxf>=1.4,<2", "shapely>=2,<3", "meerk40t==0.9.9100"];
 
 /// LibreCAD's part library (Debian's `librecad-data`): real-world DXF drawings the package's
 /// tests dilate and ezdxf audits; installed with apt-get when missing and this runs as root.
@@ -135,12 +139,26 @@ pub fn test_package() -> Result<()> {
             .env("MATURIN_PEP517_ARGS", "--profile dev"),
     )?;
     ensure_librecad_parts()?;
+    let ruida_encoder = build_ruida_encoder()?;
     run_cmd(
         Command::new(&python)
             .args(["-m", "pytest", "-q"])
             .arg(package.join("tests"))
-            .env("KERFMETER_LIBRECAD_PARTS", LIBRECAD_DIR),
+            .env("KERFMETER_LIBRECAD_PARTS", LIBRECAD_DIR)
+            .env("KERFMETER_RUIDA_ENCODER", ruida_encoder),
     )
+}
+
+/// Build the Ruida crate's `encode` example, which writes the streams MeerK40t decodes in
+/// `tests/test_ruida_peer.py`; its path.
+fn build_ruida_encoder() -> Result<PathBuf> {
+    run_cmd(crate::cargo().args(["build", "-p", "kerfmeter-ruida", "--example", "encode"]))?;
+    let name = format!("encode{}", std::env::consts::EXE_SUFFIX);
+    Ok(root()
+        .join("target")
+        .join("debug")
+        .join("examples")
+        .join(name))
 }
 
 /// Install LibreCAD's part library when it is missing (apt-get, as root); otherwise say how.
