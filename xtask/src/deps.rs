@@ -14,9 +14,10 @@ use crate::cargo;
 const BANNED: [&str; 5] = ["clap", "axum", "tokio", "pyo3", "plotters"];
 
 /// The library crates (everything but the front ends, the firmware binary and the tooling).
-const LIBRARIES: [&str; 8] = [
+const LIBRARIES: [&str; 9] = [
     "kerfmeter-protocol",
     "kerfmeter-grbl",
+    "kerfmeter-ruida",
     "kerfmeter",
     "kerfmeter-plan",
     "kerfmeter-lightburn",
