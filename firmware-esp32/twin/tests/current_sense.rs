@@ -89,8 +89,9 @@ fn assert_awake_offset(t: &Twin, offset_mv: f64, when: &str) {
 
 /// A run from a sleeping driver: by the time the bridge first drives, the offset is the awake
 /// one, learnt in the brake before it; the run measures as well as at any sleep level. With the
-/// old rule (every idle reading within 30–80 mV taken for the offset) the first two cases
-/// learn the sleep level (70 and 75 mV) and the current reads 0.6–1.5 A low at the duty floor.
+/// old rule (every idle reading within 30–80 mV taken for the offset) the first, second and
+/// last cases learn the sleep level (70, 75 and 80 mV), and the current reads 3–10 A low at the
+/// duty floor (0.6–2 A at full duty).
 #[test]
 fn a_run_learns_the_offset_awake_not_from_the_sleeping_driver() {
     for (offset_mv, delta_mv) in [(58.0, 12.0), (45.0, 30.0), (50.0, -50.0), (40.0, 40.0)] {

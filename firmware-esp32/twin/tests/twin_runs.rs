@@ -309,11 +309,12 @@ fn self_test_torque_constant_passes_a_hot_motor() {
     }
 }
 
-/// The G2's current-sense offset varies from board to board: the firmware learns it while the
-/// bridge is idle, so an offset 15 mV above the nominal 50 mV (7.5 A at the duty floor) does not
-/// trip while idle, and neither it nor one 10 mV below skews the self-test or a run.
+/// The G2's current-sense offset varies from board to board: the firmware learns it awake and
+/// braking, before each run and self-test, and reads no current at rest, so an offset 15 mV
+/// above the nominal 50 mV (3.75 A at the duty floor) does not trip while idle, and neither it
+/// nor one 10 mV below skews the self-test or a run (`tests/current_sense.rs`: the sleep level).
 #[test]
-fn a_current_sense_offset_off_nominal_is_learnt_at_rest() {
+fn a_current_sense_offset_off_nominal_is_learnt_before_driving() {
     use kerfmeter_protocol::TestOutcome::Pass;
     for cs_offset_mv in [40.0, 65.0] {
         let options = TwinOptions {
