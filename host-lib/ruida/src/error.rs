@@ -36,6 +36,12 @@ pub enum RuidaError {
         /// The reply, unswizzled.
         byte: u8,
     },
+    /// A datagram of several bytes where a one-byte reply was due.
+    #[error("the Ruida controller answered {len} bytes where a one-byte reply was due")]
+    NotAReply {
+        /// The datagram's length.
+        len: usize,
+    },
     /// A payload whose next byte starts no command (commands start with a byte ≥ 0x80).
     #[error("byte {byte:#04x} at offset {offset} starts no Ruida command")]
     NotACommand {

@@ -12,13 +12,15 @@
 //!   position, the machine status, the bed size.
 //! - [`program`]: a cut program from polylines in mm with per-layer speed and power, the laser
 //!   off on every travel.
+//! - [`link`]: the UDP link a driver sends packets over, each waited for, a program packet never
+//!   sent twice.
 //! - `twin` (feature `twin`): a simulated controller on UDP, as unkind as a real one.
 //!
-//! The crate does no I/O outside the twin: a driver sends [`packet::Packet`]s over UDP (port
-//! [`UDP_PORT`]) and reads [`Reply`]s and register answers with the functions here.
+//! The crate does no I/O outside the link and the twin; everything else is pure functions.
 
 pub mod command;
 mod error;
+pub mod link;
 pub mod packet;
 pub mod program;
 pub mod register;
