@@ -210,8 +210,11 @@ def test_no_travel_fires_the_laser_and_the_file_ends(streams, name):
     assert driver.ended == 1
     commands = list(parse_commands(payload(program)))
     assert commands[-1] == b"\xd7"
-    # Every move is absolute: no relative move or cut (89-8B, A9-AB), no 80 00 / A0 00.
+    # Every move is absolute: no relative move or cut (89-8B, A9-AB), no 80 00 / A0 00, and no
+    # command the two decoders read differently.
     assert {c[0] for c in commands} <= {0xE6, 0xCA, 0xC9, 0xC6, 0x88, 0xA8, 0xE5, 0xD7}
+    # Nor CA 01 00, "end layer" to MeerK40t but "overscan off" to ruida-pa.
+    assert not [c for c in commands if c[:2] == b"\xca\x01"]
 
 
 @pytest.mark.parametrize("name", PROGRAMS)

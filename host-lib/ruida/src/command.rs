@@ -2,6 +2,7 @@
 //! MeerK40t 0.9.9100 and `ruida-pa` 0.23.0 decode alike are written (`docs/ruida.md`): absolute
 //! moves and cuts (never relative ones, which wrap beyond ±8.191 mm; never `80 00`/`A0 00`,
 //! which the two decoders read differently), speed `C9 02`, minimum/maximum power `C6 01`/`C6 02`.
+//! Nor `CA 01 00`: "end layer" to MeerK40t, "overscan off" to ruida-pa.
 //!
 //! Each command starts with a byte ≥ 0x80 and its data bytes are below 0x80 ([`crate::value`]),
 //! which is how a stream splits into commands. [`Command::decode`] reads back what
@@ -53,8 +54,6 @@ pub enum Command {
         /// The layer, 0–127.
         layer: u8,
     },
-    /// `CA 01 00`: the end of a layer.
-    LayerEnd,
     /// `E6 01`: coordinates are absolute.
     SetAbsolute,
     /// `E5 05 v`: the file's checksum (see [`crate::program`]).
@@ -130,7 +129,6 @@ impl Command {
                 out.extend(encode_u14(power_steps));
             }
             Self::LayerNumber { layer } => out.extend([0xCA, 0x02, layer & 0x7F]),
-            Self::LayerEnd => out.extend([0xCA, 0x01, 0x00]),
             Self::SetAbsolute => out.extend([0xE6, 0x01]),
             Self::FileSum { sum } => {
                 out.extend([0xE5, 0x05]);
@@ -214,7 +212,6 @@ impl Command {
                 })
             }
             (0xCA, [0x02, layer]) => Some(Self::LayerNumber { layer: *layer }),
-            (0xCA, [0x01, 0x00]) => Some(Self::LayerEnd),
             (0xE6, [0x01]) => Some(Self::SetAbsolute),
             (0xE5, [0x05, v @ ..]) => five(v).map(|v| Self::FileSum { sum: v as u32 }),
             (0xD7, []) => Some(Self::EndOfFile),
@@ -249,7 +246,7 @@ fn known_prefix(opcode: u8, data: &[u8]) -> bool {
         (0xD7 | 0xCE, _)
             | (0xC9, Some(0x02))
             | (0xC6, Some(0x01 | 0x02))
-            | (0xCA, Some(0x01 | 0x02))
+            | (0xCA, Some(0x02))
             | (0xE6, Some(0x01))
             | (0xE5, Some(0x05))
             | (0xD8, Some(0x00 | 0x01))
@@ -305,7 +302,6 @@ mod tests {
             Command::MinPower { power_steps: 1638 },
             Command::MaxPower { power_steps: 16383 },
             Command::LayerNumber { layer: 3 },
-            Command::LayerEnd,
             Command::SetAbsolute,
             Command::FileSum { sum: 123_456 },
             Command::EndOfFile,

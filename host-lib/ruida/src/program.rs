@@ -4,8 +4,9 @@
 //! by construction.
 //!
 //! The stream: `E6 01` (absolute coordinates); per layer `CA 02 n`, speed `C9 02`, powers
-//! `C6 01`/`C6 02`, its paths (a move to each path's start, cuts along it), `CA 01 00`; then the
-//! file sum `E5 05` and `D7`. The file sum is the sum of every byte before it, unswizzled, plus
+//! `C6 01`/`C6 02` and its paths (a move to each path's start, cuts along it); then the file
+//! sum `E5 05` and `D7`. No layer end (`CA 01 00`): MeerK40t reads it as one, ruida-pa as
+//! "overscan off". The file sum is the sum of every byte before it, unswizzled, plus
 //! the `D7` byte, as MeerK40t writes it; `ruida-pa` flags a file without it. Whether a real
 //! controller checks it is unverified (`docs/ruida.md`).
 
@@ -130,7 +131,6 @@ fn write_layer(out: &mut Vec<Command>, index: u8, layer: &CutLayer) -> Result<()
             });
         }
     }
-    out.push(Command::LayerEnd);
     Ok(())
 }
 
