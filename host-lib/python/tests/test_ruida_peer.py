@@ -251,6 +251,17 @@ def direct(streams, kind):
     return [d for d in streams["direct"] if d["kind"] == kind]
 
 
+def test_direct_moves_are_absolute_as_meerk40ts_own_driver_sends_them(streams):
+    # MeerK40t's emulator ignores D9 10's option byte, so it is compared with what MeerK40t's
+    # driver sends for an absolute move (its relative moves carry 02, "current" to ruida-pa).
+    absolute = RDJob()._rapid_options(origin=True)
+    for kind in ("move_xy", "move_z", "move_u"):
+        (move,) = direct(streams, kind)
+        payload = decode_bytes(bytes.fromhex(move["packet"])[2:], magic=0x88)
+        assert payload[0] == 0xD9
+        assert payload[2:3] == absolute, kind
+
+
 def test_direct_moves_and_stop_are_read_as_sent(streams):
     emulator, driver, replies, log = controller()
     (xy,) = direct(streams, "move_xy")

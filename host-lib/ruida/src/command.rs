@@ -14,8 +14,11 @@ use crate::value::{
     decode_coord_um, decode_u14, decode_u35, encode_coord_um, encode_u14, encode_u35,
 };
 
-/// The rapid-move option byte "no light, no origin" (MeerK40t's `RAPID_OPTION_NONE`).
-pub const RAPID_OPTION_NONE: u8 = 0x02;
+/// The rapid-move (`D9`) option byte for a move to absolute machine coordinates: "machine" to
+/// ruida-pa, "origin" to MeerK40t, whose own driver sends it for its absolute moves. Not 0x02,
+/// which both read as relative to the current position (ruida-pa's "current"; MeerK40t's driver
+/// sends it with its relative single-axis moves).
+pub const RAPID_OPTION_ABSOLUTE: u8 = 0x00;
 
 /// A command, with its values as sent (µm, µm/s, 14-bit power steps).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,19 +70,19 @@ pub enum Command {
     StartProcess,
     /// `D8 01`: stop the running program.
     StopProcess,
-    /// `D9 10 02 x y`: move the head now to an absolute X/Y, laser off.
+    /// `D9 10 00 x y`: move the head now to an absolute X/Y, laser off.
     RapidMoveXy {
         /// X, µm.
         x_um: i32,
         /// Y, µm.
         y_um: i32,
     },
-    /// `D9 02 02 z`: move the Z table now to an absolute position.
+    /// `D9 02 00 z`: move the Z table now to an absolute position.
     RapidMoveZ {
         /// Z, µm.
         z_um: i32,
     },
-    /// `D9 03 02 u`: move the U axis now to an absolute position.
+    /// `D9 03 00 u`: move the U axis now to an absolute position.
     RapidMoveU {
         /// U, µm.
         u_um: i32,
@@ -138,15 +141,15 @@ impl Command {
             Self::StartProcess => out.extend([0xD8, 0x00]),
             Self::StopProcess => out.extend([0xD8, 0x01]),
             Self::RapidMoveXy { x_um, y_um } => {
-                out.extend([0xD9, 0x10, RAPID_OPTION_NONE]);
+                out.extend([0xD9, 0x10, RAPID_OPTION_ABSOLUTE]);
                 xy(out, x_um, y_um);
             }
             Self::RapidMoveZ { z_um } => {
-                out.extend([0xD9, 0x02, RAPID_OPTION_NONE]);
+                out.extend([0xD9, 0x02, RAPID_OPTION_ABSOLUTE]);
                 out.extend(encode_coord_um(z_um));
             }
             Self::RapidMoveU { u_um } => {
-                out.extend([0xD9, 0x03, RAPID_OPTION_NONE]);
+                out.extend([0xD9, 0x03, RAPID_OPTION_ABSOLUTE]);
                 out.extend(encode_coord_um(u_um));
             }
             Self::ReadRegister { address } => out.extend([0xDA, 0x00, address[0], address[1]]),
@@ -217,10 +220,10 @@ impl Command {
             (0xD7, []) => Some(Self::EndOfFile),
             (0xD8, [0x00]) => Some(Self::StartProcess),
             (0xD8, [0x01]) => Some(Self::StopProcess),
-            (0xD9, [0x02, RAPID_OPTION_NONE, v @ ..]) => {
+            (0xD9, [0x02, RAPID_OPTION_ABSOLUTE, v @ ..]) => {
                 coord(v).map(|z_um| Self::RapidMoveZ { z_um })
             }
-            (0xD9, [0x03, RAPID_OPTION_NONE, v @ ..]) => {
+            (0xD9, [0x03, RAPID_OPTION_ABSOLUTE, v @ ..]) => {
                 coord(v).map(|u_um| Self::RapidMoveU { u_um })
             }
             (0xDA, [0x00, hi, lo]) => Some(Self::ReadRegister {
@@ -268,7 +271,7 @@ fn coord(v: &[u8]) -> Option<i32> {
 /// `88`/`A8` (data: x y) or `D9 10` (data: 10 02 x y).
 fn decode_xy(opcode: u8, data: &[u8]) -> Option<Command> {
     let xy = match opcode {
-        0xD9 => data.strip_prefix(&[0x10, RAPID_OPTION_NONE])?,
+        0xD9 => data.strip_prefix(&[0x10, RAPID_OPTION_ABSOLUTE])?,
         _ => data,
     };
     if xy.len() != 10 {
