@@ -57,7 +57,7 @@ use esp_hal::{
     time::Instant,
 };
 use kerfmeter_firmware::as5048a::COUNTS_PER_TURN;
-use kerfmeter_firmware::board::adc::AnalogInputs;
+use kerfmeter_firmware::board::adc::AnalogParts;
 use kerfmeter_firmware::board::emergency::{ARMED, ChipRegisters};
 use kerfmeter_firmware::board::encoder::{BoardEncoder, encoder};
 use kerfmeter_firmware::board::motor::{BoardMotor, LineLevels, PWM_CHANNEL, motor_lines};
@@ -152,7 +152,7 @@ struct Board {
     encoder: BoardEncoder,
     motor: BoardMotor,
     /// The current sense and the supply on ADC1.
-    analog: AnalogInputs,
+    analog: AnalogParts,
     delay: Delay,
     sleep_gpio: u8,
     dir_gpio: u8,
@@ -185,7 +185,7 @@ fn build(levels: LineLevels) -> Board {
     safe.expect("motor driver: safe state at construction");
 
     let encoder = encoder(p.SPI2, pins.encoder, &DeviceConfig::DEFAULT);
-    let analog = AnalogInputs::new(p.ADC1, pins.motor_current, pins.motor_supply);
+    let analog = AnalogParts::new(p.ADC1, pins.motor_current, pins.motor_supply);
 
     Board {
         encoder,
@@ -488,6 +488,7 @@ mod tests {
     use kerfmeter_firmware::motor::MotorOutput;
     use kerfmeter_protocol::DeviceConfig;
 
+    use kerfmeter_firmware::board::conversion::Conversions;
     use kerfmeter_firmware::board::current::{MotorCurrent, OFFSET_RANGE_MV};
     use kerfmeter_firmware::board::emergency::{ARMED, ChipRegisters};
     use kerfmeter_firmware::board::flash::config_partition;
@@ -734,8 +735,12 @@ mod tests {
         board.assert_safe("at the start");
         let mut current = MotorCurrent::new();
         let (mut cs_readings, mut supply) = (0, None);
+        let mut conversions = Conversions::new();
+        let mut adc = board.analog.open();
         for _ in 0..4 * SUPPLY_PERIOD_TICKS {
-            let (cs_mv, supply_v) = board.analog.read();
+            let readings = conversions.read(&mut adc);
+            assert!(!readings.restart, "a conversion stalled");
+            let (cs_mv, supply_v) = (readings.cs_mv, readings.supply_v);
             if let Some(mv) = cs_mv {
                 cs_readings += 1;
                 assert!(
@@ -747,9 +752,10 @@ mod tests {
             let a = current.current_a(cs_mv).expect("the current sense is read");
             assert!(a < 0.5, "{} A with the motor asleep", a);
             supply = supply_v.or(supply);
-            board.analog.start_next();
+            conversions.start_next(&mut adc);
             board.delay.delay_millis(SAMPLE_PERIOD_MS);
         }
+        drop(adc);
         assert!(
             cs_readings >= 3 * SUPPLY_PERIOD_TICKS,
             "only {} current-sense readings in {} ticks",

@@ -12,7 +12,8 @@
 //! - `encoder`: the AS5048A on SPI2 (mode 1, 2 MHz, chip select as a GPIO, its timing kept); then the
 //!   [`As5048a`] driver.
 //! - `adc`: the G2's RC-filtered current-sense output (0 dB) and the supply divider (11 dB) on
-//!   ADC1, eFuse-calibrated, read one conversion behind so that the control tick never waits.
+//!   ADC1, eFuse-calibrated, its driver built on borrowed parts so that it can be built again
+//!   when a conversion stalls.
 //! - `flash`: the SPI flash and the partition table's `nvs` partition, which holds the
 //!   configuration, its erases and writes guarded by the watchdog.
 //! - `watchdog`: TIMG1's MWDT, fed by the control tick and lengthened around flash operations.
@@ -21,6 +22,8 @@
 //!
 //! Chip-independent, and tested on the host:
 //!
+//! - [`conversion`]: which ADC1 conversion each tick starts and collects, one conversion behind
+//!   so that the control tick never waits, and a conversion that never finishes given up.
 //! - [`current`]: the motor current from the RC-filtered current sense divided by the duty
 //!   filtered alike, and when the current counts as unknown (used by `Hardware::tick`).
 //! - [`supply`]: the motor supply's sense divider, its scaling and its reading between
@@ -36,6 +39,7 @@
 //! [`G2Motor`]: crate::motor::G2Motor
 //! [`As5048a`]: crate::as5048a::As5048a
 
+pub mod conversion;
 pub mod current;
 pub mod partition;
 pub mod supply;

@@ -25,8 +25,10 @@
 //!   drivers), the analog inputs on ADC1 (`board::adc`) and the watchdog. Each tick it takes the
 //!   current-sense reading and the motor supply (conversions started at the end of the previous
 //!   tick, so the ADC never holds the tick up; the supply every tenth tick in place of the current
-//!   sense), runs [`Hardware::tick`] (encoder, diagnostics, FLT, the motor current from the
-//!   filtered current sense, controller step, motor output), starts the next conversion, feeds the
+//!   sense; a conversion that never finishes is given up and the ADC driver opened again,
+//!   `board::conversion`), runs [`Hardware::tick`] (encoder, diagnostics, FLT, the motor current
+//!   from the filtered current sense, controller step, motor output), starts the next
+//!   conversion, feeds the
 //!   watchdog, then hands received bytes to the link, which answers each complete request from
 //!   the same `Device`: at most
 //!   [`FRAMES_PER_TICK`](kerfmeter_firmware::link::FRAMES_PER_TICK) frames a pass, so that no
@@ -92,7 +94,8 @@ use esp_hal::{
 use kerfmeter_firmware::{
     board::{
         self, BOARD_NAME, BoardHardware,
-        adc::AnalogInputs,
+        adc::AnalogParts,
+        conversion::Conversions,
         flash::{ConfigFlash, config_partition},
         motor::{LineLevels, motor_lines},
         partition::{OpenedConfig, open_config_partition},
@@ -162,7 +165,7 @@ async fn main(spawner: Spawner) {
         env!("CARGO_PKG_VERSION")
     );
 
-    let analog = AnalogInputs::new(p.ADC1, pins.motor_current, pins.motor_supply);
+    let analog = AnalogParts::new(p.ADC1, pins.motor_current, pins.motor_supply);
 
     // The stored configuration (defaults if there is none).
     let opened = open_config(p.FLASH);
@@ -219,7 +222,7 @@ fn open_config(flash: esp_hal::peripherals::FLASH<'static>) -> OpenedConfig<Conf
 #[embassy_executor::task]
 async fn control_task(
     mut hardware: BoardHardware,
-    mut analog: AnalogInputs,
+    mut analog: AnalogParts,
     mut watchdog: BoardWatchdog,
     boot_id: u32,
     opened: OpenedConfig<ConfigFlash>,
@@ -234,16 +237,29 @@ async fn control_task(
     let mut link = Link::new();
     let mut inbox = Inbox::<CHUNK_LEN>::new();
     let mut ticker = Ticker::every(CONTROL_PERIOD);
+    let mut conversions = Conversions::new();
+    let mut adc = analog.open();
     loop {
         let started = Instant::now();
         // A tick without a current-sense reading keeps the last current; too many in a row make it
         // unknown, and the controller faults with `OverCurrent` rather than drive blind.
-        let (cs_mv, supply_v) = analog.read();
-        hardware.tick(started.as_micros(), cs_mv, supply_v, &mut device);
+        let readings = conversions.read(&mut adc);
+        hardware.tick(
+            started.as_micros(),
+            readings.cs_mv,
+            readings.supply_v,
+            &mut device,
+        );
         // The longest step since boot, reported in `Status`.
         device.step_finished(Instant::now().as_micros());
+        if readings.restart {
+            // A conversion that never finished: a new driver (`board::conversion`).
+            esp_println::println!("adc: a conversion stalled, driver restarted");
+            drop(adc);
+            adc = analog.open();
+        }
         // Just after the output was applied: the reading the next tick pairs with it.
-        analog.start_next();
+        conversions.start_next(&mut adc);
         watchdog.feed_ms(WATCHDOG_TIMEOUT_MS);
 
         // Requests, answered at the state of this tick; a save puts the motor safe first. At
