@@ -3,8 +3,9 @@
 //!
 //! `cargo xtask test` builds and installs `host-lib/python` (the `kerfmeter` package) into it
 //! and runs its pytest suite against the twin, against ezdxf and GEOS (shapely) for the DXF
-//! plans, and against MeerK40t's Ruida code for the Ruida crate's streams (written by the
-//! crate's `encode` example, built here). This needs `python3` (3.9 or later) with its
+//! plans, and against MeerK40t's Ruida code and `ruida-pa` (in a venv of its own,
+//! `target/ruida-pa-venv`) for the Ruida crate's streams (written by the crate's `encode`
+//! example, built here). This needs `python3` (3.9 or later) with its
 //! `venv` module, and PyPI for maturin and pytest on first use; without them the step fails and
 //! says what is missing. The wheel is built by maturin into the workspace's own `target/` in the
 //! dev profile, so it reuses what `cargo test --workspace` already compiled instead of building
@@ -30,6 +31,12 @@ const TOOLS: [&str; 2] = ["maturin>=1.9.4,<2", PYTEST];
 /// `tests/test_ruida_peer.py`); pinned exactly, as `docs/ruida.md` names the version checked
 /// (its core needs only pyusb, pyserial and numpy).
 pub const PEERS: [&str; 3] = ["ezdxf>=1.4,<2", "shapely>=2,<3", "meerk40t==0.9.9100"];
+
+/// The second Ruida decoder, `ruida-pa`, whose `rpa` reads the encoder's programs as `.rd` files
+/// in `tests/test_ruida_peer.py` (issue 35). It has a venv of its own: it pulls in bokeh,
+/// textual and rpyc, and installs top-level packages named `protocols` and `rpalib`, which have
+/// no place beside the package's.
+const RUIDA_PA: &str = "ruida-pa==0.23.0";
 
 /// LibreCAD's part library (Debian's `librecad-data`): real-world DXF drawings the package's
 /// tests dilate and ezdxf audits; installed with apt-get when missing and this runs as root.
@@ -140,13 +147,39 @@ pub fn test_package() -> Result<()> {
     )?;
     ensure_librecad_parts()?;
     let ruida_encoder = build_ruida_encoder()?;
+    let ruida_pa = ensure_ruida_pa()?;
     run_cmd(
         Command::new(&python)
             .args(["-m", "pytest", "-q"])
             .arg(package.join("tests"))
             .env("KERFMETER_LIBRECAD_PARTS", LIBRECAD_DIR)
-            .env("KERFMETER_RUIDA_ENCODER", ruida_encoder),
+            .env("KERFMETER_RUIDA_ENCODER", ruida_encoder)
+            .env("KERFMETER_RUIDA_PA", ruida_pa),
     )
+}
+
+/// `ruida-pa` in `target/ruida-pa-venv` (made when missing or broken); its `rpa` program.
+fn ensure_ruida_pa() -> Result<PathBuf> {
+    let dir = root().join("target").join("ruida-pa-venv");
+    let python = dir.join("bin").join("python");
+    if !has_pip(&python) {
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir)
+                .with_context(|| format!("cannot remove the broken {}", dir.display()))?;
+        }
+        run_cmd(Command::new(PYTHON).args(["-m", "venv"]).arg(&dir))
+            .context("cannot make ruida-pa's venv (Debian: apt-get install python3-venv)")?;
+    }
+    run_cmd(Command::new(&python).args([
+        "-m",
+        "pip",
+        "install",
+        "--quiet",
+        "--disable-pip-version-check",
+        RUIDA_PA,
+    ]))
+    .context("pip could not install ruida-pa (is PyPI reachable?)")?;
+    Ok(dir.join("bin").join("rpa"))
 }
 
 /// Build the Ruida crate's `encode` example, which writes the streams MeerK40t decodes in

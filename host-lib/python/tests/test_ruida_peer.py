@@ -11,10 +11,16 @@ the plan: every move and cut to the µm, every travel with the laser off, the sp
 (within one 2^14 step: 10 % reads back as 9.998 %), the file sum and the end of file, and the
 gauge where it was asked. The direct commands (head, Z and U moves, stop, register reads) go
 through the same emulator; its answers to the register reads are read back by the crate.
+
+A second decoder, ruida-pa 0.23.0's `rpa` (its own venv; `cargo xtask test-python` names it in
+KERFMETER_RUIDA_PA), reads each program as an `.rd` file and must find the same moves, cuts,
+speeds, powers and file sum, with nothing flagged; the two decoders disagree on some commands
+(`docs/ruida.md`), and the encoder writes none of those.
 """
 
 import json
 import os
+import re
 import subprocess
 from pathlib import Path
 
@@ -322,3 +328,73 @@ def test_register_reads_are_answered_and_the_answers_read_back(streams, position
     assert send(emulator, replies, read["machine_status"]) == ACK
     # The emulator's idle status is 22 (it says 21 running, 23 paused).
     assert parse_answer("machine_status", replies[before + 1]) == "22"
+
+
+RUIDA_PA = os.environ.get("KERFMETER_RUIDA_PA")
+# What ruida-pa flags: an error, a fatal error, a warning, a critical error.
+RPA_FLAGS = (":ERR:", ":FTL:", ":WRN:", ":CRT:")
+RPA_XY = re.compile(r"^(MOVE|CUT)_FAR_XY X=(-?[0-9.]+)mm Y=(-?[0-9.]+)mm$")
+RPA_SPEED = re.compile(r"^SPEED_LASER_1 Speed:([0-9.]+)mm/S$")
+RPA_POWER = re.compile(r"^(MIN|MAX)_POWER_1 Power:([0-9.]+)%$")
+
+
+def rpa_decode(tmp_path, name, swizzled):
+    """ruida-pa's decoded messages for the swizzled stream, and its flagged lines."""
+    if not RUIDA_PA:
+        pytest.skip("KERFMETER_RUIDA_PA is set by cargo xtask test-python")
+    rd = tmp_path / f"{name}.rd"
+    rd.write_bytes(swizzled)
+    out = tmp_path / f"{name}.txt"
+    subprocess.run(
+        [RUIDA_PA, "--magic", "0x88", "-q", "-o", str(out), str(rd)],
+        check=True,
+        timeout=600,
+        stdout=subprocess.DEVNULL,
+    )
+    lines = out.read_text().splitlines()
+    flagged = [line for line in lines if any(flag in line for flag in RPA_FLAGS)]
+    # Each decoded command is the line after its header (`...:T=0002 R=0084 SUM=...:`).
+    messages = [lines[i + 1] for i, line in enumerate(lines[:-1]) if re.search(r":T=\d+ R=\d+ SUM=", line)]
+    return messages, flagged, lines
+
+
+@pytest.mark.parametrize("name", PROGRAMS)
+def test_ruida_pa_reads_the_same_program(streams, name, tmp_path):
+    program = program_named(streams, name)
+    swizzled = b"".join(bytes.fromhex(p)[2:] for p in program["packets"])
+    messages, flagged, lines = rpa_decode(tmp_path, name, swizzled)
+    assert not flagged, flagged
+    names = {m.split()[0] for m in messages}
+    assert names <= {"SET_ABSOLUTE", "SELECT_LAYER", "SPEED_LASER_1", "MIN_POWER_1",
+                     "MAX_POWER_1", "MOVE_FAR_XY", "CUT_FAR_XY", "END_JOB", "EOF"}, names
+    assert messages[-1] == "EOF"
+    assert any("Checksum OK" in line for line in lines)
+    steps = [RPA_XY.match(m).groups() for m in messages if RPA_XY.match(m)]
+    planned = [step for layer in program["layers"] for step in planned_steps(layer)]
+    assert len(steps) == len(planned)
+    for (kind, x, y), ((x_mm, y_mm), laser) in zip(steps, planned):
+        assert kind == ("CUT" if laser else "MOVE")
+        assert abs(float(x) - x_mm) <= 0.0005 + 1e-9
+        assert abs(float(y) - y_mm) <= 0.0005 + 1e-9
+    speeds = [float(RPA_SPEED.match(m).group(1)) for m in messages if RPA_SPEED.match(m)]
+    assert speeds == [layer["speed_mm_per_s"] for layer in program["layers"]]
+    powers = [RPA_POWER.match(m).groups() for m in messages if RPA_POWER.match(m)]
+    expected = [(which, layer[f"{which.lower()}_power_percent"]) for layer in program["layers"]
+                for which in ("MIN", "MAX")]
+    assert len(powers) == len(expected)
+    for (which, value), (want_which, want) in zip(powers, expected):
+        # ruida-pa prints one decimal.
+        assert which == want_which and abs(float(value) - want) <= 0.05 + POWER_STEP
+
+
+def test_ruida_pa_reads_the_direct_moves_as_absolute(streams, tmp_path):
+    moves = [d for d in streams["direct"] if d["kind"] in ("move_xy", "move_z", "move_u")]
+    swizzled = b"".join(bytes.fromhex(d["packet"])[2:] for d in moves)
+    messages, flagged, _ = rpa_decode(tmp_path, "direct", swizzled)
+    assert not flagged, flagged
+    xy, z, u = moves
+    assert messages == [
+        f"JOG_XY MACHINE X={xy['x_um'] / 1000:.3f}mm Y={xy['y_um'] / 1000:.3f}mm",
+        f"JOG_Z MACHINE Z={z['z_um'] / 1000:.3f}mm",
+        f"JOG_U MACHINE U={u['u_um'] / 1000:.3f}mm",
+    ]
