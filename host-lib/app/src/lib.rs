@@ -12,6 +12,7 @@
 pub mod dilate;
 mod error;
 pub mod gauge;
+pub mod gcode;
 pub mod history;
 pub mod job;
 pub mod lossy_path;

@@ -13,6 +13,7 @@ use kerfmeter_plan::{PlanError, PlanFormat, dilate_file, dilate_file_cuts};
 use super::{JobFiles, JobRequest, JobSetupError};
 use crate::dilate::{Dilation, plan_output_format};
 use crate::gauge::GAUGE_SETTINGS;
+use crate::gcode::CutFlags;
 
 type Result<T, E = JobSetupError> = std::result::Result<T, E>;
 
@@ -43,22 +44,12 @@ pub(super) fn check_outputs(files: &JobFiles) -> Result<PathBuf> {
 
 /// The cut settings the request gives, if any; both the feed and the power are needed.
 pub fn cut_settings(r: &JobRequest) -> Result<Option<CutSettings>, PlanError> {
-    match (r.feed_mm_per_min, r.power_percent) {
-        (None, None) if r.passes.is_none() => Ok(None),
-        (Some(feed_mm_per_min), Some(power_percent)) => {
-            let s = CutSettings {
-                feed_mm_per_min,
-                power_percent,
-                passes: r.passes.unwrap_or(1),
-            };
-            s.check("the cut settings")?;
-            Ok(Some(s))
-        }
-        _ => Err(PlanError::InvalidArgument(
-            "give both --feed-mm-per-min and --power-percent (and --passes if more than one)"
-                .into(),
-        )),
+    CutFlags {
+        feed_mm_per_min: r.feed_mm_per_min,
+        power_percent: r.power_percent,
+        passes: r.passes,
     }
+    .settings()
 }
 
 /// The job's cut settings: the profile (with the request's settings as its default), the

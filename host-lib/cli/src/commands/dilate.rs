@@ -7,14 +7,11 @@ use std::fmt;
 use std::path::PathBuf;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+pub use kerfmeter_app::dilate::DilateReport;
 use kerfmeter_app::dilate::{DilateFileRequest, Dilation, dilate_file, if_compensated};
-pub use kerfmeter_app::dilate::{DilateReport, plural, write_compensation};
-use kerfmeter_plan::DilateOptions;
-use kerfmeter_plan::compensation::IfCompensated;
-use kerfmeter_plan::dilate::KerfSource;
 use kerfmeter_lightburn::project::is_project_path;
+use kerfmeter_plan::compensation::IfCompensated;
 use kerfmeter_plan::outcome::AssumedUnits;
-use kerfmeter_plan::progress::Progress;
 use serde::Serialize;
 
 use super::lightburn::{self, LightBurnReport};
@@ -110,16 +107,6 @@ impl DilationArgs {
             units: self.units,
             if_compensated: self.if_compensated(),
         }
-    }
-
-    /// The kerf, checked: uniform, or from the kerf map.
-    pub fn kerf(&self) -> Result<(f64, KerfSource)> {
-        Ok(self.dilation().kerf()?)
-    }
-
-    /// The plan library's options, reporting to `progress`.
-    pub fn options(&self, strict: bool, progress: Progress) -> Result<DilateOptions> {
-        Ok(self.dilation().options(strict, progress)?)
     }
 
     /// What to do with a plan already compensated, from the flags.
