@@ -10,8 +10,8 @@ use std::path::PathBuf;
 
 use kerfmeter::grbl::CutterError;
 use kerfmeter::job::JobError;
-use kerfmeter_lightburn::rest::LightBurnError;
 use kerfmeter::{Category, Error};
+use kerfmeter_lightburn::rest::LightBurnError;
 use kerfmeter_plan::PlanError;
 use kerfmeter_plan::compensation::FoundCompensation;
 use serde::Serialize;

@@ -12,8 +12,8 @@ use std::time::Duration;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use kerfmeter::grbl::protocol::{MachineState, constant_power_line, prepare};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, CutterError, StreamProgress};
-use kerfmeter_plan::PlanFormat;
 use kerfmeter_lightburn::project::is_project_path;
+use kerfmeter_plan::PlanFormat;
 use serde::Serialize;
 
 use crate::connection::Global;
