@@ -83,7 +83,7 @@ pub mod text_or_number {
         u32_opt(d)?.ok_or_else(|| D::Error::custom("expected a whole number, got null"))
     }
 
-    /// [`u32`], or nothing (`null`).
+    /// [`u32()`], or nothing (`null`).
     pub fn u32_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
         #[derive(Deserialize)]
         #[serde(untagged)]

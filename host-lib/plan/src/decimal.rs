@@ -5,7 +5,7 @@
 
 /// `v` rounded to `decimals` places and written without trailing zeros (nor a bare point), `-0`
 /// as `0`: how the gauge, G-code comments and LightBurn's values are written. (The plan writers'
-/// hot path uses [`write_scaled`] on values already rounded.)
+/// hot path uses `write_scaled` on values already rounded.)
 pub fn trimmed(v: f64, decimals: usize) -> String {
     let mut s = format!("{v:.decimals$}");
     if s.contains('.') {
