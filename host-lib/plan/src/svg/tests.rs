@@ -198,6 +198,26 @@ fn polygons_and_clones_of_groups_are_dilated() {
 }
 
 #[test]
+fn a_cloned_id_with_reserved_characters_is_written_back_escaped() {
+    let (out, s) = run(
+        r##"<defs><g id="t&amp;&quot;1"><polygon id="a&lt;b" points="0,0 10,0 5,8" fill="none" stroke="red" stroke-width="0.05"/></g></defs>
+<use id="u" href="#t&amp;&quot;1" x="20" y="20"/>"##,
+        100.0,
+    )
+    .unwrap();
+    assert_eq!(s.contours_dilated, 1);
+    assert!(out.contains(r#"<g id="t&amp;&quot;1-kerf1">"#), "{out}");
+    assert!(out.contains(r#"<path id="a&lt;b-kerf1""#), "{out}");
+    assert!(out.contains(r##"href="#t&amp;&quot;1-kerf1""##), "{out}");
+    // The output is XML that reads back with the clone's ids.
+    let doc = roxmltree::Document::parse(&out).expect("well-formed");
+    assert!(
+        doc.descendants()
+            .any(|n| n.attribute("id") == Some("a<b-kerf1"))
+    );
+}
+
+#[test]
 fn cuts_reached_through_nested_clones_are_refused() {
     let e = run(
         r##"<defs><rect id="r" width="5" height="5" fill="none" stroke="red" stroke-width="0.05"/><g id="g"><use href="#r"/></g></defs>

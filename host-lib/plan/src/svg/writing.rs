@@ -250,7 +250,7 @@ impl<'w> SvgPlan<'w> {
                 if is_href {
                     main_edits.push(Edit {
                         range: a.range_value(),
-                        text: format!("#{new_root}"),
+                        text: format!("#{}", crate::xml::escape(&new_root)),
                     });
                 }
             }
@@ -300,13 +300,14 @@ impl<'w> SvgPlan<'w> {
                 .attributes()
                 .find(|a| a.name() == "id" && a.namespace().is_none())
             {
+                // roxmltree gives the value unescaped: written back, it is escaped again.
                 let new_id = format!("{}{suffix}", a.value());
-                taken.insert(new_id.clone());
                 let r = a.range_value();
                 local.push(Edit {
                     range: r.start - tr.start..r.end - tr.start,
-                    text: new_id,
+                    text: crate::xml::escape(&new_id),
                 });
+                taken.insert(new_id);
             }
         }
         apply_edits(&self.text[tr], local)
