@@ -10,6 +10,11 @@
 //! does not decode, or a program whose file sum is wrong, is answered `CD` (ERR) and the whole
 //! program is dropped, nothing cut. Register answers are sent as a separate datagram,
 //! swizzled, without a checksum.
+//!
+//! Faults can also be injected while it runs ([`RuidaTwin::inject`], [`Faults`]), for a driver's
+//! tests mid-job: the next program packets lost, every answer late from now on, the next program
+//! refused, a busy machine, stops that do not stop it. It keeps every datagram it received
+//! ([`TwinLog::received`]), so that a test can hand the streams a driver sent to a decoder.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -55,6 +60,21 @@ impl Default for TwinConfig {
     }
 }
 
+/// Faults injected while the twin runs, for a driver's tests mid-job ([`RuidaTwin::inject`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Faults {
+    /// Drop this many of the next datagrams that carry a program's commands, without a word.
+    pub drop_program_packets: usize,
+    /// Answer every datagram this late from the next program packet on (a late ACK mid-job).
+    pub late_from_program: Option<Duration>,
+    /// Refuse the next program at its end of file (ERR): nothing of it is cut.
+    pub refuse_next_program: bool,
+    /// Report a job running for this many status reads from now (another job, a busy machine).
+    pub busy_reads: u32,
+    /// Stay busy after a stop (`D8 01`) as long as `busy_reads` says: a stop not confirmed.
+    pub ignore_stops: bool,
+}
+
 /// A straight line the head went along.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Stroke {
@@ -87,6 +107,8 @@ pub struct TwinLog {
     pub stops: usize,
     /// Z and U, µm.
     pub zu_um: [i32; 2],
+    /// Every datagram received, as received (swizzled, checksum first), dropped ones included.
+    pub received: Vec<Vec<u8>>,
 }
 
 /// The machine's state between datagrams.
@@ -97,6 +119,9 @@ struct Machine {
     program: Vec<Command>,
     busy_reads_left: u32,
     datagrams: usize,
+    faults: Faults,
+    /// A program packet came since `late_from_program` was injected.
+    late: bool,
 }
 
 /// A running twin; dropped, it stops.
@@ -134,6 +159,14 @@ impl RuidaTwin {
     pub fn log(&self) -> TwinLog {
         lock(&self.machine).log.clone()
     }
+
+    /// Make it unkind from now on, as `faults` say (replacing any faults injected before).
+    pub fn inject(&self, faults: Faults) {
+        let mut machine = lock(&self.machine);
+        machine.busy_reads_left = machine.busy_reads_left.max(faults.busy_reads);
+        machine.faults = faults;
+        machine.late = false;
+    }
 }
 
 impl Drop for RuidaTwin {
@@ -156,8 +189,13 @@ fn serve(socket: &UdpSocket, config: &TwinConfig, machine: &Mutex<Machine>, stop
         let Ok((len, from)) = socket.recv_from(&mut buf) else {
             continue;
         };
-        let answers = lock(machine).receive(&buf[..len], config);
-        std::thread::sleep(config.reply_delay);
+        let (answers, delay) = {
+            let mut m = lock(machine);
+            let answers = m.receive(&buf[..len], config);
+            let late = m.late.then_some(m.faults.late_from_program).flatten();
+            (answers, late.unwrap_or(config.reply_delay))
+        };
+        std::thread::sleep(delay);
         for answer in answers {
             let _ = socket.send_to(&answer, from);
         }
@@ -169,7 +207,9 @@ impl Machine {
     fn receive(&mut self, datagram: &[u8], config: &TwinConfig) -> Vec<Vec<u8>> {
         let index = self.datagrams;
         self.datagrams += 1;
-        if config.drop_datagrams.contains(&index) {
+        self.log.received.push(datagram.to_vec());
+        self.late |= self.faults.late_from_program.is_some() && carries_program(datagram, config);
+        if config.drop_datagrams.contains(&index) || self.drop_program_packet(datagram, config) {
             self.log.dropped += 1;
             return Vec::new();
         }
@@ -198,6 +238,16 @@ impl Machine {
         }
     }
 
+    /// Whether `datagram` carries a program's commands and a fault says to drop it.
+    fn drop_program_packet(&mut self, datagram: &[u8], config: &TwinConfig) -> bool {
+        if self.faults.drop_program_packets == 0 {
+            return false;
+        }
+        let program = carries_program(datagram, config);
+        self.faults.drop_program_packets -= usize::from(program);
+        program
+    }
+
     /// Drop the program being received and answer ERR.
     fn refuse(&mut self, why: String, config: &TwinConfig) -> Vec<u8> {
         self.program.clear();
@@ -217,7 +267,9 @@ impl Machine {
                 Command::ReadRegister { address } => answers.push(self.read(address, config)),
                 Command::StopProcess => {
                     self.log.stops += 1;
-                    self.busy_reads_left = 0;
+                    if !self.faults.ignore_stops {
+                        self.busy_reads_left = 0;
+                    }
                     self.program.clear();
                 }
                 Command::KeepAlive | Command::StartProcess => {}
@@ -245,6 +297,9 @@ impl Machine {
             return Err("busy: a program is running".into());
         }
         let program = std::mem::take(&mut self.program);
+        if std::mem::take(&mut self.faults.refuse_next_program) {
+            return Err("a job refused (an injected fault)".into());
+        }
         let Some((Command::FileSum { sum }, body)) = program.split_last() else {
             return Err("no file sum before the end of file".into());
         };
@@ -307,4 +362,27 @@ impl Machine {
         };
         Command::RegisterValue { address, value }
     }
+}
+
+/// Whether `datagram` carries a cut program's commands.
+fn carries_program(datagram: &[u8], config: &TwinConfig) -> bool {
+    Packet::open(datagram, config.magic)
+        .ok()
+        .and_then(|payload| Command::decode_all(&payload).ok())
+        .is_some_and(|commands| commands.iter().any(|c| is_program_command(*c)))
+}
+
+/// Whether `command` belongs to a cut program (rather than a direct command).
+fn is_program_command(command: Command) -> bool {
+    !matches!(
+        command,
+        Command::ReadRegister { .. }
+            | Command::RegisterValue { .. }
+            | Command::StopProcess
+            | Command::StartProcess
+            | Command::KeepAlive
+            | Command::RapidMoveXy { .. }
+            | Command::RapidMoveZ { .. }
+            | Command::RapidMoveU { .. }
+    )
 }
