@@ -15,9 +15,11 @@
 //! are ignored).
 //!
 //! - **Holes**: full circles, i.e. G2/G3 arcs about one centre and radius (within
-//!   [`CIRCLE_MATCH_UM`]) that together sweep a whole turn (holes cut as polygons are not
-//!   recognised). Hole 0 is the circle whose centre is nearest where prong 0 comes down (the
-//!   hole distance along +X from where the gauge was meant to be), hole 1 the one nearest prong 1
+//!   [`CIRCLE_MATCH_UM`]) that together sweep a whole turn, or a closed chain of straight cuts
+//!   whose corners lie on one circle within it (a hole a Ruida controller cut from the arcs
+//!   flattened into chords: `polygon`; a coarse polygon, whose sides' middles stray from the
+//!   circle by more than that, is not recognised). Hole 0 is the circle whose centre is
+//!   nearest where prong 0 comes down (the hole distance along +X from where the gauge was meant to be), hole 1 the one nearest prong 1
 //!   (along −X), each within the drawn hole radius of it.
 //! - **The spiral**: every other cut, sampled every [`SAMPLE_STEP_MM`], fitted by least squares
 //!   to r(φ) = a + c·φ about an unknown centre, φ counted from the radial step, with a signed
@@ -258,10 +260,12 @@ impl TracedGauge {
             })
             .filter(|s| near(s.start) && near(s.end) && small(s))
             .collect();
-        let circles = full_circles(&cuts);
+        let mut circles = full_circles(&cuts);
+        let (polygons, on_polygon) = polygon::polygon_circles(&cuts);
+        circles.extend(polygons);
         let mut points = Vec::new();
-        for s in &cuts {
-            if !on_a_circle(s, &circles) {
+        for (s, on_polygon) in cuts.iter().zip(on_polygon) {
+            if !on_polygon && !on_a_circle(s, &circles) {
                 sample(s, &mut points);
             }
         }
@@ -664,5 +668,6 @@ fn solve<const N: usize>(mut m: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; 
     Some(x)
 }
 
+mod polygon;
 #[cfg(test)]
 mod tests;
