@@ -5,9 +5,11 @@
 //! # Design
 //!
 //! - The cutter is a [`JobCutter`]: what the loop needs of a laser cutter, whatever its
-//!   controller ([`cutter`](mod@cutter)). The GRBL driver ([`crate::grbl::Cutter`]) is the one
-//!   implementation today: every program is streamed with its character counting and its stop on
-//!   every failure. The device is the [`Kerfmeter`](crate::Kerfmeter) client.
+//!   controller ([`cutter`](mod@cutter)): the GRBL driver ([`crate::grbl::Cutter`]: every program
+//!   streamed with its character counting and its stop on every failure) and the Ruida driver
+//!   ([`crate::ruida::RuidaCutter`]: the same G-code read into cut programs and direct moves,
+//!   sent over UDP, stopped with `D8 01` on every failure). The device is the
+//!   [`Kerfmeter`](crate::Kerfmeter) client.
 //! - The plan is the caller's: [`run_job`] gets the gauge's G-code and a `dilate` function that
 //!   turns the measured kerf into the job's G-code (the command-line tool's uses the plan crate's
 //!   dilation and G-code writer), so this crate stays free of SVG/DXF code.

@@ -11,7 +11,8 @@
 //! Beside the client: the calls ([`Kerfmeter::run_kerfmeter`], [`Kerfmeter::get_kerf_value`],
 //! [`Kerfmeter::reset_kerfmeter`] and the rest), run parameters from a joint ([`params`]),
 //! statistics over repeated runs ([`stats`]), the bed map ([`map`]), safe output files
-//! ([`files`]), the laser cutter's GRBL driver ([`grbl`]), the automatic loop that cuts a gauge, measures
+//! ([`files`]), the laser cutter's GRBL driver ([`grbl`]), the Ruida driver ([`ruida`]: the
+//! G-code Kerfmeter writes, sent to a Ruida CO2 controller over UDP), the automatic loop that cuts a gauge, measures
 //! it and cuts the job dilated ([`job`]) and, with the `sim` feature (off by default: the CLI
 //! and Python turn it on), the digital twin in-process ([`sim`]). LightBurn (its project files,
 //! its REST API and its twin) is the `kerfmeter-lightburn` crate's.
@@ -38,6 +39,7 @@ pub mod job;
 pub mod lines;
 pub mod map;
 pub mod params;
+pub mod ruida;
 #[cfg(feature = "sim")]
 pub mod sim;
 pub mod stats;

@@ -10,7 +10,7 @@ use super::travel::Beyond;
 pub enum CutterError {
     /// The cutter's address is not one this program understands.
     #[error(
-        "cannot understand the cutter address {0:?}: use grbl:/dev/ttyUSB0[?baud=N], grbl+tcp://HOST:PORT or sim"
+        "cannot understand the cutter address {0:?}: use grbl:/dev/ttyUSB0[?baud=N], grbl+tcp://HOST:PORT, sim, ruida:HOST?z-mm=MIN,MAX or ruida-sim"
     )]
     BadAddress(String),
     /// The serial port or TCP connection could not be opened.
@@ -252,6 +252,9 @@ pub enum CutterError {
     /// The simulated cutter could not be started.
     #[error("cannot start the simulated cutter: {0}")]
     Sim(String),
+    /// A Ruida controller's failure ([`crate::ruida`]).
+    #[error(transparent)]
+    Ruida(Box<crate::ruida::RuidaFailure>),
 }
 
 impl CutterError {
@@ -284,6 +287,7 @@ impl CutterError {
             | Self::NotStopped { .. } => Category::Device,
             Self::Stopped { cause, .. } => cause.category(),
             Self::OtherFlavour { error, .. } => error.category(),
+            Self::Ruida(failure) => failure.category(),
         }
     }
 

@@ -37,6 +37,26 @@ pub enum CutterAddress {
     },
     /// The simulated cutter, in this process (`sim`).
     Sim,
+    /// A Ruida controller over the network (`ruida:HOST?z-mm=MIN,MAX`, read by
+    /// [`crate::ruida::RuidaAddress`]), driven by [`crate::ruida::RuidaCutter`].
+    Ruida {
+        /// The address as given (checked).
+        address: String,
+    },
+    /// The simulated Ruida controller, on loopback UDP (`ruida-sim`).
+    RuidaSim,
+}
+
+impl CutterAddress {
+    /// Whether it names a simulated cutter.
+    pub fn is_sim(&self) -> bool {
+        matches!(self, Self::Sim | Self::RuidaSim)
+    }
+
+    /// Whether it names a Ruida controller (real or simulated).
+    pub fn is_ruida(&self) -> bool {
+        matches!(self, Self::Ruida { .. } | Self::RuidaSim)
+    }
 }
 
 impl FromStr for CutterAddress {
@@ -46,6 +66,15 @@ impl FromStr for CutterAddress {
         let bad = || CutterError::BadAddress(text.to_owned());
         if text == "sim" {
             return Ok(Self::Sim);
+        }
+        if text == "ruida-sim" {
+            return Ok(Self::RuidaSim);
+        }
+        if text.starts_with("ruida:") {
+            text.parse::<crate::ruida::RuidaAddress>()?;
+            return Ok(Self::Ruida {
+                address: text.to_owned(),
+            });
         }
         if let Some(rest) = text.strip_prefix("grbl+tcp://") {
             let host_port = rest.trim_end_matches('/');
@@ -87,6 +116,8 @@ impl std::fmt::Display for CutterAddress {
             Self::Serial { path, baud } => write!(f, "grbl:{path}?baud={baud}"),
             Self::Tcp { host_port } => write!(f, "grbl+tcp://{host_port}"),
             Self::Sim => f.write_str("sim"),
+            Self::Ruida { address } => f.write_str(address),
+            Self::RuidaSim => f.write_str("ruida-sim"),
         }
     }
 }

@@ -1,6 +1,8 @@
 //! What the loop needs of a laser cutter, whatever its controller: [`JobCutter`]. The loop knows
-//! nothing of GRBL; the GRBL driver ([`crate::grbl::Cutter`]) is its one implementation today,
-//! and a second controller family (Ruida) plugs in by implementing it, without touching the loop.
+//! nothing of GRBL; the GRBL driver ([`crate::grbl::Cutter`], below) and the Ruida driver
+//! ([`crate::ruida::RuidaCutter`]) implement it. Both take the program as the G-code Kerfmeter
+//! writes: GRBL streams it, the Ruida driver reads it into cut programs and direct moves
+//! ([`crate::ruida::steps`]), so that the loop and its travel checks read one program text.
 //!
 //! The contract each implementation keeps, on which the loop's safety rests:
 //!

@@ -43,6 +43,10 @@ impl Cutter {
                     "this program was built without the `sim` feature".into(),
                 ));
             }
+            // A Ruida controller speaks no GRBL: `crate::ruida::RuidaCutter` drives it.
+            CutterAddress::Ruida { .. } | CutterAddress::RuidaSim => {
+                return Err(CutterError::BadAddress(address.to_string()));
+            }
         };
         Self::connect_cancellable(link, address.to_string(), options, cancel)
     }
