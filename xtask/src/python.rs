@@ -147,6 +147,7 @@ pub fn test_package() -> Result<()> {
     )?;
     ensure_librecad_parts()?;
     let ruida_encoder = build_ruida_encoder()?;
+    let ruida_streams = build_ruida_driver_streams()?;
     let ruida_pa = ensure_ruida_pa()?;
     run_cmd(
         Command::new(&python)
@@ -154,6 +155,7 @@ pub fn test_package() -> Result<()> {
             .arg(package.join("tests"))
             .env("KERFMETER_LIBRECAD_PARTS", LIBRECAD_DIR)
             .env("KERFMETER_RUIDA_ENCODER", ruida_encoder)
+            .env("KERFMETER_RUIDA_STREAMS", ruida_streams)
             .env("KERFMETER_RUIDA_PA", ruida_pa),
     )
 }
@@ -187,6 +189,27 @@ fn ensure_ruida_pa() -> Result<PathBuf> {
 fn build_ruida_encoder() -> Result<PathBuf> {
     run_cmd(crate::cargo().args(["build", "-p", "kerfmeter-ruida", "--example", "encode"]))?;
     let name = format!("encode{}", std::env::consts::EXE_SUFFIX);
+    Ok(root()
+        .join("target")
+        .join("debug")
+        .join("examples")
+        .join(name))
+}
+
+/// Build the host library's `ruida_streams` example, which writes every stream the Ruida driver
+/// sends in its scenarios (on the simulated controller) for MeerK40t to decode in
+/// `tests/test_ruida_driver_peer.py`; its path.
+fn build_ruida_driver_streams() -> Result<PathBuf> {
+    run_cmd(crate::cargo().args([
+        "build",
+        "-p",
+        "kerfmeter",
+        "--features",
+        "sim",
+        "--example",
+        "ruida_streams",
+    ]))?;
+    let name = format!("ruida_streams{}", std::env::consts::EXE_SUFFIX);
     Ok(root()
         .join("target")
         .join("debug")
