@@ -24,10 +24,14 @@
 //! device saves. Without the motor at hand (a bare [`Device`] as the handler), such a
 //! `SetConfig` is refused with `Busy` until a tick has put the driver to sleep.
 
-use kerfmeter_protocol::{ConfigReport, DeviceConfig, DeviceInfo, ErrorCode, Request, Response};
+use kerfmeter_protocol::{
+    Conditions, ConfigReport, DeviceConfig, DeviceInfo, Diagnostics, ErrorCode, G2Variant, Request,
+    Response, Status,
+};
 
 use crate::config_store::{ConfigPersist, ConfigSource, Persisted};
 use crate::controller::{Controller, Inputs};
+use crate::health::{BootFacts, Health, SenseFacts};
 use crate::link::Handler;
 use crate::motor::{G2Motor, MotorError, MotorOutput};
 
@@ -42,6 +46,8 @@ pub struct Device<S: ConfigPersist = ()> {
     now_us: u64,
     /// The last tick left the driver asleep (or nothing has driven it since boot).
     motor_asleep: bool,
+    /// What `GetDiagnostics` reports.
+    health: Health,
 }
 
 impl Device<()> {
@@ -75,7 +81,52 @@ impl<S: ConfigPersist> Device<S> {
             store,
             now_us: 0,
             motor_asleep: true,
+            health: Health::new(),
         }
+    }
+
+    /// What the board read at boot: the last reset, the chip, the ADC's calibration, the
+    /// brown-out detector (`GetDiagnostics`; an uncalibrated ADC also stands as
+    /// `Conditions::ADC_UNCALIBRATED` in `Status`).
+    pub fn set_boot_facts(&mut self, boot: BootFacts) {
+        self.health.boot = boot;
+    }
+
+    /// The motor driver this device drives: its current-sense gain (which `Hardware::tick`
+    /// takes from here) and its safe maximum supply (the controller's supply check).
+    pub fn set_driver(&mut self, driver: G2Variant) {
+        self.health.driver = driver;
+        self.controller.set_driver(driver);
+    }
+
+    /// The motor driver (see [`Device::set_driver`]).
+    pub fn driver(&self) -> G2Variant {
+        self.health.driver
+    }
+
+    /// What the last control tick saw of the sensors (`Hardware::tick`).
+    pub fn note_sense(&mut self, sense: SenseFacts) {
+        self.health.sense = sense;
+    }
+
+    /// An ADC conversion was given up and the driver opened again.
+    pub fn note_adc_restart(&mut self) {
+        self.health.adc_restarts = self.health.adc_restarts.saturating_add(1);
+    }
+
+    /// What `GetDiagnostics` answers.
+    pub fn diagnostics(&self) -> Diagnostics {
+        self.health.diagnostics(&self.controller.status())
+    }
+
+    /// What `GetStatus` answers: the controller's, with the conditions the board's facts add.
+    pub fn status(&self) -> Status {
+        let mut status = self.controller.status();
+        let uncalibrated = self.health.boot.adc_uncalibrated();
+        status
+            .conditions
+            .set(Conditions::ADC_UNCALIBRATED, uncalibrated);
+        status
     }
 
     /// What `GetInfo` answers.
@@ -158,7 +209,7 @@ impl<S: ConfigPersist> Handler for Device<S> {
         match request {
             Request::GetInfo => Response::Info(self.info.clone()),
             Request::Run(params) => started(controller.start_run(params)),
-            Request::GetStatus => Response::Status(controller.status()),
+            Request::GetStatus => Response::Status(self.status()),
             Request::GetSamples { from } => match controller.sample_chunk(*from) {
                 Ok(chunk) => Response::Samples(chunk),
                 Err(e) => Response::Error(e),
@@ -178,6 +229,7 @@ impl<S: ConfigPersist> Handler for Device<S> {
             Request::SetConfig(config) => self.set_config(config),
             Request::GetSelfTest => Response::SelfTest(controller.self_test_report().copied()),
             Request::ConfirmHubAtZero => started(controller.confirm_hub_at_zero()),
+            Request::GetDiagnostics => Response::Diagnostics(self.diagnostics()),
         }
     }
 }
@@ -273,6 +325,7 @@ mod tests {
             Request::SetConfig(DeviceConfig::DEFAULT),
             Request::GetSelfTest,
             Request::ConfirmHubAtZero,
+            Request::GetDiagnostics,
         ];
         for r in &requests {
             let answer = d.handle(r);

@@ -25,11 +25,14 @@ use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal::pwm::SetDutyCycle;
 use embedded_hal::spi::SpiDevice;
 
-use crate::as5048a::{As5048a, DiagnosticsError, EncoderError, EncoderSettings};
+use kerfmeter_protocol::EncoderHealth;
+
+use crate::as5048a::{As5048a, Diagnostics, DiagnosticsError, EncoderError, EncoderSettings};
 use crate::board::current::MotorCurrent;
 use crate::config_store::ConfigPersist;
 use crate::controller::{DiagnosticsReading, EncoderFault, Inputs};
 use crate::device::Device;
+use crate::health::SenseFacts;
 use crate::motor::{G2Motor, MotorOutput};
 
 /// Diagnostics are read this often (ticks), and after every read error.
@@ -76,6 +79,8 @@ where
     applied: Option<(EncoderSettings, u16)>,
     /// The motor current from the current-sense readings and the duties applied.
     current: MotorCurrent,
+    /// The encoder's diagnostics as last read.
+    encoder_health: Option<EncoderHealth>,
 }
 
 impl<SPI, PWM, DIR, SLP, FLT> Hardware<SPI, PWM, DIR, SLP, FLT>
@@ -95,6 +100,7 @@ where
             motor_error: false,
             applied: None,
             current: MotorCurrent::new(),
+            encoder_health: None,
         }
     }
 
@@ -128,10 +134,13 @@ where
         });
         let diagnostics = if self.diagnostics_due.tick(angle_deg.is_err()) {
             match self.encoder.diagnostics() {
-                Ok(d) => Some(Ok(DiagnosticsReading {
-                    magnitude: d.magnitude,
-                    marginal: d.marginal(),
-                })),
+                Ok(d) => {
+                    self.encoder_health = Some(encoder_health(&d));
+                    Some(Ok(DiagnosticsReading {
+                        magnitude: d.magnitude,
+                        marginal: d.marginal(),
+                    }))
+                }
                 Err(DiagnosticsError::Failed(f)) => Some(Err(f)),
                 // A bus-level error while reading them: the angle reads show it too.
                 Err(DiagnosticsError::Read(_)) => None,
@@ -140,6 +149,7 @@ where
             None
         };
         let driver_fault = self.motor_error || self.motor.fault().unwrap_or(true);
+        self.current.set_mv_per_a(device.driver().cs_mv_per_a());
         let inputs = Inputs {
             angle_deg,
             diagnostics,
@@ -155,12 +165,30 @@ where
             out
         };
         self.current.applied(&held, now_us);
+        device.note_sense(SenseFacts {
+            cs_asleep_mv: self.current.asleep_mv(),
+            cs_offset_mv: self.current.offset_mv(),
+            cs_offset_learnt: self.current.offset_learnt(),
+            encoder: self.encoder_health,
+        });
         out
     }
 
     /// The motor current's conversion (for checks).
     pub fn current(&self) -> &MotorCurrent {
         &self.current
+    }
+}
+
+/// The encoder's diagnostics as `GetDiagnostics` reports them.
+fn encoder_health(d: &Diagnostics) -> EncoderHealth {
+    EncoderHealth {
+        magnitude: d.magnitude,
+        agc: d.agc,
+        ocf: d.ocf,
+        cof: d.cof,
+        comp_low: d.comp_low,
+        comp_high: d.comp_high,
     }
 }
 

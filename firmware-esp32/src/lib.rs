@@ -18,6 +18,8 @@
 //!   Torque is set from the duty, scaled by the measured supply and by the winding's resistance,
 //!   which it measures from the motor current where the hub stands still at each jam.
 //! - [`hardware`]: one control tick on the real drivers (shared by the board and the twin).
+//! - [`health`]: what `GetDiagnostics` reports: the last reset, the chip, the ADC's
+//!   calibration, the brown-out detector, the sensors' health, the motor driver.
 //! - [`jam`]: jam detection: windowed slope, hold median.
 //! - [`samples`]: the run's (time, torque, angle) log, decimated rather than truncated.
 //! - [`device`]: the request handler behind the link: the whole request table.
@@ -45,6 +47,7 @@ pub mod emergency;
 #[cfg(any(test, feature = "fakes"))]
 pub mod fakes;
 pub mod hardware;
+pub mod health;
 pub mod jam;
 pub mod link;
 pub mod motor;

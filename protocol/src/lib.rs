@@ -60,12 +60,16 @@ pub use heapless;
 
 #[cfg(feature = "std")]
 pub mod advice;
+mod diagnostics;
 mod frame;
 mod messages;
 mod params;
 mod report;
 pub mod spiral;
 
+pub use diagnostics::{
+    AdcCalibration, BrownOutDetector, ChipRevision, Diagnostics, EncoderHealth, ResetReason,
+};
 pub use frame::{
     CRC16, DecodeError, Deframer, DeframerStats, EncodeError, Feed, FrameError,
     MAX_REQUEST_FRAME_LEN, MAX_RESPONSE_FRAME_LEN, encode_frame, max_frame_len,
@@ -75,8 +79,8 @@ pub use messages::{
     OutOfRange, ParamField, ProtocolVersion, Request, Response, START_TOLERANCE_DEG, Shown,
 };
 pub use params::{
-    DeviceConfig, EncoderPlacement, GaugeGeometry, JamDirection, REFERENCE_SUPPLY_V, RunParams,
-    SUPPLY_MAX_V, SUPPLY_MIN_V, WhyInvalid,
+    DeviceConfig, EncoderPlacement, G2Variant, GaugeGeometry, JamDirection, REFERENCE_SUPPLY_V,
+    RunParams, SUPPLY_MAX_V, SUPPLY_MIN_V, WhyInvalid,
 };
 pub use report::{
     Conditions, Fault, KerfResult, QualityFlags, RunState, SAMPLES_PER_CHUNK, Sample, SampleChunk,
@@ -114,7 +118,14 @@ pub use report::{
 ///   only: [`Conditions::BLOCKING_RUN`]) stands after power-up with the encoder on the motor
 ///   shaft until [`Request::ConfirmHubAtZero`] (appended) says the hub is at its zero mark. An
 ///   older device answers that request `UnknownRequest`; every 2.4 frame keeps its bytes.
-pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 5 };
+/// - 2.6 (minor, additive): [`Request::GetDiagnostics`] (appended), answered by
+///   [`Response::Diagnostics`] (appended): the last reset's reason, the chip revision, the ADC's
+///   calibration, the brown-out detector, the current sense asleep and its learnt offset, the
+///   encoder's diagnostics, the worst timing since boot and the motor driver ([`G2Variant`],
+///   whose safe maximum now bounds the supply check); [`Conditions::ADC_UNCALIBRATED`] (a new
+///   bit, 6, blocking nothing). An older device answers the request `UnknownRequest`; every 2.5
+///   frame keeps its bytes.
+pub const PROTOCOL_VERSION: ProtocolVersion = ProtocolVersion { major: 2, minor: 6 };
 
 /// USB vendor id of the ESP32-C3/C6 USB-Serial-JTAG port (Espressif).
 pub const USB_VID_ESPRESSIF: u16 = 0x303A;

@@ -5,6 +5,7 @@
 use postcard::experimental::max_size::MaxSize;
 use serde::{Deserialize, Serialize};
 
+use crate::diagnostics::Diagnostics;
 use crate::params::{DeviceConfig, RunParams};
 use crate::report::{Conditions, Fault, KerfResult, SampleChunk, SelfTestReport, Status};
 
@@ -57,6 +58,9 @@ pub enum Request {
     /// hub to zero exactly). Answered `Ok`; refused while the motor may be driven (`Busy`). With
     /// the encoder on the output shaft there is nothing to confirm: `Ok`, nothing changes.
     ConfirmHubAtZero,
+    /// What the device knows about its own health since boot (protocol 2.6): answered with
+    /// [`Response::Diagnostics`] in any state. An older device answers `UnknownRequest`.
+    GetDiagnostics,
 }
 
 /// What the device answers.
@@ -82,6 +86,8 @@ pub enum Response {
     SelfTest(Option<SelfTestReport>),
     /// Answer to [`Request::GetConfig`] and [`Request::SetConfig`].
     Config(ConfigReport),
+    /// Answer to [`Request::GetDiagnostics`] (protocol 2.6).
+    Diagnostics(Diagnostics),
 }
 
 /// The device's configuration and where it came from.

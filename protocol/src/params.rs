@@ -245,9 +245,93 @@ pub const REFERENCE_SUPPLY_V: f32 = 12.0;
 /// The lowest motor supply the device is rated for, V: below it the device reports
 /// `Conditions::SUPPLY_OUT_OF_RANGE` and refuses to drive the motor.
 pub const SUPPLY_MIN_V: f32 = 9.0;
-/// The highest motor supply the device is rated for, V (the G2 18v17 takes up to 30 V at most):
-/// above it the device reports `Conditions::SUPPLY_OUT_OF_RANGE` and refuses to drive the motor.
+/// The highest motor supply the device is rated for with any driver, V: above it (or above its
+/// driver's own safe maximum, [`G2Variant::supply_max_v`], whichever is lower) the device
+/// reports `Conditions::SUPPLY_OUT_OF_RANGE` and refuses to drive the motor. The supply sense
+/// reads 30 V as 2.27 V at its pin, inside the ADC's 11 dB range with room for the tolerance.
 pub const SUPPLY_MAX_V: f32 = 26.0;
+
+/// The Pololu G2 High-Power Motor Driver the device is built with (protocol 2.6, reported in
+/// `Diagnostics`): its current-sense gain and the supply it is safe on. The figures are
+/// Pololu's:
+///
+/// - **18v17** (Pololu item #2991, the reference build's): 6.5–30 V absolute maximum, "a safe
+///   maximum voltage is approximately 24 V" for the ripple on the supply line (its product
+///   page, Overview); current sense about 20 mV/A plus about 50 mV of offset (Pololu's G2
+///   documentation, as the firmware used it before this table; the 20 mV/A and 50 mV for the
+///   G2 family's "other versions" are also in Pololu's Dual G2 user's guide, §4.b).
+/// - **24v13** (#2992): 6.5–40 V absolute maximum, safe maximum approximately 34 V; current
+///   sense "approx. 40 mV/A; only active while H-bridge is driving", 0.04 V/A in its
+///   specifications (its product page).
+/// - **24v21** (#2995): 40 V absolute maximum and a safe maximum of approximately 34 V as the
+///   24v13 (the same 40 V MOSFET class: an assumption from the 24v13's page, the 24v21's own
+///   page was not at hand); current sense about 20 mV/A with a 50–60 mV offset, as a Pololu
+///   engineer confirmed on a 24v21 in Pololu's forum ("G2 24v21 cs offset"). Check it on the
+///   bench (bring-up step 6's torque constant) before trusting it.
+/// - The **18v25** is not listed: its current-sense gain was not found in Pololu's
+///   documentation at hand, and the firmware will not guess a gain that scales every current
+///   and the over-current trip.
+///
+/// The device's own range, [`SUPPLY_MIN_V`]–[`SUPPLY_MAX_V`], bounds every variant's: a 24 V
+/// driver is accepted up to 26 V, not 34 V.
+#[derive(Serialize, Deserialize, MaxSize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum G2Variant {
+    /// G2 18v17: 20 mV/A, safe up to about 24 V (the reference build).
+    #[default]
+    V18v17,
+    /// G2 24v13: 40 mV/A, safe up to about 34 V.
+    V24v13,
+    /// G2 24v21: about 20 mV/A, safe up to about 34 V.
+    V24v21,
+}
+
+impl G2Variant {
+    /// Every variant, in wire order.
+    pub const ALL: [Self; 3] = [Self::V18v17, Self::V24v13, Self::V24v21];
+
+    /// The variant's name as Pololu writes it: `"18v17"`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::V18v17 => "18v17",
+            Self::V24v13 => "24v13",
+            Self::V24v21 => "24v21",
+        }
+    }
+
+    /// The variant named `name` (`"18v17"`, `"24v13"`, `"24v21"`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|v| v.name() == name)
+    }
+
+    /// The current-sense gain in the drive phase, mV per amp of motor current.
+    pub const fn cs_mv_per_a(self) -> f32 {
+        match self {
+            Self::V18v17 | Self::V24v21 => 20.0,
+            Self::V24v13 => 40.0,
+        }
+    }
+
+    /// Pololu's safe maximum supply for the driver, V (its absolute maximum less the supply
+    /// line's ripple).
+    pub const fn safe_max_v(self) -> f32 {
+        match self {
+            Self::V18v17 => 24.0,
+            Self::V24v13 | Self::V24v21 => 34.0,
+        }
+    }
+
+    /// The highest supply the device accepts with this driver, V: its safe maximum, at most
+    /// [`SUPPLY_MAX_V`].
+    pub const fn supply_max_v(self) -> f32 {
+        let safe = self.safe_max_v();
+        if safe < SUPPLY_MAX_V {
+            safe
+        } else {
+            SUPPLY_MAX_V
+        }
+    }
+}
 
 /// Calibration and wiring constants of one device, stored in its flash.
 ///

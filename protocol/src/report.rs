@@ -132,7 +132,7 @@ impl core::fmt::Debug for Conditions {
             write!(f, "{sep}{name}")?;
             sep = "|";
         }
-        let unknown = self.0 & !Self::BLOCKING_RUN.0;
+        let unknown = self.0 & !Self::KNOWN.0;
         if unknown != 0 {
             write!(f, "{sep}{unknown:#x}")?;
         }
@@ -154,8 +154,11 @@ impl Conditions {
     /// driver's under-voltage lockout; also a short (as [`Fault::DriverFault`]).
     pub const DRIVER_FAULT: Self = Self(1 << 3);
     /// The measured motor supply ([`Status::supply_v`], filtered) is outside the rated
-    /// [`SUPPLY_MIN_V`](crate::SUPPLY_MIN_V)–[`SUPPLY_MAX_V`](crate::SUPPLY_MAX_V), by more than
-    /// the supply sense's own uncertainty (3 %), at rest (protocol 2.1). Unlike the others it
+    /// [`SUPPLY_MIN_V`](crate::SUPPLY_MIN_V)–[`SUPPLY_MAX_V`](crate::SUPPLY_MAX_V), or (from
+    /// protocol 2.6) above the motor driver's safe maximum
+    /// ([`G2Variant::supply_max_v`](crate::G2Variant::supply_max_v): 24 V on the G2 18v17), by
+    /// more than the supply sense's own uncertainty (2 % of the reading and the ADC's ±0.46 V
+    /// through the divider), at rest (protocol 2.1). Unlike the others it
     /// latches no fault during a run: a bus that sags under load is expected, and what matters
     /// then is whether the torque can still be delivered (see [`QualityFlags::SUPPLY_LIMITED`]).
     /// Never set where the supply is not measured.
@@ -171,15 +174,24 @@ impl Conditions {
     pub const HUB_TURN_UNKNOWN: Self = Self(1 << 5);
     /// What blocks a run: every [`Conditions::BLOCKING`] one and [`Conditions::HUB_TURN_UNKNOWN`].
     pub const BLOCKING_RUN: Self = Self::BLOCKING.union(Self::HUB_TURN_UNKNOWN);
+    /// The chip has no ADC calibration eFuses (protocol 2.6): esp-hal calibrates its readings
+    /// against an assumed reference, and the current sense reads some 30–40 % high (see
+    /// `Diagnostics::adc_calibration`). Stands from boot; blocks nothing (a measurement's
+    /// torque is set from the duty, not the current), but the torque-constant check of a
+    /// self-test and the winding estimate see the error.
+    pub const ADC_UNCALIBRATED: Self = Self(1 << 6);
+    /// Every condition this protocol knows.
+    pub const KNOWN: Self = Self::BLOCKING_RUN.union(Self::ADC_UNCALIBRATED);
 
     /// Names of the conditions, for messages and JSON.
-    pub const NAMES: [(Self, &'static str); 6] = [
+    pub const NAMES: [(Self, &'static str); 7] = [
         (Self::NO_MAGNET, "no-magnet"),
         (Self::ENCODER_DIAGNOSTICS, "encoder-diagnostics"),
         (Self::ENCODER_UNREADABLE, "encoder-unreadable"),
         (Self::DRIVER_FAULT, "driver-fault"),
         (Self::SUPPLY_OUT_OF_RANGE, "supply-out-of-range"),
         (Self::HUB_TURN_UNKNOWN, "hub-turn-unknown"),
+        (Self::ADC_UNCALIBRATED, "adc-uncalibrated"),
     ];
 
     /// No condition.
@@ -446,12 +458,12 @@ mod tests {
         assert_eq!(format!("{c:?}"), "Conditions(no-magnet|driver-fault)");
         assert_eq!(format!("{:?}", Conditions::empty()), "Conditions()");
         assert_eq!(
-            format!("{:?}", Conditions(0x60)),
-            "Conditions(hub-turn-unknown|0x40)"
+            format!("{:?}", Conditions(0xa0)),
+            "Conditions(hub-turn-unknown|0x80)"
         );
         assert_eq!(
             format!("{:?}", Conditions(0x50)),
-            "Conditions(supply-out-of-range|0x40)"
+            "Conditions(supply-out-of-range|adc-uncalibrated)"
         );
     }
 }

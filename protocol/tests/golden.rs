@@ -8,7 +8,8 @@
 //! only added the `TORQUE_MISMATCH` flag, bit 8 (its frame below); protocol 2.3 only the
 //! `FORCE_SENSITIVE` flag, bit 9 (its frame below); protocol 2.4 only a flag's meaning; protocol
 //! 2.5 only the `HUB_TURN_UNKNOWN` condition and the `ConfirmHubAtZero` request (its frame
-//! below). Each golden frame is also
+//! below); protocol 2.6 only the `GetDiagnostics` request, its `Diagnostics` answer and the
+//! `ADC_UNCALIBRATED` condition (their frames below). Each golden frame is also
 //! mutated byte by byte: no mutation may be accepted.
 
 mod common;
@@ -82,6 +83,14 @@ fn golden_requests() -> Vec<(&'static str, Envelope<Request>)> {
             Envelope {
                 seq: 7,
                 body: Request::ConfirmHubAtZero,
+            },
+        ),
+        // Protocol 2.6: appended.
+        (
+            "0005080d621a00",
+            Envelope {
+                seq: 8,
+                body: Request::GetDiagnostics,
             },
         ),
     ]
@@ -259,6 +268,34 @@ fn golden_responses() -> Vec<(&'static str, Envelope<Response>)> {
                         },
                     ])
                     .unwrap(),
+                }),
+            },
+        ),
+        // Protocol 2.6: appended.
+        (
+            "0005090802010204020103013d01094a420101a01f5a01010105b80291080401f2ba00",
+            Envelope {
+                seq: 9,
+                body: Response::Diagnostics(Diagnostics {
+                    reset_reason: ResetReason::Watchdog,
+                    chip_revision: Some(ChipRevision { major: 0, minor: 4 }),
+                    adc_calibration: AdcCalibration::Efuse { version: 1 },
+                    brown_out: BrownOutDetector::Resets,
+                    cs_asleep_mv: Some(61),
+                    cs_offset_mv: 50.5,
+                    cs_offset_learnt: true,
+                    encoder: Some(EncoderHealth {
+                        magnitude: 4000,
+                        agc: 90,
+                        ocf: true,
+                        cof: false,
+                        comp_low: false,
+                        comp_high: false,
+                    }),
+                    longest_step_us: 312,
+                    longest_gap_us: 1041,
+                    adc_restarts: 0,
+                    driver: G2Variant::V24v13,
                 }),
             },
         ),

@@ -88,8 +88,9 @@ use crate::controller::PERIOD_US;
 use crate::motor::MotorOutput;
 
 /// Current-sense gain of the Pololu G2 18v17 (the reference driver): its `CS` output rises by
-/// about 20 mV per amp of motor current in the drive phase (10 mV/A on the 18v22; Pololu's G2
-/// documentation). Adjust this (and [`CURRENT_SENSE_OFFSET_MV`]) for another variant.
+/// about 20 mV per amp of motor current in the drive phase. [`MotorCurrent`] starts with it;
+/// the device's driver (`G2Variant`, the board's `board::DRIVER`) sets its own gain each tick
+/// (`Hardware::tick`): 40 mV/A on a 24v13, whose sources `G2Variant` cites.
 pub const CURRENT_SENSE_MV_PER_A: f32 = 20.0;
 
 /// Current-sense offset of the Pololu G2 18v17: its `CS` output sits about 50 mV above ground
@@ -153,9 +154,10 @@ pub const CS_ADC_MAX_MV: u16 = 750;
 /// Ticks without a finished current-sense conversion after which the current counts as unknown.
 pub const CURRENT_STALE_TICKS: u32 = 10;
 
-/// The filtered `CS`, as amps of D·|i| above `offset_mv` (never negative).
-fn filtered_a(cs_mv: u16, offset_mv: f32) -> f32 {
-    ((f32::from(cs_mv) - offset_mv) / CURRENT_SENSE_MV_PER_A).max(0.0)
+/// The filtered `CS`, as amps of D·|i| above `offset_mv` (never negative), at a gain of
+/// `mv_per_a`.
+fn filtered_a(cs_mv: u16, offset_mv: f32, mv_per_a: f32) -> f32 {
+    ((f32::from(cs_mv) - offset_mv) / mv_per_a).max(0.0)
 }
 
 /// The motor current from the filtered `CS` reading and the duty filtered alike (module docs).
@@ -182,6 +184,15 @@ pub struct MotorCurrent {
     /// The last current, A, and how many ticks without a reading have passed since.
     last_a: f32,
     stale_ticks: u32,
+    /// The driver's current-sense gain, mV/A ([`CURRENT_SENSE_MV_PER_A`] until set).
+    mv_per_a: f32,
+    /// Since when the driver sleeps, held to the last output; `None` while it is awake.
+    asleep_since_us: Option<u64>,
+    /// The last reading taken with the driver asleep long enough for the filter to hold the
+    /// sleep level, mV (for `Diagnostics`; never used as the offset).
+    asleep_mv: Option<u16>,
+    /// An offset was learnt since boot.
+    offset_learnt: bool,
 }
 
 impl Default for MotorCurrent {
@@ -210,7 +221,16 @@ impl MotorCurrent {
             offset_readings: 0,
             last_a: 0.0,
             stale_ticks: 0,
+            mv_per_a: CURRENT_SENSE_MV_PER_A,
+            asleep_since_us: None,
+            asleep_mv: None,
+            offset_learnt: false,
         }
+    }
+
+    /// The driver's current-sense gain is `mv_per_a` (`G2Variant::cs_mv_per_a`).
+    pub fn set_mv_per_a(&mut self, mv_per_a: f32) {
+        self.mv_per_a = mv_per_a;
     }
 
     /// The motor current, A, from this tick's `CS` reading (mV; `None`: there is none this
@@ -227,13 +247,14 @@ impl MotorCurrent {
         self.stale_ticks = 0;
         self.last_a = if !self.awake_before {
             // The driver slept through the reading's last tick: it drove nothing.
+            self.note_asleep(cs_mv);
             0.0
         } else if self.duty_filtered < IDLE_DUTY {
             // No drive in the filter's memory: no current to show, maybe an offset to learn.
             self.learn_offset(f32::from(cs_mv));
             0.0
         } else {
-            filtered_a(cs_mv, self.offset_mv) / self.duty_filtered.max(DUTY_FLOOR)
+            filtered_a(cs_mv, self.offset_mv, self.mv_per_a) / self.duty_filtered.max(DUTY_FLOOR)
         };
         Some(self.last_a)
     }
@@ -249,8 +270,20 @@ impl MotorCurrent {
             _ => false,
         };
         if settled && OFFSET_RANGE_MV.contains(&reading_mv) {
+            self.offset_learnt = true;
             self.offset_readings = (self.offset_readings + 1).min(OFFSET_AVERAGED);
             self.offset_mv += (reading_mv - self.offset_mv) / self.offset_readings as f32;
+        }
+    }
+
+    /// Keep `cs_mv` as the sleep level if the driver has slept for the filter to settle on it.
+    fn note_asleep(&mut self, cs_mv: u16) {
+        let settled = match (self.asleep_since_us, self.last_applied_us) {
+            (Some(since_us), Some(last_us)) => ticks_between(since_us, last_us) >= SETTLED_TICKS,
+            _ => false,
+        };
+        if settled {
+            self.asleep_mv = Some(cs_mv);
         }
     }
 
@@ -275,6 +308,7 @@ impl MotorCurrent {
         }
         let braking = out.awake && self.held_duty == 0.0;
         self.braking_since_us = braking.then(|| self.braking_since_us.unwrap_or(now_us));
+        self.asleep_since_us = (!out.awake).then(|| self.asleep_since_us.unwrap_or(now_us));
         self.awake_before = self.held_awake;
         self.held_awake = out.awake;
         self.last_applied_us = Some(now_us);
@@ -288,6 +322,16 @@ impl MotorCurrent {
     /// The learnt `CS` offset, mV.
     pub fn offset_mv(&self) -> f32 {
         self.offset_mv
+    }
+
+    /// Whether the offset was learnt since boot (false: still the nominal one).
+    pub fn offset_learnt(&self) -> bool {
+        self.offset_learnt
+    }
+
+    /// The last reading with the driver asleep and the filter settled on its sleep level, mV.
+    pub fn asleep_mv(&self) -> Option<u16> {
+        self.asleep_mv
     }
 }
 

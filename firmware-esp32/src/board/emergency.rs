@@ -6,7 +6,8 @@
 //! handler call before they print anything. It never takes a lock and never touches a driver.
 //!
 //! This module is the library's only `unsafe` code: raw register writes, each of which changes
-//! only the bits of the bridge's own lines.
+//! only the bits of the bridge's own lines, and the panic mark in RTC memory ([`mark_panic`])
+//! that tells the next boot a panic caused its watchdog reset.
 
 #![allow(unsafe_code)]
 
@@ -27,6 +28,30 @@ pub fn arm(lines: BridgeLines) {
 /// step (see [`crate::emergency`]).
 pub fn force_safe() {
     ARMED.force_safe(&mut ChipRegisters);
+}
+
+/// What the panic path writes to [`PANIC_MARK`]: "PANC".
+const PANIC_MAGIC: u32 = 0x5041_4e43;
+
+/// Set by the panic path, read and cleared at the next boot (`board::boot`): the watchdog reset
+/// that follows a panic is then reported as a panic. In RTC fast memory, kept across the
+/// watchdog's core reset and zeroed by esp-hal's start-up after a power-on.
+#[esp_hal::ram(unstable(rtc_fast, persistent))]
+static mut PANIC_MARK: u32 = 0;
+
+/// Record that the firmware panicked (the panic path, after [`force_safe`]).
+pub fn mark_panic() {
+    // SAFETY: a volatile write of a word through a raw pointer, no reference to the static is
+    // made; the panic path runs with nothing else touching it.
+    unsafe { (&raw mut PANIC_MARK).write_volatile(PANIC_MAGIC) }
+}
+
+/// Whether the firmware panicked before this boot's reset; clears the mark.
+pub fn take_panic_mark() -> bool {
+    // SAFETY: volatile accesses through a raw pointer, once at boot before any task runs.
+    let mark = unsafe { (&raw mut PANIC_MARK).read_volatile() };
+    unsafe { (&raw mut PANIC_MARK).write_volatile(0) }
+    mark == PANIC_MAGIC
 }
 
 /// The chip's GPIO and LEDC registers.

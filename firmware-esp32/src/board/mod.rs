@@ -17,6 +17,8 @@
 //! - `flash`: the SPI flash and the partition table's `nvs` partition, which holds the
 //!   configuration, its erases and writes guarded by the watchdog.
 //! - `watchdog`: TIMG1's MWDT, fed by the control tick and lengthened around flash operations.
+//! - `boot`: what the chip says about itself at boot (the last reset's reason, its revision,
+//!   the ADC's calibration, the brown-out detector) for `GetDiagnostics`.
 //! - `emergency`: the panic path's register writes (GPIO, LEDC) that put the bridge safe before
 //!   anything is printed; the motor set-up arms it with the bridge's lines.
 //!
@@ -48,6 +50,8 @@ pub mod wiring;
 #[cfg(feature = "board")]
 pub mod adc;
 #[cfg(feature = "board")]
+pub mod boot;
+#[cfg(feature = "board")]
 pub mod emergency;
 #[cfg(feature = "board")]
 pub mod encoder;
@@ -72,6 +76,12 @@ pub const BOARD_NAME: &str = "esp32c3";
 /// The chip's name, as `GetInfo` reports it.
 #[cfg(feature = "esp32c6")]
 pub const BOARD_NAME: &str = "esp32c6";
+
+/// The motor driver the board is built with: its current-sense gain and safe supply
+/// (`G2Variant`, with Pololu's figures cited). Change it here for another G2 and rebuild; the
+/// device reports it in `GetDiagnostics`. (`DeviceConfig` cannot carry it without a major
+/// protocol change: it is a postcard struct that `GetConfig` and `SetConfig` send whole.)
+pub const DRIVER: kerfmeter_protocol::G2Variant = kerfmeter_protocol::G2Variant::V18v17;
 
 /// The encoder and motor drivers on the board, as the control tick uses them.
 #[cfg(feature = "board")]

@@ -161,7 +161,7 @@ mod winding;
 use run::Run;
 use self_test::SelfTestPhase;
 use supply::SupplyFilter;
-pub use supply::{SUPPLY_FILTER_GAIN, SUPPLY_SENSE_TOLERANCE};
+pub use supply::{SUPPLY_FILTER_GAIN, SUPPLY_SENSE_ADC_ERROR_V, SUPPLY_SENSE_TOLERANCE};
 use timing::Pacing;
 pub use timing::TickTiming;
 pub use tuning::*;
@@ -390,6 +390,12 @@ impl Controller {
     /// The configuration in use.
     pub fn config(&self) -> &DeviceConfig {
         &self.config
+    }
+
+    /// The motor driver is `driver` (the board's, or the twin's): its safe maximum supply bounds
+    /// `SUPPLY_OUT_OF_RANGE` (see `supply.rs`).
+    pub fn set_driver(&mut self, driver: kerfmeter_protocol::G2Variant) {
+        self.supply.set_driver(driver);
     }
 
     /// Replace the configuration; only while the motor is at rest, and a motor-shaft encoder's

@@ -4,7 +4,7 @@
 //! supply. The configuration's `torque_per_duty_nm` and `breakaway_duty` are figures at
 //! [`REFERENCE_SUPPLY_V`] (12 V), so the duty for a torque at the reference is scaled by
 //! `REFERENCE_SUPPLY_V / supply` ([`SupplyFilter::duty_scale`]): a torque is then the same from
-//! [`SUPPLY_MIN_V`] to [`SUPPLY_MAX_V`], and so are the `max_torque_nm` cap and the current.
+//! [`SUPPLY_MIN_V`] to [`SUPPLY_MAX_V`](kerfmeter_protocol::SUPPLY_MAX_V), and so are the `max_torque_nm` cap and the current.
 //!
 //! The reading is the driver's bus *after* the supply's sag under load, so the scaling makes up
 //! for the sag as well (the sag that a stiff 12 V bench supply does not have). It is filtered by
@@ -41,8 +41,10 @@
 //!
 //! # Limits
 //!
-//! - Rated range: outside [`SUPPLY_MIN_V`]–[`SUPPLY_MAX_V`] at rest, by more than the reading's
-//!   own uncertainty ([`SUPPLY_SENSE_TOLERANCE`]), the controller reports the idle condition
+//! - Rated range: outside [`SUPPLY_MIN_V`]–[`SUPPLY_MAX_V`](kerfmeter_protocol::SUPPLY_MAX_V), or above the motor driver's own
+//!   safe maximum ([`G2Variant::supply_max_v`]: 24 V on the G2 18v17), at rest, by more than the
+//!   reading's own uncertainty ([`SUPPLY_SENSE_TOLERANCE`] of it plus
+//!   [`SUPPLY_SENSE_ADC_ERROR_V`]), the controller reports the idle condition
 //!   `SUPPLY_OUT_OF_RANGE`, which blocks a run, reset and self-test (latching nothing). The
 //!   condition is judged only at rest, on the unloaded supply: under load the bus sags by
 //!   design, and a sag is judged by what it does to the torque (next item).
@@ -55,7 +57,7 @@
 //!   flagged `SUPPLY_LIMITED`, with the torque and force it was really measured at. No fault: the
 //!   motor is driven as asked, only less hard, and the result says so.
 
-use kerfmeter_protocol::{DeviceConfig, REFERENCE_SUPPLY_V, SUPPLY_MAX_V, SUPPLY_MIN_V};
+use kerfmeter_protocol::{DeviceConfig, G2Variant, REFERENCE_SUPPLY_V, SUPPLY_MIN_V};
 
 /// The least supply the duty's scale is taken at, V: below the G2's under-voltage lockout
 /// (5.8 V typical), where the bridge does not drive, so the scale only has to stay finite for a
@@ -67,10 +69,17 @@ pub(super) const SCALE_FLOOR_V: f32 = 4.0;
 /// (32 ms at 1 kHz). It divides white noise's SD by √(2/gain − 1) ≈ 8.
 pub const SUPPLY_FILTER_GAIN: f32 = 1.0 / 32.0;
 
-/// How far a reading may stray from the true supply, as a fraction: the divider's 1 % resistors
-/// (±2 %) and the ADC's calibration. A supply at the edge of the rated range is not refused for
-/// the sense's error: the range is widened by this much either way (8.73–26.78 V as read).
-pub const SUPPLY_SENSE_TOLERANCE: f32 = 0.03;
+/// How far a reading may stray from the true supply in proportion to it: the divider's 1 %
+/// resistors (±2 %). The ADC's own error is not proportional: [`SUPPLY_SENSE_ADC_ERROR_V`].
+pub const SUPPLY_SENSE_TOLERANCE: f32 = 0.02;
+
+/// How far a reading may stray from the true supply for the ADC's error, V: Espressif gives
+/// the ESP32-C3's calibrated ADC as about ±35 mV at 11 dB, which the 100 k/8.2 k divider
+/// multiplies by 13.2: ±0.46 V (3.8 % at 12 V, 5.1 % at 9 V, 1.9 % at 24 V; the 3 % assumed
+/// before issue 34 was loose at 12 V and below). A supply at the edge of the rated range is
+/// not refused for the sense's error: the range is widened by both either way (8.36–24.94 V as
+/// read on a G2 18v17, 8.36–26.98 V on a 24 V variant).
+pub const SUPPLY_SENSE_ADC_ERROR_V: f32 = 0.035 * crate::board::supply::SUPPLY_DIVIDER_RATIO;
 
 /// The filtered motor supply and the duty scale it gives.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -84,6 +93,8 @@ pub(super) struct SupplyFilter {
     reference_v: f32,
     /// 1 / `reference_v`, 1/V.
     per_reference_v: f32,
+    /// The highest rated supply, V: the motor driver's ([`G2Variant::supply_max_v`]).
+    max_v: f32,
 }
 
 impl SupplyFilter {
@@ -94,7 +105,13 @@ impl SupplyFilter {
             duty_scale: 1.0,
             reference_v: REFERENCE_SUPPLY_V,
             per_reference_v: 1.0 / REFERENCE_SUPPLY_V,
+            max_v: G2Variant::V18v17.supply_max_v(),
         }
+    }
+
+    /// The motor driver is `driver`: its safe maximum bounds the rated range.
+    pub(super) fn set_driver(&mut self, driver: G2Variant) {
+        self.max_v = driver.supply_max_v();
     }
 
     /// The winding is `factor` times as resistive as at calibration (`winding.rs`): every duty
@@ -139,8 +156,8 @@ impl SupplyFilter {
     /// The measured supply is outside the rated range, beyond the sense's tolerance (false
     /// where it is not measured).
     pub(super) fn out_of_range(&self) -> bool {
-        let rated_as_read = SUPPLY_MIN_V * (1.0 - SUPPLY_SENSE_TOLERANCE)
-            ..=SUPPLY_MAX_V * (1.0 + SUPPLY_SENSE_TOLERANCE);
+        let rated_as_read = SUPPLY_MIN_V * (1.0 - SUPPLY_SENSE_TOLERANCE) - SUPPLY_SENSE_ADC_ERROR_V
+            ..=self.max_v * (1.0 + SUPPLY_SENSE_TOLERANCE) + SUPPLY_SENSE_ADC_ERROR_V;
         self.supply_v.is_some_and(|v| !rated_as_read.contains(&v))
     }
 
@@ -233,8 +250,16 @@ mod tests {
         let mut f = SupplyFilter::new();
         assert!(!f.out_of_range(), "not measured: no condition");
         assert_eq!(f.full_duty_torque_nm(&config), f32::INFINITY);
-        for (v, out) in [(8.7, true), (8.8, false), (26.7, false), (26.8, true)] {
+        // 9 V × 0.98 − 0.46 V and, on the reference G2 18v17, 24 V × 1.02 + 0.46 V (its safe
+        // maximum); on a 24 V driver the device's own 26 V × 1.02 + 0.46 V.
+        for (v, out) in [(8.3, true), (8.4, false), (24.9, false), (25.0, true)] {
             let mut f = SupplyFilter::new();
+            f.update(Some(v));
+            assert_eq!(f.out_of_range(), out, "{v}");
+        }
+        for (v, out) in [(26.9, false), (27.0, true)] {
+            let mut f = SupplyFilter::new();
+            f.set_driver(G2Variant::V24v13);
             f.update(Some(v));
             assert_eq!(f.out_of_range(), out, "{v}");
         }

@@ -6,7 +6,7 @@ use core::fmt;
 use core::ops::RangeInclusive;
 use core::str::FromStr;
 
-use kerfmeter_protocol::GaugeGeometry;
+use kerfmeter_protocol::{G2Variant, GaugeGeometry};
 
 use crate::plant::{PlantParamError, PlantParams};
 use crate::serve::Pace;
@@ -148,6 +148,13 @@ pub struct TwinOptions {
     /// before it boots: it comes up as such a device does after power-up, its hub's turn unknown
     /// until confirmed (`Conditions::HUB_TURN_UNKNOWN`). The hub stands at its mark.
     pub encoder_on_motor_shaft: bool,
+    /// The board's motor driver: its current-sense gain (the twin's `CS`, and the firmware's
+    /// division) and its safe maximum supply (the firmware's supply check).
+    pub driver: G2Variant,
+    /// The chip has no ADC calibration eFuses: its `CS` reads 35 % high
+    /// ([`UNCALIBRATED_ADC_GAIN`](crate::sense::UNCALIBRATED_ADC_GAIN)) and the firmware reports
+    /// `Conditions::ADC_UNCALIBRATED` (as the board does from its eFuses).
+    pub adc_uncalibrated: bool,
 }
 
 impl Default for TwinOptions {
@@ -161,6 +168,8 @@ impl Default for TwinOptions {
             plant: PlantParams::default(),
             gauge: GaugeGeometry::PAPER,
             encoder_on_motor_shaft: false,
+            driver: G2Variant::V18v17,
+            adc_uncalibrated: false,
         }
     }
 }

@@ -47,10 +47,13 @@ use kerfmeter_firmware::fakes::flash::{FlashClock, RamFlash};
 use kerfmeter_firmware::fakes::pins::{FakeInput, FakeOutput, FakePwm};
 use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_firmware::hardware::Hardware;
+use kerfmeter_firmware::health::BootFacts;
 use kerfmeter_firmware::link::Link;
 use kerfmeter_firmware::motor::G2Motor;
 use kerfmeter_firmware::watchdog::WatchdogFlash;
-use kerfmeter_protocol::{DeviceConfig, EncoderPlacement};
+use kerfmeter_protocol::{
+    AdcCalibration, BrownOutDetector, ChipRevision, DeviceConfig, EncoderPlacement, ResetReason,
+};
 
 use crate::encoder::EncoderErrors;
 use crate::gauge_trace::TracedGaugeSlot;
@@ -153,6 +156,9 @@ pub struct Twin {
     over_current: bool,
     boots: u32,
     truths: TruthLog,
+    /// What the twin's chip says about itself at boot (`GetDiagnostics`), kept across reboots
+    /// but for the reset's reason ([`Twin::set_boot_facts`]).
+    boot_facts: BootFacts,
 }
 
 impl Twin {
@@ -204,13 +210,16 @@ impl Twin {
         // The board starts its watchdog once booted.
         watchdog.start(now_us);
         let encoder = As5048a::new(chip, EncoderSettings::from_config(&opened.config));
-        let device = Device::with_config(
+        let mut device = Device::with_config(
             "twin",
             boot_id,
             opened.config,
             opened.source,
             opened.storage,
         );
+        let boot_facts = twin_boot_facts(&options);
+        device.set_boot_facts(boot_facts);
+        device.set_driver(options.driver);
         let mut plant = Plant::new(options.plant, options.gauge, options.kerf_um);
         match options.fault {
             Some(InjectedFault::NoInset) => plant.set_inset_present(false),
@@ -231,7 +240,8 @@ impl Twin {
             traced_gauge: TracedGaugeSlot::default(),
             encoder_errors: EncoderErrors::for_twin(&options.plant, options.seed),
             magnet_on_motor_shaft: false,
-            sense: Sense::new(&options.plant, stream(0)),
+            sense: Sense::new(&options.plant, stream(0))
+                .for_board(options.driver, options.adc_uncalibrated),
             sensed: None,
             flt_injected: false,
             options,
@@ -256,12 +266,28 @@ impl Twin {
             over_current: false,
             boots,
             truths: TruthLog::default(),
+            boot_facts,
         }
     }
 
+    /// Set what the twin's chip says about itself at boot (the last reset's reason, its
+    /// revision, the ADC's calibration, the brown-out detector), as a board reads them: from
+    /// now on and after each reboot, whose own reason replaces `reset_reason`. The `CS` reading
+    /// follows [`TwinOptions::adc_uncalibrated`], not this.
+    pub fn set_boot_facts(&mut self, facts: BootFacts) {
+        self.boot_facts = facts;
+        self.device.set_boot_facts(facts);
+    }
+
     /// Power-cycle the device: new boot id, state lost, flash (configuration) kept, hub where it
-    /// stands; the other host keeps its rhythm.
+    /// stands; the other host keeps its rhythm. It reports a power-on reset.
     pub fn reboot(&mut self) {
+        self.reset_by(ResetReason::PowerOn);
+    }
+
+    /// Reset the device for `reason` (its watchdog: [`ResetReason::Watchdog`]), as
+    /// [`Twin::reboot`] does; `GetDiagnostics` then reports `reason`.
+    pub fn reset_by(&mut self, reason: ResetReason) {
         let storage = core::mem::replace(
             &mut self.device,
             Device::with_config(
@@ -285,12 +311,33 @@ impl Twin {
         truths.clear();
         let magnet_on_motor_shaft = self.magnet_on_motor_shaft;
         let traced_gauge = self.traced_gauge.clone();
+        let boot_facts = BootFacts {
+            reset_reason: reason,
+            ..self.boot_facts
+        };
         *self = Self::boot(self.options, flash, self.boots + 1, self.now_us);
+        self.set_boot_facts(boot_facts);
         self.magnet_on_motor_shaft = magnet_on_motor_shaft;
         self.traced_gauge = traced_gauge;
         self.plant = plant;
         self.bursts = bursts;
         self.truths = truths;
+    }
+}
+
+/// What a twin's chip says at its first boot: a power-on, an ESP32-C3 of revision 0.4 with ADC
+/// calibration eFuses of version 1 (unless [`TwinOptions::adc_uncalibrated`]) and a brown-out
+/// detector that resets it.
+fn twin_boot_facts(options: &TwinOptions) -> BootFacts {
+    BootFacts {
+        reset_reason: ResetReason::PowerOn,
+        chip_revision: Some(ChipRevision { major: 0, minor: 4 }),
+        adc_calibration: if options.adc_uncalibrated {
+            AdcCalibration::Uncalibrated
+        } else {
+            AdcCalibration::Efuse { version: 1 }
+        },
+        brown_out: BrownOutDetector::Resets,
     }
 }
 

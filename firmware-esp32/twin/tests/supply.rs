@@ -1,19 +1,26 @@
 //! Supply-aware torque on the twin: the firmware scales the duty by the supply it measures (the
 //! twin's bus, after its sag, with its sense's gain error and noise), so a run reads the same
 //! kerf from 9 to 26 V; a run whose torque the supply cannot give is refused with the figures,
-//! and a supply outside the rated 9–26 V blocks a run.
+//! and a supply outside the rated 9–26 V (9–24 V on the reference G2 18v17) blocks a run.
 
 mod common;
 use common::measure;
 
 use kerfmeter_protocol::{
-    Conditions, ErrorCode, KerfResult, Request, Response, RunParams, RunState,
+    Conditions, ErrorCode, G2Variant, KerfResult, Request, Response, RunParams, RunState,
 };
 use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{Twin, TwinOptions};
 
-/// A twin cutting `kerf_um` on a `supply_v` supply, its other parameters at their defaults.
+/// A twin cutting `kerf_um` on a `supply_v` supply, its other parameters at their defaults; above
+/// the reference G2 18v17's safe 24 V, with a G2 24v21 (the same 20 mV/A current sense, safe to
+/// about 34 V).
 fn twin(supply_v: f64, kerf_um: f64, seed: u64) -> Twin {
+    let driver = if supply_v > f64::from(G2Variant::V18v17.supply_max_v()) {
+        G2Variant::V24v21
+    } else {
+        G2Variant::V18v17
+    };
     let mut t = Twin::new(TwinOptions {
         kerf_um,
         seed,
@@ -21,6 +28,7 @@ fn twin(supply_v: f64, kerf_um: f64, seed: u64) -> Twin {
             supply_v,
             ..PlantParams::default()
         },
+        driver,
         ..TwinOptions::default()
     });
     // Long enough for the supply filter (32 ms) to settle on the idle supply. With the run's

@@ -379,6 +379,7 @@ pub(crate) fn request_name(request: &Request) -> &'static str {
         Request::SetConfig(_) => "SetConfig",
         Request::GetSelfTest => "GetSelfTest",
         Request::ConfirmHubAtZero => "ConfirmHubAtZero",
+        Request::GetDiagnostics => "GetDiagnostics",
     }
 }
 
@@ -392,6 +393,7 @@ fn response_name(response: &Response) -> &'static str {
         Response::Kerf(_) => "Kerf",
         Response::SelfTest(_) => "SelfTest",
         Response::Config(_) => "Config",
+        Response::Diagnostics(_) => "Diagnostics",
     }
 }
 

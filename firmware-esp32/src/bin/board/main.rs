@@ -105,6 +105,7 @@ use kerfmeter_firmware::{
     controller::PERIOD_US,
     device::{Device, WithMotor},
     hardware::Hardware,
+    health::BootFacts,
     link::{Inbox, Link},
     watchdog::{WATCHDOG_TIMEOUT_MS, Watchdog},
 };
@@ -117,6 +118,8 @@ esp_bootloader_esp_idf::esp_app_desc!();
 #[unsafe(no_mangle)]
 pub fn custom_pre_backtrace() {
     board::emergency::force_safe();
+    // Then the mark that makes the watchdog reset to come read as a panic at the next boot.
+    board::emergency::mark_panic();
 }
 /// How long response bytes may wait for the host to read before they are dropped (the host
 /// retries, and the link answers the retry from memory).
@@ -152,6 +155,10 @@ async fn main(spawner: Spawner) {
     if let Err(e) = safe {
         esp_println::println!("motor driver: safe state failed: {e:?}");
     }
+
+    // Why the chip started, its revision, its ADC's calibration and the brown-out detector.
+    let boot = board::boot::boot_facts();
+    esp_println::println!("boot: {boot:?}");
 
     // A per-boot id from the TRNG (the SAR ADC as entropy source), before the ADC is used for
     // current sensing.
@@ -190,7 +197,9 @@ async fn main(spawner: Spawner) {
 
     let (usb_rx, usb_tx) = UsbSerialJtag::new(p.USB_DEVICE).into_async().split();
 
-    spawner.spawn(control_task(hardware, analog, watchdog, boot_id, opened).expect("control task"));
+    spawner.spawn(
+        control_task(hardware, analog, watchdog, boot_id, boot, opened).expect("control task"),
+    );
     spawner.spawn(usb_rx_task(usb_rx).expect("usb rx task"));
     spawner.spawn(usb_tx_task(usb_tx).expect("usb tx task"));
 }
@@ -225,6 +234,7 @@ async fn control_task(
     mut analog: AnalogParts,
     mut watchdog: BoardWatchdog,
     boot_id: u32,
+    boot: BootFacts,
     opened: OpenedConfig<ConfigFlash>,
 ) {
     let mut device = Device::with_config(
@@ -234,6 +244,8 @@ async fn control_task(
         opened.source,
         opened.storage,
     );
+    device.set_boot_facts(boot);
+    device.set_driver(board::DRIVER);
     let mut link = Link::new();
     let mut inbox = Inbox::<CHUNK_LEN>::new();
     let mut ticker = Ticker::every(CONTROL_PERIOD);
@@ -255,6 +267,7 @@ async fn control_task(
         if readings.restart {
             // A conversion that never finished: a new driver (`board::conversion`).
             esp_println::println!("adc: a conversion stalled, driver restarted");
+            device.note_adc_restart();
             drop(adc);
             adc = analog.open();
         }

@@ -7,7 +7,7 @@ use kerfmeter_firmware::fakes::flash::FlashClock;
 use kerfmeter_firmware::fakes::pins::{FakeOutput, FakePwm};
 use kerfmeter_firmware::fakes::rng::Rng;
 use kerfmeter_firmware::link::{FRAMES_PER_TICK, Handler, Link};
-use kerfmeter_protocol::{Request, Response, RunState};
+use kerfmeter_protocol::{Request, ResetReason, Response, RunState};
 
 use super::{Twin, TwinDevice, TwinMotor};
 use crate::gauge_trace::TracedGaugeSlot;
@@ -173,7 +173,13 @@ impl Twin {
         }
         if core.reset || core.now_us >= deadline_us {
             self.advance_to(deadline_us);
-            self.reboot();
+            // A power cut during a flash operation, or the watchdog.
+            let reason = if self.flash.is_cut() {
+                ResetReason::PowerOn
+            } else {
+                ResetReason::Watchdog
+            };
+            self.reset_by(reason);
             return None;
         }
         self.advance_to(core.now_us);
