@@ -53,6 +53,10 @@ fn handshake_and_info_fields_are_sane() {
     // ADC is wired, and its gaps include flash writes at rest).
     let status = b.meter.status().expect("GetStatus");
     assert_eq!(status.conditions, Conditions::empty(), "{status:?}");
+    // Its health (protocol 2.6): no watchdog, brown-out or panic behind this boot.
+    let health = b.meter.diagnostics().expect("GetDiagnostics");
+    let health = health.expect("a protocol 2.6 device answers GetDiagnostics");
+    assert!(!health.reset_reason.is_abnormal(), "{health:?}");
     assert!(status.longest_gap_us >= 1, "{status:?}");
     if b.target.is_twin() {
         assert!((1_000..=3_000).contains(&status.longest_gap_us));

@@ -26,6 +26,7 @@ use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
 mod commands;
 mod connection;
 mod error;
+mod health;
 mod interrupt;
 mod output;
 mod plot;

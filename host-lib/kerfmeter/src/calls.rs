@@ -17,8 +17,8 @@ use std::time::{Duration, Instant};
 use kerfmeter_protocol::START_TOLERANCE_DEG;
 
 use kerfmeter_protocol::{
-    Conditions, ConfigReport, DeviceConfig, ErrorCode, KerfResult, Request, Response, RunParams,
-    RunState, Sample, SelfTestReport, Status,
+    Conditions, ConfigReport, DeviceConfig, Diagnostics, ErrorCode, KerfResult, Request, Response,
+    RunParams, RunState, Sample, SelfTestReport, Status,
 };
 use serde::Serialize;
 
@@ -112,6 +112,22 @@ impl Kerfmeter {
         match self.call(Request::GetStatus)? {
             Response::Status(s) => Ok(s),
             other => Err(unexpected("GetStatus", &other)),
+        }
+    }
+
+    /// What the device knows about its own health since boot (protocol 2.6): the last reset's
+    /// reason, the chip, the ADC's calibration, the brown-out detector, the current sense and
+    /// encoder diagnostics, the worst timing. `None` from an older device, which answers
+    /// `UnknownRequest` (everything else works with it).
+    pub fn diagnostics(&mut self) -> Result<Option<Diagnostics>> {
+        match self.call(Request::GetDiagnostics) {
+            Ok(Response::Diagnostics(d)) => Ok(Some(d)),
+            Ok(other) => Err(unexpected("GetDiagnostics", &other)),
+            Err(Error::Device {
+                code: ErrorCode::UnknownRequest,
+                ..
+            }) => Ok(None),
+            Err(e) => Err(e),
         }
     }
 

@@ -315,9 +315,12 @@ fn describe_condition(condition: Conditions) -> String {
         }
         Conditions::SUPPLY_OUT_OF_RANGE => {
             return format!(
-                "the motor supply is outside the rated 9–26 V ({} shows it): use a supply within that range",
+                "the motor supply is outside the rated 9–26 V, or above the motor driver's safe maximum (24 V on a G2 18v17; {} shows the supply): use a supply within that range",
                 Advice::Status
             );
+        }
+        Conditions::ADC_UNCALIBRATED => {
+            "the chip has no ADC calibration eFuses: the current sense reads some 30–40 % high (the self-test's torque constant with it); measurements still run, their torque set from the duty"
         }
         Conditions::HUB_TURN_UNKNOWN => {
             return format!(

@@ -1,10 +1,13 @@
 //! `kerfmeter info`: the device's protocol and firmware versions, boot id and hardware constants,
 //! and its measured motor supply. `DeviceInfo` is frozen by design (the protocol's variant 0), so
-//! the supply, a measurement, comes from a `GetStatus` asked right after it.
+//! the supply, a measurement, comes from a `GetStatus` asked right after it, and the device's
+//! health (the last reset's reason in words, the chip, the ADC's calibration, the brown-out
+//! detector, the motor driver) from a `GetDiagnostics` (protocol 2.6; an older device has none).
 
 use std::fmt;
 
-use kerfmeter::protocol::DeviceInfo;
+use crate::health::{describe_adc, describe_brown_out, describe_reset, health_warnings};
+use kerfmeter::protocol::{DeviceInfo, Diagnostics};
 use serde::Serialize;
 
 use crate::connection::{Global, Session};
@@ -24,6 +27,9 @@ pub struct InfoReport {
     /// The motor supply the device measures, V (`Status.supply_v`, filtered; `null` where the
     /// board does not measure it).
     pub supply_v: Option<f32>,
+    /// The device's health since boot (protocol 2.6: the last reset's reason, the chip, the
+    /// ADC's calibration, the brown-out detector, ...); `null` from an older device.
+    pub diagnostics: Option<Diagnostics>,
 }
 
 /// Ask the device who it is, and what supply it measures.
@@ -35,10 +41,12 @@ pub fn run(g: &Global) -> Result<InfoReport, CliError> {
 pub fn report(s: &mut Session) -> Result<InfoReport, CliError> {
     let info = s.meter.info()?;
     let supply_v = s.meter.status()?.supply_v;
+    let diagnostics = s.meter.diagnostics()?;
     Ok(InfoReport {
         port: s.meter.path().to_string(),
         info,
         supply_v,
+        diagnostics,
     })
 }
 
@@ -57,10 +65,42 @@ impl fmt::Display for InfoReport {
         writeln!(f, "pwm:        {} bit", h.pwm_bits)?;
         writeln!(f, "sample log: {} samples", h.max_samples)?;
         match self.supply_v {
-            Some(v) => write!(f, "supply:     {v:.2} V"),
-            None => write!(f, "supply:     not measured"),
+            Some(v) => write!(f, "supply:     {v:.2} V")?,
+            None => write!(f, "supply:     not measured")?,
+        }
+        match &self.diagnostics {
+            Some(d) => write_health(f, d),
+            None => write!(
+                f,
+                "\nhealth:     not reported (a firmware before protocol 2.6: update it for the \
+                 last reset's reason and the ADC's calibration)"
+            ),
         }
     }
+}
+
+/// The health lines of `info`: the last reset in words, the chip, the ADC, the brown-out
+/// detector and the driver; then each warning.
+fn write_health(f: &mut fmt::Formatter<'_>, d: &Diagnostics) -> fmt::Result {
+    writeln!(f)?;
+    writeln!(f, "last reset: {}", describe_reset(d.reset_reason))?;
+    match d.chip_revision {
+        Some(r) => writeln!(f, "chip:       revision {}.{}", r.major, r.minor)?,
+        None => writeln!(f, "chip:       revision not reported")?,
+    }
+    writeln!(f, "adc:        {}", describe_adc(d.adc_calibration))?;
+    writeln!(f, "brown-out:  {}", describe_brown_out(d.brown_out))?;
+    write!(
+        f,
+        "driver:     Pololu G2 {} ({} mV/A, supply up to {} V)",
+        d.driver.name(),
+        d.driver.cs_mv_per_a(),
+        d.driver.supply_max_v()
+    )?;
+    for warning in health_warnings(d) {
+        write!(f, "\nwarning:    {warning}")?;
+    }
+    Ok(())
 }
 
 impl Report for InfoReport {

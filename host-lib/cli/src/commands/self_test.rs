@@ -5,7 +5,7 @@
 use std::fmt;
 use std::ops::ControlFlow;
 
-use kerfmeter::protocol::{SelfTestItem, SelfTestReport, TestOutcome};
+use kerfmeter::protocol::{Conditions, SelfTestItem, SelfTestReport, TestOutcome};
 use serde::Serialize;
 
 use kerfmeter::Progress;
@@ -24,6 +24,10 @@ pub struct SelfTestOutcome {
     pub report: SelfTestReport,
     /// Each failed item, in the order printed, with what its value means.
     pub failures: Vec<Failure>,
+    /// The device reports its ADC uncalibrated (`adc-uncalibrated`, protocol 2.6): its current
+    /// sense, and so the torque constant, reads some 30–40 % high, still inside the item's
+    /// window; the text says so beside the items.
+    pub adc_uncalibrated: bool,
 }
 
 /// A failed item, explained.
@@ -51,6 +55,7 @@ impl SelfTestOutcome {
             passed: failures.is_empty(),
             report,
             failures,
+            adc_uncalibrated: false,
         }
     }
 }
@@ -134,7 +139,12 @@ pub fn test(
     let report = s.meter.self_test_until(progress)?;
     // Only to explain a failed torque constant: a device that cannot answer still has its report.
     let configured = s.meter.config().ok().map(|c| c.config.torque_per_duty_nm);
-    Ok(SelfTestOutcome::new(report, configured))
+    let mut outcome = SelfTestOutcome::new(report, configured);
+    outcome.adc_uncalibrated = s
+        .meter
+        .status()
+        .is_ok_and(|st| st.conditions.contains(Conditions::ADC_UNCALIBRATED));
+    Ok(outcome)
 }
 
 impl fmt::Display for SelfTestOutcome {
@@ -153,6 +163,13 @@ impl fmt::Display for SelfTestOutcome {
         })?;
         for Failure { item, reason } in &self.failures {
             write!(f, "\n  {item}: {reason}")?;
+        }
+        if self.adc_uncalibrated {
+            write!(
+                f,
+                "\nnote: this chip's ADC is uncalibrated (no calibration eFuses): its current \
+                 sense reads some 30–40 % high, and the torque constant above with it"
+            )?;
         }
         Ok(())
     }

@@ -1,5 +1,6 @@
 //! `kerfmeter status`: what the device is doing now: its state, a latched fault, the idle
-//! conditions that stand, the motor supply, and the longest control step and gap since boot.
+//! conditions that stand, the motor supply, the longest control step and gap since boot, and
+//! what the device's health says is wrong (a watchdog or brown-out reset, said as such).
 
 use std::fmt;
 
@@ -38,6 +39,9 @@ pub struct StatusReport {
     /// The device is the simulated one, whose steps take no time (the text says so).
     #[serde(skip)]
     simulated: bool,
+    /// What the device's health says is wrong (protocol 2.6: a watchdog, brown-out or panic
+    /// reset, an uncalibrated ADC, ...), in words; empty from an older device.
+    pub warnings: Vec<String>,
 }
 
 /// Ask the device for its status.
@@ -45,6 +49,9 @@ pub fn run(g: &Global) -> Result<StatusReport, CliError> {
     let mut session = g.connect()?;
     let mut report = StatusReport::from(session.meter.status()?);
     report.simulated = session.sim.is_some();
+    if let Some(d) = session.meter.diagnostics()? {
+        report.warnings = crate::health::health_warnings(&d);
+    }
     Ok(report)
 }
 
@@ -66,6 +73,7 @@ impl From<Status> for StatusReport {
             angle_deg: s.angle_deg,
             raw: s,
             simulated: false,
+            warnings: Vec::new(),
         }
     }
 }
@@ -122,7 +130,11 @@ impl fmt::Display for StatusReport {
             f,
             "hub:          {:.2}° at {:.3} N·m",
             self.angle_deg, self.torque_nm
-        )
+        )?;
+        for warning in &self.warnings {
+            write!(f, "\nwarning:      {warning}")?;
+        }
+        Ok(())
     }
 }
 
