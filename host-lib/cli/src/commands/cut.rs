@@ -1,12 +1,15 @@
 //! `kerfmeter cut`: stream a G-code file to a laser cutter's GRBL controller (or the simulated
-//! cutter) with a progress bar. Ctrl-C, SIGTERM and SIGHUP stop the cutter (feed hold, then soft
-//! reset: the laser goes off) and the command fails, also while it connects; so does any refused
-//! line or alarm, with its meaning. SIGKILL and a power loss of the computer cannot be caught:
-//! then only the machine's own safety (its E-stop, its interlock) stops the laser.
+//! cutter) with a progress bar, or send it to a Ruida controller (`ruida:HOST`, `ruida-sim`),
+//! whose driver reads the G-code Kerfmeter writes into its programs. Ctrl-C, SIGTERM and SIGHUP
+//! stop the cutter (GRBL: feed hold, then soft reset; Ruida: `D8 01`: the laser goes off) and the
+//! command fails, also while it connects; so does any refused line or alarm, with its meaning.
+//! SIGKILL and a power loss of the computer cannot be caught: then only the machine's own safety
+//! (its E-stop, its interlock) stops the laser.
 
 use std::fmt;
 use std::io::IsTerminal;
 use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -26,8 +29,9 @@ pub struct CutArgs {
     /// The G-code program to stream.
     #[arg(value_name = "FILE.gcode")]
     pub input: PathBuf,
-    /// The cutter: `sim`, `grbl:/dev/ttyUSB0[?baud=N]` or `grbl+tcp://HOST:PORT`. Also from
-    /// KERFMETER_CUTTER.
+    /// The cutter: `sim`, `grbl:/dev/ttyUSB0[?baud=N]`, `grbl+tcp://HOST:PORT`,
+    /// `ruida:HOST?z-mm=MIN,MAX[&bed-mm=W,H][&axis=z|u]` or `ruida-sim` (a Ruida controller is
+    /// sent the G-code Kerfmeter writes, converted). Also from KERFMETER_CUTTER.
     #[arg(long, env = "KERFMETER_CUTTER", value_name = "ADDRESS")]
     pub cutter: CutterAddress,
     /// Unlock a cutter that is in alarm (`$X`) instead of refusing it. Check the machine first:
@@ -54,8 +58,8 @@ pub struct CutArgs {
 pub struct CutReport {
     /// The cutter's address.
     pub cutter: String,
-    /// GRBL's version.
-    pub grbl_version: String,
+    /// GRBL's version (`null` for a Ruida controller).
+    pub grbl_version: Option<String>,
     /// Lines streamed.
     pub lines: usize,
     /// From the first line until the machine was idle, s.
@@ -69,10 +73,14 @@ pub struct CutReport {
 
 impl fmt::Display for CutReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let controller = match &self.grbl_version {
+            Some(version) => format!("GRBL {version}"),
+            None => "Ruida".into(),
+        };
         write!(
             f,
-            "cut {} lines on {} (GRBL {}) in {:.1} s; the machine is idle",
-            self.lines, self.cutter, self.grbl_version, self.elapsed_s
+            "cut {} lines on {} ({controller}) in {:.1} s; the machine is idle",
+            self.lines, self.cutter, self.elapsed_s
         )
     }
 }
@@ -122,6 +130,9 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
     }
     // Raised by Ctrl-C, SIGTERM and SIGHUP (`main` installs the handler for `cut`).
     let cancel = crate::interrupt::flag();
+    if args.cutter.is_ruida() {
+        return cut_on_ruida(g, args, &program, &cancel, constant_power_line);
+    }
     let options = connect_options(args)?;
     let mut cutter = Cutter::open_cancellable(&args.cutter, options, cancel.clone())?;
     if !g.json {
@@ -139,7 +150,38 @@ pub fn run(g: &Global, args: &CutArgs) -> Result<CutReport, CliError> {
     let report = report?;
     Ok(CutReport {
         cutter: cutter.address().to_owned(),
-        grbl_version: cutter.version().to_owned(),
+        grbl_version: Some(cutter.version().to_owned()),
+        lines: report.lines,
+        elapsed_s: report.elapsed.as_secs_f64(),
+        max_unanswered_bytes: report.max_unanswered_bytes,
+        constant_power_line,
+    })
+}
+
+/// Send `program` to the Ruida controller `args` names (the driver reads it into programs and
+/// direct moves, and stops the controller on any failure and on `cancel`).
+fn cut_on_ruida(
+    g: &Global,
+    args: &CutArgs,
+    program: &str,
+    cancel: &AtomicBool,
+    constant_power_line: Option<usize>,
+) -> Result<CutReport, CliError> {
+    let mut cutter = kerfmeter::ruida::open(&args.cutter, None)?;
+    if !g.json {
+        eprintln!(
+            "sending {} to {} (Ruida); Ctrl-C stops the cutter",
+            args.input.display(),
+            cutter.address()
+        );
+    }
+    let bar = stream_bar(g.json);
+    let report = cutter.stream(program, cancel, &mut |p| show(&bar, p));
+    bar.finish_and_clear();
+    let report = report?;
+    Ok(CutReport {
+        cutter: cutter.address().to_owned(),
+        grbl_version: None,
         lines: report.lines,
         elapsed_s: report.elapsed.as_secs_f64(),
         max_unanswered_bytes: report.max_unanswered_bytes,

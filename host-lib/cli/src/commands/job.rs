@@ -1,23 +1,24 @@
-//! `kerfmeter job`: the paper's whole loop on a GRBL laser cutter: cut the gauge beside the plan,
-//! lower the prongs into it, measure, lift, dilate the plan by the kerf measured and cut it. The
-//! flags become a [`JobRequest`] and the files it names ([`JobFiles`]); the application layer
-//! ([`kerfmeter_app::job`]) sets the job up before anything moves (the plan read and checked, the
-//! gauge placed, every move checked against the machine's travel and the bed, the outputs
-//! checked writable) and dilates and writes the plan and the job's G-code atomically, never over
-//! the input nor each other, drives the loop ([`kerfmeter::job`]'s) and records the measurement.
-//! This module opens the machines, tells on stderr how it goes, and prints the report
-//! ([`JobCliReport`]).
+//! `kerfmeter job`: the paper's whole loop on a GRBL or Ruida laser cutter: cut the gauge beside
+//! the plan, lower the prongs into it, measure, lift, dilate the plan by the kerf measured and cut
+//! it. The flags become a [`JobRequest`] and the files it names ([`JobFiles`]); the application
+//! layer ([`kerfmeter_app::job`]) sets the job up before anything moves (the plan read and
+//! checked, the gauge placed, every move checked against the machine's travel and the bed, the
+//! outputs checked writable) and dilates and writes the plan and the job's G-code atomically,
+//! never over the input nor each other, drives the loop ([`kerfmeter::job`]'s) and records the
+//! measurement. This module opens the machines, tells on stderr how it goes, and prints the
+//! report ([`JobCliReport`]).
 //!
-//! The bed is the controller's X and Y travel (`$130`, `$131`) unless `--bed-mm` gives it (600 ×
-//! 400 mm for a controller that reports none, and for `--dry-run`), so without `--bed-mm` the
-//! gauge is placed once the cutter is connected. The gauge is cut with the job's own settings
-//! (the kerf depends on them).
+//! The bed is the controller's X and Y travel (GRBL's `$130`, `$131`; a Ruida's bed-size
+//! registers, or its address's `bed-mm`) unless `--bed-mm` gives it (600 × 400 mm for a
+//! controller that reports none, and for `--dry-run`), so without `--bed-mm` the gauge is placed
+//! once the cutter is connected. The gauge is cut with the job's own settings (the kerf depends
+//! on them).
 //!
 //! # Simulated and real machines
 //!
-//! `--sim` with `--cutter sim` closes the loop in simulation: the cutter twin's trace of the
-//! gauge goes under the device twin's prongs, where the lowered head put them, so the device
-//! measures the gauge the cutter cut. Mixing is refused: a simulated device cannot measure a
+//! `--sim` with `--cutter sim` (or `ruida-sim`) closes the loop in simulation: the cutter twin's
+//! trace of the gauge goes under the device twin's prongs, where the lowered head put them, so
+//! the device measures the gauge the cutter cut. Mixing is refused: a simulated device cannot measure a
 //! gauge a real cutter cut (and a real job would then be cut by a made-up kerf), and a real
 //! device lowered onto a simulated cutter's bed would turn in nothing. `--dry-run` moves
 //! nothing and opens neither: it prints every stage's G-code (the job's at `--dry-run-kerf-um`).
@@ -36,7 +37,7 @@ use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use kerfmeter::grbl::{ConnectOptions, Cutter, CutterAddress, SimCutterOptions};
-use kerfmeter::job::{Devices, JobError, JobEvent, SimLink};
+use kerfmeter::job::{Devices, JobCutter, JobError, JobEvent, SimLink};
 use kerfmeter_app::dilate::DEFAULT_CUT_MAX_WIDTH_MM;
 use kerfmeter_app::job::{
     DEFAULT_PLUNGE_FEED_MM_PER_MIN, DEFAULT_TRAVEL_Z_MM, DryRunReport, JobCliReport, JobFiles,
@@ -60,7 +61,8 @@ pub struct JobArgs {
     /// The plan: an .svg or .dxf file.
     #[arg(value_name = "PLAN")]
     pub input: PathBuf,
-    /// The cutter: `sim`, `grbl:/dev/ttyUSB0[?baud=N]` or `grbl+tcp://HOST:PORT`. Also from
+    /// The cutter: `sim`, `grbl:/dev/ttyUSB0[?baud=N]`, `grbl+tcp://HOST:PORT`,
+    /// `ruida:HOST?z-mm=MIN,MAX[&bed-mm=W,H][&axis=z|u]` or `ruida-sim`. Also from
     /// KERFMETER_CUTTER.
     #[arg(long, env = "KERFMETER_CUTTER", value_name = "ADDRESS")]
     pub cutter: CutterAddress,
@@ -236,19 +238,20 @@ pub fn run_on(
     on_event: &mut dyn FnMut(JobEvent<'_>),
 ) -> Result<JobCliReport> {
     check_machines(g, address)?;
-    let (mut cutter, sim_kerf) = open_cutter(g, address, setup.request(), cancel)?;
-    let placed = setup.on_machine(cutter.travel().as_ref())?;
+    let mut opened = open_cutter(g, address, setup.request(), cancel)?;
+    let placed = setup.on_machine(opened.cutter.travel().as_ref())?;
     if !g.json {
         eprintln!(
-            "job on {} (GRBL {}); gauge at ({:.1}, {:.1}) mm; Ctrl-C stops the cutter and the device",
-            cutter.address(),
-            cutter.version(),
+            "job on {} ({}); gauge at ({:.1}, {:.1}) mm; Ctrl-C stops the cutter and the device",
+            opened.address,
+            opened.controller,
             placed.placement.gauge_at_mm[0],
             placed.placement.gauge_at_mm[1]
         );
     }
+    let sim_kerf = opened.sim_kerf;
     let devices = Devices {
-        cutter: &mut cutter,
+        cutter: opened.cutter.as_mut(),
         meter: &mut session.meter,
         sim: session.sim.as_ref().map(|device| SimLink {
             device,
@@ -267,8 +270,7 @@ pub fn run_on(
         .sim
         .as_ref()
         .and_then(|s| s.truth_um(done.kerf.run_id));
-    let cutter = cutter.address().to_owned();
-    Ok(setup.report(&placed, cutter, done, sim_truth_um, history))
+    Ok(setup.report(&placed, opened.address, done, sim_truth_um, history))
 }
 
 /// The error of a job that failed after its measurement: the device's last result recorded
@@ -305,7 +307,7 @@ fn after_measuring(
 
 /// Refuse a simulated device with a real cutter, and the other way round (see the module doc).
 fn check_machines(g: &Global, address: &CutterAddress) -> Result<()> {
-    let sim_cutter = *address == CutterAddress::Sim;
+    let sim_cutter = address.is_sim();
     match (g.sim, sim_cutter) {
         (true, false) => Err(CliError::Usage(
             "--sim with a real cutter is refused: the simulated device cannot measure the gauge \
@@ -322,8 +324,17 @@ fn check_machines(g: &Global, address: &CutterAddress) -> Result<()> {
     }
 }
 
+/// A cutter opened for the job: the driver, its address and controller as the user is told
+/// them, and a simulated cutter's kerf model for the device twin.
+struct Opened {
+    cutter: Box<dyn JobCutter>,
+    address: String,
+    controller: String,
+    sim_kerf: Option<kerfmeter_twin::plant::CutterKerf>,
+}
+
 /// Open the cutter at `address` (given up as soon as `cancel` is set: Ctrl-C while a controller
-/// boots), unlocked if `request` says; the simulated one cuts with `--sim-kerf-um` and
+/// boots), unlocked if `request` says; a simulated one cuts with `--sim-kerf-um` and
 /// `--sim-kerf-sd-um` on the request's bed, and its kerf model is handed back for the device
 /// twin.
 fn open_cutter(
@@ -331,28 +342,42 @@ fn open_cutter(
     address: &CutterAddress,
     request: &JobRequest,
     cancel: &Arc<AtomicBool>,
-) -> Result<(Cutter, Option<kerfmeter_twin::plant::CutterKerf>)> {
+) -> Result<Opened> {
+    let mut kerf = SimCutterOptions::default().kerf;
+    kerf.kerf_um = g.sim_kerf_um;
+    kerf.kerf_sd_um = g.sim_kerf_sd_um;
+    let sim_kerf = address.is_sim().then_some(kerf);
+    if address.is_ruida() {
+        let cutter = kerfmeter::ruida::open(address, request.bed_mm)?;
+        return Ok(Opened {
+            address: cutter.address().to_owned(),
+            controller: "Ruida".into(),
+            cutter: Box::new(cutter),
+            sim_kerf,
+        });
+    }
     let options = ConnectOptions {
         unlock: request.unlock,
         ..ConnectOptions::default()
     };
-    if *address != CutterAddress::Sim {
-        return Ok((
-            Cutter::open_cancellable(address, options, cancel.clone())?,
-            None,
-        ));
-    }
-    let mut twin = SimCutterOptions::default();
-    if let Some([w, h]) = request.bed_mm {
-        twin.travel_mm = [w, h, twin.travel_mm[2]];
-    }
-    twin.kerf.kerf_um = g.sim_kerf_um;
-    twin.kerf.kerf_sd_um = g.sim_kerf_sd_um;
-    let kerf = twin.kerf;
-    Ok((
-        Cutter::sim_cancellable(twin, options, cancel.clone())?,
-        Some(kerf),
-    ))
+    let cutter = if *address == CutterAddress::Sim {
+        let mut twin = SimCutterOptions {
+            kerf,
+            ..SimCutterOptions::default()
+        };
+        if let Some([w, h]) = request.bed_mm {
+            twin.travel_mm = [w, h, twin.travel_mm[2]];
+        }
+        Cutter::sim_cancellable(twin, options, cancel.clone())?
+    } else {
+        Cutter::open_cancellable(address, options, cancel.clone())?
+    };
+    Ok(Opened {
+        address: cutter.address().to_owned(),
+        controller: format!("GRBL {}", cutter.version()),
+        cutter: Box::new(cutter),
+        sim_kerf,
+    })
 }
 
 /// A setup's refusal as the CLI's error; a refused move's exit code follows its category.
