@@ -133,6 +133,7 @@ fn the_prongs_go_down_on_z_or_u_and_the_head_over_the_gauge() {
         z_travel_mm: [-20.0, 20.0],
         bed_mm: None,
         prong_axis: ProngAxis::U,
+        local_port: 0,
     };
     let mut on_u = RuidaCutter::open(&address, Timing::sim()).unwrap();
     stream(&mut on_u, &placement.lift_program()).unwrap();
@@ -364,6 +365,7 @@ fn open(port: u16) -> Result<RuidaCutter, CutterError> {
         z_travel_mm: [-20.0, 20.0],
         bed_mm: None,
         prong_axis: ProngAxis::Z,
+        local_port: 0,
     };
     RuidaCutter::open(&address, Timing::sim())
 }

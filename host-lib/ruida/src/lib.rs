@@ -38,6 +38,10 @@ pub use register::{Register, RegisterValue};
 /// The controller's UDP port for swizzled, checksummed packets.
 pub const UDP_PORT: u16 = 50200;
 
+/// The local UDP port a controller sends its answers to, whatever port the packet came from
+/// (MeerK40t's UDP driver listens there for them; unverified on a controller here).
+pub const REPLY_UDP_PORT: u16 = 40200;
+
 /// The "jog" UDP port: raw bytes, neither swizzled nor checksummed (not used by this crate's
 /// writer).
 pub const JOG_UDP_PORT: u16 = 50207;

@@ -59,18 +59,31 @@ pub struct UdpLink {
 }
 
 impl UdpLink {
-    /// A link to `controller`, each answer waited for `timeout`, a packet sent at most `tries`
-    /// times.
+    /// A link to `controller` from an ephemeral local port, each answer waited for `timeout`, a
+    /// packet sent at most `tries` times (for a controller that answers the sender's port, as
+    /// the twin does).
     pub fn connect(
         controller: SocketAddr,
         magic: u8,
         timeout: Duration,
         tries: usize,
     ) -> Result<Self, LinkError> {
+        Self::connect_from(0, controller, magic, timeout, tries)
+    }
+
+    /// A link to `controller` from local port `local_port` ([`crate::REPLY_UDP_PORT`] for a real
+    /// controller, which answers there; 0 for an ephemeral one).
+    pub fn connect_from(
+        local_port: u16,
+        controller: SocketAddr,
+        magic: u8,
+        timeout: Duration,
+        tries: usize,
+    ) -> Result<Self, LinkError> {
         let local: SocketAddr = if controller.is_ipv4() {
-            ([0, 0, 0, 0], 0).into()
+            ([0, 0, 0, 0], local_port).into()
         } else {
-            ([0u16; 8], 0).into()
+            ([0u16; 8], local_port).into()
         };
         let socket = UdpSocket::bind(local)?;
         socket.connect(controller)?;

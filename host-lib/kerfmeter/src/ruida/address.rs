@@ -1,7 +1,8 @@
 //! Where a Ruida controller is ([`RuidaAddress`]): `ruida:HOST[:PORT]` with what cannot be read
 //! from the controller as query parameters: `z-mm=MIN,MAX` (the travel of the prongs' axis, which
 //! no register is known to report; required), `bed-mm=W,H` (when the bed-size registers read
-//! nothing), `axis=z|u` (which axis lowers the prongs; Z by default).
+//! nothing), `axis=z|u` (which axis lowers the prongs; Z by default), `local-port=N` (where the
+//! controller's answers come: 40200 by default, as MeerK40t listens for them).
 
 use std::str::FromStr;
 
@@ -31,6 +32,9 @@ pub struct RuidaAddress {
     pub bed_mm: Option<[f64; 2]>,
     /// Which axis lowers the prongs.
     pub prong_axis: ProngAxis,
+    /// The local UDP port answers come to ([`kerfmeter_ruida::REPLY_UDP_PORT`] unless
+    /// `local-port=N` says; 0 for an ephemeral one).
+    pub local_port: u16,
 }
 
 impl FromStr for RuidaAddress {
@@ -61,6 +65,7 @@ impl FromStr for RuidaAddress {
             z_travel_mm: [f64::NAN; 2],
             bed_mm: None,
             prong_axis: ProngAxis::Z,
+            local_port: kerfmeter_ruida::REPLY_UDP_PORT,
         };
         for pair in query.split('&').filter(|p| !p.is_empty()) {
             address.set(pair).map_err(|r| bad(&r))?;
@@ -99,6 +104,11 @@ impl RuidaAddress {
                     "u" | "U" => ProngAxis::U,
                     _ => return Err(format!("axis={value}: z or u")),
                 }
+            }
+            "local-port" => {
+                self.local_port = value
+                    .parse()
+                    .map_err(|_| format!("local-port={value}: a port, 0 to 65535"))?;
             }
             _ => return Err(format!("unknown parameter `{key}`")),
         }

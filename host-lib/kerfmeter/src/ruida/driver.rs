@@ -84,8 +84,21 @@ impl RuidaCutter {
         address: &RuidaAddress,
         timing: Timing,
     ) -> Result<Self, CutterError> {
-        let link = UdpLink::connect(addr, MAGIC, timing.reply_timeout, timing.tries)
-            .map_err(|e| RuidaFailure::from_link(&text, "connecting", e))?;
+        let link = UdpLink::connect_from(
+            address.local_port,
+            addr,
+            MAGIC,
+            timing.reply_timeout,
+            timing.tries,
+        )
+        .map_err(|e| CutterError::Open {
+            address: text.clone(),
+            reason: format!(
+                "{e} (answers come to local UDP port {}: is another program, LightBurn or \
+                 RDWorks, listening there?)",
+                address.local_port
+            ),
+        })?;
         let mut cutter = Self {
             link,
             address: text,

@@ -12,7 +12,7 @@ use crate::grbl::CutterError;
 pub enum RuidaFailure {
     /// The address cannot be read.
     #[error(
-        "cannot understand the Ruida address {text:?}: {reason}. Use ruida:HOST[:PORT]?z-mm=MIN,MAX[&bed-mm=W,H][&axis=z|u], or ruida-sim"
+        "cannot understand the Ruida address {text:?}: {reason}. Use ruida:HOST[:PORT]?z-mm=MIN,MAX[&bed-mm=W,H][&axis=z|u][&local-port=N], or ruida-sim"
     )]
     Address {
         /// As given.

@@ -54,6 +54,7 @@ impl RuidaCutter {
             z_travel_mm: SIM_Z_TRAVEL_MM,
             bed_mm: None,
             prong_axis: ProngAxis::Z,
+            local_port: 0,
         };
         let mut cutter = Self::connect(addr, format!("ruida-sim ({addr})"), &address, timing)?;
         cutter.twin = Some(twin);
