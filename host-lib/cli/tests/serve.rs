@@ -900,6 +900,20 @@ const PLATE: &str = r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" hei
 </svg>"#;
 
 #[test]
+fn a_job_runs_on_the_servers_ruida_cutter() {
+    let server = Server::start(&["--sim", "--sim-kerf-um", "180"], &["--cutter", "ruida-sim"]);
+    let mut ws = server.ws();
+    let params = json!({"plan": PLATE, "format": "svg", "prong_offset_mm": [30, -10]});
+    let id = ws.send("job", params);
+    let response = ws.response(id);
+    let job = result(&response);
+    let kerf_um = job["kerf_um"].as_f64().unwrap();
+    assert!((170.0..200.0).contains(&kerf_um), "{job}");
+    let cutter = job["report"]["cutter"].as_str().unwrap();
+    assert!(cutter.starts_with("ruida-sim"), "{job}");
+}
+
+#[test]
 fn a_job_runs_on_the_servers_cutter_with_its_stages_told() {
     let server = Server::start(&["--sim", "--sim-kerf-um", "180"], &["--cutter", "sim"]);
     let mut ws = server.ws();

@@ -26,8 +26,8 @@ pub struct ServeArgs {
     /// (e.g. http://localhost:5173); repeatable.
     #[arg(long = "allow-origin", value_name = "ORIGIN")]
     allow_origins: Vec<String>,
-    /// The laser cutter `job` runs on: `sim` (with --sim), `grbl:/dev/ttyUSB0` or
-    /// `grbl+tcp://HOST:PORT`. Without it, `job` is refused.
+    /// The laser cutter `job` runs on: `sim` or `ruida-sim` (with --sim), `grbl:/dev/ttyUSB0`,
+    /// `grbl+tcp://HOST:PORT` or `ruida:HOST?z-mm=MIN,MAX`. Without it, `job` is refused.
     #[arg(long, value_name = "ADDRESS", value_parser = cutter_address)]
     cutter: Option<String>,
     /// Let a client's `job` clear the cutter's alarm (`unlock`). An alarm is the controller's
