@@ -901,7 +901,10 @@ const PLATE: &str = r#"<svg xmlns="http://www.w3.org/2000/svg" width="100mm" hei
 
 #[test]
 fn a_job_runs_on_the_servers_ruida_cutter() {
-    let server = Server::start(&["--sim", "--sim-kerf-um", "180"], &["--cutter", "ruida-sim"]);
+    let server = Server::start(
+        &["--sim", "--sim-kerf-um", "180"],
+        &["--cutter", "ruida-sim"],
+    );
     let mut ws = server.ws();
     let params = json!({"plan": PLATE, "format": "svg", "prong_offset_mm": [30, -10]});
     let id = ws.send("job", params);
