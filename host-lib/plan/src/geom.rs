@@ -454,11 +454,14 @@ pub struct Subpath {
     pub pline: Pline,
 }
 
+/// The shortest segment a [`PathSink`] keeps, mm, however precise its coordinates.
+const EMPTY_MIN_MM: f64 = 1e-5;
+
 /// Builds [`Subpath`]s from drawing commands (move, line, arc, quadratic and cubic Bézier, close)
 /// given in mm.
 #[derive(Debug)]
 pub struct PathSink {
-    /// Points closer than this are the same point (closing a subpath, dropping empty segments).
+    /// Ends closer than this meet (closing a subpath).
     pub join_eps_mm: f64,
     /// Rounding uncertainty of the incoming coordinates, for recognising arcs in cubics.
     pub coord_eps_mm: f64,
@@ -494,7 +497,7 @@ impl PathSink {
             self.move_to(p);
             return;
         };
-        if (p - last).length() <= self.join_eps_mm {
+        if (p - last).length() <= self.empty_mm() {
             return;
         }
         if let Some(v) = self.current.last_mut() {
@@ -561,10 +564,28 @@ impl PathSink {
     pub fn curve<F: Fn(f64) -> (V2, V2)>(&mut self, f: &F, end: V2) {
         let mut vertices = Vec::new();
         fit_biarcs(f, 0.0, 1.0, CURVE_TOLERANCE_MM, &mut vertices);
+        let before = self.current.len();
         for w in 0..vertices.len() {
             let next = vertices.get(w + 1).map(|v| v2(v.x, v.y)).unwrap_or(end);
             self.segment_to(next, vertices[w].bulge);
         }
+        // A last piece too short to keep leaves the curve ending at its last fitted vertex: that
+        // vertex moves to the curve's end instead, so that the curve ends where it was drawn to
+        // (boxes.py's loop at an inner corner ends at the corner: ending a few µm short of it
+        // left the loop's tail on the contour, tilting the edge that followed).
+        if self.current.len() > before
+            && let Some(v) = self.current.last_mut()
+        {
+            (v.x, v.y) = (end.x, end.y);
+        }
+    }
+
+    /// Segments no longer than this are left out, mm: the rounding of the incoming coordinates,
+    /// at least 10 nm (shorter, `cavalier_contours` takes a segment's ends for one point).
+    /// [`join_eps_mm`](Self::join_eps_mm), which may be several times larger, only decides
+    /// whether ends meet.
+    fn empty_mm(&self) -> f64 {
+        self.coord_eps_mm.max(EMPTY_MIN_MM)
     }
 
     /// The vertices drawn so far.

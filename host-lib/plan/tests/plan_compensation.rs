@@ -381,6 +381,42 @@ fn recompensation_matches_the_part_drawn_at_the_target_burn() {
     }
 }
 
+/// The finger part `(dx, dy)` mm from the origin, as boxes.py draws it at `burn`, on a page
+/// large enough.
+fn far_part(burn: f64, inner: Inner, (dx, dy): P) -> String {
+    let poly: Vec<P> = finger_part()
+        .iter()
+        .map(|&(x, y)| (x + dx, y + dy))
+        .collect();
+    format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="2500mm" height="400mm" viewBox="0 0 2500 400"><!-- Command line (remove spaces between dashes): boxes FingerPart - -burn={burn} --><path id="outer" d="{}" stroke="rgb(0,0,0)" stroke-width="0.20" fill="none"/></svg>"#,
+        boxes_path(&poly, false, burn, inner, 6)
+    )
+}
+
+#[test]
+fn recompensation_holds_metres_from_the_origin() {
+    // boxes.py's OrganPipe lays its parts out up to 2.4 m from the origin, where usvg's single
+    // precision holds a coordinate to 0.14 µm. There, a loop's last fitted piece was shorter
+    // than the tolerance within which ends meet (18 µm) and was left out: the loop ended short of
+    // its corner, its tail stayed on the contour and tilted the next edge (1.1 µm at the far
+    // corner, 1.55 µm in OrganPipe against its uncompensated plan dilated).
+    for at in [(0.0, 0.0), (1000.0, 200.0), (2300.0, 300.0)] {
+        let (out, s) = run(
+            &far_part(0.1, Inner::Loop, at),
+            150.0,
+            IfCompensated::Recompensate,
+        )
+        .unwrap();
+        assert_eq!(s.compensation_applied.unwrap().corner_loops_removed, 10);
+        let got = outlines(&out, &["outer"]).remove(0);
+        let want = outlines(&far_part(0.075, Inner::Corner, at), &["outer"]).remove(0);
+        // Both read in single precision: up to 0.2 µm apart 2.4 m out.
+        let d = hausdorff(&got, &want);
+        assert!(d < 3e-4, "{d} mm at {at:?}");
+    }
+}
+
 #[test]
 fn recompensated_inner_corners_stay_sharp() {
     let (out, _) = run(
