@@ -300,9 +300,13 @@ fn a_program_beyond_the_bed_is_refused_before_anything_is_sent() {
     let mut cutter = cutter();
     let e = stream(&mut cutter, &gauge_gcode([595.0, 60.0])).unwrap_err();
     assert!(matches!(e, CutterError::BeyondTravel { .. }), "{e}");
-    assert!(e.to_string().contains("Nothing was sent"), "{e}");
+    let said = e.to_string();
+    assert!(said.contains("Nothing was sent"), "{said}");
+    // In a Ruida's words: its bed, not GRBL's settings.
+    assert!(said.contains("set the controller's bed size") && !said.contains('$'), "{said}");
     let e = stream(&mut cutter, "G21 G90\nM5 S0\nG0 Z80\n").unwrap_err();
     assert!(matches!(e, CutterError::BeyondTravel { .. }), "{e}");
+    assert!(e.to_string().contains("z-mm=MIN,MAX"), "{e}");
     let log = log(&cutter);
     assert!(log.strokes.is_empty() && log.zu_um == [0, 0] && log.stops == 0);
     // A program in a dialect the driver does not read: refused, nothing sent.

@@ -349,6 +349,13 @@ fn beyond_what(beyond: &Beyond) -> String {
 /// What to change.
 fn beyond_fix(beyond: &Beyond) -> String {
     let setting = super::travel::TRAVEL_SETTINGS[beyond.axis];
+    if beyond.source == super::travel::TravelSource::Ruida {
+        return format!(
+            "Place the program inside the travel (`kerfmeter gcode` and `kerfmeter job` place a \
+             plan with --origin-mm X,Y); if the machine's travel is larger, {}",
+            beyond.change_setting()
+        );
+    }
     if beyond.is_head() {
         return format!(
             "Home the machine, or switch the controller on with the head at its origin corner; \

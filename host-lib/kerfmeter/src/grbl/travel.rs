@@ -66,6 +66,16 @@ pub enum Reach {
     },
 }
 
+/// Whose travel it is: which words a refusal uses for where it comes from and what to change.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TravelSource {
+    /// GRBL's `$130`–`$132`, read by the GRBL driver.
+    #[default]
+    Grbl,
+    /// A Ruida controller's bed size (or the address's `bed-mm`) and the address's `z-mm`.
+    Ruida,
+}
+
 /// The machine's travel as the controller reports it, and where its head and offsets stand.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Travel {
@@ -79,6 +89,8 @@ pub struct Travel {
     pub reach: [Reach; 3],
     /// Where the program would start: the head, the offsets, the parser state.
     pub start: Start,
+    /// Whose travel it is.
+    pub source: TravelSource,
 }
 
 /// A point beyond the travel, or a span wider than it.
@@ -96,6 +108,8 @@ pub struct Beyond {
     pub limit: String,
     /// What GRBL would do: stop with a soft-limit alarm, or drive into the end stop.
     pub soft_limits: bool,
+    /// Whose travel it is.
+    pub source: TravelSource,
 }
 
 impl Travel {
@@ -134,6 +148,7 @@ impl Travel {
             homing,
             reach,
             start,
+            source: TravelSource::Grbl,
         })
     }
 
@@ -215,6 +230,7 @@ impl Travel {
                 work_offset_mm: self.work_offset_mm()[axis],
                 limit: self.describe(axis),
                 soft_limits: self.soft_limits,
+                source: self.source,
             })
         };
         match self.reach[axis] {
@@ -239,6 +255,15 @@ impl Travel {
     /// The travel on `axis` as a message tells it: where it lies, and why.
     pub fn describe(&self, axis: usize) -> String {
         let name = AXES[axis];
+        if let (TravelSource::Ruida, Reach::Between { min_mm, max_mm }) =
+            (self.source, self.reach[axis])
+        {
+            let from = match axis {
+                2 => "the z-mm of the ruida: address",
+                _ => "the bed size the controller reports, or the address's bed-mm",
+            };
+            return format!("{name} runs {min_mm:.3} to {max_mm:.3} mm (machine; {from})");
+        }
         let setting = format!("${}={}", TRAVEL_SETTINGS[axis], self.travel_mm[axis]);
         let offset = self.work_offset_mm()[axis];
         match self.reach[axis] {
@@ -271,6 +296,19 @@ impl Travel {
 }
 
 impl Beyond {
+    /// What to change when the machine's own travel setting is what is wrong.
+    pub fn change_setting(&self) -> String {
+        match (self.source, self.axis) {
+            (TravelSource::Grbl, axis) => format!("set ${} to it", TRAVEL_SETTINGS[axis]),
+            (TravelSource::Ruida, 2) => "give it as the ruida: address's z-mm=MIN,MAX".into(),
+            (TravelSource::Ruida, _) => {
+                "set the controller's bed size (or the ruida: address's bed-mm, for a controller \
+                 that reports none)"
+                    .into()
+            }
+        }
+    }
+
     /// Where the point lies in work coordinates, mm.
     pub fn work_mm(&self) -> f64 {
         self.at.machine_mm - self.work_offset_mm
@@ -283,6 +321,9 @@ impl Beyond {
 
     /// What GRBL would do with it.
     pub fn consequence(&self) -> &'static str {
+        if self.source == TravelSource::Ruida {
+            return "a Ruida controller's own limits are not known here";
+        }
         match self.soft_limits {
             true => "GRBL would stop with a soft-limit alarm (ALARM:2)",
             false => "soft limits are off ($20=0), so GRBL would drive the head into its end stop",

@@ -146,6 +146,8 @@ fn check_heights(travel: &Travel, request: &JobRequest<'_>) -> Result<(), JobErr
 
 /// The other way out: the machine's own travel setting, when it is wrong.
 fn set_travel(b: &Beyond) -> String {
-    let setting = crate::grbl::travel::TRAVEL_SETTINGS[b.axis];
-    format!("; or, if the machine's travel is larger, set ${setting} to it")
+    format!(
+        "; or, if the machine's travel is larger, {}",
+        b.change_setting()
+    )
 }

@@ -17,7 +17,7 @@ use super::address::{ProngAxis, RuidaAddress};
 use super::steps::{self, Step};
 use crate::grbl::extent::Start;
 use crate::grbl::offsets::{Modal, Offsets};
-use crate::grbl::travel::{Reach, Travel};
+use crate::grbl::travel::{Reach, Travel, TravelSource};
 use crate::grbl::{CutterError, StreamProgress, StreamReport};
 
 /// How long each answer is waited for, and how many times a repeatable packet is sent.
@@ -402,6 +402,7 @@ fn travel(bed_mm: [f64; 2], z_mm: [f64; 2], head_mm: [f64; 3]) -> Travel {
             offsets: Offsets::default(),
             modal: Modal::after_reset(),
         },
+        source: TravelSource::Ruida,
     }
 }
 
