@@ -101,6 +101,7 @@
 //! sheet; a hole out of round, or a kerf that varies around the spiral rather than through the
 //! sheet; the zero the user sets being quantised to one LSB.
 
+pub mod adc;
 pub mod encoder;
 pub mod gauge_trace;
 pub mod options;

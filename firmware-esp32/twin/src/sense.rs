@@ -5,8 +5,10 @@
 //! (`board::current`, inside `Hardware::tick`) turns into the motor current; the supply in volts
 //! by the firmware's `board::supply`.
 //!
-//! The twin samples both channels as the board does, one conversion behind: at the end of each
-//! tick, just after the firmware's output was applied, for the next tick to use.
+//! The twin samples both pins at the end of each tick, just after the firmware's output was
+//! applied; the board's ADC converts one of them then, for the next tick to use
+//! ([`TwinAdc`](crate::adc::TwinAdc), on the firmware's own schedule: the supply one tick in
+//! ten, the current sense the others).
 //!
 //! # Current sense
 //!
@@ -68,6 +70,9 @@ pub struct Sensed {
     pub cs_mv: u16,
     /// Motor supply, V.
     pub supply_v: f32,
+    /// The supply divider's pin, mV, as the calibrated ADC reads it at 11 dB (`supply_v` is
+    /// what the firmware makes of it).
+    pub supply_mv: u16,
 }
 
 /// The ADC's view of the `CS` pin and the supply divider.
@@ -189,12 +194,11 @@ impl Sense {
         let cs_mv = pin_mv * self.cs_adc_gain + f64::from(self.rng.normal()) * p.adc_noise_mv;
         let bus_v = bridge.bus_v * (1.0 + p.supply_sense_gain_error)
             + f64::from(self.rng.normal()) * p.supply_sense_noise_v;
+        let supply_mv = adc_mv(bus_v / SUPPLY_DIVIDER_RATIO as f64 * 1e3, ADC_MAX_MV);
         Sensed {
             cs_mv: adc_mv(cs_mv, CS_ADC_MAX_MV),
-            supply_v: supply_v(adc_mv(
-                bus_v / SUPPLY_DIVIDER_RATIO as f64 * 1e3,
-                ADC_MAX_MV,
-            )),
+            supply_v: supply_v(supply_mv),
+            supply_mv,
         }
     }
 }

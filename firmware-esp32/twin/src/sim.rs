@@ -39,6 +39,7 @@
 //! faults) and `inspect` (its state read, and acted on by hand).
 
 use kerfmeter_firmware::as5048a::{As5048a, EncoderSettings};
+use kerfmeter_firmware::board::conversion::Conversions;
 use kerfmeter_firmware::board::partition::{ConfigStorage, OpenedConfig, open_config_partition};
 use kerfmeter_firmware::config_store::{ConfigSource, FlashConfigStore};
 use kerfmeter_firmware::device::Device;
@@ -55,11 +56,12 @@ use kerfmeter_protocol::{
     AdcCalibration, BrownOutDetector, ChipRevision, DeviceConfig, EncoderPlacement, ResetReason,
 };
 
+use crate::adc::TwinAdc;
 use crate::encoder::EncoderErrors;
 use crate::gauge_trace::TracedGaugeSlot;
 use crate::options::{InjectedFault, TwinOptions};
 use crate::plant::{Bridge, Cutter, Plant};
-use crate::sense::{Sense, Sensed};
+use crate::sense::Sense;
 use crate::timing::{HostBursts, SimWatchdog, TickClock};
 use crate::truth::TruthLog;
 
@@ -128,11 +130,14 @@ pub struct Twin {
     flt: FakeInput,
     /// The injected `driver-fault` holds FLT low (besides the driver's own under-voltage).
     flt_injected: bool,
-    /// The ADC's current-sense and supply-sense channels.
+    /// The current-sense and supply-sense pins as the ADC sees them.
     sense: Sense,
-    /// Their readings taken at the end of the last tick, for the next one (the board reads them
-    /// one conversion behind); `None` before the first tick.
-    sensed: Option<Sensed>,
+    /// The board's ADC1, one conversion at a time, started at the end of a tick and collected
+    /// at the next (the board reads one conversion behind).
+    adc: TwinAdc,
+    /// The firmware's conversion schedule over it (the supply every tenth tick, a stalled
+    /// conversion given up), as the board binary runs it.
+    conversions: Conversions,
     device: TwinDevice,
     link: Link,
     /// The link the bursts of the other host go through.
@@ -242,7 +247,8 @@ impl Twin {
             magnet_on_motor_shaft: false,
             sense: Sense::new(&options.plant, stream(0))
                 .for_board(options.driver, options.adc_uncalibrated),
-            sensed: None,
+            adc: TwinAdc::new(),
+            conversions: Conversions::new(),
             flt_injected: false,
             options,
             rng,

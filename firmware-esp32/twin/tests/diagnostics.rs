@@ -6,7 +6,7 @@
 
 use kerfmeter_protocol::{
     AdcCalibration, BrownOutDetector, ChipRevision, Conditions, Diagnostics, ErrorCode, G2Variant,
-    Request, ResetReason, Response, RunParams, SelfTestReport, Status,
+    Request, ResetReason, Response, RunParams, RunState, SelfTestReport, Status,
 };
 use kerfmeter_twin::plant::PlantParams;
 use kerfmeter_twin::{Twin, TwinOptions};
@@ -189,4 +189,35 @@ fn a_25_v_supply_is_refused_on_an_18v17_and_accepted_on_a_24v13() {
             .conditions
             .contains(Conditions::SUPPLY_OUT_OF_RANGE)
     );
+}
+
+#[test]
+fn an_adc_conversion_that_never_finishes_mid_run_is_given_up_and_the_run_goes_on() {
+    // The twin's ADC follows the board's schedule (the supply one tick in ten), and a stalled
+    // conversion waits for ever until the firmware opens the ADC again: without that restart
+    // the current would be unknown from the tenth tick on, and the run would fault OverCurrent.
+    let mut t = twin(TwinOptions::default());
+    assert_eq!(t.request(&Request::Run(RunParams::DEFAULT)), Response::Ok);
+    t.advance_ticks(300);
+    assert!(t.motor_driven(), "mid-run, the bridge driven");
+    t.stall_next_adc_conversion();
+    for _ in 0..3000 {
+        t.advance_ticks(10);
+        match status(&mut t).state {
+            RunState::Done => break,
+            RunState::Fault(f) => panic!("faulted {f:?}"),
+            _ => {}
+        }
+    }
+    assert_eq!(t.adc_stalls(), 1);
+    let Response::Kerf(Some(k)) = t.request(&Request::GetKerf) else {
+        panic!("a result")
+    };
+    let truth_um = t.plant().truth_um(&RunParams::DEFAULT);
+    assert!(
+        (f64::from(k.kerf_um) - truth_um).abs() < 2.0,
+        "{k:?} against {truth_um}"
+    );
+    assert_eq!(diagnostics(&mut t).adc_restarts, 1);
+    assert!(t.motor_safe());
 }

@@ -70,7 +70,9 @@ fn a_supply_below_the_release_level_holds_flt_low_from_power_up() {
         },
         ..TwinOptions::default()
     });
-    t.advance_ticks(5);
+    // The supply is converted one tick in ten, as on the board: its first reading comes at the
+    // eleventh tick.
+    t.advance_ticks(15);
     assert!(t.plant().driver_fault());
     // An idle condition, not a latched fault: reported, blocking a run, not the configuration.
     let Response::Status(status) = t.request(&Request::GetStatus) else {
@@ -79,7 +81,7 @@ fn a_supply_below_the_release_level_holds_flt_low_from_power_up() {
     assert_eq!(status.state, RunState::Idle);
     let both = Conditions::DRIVER_FAULT.union(Conditions::SUPPLY_OUT_OF_RANGE);
     assert_eq!(status.conditions, both);
-    // 6 V and a 1 % gain error, filtered from a first noisy reading five ticks ago.
+    // 6 V and a 1 % gain error, filtered from a first noisy reading a few ticks ago.
     assert!(status.supply_v.is_some_and(|v| v < 6.3), "{status:?}");
     assert_eq!(
         t.request(&Request::Run(RunParams::DEFAULT)),
@@ -105,7 +107,8 @@ fn repairing_the_injected_driver_fault_does_not_release_a_locked_out_driver() {
         },
         ..TwinOptions::default()
     });
-    t.advance_ticks(5);
+    // Past the first supply conversion (one tick in ten).
+    t.advance_ticks(15);
     assert_eq!(t.request(&Request::ClearFault), Response::Ok);
     t.advance_ticks(5);
     assert_eq!(t.options().fault, None, "the injection is repaired");

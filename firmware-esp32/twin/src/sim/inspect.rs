@@ -91,6 +91,18 @@ impl Twin {
         &self.device
     }
 
+    /// The next ADC conversion started never finishes, as when the ESP32-C3's ADC misses a
+    /// one-shot start pulse: the firmware gives it up after three ticks and opens the ADC again
+    /// (`board::conversion`), which `GetDiagnostics` counts (`adc_restarts`).
+    pub fn stall_next_adc_conversion(&mut self) {
+        self.adc.stall_next();
+    }
+
+    /// ADC conversions that stalled since boot.
+    pub fn adc_stalls(&self) -> u32 {
+        self.adc.stalls()
+    }
+
     /// The firmware's current-sense conversion, its learnt offset included (for checks).
     pub fn current_sense(&self) -> &MotorCurrent {
         self.hardware.current()

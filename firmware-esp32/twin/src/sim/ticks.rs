@@ -59,21 +59,30 @@ impl Twin {
         self.hardware.encoder.bus_mut().set_angle_deg(cw);
         self.flt
             .set_high(!self.flt_injected && !self.plant.driver_fault());
-        // The first tick after boot has no conversion yet, as on the board.
+        // The conversion started at the end of the last tick, as the board collects it (the
+        // first tick after boot has none yet).
+        let readings = self.conversions.read(&mut self.adc);
         let out = self.hardware.tick(
             self.now_us,
-            self.sensed.map(|s| s.cs_mv),
-            self.sensed.map(|s| s.supply_v),
+            readings.cs_mv,
+            readings.supply_v,
             &mut self.device,
         );
-        // The next conversions, started just after the output was applied: they see the bridge
-        // as it was until now.
-        self.sensed = Some(self.sense.sample(
+        if readings.restart {
+            // A conversion that never finished: the board opens its driver again.
+            self.device.note_adc_restart();
+            self.adc.restart();
+        }
+        // The next conversion, started just after the output was applied: it sees the bridge
+        // as it was until now. The pins are sampled every tick (their filters run on).
+        let sensed = self.sense.sample(
             &self.plant.electrical(),
             self.now_us,
             self.over_current,
             &mut self.rng,
-        ));
+        );
+        self.adc.set_pins(sensed);
+        self.conversions.start_next(&mut self.adc);
         // The control tick, and only it, feeds the watchdog at the normal timeout.
         self.watchdog.begin(self.now_us);
         self.watchdog.feed_ms(WATCHDOG_TIMEOUT_MS);
