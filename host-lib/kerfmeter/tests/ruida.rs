@@ -296,6 +296,23 @@ fn a_job_refused_stops_the_cutter_and_nothing_is_cut() {
 }
 
 #[test]
+fn a_program_acked_and_not_run_is_a_clear_error_and_the_cutter_is_stopped() {
+    let mut cutter = cutter();
+    inject(
+        &cutter,
+        Faults {
+            skip_next_program: true,
+            ..Faults::default()
+        },
+    );
+    let e = stream(&mut cutter, &gauge_gcode(GAUGE_AT_MM)).unwrap_err();
+    assert!(matches!(e, CutterError::Stopped { .. }), "{e}");
+    assert!(e.to_string().contains("did not run it"), "{e}");
+    let log = log(&cutter);
+    assert_eq!((log.programs_run, log.stops), (0, 1));
+}
+
+#[test]
 fn a_program_beyond_the_bed_is_refused_before_anything_is_sent() {
     let mut cutter = cutter();
     let e = stream(&mut cutter, &gauge_gcode([595.0, 60.0])).unwrap_err();
@@ -303,7 +320,10 @@ fn a_program_beyond_the_bed_is_refused_before_anything_is_sent() {
     let said = e.to_string();
     assert!(said.contains("Nothing was sent"), "{said}");
     // In a Ruida's words: its bed, not GRBL's settings.
-    assert!(said.contains("set the controller's bed size") && !said.contains('$'), "{said}");
+    assert!(
+        said.contains("set the controller's bed size") && !said.contains('$'),
+        "{said}"
+    );
     let e = stream(&mut cutter, "G21 G90\nM5 S0\nG0 Z80\n").unwrap_err();
     assert!(matches!(e, CutterError::BeyondTravel { .. }), "{e}");
     assert!(e.to_string().contains("z-mm=MIN,MAX"), "{e}");

@@ -12,9 +12,10 @@
 //! swizzled, without a checksum.
 //!
 //! Faults can also be injected while it runs ([`RuidaTwin::inject`], [`Faults`]), for a driver's
-//! tests mid-job: the next program packets lost, every answer late from now on, the next program
-//! refused, a busy machine, stops that do not stop it. It keeps every datagram it received
-//! ([`TwinLog::received`]), so that a test can hand the streams a driver sent to a decoder.
+//! tests mid-job: the next program packets lost, every answer late from the next program packet
+//! on, the next program refused, a program ACKed and not run, a busy machine, stops that do not
+//! stop it. It keeps every datagram it received ([`TwinLog::received`]), so that a test can hand
+//! the streams a driver sent to a decoder.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -73,6 +74,9 @@ pub struct Faults {
     pub busy_reads: u32,
     /// Stay busy after a stop (`D8 01`) as long as `busy_reads` says: a stop not confirmed.
     pub ignore_stops: bool,
+    /// ACK the next program whole but run none of it (a controller that waits for it to be
+    /// started at its panel, or drops it without a word).
+    pub skip_next_program: bool,
 }
 
 /// A straight line the head went along.
@@ -310,6 +314,9 @@ impl Machine {
             return Err(format!(
                 "file sum {sum}, the program's bytes sum to {computed}"
             ));
+        }
+        if std::mem::take(&mut self.faults.skip_next_program) {
+            return Ok(());
         }
         self.run_program(body, config.busy_reads);
         Ok(())

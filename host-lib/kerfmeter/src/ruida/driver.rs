@@ -10,11 +10,10 @@ use std::time::{Duration, Instant};
 
 use kerfmeter_ruida::link::UdpLink;
 use kerfmeter_ruida::register::{MachineStatus, Register, value_to_mm};
-use kerfmeter_ruida::{Command, MAGIC, Packet, Program, RuidaError};
+use kerfmeter_ruida::{Command, MAGIC};
 
 use super::RuidaFailure;
 use super::address::{ProngAxis, RuidaAddress};
-use super::steps::{self, Step};
 use crate::grbl::extent::Start;
 use crate::grbl::offsets::{Modal, Offsets};
 use crate::grbl::travel::{Reach, Travel, TravelSource};
@@ -31,6 +30,9 @@ pub struct Timing {
     pub poll: Duration,
     /// How long a stop is given to show an idle machine.
     pub stop_confirm: Duration,
+    /// How long an idle machine may stand elsewhere than where a step ends before the step is
+    /// taken as not run (a controller slow to start it shows idle at first).
+    pub start_grace: Duration,
 }
 
 impl Default for Timing {
@@ -40,23 +42,18 @@ impl Default for Timing {
             tries: 3,
             poll: Duration::from_millis(100),
             stop_confirm: Duration::from_secs(5),
+            start_grace: Duration::from_secs(10),
         }
     }
 }
 
-/// A program made ready to send: its direct moves and its cut programs, encoded.
-enum Planned {
-    Move(Command),
-    Cut(Vec<Packet>),
-}
-
 /// A connected Ruida controller.
 pub struct RuidaCutter {
-    link: UdpLink,
+    pub(super) link: UdpLink,
     pub(super) address: String,
-    travel: Travel,
-    axis: ProngAxis,
-    timing: Timing,
+    pub(super) travel: Travel,
+    pub(super) axis: ProngAxis,
+    pub(super) timing: Timing,
     #[cfg(feature = "sim")]
     pub(super) twin: Option<kerfmeter_ruida::twin::RuidaTwin>,
 }
@@ -129,7 +126,7 @@ impl RuidaCutter {
         self.travel.clone()
     }
 
-    fn busy(&self, status: MachineStatus) -> CutterError {
+    pub(super) fn busy(&self, status: MachineStatus) -> CutterError {
         RuidaFailure::Busy {
             address: self.address.clone(),
             status: status.0,
@@ -150,7 +147,11 @@ impl RuidaCutter {
     }
 
     /// A length or position register, mm.
-    fn read_mm(&self, register: Register, doing: &'static str) -> Result<f64, CutterError> {
+    pub(super) fn read_mm(
+        &self,
+        register: Register,
+        doing: &'static str,
+    ) -> Result<f64, CutterError> {
         let value = self.read(register, doing)?;
         value_to_mm(value).ok_or_else(|| {
             RuidaFailure::Protocol {
@@ -235,105 +236,6 @@ impl RuidaCutter {
             max_unanswered_bytes: 0,
             position_mm,
         })
-    }
-
-    /// Read, check and encode `program` before anything is sent; with its G-code line count.
-    fn plan(&self, program: &str, head: [f64; 3]) -> Result<(Vec<Planned>, usize), CutterError> {
-        let bad = |line: usize, reason: String| CutterError::BadProgram { line, reason };
-        let read = steps::read(program, [head[0], head[1]]).map_err(|e| bad(e.line, e.reason))?;
-        self.check_travel(program)?;
-        let um = |what, mm| {
-            kerfmeter_ruida::value::mm_to_um(what, mm)
-                .map_err(|e: RuidaError| bad(0, e.to_string()))
-        };
-        let mut planned = Vec::new();
-        for step in read.steps {
-            planned.push(match step {
-                Step::MoveXy([x, y]) => Planned::Move(Command::RapidMoveXy {
-                    x_um: um("x_mm", x)?,
-                    y_um: um("y_mm", y)?,
-                }),
-                Step::MoveZ(z) => Planned::Move(match self.axis {
-                    ProngAxis::Z => Command::RapidMoveZ {
-                        z_um: um("z_mm", z)?,
-                    },
-                    ProngAxis::U => Command::RapidMoveU {
-                        u_um: um("u_mm", z)?,
-                    },
-                }),
-                Step::Cut(layers) => {
-                    let program = Program::new(&layers).map_err(|e| bad(0, e.to_string()))?;
-                    Planned::Cut(program.packets(MAGIC).map_err(|e| bad(0, e.to_string()))?)
-                }
-            });
-        }
-        Ok((planned, read.lines))
-    }
-
-    /// Every move of `program` within the travel, as the GRBL driver checks it.
-    fn check_travel(&self, program: &str) -> Result<(), CutterError> {
-        let lines =
-            crate::grbl::protocol::prepare(program).map_err(|b| CutterError::BadProgram {
-                line: b.number,
-                reason: b.reason,
-            })?;
-        let extent = self
-            .travel
-            .extent(&lines)
-            .map_err(|u| CutterError::Unbounded {
-                line: u.line,
-                written: u.written,
-                reason: u.reason,
-            })?;
-        self.travel
-            .check(&extent)
-            .map_err(|beyond| CutterError::BeyondTravel { beyond })
-    }
-
-    /// Send one step and wait for the machine to be idle again.
-    fn run(
-        &self,
-        step: &Planned,
-        cancel: &AtomicBool,
-        done: usize,
-        total: usize,
-    ) -> Result<(), CutterError> {
-        match step {
-            Planned::Move(command) => self
-                .link
-                .command(*command)
-                .map_err(|e| RuidaFailure::from_link(&self.address, "moving the head", e))?,
-            Planned::Cut(packets) => {
-                for packet in packets {
-                    if cancel.load(Ordering::Relaxed) {
-                        return Err(CutterError::Cancelled {
-                            answered: done,
-                            total,
-                        });
-                    }
-                    self.link.send(packet, false).map_err(|e| {
-                        RuidaFailure::from_link(&self.address, "sending a cut program", e)
-                    })?;
-                }
-            }
-        }
-        self.wait_idle(cancel, done, total)
-    }
-
-    /// Poll the status until the machine is idle; `cancel` ends the wait.
-    fn wait_idle(&self, cancel: &AtomicBool, done: usize, total: usize) -> Result<(), CutterError> {
-        loop {
-            if cancel.load(Ordering::Relaxed) {
-                return Err(CutterError::Cancelled {
-                    answered: done,
-                    total,
-                });
-            }
-            if !self.machine_status("waiting for the job to end")?.is_busy() {
-                return Ok(());
-            }
-            std::thread::sleep(self.timing.poll);
-        }
     }
 
     /// Stop now (`D8 01`) and confirm it: the status idle within [`Timing::stop_confirm`].

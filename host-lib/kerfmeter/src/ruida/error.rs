@@ -92,6 +92,24 @@ pub enum RuidaFailure {
         /// How long the driver waited, ms.
         waited_ms: u64,
     },
+    /// Idle, and the head not where a step ends: the step was not run.
+    #[error(
+        "the Ruida controller at {address} stayed idle for {waited_ms} ms with {register} at {read_mm:.3} mm, not at the {expected_mm:.3} mm the {what} ends at: it did not run it (a controller that refuses a job without a word, or waits for it to be started at its panel)"
+    )]
+    NotRun {
+        /// The address.
+        address: String,
+        /// What was sent.
+        what: &'static str,
+        /// The register read.
+        register: String,
+        /// Where the step ends, mm.
+        expected_mm: f64,
+        /// Where the register says, mm.
+        read_mm: f64,
+        /// How long the driver waited, ms.
+        waited_ms: u64,
+    },
     /// The simulated controller could not be started.
     #[error("cannot start the simulated Ruida controller: {0}")]
     Sim(String),
@@ -103,7 +121,10 @@ impl RuidaFailure {
         match self {
             Self::Address { .. } | Self::NoBed { .. } | Self::BedMismatch { .. } => Category::Usage,
             Self::NoAnswer { .. } | Self::Protocol { .. } | Self::Sim(_) => Category::Communication,
-            Self::Busy { .. } | Self::Refused { .. } | Self::StillBusy { .. } => Category::Device,
+            Self::Busy { .. }
+            | Self::Refused { .. }
+            | Self::StillBusy { .. }
+            | Self::NotRun { .. } => Category::Device,
         }
     }
 

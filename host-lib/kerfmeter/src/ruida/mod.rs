@@ -23,6 +23,7 @@ mod address;
 mod driver;
 mod error;
 mod job;
+mod send;
 #[cfg(feature = "sim")]
 mod sim;
 pub mod steps;

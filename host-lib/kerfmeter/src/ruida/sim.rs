@@ -33,6 +33,7 @@ impl Timing {
             tries: 3,
             poll: std::time::Duration::from_millis(5),
             stop_confirm: std::time::Duration::from_secs(1),
+            start_grace: std::time::Duration::from_millis(300),
         }
     }
 }
