@@ -201,7 +201,7 @@ impl RuidaCutter {
         ])
     }
 
-    /// Run `program` (the G-code Kerfmeter writes, read by [`steps`]): refused with nothing sent
+    /// Run `program` (the G-code Kerfmeter writes, read by [`steps`](super::steps)): refused with nothing sent
     /// when it cannot be read, leaves the travel or finds the controller busy; stopped on any
     /// failure after its first packet, and on `cancel`.
     pub fn stream(

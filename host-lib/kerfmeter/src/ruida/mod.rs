@@ -12,8 +12,10 @@
 //!   the registers or the address, the prongs' axis from the address), each program checked
 //!   against it before anything is sent, packets sent one at a time and a program packet never
 //!   twice, the machine polled busy/idle, and every failure and `cancel` ended by a stop
-//!   (`D8 01`) confirmed by an idle status read, or [`CutterError::NotStopped`](crate::grbl::CutterError::NotStopped) (exit 5).
-//! - [`RuidaFailure`]: what a Ruida controller can fail with, inside [`CutterError::Ruida`](crate::grbl::CutterError::Ruida).
+//!   (`D8 01`) confirmed by an idle status read, or [`CutterError::NotStopped`]
+//!   (exit 5).
+//! - [`RuidaFailure`]: what a Ruida controller can fail with, inside
+//!   [`CutterError::Ruida`].
 //!
 //! What only a real controller can tell (the status bits, whether a program needs `D8 00` to
 //! start, a `D9` move's speed, the laser's own state) is listed in `docs/ruida.md`: the driver
