@@ -114,7 +114,8 @@ const SHUTDOWN_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 /// The laser cutter `job` runs on, as `serve --cutter` and `--allow-unlock` give it.
 #[derive(Debug, Clone)]
 pub struct Cutter {
-    /// Its address (`sim`, `grbl:PATH`, `grbl+tcp://HOST:PORT`).
+    /// Its address (`sim`, `grbl:PATH`, `grbl+tcp://HOST:PORT`, `ruida:HOST?z-mm=MIN,MAX`,
+    /// `ruida-sim`).
     pub address: String,
     /// Whether a client's `job` may clear the controller's alarm (`unlock`).
     pub allow_unlock: bool,
