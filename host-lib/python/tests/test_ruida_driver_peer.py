@@ -12,6 +12,10 @@ commands it knows; the job it collected is executed against a recording driver, 
 read back is compared with the plan: every move and cut to the µm (arcs flattened within 1 µm
 by the driver), the laser off on every travel, each layer's speed and powers, the direct moves
 of the head and Z, the stop after a failure, and the gauge where it was asked.
+
+ruida-pa 0.23.0 (KERFMETER_RUIDA_PA) reads the same programs and the prongs' direct moves too:
+nothing flagged, the file sum OK, every move and cut, speed and power as planned, the moves as
+absolute MACHINE moves.
 """
 
 import json
@@ -154,3 +158,56 @@ def test_a_failed_stream_is_decodable_and_ends_with_a_stop(streams, name):
         check_plots(driver, cut_layers(s))
     for plot in driver.plots:
         assert all(on in (0, 1) for (_, _, on) in plot["steps"])
+
+
+def swizzled_payloads(s, program):
+    """The datagrams' swizzled payloads (checksum left out): the program's, or the direct moves'."""
+    from meerk40t.ruida.rdjob import decode_bytes
+
+    out = []
+    for datagram in s["datagrams"]:
+        payload = bytes.fromhex(datagram)[2:]
+        first = decode_bytes(payload, magic=0x88)[0]
+        direct = first in (0xDA, 0xD8, 0xCE, 0xD9)
+        if direct != program and (program or first == 0xD9):
+            out.append(payload)
+    return b"".join(out)
+
+
+@pytest.mark.parametrize("name", ["gauge", "job"])
+def test_ruida_pa_reads_the_drivers_programs_as_planned(streams, name, tmp_path):
+    from test_ruida_peer import RPA_POWER, RPA_SPEED, RPA_XY, planned_steps, rpa_decode
+
+    s = scenario(streams, name)
+    messages, flagged, lines = rpa_decode(tmp_path, name, swizzled_payloads(s, True))
+    assert not flagged, flagged
+    assert messages[-1] == "EOF"
+    assert any("Checksum OK" in line for line in lines)
+    layers = cut_layers(s)
+    steps = [RPA_XY.match(m).groups() for m in messages if RPA_XY.match(m)]
+    planned = [step for layer in layers for step in planned_steps(layer)]
+    assert len(steps) == len(planned)
+    for (kind, x, y), ((x_mm, y_mm), laser) in zip(steps, planned):
+        assert kind == ("CUT" if laser else "MOVE")
+        assert abs(float(x) - x_mm) <= 0.0005 + 1e-9
+        assert abs(float(y) - y_mm) <= 0.0005 + 1e-9
+    speeds = [float(RPA_SPEED.match(m).group(1)) for m in messages if RPA_SPEED.match(m)]
+    assert speeds == [layer["speed_mm_per_s"] for layer in layers]
+    powers = [float(RPA_POWER.match(m).group(2)) for m in messages if RPA_POWER.match(m)]
+    expected = [layer[f"{w}_power_percent"] for layer in layers for w in ("min", "max")]
+    assert powers == pytest.approx(expected, abs=0.05 + POWER_STEP)
+
+
+def test_ruida_pa_reads_the_prongs_moves_as_absolute(streams, tmp_path):
+    from test_ruida_peer import rpa_decode
+
+    s = scenario(streams, "lower")
+    messages, flagged, _ = rpa_decode(tmp_path, "lower", swizzled_payloads(s, False))
+    assert not flagged, flagged
+    expected = []
+    for m in s["plan"]:
+        if m["kind"] == "move_xy":
+            expected.append(f"JOG_XY MACHINE X={m['x_mm']:.3f}mm Y={m['y_mm']:.3f}mm")
+        elif m["kind"] == "move_z":
+            expected.append(f"JOG_Z MACHINE Z={m['z_mm']:.3f}mm")
+    assert messages == expected
