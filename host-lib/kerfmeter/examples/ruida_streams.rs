@@ -120,7 +120,7 @@ fn main() {
             ..Faults::default()
         }),
         scenario("refused", &job_gcode(), Faults {
-            refuse_next_program: true,
+            refuse_program: Some(0),
             ..Faults::default()
         }),
         scenario("late_ack", &job_gcode(), late),

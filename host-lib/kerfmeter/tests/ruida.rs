@@ -140,18 +140,27 @@ fn the_prongs_go_down_on_z_or_u_and_the_head_over_the_gauge() {
     assert_eq!(twin.log().zu_um, [0, 8000]);
 }
 
-#[test]
-fn the_whole_loop_runs_on_the_twins_and_cuts_the_job_dilated_by_the_kerf_measured() {
+/// The device twin (its own cutter far off: the reading must be the Ruida twin's kerf), and a
+/// Ruida twin made unkind by `faults` before the loop.
+fn rig(faults: Faults) -> (SimDevice, kerfmeter::Kerfmeter, RuidaCutter) {
     let device = SimOptions {
         kerf_um: 120.0,
         ..SimOptions::default()
     };
-    let (device, mut meter) = SimDevice::connect(device, fast_options(300)).unwrap();
+    let (device, meter) = SimDevice::connect(device, fast_options(300)).unwrap();
     let config = TwinConfig {
         busy_reads: 3,
         ..TwinConfig::default()
     };
-    let mut cutter = RuidaCutter::sim(config, Timing::sim()).unwrap();
+    let cutter = RuidaCutter::sim(config, Timing::sim()).unwrap();
+    inject(&cutter, faults);
+    (device, meter, cutter)
+}
+
+/// Run the loop on `rig` with the gauge at [`GAUGE_AT_MM`] and a job of three squares.
+fn run_loop(
+    (device, meter, cutter): &mut (SimDevice, kerfmeter::Kerfmeter, RuidaCutter),
+) -> Result<kerfmeter::job::JobReport, JobError> {
     let kerf = kerfmeter_twin::plant::CutterKerf {
         kerf_um: 210.0,
         kerf_sd_um: 0.0,
@@ -173,26 +182,32 @@ fn the_whole_loop_runs_on_the_twins_and_cuts_the_job_dilated_by_the_kerf_measure
         plan_box_mm: None,
     };
     let devices = Devices {
-        cutter: &mut cutter,
-        meter: &mut meter,
+        cutter,
+        meter,
         sim: Some(SimLink {
-            device: &device,
+            device,
             kerf: Some(kerf),
         }),
     };
     let cancel = AtomicBool::new(false);
     let mut dilate = |kerf_um: f64| Ok(job_gcode(kerf_um, 3));
-    let report = run_job(devices, &request, &mut dilate, &cancel, &mut |_| {}).unwrap();
+    run_job(devices, &request, &mut dilate, &cancel, &mut |_| {})
+}
+
+#[test]
+fn the_whole_loop_runs_on_the_twins_and_cuts_the_job_dilated_by_the_kerf_measured() {
+    let mut rig = rig(Faults::default());
+    let report = run_loop(&mut rig).unwrap();
     let stages: Vec<Stage> = report.stages.iter().map(|s| s.stage).collect();
     assert_eq!(stages, Stage::ALL);
-    let truth = device.truth_um(report.kerf.run_id).unwrap();
+    let truth = rig.0.truth_um(report.kerf.run_id).unwrap();
     eprintln!(
         "ruida loop: kerf {:.1} µm, truth {truth:.1} µm, stages {:?}",
         report.kerf.kerf_um, report.stages
     );
     assert!((f64::from(report.kerf.kerf_um) - truth).abs() < 3.0);
     assert!(truth > 205.0 && truth < 230.0, "{truth}");
-    let log = log(&cutter);
+    let log = log(&rig.2);
     assert_eq!(log.programs_run, 2, "the gauge and the job");
     // Back at the height the head stood at (0) before the job was cut.
     assert_eq!(log.zu_um[0], 0);
@@ -202,6 +217,28 @@ fn the_whole_loop_runs_on_the_twins_and_cuts_the_job_dilated_by_the_kerf_measure
         .filter(|s| s.laser_on && s.from_um[0] >= 399_000)
         .count();
     assert_eq!(job_cuts, 12);
+}
+
+#[test]
+fn a_job_refused_after_the_measurement_stops_the_loop_with_the_cutter_stopped() {
+    let mut rig = rig(Faults {
+        refuse_program: Some(1),
+        ..Faults::default()
+    });
+    let e = run_loop(&mut rig).unwrap_err();
+    let JobError::Cutter { stage, source } = &e else {
+        panic!("{e}");
+    };
+    assert_eq!(*stage, Stage::StreamJob);
+    assert!(matches!(source, CutterError::Stopped { .. }), "{e}");
+    assert!(!e.laser_may_be_on(), "{e}");
+    let log = log(&rig.2);
+    assert_eq!((log.programs_run, log.refused.len(), log.stops), (1, 1, 1));
+    assert!(
+        !log.strokes
+            .iter()
+            .any(|s| s.laser_on && s.from_um[0] >= 399_000)
+    );
 }
 
 #[test]
@@ -279,7 +316,7 @@ fn a_job_refused_stops_the_cutter_and_nothing_is_cut() {
     inject(
         &cutter,
         Faults {
-            refuse_next_program: true,
+            refuse_program: Some(0),
             ..Faults::default()
         },
     );

@@ -13,7 +13,7 @@
 //!
 //! Faults can also be injected while it runs ([`RuidaTwin::inject`], [`Faults`]), for a driver's
 //! tests mid-job: the next program packets lost, every answer late from the next program packet
-//! on, the next program refused, a program ACKed and not run, a busy machine, stops that do not
+//! on, a later program refused, a program ACKed and not run, a busy machine, stops that do not
 //! stop it. It keeps every datagram it received ([`TwinLog::received`]), so that a test can hand
 //! the streams a driver sent to a decoder.
 
@@ -68,8 +68,9 @@ pub struct Faults {
     pub drop_program_packets: usize,
     /// Answer every datagram this late from the next program packet on (a late ACK mid-job).
     pub late_from_program: Option<Duration>,
-    /// Refuse the next program at its end of file (ERR): nothing of it is cut.
-    pub refuse_next_program: bool,
+    /// Refuse a program at its end of file (ERR), nothing of it cut: the one after this many
+    /// programs from now (`Some(0)`: the next).
+    pub refuse_program: Option<usize>,
     /// Report a job running for this many status reads from now (another job, a busy machine).
     pub busy_reads: u32,
     /// Stay busy after a stop (`D8 01`) as long as `busy_reads` says: a stop not confirmed.
@@ -301,8 +302,13 @@ impl Machine {
             return Err("busy: a program is running".into());
         }
         let program = std::mem::take(&mut self.program);
-        if std::mem::take(&mut self.faults.refuse_next_program) {
-            return Err("a job refused (an injected fault)".into());
+        match self.faults.refuse_program {
+            Some(0) => {
+                self.faults.refuse_program = None;
+                return Err("a job refused (an injected fault)".into());
+            }
+            Some(n) => self.faults.refuse_program = Some(n - 1),
+            None => {}
         }
         let Some((Command::FileSum { sum }, body)) = program.split_last() else {
             return Err("no file sum before the end of file".into());
