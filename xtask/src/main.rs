@@ -156,6 +156,10 @@ struct RobustnessArgs {
     /// Run only this draw of the seed's sweep and print everything about it.
     #[arg(long, value_name = "DRAW")]
     replay: Option<u32>,
+    /// Run the sweep once per seed (`7001-7010`, `1,4,9`) and pool the readings: the held-out
+    /// check of the firmware's flags (docs/twin.md).
+    #[arg(long, value_name = "LIST", conflicts_with = "replay")]
+    seeds: Option<String>,
     /// With --replay: run the draw again with each plant parameter at its default in turn, and
     /// list the parameters that move its error most.
     #[arg(long, requires = "replay")]
@@ -375,6 +379,9 @@ fn robustness(args: &RobustnessArgs, release: bool) -> Result<()> {
     if let Some(tolerance) = args.tolerance_um {
         cmd.args(["--tolerance-um", &tolerance.to_string()]);
     }
+    if let Some(seeds) = &args.seeds {
+        cmd.args(["--seeds", seeds]);
+    }
     if let Some(draw) = args.replay {
         cmd.args(["--replay", &draw.to_string()]);
     }
@@ -493,6 +500,7 @@ fn test(args: &TestArgs) -> Result<()> {
                         strict: !args.lenient_robustness,
                         tolerance_um: None,
                         replay: None,
+                        seeds: None,
                         ablate: false,
                     },
                     false,

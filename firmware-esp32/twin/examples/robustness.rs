@@ -4,7 +4,7 @@
 //!
 //! Usage: `robustness [--draws N] [--seed S] [--set NAME=VALUE]... [--force-n F] [--json]
 //! [--strict] [--tolerance-um T] [--threads N] [--worst N] [--out-dir DIR]
-//! [--replay DRAW [--ablate]] [--hang-s S]` (`--help` says what each does).
+//! [--replay DRAW [--ablate]] [--seeds LIST] [--hang-s S]` (`--help` says what each does).
 //!
 //! Prints the success rate, the device-added error over the readings, every failure by its
 //! typed fault or refusal, the unflagged wrong readings and the worst readings, each with the
@@ -36,6 +36,9 @@ use kerfmeter_twin::study::robustness::{
 };
 use kerfmeter_twin::study::{Outcome, available_threads, parallel_map};
 use serde_json::{Value, json};
+
+#[path = "robustness/seeds.rs"]
+mod seeds;
 
 /// The robustness sweep: many twins with every plant parameter drawn from its range, one
 /// measurement each, every ending classified (`cargo xtask robustness`).
@@ -81,6 +84,10 @@ struct Args {
     /// list the parameters whose default moves the reading's error most (what causes it).
     #[arg(long, requires = "replay")]
     ablate: bool,
+    /// Run the sweep once for each of these seeds (`7001-7010`, `1,4,9`) and pool their
+    /// readings: a row per seed, then the figures over all of them.
+    #[arg(long, value_name = "LIST", value_parser = seeds::seed_list, conflicts_with = "replay")]
+    seeds: Option<seeds::SeedList>,
     /// Give up when no draw has finished for this many seconds of wall time (a hung draw).
     #[arg(long, default_value_t = 600)]
     hang_s: u64,
@@ -94,8 +101,8 @@ fn held_param(text: &str) -> Result<(String, f64), String> {
 }
 
 /// The sweep the arguments describe, or why not.
-fn sweep_of(args: &Args) -> Result<Sweep, String> {
-    let mut sweep = Sweep::new(args.seed);
+fn sweep_of(args: &Args, seed: u64) -> Result<Sweep, String> {
+    let mut sweep = Sweep::new(seed);
     for (name, value) in &args.held {
         sweep.fix(name, *value).map_err(|e| e.to_string())?;
     }
@@ -112,13 +119,16 @@ fn sweep_of(args: &Args) -> Result<Sweep, String> {
 
 fn main() {
     let args = Args::parse();
-    let sweep = sweep_of(&args).unwrap_or_else(|message| {
+    let sweep = sweep_of(&args, args.seed).unwrap_or_else(|message| {
         eprintln!("error: {message}");
         std::process::exit(2);
     });
-    let ok = match args.replay {
-        Some(index) => replay(&args, &sweep.draw(index)),
-        None => run_sweep(&args, &sweep),
+    let ok = match (&args.seeds, args.replay) {
+        (Some(list), _) => seeds::run_seeds(&args, &list.0, &|seed| {
+            sweep_of(&args, seed).expect("the same arguments made a sweep for --seed")
+        }),
+        (None, Some(index)) => replay(&args, &sweep.draw(index)),
+        (None, None) => run_sweep(&args, &sweep),
     };
     if !ok {
         std::process::exit(1);
