@@ -2,8 +2,11 @@
 //! them pooled. It is how the firmware's checks are judged on seeds they were not developed on
 //! (docs/twin.md, "Seeds developed on and held out").
 
-use kerfmeter_twin::study::parallel_map;
-use kerfmeter_twin::study::robustness::{Class, DrawReport, Summary, Sweep, classify, run_draw};
+use kerfmeter_protocol::QualityFlags;
+use kerfmeter_twin::study::robustness::{
+    Class, DrawReport, ErrorStats, Summary, Sweep, classify, run_draw,
+};
+use kerfmeter_twin::study::{Outcome, parallel_map};
 use serde_json::{Value, json};
 
 use super::{Args, error_line, stats_json};
@@ -90,7 +93,7 @@ pub fn run_seeds(args: &Args, seeds: &[u64], make: &dyn Fn(u64) -> Sweep) -> boo
     if args.json {
         println!("{}", seeds_json(args, &rows, &all));
     } else {
-        print_pooled(args, seeds, &all);
+        print_pooled(args, seeds, &all, &pooled);
     }
     let wrong = rows
         .iter()
@@ -116,7 +119,29 @@ fn print_row(row: &SeedRow) {
     );
 }
 
-fn print_pooled(args: &Args, seeds: &[u64], all: &SeedRow) {
+/// The errors of the unflagged readings with an advisory `flag`, and of those without it.
+fn unflagged_split(
+    reports: &[DrawReport],
+    tolerance_um: f64,
+    flag: QualityFlags,
+) -> (ErrorStats, ErrorStats) {
+    let (mut with, mut without) = (Vec::new(), Vec::new());
+    for r in reports {
+        if let Outcome::Reading { result, .. } = &r.outcome
+            && classify(&r.outcome, tolerance_um) != Class::Flagged
+            && let Some(error_um) = r.outcome.error_um()
+        {
+            if result.flags.contains(flag) {
+                with.push(error_um);
+            } else {
+                without.push(error_um);
+            }
+        }
+    }
+    (ErrorStats::of(&with), ErrorStats::of(&without))
+}
+
+fn print_pooled(args: &Args, seeds: &[u64], all: &SeedRow, pooled: &[DrawReport]) {
     let s = &all.summary;
     println!(
         "pooled over {} seeds × {} draws: {} readings",
@@ -135,6 +160,14 @@ fn print_pooled(args: &Args, seeds: &[u64], all: &SeedRow) {
         s.of_class(Class::UnflaggedWrong).len(),
         all.flagged_correct
     );
+    for (name, flag) in [("play-modelled", QualityFlags::PLAY_MODELLED)] {
+        let (with, without) = unflagged_split(pooled, args.tolerance_um, flag);
+        println!("  {}", error_line(&format!("unflagged, {name}"), &with));
+        println!(
+            "  {}",
+            error_line(&format!("unflagged, not {name}"), &without)
+        );
+    }
     println!(
         "  every draw ended in a reading or a typed fault or refusal, motor safe: {}",
         if s.all_ended_safely() { "yes" } else { "NO" }
