@@ -160,14 +160,9 @@ fn print_pooled(args: &Args, seeds: &[u64], all: &SeedRow, pooled: &[DrawReport]
         s.of_class(Class::UnflaggedWrong).len(),
         all.flagged_correct
     );
-    for (name, flag) in [("play-modelled", QualityFlags::PLAY_MODELLED)] {
-        let (with, without) = unflagged_split(pooled, args.tolerance_um, flag);
-        println!("  {}", error_line(&format!("unflagged, {name}"), &with));
-        println!(
-            "  {}",
-            error_line(&format!("unflagged, not {name}"), &without)
-        );
-    }
+    let (with, without) = unflagged_split(pooled, args.tolerance_um, QualityFlags::PLAY_MODELLED);
+    println!("  {}", error_line("unflagged, play-modelled", &with));
+    println!("  {}", error_line("unflagged, not play-modelled", &without));
     println!(
         "  every draw ended in a reading or a typed fault or refusal, motor safe: {}",
         if s.all_ended_safely() { "yes" } else { "NO" }
