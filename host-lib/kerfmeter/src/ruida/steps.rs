@@ -152,6 +152,7 @@ impl Reader {
                 'M' => self.m_word(value)?,
                 'S' => self.s = value,
                 'F' if value > 0.0 => self.feed_mm_per_min = value,
+                'F' => return Err(format!("a feed rate of F{value}: above 0 needed")),
                 'X' => target.x = Some(value),
                 'Y' => target.y = Some(value),
                 'Z' => target.z = Some(value),
@@ -215,10 +216,8 @@ impl Reader {
     }
 
     fn move_xy(&mut self, to: [f64; 2], ij: [f64; 2]) -> Result<(), String> {
+        // A move with the laser off (an arc too) is a travel: straight, and dark.
         if self.motion == 0 || !self.fires() {
-            if self.motion > 1 && self.fires() {
-                return Err("an arc with the laser off".into());
-            }
             self.end_path();
             self.at = to;
             return Ok(());
