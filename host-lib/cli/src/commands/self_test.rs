@@ -186,3 +186,33 @@ impl Report for SelfTestOutcome {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn passed(value: f32) -> SelfTestItem {
+        SelfTestItem {
+            outcome: TestOutcome::Pass,
+            value,
+        }
+    }
+
+    #[test]
+    fn an_uncalibrated_adc_is_said_beside_the_items_of_a_passed_self_test() {
+        let report = SelfTestReport {
+            encoder_ok_fraction: passed(1.0),
+            magnet_magnitude: passed(4000.0),
+            direction_deg: passed(12.0),
+            torque_per_duty_nm: passed(1.19),
+        };
+        let mut outcome = SelfTestOutcome::new(report, Some(0.88));
+        assert!(outcome.passed);
+        assert!(!outcome.to_string().contains("uncalibrated"));
+        outcome.adc_uncalibrated = true;
+        let text = outcome.to_string();
+        assert!(text.contains("self-test passed"), "{text}");
+        assert!(text.contains("ADC is uncalibrated"), "{text}");
+        assert!(text.contains("30–40 % high"), "{text}");
+    }
+}
