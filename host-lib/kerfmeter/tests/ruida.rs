@@ -132,6 +132,7 @@ fn the_prongs_go_down_on_z_or_u_and_the_head_over_the_gauge() {
         port: twin.addr().port(),
         z_travel_mm: [-20.0, 20.0],
         bed_mm: None,
+        fallback_bed_mm: None,
         prong_axis: ProngAxis::U,
         local_port: 0,
     };
@@ -425,6 +426,7 @@ fn open(port: u16) -> Result<RuidaCutter, CutterError> {
         port,
         z_travel_mm: [-20.0, 20.0],
         bed_mm: None,
+        fallback_bed_mm: None,
         prong_axis: ProngAxis::Z,
         local_port: 0,
     };
@@ -487,4 +489,58 @@ fn a_gauge_beyond_the_controller_bed_stops_the_loop_before_anything_moves() {
     .unwrap_err();
     assert!(matches!(e, JobError::Travel(_)), "{e}");
     assert!(log(&cutter).strokes.is_empty());
+}
+
+/// An address of the twin `twin` with the bed `bed_mm` (and `fallback_bed_mm`) given.
+fn twin_address(
+    twin: &RuidaTwin,
+    bed_mm: Option<[f64; 2]>,
+    fallback_bed_mm: Option<[f64; 2]>,
+) -> RuidaAddress {
+    RuidaAddress {
+        host: "127.0.0.1".into(),
+        port: twin.addr().port(),
+        z_travel_mm: [-20.0, 20.0],
+        bed_mm,
+        fallback_bed_mm,
+        prong_axis: ProngAxis::Z,
+        local_port: 0,
+    }
+}
+
+#[test]
+fn the_bed_is_read_from_the_controller_and_otherwise_required() {
+    let failure = |e: CutterError| match e {
+        CutterError::Ruida(f) => *f,
+        e => panic!("{e}"),
+    };
+    // Registers that read nothing: the address's bed, else the job's, else refused.
+    let blank = RuidaTwin::start(TwinConfig {
+        bed_um: [0, 0],
+        ..TwinConfig::default()
+    })
+    .unwrap();
+    let Err(e) = RuidaCutter::open(&twin_address(&blank, None, None), Timing::sim()) else {
+        panic!("no bed, yet connected");
+    };
+    assert!(e.to_string().contains("--bed-mm W,H"), "{e}");
+    assert!(matches!(failure(e), RuidaFailure::NoBed { .. }));
+    let given = twin_address(&blank, Some([900.0, 600.0]), None);
+    let travel = RuidaCutter::open(&given, Timing::sim()).unwrap().travel();
+    assert_eq!(travel.bed_mm(), [900.0, 600.0]);
+    let job = twin_address(&blank, None, Some([700.0, 500.0]));
+    let travel = RuidaCutter::open(&job, Timing::sim()).unwrap().travel();
+    assert_eq!(travel.bed_mm(), [700.0, 500.0]);
+    // Registers that read: they win; an address that disagrees is refused, the job's is not used.
+    let twin = RuidaTwin::start(TwinConfig::default()).unwrap();
+    let Err(e) = RuidaCutter::open(
+        &twin_address(&twin, Some([900.0, 600.0]), None),
+        Timing::sim(),
+    ) else {
+        panic!("a bed that disagrees, yet connected");
+    };
+    assert!(matches!(failure(e), RuidaFailure::BedMismatch { .. }));
+    let job = twin_address(&twin, None, Some([300.0, 200.0]));
+    let travel = RuidaCutter::open(&job, Timing::sim()).unwrap().travel();
+    assert_eq!(travel.bed_mm(), [600.0, 400.0]);
 }

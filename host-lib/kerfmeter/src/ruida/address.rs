@@ -28,8 +28,12 @@ pub struct RuidaAddress {
     pub port: u16,
     /// The prongs' axis's travel, mm (lowest, highest), machine coordinates.
     pub z_travel_mm: [f64; 2],
-    /// The bed, mm, when given (else read from the controller).
+    /// The bed, mm, when given (else read from the controller; checked against it when both).
     pub bed_mm: Option<[f64; 2]>,
+    /// The bed a front end gives (`job --bed-mm`), taken only when the controller's registers
+    /// read none and the address gives none (not checked against the registers: a job may place
+    /// its gauge on less than the whole bed).
+    pub fallback_bed_mm: Option<[f64; 2]>,
     /// Which axis lowers the prongs.
     pub prong_axis: ProngAxis,
     /// The local UDP port answers come to ([`kerfmeter_ruida::REPLY_UDP_PORT`] unless
@@ -64,6 +68,7 @@ impl FromStr for RuidaAddress {
             port,
             z_travel_mm: [f64::NAN; 2],
             bed_mm: None,
+            fallback_bed_mm: None,
             prong_axis: ProngAxis::Z,
             local_port: kerfmeter_ruida::REPLY_UDP_PORT,
         };

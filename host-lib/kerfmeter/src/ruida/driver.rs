@@ -109,7 +109,7 @@ impl RuidaCutter {
         if status.is_busy() {
             return Err(cutter.busy(status));
         }
-        let bed_mm = cutter.bed_mm(address.bed_mm)?;
+        let bed_mm = cutter.bed_mm(address.bed_mm, address.fallback_bed_mm)?;
         let head_mm = cutter.head_mm()?;
         cutter.travel = travel(bed_mm, address.z_travel_mm, head_mm);
         Ok(cutter)
@@ -163,8 +163,13 @@ impl RuidaCutter {
         })
     }
 
-    /// The bed as the registers give it, checked against the address's.
-    fn bed_mm(&self, given: Option<[f64; 2]>) -> Result<[f64; 2], CutterError> {
+    /// The bed as the registers give it, checked against the address's (`given`); when they
+    /// read none, the address's, else the front end's `fallback`.
+    fn bed_mm(
+        &self,
+        given: Option<[f64; 2]>,
+        fallback: Option<[f64; 2]>,
+    ) -> Result<[f64; 2], CutterError> {
         let doing = "reading the bed size";
         let read_mm = [
             self.read_mm(Register::BedSizeX, doing)?,
@@ -183,7 +188,9 @@ impl RuidaCutter {
             }
             (true, _) => Ok(read_mm),
             (false, Some(g)) => Ok(g),
-            (false, None) => Err(RuidaFailure::NoBed { address, read_mm }.into()),
+            (false, None) => {
+                fallback.ok_or_else(|| RuidaFailure::NoBed { address, read_mm }.into())
+            }
         }
     }
 

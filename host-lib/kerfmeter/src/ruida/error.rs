@@ -62,7 +62,7 @@ pub enum RuidaFailure {
     },
     /// The bed size cannot be read, and the address gives none.
     #[error(
-        "the Ruida controller at {address} reports no bed size (registers 00 26/00 36 read {read_mm:?} mm): give it in the address, ruida:HOST?bed-mm=W,H&z-mm=MIN,MAX. Nothing was sent"
+        "the Ruida controller at {address} reports no bed size (registers 00 26/00 36 read {read_mm:?} mm): give it in the address, ruida:HOST?bed-mm=W,H&z-mm=MIN,MAX (or, for a job, --bed-mm W,H). Nothing was sent"
     )]
     NoBed {
         /// The address.

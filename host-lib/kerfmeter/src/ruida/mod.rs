@@ -38,20 +38,24 @@ pub use sim::SIM_Z_TRAVEL_MM;
 
 use crate::grbl::{CutterAddress, CutterError};
 
-/// Open the Ruida controller `address` names: `ruida:…` over the network, or with the `sim`
-/// feature `ruida-sim`, the simulated controller on a bed of `sim_bed_mm` (600 × 400 mm when
+/// Open the Ruida controller `address` names: `ruida:…` over the network (its bed from its
+/// registers, else the address's `bed-mm`, else `bed_mm`: `job --bed-mm`), or with the `sim`
+/// feature `ruida-sim`, the simulated controller on a bed of `bed_mm` (600 × 400 mm when
 /// `None`). Any other address is not a Ruida one.
-pub fn open(
-    address: &CutterAddress,
-    sim_bed_mm: Option<[f64; 2]>,
-) -> Result<RuidaCutter, CutterError> {
+pub fn open(address: &CutterAddress, bed_mm: Option<[f64; 2]>) -> Result<RuidaCutter, CutterError> {
     match address {
-        CutterAddress::Ruida { address } => RuidaCutter::open(&address.parse()?, Timing::default()),
+        CutterAddress::Ruida { address } => {
+            let address = RuidaAddress {
+                fallback_bed_mm: bed_mm,
+                ..address.parse()?
+            };
+            RuidaCutter::open(&address, Timing::default())
+        }
         #[cfg(feature = "sim")]
-        CutterAddress::RuidaSim => RuidaCutter::sim(sim::twin_config(sim_bed_mm), Timing::sim()),
+        CutterAddress::RuidaSim => RuidaCutter::sim(sim::twin_config(bed_mm), Timing::sim()),
         #[cfg(not(feature = "sim"))]
         CutterAddress::RuidaSim => {
-            let _ = sim_bed_mm;
+            let _ = bed_mm;
             Err(CutterError::Sim(
                 "this program was built without the `sim` feature".into(),
             ))

@@ -54,6 +54,7 @@ impl RuidaCutter {
             port: addr.port(),
             z_travel_mm: SIM_Z_TRAVEL_MM,
             bed_mm: None,
+            fallback_bed_mm: None,
             prong_axis: ProngAxis::Z,
             local_port: 0,
         };
