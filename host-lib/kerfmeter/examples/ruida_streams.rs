@@ -10,9 +10,9 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use kerfmeter::job::Placement;
+use kerfmeter::protocol::GaugeGeometry;
 use kerfmeter::ruida::steps::{Step, read};
 use kerfmeter::ruida::{RuidaCutter, Timing};
-use kerfmeter::protocol::GaugeGeometry;
 use kerfmeter_plan::gauge::{GaugeOptions, build};
 use kerfmeter_plan::gcode::{GcodeOptions, Provenance, gauge_program};
 use kerfmeter_plan::profile::CutSettings;
@@ -104,7 +104,9 @@ fn scenario(name: &str, program: &str, faults: Faults) -> Value {
 }
 
 fn main() {
-    let out = std::env::args().nth(1).expect("usage: ruida_streams OUT.json");
+    let out = std::env::args()
+        .nth(1)
+        .expect("usage: ruida_streams OUT.json");
     let p = placement();
     let late = Faults {
         late_from_program: Some(Duration::from_millis(700)),
@@ -115,14 +117,22 @@ fn main() {
         scenario("job", &job_gcode(), Faults::default()),
         scenario("lower", &p.lower_program(), Faults::default()),
         scenario("lift", &p.lift_program(), Faults::default()),
-        scenario("lost_packet", &gauge_gcode(), Faults {
-            drop_program_packets: 1,
-            ..Faults::default()
-        }),
-        scenario("refused", &job_gcode(), Faults {
-            refuse_program: Some(0),
-            ..Faults::default()
-        }),
+        scenario(
+            "lost_packet",
+            &gauge_gcode(),
+            Faults {
+                drop_program_packets: 1,
+                ..Faults::default()
+            },
+        ),
+        scenario(
+            "refused",
+            &job_gcode(),
+            Faults {
+                refuse_program: Some(0),
+                ..Faults::default()
+            },
+        ),
         scenario("late_ack", &job_gcode(), late),
     ];
     let all = json!({"magic": 0x88, "gauge_at_mm": GAUGE_AT_MM, "scenarios": scenarios});
