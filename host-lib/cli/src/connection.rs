@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
+use kerfmeter::protocol::G2Variant;
 use kerfmeter::sim::{PlantParamError, PlantParams, SimDevice, SimMaterial, SimOptions};
 use kerfmeter::{Kerfmeter, Options};
 use kerfmeter_app::measure::RunReport;
@@ -55,6 +56,14 @@ pub struct Global {
     /// or `kerfmeter-twin --encoder-on-motor-shaft` and --port).
     #[arg(long, global = true, help_heading = SIM_HEADING)]
     pub sim_encoder_on_motor_shaft: bool,
+    /// Simulated device: a chip without ADC calibration eFuses; its current sense reads 35 %
+    /// high, and it reports `adc-uncalibrated`.
+    #[arg(long, global = true, help_heading = SIM_HEADING)]
+    pub sim_adc_uncalibrated: bool,
+    /// Simulated device: the Pololu G2 variant it is built with (18v17, 24v13, 24v21): its
+    /// current-sense gain and the highest supply it accepts.
+    #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "VARIANT", value_parser = parse_g2)]
+    pub sim_driver: Option<G2Variant>,
     /// Simulated device: run in real time instead of as fast as the host keeps up.
     #[arg(long, global = true, help_heading = SIM_HEADING)]
     pub sim_realtime: bool,
@@ -145,6 +154,8 @@ impl Global {
             realtime: self.sim_realtime,
             plant,
             encoder_on_motor_shaft: self.sim_encoder_on_motor_shaft,
+            adc_uncalibrated: self.sim_adc_uncalibrated,
+            driver: self.sim_driver.unwrap_or_default(),
             ..SimOptions::default()
         })
     }
@@ -155,6 +166,8 @@ impl Global {
         self.sim_fault.is_some()
             || self.sim_realtime
             || self.sim_encoder_on_motor_shaft
+            || self.sim_adc_uncalibrated
+            || self.sim_driver.is_some()
             || self.sim_material.is_some()
             || self.sim_plant_file.is_some()
             || !self.sim_plant.is_empty()
@@ -192,4 +205,12 @@ impl Global {
         };
         Ok(Session { meter, sim: None })
     }
+}
+
+/// A G2 variant by Pololu's name (`--sim-driver`).
+fn parse_g2(name: &str) -> Result<G2Variant, String> {
+    G2Variant::from_name(name).ok_or_else(|| {
+        let known: Vec<&str> = G2Variant::ALL.iter().map(|v| v.name()).collect();
+        format!("unknown G2 variant `{name}`; known: {}", known.join(", "))
+    })
 }

@@ -310,11 +310,57 @@ fn simulator_options_without_sim_are_refused_not_ignored() {
         &["--sim-kerf-um", "200", "run"][..],
         &["--sim-seed", "7", "status"][..],
         &["--sim-fault", "parity", "run"][..],
+        &["--sim-adc-uncalibrated", "self-test"][..],
+        &["--sim-driver", "24v13", "status"][..],
     ] {
         let out = kerfmeter(args);
         assert_eq!(code(&out), 2, "{args:?}: {}", stderr(&out));
         assert!(stderr(&out).contains("add --sim"), "{}", stderr(&out));
     }
+}
+
+#[test]
+fn an_uncalibrated_adc_and_the_g2_variant_are_said_by_status_info_and_self_test() {
+    // Protocol 2.6 (issue 34): a chip without ADC calibration eFuses passes its self-test with
+    // a torque constant some 35 % high, so the self-test and status say why.
+    let out = kerfmeter(&["--sim", "--sim-adc-uncalibrated", "self-test"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("ADC is uncalibrated"),
+        "{}",
+        stdout(&out)
+    );
+    let out = kerfmeter(&["--sim", "--sim-adc-uncalibrated", "status"]);
+    assert!(
+        stdout(&out).contains("adc-uncalibrated"),
+        "{}",
+        stdout(&out)
+    );
+    let out = kerfmeter(&["--sim", "info"]);
+    for said in ["last reset: power-on", "adc:        calibrated", "G2 18v17"] {
+        assert!(stdout(&out).contains(said), "{said:?} in {}", stdout(&out));
+    }
+    // 25 V: over an 18v17's safe 24 V, within a 24v13's.
+    let on_18v17 = kerfmeter(&["--sim", "--sim-plant", "supply_v=25", "status"]);
+    assert!(
+        stdout(&on_18v17).contains("supply-out-of-range"),
+        "{}",
+        stdout(&on_18v17)
+    );
+    let args = [
+        "--sim",
+        "--sim-driver",
+        "24v13",
+        "--sim-plant",
+        "supply_v=25",
+        "status",
+    ];
+    let on_24v13 = kerfmeter(&args);
+    assert!(
+        stdout(&on_24v13).contains("conditions:   none"),
+        "{}",
+        stdout(&on_24v13)
+    );
 }
 
 #[test]
