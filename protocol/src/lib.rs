@@ -80,7 +80,7 @@ pub use messages::{
 };
 pub use params::{
     DeviceConfig, EncoderPlacement, G2Variant, GaugeGeometry, JamDirection, REFERENCE_SUPPLY_V,
-    RunParams, SUPPLY_MAX_V, SUPPLY_MIN_V, WhyInvalid,
+    RunParams, SUPPLY_MAX_V, SUPPLY_MIN_V, UnknownG2Variant, WhyInvalid,
 };
 pub use report::{
     Conditions, Fault, KerfResult, QualityFlags, RunState, SAMPLES_PER_CHUNK, Sample, SampleChunk,

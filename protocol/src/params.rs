@@ -333,6 +333,30 @@ impl G2Variant {
     }
 }
 
+/// A name that is no [`G2Variant`]'s; `Display` lists the known ones.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UnknownG2Variant;
+
+impl core::fmt::Display for UnknownG2Variant {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("unknown Pololu G2 variant; known:")?;
+        for v in G2Variant::ALL {
+            write!(f, " {}", v.name())?;
+        }
+        Ok(())
+    }
+}
+
+impl core::error::Error for UnknownG2Variant {}
+
+impl core::str::FromStr for G2Variant {
+    type Err = UnknownG2Variant;
+    /// By Pololu's name: `"24v13".parse()`.
+    fn from_str(name: &str) -> Result<Self, UnknownG2Variant> {
+        Self::from_name(name).ok_or(UnknownG2Variant)
+    }
+}
+
 /// Calibration and wiring constants of one device, stored in its flash.
 ///
 /// The torque calibration (`torque_per_duty_nm`, `breakaway_duty`) is given at the reference
@@ -395,5 +419,23 @@ impl DeviceConfig {
 impl Default for DeviceConfig {
     fn default() -> Self {
         Self::DEFAULT
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_g2_variant_is_named_as_pololu_names_it_and_bounded_by_the_device() {
+        for v in G2Variant::ALL {
+            assert_eq!(v.name().parse(), Ok(v));
+            assert!(v.supply_max_v() <= SUPPLY_MAX_V);
+        }
+        assert_eq!("18v25".parse::<G2Variant>(), Err(UnknownG2Variant));
+        assert_eq!(G2Variant::V18v17.supply_max_v(), 24.0);
+        assert_eq!(G2Variant::V24v13.supply_max_v(), SUPPLY_MAX_V);
+        assert_eq!(G2Variant::V24v13.cs_mv_per_a(), 40.0);
+        assert_eq!(G2Variant::default(), G2Variant::V18v17);
     }
 }

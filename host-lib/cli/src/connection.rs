@@ -62,7 +62,7 @@ pub struct Global {
     pub sim_adc_uncalibrated: bool,
     /// Simulated device: the Pololu G2 variant it is built with (18v17, 24v13, 24v21): its
     /// current-sense gain and the highest supply it accepts.
-    #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "VARIANT", value_parser = parse_g2)]
+    #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "VARIANT")]
     pub sim_driver: Option<G2Variant>,
     /// Simulated device: run in real time instead of as fast as the host keeps up.
     #[arg(long, global = true, help_heading = SIM_HEADING)]
@@ -205,12 +205,4 @@ impl Global {
         };
         Ok(Session { meter, sim: None })
     }
-}
-
-/// A G2 variant by Pololu's name (`--sim-driver`).
-fn parse_g2(name: &str) -> Result<G2Variant, String> {
-    G2Variant::from_name(name).ok_or_else(|| {
-        let known: Vec<&str> = G2Variant::ALL.iter().map(|v| v.name()).collect();
-        format!("unknown G2 variant `{name}`; known: {}", known.join(", "))
-    })
 }

@@ -12,6 +12,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use kerfmeter::grbl::twin::{CutterLog, CutterOptions, CutterServer};
+use kerfmeter::protocol::G2Variant;
 use kerfmeter_twin::plant::{Material, PlantParams, param_list};
 use kerfmeter_twin::{InjectedFault, MotorEdge, Pace, PtyTwin, StartError, TwinOptions};
 
@@ -42,6 +43,14 @@ struct Args {
     /// refuses runs until `kerfmeter confirm-zero` (its hub stands at its mark).
     #[arg(long)]
     encoder_on_motor_shaft: bool,
+    /// A chip without ADC calibration eFuses: its current sense reads 35 % high, and it reports
+    /// `adc-uncalibrated`.
+    #[arg(long)]
+    adc_uncalibrated: bool,
+    /// The Pololu G2 variant the device is built with (18v17, 24v13, 24v21): its current-sense
+    /// gain and the highest supply it accepts.
+    #[arg(long, value_name = "VARIANT", default_value = "18v17")]
+    driver: G2Variant,
     /// The gauge's material (mdf, plywood, acrylic, cardboard): the contact's stiffness and
     /// friction and their spread.
     #[arg(long, visible_alias = "sim-material", value_name = "NAME")]
@@ -127,6 +136,8 @@ fn main() -> ExitCode {
         realtime: args.realtime,
         plant,
         encoder_on_motor_shaft: args.encoder_on_motor_shaft,
+        adc_uncalibrated: args.adc_uncalibrated,
+        driver: args.driver,
         ..TwinOptions::default()
     };
     // This process keeps the client side open (without locking it: the pair takes no lock, and a
