@@ -155,6 +155,11 @@ pub struct TwinOptions {
     /// ([`UNCALIBRATED_ADC_GAIN`](crate::sense::UNCALIBRATED_ADC_GAIN)) and the firmware reports
     /// `Conditions::ADC_UNCALIBRATED` (as the board does from its eFuses).
     pub adc_uncalibrated: bool,
+    /// The motor's two leads swapped at the G2's `OUTA`/`OUTB` (a build mistake, not a plant
+    /// parameter a study draws): the hub turns against the direction `DIR` asks for, as a real
+    /// miswired motor does. The self-test's direction item fails, and a person watching the hub
+    /// sees it turn the wrong way (`kerfmeter bringup`); `motor_inverted` corrects it.
+    pub motor_leads_swapped: bool,
 }
 
 impl Default for TwinOptions {
@@ -170,6 +175,7 @@ impl Default for TwinOptions {
             encoder_on_motor_shaft: false,
             driver: G2Variant::V18v17,
             adc_uncalibrated: false,
+            motor_leads_swapped: false,
         }
     }
 }

@@ -102,9 +102,15 @@ impl Twin {
             kerfmeter_protocol::JamDirection::Clockwise => 1.0,
             kerfmeter_protocol::JamDirection::CounterClockwise => -1.0,
         };
+        // Swapped motor leads turn the hub against `DIR`.
+        let leads_sign = if self.options.motor_leads_swapped {
+            -1.0
+        } else {
+            1.0
+        };
         Bridge {
             duty: f64::from(self.pwm.duty()),
-            direction: cw_sign * jam_sign,
+            direction: cw_sign * jam_sign * leads_sign,
             awake: self.slp.is_high(),
         }
     }
