@@ -9,6 +9,7 @@
 //! keyword arguments) and prints the report its own way. No clap, axum, tokio or pyo3 type is
 //! used here (`cargo xtask check-deps` checks it).
 
+pub mod bringup;
 pub mod dilate;
 mod error;
 pub mod gauge;

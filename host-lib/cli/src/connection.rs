@@ -64,6 +64,10 @@ pub struct Global {
     /// current-sense gain and the highest supply it accepts.
     #[arg(long, global = true, help_heading = SIM_HEADING, value_name = "VARIANT")]
     pub sim_driver: Option<G2Variant>,
+    /// Simulated device: the motor's leads swapped at the G2 (a wiring mistake): the hub turns
+    /// against the direction asked for, which `self-test` and `bringup` catch.
+    #[arg(long, global = true, help_heading = SIM_HEADING)]
+    pub sim_motor_leads_swapped: bool,
     /// Simulated device: run in real time instead of as fast as the host keeps up.
     #[arg(long, global = true, help_heading = SIM_HEADING)]
     pub sim_realtime: bool,
@@ -155,6 +159,7 @@ impl Global {
             plant,
             encoder_on_motor_shaft: self.sim_encoder_on_motor_shaft,
             adc_uncalibrated: self.sim_adc_uncalibrated,
+            motor_leads_swapped: self.sim_motor_leads_swapped,
             driver: self.sim_driver.unwrap_or_default(),
             ..SimOptions::default()
         })
@@ -167,6 +172,7 @@ impl Global {
             || self.sim_realtime
             || self.sim_encoder_on_motor_shaft
             || self.sim_adc_uncalibrated
+            || self.sim_motor_leads_swapped
             || self.sim_driver.is_some()
             || self.sim_material.is_some()
             || self.sim_plant_file.is_some()

@@ -73,6 +73,9 @@ pub enum CliError {
     /// The device ran its self-test and an item failed.
     #[error("the self-test failed; see the items above")]
     SelfTestFailed,
+    /// A bring-up step failed (the report, printed and saved, says which and why).
+    #[error("the bring-up failed; see the steps above and the report saved")]
+    BringupFailed,
     /// A signal (Ctrl-C, SIGTERM, SIGHUP) stopped a command that moves the motor: the device was
     /// told to abort and reported its motor at rest. Exits 128 + the signal's number.
     #[error("interrupted ({signal}): the device aborted and reports its motor at rest")]
@@ -126,7 +129,7 @@ impl CliError {
     pub fn is_in_report(&self) -> bool {
         matches!(
             self,
-            CliError::SelfTestFailed | CliError::AfterMeasuring { .. }
+            CliError::SelfTestFailed | CliError::BringupFailed | CliError::AfterMeasuring { .. }
         )
     }
 
@@ -138,7 +141,9 @@ impl CliError {
             // A plan error about a file is the file's; any other is about the arguments.
             CliError::Plan(e) if e.path().is_some() => Category::File,
             CliError::Plan(_) => Category::Usage,
-            CliError::SelfTestFailed | CliError::Interrupted { .. } => Category::Device,
+            CliError::SelfTestFailed | CliError::BringupFailed | CliError::Interrupted { .. } => {
+                Category::Device
+            }
             CliError::AfterMeasuring { category, .. } => *category,
             CliError::Cutter(e) => e.category(),
             CliError::Job(e) | CliError::JobAfterMeasuring { source: e, .. } => e.category(),
@@ -181,6 +186,7 @@ impl CliError {
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
+            | CliError::BringupFailed
             | CliError::Interrupted { .. }
             | CliError::AfterMeasuring { .. }
             | CliError::Cutter(_)
@@ -198,6 +204,7 @@ impl CliError {
             CliError::Usage(_)
             | CliError::Plan(_)
             | CliError::SelfTestFailed
+            | CliError::BringupFailed
             | CliError::Interrupted { .. }
             | CliError::AfterMeasuring { .. }
             | CliError::Cutter(_)

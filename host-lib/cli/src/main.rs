@@ -81,6 +81,10 @@ enum Command {
     ConfirmZero,
     /// Check the encoder, magnet, drive direction and torque constant (no gauge under the prongs).
     SelfTest,
+    /// A guided first power-on: the bench checks in order (health, supply against a meter, the
+    /// current sense, the encoder, the self-test and which way the hub turned, one run on a
+    /// cut gauge, timing), each passed or failed in words; saves a text and JSON report.
+    Bringup(commands::bringup::BringupArgs),
     /// Read or change the device configuration (stored in its flash).
     #[command(subcommand)]
     Config(ConfigCommand),
@@ -161,7 +165,7 @@ fn parse_cli() -> Result<Cli, ExitCode> {
 }
 
 /// The global flags that reach the device or set up its twin (by their ids).
-const DEVICE_FLAGS: [&str; 12] = [
+const DEVICE_FLAGS: [&str; 15] = [
     // First, so that the rest are `DEVICE_FLAGS[1..]`: what `lightburn` and `history` refuse.
     "sim",
     "port",
@@ -170,6 +174,9 @@ const DEVICE_FLAGS: [&str; 12] = [
     "sim_seed",
     "sim_fault",
     "sim_encoder_on_motor_shaft",
+    "sim_adc_uncalibrated",
+    "sim_driver",
+    "sim_motor_leads_swapped",
     "sim_realtime",
     "sim_material",
     "sim_plant_file",
@@ -276,6 +283,7 @@ fn on_signal(command: &Command) -> interrupt::OnSignal {
         Command::Run(_)
         | Command::Reset
         | Command::SelfTest
+        | Command::Bringup(_)
         | Command::Map(_)
         | Command::Cut(_)
         | Command::Job(_) => OnSignal::Stop,
@@ -309,6 +317,7 @@ fn run(cli: &Cli) -> Result<(), CliError> {
         Command::ClearFault => emit(json, &clear_fault::run(g)?),
         Command::ConfirmZero => emit(json, &confirm_zero::run(g)?),
         Command::SelfTest => emit(json, &self_test::run(g)?),
+        Command::Bringup(args) => emit(json, &bringup::run(g, args)?),
         Command::Config(c) => emit(json, &config::run(g, c)?),
         Command::Map(args) => emit(json, &map::run(g, args)?),
         Command::Gauge(args) => emit(json, &gauge::run(args)?),

@@ -2,6 +2,7 @@
 //! [`crate::output::Report`]); `main` prints it as text or JSON.
 
 pub mod abort;
+pub mod bringup;
 pub mod clear_fault;
 pub mod config;
 pub mod confirm_zero;
