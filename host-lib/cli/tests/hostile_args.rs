@@ -68,6 +68,7 @@ impl Scratch {
             (vec!["clear-fault"], s(&["--sim"])),
             (vec!["confirm-zero"], s(&["--sim"])),
             (vec!["self-test"], s(&["--sim"])),
+            (vec!["bringup"], s(&["--sim", "--no-gauge"])),
             (vec!["config", "get"], s(&["--sim"])),
             (vec!["config", "set"], s(&["--sim"])),
             (vec!["run"], s(&["--sim"])),

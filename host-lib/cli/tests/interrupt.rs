@@ -167,6 +167,31 @@ fn a_signal_during_a_reset_a_self_test_or_a_map_stops_the_motor() {
 }
 
 #[test]
+fn a_signal_during_a_bringups_self_test_or_its_gauge_run_stops_the_motor_and_saves_nothing() {
+    let twin = Twin::start();
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("bringup");
+    let report = report.to_str().unwrap();
+    // Every question answered by a flag: no prompt, whatever stdin is.
+    let args = |gauge: &'static str| {
+        [
+            "bringup",
+            "--meter-v",
+            "12",
+            "--hub-turned",
+            "cw",
+            gauge,
+            "--report",
+            report,
+        ]
+    };
+    stops_the_motor(&twin, &args("--no-gauge"), 50, "-INT", 130);
+    // Later in the bring-up: the self-test's last turns, or the run on the gauge after it.
+    stops_the_motor(&twin, &args("--gauge-placed"), 600, "-TERM", 143);
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
+
+#[test]
 fn with_json_the_interruption_is_one_error_object() {
     let twin = Twin::start();
     let (out, _) = twin.interrupt(&["run", "--json"], Duration::from_millis(200), "-INT");

@@ -88,6 +88,22 @@ pub struct BringupRequest {
     pub gauge_placed: Option<bool>,
 }
 
+/// The highest meter reading taken for a motor supply, V (the device is rated to 26 V).
+pub const METER_MAX_V: f32 = 100.0;
+
+impl BringupRequest {
+    /// Refuse a meter reading that no meter shows on a motor supply (negative, not a number,
+    /// above [`METER_MAX_V`]).
+    pub fn check(&self) -> Result<(), Error> {
+        match self.meter_v {
+            Some(v) if !(0.0..=METER_MAX_V).contains(&v) => Err(Error::invalid(format!(
+                "meter_v {v}: a meter's reading of the motor supply is 0–{METER_MAX_V} V"
+            ))),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// The twin's physics, answering the person's questions on the simulated device.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TwinTruth {
@@ -202,6 +218,7 @@ pub fn bring_up(
     witness: &mut dyn Witness,
     mut stop: impl FnMut(&Progress) -> ControlFlow<()>,
 ) -> Result<BringupReport, Error> {
+    request.check()?;
     let info = meter.info()?;
     let status = meter.status()?;
     let diagnostics = meter.diagnostics()?;

@@ -301,5 +301,12 @@ fn a_request_refuses_unknown_fields_and_reads_its_answers() {
     assert_eq!(r.meter_v, Some(12.05));
     assert_eq!(r.hub_turned, Some(HubTurn::Cw));
     assert!(serde_json::from_str::<BringupRequest>(r#"{"meter": 12}"#).is_err());
+    for v in [f32::NAN, -1.0, f32::INFINITY] {
+        let r = BringupRequest {
+            meter_v: Some(v),
+            ..BringupRequest::default()
+        };
+        assert!(r.check().is_err(), "{v}");
+    }
     assert_eq!("CCW".parse::<HubTurn>(), Ok(HubTurn::Ccw));
 }

@@ -53,9 +53,6 @@ pub struct BringupOutcome {
 pub fn run(g: &Global, args: &BringupArgs) -> Result<BringupOutcome, CliError> {
     let files = ReportFiles::choose(args.report.as_deref(), &bringup::today());
     let inputs: Vec<&std::path::Path> = g.sim_plant_file.as_deref().into_iter().collect();
-    files.check(&inputs)?;
-    let mut session = g.connect()?;
-    let twin = session.sim.as_ref().map(|sim| TwinTruth::of(sim.options()));
     let request = BringupRequest {
         meter_v: args.meter_v,
         hub_turned: args.hub_turned,
@@ -65,6 +62,10 @@ pub fn run(g: &Global, args: &BringupArgs) -> Result<BringupOutcome, CliError> {
             _ => None,
         },
     };
+    files.check(&inputs)?;
+    request.check()?;
+    let mut session = g.connect()?;
+    let twin = session.sim.as_ref().map(|sim| TwinTruth::of(sim.options()));
     let interactive = !g.json && std::io::stdin().is_terminal();
     let mut witness: Box<dyn Witness> = if interactive {
         Box::new(Terminal)
