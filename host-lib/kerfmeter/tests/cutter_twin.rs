@@ -498,6 +498,36 @@ fn with_soft_limits_a_target_beyond_the_travel_is_alarm_2_before_anything_moves(
     assert_eq!(arc, "ALARM:2\r\n[MSG:Reset to continue]\r\n");
 }
 
+/// An arc on the edge of the travel whose centre, rounded to the G-code's 0.1 µm grid, bulges it
+/// a few hundredths of a micrometre past the edge is on the edge (the host's check allows as
+/// much: a job placed at Y 0 sometimes hit the end stop by 0.05 µm); half a micrometre is past.
+#[test]
+fn an_arc_rounded_onto_the_edge_of_the_travel_is_not_an_end_stop_hit() {
+    let bulging = |j: &str| {
+        let mut grbl = cutter(CutterOptions {
+            travel_mm: [200.0, 200.0, 50.0],
+            ..CutterOptions::default()
+        });
+        said(&mut grbl);
+        // From (10, 1) to (12, 1) under a centre J below the start: its lowest point at about
+        // Y = 1 + J − 1 = J.
+        for l in ["G0X10Y1", &format!("G3X12Y1I1J{j}F600")] {
+            assert_eq!(line(&mut grbl, l), "ok\r\n", "{l}");
+        }
+        grbl.advance_us(30_000_000);
+        grbl.log().snapshot().end_stop_hits
+    };
+    assert!(bulging("0").is_empty());
+    assert!(bulging("-0.00005").is_empty());
+    // Recorded where the head first passes the edge by more than the grid.
+    let hits = bulging("-0.0005");
+    assert_eq!(hits.len(), 1, "{hits:?}");
+    assert!(
+        hits[0].beyond_mm > 1e-4 && hits[0].beyond_mm <= 5.01e-4,
+        "{hits:?}"
+    );
+}
+
 /// Soft limits off (GRBL's default): the move runs, into the end stop, and the twin records it.
 #[test]
 fn without_soft_limits_a_move_beyond_the_travel_runs_into_the_end_stop_and_is_recorded() {

@@ -28,8 +28,12 @@ use super::trace::{EndStopHit, Point, SegmentKind};
 
 /// Points sampled along an arc to find how far it reaches.
 const ARC_SAMPLES: u64 = 360;
-/// Rounding allowed at a limit, mm.
-const TOLERANCE_MM: f64 = 1e-6;
+/// How far a point may lie past a limit and still count as on it, mm: the grid Kerfmeter writes
+/// G-code on (0.1 µm, `kerfmeter_plan::gcode`), as the host's own travel check allows. An arc
+/// whose centre is rounded to that grid bulges up to about that far past its exact extreme, so
+/// a plan placed on the travel's edge reaches a few hundredths of a micrometre past it; no end
+/// stop can tell, and GRBL's own arc, computed in single precision, strays as far.
+const TOLERANCE_MM: f64 = 1e-4;
 
 /// Where the twin's end stops are on each axis, `[min, max]` mm in machine coordinates (see
 /// the [module docs](self)).
