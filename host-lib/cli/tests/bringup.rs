@@ -110,3 +110,53 @@ fn a_report_path_over_someone_elses_file_is_refused_before_anything_moves() {
         "mine"
     );
 }
+
+#[test]
+fn at_a_terminal_the_person_is_asked_and_their_answers_are_said_so() {
+    use serialport::SerialPort;
+    use std::io::{BufRead, BufReader, Write};
+    // The device in a process of its own, so that nobody but the person answers.
+    let mut twin = Command::new(env!("CARGO_BIN_EXE_kerfmeter-twin"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(twin.stdout.take().unwrap()).lines();
+    let port = lines.next().unwrap().unwrap();
+    // The person's terminal: a pseudo-terminal on the command's stdin.
+    let (mut person, terminal) = serialport::TTYPort::pair().unwrap();
+    let stdin = std::fs::File::options()
+        .read(true)
+        .write(true)
+        .open(terminal.name().unwrap())
+        .unwrap();
+    // The meter's reading, Enter once watching the hub, its turn, and no gauge.
+    person.write_all(b"12.1 V\n\ncw\nn\n").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_kerfmeter"))
+        .args(["--port", &port, "bringup", "--report", "asked"])
+        .current_dir(dir.path())
+        .env_remove("KERFMETER_PORT")
+        .stdin(stdin)
+        .output()
+        .unwrap();
+    let _ = twin.kill();
+    let _ = twin.wait();
+    let (text, asked) = (stdout(&out), String::from_utf8_lossy(&out.stderr));
+    assert_eq!(out.status.code(), Some(0), "{text}\n{asked}");
+    assert!(asked.contains("What does your meter read"), "{asked}");
+    assert!(
+        asked.contains("Which way did the hub turn first"),
+        "{asked}"
+    );
+    assert!(
+        text.contains("meter 12.10 V") && text.contains("(answered at the prompt)"),
+        "{text}"
+    );
+    assert!(
+        text.contains("seen: clockwise (answered at the prompt)"),
+        "{text}"
+    );
+    assert!(text.contains("gauge run        NOT CHECKED"), "{text}");
+    assert!(!text.contains("twin answered"), "{text}");
+}
