@@ -1,6 +1,7 @@
 //! Each bench check judged from what the device reported (and what a person answered): pure
 //! functions, one a step, with the bands they judge by and where each band comes from.
 
+use kerfmeter::protocol::advice::{Advice, Advised};
 use kerfmeter::protocol::{
     AdcCalibration, BrownOutDetector, Conditions, Diagnostics, G2Variant, SUPPLY_MIN_V,
     SelfTestItem, SelfTestReport, Status, TestOutcome,
@@ -39,6 +40,20 @@ pub const STEP_MAX_US: u32 = 500;
 /// The longest gap between two control steps, µs: "a little over 1000 µs"; three periods
 /// means something blocks the core (bench check 5).
 pub const GAP_MAX_US: u32 = 3000;
+
+/// `before`, the parameter `param` in the front end's words, then `after`: advice a library
+/// gives without naming a front end's flag (`--motor-inverted` on the command line).
+pub(super) fn with_param(before: &str, param: &'static str, after: &str) -> String {
+    Advised::text(before)
+        .advise(Advice::Param(param))
+        .then(after)
+        .to_string()
+}
+
+/// `before`, `advice` in the front end's words, then `after`.
+fn with_advice(before: &str, advice: Advice, after: &str) -> String {
+    Advised::text(before).advise(advice).then(after).to_string()
+}
 
 /// The supply sense's tolerance at `v` volts.
 pub fn supply_tolerance_v(v: f32) -> f32 {
@@ -157,7 +172,11 @@ pub fn supply_meter(device_v: f32, meter: Option<(f32, AnsweredBy)>) -> Step {
         return Step::not_checked(
             StepId::SupplyMeter,
             format!("device reads {device_v:.2} V; no meter reading given"),
-            "measure VIN at the G2 with a meter and give it (`--meter-v`, or at the prompt)",
+            with_param(
+                "measure VIN at the G2 with a meter and give it (",
+                "meter_v",
+                ", or when asked)",
+            ),
         );
     };
     let tol = supply_tolerance_v(meter_v);
@@ -288,7 +307,7 @@ pub fn self_test(r: &SelfTestReport, configured_nm: Option<f32>) -> Step {
         configured_nm.map_or(String::new(), |c| format!(" (configured {c:.3})"))
     );
     let failed = |i: SelfTestItem| i.outcome != TestOutcome::Pass;
-    let means = if failed(r.encoder_ok_fraction) {
+    let means: &str = if failed(r.encoder_ok_fraction) {
         "too many of the encoder's reads were bad during the test (99 % must be good): check the \
          AS5048A's SPI lines, its supply, and the motor leads' distance from them"
     } else if failed(r.magnet_magnitude) {
@@ -300,8 +319,12 @@ pub fn self_test(r: &SelfTestReport, configured_nm: Option<f32>) -> Step {
         "no motor current flowed during the test pulse: the motor is disconnected, or its \
          supply is off"
     } else if failed(r.torque_per_duty_nm) {
-        "the current drawn at standstill disagrees with the configured torque_per_duty_nm: \
-         check the calibration (`config get`), the CS filter and the G2 variant's gain"
+        &with_advice(
+            "the current drawn at standstill disagrees with the configured torque_per_duty_nm: \
+             check the calibration (",
+            Advice::ConfigGet,
+            "), the CS filter and the G2 variant's gain",
+        )
     } else {
         return Step::pass(StepId::SelfTest, seen);
     };
@@ -325,42 +348,60 @@ pub fn direction(item: SelfTestItem, seen_by: Option<(HubTurn, AnsweredBy)>) -> 
         person.map_or("no answer", HubTurn::words)
     );
     let by = seen_by.map(|(_, b)| b);
-    let means = match (device, person) {
-        (HubTurn::Cw, Some(HubTurn::Cw)) => {
-            return Step::pass(StepId::Direction, seen).answered_by(by);
-        }
-        (HubTurn::Cw, None) => {
-            return Step::not_checked(
-                StepId::Direction,
-                seen,
+    match (device, person) {
+        (HubTurn::Cw, Some(HubTurn::Cw)) => Step::pass(StepId::Direction, seen).answered_by(by),
+        (HubTurn::Cw, None) => Step::not_checked(
+            StepId::Direction,
+            seen,
+            with_param(
                 "the encoder agrees with the drive, but nobody said which way the hub turned \
-                 seen from above (`--hub-turned`, or at the prompt): both could be reversed",
-            );
-        }
-        (HubTurn::Cw, Some(HubTurn::Ccw)) => {
-            "motor and encoder are both reversed: the device agrees with itself, but turns the \
-             gauge's inset the wrong way; set `--motor-inverted true` and `--encoder-inverted \
-             true` with `config set` (or swap the motor leads and turn the encoder's magnet over)"
-        }
-        (HubTurn::Ccw, Some(HubTurn::Cw)) => {
-            "the hub turned the right way but the encoder counted backwards: set \
-             `--encoder-inverted true` with `config set`"
-        }
-        (HubTurn::Ccw, _) => {
-            "the hub turned the wrong way under a clockwise torque: the motor's leads are \
-             swapped; swap them at the G2's OUTA/OUTB, or set `--motor-inverted true` with \
-             `config set`"
-        }
-        (HubTurn::Still, Some(HubTurn::Still) | None) => {
-            "the hub did not turn: the motor is disconnected, its supply is off, or the hub is \
-             jammed"
-        }
-        (HubTurn::Still, Some(_)) | (HubTurn::Cw, Some(HubTurn::Still)) => {
-            "the encoder and the hub disagree: the magnet is not on the shaft that turned (check \
-             `--encoder-on` with `config get`), or it slips on its shaft"
-        }
+                 seen from above (",
+                "hub_turned",
+                ", or when asked): both could be reversed",
+            ),
+        ),
+        _ => Step::fail(StepId::Direction, seen, direction_means(device, person)).answered_by(by),
+    }
+}
+
+/// What a direction that is not clockwise on both counts means: which sense to invert.
+fn direction_means(device: HubTurn, person: Option<HubTurn>) -> String {
+    // `--motor-inverted true` on the command line, `motor_inverted true` elsewhere.
+    let inverted = |params: &[&'static str]| {
+        params.iter().fold(
+            Advised::text("change the device's configuration:"),
+            |advised, &param| advised.then(" ").advise(Advice::Param(param)).then(" true"),
+        )
     };
-    Step::fail(StepId::Direction, seen, means).answered_by(by)
+    match (device, person) {
+        (HubTurn::Cw, Some(HubTurn::Ccw)) => Advised::text(
+            "motor and encoder are both reversed: the device agrees with itself, but turns the \
+             gauge's inset the wrong way; ",
+        )
+        .append(inverted(&["motor_inverted", "encoder_inverted"]))
+        .then(" (or swap the motor's leads and turn the encoder's magnet over)")
+        .to_string(),
+        (HubTurn::Ccw, Some(HubTurn::Cw)) => {
+            Advised::text("the hub turned the right way but the encoder counted backwards: ")
+                .append(inverted(&["encoder_inverted"]))
+                .to_string()
+        }
+        (HubTurn::Ccw, _) => Advised::text(
+            "the hub turned the wrong way under a clockwise torque: the motor's leads are \
+             swapped; swap them at the G2's OUTA/OUTB, or ",
+        )
+        .append(inverted(&["motor_inverted"]))
+        .to_string(),
+        (HubTurn::Still, Some(HubTurn::Still) | None) => "the hub did not turn: the motor is \
+            disconnected, its supply is off, or the hub is jammed"
+            .to_owned(),
+        _ => with_advice(
+            "the encoder and the hub disagree: the magnet is not on the shaft that turned (check \
+             the encoder's placement: ",
+            Advice::ConfigGet,
+            "), or it slips on its shaft",
+        ),
+    }
 }
 
 /// The worst timing since boot.

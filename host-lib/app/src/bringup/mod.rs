@@ -402,8 +402,11 @@ fn gauge_run(
         return Ok(Step::not_checked(
             StepId::GaugeRun,
             "no gauge under the prongs",
-            "cut one (`kerfmeter gauge -o gauge.svg`), lower the prongs into it and say so \
-             (`--gauge-placed`, or at the prompt)",
+            judge::with_param(
+                "cut one (docs/plans.md), lower the prongs into it and say so (",
+                "gauge_placed",
+                ", or when asked)",
+            ),
         )
         .answered_by(by));
     };
@@ -448,8 +451,8 @@ fn judge_run(r: &KerfResult) -> Step {
     Step::fail(
         StepId::GaugeRun,
         seen,
-        "the device distrusts its reading (see `kerfmeter run`'s flags in docs/cli.md): check \
-         the gauge's cut and its seat under the prongs, then the flag's own cause",
+        "the device distrusts its reading (its flags are explained in docs/measurement.md): \
+         check the gauge's cut and its seat under the prongs, then the flag's own cause",
     )
 }
 

@@ -289,9 +289,19 @@ fn the_direction_tells_a_swapped_motor_from_an_inverted_encoder() {
     let cw = Some((HubTurn::Cw, AnsweredBy::Person));
     let ccw = Some((HubTurn::Ccw, AnsweredBy::Person));
     let encoder = judge::direction(back, cw);
-    assert!(encoder.means.unwrap().contains("--encoder-inverted"));
+    assert!(
+        encoder
+            .means
+            .unwrap()
+            .contains("configuration: encoder_inverted true")
+    );
     let motor = judge::direction(back, ccw);
-    assert!(motor.means.unwrap().contains("--motor-inverted"));
+    assert!(
+        motor
+            .means
+            .unwrap()
+            .contains("configuration: motor_inverted true")
+    );
 }
 
 #[test]
