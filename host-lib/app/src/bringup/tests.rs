@@ -266,6 +266,20 @@ fn a_watchdog_brown_out_or_panic_reset_fails_the_reset_step() {
 }
 
 #[test]
+fn an_adc_conversion_given_up_fails_the_calibration_step() {
+    // A stalled conversion is the in-process twin's (`Twin::stall_next_adc_conversion`), not
+    // an option of a `--sim` twin: its report is judged alone.
+    assert_eq!(judge::adc_calibration(&healthy()).outcome, Outcome::Pass);
+    let restarted = Diagnostics {
+        adc_restarts: 1,
+        ..healthy()
+    };
+    let step = judge::adc_calibration(&restarted);
+    assert_eq!(step.outcome, Outcome::Fail);
+    assert!(step.seen.contains("1 conversion(s) given up"), "{}", step.seen);
+}
+
+#[test]
 fn a_cs_offset_not_learnt_or_a_high_sleep_level_fails_its_step() {
     assert_eq!(judge::cs_braking(&healthy()).outcome, Outcome::Pass);
     let unlearnt = Diagnostics {
