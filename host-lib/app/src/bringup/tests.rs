@@ -276,7 +276,11 @@ fn an_adc_conversion_given_up_fails_the_calibration_step() {
     };
     let step = judge::adc_calibration(&restarted);
     assert_eq!(step.outcome, Outcome::Fail);
-    assert!(step.seen.contains("1 conversion(s) given up"), "{}", step.seen);
+    assert!(
+        step.seen.contains("1 conversion(s) given up"),
+        "{}",
+        step.seen
+    );
 }
 
 #[test]
