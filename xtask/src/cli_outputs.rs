@@ -65,7 +65,7 @@ const CASES: &[&str] = &[
     "--sim clear-fault",
     "--sim confirm-zero",
     "--sim self-test",
-    "--sim bringup",
+    "--sim bringup --report bringup",
     "--sim --sim-motor-leads-swapped bringup --report miswired",
     "--sim --sim-plant supply_v=28 bringup --report high",
     "--sim config get",
