@@ -20,5 +20,6 @@ pub mod lossy_path;
 pub mod measure;
 pub mod request;
 pub mod result;
+pub mod self_test;
 
 pub use error::Error;

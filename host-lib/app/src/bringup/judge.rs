@@ -9,6 +9,7 @@ use kerfmeter::protocol::{
 
 use super::HubTurn;
 use super::report::{AnsweredBy, Step, StepId};
+use crate::self_test::{self, STILL_DEG};
 
 /// The supply sense's honest tolerance, as a fraction of the reading: the divider's 1 %
 /// resistors and the ADC's gain (docs/hardware.md, bench check 4).
@@ -29,10 +30,6 @@ pub const CS_ASLEEP_MAX_MV: u16 = 120;
 pub const AGC_GOOD: (u8, u8) = (20, 220);
 /// The CORDIC magnitude band the firmware accepts (its `as5048a::MAGNITUDE_RANGE`).
 pub const MAGNITUDE_GOOD: (u16, u16) = (500, 16_000);
-
-/// Hub motion of the self-test's direction check below which the hub did not turn, degrees
-/// (the device passes the item from 1°).
-pub const STILL_DEG: f32 = 1.0;
 
 /// The longest control step a board may take, µs: "a few hundred µs at most" of its 1000 µs
 /// period (bench check 5).
@@ -306,28 +303,14 @@ pub fn self_test(r: &SelfTestReport, configured_nm: Option<f32>) -> Step {
         r.torque_per_duty_nm.value,
         configured_nm.map_or(String::new(), |c| format!(" (configured {c:.3})"))
     );
-    let failed = |i: SelfTestItem| i.outcome != TestOutcome::Pass;
-    let means: &str = if failed(r.encoder_ok_fraction) {
-        "too many of the encoder's reads were bad during the test (99 % must be good): check the \
-         AS5048A's SPI lines, its supply, and the motor leads' distance from them"
-    } else if failed(r.magnet_magnitude) {
-        "the magnet's field was out of range while the hub turned: the magnet is loose or \
-         off-centre"
-    } else if r.torque_per_duty_nm.outcome == TestOutcome::Skipped {
-        "the torque constant was not measured: the test stopped at the direction (see it)"
-    } else if failed(r.torque_per_duty_nm) && r.torque_per_duty_nm.value < 0.13 {
-        "no motor current flowed during the test pulse: the motor is disconnected, or its \
-         supply is off"
-    } else if failed(r.torque_per_duty_nm) {
-        &with_advice(
-            "the current drawn at standstill disagrees with the configured torque_per_duty_nm: \
-             check the calibration (",
-            Advice::ConfigGet,
-            "), the CS filter and the G2 variant's gain",
-        )
-    } else {
+    // The first item that did not pass, the direction aside ([`direction`] judges it).
+    let failed = self_test::items(r)
+        .into_iter()
+        .find(|&(name, item, _)| name != self_test::DIRECTION && item.outcome != TestOutcome::Pass);
+    let Some((name, item, _)) = failed else {
         return Step::pass(StepId::SelfTest, seen);
     };
+    let means = format!("{name}: {}", self_test::explain(name, item, configured_nm));
     Step::fail(StepId::SelfTest, seen, means)
 }
 

@@ -25,7 +25,7 @@ mod save;
 #[cfg(test)]
 mod tests;
 
-pub use judge::{STILL_DEG, supply_tolerance_v};
+pub use judge::supply_tolerance_v;
 pub use report::{
     AnsweredBy, BringupReport, DeviceSeen, Outcome, REPORT_FORMAT, Step, StepId, TEXT_MARKER,
 };

@@ -6,6 +6,7 @@ use std::fmt;
 use std::ops::ControlFlow;
 
 use kerfmeter::protocol::{Conditions, SelfTestItem, SelfTestReport, TestOutcome};
+use kerfmeter_app::self_test::{explain, items};
 use serde::Serialize;
 
 use kerfmeter::Progress;
@@ -58,64 +59,6 @@ impl SelfTestOutcome {
             adc_uncalibrated: false,
         }
     }
-}
-
-/// Motion of the direction check below which the hub counts as not having turned, degrees
-/// (the device passes it from 1°).
-const STILL_DEG: f32 = 1.0;
-/// A torque-constant estimate below this fraction of the configured one means no current flowed
-/// (what is left is the current sense's noise)...
-const NO_CURRENT_FRACTION: f32 = 0.15;
-/// ...or below this, N·m, when the configured one is not known (the reference build's 0.88 N·m
-/// times that fraction).
-const NO_CURRENT_NM: f32 = 0.13;
-
-/// Why the item `name` did not pass, from its value (and, for the torque constant, the
-/// configured one).
-fn explain(name: &str, item: SelfTestItem, torque_per_duty_nm: Option<f32>) -> String {
-    let value = item.value;
-    let no_current_nm = torque_per_duty_nm.map_or(NO_CURRENT_NM, |c| c * NO_CURRENT_FRACTION);
-    match (item.outcome, name) {
-        (TestOutcome::Skipped, _) => "not run: the self-test stopped before it".to_owned(),
-        (_, "encoder reads ok") => format!(
-            "only {:.0} % of the encoder's reads were good (99 % pass): check the AS5048A's \
-             wiring, power and SPI lines",
-            value * 100.0
-        ),
-        (_, "magnet magnitude") => format!(
-            "the magnet's field ({value:.0}) is missing or at the edge of the encoder's range: \
-             check that the magnet is fitted, centred over the chip and at the right distance"
-        ),
-        (_, "direction") if value <= -STILL_DEG => format!(
-            "the hub turned the wrong way ({value:.1}°) under a clockwise torque: set \
-             motor_inverted (or encoder_inverted, if the encoder counts the wrong way)"
-        ),
-        (_, "direction") => format!(
-            "the hub did not turn ({value:.2}°) under a clockwise torque: the motor is \
-             disconnected, its supply is off, or the hub is jammed"
-        ),
-        (_, "torque constant") if value < no_current_nm => format!(
-            "no motor current flowed during the test pulse ({value:.3} N·m per duty): the motor \
-             is disconnected or its supply is off"
-        ),
-        _ => format!(
-            "the current drawn at standstill gives {value:.3} N·m per duty, more than 30 % off \
-             the configured torque_per_duty_nm{}: check the calibration (torque_per_duty_nm, \
-             torque_per_amp_nm), the current-sense filter and gain, and the winding's \
-             temperature",
-            torque_per_duty_nm.map_or(String::new(), |c| format!(" ({c:.3})"))
-        ),
-    }
-}
-
-/// Each item with its name and unit, in the order printed.
-fn items(r: &SelfTestReport) -> [(&'static str, SelfTestItem, &'static str); 4] {
-    [
-        ("encoder reads ok", r.encoder_ok_fraction, ""),
-        ("magnet magnitude", r.magnet_magnitude, ""),
-        ("direction", r.direction_deg, "°"),
-        ("torque constant", r.torque_per_duty_nm, " N·m"),
-    ]
 }
 
 /// Run the device's self-test.
