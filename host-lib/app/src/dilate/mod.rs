@@ -20,7 +20,7 @@ use kerfmeter_plan::rules::CutRules;
 
 pub use file::{DilateFileRequest, dilate_file, plan_output_format};
 pub use report::{DilateReport, plural, write_compensation};
-pub use text::{DilateTextAnswer, DilateTextRequest, KerfGiven, dilate_text};
+pub use text::{DilateTextAnswer, DilateTextRequest, KerfGiven, dilate_text, plan_bytes};
 
 use crate::Error;
 

@@ -107,28 +107,7 @@ pub struct PlanReport {
 impl DilateTextRequest {
     /// The plan's bytes, checked: `plan` or `plan_base64`, exactly one, not empty.
     pub fn plan_bytes(&self) -> Result<Vec<u8>, BadParam> {
-        let bytes = match (&self.plan, &self.plan_base64) {
-            (Some(text), None) => text.clone().into_bytes(),
-            (None, Some(b64)) => BASE64
-                .decode(b64.trim())
-                .map_err(|e| BadParam::named("plan_base64", format!("not base64: {e}")))?,
-            (Some(_), Some(_)) => {
-                return Err(BadParam::named(
-                    "plan",
-                    "give `plan` or `plan_base64`, not both",
-                ));
-            }
-            (None, None) => {
-                return Err(BadParam::named(
-                    "plan",
-                    "missing: the plan's text (or `plan_base64`)",
-                ));
-            }
-        };
-        if bytes.iter().all(u8::is_ascii_whitespace) {
-            return Err(BadParam::named("plan", "empty: there is no drawing in it"));
-        }
-        Ok(bytes)
+        plan_bytes(self.plan.as_deref(), self.plan_base64.as_deref())
     }
 
     /// The dilation by `kerf_um` (the `kerf_um` given, or the device's last), its units checked.
@@ -178,4 +157,31 @@ pub fn dilate_text(
         content,
         content_base64,
     })
+}
+
+/// A plan sent as text: `plan` (its text) or `plan_base64` (its bytes, a binary DXF), exactly
+/// one, not empty. The server's `dilate` and `job` take a plan so.
+pub fn plan_bytes(plan: Option<&str>, plan_base64: Option<&str>) -> Result<Vec<u8>, BadParam> {
+    let bytes = match (plan, plan_base64) {
+        (Some(text), None) => text.as_bytes().to_vec(),
+        (None, Some(b64)) => BASE64
+            .decode(b64.trim())
+            .map_err(|e| BadParam::named("plan_base64", format!("not base64: {e}")))?,
+        (Some(_), Some(_)) => {
+            return Err(BadParam::named(
+                "plan",
+                "give `plan` or `plan_base64`, not both",
+            ));
+        }
+        (None, None) => {
+            return Err(BadParam::named(
+                "plan",
+                "missing: the plan's text (or `plan_base64`)",
+            ));
+        }
+    };
+    if bytes.iter().all(u8::is_ascii_whitespace) {
+        return Err(BadParam::named("plan", "empty: there is no drawing in it"));
+    }
+    Ok(bytes)
 }

@@ -59,31 +59,10 @@ async fn last_kerf_um(device: &Device, by: Caller) -> Result<f64, RpcError> {
     })
 }
 
-/// The plan: `plan` (text) or `plan_base64`, exactly one.
+/// The plan: `plan` (text) or `plan_base64`, exactly one, not empty.
 pub(super) fn plan_bytes(p: &mut Params) -> Result<Vec<u8>, RpcError> {
-    let bytes = given_plan(p)?;
-    if bytes.iter().all(u8::is_ascii_whitespace) {
-        return Err(RpcError::param("plan", "empty: there is no drawing in it"));
-    }
-    Ok(bytes)
-}
-
-/// The plan as given, `plan` (text) or `plan_base64`.
-fn given_plan(p: &mut Params) -> Result<Vec<u8>, RpcError> {
-    match (p.string("plan")?, p.string("plan_base64")?) {
-        (Some(text), None) => Ok(text.into_bytes()),
-        (None, Some(b64)) => BASE64
-            .decode(b64.trim())
-            .map_err(|e| RpcError::param("plan_base64", format!("not base64: {e}"))),
-        (Some(_), Some(_)) => Err(RpcError::param(
-            "plan",
-            "give `plan` or `plan_base64`, not both",
-        )),
-        (None, None) => Err(RpcError::param(
-            "plan",
-            "missing: the plan's text (or `plan_base64`)",
-        )),
-    }
+    let (plan, plan_base64) = (p.string("plan")?, p.string("plan_base64")?);
+    kerfmeter_app::dilate::plan_bytes(plan.as_deref(), plan_base64.as_deref()).map_err(bad_param)
 }
 
 /// `format`: "svg" or "dxf" (required: there is no file name to tell).
