@@ -207,101 +207,92 @@ pub enum Category {
     File,
 }
 
-/// The advice of [`describe_error_code`]'s sentence for `code`.
+/// The advice of [`describe_error_code`]'s sentence for `code`, in its order.
 fn code_advice(code: ErrorCode) -> Vec<Advice> {
-    match code {
-        ErrorCode::Faulted(_) => vec![Advice::ClearFault, Advice::Reset],
-        ErrorCode::NotAtZero => vec![Advice::Reset],
-        ErrorCode::Blocked(c) => {
-            let mut advice = vec![Advice::Status];
-            if c.contains(Conditions::SUPPLY_OUT_OF_RANGE) {
-                advice.push(Advice::Status);
-            }
-            if c.contains(Conditions::HUB_TURN_UNKNOWN) {
-                advice.extend([Advice::Reset, Advice::ConfirmZero]);
-            }
-            advice
-        }
-        ErrorCode::SupplyTooLow { needed_mv, .. }
-            if f32::from(needed_mv) / 1000.0 > SUPPLY_MAX_V =>
-        {
-            vec![Advice::ConfigGet, Advice::LowerForce]
-        }
-        ErrorCode::SupplyTooLow { .. } => vec![Advice::LowerForce],
-        _ => Vec::new(),
-    }
+    advised_error_code(code).advice().collect()
 }
 
 /// A sentence for a device error code, saying what to do about it.
 pub fn describe_error_code(code: ErrorCode) -> String {
+    advised_error_code(code).to_string()
+}
+
+/// [`describe_error_code`]'s sentence, its advice kept apart from its words.
+fn advised_error_code(code: ErrorCode) -> Advised {
     match code {
         ErrorCode::UnknownRequest => {
             "its firmware does not know this request; update the firmware".into()
         }
         ErrorCode::Unsupported => "this firmware build does not implement it".into(),
         ErrorCode::Busy => "it is busy with a run, reset or self-test; wait, or abort it".into(),
-        ErrorCode::Faulted(f) => format!(
-            "a fault is latched ({}); fix the cause, then {} or {}",
-            describe_fault(f),
-            Advice::ClearFault,
-            Advice::Reset
-        ),
-        ErrorCode::InvalidParam(field) => field.out_of_range(None).to_string(),
+        ErrorCode::Faulted(f) => Advised::text(format!(
+            "a fault is latched ({}); fix the cause, then ",
+            describe_fault(f)
+        ))
+        .advise(Advice::ClearFault)
+        .then(" or ")
+        .advise(Advice::Reset),
+        ErrorCode::InvalidParam(field) => field.out_of_range(None).to_string().into(),
         ErrorCode::NoSamples => "there are no (more) samples for that run".into(),
         ErrorCode::Storage => {
             "the configuration could not be saved to flash; the old one stays in use".into()
         }
-        ErrorCode::NotAtZero => {
-            format!(
-                "the hub is not at its zero position (prongs centred in the gauge holes): run {} first",
-                Advice::Reset
-            )
-        }
-        ErrorCode::Blocked(conditions) => format!(
-            "{}. Nothing is latched: fix it and try again ({} shows the conditions)",
-            describe_conditions(conditions),
-            Advice::Status
-        ),
+        ErrorCode::NotAtZero => Advised::text(
+            "the hub is not at its zero position (prongs centred in the gauge holes): run ",
+        )
+        .advise(Advice::Reset)
+        .then(" first"),
+        ErrorCode::Blocked(conditions) => advised_conditions(conditions)
+            .then(". Nothing is latched: fix it and try again (")
+            .advise(Advice::Status)
+            .then(" shows the conditions)"),
         ErrorCode::SupplyTooLow {
             supply_mv,
             needed_mv,
-        } => describe_supply_too_low(supply_mv, needed_mv),
+        } => advised_supply_too_low(supply_mv, needed_mv),
     }
 }
 
 /// The sentence for `ErrorCode::SupplyTooLow`: the figures, and the two ways out.
-fn describe_supply_too_low(supply_mv: u16, needed_mv: u16) -> String {
+fn advised_supply_too_low(supply_mv: u16, needed_mv: u16) -> Advised {
     let (supply_v, needed_v) = (f32::from(supply_mv) / 1000.0, f32::from(needed_mv) / 1000.0);
     let raise = if needed_v <= SUPPLY_MAX_V {
-        format!("use a motor supply of at least {needed_v:.1} V (rated up to {SUPPLY_MAX_V} V)")
+        Advised::text(format!(
+            "use a motor supply of at least {needed_v:.1} V (rated up to {SUPPLY_MAX_V} V)"
+        ))
     } else {
-        format!(
-            "no supply within the rated {SUPPLY_MIN_V}–{SUPPLY_MAX_V} V can: check the torque calibration ({}, given at {REFERENCE_SUPPLY_V} V)",
-            Advice::ConfigGet
-        )
+        Advised::text(format!(
+            "no supply within the rated {SUPPLY_MIN_V}–{SUPPLY_MAX_V} V can: check the torque calibration ("
+        ))
+        .advise(Advice::ConfigGet)
+        .then(format!(", given at {REFERENCE_SUPPLY_V} V)"))
     };
-    format!(
-        "the motor supply measures {supply_v:.1} V, but the most torque this run may ask for needs {needed_v:.1} V at full duty. The motor did not move: {raise}, or measure at a lower joint force ({})",
-        Advice::LowerForce
-    )
+    Advised::text(format!(
+        "the motor supply measures {supply_v:.1} V, but the most torque this run may ask for needs {needed_v:.1} V at full duty. The motor did not move: "
+    ))
+    .append(raise)
+    .then(", or measure at a lower joint force (")
+    .advise(Advice::LowerForce)
+    .then(")")
 }
 
 /// A sentence for the idle conditions that stand, each with what to do about it.
 pub fn describe_conditions(conditions: Conditions) -> String {
-    let sentences: Vec<String> = Conditions::NAMES
+    advised_conditions(conditions).to_string()
+}
+
+/// [`describe_conditions`]'s sentence, its advice kept apart from its words.
+fn advised_conditions(conditions: Conditions) -> Advised {
+    Conditions::NAMES
         .iter()
         .filter(|(c, _)| conditions.contains(*c))
-        .map(|(c, _)| describe_condition(*c))
-        .collect();
-    if sentences.is_empty() {
-        "no condition stands".into()
-    } else {
-        sentences.join("; ")
-    }
+        .map(|(c, _)| advised_condition(*c))
+        .reduce(|sentence, one| sentence.then("; ").append(one))
+        .unwrap_or_else(|| "no condition stands".into())
 }
 
 /// A sentence for one idle condition.
-fn describe_condition(condition: Conditions) -> String {
+fn advised_condition(condition: Conditions) -> Advised {
     let plain = match condition {
         Conditions::NO_MAGNET => {
             "no magnet: the encoder sees no magnet in range; check the magnet's distance to the chip"
@@ -314,24 +305,26 @@ fn describe_condition(condition: Conditions) -> String {
             "the motor driver reports a fault (FLT low): check that the motor supply is on and above the driver's under-voltage lockout"
         }
         Conditions::SUPPLY_OUT_OF_RANGE => {
-            return format!(
-                "the motor supply is outside the rated 9–26 V, or above the motor driver's safe maximum (24 V on a G2 18v17; {} shows the supply): use a supply within that range",
-                Advice::Status
-            );
+            return Advised::text(
+                "the motor supply is outside the rated 9–26 V, or above the motor driver's safe maximum (24 V on a G2 18v17; ",
+            )
+            .advise(Advice::Status)
+            .then(" shows the supply): use a supply within that range");
         }
         Conditions::ADC_UNCALIBRATED => {
             "the chip has no ADC calibration eFuses: the current sense reads some 30–40 % high (the self-test's torque constant with it); measurements still run, their torque set from the duty"
         }
         Conditions::HUB_TURN_UNKNOWN => {
-            return format!(
-                "the encoder is on the motor shaft and, since power-up, the device cannot tell which motor turn the hub is on: lift the prongs, turn the hub to its zero mark by hand ({} first brings it to the nearest zero it knows), then run {}",
-                Advice::Reset,
-                Advice::ConfirmZero
-            );
+            return Advised::text(
+                "the encoder is on the motor shaft and, since power-up, the device cannot tell which motor turn the hub is on: lift the prongs, turn the hub to its zero mark by hand (",
+            )
+            .advise(Advice::Reset)
+            .then(" first brings it to the nearest zero it knows), then run ")
+            .advise(Advice::ConfirmZero);
         }
         _ => "an unknown condition (a newer firmware?)",
     };
-    plain.to_owned()
+    plain.into()
 }
 
 /// `text` ended as a sentence: a full stop added unless it ends in one already (or in `?`).
@@ -413,12 +406,27 @@ mod tests {
     #[test]
     fn every_condition_has_its_own_sentence() {
         for (condition, name) in Conditions::NAMES {
-            let sentence = describe_condition(condition);
+            let sentence = advised_condition(condition).to_string();
             assert!(!sentence.contains("unknown"), "{name}: {sentence}");
         }
         let supply = describe_conditions(Conditions::SUPPLY_OUT_OF_RANGE);
         assert!(supply.contains("9–26 V"), "{supply}");
         let blocked = describe_error_code(ErrorCode::Blocked(Conditions::SUPPLY_OUT_OF_RANGE));
         assert!(blocked.contains("motor supply is outside"), "{blocked}");
+        // The advice of a refusal is the advice its sentence gives, in its order.
+        let both = Conditions::SUPPLY_OUT_OF_RANGE.union(Conditions::HUB_TURN_UNKNOWN);
+        let refused = Error::Device {
+            request: "run",
+            code: ErrorCode::Blocked(both),
+        };
+        assert_eq!(
+            refused.advice(),
+            [
+                Advice::Status,
+                Advice::Reset,
+                Advice::ConfirmZero,
+                Advice::Status
+            ]
+        );
     }
 }
