@@ -13,6 +13,7 @@ mod cli_outputs;
 mod deps;
 mod firmware;
 mod fuzz;
+mod postgres;
 mod python;
 mod recompensation;
 mod tools;
@@ -35,7 +36,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// The whole check suite, as CI runs it: formatting, clippy (host and firmware targets), all
-    /// host tests, the Python package's tests, the web page in headless Chromium and the
+    /// host tests, the history against a real PostgreSQL, the Python package's tests, the web page in headless Chromium and the
     /// README's WebSocket clients, a short robustness sweep, docs, the firmware
     /// images for the C3 and C6 with their sizes, a short fuzz run.
     Test(TestArgs),
@@ -49,6 +50,13 @@ enum Cmd {
     /// and chromium-driver, installed when missing) and the WebSocket clients of docs/server.md, against
     /// `kerfmeter --sim serve`.
     TestBrowser,
+    /// The history step of `test` alone: `kerfmeter-history` with its PostgreSQL back end,
+    /// clippy and its tests against a PostgreSQL server started for them (Debian's, installed
+    /// when missing) in a temporary folder on a loopback port, stopped afterwards.
+    TestHistoryPg,
+    /// Write throughput and the time to list the newest 100 of many records, on SQLite and on a
+    /// PostgreSQL server of its own. A benchmark: not part of `test`.
+    BenchHistory(BenchHistoryArgs),
     /// Build the firmware image for a chip (release) and print its flash and RAM use.
     Firmware(firmware::FirmwareArgs),
     /// Draw the ESP32-C3 board's wiring (docs/wiring.svg) from the firmware's pin table;
@@ -112,6 +120,13 @@ struct BenchRttArgs {
     /// Round trips to time.
     #[arg(long, default_value_t = 2000)]
     calls: u32,
+}
+
+#[derive(clap::Args)]
+struct BenchHistoryArgs {
+    /// Records in the history the listing is timed on.
+    #[arg(long, default_value_t = 100_000)]
+    records: u32,
 }
 
 #[derive(clap::Args)]
@@ -205,6 +220,8 @@ fn main() -> Result<()> {
         Cmd::TestPython => python::test_package(),
         Cmd::CheckDeps => deps::check_libraries(),
         Cmd::TestBrowser => browser::test_web(),
+        Cmd::TestHistoryPg => postgres::test_history(),
+        Cmd::BenchHistory(args) => postgres::bench_history(args.records),
         Cmd::Firmware(args) => firmware::run(&args),
         Cmd::Wiring(args) => wiring::run(&args),
         Cmd::Flash(args) => firmware::flash(&args),
@@ -471,6 +488,12 @@ fn test(args: &TestArgs) -> Result<()> {
                         .env_remove("KERFMETER_PORT"),
                 )
             }),
+        ),
+        (
+            // Debian's PostgreSQL, installed when missing, started in a temporary folder as an
+            // unprivileged user and stopped afterwards (xtask/src/postgres.rs).
+            "history against PostgreSQL",
+            Box::new(postgres::test_history),
         ),
         (
             "recompensation against boxes.py's own plans",

@@ -35,6 +35,16 @@ pub enum Error {
         /// What SQLite said.
         source: rusqlite::Error,
     },
+    /// The PostgreSQL server failed or could not be reached (refused, authentication, a lost
+    /// connection, ...).
+    #[cfg(feature = "postgres")]
+    #[error("{url}: history database: {source}")]
+    Postgres {
+        /// The server's URL, without its password.
+        url: String,
+        /// What the client said.
+        source: postgres::Error,
+    },
     /// The database's folder could not be made.
     #[error("{}: cannot create the history's folder: {source}", path.display())]
     Folder {

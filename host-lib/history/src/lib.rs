@@ -45,6 +45,8 @@
 //!   asked for.
 //! - Drift: see [`drift`] for the rule and why.
 
+#[cfg(feature = "postgres")]
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -53,6 +55,8 @@ use serde::Serialize;
 
 pub mod drift;
 mod error;
+#[cfg(feature = "postgres")]
+mod postgres;
 mod schema;
 
 pub use drift::Drift;
@@ -123,10 +127,23 @@ fn folder_of(path: &Path) -> Option<&Path> {
     path.parent().filter(|d| !d.as_os_str().is_empty())
 }
 
+/// Where a history is kept: the back end behind [`History`]'s methods.
+#[derive(Debug)]
+enum Store {
+    /// An SQLite file (the embedded default, one machine's history).
+    Sqlite(Connection),
+    /// A PostgreSQL server (a site's shared history): its client needs `&mut` to query, and a
+    /// listing only reads, so it is borrowed per call (a [`History`] is used by one thread at a
+    /// time, as rusqlite's connection is).
+    #[cfg(feature = "postgres")]
+    Postgres(Box<RefCell<postgres::Postgres>>),
+}
+
 /// An open history database.
 #[derive(Debug)]
 pub struct History {
-    conn: Connection,
+    conn: Store,
+    /// The SQLite file, or the PostgreSQL URL without its password.
     path: PathBuf,
     /// Opened by [`History::open_to_read`]: [`History::record`] is refused.
     read_only: bool,
@@ -153,6 +170,11 @@ pub fn check_label(label: &str) -> Result<(), Error> {
     Ok(())
 }
 
+// Each method matches on the back end; without the `postgres` feature there is one.
+#[cfg_attr(
+    not(feature = "postgres"),
+    allow(clippy::infallible_destructuring_match)
+)]
 impl History {
     /// The default database: `kerfmeter/history.sqlite3` in the user's data directory.
     pub fn default_path() -> Result<PathBuf, Error> {
@@ -201,7 +223,7 @@ impl History {
             .map_err(sql)?;
         schema::migrate(&mut conn, path)?;
         Ok(History {
-            conn,
+            conn: Store::Sqlite(conn),
             path: path.to_owned(),
             read_only: false,
         })
@@ -250,13 +272,33 @@ impl History {
             Err(e) => return Err(e),
         };
         Ok(History {
-            conn,
+            conn: Store::Sqlite(conn),
             path: path.to_owned(),
             read_only: true,
         })
     }
 
-    /// The database's file.
+    /// Connect to a site's shared history on the PostgreSQL server `url` names
+    /// (`postgres://USER[:PASSWORD]@HOST[:PORT]/DB`), and bring its schema up to date (or refuse
+    /// a newer or foreign one untouched, as [`History::open`] does). The same methods, records
+    /// and rules as an SQLite file; see the `postgres` module's docs for what differs.
+    #[cfg(feature = "postgres")]
+    pub fn connect(url: &str) -> Result<History, Error> {
+        let db = postgres::Postgres::connect(url)?;
+        Ok(History {
+            path: PathBuf::from(db.shown()),
+            conn: Store::Postgres(Box::new(RefCell::new(db))),
+            read_only: false,
+        })
+    }
+
+    /// Whether `location` names a PostgreSQL server (`postgres://` or `postgresql://`) rather
+    /// than an SQLite file.
+    pub fn is_url(location: &str) -> bool {
+        location.starts_with("postgres://") || location.starts_with("postgresql://")
+    }
+
+    /// The database's file (for a PostgreSQL history, its URL without the password).
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -278,12 +320,14 @@ impl History {
             .round(jiff::Unit::Millisecond)
             .map_err(|e| Error::Invalid(format!("the clock: {e}")))?
             .to_string();
+        let conn = match &mut self.conn {
+            Store::Sqlite(conn) => conn,
+            #[cfg(feature = "postgres")]
+            Store::Postgres(db) => return db.get_mut().record(record, &time),
+        };
         let flags = serde_json::to_string(&record.flags).expect("strings serialize");
         let path = &self.path;
-        let tx = self
-            .conn
-            .transaction()
-            .map_err(|e| Error::sqlite(path, e))?;
+        let tx = conn.transaction().map_err(|e| Error::sqlite(path, e))?;
         tx.execute(
             "INSERT INTO measurements (time, device_id, firmware, label, thickness_mm, force_n,
                  kerf_um, ci95_um, flags, simulated)
@@ -312,8 +356,12 @@ impl History {
         let limit = query
             .limit
             .map_or(-1, |n| i64::try_from(n).unwrap_or(i64::MAX));
-        let mut stmt = self
-            .conn
+        let conn = match &self.conn {
+            Store::Sqlite(conn) => conn,
+            #[cfg(feature = "postgres")]
+            Store::Postgres(db) => return db.borrow_mut().list(query),
+        };
+        let mut stmt = conn
             .prepare_cached(&format!(
                 "SELECT {COLUMNS} FROM measurements
                  WHERE simulated = ?1 AND (?2 IS NULL OR label = ?2)
@@ -328,14 +376,18 @@ impl History {
 
     /// One record by its id.
     pub fn get(&self, id: i64) -> Result<Option<Record>, Error> {
-        self.conn
-            .query_row(
-                &format!("SELECT {COLUMNS} FROM measurements WHERE id = ?1"),
-                [id],
-                read_record,
-            )
-            .optional()
-            .map_err(|e| self.sql(e))
+        let conn = match &self.conn {
+            Store::Sqlite(conn) => conn,
+            #[cfg(feature = "postgres")]
+            Store::Postgres(db) => return db.borrow_mut().get(id),
+        };
+        conn.query_row(
+            &format!("SELECT {COLUMNS} FROM measurements WHERE id = ?1"),
+            [id],
+            read_record,
+        )
+        .optional()
+        .map_err(|e| self.sql(e))
     }
 
     /// The records and the drift of each listed label's newest measurement.
@@ -394,8 +446,15 @@ impl History {
         if !trusted(m) {
             return Ok(None);
         }
-        let mut stmt = self
-            .conn
+        let conn = match &self.conn {
+            Store::Sqlite(conn) => conn,
+            #[cfg(feature = "postgres")]
+            Store::Postgres(db) => {
+                let baseline = db.borrow_mut().baseline(record, label)?;
+                return Ok(drift::drift(label, m.kerf_um, &baseline));
+            }
+        };
+        let mut stmt = conn
             .prepare_cached(&format!(
                 "SELECT {COLUMNS} FROM measurements
                  WHERE simulated = ?1 AND label = ?2 AND id < ?3
@@ -425,7 +484,7 @@ impl History {
 
 /// Whether a record is trusted: flagged with nothing but advisory flags
 /// ([`QualityFlags::ADVISORY`](kerfmeter_protocol::QualityFlags::ADVISORY)).
-fn trusted(record: &NewRecord) -> bool {
+pub(crate) fn trusted(record: &NewRecord) -> bool {
     record
         .flags
         .iter()
@@ -433,7 +492,7 @@ fn trusted(record: &NewRecord) -> bool {
 }
 
 /// The columns [`read_record`] reads, in its order.
-const COLUMNS: &str = "id, time, device_id, firmware, label, thickness_mm, force_n, kerf_um, \
+pub(crate) const COLUMNS: &str = "id, time, device_id, firmware, label, thickness_mm, force_n, kerf_um, \
                        ci95_um, flags, simulated";
 
 fn read_record(row: &Row<'_>) -> rusqlite::Result<Record> {
