@@ -61,7 +61,14 @@ impl Server {
         let stamp = SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .map_or(0, |d| d.as_nanos());
-        let dir = std::env::temp_dir().join(format!("kerfmeter-pg-{}-{stamp}", std::process::id()));
+        // The server's user must reach the folder: as root, /tmp (open to all) rather than a
+        // TMPDIR that may be root's own.
+        let base = if user.is_some() {
+            PathBuf::from("/tmp")
+        } else {
+            std::env::temp_dir()
+        };
+        let dir = base.join(format!("kerfmeter-pg-{}-{stamp}", std::process::id()));
         std::fs::create_dir(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
         let port = free_port()?;
         let url = format!("postgres://{ROLE}@127.0.0.1:{port}/{DATABASE}");

@@ -1,5 +1,8 @@
-//! The Kerfmeter's measurement history: every kerf measured, kept in an SQLite file, listed
-//! newest first, with a drift warning when a label's kerf moves beyond its usual spread.
+//! The Kerfmeter's measurement history: every kerf measured, kept in an SQLite file (one
+//! machine's history, the default) or, with the `postgres` feature, on a PostgreSQL server (a
+//! site's shared history, [`History::connect`]), listed newest first, with a drift warning when
+//! a label's kerf moves beyond its usual spread. Both back ends hold the same records with the
+//! same meaning behind the same methods.
 //!
 //! ```no_run
 //! use kerfmeter_history::{History, NewRecord, Query};
@@ -44,6 +47,25 @@
 //!   twin's results never shift a real label's baseline, nor appear among real results unless
 //!   asked for.
 //! - Drift: see [`drift`] for the rule and why.
+//!
+//! # PostgreSQL (feature `postgres`)
+//!
+//! - The client: `postgres`, the synchronous client of the rust-postgres project, the most used
+//!   and maintained pure-Rust PostgreSQL client (no libpq to install). Its blocking API matches
+//!   rusqlite's, so one blocking [`History`] serves both back ends and the app layer does not
+//!   change its calls. It drives `tokio-postgres` on a private current-thread runtime: hence a
+//!   feature, off by default, so that a program embedding only the SQLite history builds no
+//!   async runtime. An async client (`tokio-postgres` itself, `sqlx`) would force one on every
+//!   caller for a few writes a minute. No TLS yet.
+//! - Writes: one transaction each, as in SQLite; the server's own durability (`fsync`,
+//!   `synchronous_commit`) says when a commit is on disk.
+//! - Versions: the one row of the table `kerfmeter_schema` (PostgreSQL has no `user_version`),
+//!   migrated in one transaction under an advisory lock, so that a site's PCs opening a new
+//!   database at once create it once; a newer database, or one holding a `measurements` table
+//!   without a version, is refused before anything is written.
+//! - Order: ids come from an identity column, increasing in the order records are inserted
+//!   (two PCs committing at the same instant may commit in the other order).
+//! - Names: [`History::path`] is the server's URL without its password, and errors name it so.
 
 #[cfg(feature = "postgres")]
 use std::cell::RefCell;

@@ -5,12 +5,8 @@
 //! write, records listed newest first by id, the simulated ones apart, the drift rule of
 //! [`crate::drift`]. What differs is only where it lives:
 //!
-//! - The client is `postgres`, the synchronous client of the rust-postgres project (the most used
-//!   and maintained pure-Rust PostgreSQL client). Its blocking API matches rusqlite's, so the
-//!   history keeps one blocking API for both back ends; it drives `tokio-postgres` on a private
-//!   current-thread runtime, which is why the back end is a feature, off by default (a program
-//!   embedding only the SQLite history builds no async runtime). No TLS yet: a site's server on
-//!   its own network, or a tunnel.
+//! - The client is `postgres` (why: see the crate's docs); no TLS yet: a site's server on its
+//!   own network, or a tunnel.
 //! - The schema's version is the one row of the table `kerfmeter_schema` (PostgreSQL has no
 //!   `user_version`); [`MIGRATIONS`]`[i]` takes it from `i` to `i + 1`, all missing ones applied
 //!   in one transaction under an advisory lock, so that the PCs of a site opening a new database
@@ -18,8 +14,9 @@
 //!   written ([`Error::NewerSchema`]); a database that holds a `measurements` table but no
 //!   version is not a Kerfmeter history ([`Error::Foreign`]).
 //! - Ids come from an identity column: increasing in the order records are inserted; two PCs
-//!   committing at the same instant may commit in the other order, which, like SQLite's rowid,
-//!   the listing does not try to hide.
+//!   committing at the same instant may commit in the other order (SQLite's writers take turns,
+//!   so there the id order is the commit order). The listing stays by id: the newest records a
+//!   site inserted, never reordered by a PC's clock.
 //! - Times are kept as the same RFC 3339 text as in SQLite, so that a record reads back exactly
 //!   as it was written, whichever back end holds it.
 
