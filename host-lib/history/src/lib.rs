@@ -1,6 +1,6 @@
 //! The Kerfmeter's measurement history: every kerf measured, kept in an SQLite file (one
 //! machine's history, the default) or, with the `postgres` feature, on a PostgreSQL server (a
-//! site's shared history, [`History::connect`]), listed newest first, with a drift warning when
+//! site's shared history, `History::connect`), listed newest first, with a drift warning when
 //! a label's kerf moves beyond its usual spread. Both back ends hold the same records with the
 //! same meaning behind the same methods.
 //!
