@@ -242,8 +242,8 @@ fn free_port() -> Result<u16> {
     Ok(listener.local_addr()?.port())
 }
 
-/// The history crate with its PostgreSQL back end: clippy, then its tests against a server of
-/// their own (the PostgreSQL tests fail without one, never skip).
+/// The history crate with its PostgreSQL back end: clippy and its docs, then its tests against a
+/// server of their own (the PostgreSQL tests fail without one, never skip).
 pub fn test_history() -> Result<()> {
     run_cmd(cargo().args([
         "clippy",
@@ -256,6 +256,19 @@ pub fn test_history() -> Result<()> {
         "-D",
         "warnings",
     ]))?;
+    // The back end's docs, which the workspace's docs step (without the feature) does not build.
+    run_cmd(
+        cargo()
+            .args([
+                "doc",
+                "-p",
+                "kerfmeter-history",
+                "--features",
+                "postgres",
+                "--no-deps",
+            ])
+            .env("RUSTDOCFLAGS", "-D warnings"),
+    )?;
     // Built before the server starts, so that it runs only for the tests.
     run_cmd(cargo().args([
         "test",
