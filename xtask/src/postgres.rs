@@ -25,6 +25,9 @@ use crate::{cargo, run_cmd};
 /// The environment variable that gives the tests the server's URL; the history's PostgreSQL
 /// tests fail when it is missing.
 pub const URL_VAR: &str = "KERFMETER_TEST_PG_URL";
+/// The environment variable that gives the restart test the server's `pg_ctl` command line, one
+/// argument a line, to which it adds `stop` or `start`.
+pub const CTL_VAR: &str = "KERFMETER_TEST_PG_CTL";
 /// The folder Debian installs each PostgreSQL version's programs under.
 const DEBIAN_LIB: &str = "/usr/lib/postgresql";
 /// The role and database the tests use.
@@ -97,20 +100,20 @@ impl Server {
             "--no-sync",
         ]))
         .context("initdb failed")?;
-        let options = format!(
-            "-c listen_addresses=127.0.0.1 -p {port} -c unix_socket_directories={}",
+        // In its configuration rather than on pg_ctl's command line, so that a test that stops
+        // and starts it again ([`CTL_VAR`]) starts the same server.
+        let settings = format!(
+            "\n# cargo xtask: loopback only, its socket in its own folder\n\
+             listen_addresses = '127.0.0.1'\nport = {port}\nunix_socket_directories = '{}'\n",
             server.dir.display()
         );
-        run_cmd(
-            server
-                .as_server_user("pg_ctl")
-                .arg("-D")
-                .arg(&data)
-                .arg("-l")
-                .arg(server.dir.join("server.log"))
-                .args(["-o", &options, "-w", "-t", "60", "start"]),
-        )
-        .with_context(|| server.log_tail("the server did not start"))?;
+        std::fs::OpenOptions::new()
+            .append(true)
+            .open(data.join("postgresql.conf"))
+            .and_then(|mut f| std::io::Write::write_all(&mut f, settings.as_bytes()))
+            .context("cannot configure the test server")?;
+        run_cmd(server.pg_ctl().args(["-w", "-t", "60", "start"]))
+            .with_context(|| server.log_tail("the server did not start"))?;
         run_cmd(
             Command::new(server.bin.join("createdb"))
                 .args([
@@ -141,6 +144,26 @@ impl Server {
         }
     }
 
+    /// `pg_ctl` on this server's cluster, logging to its log, as the server's user.
+    fn pg_ctl(&self) -> Command {
+        let mut cmd = self.as_server_user("pg_ctl");
+        cmd.arg("-D")
+            .arg(self.dir.join("data"))
+            .arg("-l")
+            .arg(self.dir.join("server.log"));
+        cmd
+    }
+
+    /// The `pg_ctl` command line ([`Server::pg_ctl`]) as [`CTL_VAR`] gives it: one argument a line.
+    pub fn ctl_var(&self) -> String {
+        let cmd = self.pg_ctl();
+        std::iter::once(cmd.get_program())
+            .chain(cmd.get_args())
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect::<Vec<_>>()
+            .join("\n")
+    }
+
     /// `what`, with the end of the server's log.
     fn log_tail(&self, what: &str) -> String {
         let log = std::fs::read_to_string(self.dir.join("server.log")).unwrap_or_default();
@@ -154,12 +177,7 @@ impl Drop for Server {
     fn drop(&mut self) {
         let data = self.dir.join("data");
         if data.join("postmaster.pid").exists() {
-            let stopped = self
-                .as_server_user("pg_ctl")
-                .arg("-D")
-                .arg(&data)
-                .args(["-m", "fast", "-w", "stop"])
-                .status();
+            let stopped = self.pg_ctl().args(["-m", "fast", "-w", "stop"]).status();
             if !stopped.is_ok_and(|s| s.success()) {
                 eprintln!(
                     "warning: could not stop the test PostgreSQL in {}",
@@ -283,6 +301,15 @@ pub fn test_history() -> Result<()> {
         cargo()
             .args(["test", "-p", "kerfmeter-history", "--features", "postgres"])
             .env(URL_VAR, &server.url),
+    )?;
+    // Alone, after the others: it stops the server they use.
+    run_cmd(
+        cargo()
+            .args(["test", "-p", "kerfmeter-history", "--features", "postgres"])
+            .args(["--test", "backends", "--", "--ignored", "--exact"])
+            .arg("postgres::the_server_stopped_and_started_again_keeps_every_record_once")
+            .env(URL_VAR, &server.url)
+            .env(CTL_VAR, server.ctl_var()),
     )
 }
 

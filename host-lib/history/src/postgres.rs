@@ -60,6 +60,9 @@ const COLUMNS: &str = crate::COLUMNS;
 /// A connection to a history on a PostgreSQL server.
 pub(crate) struct Postgres {
     client: Client,
+    /// What connected it: a connection the server closed (a restart, a network cut) is made
+    /// again before the next call.
+    config: postgres::Config,
     /// The URL without its password: what messages name.
     shown: String,
 }
@@ -108,7 +111,11 @@ impl Postgres {
             url: shown.clone(),
             source,
         })?;
-        let mut db = Postgres { client, shown };
+        let mut db = Postgres {
+            client,
+            config,
+            shown,
+        };
         db.migrate()?;
         Ok(db)
     }
@@ -116,6 +123,22 @@ impl Postgres {
     /// The URL without its password.
     pub(crate) fn shown(&self) -> &str {
         &self.shown
+    }
+
+    /// The connection, made again first when the server closed it. Only a closed connection is
+    /// made again, before a call: a call that failed is never sent twice (had its commit reached
+    /// the server, a second one would record it twice), its error goes to the caller.
+    fn client(&mut self) -> Result<&mut Client, Error> {
+        if self.client.is_closed() {
+            self.client = self
+                .config
+                .connect(NoTls)
+                .map_err(|source| Error::Postgres {
+                    url: self.shown.clone(),
+                    source,
+                })?;
+        }
+        Ok(&mut self.client)
     }
 
     fn err(&self, source: postgres::Error) -> Error {
@@ -190,7 +213,7 @@ impl Postgres {
             url: shown.clone(),
             source,
         };
-        let mut tx = self.client.transaction().map_err(err)?;
+        let mut tx = self.client()?.transaction().map_err(err)?;
         let row = tx
             .query_one(
                 "INSERT INTO measurements (time, device_id, firmware, label, thickness_mm, force_n,
@@ -219,7 +242,7 @@ impl Postgres {
     pub(crate) fn list(&mut self, query: &Query) -> Result<Vec<Record>, Error> {
         let limit = query.limit.map(|n| i64::try_from(n).unwrap_or(i64::MAX));
         let rows = self
-            .client
+            .client()?
             .query(
                 &format!(
                     "SELECT {COLUMNS} FROM measurements
@@ -235,7 +258,7 @@ impl Postgres {
     /// One record by its id.
     pub(crate) fn get(&mut self, id: i64) -> Result<Option<Record>, Error> {
         let row = self
-            .client
+            .client()?
             .query_opt(
                 &format!("SELECT {COLUMNS} FROM measurements WHERE id = $1"),
                 &[&id],
@@ -254,7 +277,7 @@ impl Postgres {
         let mut before = record.id;
         loop {
             let rows = self
-                .client
+                .client()?
                 .query(
                     &format!(
                         "SELECT {COLUMNS} FROM measurements
