@@ -5,9 +5,10 @@ use std::path::{Path, PathBuf};
 /// A history error.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// The database was written by a newer kerfmeter; it is left untouched.
+    /// The database was written by a newer kerfmeter; it is left untouched. (`path` is the
+    /// SQLite file, or the PostgreSQL server's URL without its password.)
     #[error(
-        "{}: the history database has schema version {found}, but this kerfmeter knows versions up to {known}: it was written by a newer kerfmeter. Upgrade kerfmeter to read it, or give another file with --db (the database was left untouched)",
+        "{}: the history database has schema version {found}, but this kerfmeter knows versions up to {known}: it was written by a newer kerfmeter. Upgrade kerfmeter to read it, or give another history with --db (the database was left untouched)",
         path.display()
     )]
     NewerSchema {
@@ -18,9 +19,10 @@ pub enum Error {
         /// The newest version this build knows.
         known: i64,
     },
-    /// The file is an SQLite database of something else.
+    /// The database (an SQLite file, or a PostgreSQL database holding a `measurements` table)
+    /// is one of something else.
     #[error(
-        "{}: this SQLite database is not a kerfmeter history (it has tables but no history schema); give another file with --db (it was left untouched)",
+        "{}: this database is not a kerfmeter history (it has tables but no history schema); give another history with --db (it was left untouched)",
         path.display()
     )]
     Foreign {
